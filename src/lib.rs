@@ -1,0 +1,15 @@
+//! spherecal core: decoding, alignment, georeferencing and calibration of a mobile LiDAR rig
+//! (Velodyne VLP-16 + VectorNav VN-200 or Applanix POS MV).
+//!
+//! `#![no_std]`, no heap, no I/O, no clocks: every function here is pure logic over borrowed
+//! bytes and fixed-capacity buffers, and no input makes it panic. See `../shared/DESIGN.md`
+//! (layout, data flow, normative conventions) and `../shared/PROTOCOLS.md` (wire formats).
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod time;
+pub mod vlp16;

@@ -1,0 +1,313 @@
+//! Firing times, azimuth interpolation and the point in the sensor frame.
+//!
+//! Manual appendix B (timing) and section 9.5 (azimuth interpolation), in the corrected form of
+//! `../shared/PROTOCOLS.md`:
+//! - a firing takes 2.304 us, a 16-laser sequence 55.296 us, a block two sequences (110.592 us);
+//! - single return: offset(b, s, l) = 110.592 b + 55.296 s + 2.304 l us;
+//!   dual return: offset = 110.592 floor(b/2) + 55.296 s + 2.304 l (blocks in pairs);
+//! - azimuth of a firing: A_b + gap_b (55.296 s + 2.304 l) / 110.592 with
+//!   gap_b = (A_{b+1} - A_b) mod 36000 (next pair in dual mode; the last reuses the previous);
+//! - point (DESIGN.md, eq. 1 plus the beam-origin offset): x = d cos w sin t, y = d cos w cos t,
+//!   z = d sin w + v_l, x right, y forward, z up, t clockwise from +y.
+//!
+//! No trig per point: cos w and sin w come from a table, sin t and cos t from one `sincosf` per
+//! block rotated by the small in-block increment (a 5th-order series, exact to 1e-11 rad for
+//! any real rotation rate).
+
+use super::data::field::{BLOCKS, CHANNELS};
+use super::{DataPacket, Error, ReturnMode, COS_ELEVATION, LASERS, SIN_ELEVATION, VERTICAL_OFFSET_M};
+
+/// Points a data packet can hold (12 blocks x 32 channels).
+pub const POINTS_PER_PACKET: usize = BLOCKS * CHANNELS;
+
+/// Duration of one laser firing, nanoseconds (manual appendix B).
+pub const FIRING_NS: u32 = 2_304;
+/// Duration of one 16-laser firing sequence, nanoseconds.
+pub const SEQUENCE_NS: u32 = 55_296;
+/// Duration of one block (two sequences), nanoseconds.
+pub const BLOCK_NS: u32 = 110_592;
+
+/// Which return a point is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Return {
+    /// Single-return mode, strongest.
+    #[default]
+    Strongest,
+    /// Single-return mode, last.
+    Last,
+    /// Dual-return mode, the odd block: strongest (second strongest when the last is also the
+    /// strongest).
+    DualStrongest,
+    /// Dual-return mode, the even block: last.
+    DualLast,
+}
+
+impl Return {
+    /// The name used in CSV output.
+    pub fn name(self) -> &'static str {
+        match self {
+            Return::Strongest => "strongest",
+            Return::Last => "last",
+            Return::DualStrongest => "dual_strongest",
+            Return::DualLast => "dual_last",
+        }
+    }
+
+    /// The return a block holds in a given mode.
+    pub fn of_block(mode: ReturnMode, block: usize) -> Self {
+        match mode {
+            ReturnMode::Strongest => Return::Strongest,
+            ReturnMode::Last => Return::Last,
+            ReturnMode::Dual if block % 2 == 0 => Return::DualLast,
+            ReturnMode::Dual => Return::DualStrongest,
+        }
+    }
+}
+
+/// Firing time of (block, sequence, laser) after the packet timestamp, in nanoseconds.
+#[inline]
+pub const fn firing_offset_ns(mode: ReturnMode, block: usize, sequence: usize, laser: usize) -> u32 {
+    let slot = match mode {
+        ReturnMode::Dual => (block % BLOCKS) / 2,
+        _ => block % BLOCKS,
+    };
+    slot as u32 * BLOCK_NS + (sequence % 2) as u32 * SEQUENCE_NS + (laser % LASERS) as u32 * FIRING_NS
+}
+
+/// One laser return, decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Point {
+    /// x in the sensor frame (right), metres, [manual 9.5].
+    pub x: f32,
+    /// y in the sensor frame (forward), metres.
+    pub y: f32,
+    /// z in the sensor frame (up), metres, including the laser's vertical beam-origin offset.
+    pub z: f32,
+    /// Interpolated azimuth, radians in [0, 2 pi), clockwise from +y.
+    pub azimuth: f32,
+    /// Firing time after the packet timestamp, nanoseconds.
+    pub offset_ns: u32,
+    /// Raw distance in 2 mm units (never 0 here).
+    pub distance_raw: u16,
+    /// Calibrated reflectivity.
+    pub intensity: u8,
+    /// Block 0..11.
+    pub block: u8,
+    /// Channel 0..31: firing sequence = channel / 16, laser id = channel % 16.
+    pub channel: u8,
+    /// Which return.
+    pub ret: Return,
+}
+
+impl Point {
+    /// Firing sequence 0 or 1 within the block.
+    #[inline]
+    pub fn sequence(&self) -> usize {
+        usize::from(self.channel) / LASERS
+    }
+    /// Laser id 0..15 (firing order).
+    #[inline]
+    pub fn laser(&self) -> usize {
+        usize::from(self.channel) % LASERS
+    }
+    /// Range in metres.
+    #[inline]
+    pub fn distance_m(&self) -> f32 {
+        f32::from(self.distance_raw) * 0.002
+    }
+}
+
+/// Fixed-capacity output of [`decode`]: the returns of one packet.
+#[derive(Debug, Clone)]
+pub struct PointBuf {
+    points: [Point; POINTS_PER_PACKET],
+    len: usize,
+}
+
+impl Default for PointBuf {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PointBuf {
+    /// An empty buffer.
+    pub const fn new() -> Self {
+        const ZERO: Point = Point {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            azimuth: 0.0,
+            offset_ns: 0,
+            distance_raw: 0,
+            intensity: 0,
+            block: 0,
+            channel: 0,
+            ret: Return::Strongest,
+        };
+        Self { points: [ZERO; POINTS_PER_PACKET], len: 0 }
+    }
+    /// The decoded points.
+    #[inline]
+    pub fn as_slice(&self) -> &[Point] {
+        &self.points[..self.len]
+    }
+    /// Number of points.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    /// No points.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;
+const TWO_PI: f32 = core::f32::consts::TAU;
+/// Above this block-to-block azimuth step (about 5.7 deg; a VLP-16 at 1200 rpm turns 0.4 deg per
+/// block) the small-angle series is not used and each point gets an exact sincos.
+const SERIES_MAX_GAP_RAD: f32 = 0.1;
+
+/// Azimuth step (0.01 deg) for each block, per PROTOCOLS.md: to the next block (single) or
+/// next pair (dual); the last block or pair reuses the previous step.
+fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BLOCKS] {
+    let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
+    let mut gaps = [0u16; BLOCKS];
+    let mut last = 0u16;
+    let mut b = 0;
+    while b < BLOCKS {
+        let next = b + stride;
+        let gap = if next < BLOCKS {
+            let g = (36_000 + u32::from(p.azimuth_raw(next)) - u32::from(p.azimuth_raw(b))) % 36_000;
+            last = g as u16;
+            last
+        } else {
+            last
+        };
+        for g in gaps.iter_mut().skip(b).take(stride) {
+            *g = gap;
+        }
+        b = next;
+    }
+    gaps
+}
+
+#[inline(always)]
+fn small_sincos(d: f32) -> (f32, f32) {
+    let d2 = d * d;
+    let s = d * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0)));
+    let c = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+    (s, c)
+}
+
+/// Decode every non-zero return of a data packet into `out` (cleared first); returns the count.
+///
+/// Fails, leaving `out` empty, on an unknown return mode or a block azimuth outside
+/// 0..=35999. Block flags are checked by [`DataPacket::new_checked`].
+pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Result<usize, Error> {
+    out.len = 0;
+    let mode = packet.return_mode()?;
+    for b in 0..BLOCKS {
+        let found = packet.azimuth_raw(b);
+        if found >= 36_000 {
+            return Err(Error::BadAzimuth { block: b as u8, found });
+        }
+    }
+    let gaps = azimuth_gaps(packet, mode);
+    let mut n = 0;
+    for (b, &gap_cdeg) in gaps.iter().enumerate() {
+        let a0 = f32::from(packet.azimuth_raw(b)) * CDEG_TO_RAD;
+        let (sa, ca) = libm::sincosf(a0);
+        let gap = f32::from(gap_cdeg) * CDEG_TO_RAD;
+        // Firing n = 24 s + l sits n * 2.304 / 110.592 = n / 48 of the way to the next block.
+        let step = gap * (1.0 / 48.0);
+        let exact = gap > SERIES_MAX_GAP_RAD;
+        let ret = Return::of_block(mode, b);
+        let block_base = firing_offset_ns(mode, b, 0, 0);
+        for ch in 0..CHANNELS {
+            let d = packet.distance_raw(b, ch);
+            if d == 0 {
+                continue;
+            }
+            let laser = ch % LASERS;
+            let seq = ch / LASERS;
+            let k = (seq * 24 + laser) as f32;
+            let delta = step * k;
+            let (st, ct) = if exact {
+                libm::sincosf(a0 + delta)
+            } else {
+                let (sd, cd) = small_sincos(delta);
+                (sa * cd + ca * sd, ca * cd - sa * sd)
+            };
+            let r = f32::from(d) * 0.002;
+            let rxy = r * COS_ELEVATION[laser];
+            let mut az = a0 + delta;
+            if az >= TWO_PI {
+                az -= TWO_PI;
+            }
+            if let Some(slot) = out.points.get_mut(n) {
+                *slot = Point {
+                    x: rxy * st,
+                    y: rxy * ct,
+                    z: r * SIN_ELEVATION[laser] + VERTICAL_OFFSET_M[laser],
+                    azimuth: az,
+                    offset_ns: block_base + seq as u32 * SEQUENCE_NS + laser as u32 * FIRING_NS,
+                    distance_raw: d,
+                    intensity: packet.reflectivity(b, ch),
+                    block: b as u8,
+                    channel: ch as u8,
+                    ret,
+                };
+                n += 1;
+            }
+        }
+    }
+    out.len = n;
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vlp16::data::DATA_PACKET_LEN;
+
+    #[test]
+    fn offsets_follow_the_timing_table() {
+        // Manual appendix B, single return: block 1 sequence 1 laser 15 fires at
+        // 110.592 + 55.296 + 15 * 2.304 = 200.448 us.
+        assert_eq!(firing_offset_ns(ReturnMode::Strongest, 1, 1, 15), 200_448);
+        // Last firing of the packet: 11 * 110.592 + 55.296 + 34.56 = 1306.368 us.
+        assert_eq!(firing_offset_ns(ReturnMode::Last, 11, 1, 15), 1_306_368);
+        // Dual: blocks 10 and 11 fire together, at pair 5.
+        assert_eq!(firing_offset_ns(ReturnMode::Dual, 11, 0, 0), 552_960);
+        assert_eq!(firing_offset_ns(ReturnMode::Dual, 10, 0, 0), 552_960);
+    }
+
+    #[test]
+    fn series_matches_libm() {
+        let mut d = -0.1f32;
+        while d <= 0.1 {
+            let (s, c) = small_sincos(d);
+            assert!((s - libm::sinf(d)).abs() < 1e-7 && (c - libm::cosf(d)).abs() < 1e-7, "{d}");
+            d += 0.001;
+        }
+    }
+
+    #[test]
+    fn wrong_return_mode_leaves_buffer_empty() {
+        let mut buf = [0u8; DATA_PACKET_LEN];
+        let mut p = DataPacket::new_unchecked(&mut buf[..]);
+        for b in 0..12 {
+            p.set_flag(b);
+            p.set_channel(b, 0, 100, 1);
+        }
+        p.set_product_raw(0x22);
+        buf[1204] = 0x00;
+        let p = DataPacket::new_checked(&buf[..]).unwrap();
+        let mut out = PointBuf::new();
+        assert_eq!(decode(&p, &mut out), Err(Error::UnknownReturnMode { found: 0 }));
+        assert!(out.is_empty());
+    }
+}
