@@ -1,1 +1,13 @@
+//! spherecal-hal: the I/O boundary of spherecal.
+//!
+//! Small traits for what the core consumes ([`PacketSource`]: UDP datagrams with a receive
+//! time) and their std implementations: classic pcap and pcapng files ([`pcap`]). The VLP-16
+//! classifier ([`vlp16`]) sits on any packet source and counts every skipped frame by reason.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
 
+pub mod packet;
+pub mod pcap;
+pub mod vlp16;
+
+pub use packet::{Datagram, PacketSource, Record, SkipReason};

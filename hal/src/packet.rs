@@ -1,0 +1,132 @@
+//! The packet-source trait: what a UDP socket and a capture file both deliver.
+
+use std::fmt;
+use std::net::Ipv4Addr;
+
+/// Nanoseconds since the Unix epoch on the capturing host's clock (the pcap record time, or the
+/// kernel's receive time on a socket). A clock of its own: never compare it with sensor time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct HostTime(pub i128);
+
+impl HostTime {
+    /// Seconds as a float (for printing).
+    pub fn as_secs_f64(self) -> f64 {
+        self.0 as f64 * 1e-9
+    }
+}
+
+/// One UDP/IPv4 datagram, borrowed from the source's buffer.
+#[derive(Debug, Clone, Copy)]
+pub struct Datagram<'a> {
+    /// When it was received.
+    pub time: HostTime,
+    /// Sender address.
+    pub src_addr: Ipv4Addr,
+    /// Sender port.
+    pub src_port: u16,
+    /// Destination port.
+    pub dst_port: u16,
+    /// UDP payload (from the UDP length field, bounded by the captured bytes).
+    pub payload: &'a [u8],
+    /// Byte offset of the record in its file (0 for live sockets).
+    pub offset: u64,
+}
+
+/// Why a captured frame is not handed on.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SkipReason {
+    /// The capture's link type is not one we can slice (pcap LINKTYPE_ value).
+    UnsupportedLinkType(u32),
+    /// Not an IPv4 packet carrying UDP (ARP, IPv6, TCP, ...).
+    NotIpv4Udp,
+    /// An IPv4 fragment: VLP-16 packets are never fragmented.
+    IpFragment,
+    /// Fewer bytes were captured than were on the wire (snap length).
+    TruncatedRecord {
+        /// Bytes captured.
+        captured: u32,
+        /// Bytes on the wire.
+        original: u32,
+    },
+    /// The file ends in the middle of a record.
+    TruncatedFile {
+        /// Bytes left in the file.
+        left: usize,
+    },
+    /// A UDP port that is neither the data nor the position port.
+    OtherPort(u16),
+    /// A payload whose length is not the one its port carries.
+    WrongPayloadLength {
+        /// Destination port.
+        port: u16,
+        /// Expected payload bytes.
+        expected: usize,
+        /// Bytes found.
+        got: usize,
+    },
+    /// The bytes have the right length but are not a valid VLP-16 packet.
+    Vlp16(spherecal::vlp16::Error),
+}
+
+impl SkipReason {
+    /// A short, stable name for counting.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SkipReason::UnsupportedLinkType(_) => "unsupported link type",
+            SkipReason::NotIpv4Udp => "not IPv4/UDP",
+            SkipReason::IpFragment => "IPv4 fragment",
+            SkipReason::TruncatedRecord { .. } => "truncated record",
+            SkipReason::TruncatedFile { .. } => "truncated file",
+            SkipReason::OtherPort(_) => "other port",
+            SkipReason::WrongPayloadLength { .. } => "wrong payload length",
+            SkipReason::Vlp16(e) => e.reason(),
+        }
+    }
+}
+
+impl fmt::Display for SkipReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SkipReason::UnsupportedLinkType(l) => write!(f, "unsupported link type {l}"),
+            SkipReason::NotIpv4Udp => write!(f, "not an IPv4/UDP frame"),
+            SkipReason::IpFragment => write!(f, "IPv4 fragment"),
+            SkipReason::TruncatedRecord { captured, original } => {
+                write!(f, "record truncated: {captured} of {original} bytes captured")
+            }
+            SkipReason::TruncatedFile { left } => {
+                write!(f, "file ends inside a record ({left} bytes left)")
+            }
+            SkipReason::OtherPort(p) => write!(f, "UDP port {p} is neither data nor position"),
+            SkipReason::WrongPayloadLength { port, expected, got } => {
+                write!(f, "UDP port {port}: expected a {expected}-byte payload, got {got}")
+            }
+            SkipReason::Vlp16(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// What a packet source yields: a datagram, or a frame it skipped and why.
+#[derive(Debug, Clone)]
+pub enum Record<'a> {
+    /// A UDP/IPv4 datagram.
+    Udp(Datagram<'a>),
+    /// A skipped frame: its byte offset in the file and the reason.
+    Skipped {
+        /// Byte offset of the record.
+        offset: u64,
+        /// Why.
+        reason: SkipReason,
+    },
+}
+
+/// A source of UDP datagrams: a capture file, a socket, a simulator.
+///
+/// A lending iterator: each record borrows the source's buffer until the next call.
+pub trait PacketSource {
+    /// What can stop the source for good (I/O, a corrupt file header).
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// The next record, or `None` at the end of the stream.
+    fn next_record(&mut self) -> Result<Option<Record<'_>>, Self::Error>;
+}

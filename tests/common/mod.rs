@@ -1,0 +1,26 @@
+//! Helpers shared by the end-to-end tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+/// The repository root (tests run with the crate's manifest dir as cwd).
+pub fn repo_root() -> PathBuf {
+    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    if here.join("Cargo.lock").exists() || here.join("src/lib.rs").exists() && here.join("hal").exists() {
+        here
+    } else {
+        here.parent().expect("crate dir has a parent").to_path_buf()
+    }
+}
+
+/// A file under `../shared/data`, relative to the repository root. Panics (fails the test
+/// loudly) when it is missing: these tests must never skip silently.
+pub fn shared_data(rel: &str) -> PathBuf {
+    let p = repo_root().join("..").join("shared").join("data").join(rel);
+    assert!(
+        p.exists(),
+        "missing test data {}: ../shared/data must sit beside the repository (see README)",
+        p.display()
+    );
+    p
+}

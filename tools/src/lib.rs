@@ -1,0 +1,5 @@
+//! spherecal-tools: the `spherecal` command's subcommands as library functions, so that tests
+//! and benchmarks call exactly what the command runs.
+#![forbid(unsafe_code)]
+
+pub mod decode;
