@@ -455,3 +455,85 @@ pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]),
     let payload = if udp_len >= 8 && udp_len - 8 <= after.len() { &after[..udp_len - 8] } else { after };
     Ok((h.source_addr(), udp.source_port(), udp.destination_port(), payload))
 }
+
+/// Addresses of a sensor's UDP frames (VLP-16 factory defaults: 192.168.1.201 broadcasting to
+/// 255.255.255.255, source MAC 60:76:88 Velodyne OUI).
+#[derive(Debug, Clone, Copy)]
+pub struct UdpEndpoints {
+    /// Source MAC.
+    pub src_mac: [u8; 6],
+    /// Destination MAC.
+    pub dst_mac: [u8; 6],
+    /// Source IPv4.
+    pub src_ip: [u8; 4],
+    /// Destination IPv4.
+    pub dst_ip: [u8; 4],
+}
+
+impl Default for UdpEndpoints {
+    fn default() -> Self {
+        Self {
+            src_mac: [0x60, 0x76, 0x88, 0x10, 0x20, 0x30],
+            dst_mac: [0xFF; 6],
+            src_ip: [192, 168, 1, 201],
+            dst_ip: [255, 255, 255, 255],
+        }
+    }
+}
+
+/// Build an Ethernet II / IPv4 / UDP frame around `payload` into `out` (cleared first), with
+/// correct lengths and IPv4 and UDP checksums. Fails only for a payload over 65507 bytes.
+pub fn build_udp_frame(
+    out: &mut Vec<u8>,
+    ep: &UdpEndpoints,
+    src_port: u16,
+    dst_port: u16,
+    payload: &[u8],
+) -> io::Result<()> {
+    out.clear();
+    let b = etherparse::PacketBuilder::ethernet2(ep.src_mac, ep.dst_mac)
+        .ipv4(ep.src_ip, ep.dst_ip, 64)
+        .udp(src_port, dst_port);
+    out.reserve(b.size(payload.len()));
+    b.write(out, payload).map_err(io::Error::other)
+}
+
+/// A classic pcap writer (little-endian, microsecond stamps, Ethernet), as tcpdump writes.
+pub struct PcapWriter<W: io::Write> {
+    inner: pcap_file::pcap::PcapWriter<W>,
+}
+
+impl<W: io::Write> PcapWriter<W> {
+    /// Write the global header.
+    pub fn new(w: W) -> Result<Self, PcapError> {
+        let header = pcap_file::pcap::PcapHeader {
+            version_major: 2,
+            version_minor: 4,
+            ts_correction: 0,
+            ts_accuracy: 0,
+            snaplen: 65_535,
+            datalink: DataLink::ETHERNET,
+            ts_resolution: TsResolution::MicroSecond,
+            endianness: Endianness::Little,
+        };
+        let inner = pcap_file::pcap::PcapWriter::with_header(w, header)
+            .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("writing pcap header: {e}") })?;
+        Ok(Self { inner })
+    }
+
+    /// Write one frame with its capture time.
+    pub fn write_frame(&mut self, time: HostTime, frame: &[u8]) -> Result<(), PcapError> {
+        let ns = u128::try_from(time.0.max(0)).unwrap_or(0);
+        let ts = std::time::Duration::new((ns / 1_000_000_000) as u64, (ns % 1_000_000_000) as u32);
+        let p = pcap_file::pcap::PcapPacket::new(ts, frame.len() as u32, frame);
+        self.inner
+            .write_packet(&p)
+            .map(|_| ())
+            .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("writing pcap record: {e}") })
+    }
+
+    /// The underlying writer.
+    pub fn into_inner(self) -> W {
+        self.inner.into_writer()
+    }
+}

@@ -251,3 +251,7 @@ mod tests {
         assert!((ReturnMode::Dual.packets_per_second() - 1508.0).abs() < 1.0);
     }
 }
+
+#[cfg(test)]
+#[path = "tests.rs"]
+mod tests_packets;
