@@ -75,7 +75,15 @@ mod tests {
     #[test]
     fn top_of_hour_of_the_mrpt_rmc() {
         // $GPRMC,081802.00,...,210116: 2016-01-21 08:18:02 UTC.
-        let t = UtcDateTime { year: 2016, month: 1, day: 21, hour: 8, minute: 18, second: 2, nanos: 0 };
+        let t = UtcDateTime {
+            year: 2016,
+            month: 1,
+            day: 21,
+            hour: 8,
+            minute: 18,
+            second: 2,
+            nanos: 0,
+        };
         // 2016-01-21 is day 16821 since 1970; 16821*86400 + 8*3600.
         assert_eq!(t.top_of_hour_unix_s(), 16_821 * 86_400 + 8 * 3600);
         assert_eq!(t.micros_past_hour(), 1_082_000_000);

@@ -1,0 +1,166 @@
+//! `spherecal decode` as a user runs it: summary, CSV contract, and bad files.
+
+mod common;
+
+use std::collections::HashMap;
+use std::process::Command;
+
+fn spherecal() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_spherecal"))
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("spherecal-cli-decode-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+#[test]
+fn decode_mrpt_summary_and_csv() {
+    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let csv = tmp("mrpt.csv");
+    let out = spherecal()
+        .arg("decode")
+        .arg(&pcap)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("data packets: 293 (strongest: 293)"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("position packets: 57 (PPS locked: 57)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("points: 73486"), "{stdout}");
+    assert!(
+        stdout.contains("RMC times: 57 from 2016-01-21T08:18:02.00Z"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("skipped: 0"), "{stdout}");
+
+    // The CSV against the independent decoding: same points, same raw values and times.
+    let reference =
+        std::fs::read_to_string(common::shared_data("vlp16/mrpt_vlp16_gps.reference.csv")).unwrap();
+    let mut want: HashMap<String, (String, String, String)> = HashMap::new();
+    for l in reference.lines().skip(1) {
+        let f: Vec<&str> = l.split(',').collect();
+        // time_us = packet time + offset, to the nanosecond; distance_m = raw * 0.002.
+        let (us, frac) = f[5].split_once('.').unwrap();
+        let t_ns = f[4].parse::<u64>().unwrap() * 1000
+            + us.parse::<u64>().unwrap() * 1000
+            + frac.parse::<u64>().unwrap();
+        let mm = f[7].parse::<u64>().unwrap() * 2;
+        want.insert(
+            format!("{},{},{},{}", f[0], f[1], f[2], f[3]),
+            (
+                format!("{}.{:03}", t_ns / 1000, t_ns % 1000),
+                format!("{}.{:03}", mm / 1000, mm % 1000),
+                f[8].to_string(),
+            ),
+        );
+    }
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "packet,block,sequence,laser,return,time_us,azimuth_deg,elevation_deg,distance_m,intensity,x_m,y_m,z_m"
+    );
+    let mut n = 0;
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        assert_eq!(f.len(), 13);
+        let key = format!("{},{},{},{}", f[0], f[1], f[2], f[3]);
+        let (t, d, i) = want
+            .get(&key)
+            .unwrap_or_else(|| panic!("row {key} not in the reference"));
+        assert_eq!(
+            (f[5], f[8], f[9]),
+            (t.as_str(), d.as_str(), i.as_str()),
+            "row {key}"
+        );
+        assert_eq!(f[4], "strongest");
+        // Elevation from the manual's table for the laser id.
+        let laser: usize = f[3].parse().unwrap();
+        assert_eq!(
+            f[7],
+            [
+                "-15", "1", "-13", "3", "-11", "5", "-9", "7", "-7", "9", "-5", "11", "-3", "13",
+                "-1", "15"
+            ][laser]
+        );
+        n += 1;
+    }
+    assert_eq!(n, want.len());
+}
+
+#[test]
+fn missing_file_exits_2_with_the_path() {
+    let out = spherecal()
+        .args(["decode", "/nonexistent/capture.pcap"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/nonexistent/capture.pcap"), "{err}");
+}
+
+#[test]
+fn wrong_magic_and_random_bytes_exit_2() {
+    let p = tmp("notpcap.bin");
+    std::fs::write(&p, b"this is not a capture file at all, just text\n").unwrap();
+    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("notpcap.bin") && err.contains("offset 0: not a pcap or pcapng file"),
+        "{err}"
+    );
+
+    // Random bytes (a fixed xorshift stream) behind a valid pcap magic.
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    let mut bytes = vec![
+        0xD4, 0xC3, 0xB2, 0xA1, 2, 0, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0, 0, 1, 0, 0, 0,
+    ];
+    for _ in 0..4096 {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        bytes.push(x as u8);
+    }
+    let p = tmp("random.pcap");
+    std::fs::write(&p, &bytes).unwrap();
+    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // Either a corrupt record stops it (exit 2, with an offset) or every record is a counted skip.
+    match out.status.code() {
+        Some(2) => assert!(err.contains("random.pcap: offset 24"), "{err}"),
+        Some(0) => assert!(stdout.contains("data packets: 0"), "{stdout}"),
+        c => panic!("exit {c:?}: {err}"),
+    }
+}
+
+#[test]
+fn truncated_capture_is_a_counted_skip() {
+    let full = std::fs::read(common::shared_data("vlp16/mrpt_vlp16_gps.pcap")).unwrap();
+    let p = tmp("cut.pcap");
+    // Cut inside the 11th record.
+    std::fs::write(&p, &full[..24 + 10 * (16 + 1248) + 700]).unwrap();
+    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("skipped: 1"), "{stdout}");
+    assert!(
+        stdout.contains("truncated file: 1 (first at byte"),
+        "{stdout}"
+    );
+}

@@ -92,14 +92,24 @@ impl fmt::Display for SkipReason {
             SkipReason::NotIpv4Udp => write!(f, "not an IPv4/UDP frame"),
             SkipReason::IpFragment => write!(f, "IPv4 fragment"),
             SkipReason::TruncatedRecord { captured, original } => {
-                write!(f, "record truncated: {captured} of {original} bytes captured")
+                write!(
+                    f,
+                    "record truncated: {captured} of {original} bytes captured"
+                )
             }
             SkipReason::TruncatedFile { left } => {
                 write!(f, "file ends inside a record ({left} bytes left)")
             }
             SkipReason::OtherPort(p) => write!(f, "UDP port {p} is neither data nor position"),
-            SkipReason::WrongPayloadLength { port, expected, got } => {
-                write!(f, "UDP port {port}: expected a {expected}-byte payload, got {got}")
+            SkipReason::WrongPayloadLength {
+                port,
+                expected,
+                got,
+            } => {
+                write!(
+                    f,
+                    "UDP port {port}: expected a {expected}-byte payload, got {got}"
+                )
             }
             SkipReason::Vlp16(e) => write!(f, "{e}"),
         }

@@ -56,7 +56,10 @@ impl fmt::Display for PcapError {
                 found[0], found[1], found[2], found[3]
             ),
             PcapError::TruncatedHeader { expected, got } => {
-                write!(f, "offset 0: file header needs {expected} bytes, file has {got}")
+                write!(
+                    f,
+                    "offset 0: file header needs {expected} bytes, file has {got}"
+                )
             }
             PcapError::Corrupt { offset, what } => write!(f, "offset {offset}: {what}"),
         }
@@ -79,8 +82,16 @@ impl From<io::Error> for PcapError {
 }
 
 enum Format {
-    Classic { parser: PcapParser, link: u32, nanos: bool, big: bool },
-    Ng { parser: PcapNgParser, big: bool },
+    Classic {
+        parser: PcapParser,
+        link: u32,
+        nanos: bool,
+        big: bool,
+    },
+    Ng {
+        parser: PcapNgParser,
+        big: bool,
+    },
 }
 
 /// A classic pcap or pcapng file read as a stream of [`Record`]s.
@@ -124,37 +135,65 @@ impl<R: Read> PcapSource<R> {
             base: 0,
             eof: false,
             done: false,
-            format: Format::Classic { parser: dummy_parser(), link: 1, nanos: false, big: false },
+            format: Format::Classic {
+                parser: dummy_parser(),
+                link: 1,
+                nanos: false,
+                big: false,
+            },
         };
         s.fill(24)?;
         let head = &s.buf[..s.end];
         if head.len() < 4 {
-            return Err(PcapError::TruncatedHeader { expected: 24, got: head.len() });
+            return Err(PcapError::TruncatedHeader {
+                expected: 24,
+                got: head.len(),
+            });
         }
         let magic = [head[0], head[1], head[2], head[3]];
         match magic {
             PCAPNG_SHB => {
-                let need = s.ng_block_len_at(0, None).map_err(|what| PcapError::Corrupt { offset: 0, what })?;
+                let need = s
+                    .ng_block_len_at(0, None)
+                    .map_err(|what| PcapError::Corrupt { offset: 0, what })?;
                 if need > MAX_RECORD {
-                    return Err(PcapError::Corrupt { offset: 0, what: format!("section header claims {need} bytes") });
+                    return Err(PcapError::Corrupt {
+                        offset: 0,
+                        what: format!("section header claims {need} bytes"),
+                    });
                 }
                 s.fill(need)?;
                 if s.end < need {
-                    return Err(PcapError::TruncatedHeader { expected: need, got: s.end });
+                    return Err(PcapError::TruncatedHeader {
+                        expected: need,
+                        got: s.end,
+                    });
                 }
-                let (rest, parser) = PcapNgParser::new(&s.buf[..s.end])
-                    .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("pcapng section header: {e}") })?;
+                let (rest, parser) =
+                    PcapNgParser::new(&s.buf[..s.end]).map_err(|e| PcapError::Corrupt {
+                        offset: 0,
+                        what: format!("pcapng section header: {e}"),
+                    })?;
                 let used = s.end - rest.len();
                 let big = parser.section().endianness == Endianness::Big;
                 s.start = used;
                 s.format = Format::Ng { parser, big };
             }
-            [0xD4, 0xC3, 0xB2, 0xA1] | [0xA1, 0xB2, 0xC3, 0xD4] | [0x4D, 0x3C, 0xB2, 0xA1] | [0xA1, 0xB2, 0x3C, 0x4D] => {
+            [0xD4, 0xC3, 0xB2, 0xA1]
+            | [0xA1, 0xB2, 0xC3, 0xD4]
+            | [0x4D, 0x3C, 0xB2, 0xA1]
+            | [0xA1, 0xB2, 0x3C, 0x4D] => {
                 if s.end < 24 {
-                    return Err(PcapError::TruncatedHeader { expected: 24, got: s.end });
+                    return Err(PcapError::TruncatedHeader {
+                        expected: 24,
+                        got: s.end,
+                    });
                 }
-                let (_, parser) = PcapParser::new(&s.buf[..24])
-                    .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("pcap global header: {e}") })?;
+                let (_, parser) =
+                    PcapParser::new(&s.buf[..24]).map_err(|e| PcapError::Corrupt {
+                        offset: 0,
+                        what: format!("pcap global header: {e}"),
+                    })?;
                 let h = parser.header();
                 s.format = Format::Classic {
                     link: u32::from(h.datalink),
@@ -219,9 +258,15 @@ impl<R: Read> PcapSource<R> {
             big.unwrap_or(false)
         };
         let raw = [b[4], b[5], b[6], b[7]];
-        let len = if big { u32::from_be_bytes(raw) } else { u32::from_le_bytes(raw) } as usize;
-        if len < 12 || len % 4 != 0 {
-            return Err(format!("block length {len} (must be >= 12 and a multiple of 4)"));
+        let len = if big {
+            u32::from_be_bytes(raw)
+        } else {
+            u32::from_le_bytes(raw)
+        } as usize;
+        if len < 12 || !len.is_multiple_of(4) {
+            return Err(format!(
+                "block length {len} (must be >= 12 and a multiple of 4)"
+            ));
         }
         Ok(len)
     }
@@ -245,11 +290,16 @@ impl<R: Read> PcapSource<R> {
         if self.end - self.start < header {
             return Ok(None);
         }
-        let len = len_of(self).map_err(|what| PcapError::Corrupt { offset: self.offset(), what })?;
+        let len = len_of(self).map_err(|what| PcapError::Corrupt {
+            offset: self.offset(),
+            what,
+        })?;
         if len > MAX_RECORD {
             return Err(PcapError::Corrupt {
                 offset: self.offset(),
-                what: format!("record claims {len} bytes (more than {MAX_RECORD}): corrupt length field"),
+                what: format!(
+                    "record claims {len} bytes (more than {MAX_RECORD}): corrupt length field"
+                ),
             });
         }
         self.fill(len)?;
@@ -264,13 +314,20 @@ impl<R: Read> PcapSource<R> {
             return None;
         }
         self.done = true;
-        Some(Record::Skipped { offset: self.offset(), reason: SkipReason::TruncatedFile { left: self.end - self.start } })
+        Some(Record::Skipped {
+            offset: self.offset(),
+            reason: SkipReason::TruncatedFile {
+                left: self.end - self.start,
+            },
+        })
     }
 }
 
 fn dummy_parser() -> PcapParser {
     // A valid little-endian Ethernet header: only a placeholder until the real one is read.
-    const H: [u8; 24] = [0xD4, 0xC3, 0xB2, 0xA1, 2, 0, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0, 0, 1, 0, 0, 0];
+    const H: [u8; 24] = [
+        0xD4, 0xC3, 0xB2, 0xA1, 2, 0, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0, 0, 1, 0, 0, 0,
+    ];
     match PcapParser::new(&H) {
         Ok((_, p)) => p,
         Err(_) => unreachable!("constant header parses"),
@@ -289,7 +346,12 @@ impl<R: Read> PacketSource for PcapSource<R> {
                 let len_of = move |s: &Self| {
                     let b = &s.buf[s.start + 8..s.start + 12];
                     let raw = [b[0], b[1], b[2], b[3]];
-                    Ok(16 + if big { u32::from_be_bytes(raw) } else { u32::from_le_bytes(raw) } as usize)
+                    Ok(16
+                        + if big {
+                            u32::from_be_bytes(raw)
+                        } else {
+                            u32::from_le_bytes(raw)
+                        } as usize)
                 };
                 let Some(len) = self.whole_record(16, len_of)? else {
                     return Ok(self.truncated_tail());
@@ -297,17 +359,35 @@ impl<R: Read> PacketSource for PcapSource<R> {
                 let offset = self.offset();
                 let at = self.start;
                 self.start += len;
-                let Format::Classic { ref parser, link, nanos, .. } = self.format else { unreachable!() };
+                let Format::Classic {
+                    ref parser,
+                    link,
+                    nanos,
+                    ..
+                } = self.format
+                else {
+                    unreachable!()
+                };
                 let (_, raw) = parser
                     .next_raw_packet(&self.buf[at..at + len])
-                    .map_err(|e| PcapError::Corrupt { offset, what: format!("pcap record: {e}") })?;
+                    .map_err(|e| PcapError::Corrupt {
+                        offset,
+                        what: format!("pcap record: {e}"),
+                    })?;
                 let frac = u64::from(raw.ts_frac) * if nanos { 1 } else { 1000 };
                 let time = HostTime(i128::from(raw.ts_sec) * 1_000_000_000 + i128::from(frac));
                 let data: &[u8] = match raw.data {
                     std::borrow::Cow::Borrowed(d) => d,
                     std::borrow::Cow::Owned(_) => &self.buf[at + 16..at + len],
                 };
-                Ok(Some(frame_record(link, data, raw.incl_len, raw.orig_len, time, offset)))
+                Ok(Some(frame_record(
+                    link,
+                    data,
+                    raw.incl_len,
+                    raw.orig_len,
+                    time,
+                    offset,
+                )))
             }
             Format::Ng { .. } => {
                 // Walk past non-packet blocks (section and interface headers update the parser).
@@ -316,7 +396,9 @@ impl<R: Read> PacketSource for PcapSource<R> {
                         Format::Ng { big, .. } => big,
                         _ => false,
                     };
-                    let Some(len) = self.whole_record(12, move |s: &Self| s.ng_block_len_at(0, Some(big)))? else {
+                    let Some(len) =
+                        self.whole_record(12, move |s: &Self| s.ng_block_len_at(0, Some(big)))?
+                    else {
                         return Ok(self.truncated_tail());
                     };
                     let ty = &self.buf[self.start..self.start + 4];
@@ -331,22 +413,40 @@ impl<R: Read> PacketSource for PcapSource<R> {
                     let offset = self.offset();
                     let at = self.start;
                     self.start += len;
-                    if let Format::Ng { ref mut parser, ref mut big } = self.format {
-                        parser
-                            .next_block(&self.buf[at..at + len])
-                            .map_err(|e| PcapError::Corrupt { offset, what: format!("pcapng block: {e}") })?;
+                    if let Format::Ng {
+                        ref mut parser,
+                        ref mut big,
+                    } = self.format
+                    {
+                        parser.next_block(&self.buf[at..at + len]).map_err(|e| {
+                            PcapError::Corrupt {
+                                offset,
+                                what: format!("pcapng block: {e}"),
+                            }
+                        })?;
                         *big = parser.section().endianness == Endianness::Big;
                     }
                 };
                 let offset = self.offset();
                 let at = self.start;
                 self.start += len;
-                let Format::Ng { ref mut parser, .. } = self.format else { unreachable!() };
-                let (_, block) = parser
-                    .next_block(&self.buf[at..at + len])
-                    .map_err(|e| PcapError::Corrupt { offset, what: format!("pcapng block: {e}") })?;
+                let Format::Ng { ref mut parser, .. } = self.format else {
+                    unreachable!()
+                };
+                let (_, block) =
+                    parser
+                        .next_block(&self.buf[at..at + len])
+                        .map_err(|e| PcapError::Corrupt {
+                            offset,
+                            what: format!("pcapng block: {e}"),
+                        })?;
                 let (iface, ts_raw, data, orig) = match block {
-                    Block::EnhancedPacket(p) => (p.interface_id, Some(p.timestamp.as_nanos()), p.data, p.original_len),
+                    Block::EnhancedPacket(p) => (
+                        p.interface_id,
+                        Some(p.timestamp.as_nanos()),
+                        p.data,
+                        p.original_len,
+                    ),
                     Block::SimplePacket(p) => (0, None, p.data, p.original_len),
                     Block::Packet(p) => (
                         u32::from(p.interface_id),
@@ -359,7 +459,9 @@ impl<R: Read> PacketSource for PcapSource<R> {
                 let Some(idb) = parser.interfaces().get(iface as usize) else {
                     return Err(PcapError::Corrupt {
                         offset,
-                        what: format!("packet names interface {iface}, which no interface block describes"),
+                        what: format!(
+                            "packet names interface {iface}, which no interface block describes"
+                        ),
                     });
                 };
                 let link = u32::from(idb.linktype);
@@ -367,16 +469,28 @@ impl<R: Read> PacketSource for PcapSource<R> {
                 let data: &[u8] = match data {
                     std::borrow::Cow::Borrowed(d) => d,
                     std::borrow::Cow::Owned(_) => {
-                        return Err(PcapError::Corrupt { offset, what: "unexpected owned packet data".into() })
+                        return Err(PcapError::Corrupt {
+                            offset,
+                            what: "unexpected owned packet data".into(),
+                        })
                     }
                 };
-                Ok(Some(frame_record(link, data, data.len() as u32, orig, time, offset)))
+                Ok(Some(frame_record(
+                    link,
+                    data,
+                    data.len() as u32,
+                    orig,
+                    time,
+                    offset,
+                )))
             }
         }
     }
 }
 
-fn tsresol(idb: &pcap_file::pcapng::blocks::interface_description::InterfaceDescriptionBlock<'_>) -> u8 {
+fn tsresol(
+    idb: &pcap_file::pcapng::blocks::interface_description::InterfaceDescriptionBlock<'_>,
+) -> u8 {
     use pcap_file::pcapng::blocks::interface_description::InterfaceDescriptionOption;
     idb.options
         .iter()
@@ -406,14 +520,29 @@ fn ng_time_ns(units: u128, resol: u8) -> i128 {
 }
 
 /// Slice a captured frame down to its UDP payload, or say why not.
-fn frame_record(link: u32, data: &[u8], captured: u32, original: u32, time: HostTime, offset: u64) -> Record<'_> {
+fn frame_record(
+    link: u32,
+    data: &[u8],
+    captured: u32,
+    original: u32,
+    time: HostTime,
+    offset: u64,
+) -> Record<'_> {
     if captured < original {
-        return Record::Skipped { offset, reason: SkipReason::TruncatedRecord { captured, original } };
+        return Record::Skipped {
+            offset,
+            reason: SkipReason::TruncatedRecord { captured, original },
+        };
     }
     match slice_udp(link, data) {
-        Ok((src_addr, src_port, dst_port, payload)) => {
-            Record::Udp(Datagram { time, src_addr, src_port, dst_port, payload, offset })
-        }
+        Ok((src_addr, src_port, dst_port, payload)) => Record::Udp(Datagram {
+            time,
+            src_addr,
+            src_port,
+            dst_port,
+            payload,
+            offset,
+        }),
         Err(reason) => Record::Skipped { offset, reason },
     }
 }
@@ -421,19 +550,30 @@ fn frame_record(link: u32, data: &[u8], captured: u32, original: u32, time: Host
 /// Link layer -> IPv4 -> UDP, laxly; the payload runs to the UDP length or the captured end.
 pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]), SkipReason> {
     let sliced = match DataLink::from(link) {
-        DataLink::ETHERNET => LaxSlicedPacket::from_ethernet(frame).map_err(|_| SkipReason::NotIpv4Udp)?,
-        DataLink::RAW | DataLink::IPV4 => LaxSlicedPacket::from_ip(frame).map_err(|_| SkipReason::NotIpv4Udp)?,
+        DataLink::ETHERNET => {
+            LaxSlicedPacket::from_ethernet(frame).map_err(|_| SkipReason::NotIpv4Udp)?
+        }
+        DataLink::RAW | DataLink::IPV4 => {
+            LaxSlicedPacket::from_ip(frame).map_err(|_| SkipReason::NotIpv4Udp)?
+        }
         DataLink::NULL | DataLink::LOOP => {
-            LaxSlicedPacket::from_ip(frame.get(4..).ok_or(SkipReason::NotIpv4Udp)?).map_err(|_| SkipReason::NotIpv4Udp)?
+            LaxSlicedPacket::from_ip(frame.get(4..).ok_or(SkipReason::NotIpv4Udp)?)
+                .map_err(|_| SkipReason::NotIpv4Udp)?
         }
         DataLink::LINUX_SLL => {
             let proto = frame.get(14..16).ok_or(SkipReason::NotIpv4Udp)?;
-            LaxSlicedPacket::from_ether_type(EtherType(u16::from_be_bytes([proto[0], proto[1]])), &frame[16..])
+            LaxSlicedPacket::from_ether_type(
+                EtherType(u16::from_be_bytes([proto[0], proto[1]])),
+                &frame[16..],
+            )
         }
         DataLink::LINUX_SLL2 => {
             let proto = frame.get(0..2).ok_or(SkipReason::NotIpv4Udp)?;
             let rest = frame.get(20..).ok_or(SkipReason::NotIpv4Udp)?;
-            LaxSlicedPacket::from_ether_type(EtherType(u16::from_be_bytes([proto[0], proto[1]])), rest)
+            LaxSlicedPacket::from_ether_type(
+                EtherType(u16::from_be_bytes([proto[0], proto[1]])),
+                rest,
+            )
         }
         _ => return Err(SkipReason::UnsupportedLinkType(link)),
     };
@@ -452,8 +592,17 @@ pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]),
     let udp_at = udp.slice().as_ptr() as usize - frame.as_ptr() as usize;
     let after = &frame[udp_at + 8..];
     let udp_len = usize::from(udp.length());
-    let payload = if udp_len >= 8 && udp_len - 8 <= after.len() { &after[..udp_len - 8] } else { after };
-    Ok((h.source_addr(), udp.source_port(), udp.destination_port(), payload))
+    let payload = if udp_len >= 8 && udp_len - 8 <= after.len() {
+        &after[..udp_len - 8]
+    } else {
+        after
+    };
+    Ok((
+        h.source_addr(),
+        udp.source_port(),
+        udp.destination_port(),
+        payload,
+    ))
 }
 
 /// Addresses of a sensor's UDP frames (VLP-16 factory defaults: 192.168.1.201 broadcasting to
@@ -516,8 +665,12 @@ impl<W: io::Write> PcapWriter<W> {
             ts_resolution: TsResolution::MicroSecond,
             endianness: Endianness::Little,
         };
-        let inner = pcap_file::pcap::PcapWriter::with_header(w, header)
-            .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("writing pcap header: {e}") })?;
+        let inner = pcap_file::pcap::PcapWriter::with_header(w, header).map_err(|e| {
+            PcapError::Corrupt {
+                offset: 0,
+                what: format!("writing pcap header: {e}"),
+            }
+        })?;
         Ok(Self { inner })
     }
 
@@ -529,7 +682,10 @@ impl<W: io::Write> PcapWriter<W> {
         self.inner
             .write_packet(&p)
             .map(|_| ())
-            .map_err(|e| PcapError::Corrupt { offset: 0, what: format!("writing pcap record: {e}") })
+            .map_err(|e| PcapError::Corrupt {
+                offset: 0,
+                what: format!("writing pcap record: {e}"),
+            })
     }
 
     /// The underlying writer.

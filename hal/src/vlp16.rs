@@ -17,7 +17,10 @@ pub struct Ports {
 
 impl Default for Ports {
     fn default() -> Self {
-        Self { data: DATA_PORT, position: POSITION_PORT }
+        Self {
+            data: DATA_PORT,
+            position: POSITION_PORT,
+        }
     }
 }
 
@@ -49,16 +52,32 @@ pub fn classify<'a>(d: &Datagram<'a>, ports: Ports) -> Result<Vlp16Packet<'a>, S
     let got = d.payload.len();
     if d.dst_port == ports.data {
         if got != DATA_PACKET_LEN {
-            return Err(SkipReason::WrongPayloadLength { port: d.dst_port, expected: DATA_PACKET_LEN, got });
+            return Err(SkipReason::WrongPayloadLength {
+                port: d.dst_port,
+                expected: DATA_PACKET_LEN,
+                got,
+            });
         }
         let packet = DataPacket::new_checked(d.payload).map_err(SkipReason::Vlp16)?;
-        Ok(Vlp16Packet::Data { time: d.time, offset: d.offset, packet })
+        Ok(Vlp16Packet::Data {
+            time: d.time,
+            offset: d.offset,
+            packet,
+        })
     } else if d.dst_port == ports.position {
         if got != POSITION_PACKET_LEN {
-            return Err(SkipReason::WrongPayloadLength { port: d.dst_port, expected: POSITION_PACKET_LEN, got });
+            return Err(SkipReason::WrongPayloadLength {
+                port: d.dst_port,
+                expected: POSITION_PACKET_LEN,
+                got,
+            });
         }
         let packet = PositionPacket::new_checked(d.payload).map_err(SkipReason::Vlp16)?;
-        Ok(Vlp16Packet::Position { time: d.time, offset: d.offset, packet })
+        Ok(Vlp16Packet::Position {
+            time: d.time,
+            offset: d.offset,
+            packet,
+        })
     } else {
         Err(SkipReason::OtherPort(d.dst_port))
     }
@@ -91,7 +110,12 @@ impl SkipStats {
         if let Some(l) = self.lines.iter_mut().find(|l| l.reason == name) {
             l.count += 1;
         } else {
-            self.lines.push(SkipLine { reason: name, count: 1, first_offset: offset, first: reason.to_string() });
+            self.lines.push(SkipLine {
+                reason: name,
+                count: 1,
+                first_offset: offset,
+                first: reason.to_string(),
+            });
         }
     }
     /// All lines.
@@ -100,7 +124,10 @@ impl SkipStats {
     }
     /// Count for one reason name.
     pub fn get(&self, reason: &str) -> u64 {
-        self.lines.iter().find(|l| l.reason == reason).map_or(0, |l| l.count)
+        self.lines
+            .iter()
+            .find(|l| l.reason == reason)
+            .map_or(0, |l| l.count)
     }
     /// Total skips.
     pub fn total(&self) -> u64 {

@@ -2,7 +2,9 @@
 //! big-endian pcap, truncation at every byte, wrong magic, random bytes, odd chunking.
 
 use pcap_file::pcapng::blocks::enhanced_packet::EnhancedPacketBlock;
-use pcap_file::pcapng::blocks::interface_description::{InterfaceDescriptionBlock, InterfaceDescriptionOption};
+use pcap_file::pcapng::blocks::interface_description::{
+    InterfaceDescriptionBlock, InterfaceDescriptionOption,
+};
 use pcap_file::pcapng::PcapNgWriter;
 use pcap_file::DataLink;
 use proptest::prelude::*;
@@ -104,8 +106,15 @@ fn classic_bytes() -> Vec<u8> {
 
 #[derive(Debug, PartialEq)]
 enum Seen {
-    Data { stamp: u32, time: HostTime, offset: u64 },
-    Position { pps: PpsStatus, time: HostTime },
+    Data {
+        stamp: u32,
+        time: HostTime,
+        offset: u64,
+    },
+    Position {
+        pps: PpsStatus,
+        time: HostTime,
+    },
     Skip(&'static str, u64),
 }
 
@@ -119,10 +128,19 @@ fn read_all<R: Read>(mut src: PcapSource<R>) -> (Vec<Seen>, SkipStats) {
                 seen.push(Seen::Skip(reason.name(), offset));
             }
             Record::Udp(d) => match classify(&d, Ports::default()) {
-                Ok(Vlp16Packet::Data { packet, time, offset }) => {
-                    seen.push(Seen::Data { stamp: packet.timestamp_us(), time, offset })
-                }
-                Ok(Vlp16Packet::Position { packet, time, .. }) => seen.push(Seen::Position { pps: packet.pps(), time }),
+                Ok(Vlp16Packet::Data {
+                    packet,
+                    time,
+                    offset,
+                }) => seen.push(Seen::Data {
+                    stamp: packet.timestamp_us(),
+                    time,
+                    offset,
+                }),
+                Ok(Vlp16Packet::Position { packet, time, .. }) => seen.push(Seen::Position {
+                    pps: packet.pps(),
+                    time,
+                }),
                 Err(r) => {
                     stats.count(d.offset, &r);
                     seen.push(Seen::Skip(r.name(), d.offset));
@@ -161,21 +179,48 @@ fn every_skip_reason_is_counted() {
     );
     assert_eq!(stats.total(), 5);
     // First record sits right after the 24-byte global header; the second after 16 + 1248.
-    assert!(matches!(seen[0], Seen::Data { stamp: 1, offset: 24, .. }));
+    assert!(matches!(
+        seen[0],
+        Seen::Data {
+            stamp: 1,
+            offset: 24,
+            ..
+        }
+    ));
     if let Seen::Skip(_, off) = seen[3] {
         assert_eq!(off, 24 + (16 + 1248) + 2 * (16 + 554));
     }
-    let line = stats.lines().iter().find(|l| l.reason == "bad block flag").unwrap();
-    assert_eq!(line.first, "data block 5: expected flag 0xFFEE, found 0x00EE");
-    let line = stats.lines().iter().find(|l| l.reason == "wrong payload length").unwrap();
-    assert_eq!(line.first, "UDP port 2368: expected a 1206-byte payload, got 1000");
+    let line = stats
+        .lines()
+        .iter()
+        .find(|l| l.reason == "bad block flag")
+        .unwrap();
+    assert_eq!(
+        line.first,
+        "data block 5: expected flag 0xFFEE, found 0x00EE"
+    );
+    let line = stats
+        .lines()
+        .iter()
+        .find(|l| l.reason == "wrong payload length")
+        .unwrap();
+    assert_eq!(
+        line.first,
+        "UDP port 2368: expected a 1206-byte payload, got 1000"
+    );
 }
 
 #[test]
 fn microsecond_stamps_survive() {
     let bytes = classic_bytes();
     let (seen, _) = read_all(PcapSource::from_bytes(&bytes).unwrap());
-    assert!(matches!(seen[1], Seen::Position { time: HostTime(1_453_364_282_001_326_000), .. }));
+    assert!(matches!(
+        seen[1],
+        Seen::Position {
+            time: HostTime(1_453_364_282_001_326_000),
+            ..
+        }
+    ));
 }
 
 /// A reader that hands out 1..=7 bytes at a time.
@@ -197,7 +242,14 @@ impl Read for Trickle<'_> {
 fn chunked_reading_gives_the_same_records() {
     let bytes = classic_bytes();
     let whole = read_all(PcapSource::from_bytes(&bytes).unwrap()).0;
-    let trickled = read_all(PcapSource::new(Trickle { bytes: &bytes, n: 0 }).unwrap()).0;
+    let trickled = read_all(
+        PcapSource::new(Trickle {
+            bytes: &bytes,
+            n: 0,
+        })
+        .unwrap(),
+    )
+    .0;
     assert_eq!(whole, trickled);
 }
 
@@ -231,7 +283,18 @@ fn pcapng_gives_the_same_records() {
         assert_eq!(ng.len(), classic.len());
         for (a, b) in ng.iter().zip(&classic) {
             match (a, b) {
-                (Seen::Data { stamp: s1, time: t1, .. }, Seen::Data { stamp: s2, time: t2, .. }) => {
+                (
+                    Seen::Data {
+                        stamp: s1,
+                        time: t1,
+                        ..
+                    },
+                    Seen::Data {
+                        stamp: s2,
+                        time: t2,
+                        ..
+                    },
+                ) => {
                     assert_eq!((s1, t1), (s2, t2))
                 }
                 (Seen::Skip(n1, _), Seen::Skip(n2, _)) => assert_eq!(n1, n2),
@@ -247,8 +310,20 @@ fn nanosecond_and_big_endian_pcap() {
     let (t, f, _) = frames().remove(0);
     for big in [false, true] {
         let mut bytes = Vec::new();
-        let u32b = |v: u32| if big { v.to_be_bytes() } else { v.to_le_bytes() };
-        let u16b = |v: u16| if big { v.to_be_bytes() } else { v.to_le_bytes() };
+        let u32b = |v: u32| {
+            if big {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        };
+        let u16b = |v: u16| {
+            if big {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            }
+        };
         bytes.extend_from_slice(&u32b(0xA1B2_3C4D)); // nanosecond magic
         bytes.extend_from_slice(&u16b(2));
         bytes.extend_from_slice(&u16b(4));
@@ -262,7 +337,14 @@ fn nanosecond_and_big_endian_pcap() {
         bytes.extend_from_slice(&u32b(f.len() as u32));
         bytes.extend_from_slice(&f);
         let (seen, _) = read_all(PcapSource::from_bytes(&bytes).unwrap());
-        assert_eq!(seen, [Seen::Data { stamp: 1, time: HostTime(i128::from(ns)), offset: 24 }]);
+        assert_eq!(
+            seen,
+            [Seen::Data {
+                stamp: 1,
+                time: HostTime(i128::from(ns)),
+                offset: 24
+            }]
+        );
     }
 }
 
@@ -281,7 +363,9 @@ fn truncation_at_every_byte_is_reported_not_panicked() {
     for cut in 0..bytes.len() {
         let head = &bytes[..cut];
         match PcapSource::from_bytes(head) {
-            Err(PcapError::TruncatedHeader { expected: 24, got }) => assert!(cut < 24 && got == cut),
+            Err(PcapError::TruncatedHeader { expected: 24, got }) => {
+                assert!(cut < 24 && got == cut)
+            }
             Err(e) => panic!("cut {cut}: {e}"),
             Ok(src) => {
                 assert!(cut >= 24);
@@ -292,7 +376,11 @@ fn truncation_at_every_byte_is_reported_not_panicked() {
                     assert_eq!(seen.len(), whole);
                 } else {
                     let start = ends[whole];
-                    assert_eq!(seen[whole..], [Seen::Skip("truncated file", start as u64)], "cut {cut}");
+                    assert_eq!(
+                        seen[whole..],
+                        [Seen::Skip("truncated file", start as u64)],
+                        "cut {cut}"
+                    );
                 }
             }
         }
@@ -304,8 +392,17 @@ fn wrong_magic_is_named() {
     let mut bytes = classic_bytes();
     bytes[..4].copy_from_slice(b"GIF8");
     let e = PcapSource::from_bytes(&bytes).err().unwrap();
-    assert!(matches!(e, PcapError::BadMagic { found: [b'G', b'I', b'F', b'8'] }));
-    assert!(e.to_string().starts_with("offset 0: not a pcap or pcapng file"), "{e}");
+    assert!(matches!(
+        e,
+        PcapError::BadMagic {
+            found: [b'G', b'I', b'F', b'8']
+        }
+    ));
+    assert!(
+        e.to_string()
+            .starts_with("offset 0: not a pcap or pcapng file"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -316,7 +413,11 @@ fn corrupt_record_length_stops_with_offset() {
     let mut src = PcapSource::from_bytes(&bytes).unwrap();
     assert!(matches!(src.next_record(), Ok(Some(Record::Udp(_)))));
     let e = src.next_record().err().unwrap();
-    assert!(e.to_string().starts_with(&format!("offset {second}: record claims")), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with(&format!("offset {second}: record claims")),
+        "{e}"
+    );
 }
 
 #[test]

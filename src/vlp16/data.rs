@@ -78,7 +78,10 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
     pub fn check_len(&self) -> Result<(), Error> {
         let got = self.buffer.as_ref().len();
         if got < field::LEN {
-            Err(Error::Truncated { expected: field::LEN, got })
+            Err(Error::Truncated {
+                expected: field::LEN,
+                got,
+            })
         } else {
             Ok(())
         }
@@ -191,7 +194,13 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> DataPacket<T> {
     }
 
     /// Write one channel's distance (2 mm units) and reflectivity.
-    pub fn set_channel(&mut self, block: usize, channel: usize, distance_raw: u16, reflectivity: u8) {
+    pub fn set_channel(
+        &mut self,
+        block: usize,
+        channel: usize,
+        distance_raw: u16,
+        reflectivity: u8,
+    ) {
         let at = field::CHANNEL0 + (channel % field::CHANNELS) * field::CHANNEL_LEN;
         let b = self.block_mut(block);
         b[at..at + 2].copy_from_slice(&distance_raw.to_le_bytes());
@@ -242,17 +251,28 @@ impl DataRepr {
         packet.check_len()?;
         packet.check_flags()?;
         let return_mode = packet.return_mode()?;
-        let mut blocks = [BlockRepr { azimuth: 0, channels: [(0, 0); field::CHANNELS] }; field::BLOCKS];
+        let mut blocks = [BlockRepr {
+            azimuth: 0,
+            channels: [(0, 0); field::CHANNELS],
+        }; field::BLOCKS];
         for (b, repr) in blocks.iter_mut().enumerate() {
             repr.azimuth = packet.azimuth_raw(b);
             if repr.azimuth >= 36_000 {
-                return Err(Error::BadAzimuth { block: b as u8, found: repr.azimuth });
+                return Err(Error::BadAzimuth {
+                    block: b as u8,
+                    found: repr.azimuth,
+                });
             }
             for (c, ch) in repr.channels.iter_mut().enumerate() {
                 *ch = (packet.distance_raw(b, c), packet.reflectivity(b, c));
             }
         }
-        Ok(Self { blocks, timestamp_us: packet.timestamp_us(), return_mode, product: packet.product_raw() })
+        Ok(Self {
+            blocks,
+            timestamp_us: packet.timestamp_us(),
+            return_mode,
+            product: packet.product_raw(),
+        })
     }
 
     /// Write this packet into a view of at least 1206 bytes (check the length first).
@@ -303,11 +323,17 @@ mod tests {
         let buf = blank();
         assert_eq!(
             DataPacket::new_checked(&buf[..1205]).unwrap_err(),
-            Error::Truncated { expected: 1206, got: 1205 }
+            Error::Truncated {
+                expected: 1206,
+                got: 1205
+            }
         );
         assert_eq!(
             DataPacket::new_checked(&[][..]).unwrap_err(),
-            Error::Truncated { expected: 1206, got: 0 }
+            Error::Truncated {
+                expected: 1206,
+                got: 0
+            }
         );
     }
 
@@ -317,7 +343,10 @@ mod tests {
         buf[700] = 0xFE;
         assert_eq!(
             DataPacket::new_checked(&buf[..]).unwrap_err(),
-            Error::BadBlockFlag { block: 7, found: 0xFEEE }
+            Error::BadBlockFlag {
+                block: 7,
+                found: 0xFEEE
+            }
         );
     }
 
@@ -326,10 +355,19 @@ mod tests {
         let mut buf = blank();
         DataPacket::new_unchecked(&mut buf[..]).set_azimuth_raw(5, 36_000);
         let p = DataPacket::new_checked(&buf[..]).unwrap();
-        assert_eq!(DataRepr::parse(&p).unwrap_err(), Error::BadAzimuth { block: 5, found: 36_000 });
+        assert_eq!(
+            DataRepr::parse(&p).unwrap_err(),
+            Error::BadAzimuth {
+                block: 5,
+                found: 36_000
+            }
+        );
         let mut buf = blank();
         buf[1204] = 0x40;
         let p = DataPacket::new_checked(&buf[..]).unwrap();
-        assert_eq!(DataRepr::parse(&p).unwrap_err(), Error::UnknownReturnMode { found: 0x40 });
+        assert_eq!(
+            DataRepr::parse(&p).unwrap_err(),
+            Error::UnknownReturnMode { found: 0x40 }
+        );
     }
 }

@@ -15,7 +15,9 @@
 //! any real rotation rate).
 
 use super::data::field::{BLOCKS, CHANNELS};
-use super::{DataPacket, Error, ReturnMode, COS_ELEVATION, LASERS, SIN_ELEVATION, VERTICAL_OFFSET_M};
+use super::{
+    DataPacket, Error, ReturnMode, COS_ELEVATION, LASERS, SIN_ELEVATION, VERTICAL_OFFSET_M,
+};
 
 /// Points a data packet can hold (12 blocks x 32 channels).
 pub const POINTS_PER_PACKET: usize = BLOCKS * CHANNELS;
@@ -58,7 +60,7 @@ impl Return {
         match mode {
             ReturnMode::Strongest => Return::Strongest,
             ReturnMode::Last => Return::Last,
-            ReturnMode::Dual if block % 2 == 0 => Return::DualLast,
+            ReturnMode::Dual if block.is_multiple_of(2) => Return::DualLast,
             ReturnMode::Dual => Return::DualStrongest,
         }
     }
@@ -66,12 +68,19 @@ impl Return {
 
 /// Firing time of (block, sequence, laser) after the packet timestamp, in nanoseconds.
 #[inline]
-pub const fn firing_offset_ns(mode: ReturnMode, block: usize, sequence: usize, laser: usize) -> u32 {
+pub const fn firing_offset_ns(
+    mode: ReturnMode,
+    block: usize,
+    sequence: usize,
+    laser: usize,
+) -> u32 {
     let slot = match mode {
         ReturnMode::Dual => (block % BLOCKS) / 2,
         _ => block % BLOCKS,
     };
-    slot as u32 * BLOCK_NS + (sequence % 2) as u32 * SEQUENCE_NS + (laser % LASERS) as u32 * FIRING_NS
+    slot as u32 * BLOCK_NS
+        + (sequence % 2) as u32 * SEQUENCE_NS
+        + (laser % LASERS) as u32 * FIRING_NS
 }
 
 /// One laser return, decoded.
@@ -145,7 +154,10 @@ impl PointBuf {
             channel: 0,
             ret: Return::Strongest,
         };
-        Self { points: [ZERO; POINTS_PER_PACKET], len: 0 }
+        Self {
+            points: [ZERO; POINTS_PER_PACKET],
+            len: 0,
+        }
     }
     /// The decoded points.
     #[inline]
@@ -180,7 +192,8 @@ fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BL
     while b < BLOCKS {
         let next = b + stride;
         let gap = if next < BLOCKS {
-            let g = (36_000 + u32::from(p.azimuth_raw(next)) - u32::from(p.azimuth_raw(b))) % 36_000;
+            let g =
+                (36_000 + u32::from(p.azimuth_raw(next)) - u32::from(p.azimuth_raw(b))) % 36_000;
             last = g as u16;
             last
         } else {
@@ -212,7 +225,10 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
     for b in 0..BLOCKS {
         let found = packet.azimuth_raw(b);
         if found >= 36_000 {
-            return Err(Error::BadAzimuth { block: b as u8, found });
+            return Err(Error::BadAzimuth {
+                block: b as u8,
+                found,
+            });
         }
     }
     let gaps = azimuth_gaps(packet, mode);
@@ -290,7 +306,10 @@ mod tests {
         let mut d = -0.1f32;
         while d <= 0.1 {
             let (s, c) = small_sincos(d);
-            assert!((s - libm::sinf(d)).abs() < 1e-7 && (c - libm::cosf(d)).abs() < 1e-7, "{d}");
+            assert!(
+                (s - libm::sinf(d)).abs() < 1e-7 && (c - libm::cosf(d)).abs() < 1e-7,
+                "{d}"
+            );
             d += 0.001;
         }
     }
@@ -307,7 +326,10 @@ mod tests {
         buf[1204] = 0x00;
         let p = DataPacket::new_checked(&buf[..]).unwrap();
         let mut out = PointBuf::new();
-        assert_eq!(decode(&p, &mut out), Err(Error::UnknownReturnMode { found: 0 }));
+        assert_eq!(
+            decode(&p, &mut out),
+            Err(Error::UnknownReturnMode { found: 0 })
+        );
         assert!(out.is_empty());
     }
 }

@@ -30,11 +30,12 @@ pub const POSITION_PORT: u16 = 8308;
 pub const LASERS: usize = 16;
 
 /// Laser id (firing order 0..15) -> elevation angle in degrees (manual table 9-1).
-pub const ELEVATION_DEG: [i8; LASERS] = [-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15];
+pub const ELEVATION_DEG: [i8; LASERS] =
+    [-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15];
 
 /// cos(elevation) per laser id: the table that spares a trig call per point.
 pub(crate) const COS_ELEVATION: [f32; LASERS] = [
-    0.965_925_83,
+    0.965_925_8,
     0.999_847_7,
     0.974_370_06,
     0.998_629_5,
@@ -49,7 +50,7 @@ pub(crate) const COS_ELEVATION: [f32; LASERS] = [
     0.998_629_5,
     0.974_370_06,
     0.999_847_7,
-    0.965_925_83,
+    0.965_925_8,
 ];
 
 /// sin(elevation) per laser id.
@@ -201,7 +202,10 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Error::Truncated { expected, got } => {
-                write!(f, "truncated VLP-16 packet: expected {expected} bytes, got {got}")
+                write!(
+                    f,
+                    "truncated VLP-16 packet: expected {expected} bytes, got {got}"
+                )
             }
             Error::BadBlockFlag { block, found } => write!(
                 f,
@@ -239,9 +243,9 @@ mod tests {
     #[test]
     fn vertical_offsets_follow_the_manual_formula() {
         // Manual 9.3.1.3: offset = 41.91 mm * tan(-elevation), printed to 0.1 mm.
-        for l in 0..LASERS {
+        for (l, &off) in VERTICAL_OFFSET_M.iter().enumerate() {
             let v = 0.04191 * libm::tan(-elevation_rad(l));
-            assert!((f64::from(VERTICAL_OFFSET_M[l]) - v).abs() < 0.00006, "laser {l}");
+            assert!((f64::from(off) - v).abs() < 0.00006, "laser {l}");
         }
     }
 

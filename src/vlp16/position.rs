@@ -126,7 +126,10 @@ impl<T: AsRef<[u8]>> PositionPacket<T> {
     pub fn check_len(&self) -> Result<(), Error> {
         let got = self.buffer.as_ref().len();
         if got < field::LEN {
-            Err(Error::Truncated { expected: field::LEN, got })
+            Err(Error::Truncated {
+                expected: field::LEN,
+                got,
+            })
         } else {
             Ok(())
         }
@@ -146,7 +149,10 @@ impl<T: AsRef<[u8]>> PositionPacket<T> {
     /// The NMEA sentence bytes, without CR/LF and NUL padding (may be empty).
     pub fn nmea_bytes(&self) -> &[u8] {
         let f = &self.buffer.as_ref()[field::NMEA];
-        let end = f.iter().position(|&c| c == b'\r' || c == b'\n' || c == 0).unwrap_or(f.len());
+        let end = f
+            .iter()
+            .position(|&c| c == b'\r' || c == b'\n' || c == 0)
+            .unwrap_or(f.len());
         &f[..end]
     }
 
@@ -167,10 +173,15 @@ impl<T: AsRef<[u8]>> PositionPacket<T> {
         match nmea::parse_str(s).map_err(|_| Error::BadNmea)? {
             nmea::ParseResult::RMC(rmc) => {
                 let t = rmc.fix_time.ok_or(Error::BadNmea)?;
-                let date = rmc.fix_date.map(|d| (d.year(), d.month() as u8, d.day() as u8));
+                let date = rmc
+                    .fix_date
+                    .map(|d| (d.year(), d.month() as u8, d.day() as u8));
                 Ok(NmeaTime {
                     is_rmc: true,
-                    valid: !matches!(rmc.status_of_fix, nmea::sentences::rmc::RmcStatusOfFix::Invalid),
+                    valid: !matches!(
+                        rmc.status_of_fix,
+                        nmea::sentences::rmc::RmcStatusOfFix::Invalid
+                    ),
                     date,
                     hour: t.hour() as u8,
                     minute: t.minute() as u8,
@@ -231,9 +242,15 @@ pub struct PositionRepr<'a> {
 
 impl<'a> PositionRepr<'a> {
     /// Parse a checked view.
-    pub fn parse<T: AsRef<[u8]> + ?Sized>(packet: &'a PositionPacket<&'a T>) -> Result<Self, Error> {
+    pub fn parse<T: AsRef<[u8]> + ?Sized>(
+        packet: &'a PositionPacket<&'a T>,
+    ) -> Result<Self, Error> {
         packet.check_len()?;
-        Ok(Self { timestamp_us: packet.timestamp_us(), pps: packet.pps(), nmea: packet.nmea_bytes() })
+        Ok(Self {
+            timestamp_us: packet.timestamp_us(),
+            pps: packet.pps(),
+            nmea: packet.nmea_bytes(),
+        })
     }
 
     /// Write into a view of at least 512 bytes; `false` if the sentence is too long.
@@ -263,8 +280,16 @@ pub fn write_gprmc(out: &mut [u8], t: &UtcDateTime, lat_deg: f64, lon_deg: f64) 
         }
     }
     let mut w = W { buf: out, n: 0 };
-    let (ns, lat) = if lat_deg < 0.0 { ('S', -lat_deg) } else { ('N', lat_deg) };
-    let (ew, lon) = if lon_deg < 0.0 { ('W', -lon_deg) } else { ('E', lon_deg) };
+    let (ns, lat) = if lat_deg < 0.0 {
+        ('S', -lat_deg)
+    } else {
+        ('N', lat_deg)
+    };
+    let (ew, lon) = if lon_deg < 0.0 {
+        ('W', -lon_deg)
+    } else {
+        ('E', lon_deg)
+    };
     let lat_d = lat as u32;
     let lon_d = lon as u32;
     let lat_m = (lat - f64::from(lat_d)) * 60.0;
@@ -317,7 +342,10 @@ mod tests {
         let t = p.nmea_time().unwrap();
         assert!(t.is_rmc && t.valid);
         let utc = t.utc().unwrap();
-        assert_eq!((utc.year, utc.month, utc.day, utc.hour, utc.minute, utc.second), (2016, 1, 21, 8, 18, 2));
+        assert_eq!(
+            (utc.year, utc.month, utc.day, utc.hour, utc.minute, utc.second),
+            (2016, 1, 21, 8, 18, 2)
+        );
     }
 
     #[test]
@@ -331,11 +359,22 @@ mod tests {
 
     #[test]
     fn written_rmc_parses_back() {
-        let t = UtcDateTime { year: 2026, month: 11, day: 22, hour: 23, minute: 59, second: 59, nanos: 0 };
+        let t = UtcDateTime {
+            year: 2026,
+            month: 11,
+            day: 22,
+            hour: 23,
+            minute: 59,
+            second: 59,
+            nanos: 0,
+        };
         let mut s = [0u8; 96];
         let n = write_gprmc(&mut s, &t, -36.829_13, 2.407_57).unwrap();
         let buf = packet_with(&s[..n]);
-        let back = PositionPacket::new_checked(&buf[..]).unwrap().nmea_time().unwrap();
+        let back = PositionPacket::new_checked(&buf[..])
+            .unwrap()
+            .nmea_time()
+            .unwrap();
         assert_eq!(back.utc(), Some(t));
         assert!(write_gprmc(&mut [0u8; 20], &t, 0.0, 0.0).is_none());
     }
@@ -344,7 +383,10 @@ mod tests {
     fn short_and_empty() {
         assert_eq!(
             PositionPacket::new_checked(&[0u8; 511][..]).unwrap_err(),
-            Error::Truncated { expected: 512, got: 511 }
+            Error::Truncated {
+                expected: 512,
+                got: 511
+            }
         );
         let p = PositionPacket::new_checked(&[0u8; 512][..]).unwrap();
         assert_eq!(p.nmea_bytes(), b"");

@@ -14,15 +14,25 @@ fn set_all_flags(buf: &mut [u8]) {
 
 /// Expected point, worked out from the manual's rules in f64.
 fn manual_point(distance_raw: u16, laser: usize, azimuth_deg: f64) -> [f64; 3] {
-    let elev = [-15., 1., -13., 3., -11., 5., -9., 7., -7., 9., -5., 11., -3., 13., -1., 15.][laser];
-    let voff = [11.2, -0.7, 9.7, -2.2, 8.1, -3.7, 6.6, -5.1, 5.1, -6.6, 3.7, -8.1, 2.2, -9.7, 0.7, -11.2][laser];
+    let elev = [
+        -15., 1., -13., 3., -11., 5., -9., 7., -7., 9., -5., 11., -3., 13., -1., 15.,
+    ][laser];
+    let voff = [
+        11.2, -0.7, 9.7, -2.2, 8.1, -3.7, 6.6, -5.1, 5.1, -6.6, 3.7, -8.1, 2.2, -9.7, 0.7, -11.2,
+    ][laser];
     let d = f64::from(distance_raw) * 0.002;
     let (w, t): (f64, f64) = (f64::to_radians(elev), azimuth_deg.to_radians());
-    [d * w.cos() * t.sin(), d * w.cos() * t.cos(), d * w.sin() + voff * 1e-3]
+    [
+        d * w.cos() * t.sin(),
+        d * w.cos() * t.cos(),
+        d * w.sin() + voff * 1e-3,
+    ]
 }
 
 fn close(p: &Point, e: [f64; 3], tol: f64) -> bool {
-    (f64::from(p.x) - e[0]).abs() < tol && (f64::from(p.y) - e[1]).abs() < tol && (f64::from(p.z) - e[2]).abs() < tol
+    (f64::from(p.x) - e[0]).abs() < tol
+        && (f64::from(p.y) - e[1]).abs() < tol
+        && (f64::from(p.z) - e[2]).abs() < tol
 }
 
 /// A hand-written dual-return packet: pairs at 10.00, 10.40, ... deg (0.40 deg per pair).
@@ -50,12 +60,22 @@ fn hand_written_dual_return_packet() {
     // Pair 0, laser 5 of sequence 0: fires 5 * 2.304 = 11.52 us after the stamp, at
     // 10.00 + 0.40 * 11.52 / 110.592 deg = 10.041666.. deg.
     let az0 = 10.0 + 0.40 * 11.52 / 110.592;
-    assert_eq!((pts[0].block, pts[0].channel, pts[0].ret), (0, 5, Return::DualLast));
+    assert_eq!(
+        (pts[0].block, pts[0].channel, pts[0].ret),
+        (0, 5, Return::DualLast)
+    );
     assert_eq!(pts[0].offset_ns, 11_520);
     assert!((f64::from(pts[0].azimuth).to_degrees() - az0).abs() < 1e-4);
-    assert!(close(&pts[0], manual_point(5000, 5, az0), 2e-5), "{:?}", pts[0]);
+    assert!(
+        close(&pts[0], manual_point(5000, 5, az0), 2e-5),
+        "{:?}",
+        pts[0]
+    );
     assert_eq!(pts[0].intensity, 10);
-    assert_eq!((pts[1].block, pts[1].ret, pts[1].offset_ns), (1, Return::DualStrongest, 11_520));
+    assert_eq!(
+        (pts[1].block, pts[1].ret, pts[1].offset_ns),
+        (1, Return::DualStrongest, 11_520)
+    );
     assert!((pts[1].azimuth - pts[0].azimuth).abs() < 1e-7);
     assert!(close(&pts[1], manual_point(4000, 5, az0), 2e-5));
     assert_eq!(pts[1].intensity, 200);
@@ -64,10 +84,17 @@ fn hand_written_dual_return_packet() {
     // = 642.816 us; the last pair reuses the previous pair's 0.40 deg step:
     // 12.00 + 0.40 * (55.296 + 34.56) / 110.592 = 12.325 deg.
     let az5 = 12.0 + 0.40 * (55.296 + 34.56) / 110.592;
-    for (pt, raw, ret) in [(&pts[2], 1000, Return::DualLast), (&pts[3], 1500, Return::DualStrongest)] {
+    for (pt, raw, ret) in [
+        (&pts[2], 1000, Return::DualLast),
+        (&pts[3], 1500, Return::DualStrongest),
+    ] {
         assert_eq!((pt.sequence(), pt.laser(), pt.ret), (1, 15, ret));
         assert_eq!(pt.offset_ns, 642_816);
-        assert!((f64::from(pt.azimuth).to_degrees() - az5).abs() < 1e-4, "{}", pt.azimuth.to_degrees());
+        assert!(
+            (f64::from(pt.azimuth).to_degrees() - az5).abs() < 1e-4,
+            "{}",
+            pt.azimuth.to_degrees()
+        );
         assert!(close(pt, manual_point(raw, 15, az5), 2e-5));
     }
 }
@@ -97,18 +124,34 @@ fn azimuth_wraps_through_north() {
 }
 
 fn block_strategy() -> impl Strategy<Value = BlockRepr> {
-    (0u16..36_000, prop::array::uniform32((any::<u16>(), any::<u8>())))
+    (
+        0u16..36_000,
+        prop::array::uniform32((any::<u16>(), any::<u8>())),
+    )
         .prop_map(|(azimuth, channels)| BlockRepr { azimuth, channels })
 }
 
 fn mode_strategy() -> impl Strategy<Value = ReturnMode> {
-    prop_oneof![Just(ReturnMode::Strongest), Just(ReturnMode::Last), Just(ReturnMode::Dual)]
+    prop_oneof![
+        Just(ReturnMode::Strongest),
+        Just(ReturnMode::Last),
+        Just(ReturnMode::Dual)
+    ]
 }
 
 fn repr_strategy() -> impl Strategy<Value = DataRepr> {
-    (prop::array::uniform12(block_strategy()), any::<u32>(), mode_strategy(), any::<u8>()).prop_map(
-        |(blocks, timestamp_us, return_mode, product)| DataRepr { blocks, timestamp_us, return_mode, product },
+    (
+        prop::array::uniform12(block_strategy()),
+        any::<u32>(),
+        mode_strategy(),
+        any::<u8>(),
     )
+        .prop_map(|(blocks, timestamp_us, return_mode, product)| DataRepr {
+            blocks,
+            timestamp_us,
+            return_mode,
+            product,
+        })
 }
 
 proptest! {
@@ -172,5 +215,8 @@ proptest! {
 #[test]
 fn layout_constants_add_up() {
     assert_eq!(field::BLOCKS * field::BLOCK_LEN + 6, DATA_PACKET_LEN);
-    assert_eq!(field::CHANNEL0 + field::CHANNELS * field::CHANNEL_LEN, field::BLOCK_LEN);
+    assert_eq!(
+        field::CHANNEL0 + field::CHANNELS * field::CHANNEL_LEN,
+        field::BLOCK_LEN
+    );
 }

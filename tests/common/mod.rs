@@ -6,7 +6,9 @@ use std::path::PathBuf;
 /// The repository root (tests run with the crate's manifest dir as cwd).
 pub fn repo_root() -> PathBuf {
     let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    if here.join("Cargo.lock").exists() || here.join("src/lib.rs").exists() && here.join("hal").exists() {
+    if here.join("Cargo.lock").exists()
+        || here.join("src/lib.rs").exists() && here.join("hal").exists()
+    {
         here
     } else {
         here.parent().expect("crate dir has a parent").to_path_buf()

@@ -70,13 +70,22 @@ fn mode_name(m: ReturnMode) -> &'static str {
 
 /// Decode a capture file; with `csv`, write one row per point.
 pub fn decode_file(path: &Path, csv: Option<&mut dyn Write>) -> Result<DecodeSummary, DecodeError> {
-    let err = |error| DecodeError { path: path.display().to_string(), error };
+    let err = |error| DecodeError {
+        path: path.display().to_string(),
+        error,
+    };
     let src = PcapSource::open(path).map_err(err)?;
-    decode_source(src, csv).map_err(|e| DecodeError { path: path.display().to_string(), error: e })
+    decode_source(src, csv).map_err(|e| DecodeError {
+        path: path.display().to_string(),
+        error: e,
+    })
 }
 
 /// Decode from any reader holding a capture.
-pub fn decode_source<R: Read>(mut src: PcapSource<R>, mut csv: Option<&mut dyn Write>) -> Result<DecodeSummary, PcapError> {
+pub fn decode_source<R: Read>(
+    mut src: PcapSource<R>,
+    mut csv: Option<&mut dyn Write>,
+) -> Result<DecodeSummary, PcapError> {
     let mut s = DecodeSummary::default();
     let mut points = PointBuf::new();
     let mut line = String::with_capacity(128);
@@ -103,20 +112,22 @@ pub fn decode_source<R: Read>(mut src: PcapSource<R>, mut csv: Option<&mut dyn W
         };
         match classify(&d, ports) {
             Err(reason) => s.skips.count(d.offset, &reason),
-            Ok(Vlp16Packet::Data { packet, offset, .. }) => match vlp16::decode(&packet, &mut points) {
-                Err(e) => s.skips.count(offset, &spherecal_hal::SkipReason::Vlp16(e)),
-                Ok(n) => {
-                    if let Some(w) = csv.as_deref_mut() {
-                        write_rows(w, &mut line, s.data_packets, &packet, &points)?;
+            Ok(Vlp16Packet::Data { packet, offset, .. }) => {
+                match vlp16::decode(&packet, &mut points) {
+                    Err(e) => s.skips.count(offset, &spherecal_hal::SkipReason::Vlp16(e)),
+                    Ok(n) => {
+                        if let Some(w) = csv.as_deref_mut() {
+                            write_rows(w, &mut line, s.data_packets, &packet, &points)?;
+                        }
+                        s.points += n as u64;
+                        if let Ok(m) = packet.return_mode() {
+                            *s.return_modes.entry(mode_name(m)).or_default() += 1;
+                        }
+                        *s.products.entry(packet.product_raw()).or_default() += 1;
+                        s.data_packets += 1;
                     }
-                    s.points += n as u64;
-                    if let Ok(m) = packet.return_mode() {
-                        *s.return_modes.entry(mode_name(m)).or_default() += 1;
-                    }
-                    *s.products.entry(packet.product_raw()).or_default() += 1;
-                    s.data_packets += 1;
                 }
-            },
+            }
             Ok(Vlp16Packet::Position { packet, .. }) => {
                 s.position_packets += 1;
                 let pps = match packet.pps() {
@@ -147,7 +158,13 @@ pub fn decode_source<R: Read>(mut src: PcapSource<R>, mut csv: Option<&mut dyn W
     Ok(s)
 }
 
-fn write_rows(w: &mut dyn Write, line: &mut String, index: u64, packet: &DataPacket<&[u8]>, points: &PointBuf) -> io::Result<()> {
+fn write_rows(
+    w: &mut dyn Write,
+    line: &mut String,
+    index: u64,
+    packet: &DataPacket<&[u8]>,
+    points: &PointBuf,
+) -> io::Result<()> {
     let ts_ns = u64::from(packet.timestamp_us()) * 1000;
     for p in points.as_slice() {
         line.clear();
@@ -225,7 +242,11 @@ impl DecodeSummary {
         }
         let _ = writeln!(o, "skipped: {}", self.skips.total());
         for l in self.skips.lines() {
-            let _ = writeln!(o, "  {}: {} (first at byte {}: {})", l.reason, l.count, l.first_offset, l.first);
+            let _ = writeln!(
+                o,
+                "  {}: {} (first at byte {}: {})",
+                l.reason, l.count, l.first_offset, l.first
+            );
         }
         if let Some(s) = &self.stopped {
             let _ = writeln!(o, "stopped early: {s}");

@@ -7,7 +7,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "spherecal", version, about = "LiDAR boresight / lever-arm calibration on spheres")]
+#[command(
+    name = "spherecal",
+    version,
+    about = "LiDAR boresight / lever-arm calibration on spheres"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -30,7 +34,11 @@ fn main() -> ExitCode {
         Ok(c) => c,
         Err(e) => {
             let _ = e.print();
-            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
         }
     };
     match cli.cmd {
@@ -42,7 +50,10 @@ fn decode(file: PathBuf, csv: Option<PathBuf>) -> ExitCode {
     let mut out = match csv.as_ref().map(std::fs::File::create).transpose() {
         Ok(f) => f.map(|f| BufWriter::with_capacity(1 << 20, f)),
         Err(e) => {
-            eprintln!("spherecal decode: {}: cannot create: {e}", csv.unwrap_or_default().display());
+            eprintln!(
+                "spherecal decode: {}: cannot create: {e}",
+                csv.unwrap_or_default().display()
+            );
             return ExitCode::from(2);
         }
     };

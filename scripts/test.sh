@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The one test command (README): sets up what the tests need on a fresh Debian machine with the
+# Rust toolchain, then runs every check. Used as-is by .ci/run.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+say() { printf '\n== %s\n' "$*"; }
+
+if [ ! -d ../shared/data ]; then
+  echo "error: ../shared/data is missing: the tests read real captures from it (see README)" >&2
+  exit 1
+fi
+
+say "set-up"
+rustup component add rustfmt clippy >/dev/null 2>&1 || echo "warning: could not add rustfmt/clippy components"
+THUMB=thumbv7em-none-eabihf
+if ! rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
+  rustup target add "$THUMB" >/dev/null 2>&1 || echo "warning: target $THUMB cannot be fetched here: the bare-metal build is skipped"
+fi
+RUNNER="cargo test --workspace"
+if cargo nextest --version >/dev/null 2>&1; then
+  RUNNER="cargo nextest run --workspace --no-fail-fast"
+fi
+
+say "format"
+cargo fmt --all -- --check
+
+say "clippy (all targets, warnings are errors)"
+cargo clippy --workspace --all-targets -- -D warnings
+
+say "core builds as no_std for the bare-metal target"
+cargo build -p spherecal --no-default-features
+if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
+  cargo build -p spherecal --no-default-features --target "$THUMB"
+else
+  echo "warning: skipped: $THUMB is not installed"
+fi
+
+say "doc tests (nextest does not run them)"
+cargo test --workspace --doc -q
+
+say "tests"
+$RUNNER
