@@ -82,6 +82,8 @@ impl From<io::Error> for PcapError {
 }
 
 enum Format {
+    /// Before the file header has been read.
+    Pending,
     Classic {
         parser: PcapParser,
         link: u32,
@@ -135,12 +137,7 @@ impl<R: Read> PcapSource<R> {
             base: 0,
             eof: false,
             done: false,
-            format: Format::Classic {
-                parser: dummy_parser(),
-                link: 1,
-                nanos: false,
-                big: false,
-            },
+            format: Format::Pending,
         };
         s.fill(24)?;
         let head = &s.buf[..s.end];
@@ -323,17 +320,6 @@ impl<R: Read> PcapSource<R> {
     }
 }
 
-fn dummy_parser() -> PcapParser {
-    // A valid little-endian Ethernet header: only a placeholder until the real one is read.
-    const H: [u8; 24] = [
-        0xD4, 0xC3, 0xB2, 0xA1, 2, 0, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF, 0xFF, 0, 0, 1, 0, 0, 0,
-    ];
-    match PcapParser::new(&H) {
-        Ok((_, p)) => p,
-        Err(_) => unreachable!("constant header parses"),
-    }
-}
-
 impl<R: Read> PacketSource for PcapSource<R> {
     type Error = PcapError;
 
@@ -342,6 +328,7 @@ impl<R: Read> PacketSource for PcapSource<R> {
             return Ok(None);
         }
         match self.format {
+            Format::Pending => Ok(None),
             Format::Classic { big, .. } => {
                 let len_of = move |s: &Self| {
                     let b = &s.buf[s.start + 8..s.start + 12];
@@ -366,7 +353,7 @@ impl<R: Read> PacketSource for PcapSource<R> {
                     ..
                 } = self.format
                 else {
-                    unreachable!()
+                    return Ok(None);
                 };
                 let (_, raw) = parser
                     .next_raw_packet(&self.buf[at..at + len])
@@ -431,7 +418,7 @@ impl<R: Read> PacketSource for PcapSource<R> {
                 let at = self.start;
                 self.start += len;
                 let Format::Ng { ref mut parser, .. } = self.format else {
-                    unreachable!()
+                    return Ok(None);
                 };
                 let (_, block) =
                     parser
@@ -454,7 +441,12 @@ impl<R: Read> PacketSource for PcapSource<R> {
                         p.data,
                         p.original_len,
                     ),
-                    _ => unreachable!("block type checked above"),
+                    _ => {
+                        return Err(PcapError::Corrupt {
+                            offset,
+                            what: "block type changed between peek and parse".into(),
+                        })
+                    }
                 };
                 let Some(idb) = parser.interfaces().get(iface as usize) else {
                     return Err(PcapError::Corrupt {

@@ -1,7 +1,7 @@
 //! `spherecal decode FILE [--csv OUT]`: VLP-16 packets from a capture, counted and listed.
 
 use spherecal::time::UtcDateTime;
-use spherecal::vlp16::{self, firing, DataPacket, PointBuf, PpsStatus, ReturnMode, ELEVATION_DEG};
+use spherecal::vlp16::{self, DataPacket, PointBuf, PpsStatus, ReturnMode, ELEVATION_DEG};
 use spherecal_hal::pcap::{PcapError, PcapSource};
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
@@ -253,9 +253,4 @@ impl DecodeSummary {
         }
         o
     }
-}
-
-/// Firing offset in nanoseconds, for callers that need the schedule without decoding.
-pub fn firing_offset_ns(mode: ReturnMode, block: usize, sequence: usize, laser: usize) -> u32 {
-    firing::firing_offset_ns(mode, block, sequence, laser)
 }
