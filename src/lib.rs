@@ -12,4 +12,5 @@
 extern crate std;
 
 pub mod time;
+pub mod vn200;
 pub mod vlp16;

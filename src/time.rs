@@ -89,3 +89,36 @@ mod tests {
         assert_eq!(t.micros_past_hour(), 1_082_000_000);
     }
 }
+
+/// GPS time: nanoseconds since the GPS epoch 1980-01-06T00:00:00, no leap seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct GpsTime(pub i64);
+
+/// Nanoseconds in a GPS week.
+pub const WEEK_NS: i64 = 604_800 * 1_000_000_000;
+
+impl GpsTime {
+    /// From GPS week and time of week in nanoseconds (PROTOCOLS.md: week * 604800e9 + tow).
+    pub fn from_week_tow_ns(week: u16, tow_ns: u64) -> Option<Self> {
+        let tow = i64::try_from(tow_ns).ok()?;
+        Some(Self(i64::from(week) * WEEK_NS + tow))
+    }
+
+    /// From GPS week and time of week in seconds (as $VNINS and SBET files give it).
+    pub fn from_week_tow_s(week: u16, tow_s: f64) -> Option<Self> {
+        if !tow_s.is_finite() || !(0.0..=1.0e6).contains(&tow_s) {
+            return None;
+        }
+        Some(Self(i64::from(week) * WEEK_NS + libm::round(tow_s * 1e9) as i64))
+    }
+
+    /// Seconds since the GPS epoch.
+    pub fn as_secs_f64(self) -> f64 {
+        self.0 as f64 * 1e-9
+    }
+
+    /// Time of week in nanoseconds and the week number.
+    pub fn week_tow_ns(self) -> (i64, i64) {
+        (self.0.div_euclid(WEEK_NS), self.0.rem_euclid(WEEK_NS))
+    }
+}

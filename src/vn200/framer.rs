@@ -1,0 +1,263 @@
+//! The streaming framer: bytes in any chunking -> binary frames, `$VN` sentences, NMEA
+//! sentences, and reported errors. Fixed buffer, no heap.
+//!
+//! Resynchronisation: at every byte that is not part of an accepted item the framer looks for a
+//! 0xFA or a `$`. A binary candidate is accepted only when its header is known, all its bytes
+//! are there and its CRC-16 matches; if the CRC fails the framer moves on by ONE byte, never by
+//! the candidate's length, so a frame that starts inside a corrupt or foreign run (or right
+//! after a frame whose CRC byte is 0xFA) is still found.
+
+use super::ascii::{self, Sentence, MAX_SENTENCE};
+use super::binary::{frame_len, Frame, CRC16, SYNC};
+use super::Error;
+
+/// What the framer found, and where it starts in the stream.
+#[derive(Debug, Clone, Copy)]
+pub struct Framed<'a> {
+    /// Byte offset of its first byte (0xFA or `$`) since the framer was created.
+    pub offset: u64,
+    /// The item.
+    pub item: Item<'a>,
+}
+
+/// One framed item.
+#[derive(Debug, Clone, Copy)]
+pub enum Item<'a> {
+    /// A binary frame with a valid CRC.
+    Binary(Frame<'a>),
+    /// A `$VN` sentence with a valid checksum.
+    Ascii(Sentence<'a>),
+    /// Another device's sentence with a valid checksum (hand it to [`ascii::parse_nmea`]).
+    Nmea(Sentence<'a>),
+    /// A frame or sentence rejected for its checksum.
+    Error(Error),
+}
+
+/// Counts of everything the framer saw.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Binary frames accepted.
+    pub frames: u64,
+    /// Binary candidates whose CRC failed.
+    pub crc_failures: u64,
+    /// 0xFA bytes whose header names nothing we can size.
+    pub bad_headers: u64,
+    /// Candidates longer than the buffer.
+    pub too_long: u64,
+    /// `$VN` sentences accepted.
+    pub ascii: u64,
+    /// Sentences whose checksum failed.
+    pub ascii_bad_checksum: u64,
+    /// Other sentences accepted (checksum valid).
+    pub nmea: u64,
+    /// Of those, how many the `nmea` crate could decode.
+    pub nmea_decoded: u64,
+    /// Bytes that were part of no accepted item.
+    pub skipped_bytes: u64,
+}
+
+/// The streaming framer over a fixed `N`-byte buffer (at least 512; the longest binary frame it
+/// can accept is `N` bytes).
+#[derive(Debug, Clone)]
+pub struct Framer<const N: usize = 8192> {
+    buf: [u8; N],
+    pos: usize,
+    len: usize,
+    base: u64,
+    eof: bool,
+    stats: Stats,
+}
+
+impl<const N: usize> Default for Framer<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+enum Found {
+    Binary(usize),
+    Line { end: usize },
+    Rejected(Error),
+}
+
+impl<const N: usize> Framer<N> {
+    /// An empty framer.
+    pub const fn new() -> Self {
+        const { assert!(N >= 2 * MAX_SENTENCE, "framer buffer too small") };
+        Self { buf: [0; N], pos: 0, len: 0, base: 0, eof: false, stats: Stats {
+            frames: 0,
+            crc_failures: 0,
+            bad_headers: 0,
+            too_long: 0,
+            ascii: 0,
+            ascii_bad_checksum: 0,
+            nmea: 0,
+            nmea_decoded: 0,
+            skipped_bytes: 0,
+        } }
+    }
+
+    /// Counts so far.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// Bytes buffered and not yet framed.
+    pub fn pending(&self) -> usize {
+        self.len - self.pos
+    }
+
+    /// Copy in as many bytes as fit; returns how many were taken. Call [`Self::next`] until it
+    /// returns `None` before pushing the rest.
+    pub fn push(&mut self, data: &[u8]) -> usize {
+        if self.pos > 0 && self.len + data.len() > N {
+            self.buf.copy_within(self.pos..self.len, 0);
+            self.base += self.pos as u64;
+            self.len -= self.pos;
+            self.pos = 0;
+        }
+        let n = data.len().min(N - self.len);
+        self.buf[self.len..self.len + n].copy_from_slice(&data[..n]);
+        self.len += n;
+        n
+    }
+
+    /// No more bytes will come: what is left is framed as far as it goes and the rest skipped.
+    pub fn finish(&mut self) {
+        self.eof = true;
+    }
+
+    /// Feed `data` and hand every item to `f` (the whole-buffer convenience).
+    pub fn consume(&mut self, mut data: &[u8], mut f: impl FnMut(Framed<'_>)) {
+        loop {
+            let n = self.push(data);
+            data = &data[n..];
+            while let Some(item) = self.next() {
+                f(item);
+            }
+            if data.is_empty() {
+                return;
+            }
+        }
+    }
+
+    fn skip(&mut self) {
+        self.pos += 1;
+        self.stats.skipped_bytes += 1;
+    }
+
+    /// The next item from the buffered bytes, or `None` when more bytes are needed (or, after
+    /// [`Self::finish`], when all is done).
+    #[allow(clippy::should_implement_trait)]
+    pub fn next(&mut self) -> Option<Framed<'_>> {
+        let (start, found) = loop {
+            if self.pos >= self.len {
+                self.base += self.len as u64;
+                self.pos = 0;
+                self.len = 0;
+                return None;
+            }
+            let start = self.pos;
+            let avail = &self.buf[start..self.len];
+            let full = avail.len() >= N;
+            match avail[0] {
+                SYNC => match frame_len(avail) {
+                    Err(Error::Incomplete) => {
+                        if self.eof || full {
+                            self.skip();
+                            continue;
+                        }
+                        return None;
+                    }
+                    Err(_) => {
+                        self.stats.bad_headers += 1;
+                        self.skip();
+                    }
+                    Ok(l) if l > N => {
+                        self.stats.too_long += 1;
+                        self.skip();
+                    }
+                    Ok(l) if l > avail.len() => {
+                        if self.eof {
+                            self.skip();
+                            continue;
+                        }
+                        return None;
+                    }
+                    Ok(l) => {
+                        let sent = u16::from_be_bytes([avail[l - 2], avail[l - 1]]);
+                        let computed = CRC16.checksum(&avail[1..l - 2]);
+                        if sent == computed {
+                            self.pos += l;
+                            self.stats.frames += 1;
+                            break (start, Found::Binary(l));
+                        }
+                        self.stats.crc_failures += 1;
+                        self.skip();
+                        break (start, Found::Rejected(Error::Crc { computed, sent }));
+                    }
+                },
+                b'$' => {
+                    let window = &avail[..avail.len().min(MAX_SENTENCE + 2)];
+                    let mut end = None;
+                    let mut broken = false;
+                    for (i, &c) in window.iter().enumerate() {
+                        if c == b'\n' {
+                            end = Some(i);
+                            break;
+                        }
+                        if !(0x20..0x7F).contains(&c) && c != b'\r' {
+                            broken = true;
+                            break;
+                        }
+                    }
+                    let (end, consumed) = match end {
+                        Some(i) => (i, i + 1),
+                        None if broken || window.len() > MAX_SENTENCE => {
+                            self.skip();
+                            continue;
+                        }
+                        None if self.eof => (window.len(), window.len()),
+                        None => return None,
+                    };
+                    let line_end = if end > 0 && avail[end - 1] == b'\r' { end - 1 } else { end };
+                    match ascii::parse(&avail[..line_end]) {
+                        Ok(s) => {
+                            if s.is_vn() {
+                                self.stats.ascii += 1;
+                            } else {
+                                self.stats.nmea += 1;
+                                if ascii::parse_nmea(s.line()).is_some() {
+                                    self.stats.nmea_decoded += 1;
+                                }
+                            }
+                            self.pos += consumed;
+                            break (start, Found::Line { end: start + line_end });
+                        }
+                        Err(e @ Error::AsciiChecksum { .. }) => {
+                            self.stats.ascii_bad_checksum += 1;
+                            self.skip();
+                            break (start, Found::Rejected(e));
+                        }
+                        Err(_) => self.skip(),
+                    }
+                }
+                _ => self.skip(),
+            }
+        };
+        let offset = self.base + start as u64;
+        let item = match found {
+            Found::Binary(l) => match Frame::from_checked(&self.buf[start..start + l]) {
+                Ok(f) => Item::Binary(f),
+                Err(e) => Item::Error(e),
+            },
+            Found::Line { end } => match ascii::parse(&self.buf[start..end]) {
+                Ok(s) if s.is_vn() => Item::Ascii(s),
+                Ok(s) => Item::Nmea(s),
+                Err(e) => Item::Error(e),
+            },
+            Found::Rejected(e) => Item::Error(e),
+        };
+        Some(Framed { offset, item })
+    }
+}
