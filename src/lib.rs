@@ -12,5 +12,5 @@
 extern crate std;
 
 pub mod time;
-pub mod vn200;
 pub mod vlp16;
+pub mod vn200;

@@ -109,7 +109,9 @@ impl GpsTime {
         if !tow_s.is_finite() || !(0.0..=1.0e6).contains(&tow_s) {
             return None;
         }
-        Some(Self(i64::from(week) * WEEK_NS + libm::round(tow_s * 1e9) as i64))
+        Some(Self(
+            i64::from(week) * WEEK_NS + libm::round(tow_s * 1e9) as i64,
+        ))
     }
 
     /// Seconds since the GPS epoch.

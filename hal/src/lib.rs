@@ -8,6 +8,7 @@
 
 pub mod packet;
 pub mod pcap;
+pub mod serial;
 pub mod vlp16;
 
 pub use packet::{Datagram, PacketSource, Record, SkipReason};

@@ -46,10 +46,16 @@ fn hex_value(s: &[u8]) -> Option<u16> {
 
 /// Parse and verify one sentence (`$...*CS`, CR/LF already removed).
 pub fn parse(line: &[u8]) -> Result<Sentence<'_>, Error> {
-    if line.first() != Some(&b'$') || line.len() > MAX_SENTENCE || !line.iter().all(|&c| (0x20..0x7F).contains(&c)) {
+    if line.first() != Some(&b'$')
+        || line.len() > MAX_SENTENCE
+        || !line.iter().all(|&c| (0x20..0x7F).contains(&c))
+    {
         return Err(Error::BadSentence);
     }
-    let star = line.iter().rposition(|&c| c == b'*').ok_or(Error::BadSentence)?;
+    let star = line
+        .iter()
+        .rposition(|&c| c == b'*')
+        .ok_or(Error::BadSentence)?;
     let digits = &line[star + 1..];
     let body = &line[1..star];
     let sent = hex_value(digits).ok_or(Error::BadSentence)?;
@@ -71,7 +77,11 @@ pub fn parse(line: &[u8]) -> Result<Sentence<'_>, Error> {
         _ => return Err(Error::BadSentence),
     };
     let line = core::str::from_utf8(line).map_err(|_| Error::BadSentence)?;
-    Ok(Sentence { line, star, checksum })
+    Ok(Sentence {
+        line,
+        star,
+        checksum,
+    })
 }
 
 impl<'a> Sentence<'a> {
@@ -99,7 +109,10 @@ impl<'a> Sentence<'a> {
 
     /// Decode a `$VN` sentence's fields into a typed value.
     pub fn decode(&self) -> Result<Vn<'a>, Error> {
-        let mut f = Fields { it: self.fields(), index: 0 };
+        let mut f = Fields {
+            it: self.fields(),
+            index: 0,
+        };
         let out = match self.name() {
             "VNINS" => {
                 let tow_s = f.num()?;
@@ -108,9 +121,24 @@ impl<'a> Sentence<'a> {
                 let ypr = f.arr()?;
                 let lla = f.arr()?;
                 let vel_ned = f.arr()?;
-                Vn::Ins(Ins { tow_s, week, status, ypr_deg: ypr, lla, vel_ned, att_u: f.num()?, pos_u: f.num()?, vel_u: f.num()? })
+                Vn::Ins(Ins {
+                    tow_s,
+                    week,
+                    status,
+                    ypr_deg: ypr,
+                    lla,
+                    vel_ned,
+                    att_u: f.num()?,
+                    pos_u: f.num()?,
+                    vel_u: f.num()?,
+                })
             }
-            "VNYMR" => Vn::Ymr(Ymr { ypr_deg: f.arr()?, mag: f.arr()?, accel: f.arr()?, gyro: f.arr()? }),
+            "VNYMR" => Vn::Ymr(Ymr {
+                ypr_deg: f.arr()?,
+                mag: f.arr()?,
+                accel: f.arr()?,
+                gyro: f.arr()?,
+            }),
             "VNYPR" => Vn::Ypr(f.arr()?),
             "VNQTN" => Vn::Qtn(f.arr()?),
             "VNGPS" => Vn::Gps(Gps {
@@ -129,7 +157,11 @@ impl<'a> Sentence<'a> {
                 let start = self.line.find(',').unwrap_or(self.star);
                 let rest = &self.line[start..self.star];
                 let values = rest.splitn(3, ',').nth(2).unwrap_or("");
-                Vn::Register { write: self.name() == "VNWRG", id, values }
+                Vn::Register {
+                    write: self.name() == "VNWRG",
+                    id,
+                    values,
+                }
             }
             "VNERR" => Vn::Error(f.num()?),
             _ => Vn::Other,
@@ -148,14 +180,19 @@ struct Fields<'a, I: Iterator<Item = &'a str>> {
 
 impl<'a, I: Iterator<Item = &'a str>> Fields<'a, I> {
     fn next(&mut self) -> Result<&'a str, Error> {
-        let s = self.it.next().ok_or(Error::BadField { index: self.index })?;
+        let s = self
+            .it
+            .next()
+            .ok_or(Error::BadField { index: self.index })?;
         self.index = self.index.saturating_add(1);
         Ok(s)
     }
     fn num<T: core::str::FromStr>(&mut self) -> Result<T, Error> {
         let i = self.index;
         let s = self.next()?;
-        s.trim_start_matches('+').parse().map_err(|_| Error::BadField { index: i })
+        s.trim_start_matches('+')
+            .parse()
+            .map_err(|_| Error::BadField { index: i })
     }
     fn hex(&mut self) -> Result<u16, Error> {
         let i = self.index;
@@ -283,7 +320,13 @@ mod tests {
         let s = parse(b"$VNERR,12*72").unwrap();
         assert_eq!(s.checksum, Checksum::Xor8(0x72));
         assert_eq!(s.decode(), Ok(Vn::Error(12)));
-        assert_eq!(parse(b"$VNERR,12*73"), Err(Error::AsciiChecksum { computed: 0x72, sent: 0x73 }));
+        assert_eq!(
+            parse(b"$VNERR,12*73"),
+            Err(Error::AsciiChecksum {
+                computed: 0x72,
+                sent: 0x73
+            })
+        );
         assert_eq!(parse(b"$VNERR,12*7"), Err(Error::BadSentence));
         assert_eq!(parse(b"VNERR,12*72"), Err(Error::BadSentence));
     }
@@ -297,7 +340,8 @@ mod tests {
         line.extend_from_slice(body).unwrap();
         line.push(b'*').unwrap();
         for sh in [12, 8, 4, 0] {
-            line.push(b"0123456789ABCDEF"[usize::from((crc >> sh) & 0xF)]).unwrap();
+            line.push(b"0123456789ABCDEF"[usize::from((crc >> sh) & 0xF)])
+                .unwrap();
         }
         let s = parse(&line).unwrap();
         assert_eq!(s.checksum, Checksum::Crc16(crc));
@@ -307,8 +351,22 @@ mod tests {
     #[test]
     fn register_replies() {
         let s = parse(b"$VNRRG,35,1,1,1,1*75").unwrap();
-        assert_eq!(s.decode(), Ok(Vn::Register { write: false, id: 35, values: "1,1,1,1" }));
+        assert_eq!(
+            s.decode(),
+            Ok(Vn::Register {
+                write: false,
+                id: 35,
+                values: "1,1,1,1"
+            })
+        );
         let s = parse(b"$VNRRG,01,VN-200T-CR*31").unwrap();
-        assert_eq!(s.decode(), Ok(Vn::Register { write: false, id: 1, values: "VN-200T-CR" }));
+        assert_eq!(
+            s.decode(),
+            Ok(Vn::Register {
+                write: false,
+                id: 1,
+                values: "VN-200T-CR"
+            })
+        );
     }
 }

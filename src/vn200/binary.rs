@@ -15,7 +15,8 @@ use crate::time::GpsTime;
 pub const SYNC: u8 = 0xFA;
 
 /// CRC-16/XMODEM (poly 0x1021, init 0, no reflection, no xorout), slice-by-16 tables.
-pub const CRC16: crc::Crc<u16, crc::Table<16>> = crc::Crc::<u16, crc::Table<16>>::new(&crc::CRC_16_XMODEM);
+pub const CRC16: crc::Crc<u16, crc::Table<16>> =
+    crc::Crc::<u16, crc::Table<16>>::new(&crc::CRC_16_XMODEM);
 
 /// The 8-bit XOR checksum of VectorNav ASCII and NMEA sentences.
 pub fn xor8(bytes: &[u8]) -> u8 {
@@ -44,14 +45,29 @@ impl Masks {
 
     /// Bytes of the header on the wire (sync, group byte, mask words).
     pub fn header_len(&self) -> usize {
-        1 + 1 + self.0.iter().map(|&m| if m == 0 { 0 } else if m >> 16 != 0 { 4 } else { 2 }).sum::<usize>()
+        1 + 1
+            + self
+                .0
+                .iter()
+                .map(|&m| {
+                    if m == 0 {
+                        0
+                    } else if m >> 16 != 0 {
+                        4
+                    } else {
+                        2
+                    }
+                })
+                .sum::<usize>()
     }
 
     /// Fields present, in wire order.
     pub fn fields(&self) -> impl Iterator<Item = (Group, u8)> + '_ {
         Group::ALL.into_iter().flat_map(move |g| {
             let m = self.0[g as usize];
-            (0u8..31).filter(move |&b| m & (1 << b) != 0).map(move |b| (g, b))
+            (0u8..31)
+                .filter(move |&b| m & (1 << b) != 0)
+                .map(move |b| (g, b))
         })
     }
 }
@@ -81,7 +97,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<(Masks, usize), Error> {
             let w1 = le_u16(bytes, at).ok_or(Error::Incomplete)?;
             at += 2;
             if w1 & 0x8000 != 0 {
-                return Err(Error::UnknownField { group: g as u8, bit: 31 });
+                return Err(Error::UnknownField {
+                    group: g as u8,
+                    bit: 31,
+                });
             }
             m |= u32::from(w1) << 16;
         }
@@ -108,7 +127,10 @@ fn field_size(def: &FieldDef, payload: &[u8], at: usize) -> Result<usize, Error>
 pub fn frame_len(bytes: &[u8]) -> Result<usize, Error> {
     let (masks, mut at) = parse_header(bytes)?;
     for (g, bit) in masks.fields() {
-        let def = g.field(bit).ok_or(Error::UnknownField { group: g as u8, bit })?;
+        let def = g.field(bit).ok_or(Error::UnknownField {
+            group: g as u8,
+            bit,
+        })?;
         at += field_size(def, bytes, at)?;
     }
     Ok(at + 2)
@@ -181,9 +203,13 @@ pub fn read_scalar(b: &[u8], at: usize, ty: Ty) -> Option<Value> {
         Ty::U16 => Value::U(u64::from(u16::from_le_bytes([s[0], s[1]]))),
         Ty::I16 => Value::I(i64::from(i16::from_le_bytes([s[0], s[1]]))),
         Ty::U32 => Value::U(u64::from(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))),
-        Ty::U64 => Value::U(u64::from_le_bytes([s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]])),
+        Ty::U64 => Value::U(u64::from_le_bytes([
+            s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7],
+        ])),
         Ty::F32 => Value::F32(f32::from_le_bytes([s[0], s[1], s[2], s[3]])),
-        Ty::F64 => Value::F64(f64::from_le_bytes([s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]])),
+        Ty::F64 => Value::F64(f64::from_le_bytes([
+            s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7],
+        ])),
     })
 }
 
@@ -207,11 +233,19 @@ impl<'a> Frame<'a> {
             return Err(Error::NoSync);
         }
         let len = match frame_len(bytes) {
-            Err(Error::Incomplete) => return Err(Error::Truncated { expected: None, got: bytes.len() }),
+            Err(Error::Incomplete) => {
+                return Err(Error::Truncated {
+                    expected: None,
+                    got: bytes.len(),
+                })
+            }
             r => r?,
         };
         if bytes.len() != len {
-            return Err(Error::Truncated { expected: Some(len), got: bytes.len() });
+            return Err(Error::Truncated {
+                expected: Some(len),
+                got: bytes.len(),
+            });
         }
         let sent = u16::from_be_bytes([bytes[len - 2], bytes[len - 1]]);
         let computed = CRC16.checksum(&bytes[1..len - 2]);
@@ -224,7 +258,11 @@ impl<'a> Frame<'a> {
     /// A frame whose length and CRC the framer has checked already.
     pub(crate) fn from_checked(bytes: &'a [u8]) -> Result<Self, Error> {
         let (masks, payload_at) = parse_header(bytes)?;
-        Ok(Self { bytes, masks, payload_at })
+        Ok(Self {
+            bytes,
+            masks,
+            payload_at,
+        })
     }
 
     /// All bytes, sync to CRC.
@@ -252,7 +290,12 @@ impl<'a> Frame<'a> {
             let n = field_size(def, bytes, at).ok()?;
             let field = bytes.get(at..(at + n).min(end))?;
             at += n;
-            Some(FieldRef { group, bit, def, bytes: field })
+            Some(FieldRef {
+                group,
+                bit,
+                def,
+                bytes: field,
+            })
         })
     }
 
@@ -261,7 +304,9 @@ impl<'a> Frame<'a> {
         if !self.masks.has(group, bit) {
             return None;
         }
-        self.fields().find(|f| f.group == group && f.bit == bit).map(|f| f.bytes)
+        self.fields()
+            .find(|f| f.group == group && f.bit == bit)
+            .map(|f| f.bytes)
     }
 
     fn f32s<const N: usize>(&self, group: Group, bit: u8) -> Option<[f32; N]> {
@@ -280,7 +325,10 @@ impl<'a> Frame<'a> {
     /// GPS time: Common/Time TimeGps [ns since 1980-01-06, no leap seconds], else
     /// Time.GpsWeek * 604800 s + Time.GpsTow.
     pub fn gps_time(&self) -> Option<GpsTime> {
-        if let Some(ns) = self.u64_field(Group::Common, 1).or_else(|| self.u64_field(Group::Time, 1)) {
+        if let Some(ns) = self
+            .u64_field(Group::Common, 1)
+            .or_else(|| self.u64_field(Group::Time, 1))
+        {
             return i64::try_from(ns).ok().map(GpsTime);
         }
         let tow = self.u64_field(Group::Time, 2)?;
@@ -290,18 +338,22 @@ impl<'a> Frame<'a> {
 
     /// Yaw, pitch, roll [deg] from Common or Attitude.
     pub fn yaw_pitch_roll_deg(&self) -> Option<[f32; 3]> {
-        self.f32s(Group::Common, 3).or_else(|| self.f32s(Group::Attitude, 1))
+        self.f32s(Group::Common, 3)
+            .or_else(|| self.f32s(Group::Attitude, 1))
     }
 
     /// Attitude quaternion (x, y, z, w: scalar last) from Common or Attitude.
     pub fn quaternion(&self) -> Option<[f32; 4]> {
-        self.f32s(Group::Common, 4).or_else(|| self.f32s(Group::Attitude, 2))
+        self.f32s(Group::Common, 4)
+            .or_else(|| self.f32s(Group::Attitude, 2))
     }
 
     /// INS position: latitude, longitude [deg], ellipsoidal height [m] from Common.Position or
     /// Ins.PosLla (never the GNSS antenna's own fix).
     pub fn position_lla(&self) -> Option<[f64; 3]> {
-        let b = self.field(Group::Common, 6).or_else(|| self.field(Group::Ins, 1))?;
+        let b = self
+            .field(Group::Common, 6)
+            .or_else(|| self.field(Group::Ins, 1))?;
         let mut out = [0f64; 3];
         for (i, o) in out.iter_mut().enumerate() {
             *o = f64::from_le_bytes(b.get(8 * i..8 * i + 8)?.try_into().ok()?);
@@ -311,7 +363,9 @@ impl<'a> Frame<'a> {
 
     /// INS status word from Common or Ins.
     pub fn ins_status(&self) -> Option<u16> {
-        let b = self.field(Group::Common, 12).or_else(|| self.field(Group::Ins, 0))?;
+        let b = self
+            .field(Group::Common, 12)
+            .or_else(|| self.field(Group::Ins, 0))?;
         Some(u16::from_le_bytes(b.try_into().ok()?))
     }
 }
@@ -323,7 +377,10 @@ pub fn emit(out: &mut [u8], masks: &Masks, payload: &[u8]) -> Result<usize, Erro
     let mut groups = 0u8;
     for (g, &m) in masks.0.iter().enumerate() {
         if m & 0x8000 != 0 || m & 0x8000_0000 != 0 {
-            return Err(Error::UnknownField { group: g as u8, bit: 15 });
+            return Err(Error::UnknownField {
+                group: g as u8,
+                bit: 15,
+            });
         }
         if m != 0 {
             groups |= 1 << g;
@@ -356,8 +413,14 @@ pub fn emit(out: &mut [u8], masks: &Masks, payload: &[u8]) -> Result<usize, Erro
     out[at..at + 2].copy_from_slice(&crc.to_be_bytes());
     match frame_len(&out[..total]) {
         Ok(n) if n == total => Ok(total),
-        Ok(n) => Err(Error::Truncated { expected: Some(n), got: total }),
-        Err(Error::Incomplete) => Err(Error::Truncated { expected: None, got: total }),
+        Ok(n) => Err(Error::Truncated {
+            expected: Some(n),
+            got: total,
+        }),
+        Err(Error::Incomplete) => Err(Error::Truncated {
+            expected: None,
+            got: total,
+        }),
         Err(e) => Err(e),
     }
 }
@@ -377,27 +440,39 @@ mod tests {
     #[test]
     fn vnproglib_mock_frame_by_hand() {
         let bytes = [
-            0xFA, 0x01, 0x09, 0x00, 0x70, 0x05, 0x00, 0x03, 0x0A, 0x00, 0x00, 0x00, 0x48, 0x0E, 0x2C, 0x42, 0x08,
-            0x4C, 0x37, 0xC1, 0x10, 0x38, 0x8B, 0xC2, 0xD4, 0xCB,
+            0xFA, 0x01, 0x09, 0x00, 0x70, 0x05, 0x00, 0x03, 0x0A, 0x00, 0x00, 0x00, 0x48, 0x0E,
+            0x2C, 0x42, 0x08, 0x4C, 0x37, 0xC1, 0x10, 0x38, 0x8B, 0xC2, 0xD4, 0xCB,
         ];
         assert_eq!(frame_len(&bytes), Ok(1 + 1 + 2 + 8 + 12 + 2));
         let f = Frame::parse(&bytes).unwrap();
         // TimeStartup = 0x0000000A03000570 ns = 43000006000 ns.
         assert_eq!(f.u64_field(Group::Common, 0), Some(43_000_006_000));
         let ypr = f.yaw_pitch_roll_deg().unwrap();
-        assert_eq!(ypr, [f32::from_bits(0x422C_0E48), f32::from_bits(0xC137_4C08), f32::from_bits(0xC28B_3810)]);
+        assert_eq!(
+            ypr,
+            [
+                f32::from_bits(0x422C_0E48),
+                f32::from_bits(0xC137_4C08),
+                f32::from_bits(0xC28B_3810)
+            ]
+        );
         assert!((ypr[0] - 43.013_946).abs() < 1e-5);
         // Over the CRC too, the CRC is 0 (PROTOCOLS.md).
         assert_eq!(CRC16.checksum(&bytes[1..]), 0);
         let mut bad = bytes;
         bad[10] ^= 1;
-        assert!(matches!(Frame::parse(&bad), Err(Error::Crc { sent: 0xD4CB, .. })));
+        assert!(matches!(
+            Frame::parse(&bad),
+            Err(Error::Crc { sent: 0xD4CB, .. })
+        ));
     }
 
     #[test]
     fn extension_word_addresses_fields_16_and_up() {
         // GNSS1 Status (field 17) and AltMsl (18): mask word 0x8000, extension 0x0006.
-        let masks = Masks::default().with(Group::Gnss1, 17).with(Group::Gnss1, 18);
+        let masks = Masks::default()
+            .with(Group::Gnss1, 17)
+            .with(Group::Gnss1, 18);
         let mut out = [0u8; 64];
         let payload = [0x34, 0x12, 0, 0, 0, 0, 0, 0, 0xF0, 0x3F];
         let n = emit(&mut out, &masks, &payload).unwrap();
@@ -424,13 +499,22 @@ mod tests {
     #[test]
     fn headers_we_cannot_size_are_refused() {
         assert_eq!(parse_header(&[0xFA, 0x00]), Err(Error::NoGroups));
-        assert_eq!(parse_header(&[0xFA, 0x81, 0x01]), Err(Error::UnknownGroup { byte: 0x81 }));
+        assert_eq!(
+            parse_header(&[0xFA, 0x81, 0x01]),
+            Err(Error::UnknownGroup { byte: 0x81 })
+        );
         // GNSS1 field 15 does not exist.
         assert_eq!(frame_len(&[0xFA, 0x08, 0x00, 0x80, 0x00, 0x00]), Ok(6 + 2));
-        assert_eq!(frame_len(&[0xFA, 0x08, 0x00, 0x80, 0x00, 0x80]), Err(Error::UnknownField { group: 3, bit: 31 }));
+        assert_eq!(
+            frame_len(&[0xFA, 0x08, 0x00, 0x80, 0x00, 0x80]),
+            Err(Error::UnknownField { group: 3, bit: 31 })
+        );
         // Common bit 14 (TimeGpsPps, 8 bytes) exists; Time bit 10 does not.
         assert_eq!(frame_len(&[0xFA, 0x01, 0x00, 0x40]), Ok(4 + 8 + 2));
-        assert_eq!(frame_len(&[0xFA, 0x02, 0x00, 0x04]), Err(Error::UnknownField { group: 1, bit: 10 }));
+        assert_eq!(
+            frame_len(&[0xFA, 0x02, 0x00, 0x04]),
+            Err(Error::UnknownField { group: 1, bit: 10 })
+        );
         assert_eq!(frame_len(&[0xFA]), Err(Error::Incomplete));
     }
 }

@@ -94,8 +94,15 @@ pub const GROUPS: usize = 7;
 
 impl Group {
     /// All groups in bit order.
-    pub const ALL: [Group; GROUPS] =
-        [Group::Common, Group::Time, Group::Imu, Group::Gnss1, Group::Attitude, Group::Ins, Group::Gnss2];
+    pub const ALL: [Group; GROUPS] = [
+        Group::Common,
+        Group::Time,
+        Group::Imu,
+        Group::Gnss1,
+        Group::Attitude,
+        Group::Ins,
+        Group::Gnss2,
+    ];
 
     /// Name used in column names.
     pub const fn name(self) -> &'static str {
@@ -132,7 +139,11 @@ const fn c(name: &'static str, ty: Ty) -> Comp {
     Comp { name, ty }
 }
 const fn f(name: &'static str, size: u16, comps: &'static [Comp]) -> Option<FieldDef> {
-    Some(FieldDef { name, size: Size::Fixed(size), comps })
+    Some(FieldDef {
+        name,
+        size: Size::Fixed(size),
+        comps,
+    })
 }
 
 const U64: &[Comp] = &[c("", Ty::U64)];
@@ -144,7 +155,12 @@ const F64: &[Comp] = &[c("", Ty::F64)];
 const XYZ: &[Comp] = &[c("x", Ty::F32), c("y", Ty::F32), c("z", Ty::F32)];
 const NED: &[Comp] = &[c("n", Ty::F32), c("e", Ty::F32), c("d", Ty::F32)];
 const YPR: &[Comp] = &[c("yaw", Ty::F32), c("pitch", Ty::F32), c("roll", Ty::F32)];
-const QUAT: &[Comp] = &[c("x", Ty::F32), c("y", Ty::F32), c("z", Ty::F32), c("w", Ty::F32)];
+const QUAT: &[Comp] = &[
+    c("x", Ty::F32),
+    c("y", Ty::F32),
+    c("z", Ty::F32),
+    c("w", Ty::F32),
+];
 const LLA: &[Comp] = &[c("lat", Ty::F64), c("lon", Ty::F64), c("alt", Ty::F64)];
 const ECEF: &[Comp] = &[c("x", Ty::F64), c("y", Ty::F64), c("z", Ty::F64)];
 const UTC: &[Comp] = &[
@@ -164,8 +180,13 @@ const IMU6: &[Comp] = &[
     c("rate_y", Ty::F32),
     c("rate_z", Ty::F32),
 ];
-const MAGPRES: &[Comp] =
-    &[c("mag_x", Ty::F32), c("mag_y", Ty::F32), c("mag_z", Ty::F32), c("temp", Ty::F32), c("pres", Ty::F32)];
+const MAGPRES: &[Comp] = &[
+    c("mag_x", Ty::F32),
+    c("mag_y", Ty::F32),
+    c("mag_z", Ty::F32),
+    c("temp", Ty::F32),
+    c("pres", Ty::F32),
+];
 const DTHETAVEL: &[Comp] = &[
     c("dtime", Ty::F32),
     c("theta_x", Ty::F32),
@@ -175,7 +196,12 @@ const DTHETAVEL: &[Comp] = &[
     c("vel_y", Ty::F32),
     c("vel_z", Ty::F32),
 ];
-const DTHETA: &[Comp] = &[c("dtime", Ty::F32), c("x", Ty::F32), c("y", Ty::F32), c("z", Ty::F32)];
+const DTHETA: &[Comp] = &[
+    c("dtime", Ty::F32),
+    c("x", Ty::F32),
+    c("y", Ty::F32),
+    c("z", Ty::F32),
+];
 const DCM: &[Comp] = &[
     c("m0", Ty::F32),
     c("m1", Ty::F32),
@@ -197,10 +223,18 @@ const DOP: &[Comp] = &[
     c("n", Ty::F32),
     c("e", Ty::F32),
 ];
-const HEAVE: &[Comp] = &[c("heave", Ty::F32), c("heave_rate", Ty::F32), c("delayed_heave", Ty::F32)];
+const HEAVE: &[Comp] = &[
+    c("heave", Ty::F32),
+    c("heave_rate", Ty::F32),
+    c("delayed_heave", Ty::F32),
+];
 const SATINFO_HEAD: &[Comp] = &[c("num_sats", Ty::U8), c("resv", Ty::U8)];
-const RAWMEAS_HEAD: &[Comp] =
-    &[c("tow", Ty::F64), c("week", Ty::U16), c("num_meas", Ty::U8), c("resv", Ty::U8)];
+const RAWMEAS_HEAD: &[Comp] = &[
+    c("tow", Ty::F64),
+    c("week", Ty::U16),
+    c("num_meas", Ty::U8),
+    c("resv", Ty::U8),
+];
 /// Bytes of one SatInfo entry and its scalars.
 pub const SATINFO_ENTRY: &[Comp] = &[
     c("sys", Ty::I8),
@@ -289,9 +323,17 @@ const GNSS: &[Option<FieldDef>] = &[
     f("TimeU", 4, F32),
     f("TimeInfo", 2, TIMEINFO),
     f("Dop", 28, DOP),
-    Some(FieldDef { name: "SatInfo", size: Size::SatInfo, comps: SATINFO_HEAD }),
+    Some(FieldDef {
+        name: "SatInfo",
+        size: Size::SatInfo,
+        comps: SATINFO_HEAD,
+    }),
     None,
-    Some(FieldDef { name: "RawMeas", size: Size::RawMeas, comps: RAWMEAS_HEAD }),
+    Some(FieldDef {
+        name: "RawMeas",
+        size: Size::RawMeas,
+        comps: RAWMEAS_HEAD,
+    }),
     f("Status", 2, U16),
     f("AltMsl", 8, F64),
 ];
@@ -341,7 +383,9 @@ mod tests {
                 let sum: usize = def.comps.iter().map(|c| c.ty.size()).sum();
                 match def.size {
                     Size::Fixed(n) if def.comps.is_empty() => assert!(n > 0),
-                    Size::Fixed(n) => assert_eq!(sum, usize::from(n), "{}.{} (bit {bit})", g.name(), def.name),
+                    Size::Fixed(n) => {
+                        assert_eq!(sum, usize::from(n), "{}.{} (bit {bit})", g.name(), def.name)
+                    }
                     Size::SatInfo => assert_eq!(sum, 2),
                     Size::RawMeas => assert_eq!(sum, 12),
                 }
@@ -358,18 +402,36 @@ mod tests {
             let mut out = [0; 19];
             for (i, d) in g.fields().iter().enumerate() {
                 out[i] = match d {
-                    Some(FieldDef { size: Size::Fixed(n), .. }) => *n,
+                    Some(FieldDef {
+                        size: Size::Fixed(n),
+                        ..
+                    }) => *n,
                     Some(_) => 1,
                     None => 0,
                 };
             }
             out
         };
-        assert_eq!(sizes(Group::Common)[..15], [8, 8, 8, 12, 16, 12, 24, 12, 12, 24, 20, 28, 2, 4, 8]);
+        assert_eq!(
+            sizes(Group::Common)[..15],
+            [8, 8, 8, 12, 16, 12, 24, 12, 12, 24, 20, 28, 2, 4, 8]
+        );
         assert_eq!(sizes(Group::Time)[..10], [8, 8, 8, 2, 8, 8, 8, 4, 4, 1]);
-        assert_eq!(sizes(Group::Imu)[..13], [2, 12, 12, 12, 4, 4, 16, 12, 12, 12, 12, 2, 40]);
-        assert_eq!(sizes(Group::Gnss1), [8, 8, 2, 1, 1, 24, 24, 12, 12, 12, 4, 4, 2, 28, 1, 0, 1, 2, 8]);
-        assert_eq!(sizes(Group::Attitude)[..14], [2, 12, 16, 36, 12, 12, 12, 12, 12, 12, 28, 24, 12, 4]);
-        assert_eq!(sizes(Group::Ins)[..13], [2, 24, 24, 12, 12, 12, 12, 12, 12, 4, 4, 68, 64]);
+        assert_eq!(
+            sizes(Group::Imu)[..13],
+            [2, 12, 12, 12, 4, 4, 16, 12, 12, 12, 12, 2, 40]
+        );
+        assert_eq!(
+            sizes(Group::Gnss1),
+            [8, 8, 2, 1, 1, 24, 24, 12, 12, 12, 4, 4, 2, 28, 1, 0, 1, 2, 8]
+        );
+        assert_eq!(
+            sizes(Group::Attitude)[..14],
+            [2, 12, 16, 36, 12, 12, 12, 12, 12, 12, 28, 24, 12, 4]
+        );
+        assert_eq!(
+            sizes(Group::Ins)[..13],
+            [2, 24, 24, 12, 12, 12, 12, 12, 12, 4, 4, 68, 64]
+        );
     }
 }

@@ -84,17 +84,24 @@ impl<const N: usize> Framer<N> {
     /// An empty framer.
     pub const fn new() -> Self {
         const { assert!(N >= 2 * MAX_SENTENCE, "framer buffer too small") };
-        Self { buf: [0; N], pos: 0, len: 0, base: 0, eof: false, stats: Stats {
-            frames: 0,
-            crc_failures: 0,
-            bad_headers: 0,
-            too_long: 0,
-            ascii: 0,
-            ascii_bad_checksum: 0,
-            nmea: 0,
-            nmea_decoded: 0,
-            skipped_bytes: 0,
-        } }
+        Self {
+            buf: [0; N],
+            pos: 0,
+            len: 0,
+            base: 0,
+            eof: false,
+            stats: Stats {
+                frames: 0,
+                crc_failures: 0,
+                bad_headers: 0,
+                too_long: 0,
+                ascii: 0,
+                ascii_bad_checksum: 0,
+                nmea: 0,
+                nmea_decoded: 0,
+                skipped_bytes: 0,
+            },
+        }
     }
 
     /// Counts so far.
@@ -220,7 +227,11 @@ impl<const N: usize> Framer<N> {
                         None if self.eof => (window.len(), window.len()),
                         None => return None,
                     };
-                    let line_end = if end > 0 && avail[end - 1] == b'\r' { end - 1 } else { end };
+                    let line_end = if end > 0 && avail[end - 1] == b'\r' {
+                        end - 1
+                    } else {
+                        end
+                    };
                     match ascii::parse(&avail[..line_end]) {
                         Ok(s) => {
                             if s.is_vn() {
@@ -232,7 +243,12 @@ impl<const N: usize> Framer<N> {
                                 }
                             }
                             self.pos += consumed;
-                            break (start, Found::Line { end: start + line_end });
+                            break (
+                                start,
+                                Found::Line {
+                                    end: start + line_end,
+                                },
+                            );
                         }
                         Err(e @ Error::AsciiChecksum { .. }) => {
                             self.stats.ascii_bad_checksum += 1;

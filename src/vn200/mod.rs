@@ -90,15 +90,33 @@ impl fmt::Display for Error {
             Error::Incomplete => write!(f, "incomplete frame"),
             Error::NoSync => write!(f, "expected sync byte 0xFA"),
             Error::NoGroups => write!(f, "group byte 0x00: no groups"),
-            Error::UnknownGroup { byte } => write!(f, "group byte 0x{byte:02X} names unknown groups"),
-            Error::UnknownField { group, bit } => write!(f, "group {group} field bit {bit} is unknown"),
-            Error::Truncated { expected: Some(e), got } => write!(f, "frame length: expected {e} bytes, got {got}"),
-            Error::Truncated { expected: None, got } => write!(f, "frame header incomplete in {got} bytes"),
-            Error::Crc { computed, sent } => write!(f, "CRC mismatch: computed 0x{computed:04X}, sent 0x{sent:04X}"),
+            Error::UnknownGroup { byte } => {
+                write!(f, "group byte 0x{byte:02X} names unknown groups")
+            }
+            Error::UnknownField { group, bit } => {
+                write!(f, "group {group} field bit {bit} is unknown")
+            }
+            Error::Truncated {
+                expected: Some(e),
+                got,
+            } => write!(f, "frame length: expected {e} bytes, got {got}"),
+            Error::Truncated {
+                expected: None,
+                got,
+            } => write!(f, "frame header incomplete in {got} bytes"),
+            Error::Crc { computed, sent } => write!(
+                f,
+                "CRC mismatch: computed 0x{computed:04X}, sent 0x{sent:04X}"
+            ),
             Error::TooLong { len } => write!(f, "frame of {len} bytes exceeds the framer buffer"),
-            Error::BufferTooSmall { needed } => write!(f, "output buffer too small: {needed} bytes needed"),
+            Error::BufferTooSmall { needed } => {
+                write!(f, "output buffer too small: {needed} bytes needed")
+            }
             Error::AsciiChecksum { computed, sent } => {
-                write!(f, "ASCII checksum mismatch: computed {computed:02X}, sent {sent:02X}")
+                write!(
+                    f,
+                    "ASCII checksum mismatch: computed {computed:02X}, sent {sent:02X}"
+                )
             }
             Error::BadSentence => write!(f, "malformed ASCII sentence"),
             Error::BadField { index } => write!(f, "ASCII field {index} missing or malformed"),

@@ -75,10 +75,20 @@ impl Pose {
     /// From a `$VNINS` sentence.
     pub fn from_ins(s: &Ins) -> Option<Self> {
         let time = s.gps_time()?;
-        Self::checked(time, Attitude::YawPitchRoll(s.ypr_deg.map(f64::to_radians)), s.lla, Some(s.status))
+        Self::checked(
+            time,
+            Attitude::YawPitchRoll(s.ypr_deg.map(f64::to_radians)),
+            s.lla,
+            Some(s.status),
+        )
     }
 
-    fn checked(time: GpsTime, attitude: Attitude, lla: [f64; 3], ins_status: Option<u16>) -> Option<Self> {
+    fn checked(
+        time: GpsTime,
+        attitude: Attitude,
+        lla: [f64; 3],
+        ins_status: Option<u16>,
+    ) -> Option<Self> {
         let ok = match attitude {
             Attitude::YawPitchRoll(a) => finite(&a),
             Attitude::Quaternion(q) => finite(&q),
@@ -86,6 +96,13 @@ impl Pose {
         if !ok || !finite(&lla) || lla[0].abs() > 90.0 || lla[1].abs() > 360.0 {
             return None;
         }
-        Some(Self { time, attitude, lat: lla[0].to_radians(), lon: lla[1].to_radians(), h: lla[2], ins_status })
+        Some(Self {
+            time,
+            attitude,
+            lat: lla[0].to_radians(),
+            lon: lla[1].to_radians(),
+            h: lla[2],
+            ins_status,
+        })
     }
 }
