@@ -4,7 +4,7 @@
 //! `#![no_std]`, no heap, no I/O, no clocks: every function here is pure logic over borrowed
 //! bytes and fixed-capacity buffers, and no input makes it panic. See `../shared/DESIGN.md`
 //! (layout, data flow, normative conventions) and `../shared/PROTOCOLS.md` (wire formats).
-#![no_std]
+#![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
