@@ -33,7 +33,14 @@ fn frame(bytes: &[u8], chunks: &[usize]) -> (Vec<Got>, Vec<GotAscii>, spherecal:
     let mut framer: Box<Framer> = Box::default();
     let (mut bin, mut asc) = (Vec::new(), Vec::new());
     let mut handle = |it: spherecal::vn200::Framed<'_>| match it.item {
-        Item::Binary(f) => bin.push(Got { offset: it.offset, hex: hex(f.bytes()), values: frame_columns(&f).into_iter().map(|(_, n, v)| (n, v)).collect() }),
+        Item::Binary(f) => bin.push(Got {
+            offset: it.offset,
+            hex: hex(f.bytes()),
+            values: frame_columns(&f)
+                .into_iter()
+                .map(|(_, n, v)| (n, v))
+                .collect(),
+        }),
         Item::Ascii(s) | Item::Nmea(s) => asc.push(GotAscii {
             offset: it.offset,
             name: s.name().to_string(),
@@ -60,9 +67,17 @@ fn frame(bytes: &[u8], chunks: &[usize]) -> (Vec<Got>, Vec<GotAscii>, spherecal:
 /// Byte-by-byte, whole buffer and uneven chunks must agree; returns the whole-buffer result.
 fn frame_every_way(bytes: &[u8]) -> (Vec<Got>, Vec<GotAscii>, spherecal::vn200::Stats) {
     let whole = frame(bytes, &[bytes.len().max(1)]);
-    for chunks in [&[1usize][..], &[7, 1, 300, 2, 64], &[4096, 3], &[123, 5000, 17]] {
+    for chunks in [
+        &[1usize][..],
+        &[7, 1, 300, 2, 64],
+        &[4096, 3],
+        &[123, 5000, 17],
+    ] {
         let other = frame(bytes, chunks);
-        assert_eq!(whole.0, other.0, "binary frames differ with chunks {chunks:?}");
+        assert_eq!(
+            whole.0, other.0,
+            "binary frames differ with chunks {chunks:?}"
+        );
         assert_eq!(whole.1, other.1, "sentences differ with chunks {chunks:?}");
         assert_eq!(whole.2, other.2, "stats differ with chunks {chunks:?}");
     }
@@ -72,8 +87,14 @@ fn frame_every_way(bytes: &[u8]) -> (Vec<Got>, Vec<GotAscii>, spherecal::vn200::
 /// Is our value exactly the one the expected file prints (round-trip exact)?
 fn same(v: &Value, expected: &str) -> bool {
     match v {
-        Value::F32(x) => expected.parse::<f32>().map(|e| e == *x || (e.is_nan() && x.is_nan())).unwrap_or(false),
-        Value::F64(x) => expected.parse::<f64>().map(|e| e == *x || (e.is_nan() && x.is_nan())).unwrap_or(false),
+        Value::F32(x) => expected
+            .parse::<f32>()
+            .map(|e| e == *x || (e.is_nan() && x.is_nan()))
+            .unwrap_or(false),
+        Value::F64(x) => expected
+            .parse::<f64>()
+            .map(|e| e == *x || (e.is_nan() && x.is_nan()))
+            .unwrap_or(false),
         Value::U(x) => expected.parse::<u64>() == Ok(*x),
         Value::I(x) => expected.parse::<i64>() == Ok(*x),
     }
@@ -100,13 +121,23 @@ fn check_wide(bin: &str, expected: &str, frames: usize) {
             if want.is_empty() {
                 continue;
             }
-            let v = ours.get(name).unwrap_or_else(|| panic!("frame at {}: no column {name}", g.offset));
-            assert!(same(v, want), "frame at {}: {name} = {v} but expected {want}", g.offset);
+            let v = ours
+                .get(name)
+                .unwrap_or_else(|| panic!("frame at {}: no column {name}", g.offset));
+            assert!(
+                same(v, want),
+                "frame at {}: {name} = {v} but expected {want}",
+                g.offset
+            );
             compared += 1;
         }
         // And no column of ours that the expected file does not name.
         for (n, _) in &g.values {
-            assert!(header.contains(&n.as_str()), "frame at {}: extra column {n}", g.offset);
+            assert!(
+                header.contains(&n.as_str()),
+                "frame at {}: extra column {n}",
+                g.offset
+            );
         }
     }
     eprintln!("{bin}: {} frames, {compared} values equal", got.len());
@@ -114,13 +145,23 @@ fn check_wide(bin: &str, expected: &str, frames: usize) {
 
 #[test]
 fn vn100_logger_file() {
-    check_wide("vn200/vn100_F00294.raw", "vn200/vn100_F00294.expected.csv", 99);
+    check_wide(
+        "vn200/vn100_F00294.raw",
+        "vn200/vn100_F00294.expected.csv",
+        99,
+    );
     // The back-to-back pair at offset 11754: the earlier frame's last CRC byte is 0xFA.
     let bytes = std::fs::read(common::shared_data("vn200/vn100_F00294.raw")).unwrap();
     let (got, nmea, stats) = frame(&bytes, &[bytes.len()]);
     assert_eq!(bytes[11_753], 0xFA, "the earlier frame's last CRC byte");
-    assert!(got.iter().any(|g| g.offset == 11_630), "the frame ending in 0xFA");
-    assert!(got.iter().any(|g| g.offset == 11_754), "the frame right after it");
+    assert!(
+        got.iter().any(|g| g.offset == 11_630),
+        "the frame ending in 0xFA"
+    );
+    assert!(
+        got.iter().any(|g| g.offset == 11_754),
+        "the frame right after it"
+    );
     // The logger's own $GPRMC / $GPGGA lines are NMEA, checksums valid, decoded by the nmea crate.
     assert!(nmea.iter().all(|s| s.name == "GPRMC" || s.name == "GPGGA"));
     assert_eq!(stats.nmea, nmea.len() as u64);
@@ -143,7 +184,9 @@ fn long_form(expected: &str) -> BTreeMap<u64, Vec<(String, String)>> {
     let mut out: BTreeMap<u64, Vec<(String, String)>> = BTreeMap::new();
     for l in text.lines() {
         let f: Vec<&str> = l.splitn(4, ',').collect();
-        out.entry(f[0].parse().unwrap()).or_default().push((f[2].to_string(), f[3].to_string()));
+        out.entry(f[0].parse().unwrap())
+            .or_default()
+            .push((f[2].to_string(), f[3].to_string()));
     }
     out
 }
@@ -161,7 +204,12 @@ fn vnproglib_mock_binary_file() {
                 "_header" => assert_eq!(&g.hex[2..2 + value.len()], value),
                 "_len" => assert_eq!((g.hex.len() / 2).to_string(), *value),
                 _ => {
-                    let v = g.values.iter().find(|(n, _)| n == name).unwrap_or_else(|| panic!("no {name}")).1;
+                    let v = g
+                        .values
+                        .iter()
+                        .find(|(n, _)| n == name)
+                        .unwrap_or_else(|| panic!("no {name}"))
+                        .1;
                     assert!(same(&v, value), "{name} = {v}, expected {value}");
                 }
             }
@@ -177,31 +225,51 @@ fn check_ascii(txt: &str, expected: &str) {
     assert_eq!(stats.ascii_bad_checksum, 0);
     assert_eq!(got.len(), want.len(), "sentence count");
     for g in &got {
-        let w = want.get(&g.offset).unwrap_or_else(|| panic!("unexpected sentence at {}", g.offset));
+        let w = want
+            .get(&g.offset)
+            .unwrap_or_else(|| panic!("unexpected sentence at {}", g.offset));
         assert_eq!(w[0], ("_name".to_string(), g.name.clone()));
         assert_eq!(w[1], ("_checksum_ok".to_string(), "1".to_string()));
         let values: Vec<&String> = w[2..].iter().map(|(_, v)| v).collect();
-        assert_eq!(g.fields.iter().collect::<Vec<_>>(), values, "fields of {} at {}", g.name, g.offset);
+        assert_eq!(
+            g.fields.iter().collect::<Vec<_>>(),
+            values,
+            "fields of {} at {}",
+            g.name,
+            g.offset
+        );
     }
 }
 
 #[test]
 fn vnproglib_mock_ascii_file() {
-    check_ascii("vn200/vnproglib_mock_ascii.txt", "vn200/vnproglib_mock_ascii.expected.csv");
+    check_ascii(
+        "vn200/vnproglib_mock_ascii.txt",
+        "vn200/vnproglib_mock_ascii.expected.csv",
+    );
 }
 
 #[test]
 fn thirdparty_quoted_ascii_file() {
-    check_ascii("vn200/thirdparty_quoted_ascii.txt", "vn200/thirdparty_quoted_ascii.expected.csv");
+    check_ascii(
+        "vn200/thirdparty_quoted_ascii.txt",
+        "vn200/thirdparty_quoted_ascii.expected.csv",
+    );
     // Typed decoding of the first $VNINS, against its printed fields.
-    let line = std::fs::read_to_string(common::shared_data("vn200/thirdparty_quoted_ascii.txt")).unwrap();
+    let line =
+        std::fs::read_to_string(common::shared_data("vn200/thirdparty_quoted_ascii.txt")).unwrap();
     let first = line.lines().next().unwrap();
     let s = spherecal::vn200::ascii::parse(first.as_bytes()).unwrap();
-    let spherecal::vn200::ascii::Vn::Ins(ins) = s.decode().unwrap() else { panic!("not INS") };
+    let spherecal::vn200::ascii::Vn::Ins(ins) = s.decode().unwrap() else {
+        panic!("not INS")
+    };
     assert_eq!((ins.week, ins.status), (2048, 0x8085));
     assert_eq!(ins.ypr_deg, [-149.042, 13.639, 10.915]);
     assert_eq!(ins.lla, [40.09623362, -88.20139124, 204.179]);
     let pose = spherecal::vn200::Pose::from_ins(&ins).unwrap();
     // 2048 weeks + 224159.474991 s.
-    assert_eq!(pose.time.0, 2048 * 604_800_000_000_000 + 224_159_474_991_000);
+    assert_eq!(
+        pose.time.0,
+        2048 * 604_800_000_000_000 + 224_159_474_991_000
+    );
 }

@@ -3,13 +3,20 @@
 
 use serialport::TTYPort;
 use spherecal::vn200::{Framer, Item};
-use spherecal_hal::serial::{read_byte_file, replay, ByteSource, LogReader, LogWriter, Pace, ReadOutcome, RxStamp, SerialSource};
+use spherecal_hal::serial::{
+    read_byte_file, replay, ByteSource, LogReader, LogWriter, Pace, ReadOutcome, RxStamp,
+    SerialSource,
+};
 use std::io::Write;
 use std::time::{Duration, Instant};
 
 fn vn100() -> Vec<u8> {
-    let p = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/vn200/vn100_F00294.raw");
-    std::fs::read(p).unwrap_or_else(|e| panic!("{p}: {e}: ../shared/data must sit beside the repository"))
+    let p = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/data/vn200/vn100_F00294.raw"
+    );
+    std::fs::read(p)
+        .unwrap_or_else(|e| panic!("{p}: {e}: ../shared/data must sit beside the repository"))
 }
 
 fn frames_of(bytes: &[u8]) -> Vec<(u64, Vec<u8>)> {
@@ -91,7 +98,14 @@ fn pty_bytes_arrive_framed_stamped_and_logged() {
 fn log_cut_anywhere_reads_up_to_the_cut() {
     let mut log = LogWriter::new(Vec::new(), 0).unwrap();
     for i in 0..5u8 {
-        log.record(RxStamp { mono_ns: u64::from(i) * 1000, wall_ns: 7 }, &[i; 10]).unwrap();
+        log.record(
+            RxStamp {
+                mono_ns: u64::from(i) * 1000,
+                wall_ns: 7,
+            },
+            &[i; 10],
+        )
+        .unwrap();
     }
     let bytes = log.into_inner();
     for cut in 16..bytes.len() {
@@ -104,7 +118,11 @@ fn log_cut_anywhere_reads_up_to_the_cut() {
         }
         let whole = (cut - 16) / 30;
         assert!(got.len() >= whole * 10, "cut {cut}");
-        assert_eq!(r.truncated_tail.is_some(), (cut - 16) % 30 != 0, "cut {cut}");
+        assert_eq!(
+            r.truncated_tail.is_some(),
+            (cut - 16) % 30 != 0,
+            "cut {cut}"
+        );
     }
     assert!(LogReader::new(&bytes[..15]).is_err());
     assert!(LogReader::new(&b"NOTALOG!xxxxxxxx"[..]).is_err());
@@ -119,7 +137,14 @@ fn raw_and_logged_files_give_the_same_stream() {
     std::fs::write(&raw, &data).unwrap();
     let mut log = LogWriter::new(Vec::new(), 921_600).unwrap();
     for (i, c) in data.chunks(333).enumerate() {
-        log.record(RxStamp { mono_ns: i as u64 * 1_000_000, wall_ns: 0 }, c).unwrap();
+        log.record(
+            RxStamp {
+                mono_ns: i as u64 * 1_000_000,
+                wall_ns: 0,
+            },
+            c,
+        )
+        .unwrap();
     }
     let logged = dir.join("ins.vnlog");
     std::fs::write(&logged, log.into_inner()).unwrap();
@@ -132,10 +157,25 @@ fn raw_and_logged_files_give_the_same_stream() {
     assert_eq!(sb[1].0, 333);
 
     // Replay at the recorded pace (sped up 100x) writes every byte, in order.
-    let chunks: Vec<(&[u8], Option<RxStamp>)> = data.chunks(333).enumerate().map(|(i, c)| (c, Some(RxStamp { mono_ns: i as u64 * 1_000_000, wall_ns: 0 }))).collect();
+    let chunks: Vec<(&[u8], Option<RxStamp>)> = data
+        .chunks(333)
+        .enumerate()
+        .map(|(i, c)| {
+            (
+                c,
+                Some(RxStamp {
+                    mono_ns: i as u64 * 1_000_000,
+                    wall_ns: 0,
+                }),
+            )
+        })
+        .collect();
     let mut out = Vec::new();
     let t = Instant::now();
-    assert_eq!(replay(&mut out, &chunks, Pace::Recorded(100.0)).unwrap(), data.len() as u64);
+    assert_eq!(
+        replay(&mut out, &chunks, Pace::Recorded(100.0)).unwrap(),
+        data.len() as u64
+    );
     assert_eq!(out, data);
     // 46 records 1 ms apart at 100x: at least 0.45 ms in all.
     assert!(t.elapsed() >= Duration::from_micros(440));

@@ -63,13 +63,22 @@ impl Masks {
 
     /// Fields present, in wire order.
     pub fn fields(&self) -> impl Iterator<Item = (Group, u8)> + '_ {
-        Group::ALL.into_iter().flat_map(move |g| {
-            let m = self.0[g as usize];
-            (0u8..31)
-                .filter(move |&b| m & (1 << b) != 0)
-                .map(move |b| (g, b))
-        })
+        Group::ALL
+            .into_iter()
+            .flat_map(move |g| bits(self.0[g as usize]).map(move |b| (g, b)))
     }
+}
+
+/// The set bits of a mask, lowest first.
+fn bits(mut m: u32) -> impl Iterator<Item = u8> {
+    core::iter::from_fn(move || {
+        if m == 0 {
+            return None;
+        }
+        let b = m.trailing_zeros() as u8;
+        m &= m - 1;
+        Some(b)
+    })
 }
 
 /// Parse the header at the start of `bytes` (which begin with 0xFA): the masks and the header
@@ -114,6 +123,7 @@ fn le_u16(b: &[u8], at: usize) -> Option<u16> {
 }
 
 /// Size of one field whose bytes start at `payload[at]` (variable fields read their count).
+#[inline]
 fn field_size(def: &FieldDef, payload: &[u8], at: usize) -> Result<usize, Error> {
     Ok(match def.size {
         Size::Fixed(n) => usize::from(n),
@@ -142,6 +152,8 @@ pub struct Frame<'a> {
     bytes: &'a [u8],
     masks: Masks,
     payload_at: usize,
+    /// Byte offset of each group's first field (so a field lookup walks one group only).
+    group_at: [u16; GROUPS],
 }
 
 /// One field of a frame.
@@ -195,6 +207,7 @@ impl core::fmt::Display for Value {
 }
 
 /// Read one little-endian scalar at `at` (None past the end).
+#[inline]
 pub fn read_scalar(b: &[u8], at: usize, ty: Ty) -> Option<Value> {
     let s = b.get(at..at + ty.size())?;
     Some(match ty {
@@ -258,10 +271,29 @@ impl<'a> Frame<'a> {
     /// A frame whose length and CRC the framer has checked already.
     pub(crate) fn from_checked(bytes: &'a [u8]) -> Result<Self, Error> {
         let (masks, payload_at) = parse_header(bytes)?;
+        let mut group_at = [0u16; GROUPS];
+        let mut at = payload_at;
+        for g in Group::ALL {
+            group_at[g as usize] = at as u16;
+            for bit in bits(masks.0[g as usize]) {
+                let def = g.field(bit).ok_or(Error::UnknownField {
+                    group: g as u8,
+                    bit,
+                })?;
+                at += field_size(def, bytes, at)?;
+            }
+        }
+        if at + 2 != bytes.len() {
+            return Err(Error::Truncated {
+                expected: Some(at + 2),
+                got: bytes.len(),
+            });
+        }
         Ok(Self {
             bytes,
             masks,
             payload_at,
+            group_at,
         })
     }
 
@@ -304,9 +336,15 @@ impl<'a> Frame<'a> {
         if !self.masks.has(group, bit) {
             return None;
         }
-        self.fields()
-            .find(|f| f.group == group && f.bit == bit)
-            .map(|f| f.bytes)
+        let mut at = usize::from(self.group_at[group as usize]);
+        for b in bits(self.masks.0[group as usize]) {
+            let n = field_size(group.field(b)?, self.bytes, at).ok()?;
+            if b == bit {
+                return self.bytes.get(at..at + n);
+            }
+            at += n;
+        }
+        None
     }
 
     fn f32s<const N: usize>(&self, group: Group, bit: u8) -> Option<[f32; N]> {

@@ -258,7 +258,15 @@ impl<const N: usize> Framer<N> {
                         Err(_) => self.skip(),
                     }
                 }
-                _ => self.skip(),
+                _ => {
+                    // Foreign bytes: jump to the next possible start in one step.
+                    let n = avail
+                        .iter()
+                        .position(|&b| b == SYNC || b == b'$')
+                        .unwrap_or(avail.len());
+                    self.pos += n;
+                    self.stats.skipped_bytes += n as u64;
+                }
             }
         };
         let offset = self.base + start as u64;

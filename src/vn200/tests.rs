@@ -11,39 +11,42 @@ use std::vec::Vec;
 /// A random set of known fields (variable fields with 0..3 entries) and payload bytes.
 fn frame_strategy() -> impl Strategy<Value = Vec<u8>> {
     let picks = prop::collection::vec((0usize..7, 0u8..31, any::<bool>()), 1..12);
-    (picks, prop::collection::vec(any::<u8>(), 2000), 0u8..3).prop_filter_map("no known field", |(picks, noise, n)| {
-        let mut masks = Masks::default();
-        for (g, bit, _) in picks {
-            let group = Group::ALL[g];
-            if group.field(bit).is_some() {
-                masks = masks.with(group, bit);
+    (picks, prop::collection::vec(any::<u8>(), 2000), 0u8..3).prop_filter_map(
+        "no known field",
+        |(picks, noise, n)| {
+            let mut masks = Masks::default();
+            for (g, bit, _) in picks {
+                let group = Group::ALL[g];
+                if group.field(bit).is_some() {
+                    masks = masks.with(group, bit);
+                }
             }
-        }
-        if masks.0.iter().all(|&m| m == 0) {
-            return None;
-        }
-        let mut payload = Vec::new();
-        let mut noise = noise.into_iter().cycle();
-        for (g, bit) in masks.fields() {
-            let def = g.field(bit)?;
-            let start = payload.len();
-            let size = match def.size {
-                Size::Fixed(k) => usize::from(k),
-                Size::SatInfo => 2 + 8 * usize::from(n),
-                Size::RawMeas => 12 + 28 * usize::from(n),
-            };
-            payload.extend((&mut noise).take(size));
-            match def.size {
-                Size::SatInfo => payload[start] = n,
-                Size::RawMeas => payload[start + 10] = n,
-                Size::Fixed(_) => {}
+            if masks.0.iter().all(|&m| m == 0) {
+                return None;
             }
-        }
-        let mut out = vec![0u8; payload.len() + 64];
-        let len = emit(&mut out, &masks, &payload).ok()?;
-        out.truncate(len);
-        Some(out)
-    })
+            let mut payload = Vec::new();
+            let mut noise = noise.into_iter().cycle();
+            for (g, bit) in masks.fields() {
+                let def = g.field(bit)?;
+                let start = payload.len();
+                let size = match def.size {
+                    Size::Fixed(k) => usize::from(k),
+                    Size::SatInfo => 2 + 8 * usize::from(n),
+                    Size::RawMeas => 12 + 28 * usize::from(n),
+                };
+                payload.extend((&mut noise).take(size));
+                match def.size {
+                    Size::SatInfo => payload[start] = n,
+                    Size::RawMeas => payload[start + 10] = n,
+                    Size::Fixed(_) => {}
+                }
+            }
+            let mut out = vec![0u8; payload.len() + 64];
+            let len = emit(&mut out, &masks, &payload).ok()?;
+            out.truncate(len);
+            Some(out)
+        },
+    )
 }
 
 fn run(stream: &[u8], chunks: &[usize]) -> (Vec<(u64, Vec<u8>)>, super::Stats) {
@@ -166,14 +169,20 @@ fn back_to_back_frames_whose_crc_ends_in_sync() {
     stream.extend_from_slice(&b[..lb]);
     for chunk in [1, 2, 5, stream.len()] {
         let (got, stats) = run(&stream, &[chunk]);
-        assert_eq!(got, vec![(3, a[..len].to_vec()), (3 + len as u64, b[..lb].to_vec())], "chunk {chunk}");
+        assert_eq!(
+            got,
+            vec![(3, a[..len].to_vec()), (3 + len as u64, b[..lb].to_vec())],
+            "chunk {chunk}"
+        );
         assert_eq!(stats.frames, 2);
     }
 }
 
 #[test]
 fn corrupt_frame_is_reported_and_the_next_one_found() {
-    let masks = Masks::default().with(Group::Common, 1).with(Group::Common, 3);
+    let masks = Masks::default()
+        .with(Group::Common, 1)
+        .with(Group::Common, 3);
     let mut a = [0u8; 64];
     let la = emit(&mut a, &masks, &[1u8; 20]).unwrap();
     let mut stream = a[..la].to_vec();
@@ -181,7 +190,13 @@ fn corrupt_frame_is_reported_and_the_next_one_found() {
     stream.extend_from_slice(&a[..la]);
     let mut f: Framer<1024> = Framer::new();
     let mut items = Vec::new();
-    f.consume(&stream, |it| items.push((it.offset, matches!(it.item, Item::Binary(_)), matches!(it.item, Item::Error(_)))));
+    f.consume(&stream, |it| {
+        items.push((
+            it.offset,
+            matches!(it.item, Item::Binary(_)),
+            matches!(it.item, Item::Error(_)),
+        ))
+    });
     assert_eq!(items, vec![(0, false, true), (la as u64, true, false)]);
     assert_eq!(f.stats().crc_failures, 1);
     assert_eq!(f.stats().skipped_bytes, la as u64);
