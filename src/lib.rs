@@ -11,6 +11,8 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod frames;
+pub mod georef;
 pub mod time;
 pub mod vlp16;
 pub mod vn200;

@@ -17,8 +17,18 @@ fn tmp(name: &str) -> std::path::PathBuf {
 /// Every expected column is in our CSV with the same value (parsed, round-trip exact).
 fn csv_matches(file: &str, expected: &str) {
     let csv = tmp(&format!("{}.csv", file.replace('/', "_")));
-    let out = spherecal().arg("ins").arg(common::shared_data(file)).arg("--csv").arg(&csv).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = spherecal()
+        .arg("ins")
+        .arg(common::shared_data(file))
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let ours = std::fs::read_to_string(&csv).unwrap();
     let want = std::fs::read_to_string(common::shared_data(expected)).unwrap();
     let (oh, orows) = split(&ours);
@@ -36,10 +46,16 @@ fn csv_matches(file: &str, expected: &str) {
                 || match (a.parse::<f64>(), b.parse::<f64>()) {
                     // Same f64; or an f32 column, which we print as the shortest f32 decimal:
                     // both must read back to the same f32.
-                    (Ok(x), Ok(y)) => x == y || ((x as f32) == (y as f32) && format!("{:?}", x as f32) == a),
+                    (Ok(x), Ok(y)) => {
+                        x == y || ((x as f32) == (y as f32) && format!("{:?}", x as f32) == a)
+                    }
                     _ => false,
                 };
-            assert!(equal, "{file} offset {}: {name}: ours {a}, expected {b}", o[0]);
+            assert!(
+                equal,
+                "{file} offset {}: {name}: ours {a}, expected {b}",
+                o[0]
+            );
         }
     }
 }
@@ -62,7 +78,11 @@ fn ins_csv_vn100_logger() {
 
 #[test]
 fn ins_summary_counts() {
-    let out = spherecal().arg("ins").arg(common::shared_data("vn200/vn100_F00294.raw")).output().unwrap();
+    let out = spherecal()
+        .arg("ins")
+        .arg(common::shared_data("vn200/vn100_F00294.raw"))
+        .output()
+        .unwrap();
     assert!(out.status.success());
     let s = String::from_utf8(out.stdout).unwrap();
     assert!(s.contains("binary frames: 99"), "{s}");
@@ -73,7 +93,10 @@ fn ins_summary_counts() {
 
 #[test]
 fn ins_missing_file_exits_2() {
-    let out = spherecal().args(["ins", "/nonexistent/ins.bin"]).output().unwrap();
+    let out = spherecal()
+        .args(["ins", "/nonexistent/ins.bin"])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/ins.bin"));
 }
@@ -88,5 +111,8 @@ fn ins_counts_crc_failures() {
     let s = String::from_utf8(out.stdout).unwrap();
     assert!(s.contains("binary frames: 17"), "{s}");
     assert!(s.contains("CRC failures: 1"), "{s}");
-    assert!(s.contains("first rejected item at byte 191: CRC mismatch"), "{s}");
+    assert!(
+        s.contains("first rejected item at byte 191: CRC mismatch"),
+        "{s}"
+    );
 }

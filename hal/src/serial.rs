@@ -315,9 +315,7 @@ pub type ByteStream = (Vec<u8>, Option<Vec<(u64, RxStamp)>>);
 /// The byte stream a file holds: a serial log's record bytes concatenated, or the raw bytes.
 /// Returns the bytes and, for a log, the receive stamps with the stream offset where each
 /// record begins.
-pub fn read_byte_file(
-    path: &std::path::Path,
-) -> Result<ByteStream, LogError> {
+pub fn read_byte_file(path: &std::path::Path) -> Result<ByteStream, LogError> {
     let all = std::fs::read(path)?;
     if all.len() < 8 || &all[..8] != LOG_MAGIC {
         return Ok((all, None));

@@ -267,7 +267,7 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
                 *slot = Point {
                     x: rxy * st,
                     y: rxy * ct,
-                    z: r * SIN_ELEVATION[laser] + VERTICAL_OFFSET_M[laser],
+                    z: r * SIN_ELEVATION[laser] + VERTICAL_OFFSET_M[laser] as f32,
                     azimuth: az,
                     offset_ns: block_base + seq as u32 * SEQUENCE_NS + laser as u32 * FIRING_NS,
                     distance_raw: d,

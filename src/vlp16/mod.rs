@@ -75,9 +75,51 @@ pub(crate) const SIN_ELEVATION: [f32; LASERS] = [
 
 /// Vertical beam-origin offset per laser id, metres, added to z (manual section 9.3.1.3;
 /// = 41.91 mm * tan(-elevation), rounded as the manual prints it).
-pub const VERTICAL_OFFSET_M: [f32; LASERS] = [
+pub const VERTICAL_OFFSET_M: [f64; LASERS] = [
     0.0112, -0.0007, 0.0097, -0.0022, 0.0081, -0.0037, 0.0066, -0.0051, 0.0051, -0.0066, 0.0037,
     -0.0081, 0.0022, -0.0097, 0.0007, -0.0112,
+];
+
+/// cos(elevation) per laser id, f64, for georeferencing (eq. 1).
+#[allow(clippy::excessive_precision)]
+pub const COS_ELEVATION_F64: [f64; LASERS] = [
+    0.9659258262890683,
+    0.9998476951563913,
+    0.9743700647852352,
+    0.9986295347545738,
+    0.981627183447664,
+    0.9961946980917455,
+    0.9876883405951378,
+    0.992546151641322,
+    0.992546151641322,
+    0.9876883405951378,
+    0.9961946980917455,
+    0.981627183447664,
+    0.9986295347545738,
+    0.9743700647852352,
+    0.9998476951563913,
+    0.9659258262890683,
+];
+
+/// sin(elevation) per laser id, f64.
+#[allow(clippy::excessive_precision)]
+pub const SIN_ELEVATION_F64: [f64; LASERS] = [
+    -0.25881904510252074,
+    0.01745240643728351,
+    -0.224951054343865,
+    0.052335956242943835,
+    -0.1908089953765448,
+    0.08715574274765817,
+    -0.15643446504023087,
+    0.12186934340514748,
+    -0.12186934340514748,
+    0.15643446504023087,
+    -0.08715574274765817,
+    0.1908089953765448,
+    -0.052335956242943835,
+    0.224951054343865,
+    -0.01745240643728351,
+    0.25881904510252074,
 ];
 
 /// Elevation of a laser in radians.
@@ -241,11 +283,20 @@ mod tests {
     }
 
     #[test]
+    fn f64_trig_tables_match_elevations() {
+        for l in 0..LASERS {
+            let w = elevation_rad(l);
+            assert!((COS_ELEVATION_F64[l] - libm::cos(w)).abs() < 1e-16);
+            assert!((SIN_ELEVATION_F64[l] - libm::sin(w)).abs() < 1e-16);
+        }
+    }
+
+    #[test]
     fn vertical_offsets_follow_the_manual_formula() {
         // Manual 9.3.1.3: offset = 41.91 mm * tan(-elevation), printed to 0.1 mm.
         for (l, &off) in VERTICAL_OFFSET_M.iter().enumerate() {
             let v = 0.04191 * libm::tan(-elevation_rad(l));
-            assert!((f64::from(off) - v).abs() < 0.00006, "laser {l}");
+            assert!((off - v).abs() < 0.00006, "laser {l}");
         }
     }
 

@@ -174,7 +174,7 @@ proptest! {
             prop_assert_eq!((pt.distance_raw, pt.intensity), (d, r));
             prop_assert_eq!(pt.ret, Return::of_block(repr.return_mode, b));
             prop_assert_eq!(pt.offset_ns, firing::firing_offset_ns(repr.return_mode, b, pt.sequence(), pt.laser()));
-            let range = f64::from(pt.x).hypot(f64::from(pt.y)).hypot(f64::from(pt.z - VERTICAL_OFFSET_M[pt.laser()]));
+            let range = f64::from(pt.x).hypot(f64::from(pt.y)).hypot(f64::from(pt.z) - VERTICAL_OFFSET_M[pt.laser()]);
             prop_assert!((range - f64::from(d) * 0.002).abs() < 1e-5 * (1.0 + range));
             prop_assert!((0.0..core::f32::consts::TAU).contains(&pt.azimuth));
         }

@@ -1,0 +1,163 @@
+//! Georeferencing, the paper's eqs. 1-3 with the VLP-16 beam-origin offsets (DESIGN.md):
+//!
+//! ```text
+//! u_l = [cos w sin t, cos w cos t, sin w]                          (eq. 1)
+//! x_g = P_g + R_ig (a_i + R_li (d u_l + v_k e_z))                  (eqs. 2-3)
+//! ```
+//! l = LiDAR frame (x right, y forward, z up), i = INS body (x forward, y starboard, z down),
+//! g = the site's local NED frame. `R_li` is the boresight rotation and `a_i` the lever arm.
+
+use crate::frames::{rotation, Geodetic, LocalFrame};
+use crate::vlp16::{COS_ELEVATION_F64, LASERS, SIN_ELEVATION_F64, VERTICAL_OFFSET_M};
+use nalgebra::{Matrix3, Vector3};
+
+/// The LiDAR's mounting: boresight angles and lever arm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mount {
+    /// Boresight roll, pitch, heading [rad] (`R_li = R(roll, pitch, heading)`).
+    pub boresight: [f64; 3],
+    /// Lever arm `a_i` [m] in the INS body frame.
+    pub lever: Vector3<f64>,
+    /// `R_li`.
+    pub r_li: Matrix3<f64>,
+}
+
+impl Mount {
+    /// From boresight [rad] and lever arm [m].
+    pub fn new(boresight: [f64; 3], lever: [f64; 3]) -> Self {
+        Self {
+            boresight,
+            lever: Vector3::from(lever),
+            r_li: rotation(boresight[0], boresight[1], boresight[2]),
+        }
+    }
+
+    /// From the 6-vector b = [roll, pitch, heading, ax, ay, az] of eq. 6.
+    pub fn from_params(b: &[f64; 6]) -> Self {
+        Self::new([b[0], b[1], b[2]], [b[3], b[4], b[5]])
+    }
+
+    /// The 6-vector of eq. 6.
+    pub fn params(&self) -> [f64; 6] {
+        [
+            self.boresight[0],
+            self.boresight[1],
+            self.boresight[2],
+            self.lever.x,
+            self.lever.y,
+            self.lever.z,
+        ]
+    }
+}
+
+/// The platform's pose in the site frame: INS position and body -> site-NED rotation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlatformPose {
+    /// `P_g`: the INS reference point in site NED [m].
+    pub position: Vector3<f64>,
+    /// `R_ig`: INS body -> site NED.
+    pub r_ig: Matrix3<f64>,
+}
+
+impl PlatformPose {
+    /// From an INS solution: WGS84 position and roll, pitch, heading [rad] relative to the
+    /// local-level NED frame at that position (as every INS reports them), turned into the
+    /// site's NED frame exactly.
+    pub fn from_ins(site: &LocalFrame, at: &Geodetic, roll: f64, pitch: f64, heading: f64) -> Self {
+        Self {
+            position: site.to_ned(at),
+            r_ig: site.from_local_level(at.lat, at.lon) * rotation(roll, pitch, heading),
+        }
+    }
+}
+
+/// Eq. 1: the unit beam direction in the LiDAR frame for a laser and the azimuth's sin, cos.
+#[inline]
+pub fn beam_unit(laser: usize, sin_t: f64, cos_t: f64) -> Vector3<f64> {
+    let l = laser % LASERS;
+    let cw = COS_ELEVATION_F64[l];
+    Vector3::new(cw * sin_t, cw * cos_t, SIN_ELEVATION_F64[l])
+}
+
+/// The beam origin in the LiDAR frame: the laser's vertical offset along z.
+#[inline]
+pub fn beam_origin_l(laser: usize) -> Vector3<f64> {
+    Vector3::new(0.0, 0.0, VERTICAL_OFFSET_M[laser % LASERS])
+}
+
+/// Eqs. 2-3: the return of `laser` at range `d` [m] and azimuth (sin, cos) in the site frame.
+#[inline]
+pub fn point(
+    pose: &PlatformPose,
+    mount: &Mount,
+    d: f64,
+    laser: usize,
+    sin_t: f64,
+    cos_t: f64,
+) -> Vector3<f64> {
+    let in_l = beam_unit(laser, sin_t, cos_t) * d + beam_origin_l(laser);
+    pose.position + pose.r_ig * (mount.lever + mount.r_li * in_l)
+}
+
+/// The beam as a ray in the site frame: origin and unit direction (for ray tracing).
+#[inline]
+pub fn ray(
+    pose: &PlatformPose,
+    mount: &Mount,
+    laser: usize,
+    sin_t: f64,
+    cos_t: f64,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let r = pose.r_ig * mount.r_li;
+    (
+        pose.position + pose.r_ig * mount.lever + r * beam_origin_l(laser),
+        r * beam_unit(laser, sin_t, cos_t),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::f64::consts::FRAC_PI_2;
+
+    /// Hand-worked: platform heading east (90 deg) at NED (10, 20, 0); LiDAR mounted upright
+    /// with boresight (0, 0, 0)... i.e. l-frame axes equal body axes; lever arm 1 m forward.
+    /// Laser 7 (+7 deg) at azimuth 0 looks along l-frame y = body y = starboard = south.
+    #[test]
+    fn hand_worked_point() {
+        let pose = PlatformPose {
+            position: Vector3::new(10.0, 20.0, 0.0),
+            r_ig: rotation(0.0, 0.0, FRAC_PI_2),
+        };
+        let mount = Mount::new([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]);
+        let d = 10.0;
+        let p = point(&pose, &mount, d, 7, 0.0, 1.0);
+        let w = 7f64.to_radians();
+        // In l = body: (0, d cos w, d sin w - 5.1 mm); body -> NED with heading 90:
+        // x_b -> east, y_b -> south (-north), z_b -> down.
+        let body = Vector3::new(1.0, d * w.cos(), d * w.sin() - 0.0051);
+        let want = Vector3::new(10.0 - body.y, 20.0 + body.x, body.z);
+        assert!((p - want).norm() < 1e-12, "{p} vs {want}");
+        // The ray meets the point at distance d.
+        let (o, dir) = ray(&pose, &mount, 7, 0.0, 1.0);
+        assert!((o + dir * d - p).norm() < 1e-12);
+        assert!((dir.norm() - 1.0).abs() < 1e-15);
+    }
+
+    /// The paper's mounting (boresight 179.5, -44.9, 1.2 deg): the spin axis (l-frame z) points
+    /// forward and up in the body frame.
+    #[test]
+    fn paper_mount_spin_axis() {
+        let m = Mount::new(
+            [
+                179.5f64.to_radians(),
+                (-44.9f64).to_radians(),
+                1.2f64.to_radians(),
+            ],
+            [1.5, -1.24, -1.36],
+        );
+        let z = m.r_li * Vector3::z();
+        assert!(z.x > 0.69 && z.z < -0.69, "{z}");
+        assert_eq!(Mount::from_params(&m.params()), m);
+    }
+}
