@@ -13,6 +13,7 @@ extern crate std;
 
 pub mod frames;
 pub mod georef;
+pub mod sim;
 pub mod time;
 pub mod vlp16;
 pub mod vn200;

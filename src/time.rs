@@ -58,6 +58,56 @@ pub fn days_from_civil(year: i32, month: u8, day: u8) -> i64 {
     era * 146_097 + doe - 719_468
 }
 
+/// Proleptic Gregorian date of a day count since 1970-01-01 (inverse of [`days_from_civil`]).
+pub fn civil_from_days(z: i64) -> (i32, u8, u8) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = (doy - (153 * mp + 2) / 5 + 1) as u8;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u8;
+    let year = (yoe + era * 400 + i64::from(month <= 2)) as i32;
+    (year, month, day)
+}
+
+impl UtcDateTime {
+    /// From nanoseconds since the Unix epoch (UTC, POSIX: no leap seconds counted).
+    pub fn from_unix_ns(ns: i64) -> Self {
+        let secs = ns.div_euclid(1_000_000_000);
+        let nanos = ns.rem_euclid(1_000_000_000) as u32;
+        let (year, month, day) = civil_from_days(secs.div_euclid(86_400));
+        let sod = secs.rem_euclid(86_400);
+        Self {
+            year,
+            month,
+            day,
+            hour: (sod / 3600) as u8,
+            minute: (sod / 60 % 60) as u8,
+            second: (sod % 60) as u8,
+            nanos,
+        }
+    }
+}
+
+/// GPS time -> nanoseconds since the Unix epoch in UTC (UTC = GPS - leap seconds).
+pub fn gps_to_unix_ns(t: GpsTime, leap_seconds: i64) -> i64 {
+    t.0 - leap_seconds * 1_000_000_000 + GPS_EPOCH_UNIX_S * 1_000_000_000
+}
+
+/// Unix UTC nanoseconds -> GPS time.
+pub fn unix_ns_to_gps(unix_ns: i64, leap_seconds: i64) -> GpsTime {
+    GpsTime(unix_ns + leap_seconds * 1_000_000_000 - GPS_EPOCH_UNIX_S * 1_000_000_000)
+}
+
+/// The VLP-16's clock: microseconds past the top of the UTC hour of a GPS time.
+pub fn micros_past_hour(t: GpsTime, leap_seconds: i64) -> u32 {
+    (gps_to_unix_ns(t, leap_seconds)
+        .div_euclid(1000)
+        .rem_euclid(3_600_000_000)) as u32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -70,6 +120,29 @@ mod tests {
         // 2000-03-01 is day 11017 (leap-year February handled).
         assert_eq!(days_from_civil(2000, 3, 1), 11_017);
         assert_eq!(days_from_civil(1969, 12, 31), -1);
+    }
+
+    #[test]
+    fn civil_round_trip_and_gps_utc() {
+        for d in [-800_000i64, -1, 0, 1, 10_957, 16_821, 20_000, 2_932_896] {
+            let (y, m, dd) = civil_from_days(d);
+            assert_eq!(days_from_civil(y, m, dd), d);
+        }
+        assert_eq!(civil_from_days(16_821), (2016, 1, 21));
+        // GPS week 2165, tow 200632.599585647 s (vn310_gnss.bin), leap 18 s:
+        // 2021-07-06 07:43:34.599 UTC, as its own TimeUtc field says.
+        let t = GpsTime::from_week_tow_ns(2165, 200_632_599_585_647).unwrap();
+        let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(t, 18));
+        assert_eq!(
+            (u.year, u.month, u.day, u.hour, u.minute, u.second),
+            (2021, 7, 6, 7, 43, 34)
+        );
+        assert_eq!(u.nanos / 1_000_000, 599);
+        assert_eq!(unix_ns_to_gps(gps_to_unix_ns(t, 18), 18), t);
+        assert_eq!(
+            micros_past_hour(t, 18),
+            (43 * 60 + 34) * 1_000_000 + 599_585
+        );
     }
 
     #[test]

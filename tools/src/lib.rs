@@ -4,3 +4,6 @@
 
 pub mod decode;
 pub mod ins;
+pub mod scenario;
+pub mod site;
+pub mod synth;

@@ -27,6 +27,18 @@ enum Cmd {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+    /// Simulate a survey: write lidar.pcap, ins.bin, site.toml and truth.json.
+    Synth {
+        /// A built-in scenario name (table1, table1-noisy) or a scenario TOML file.
+        #[arg(long, required_unless_present = "print_scenario")]
+        scenario: Option<String>,
+        /// Output folder.
+        #[arg(long, required_unless_present = "print_scenario")]
+        out: Option<PathBuf>,
+        /// Print a built-in scenario as TOML (to edit) and exit.
+        #[arg(long, value_name = "NAME", conflicts_with_all = ["scenario", "out"])]
+        print_scenario: Option<String>,
+    },
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins {
@@ -36,6 +48,21 @@ enum Cmd {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+}
+
+/// Print to stdout; a closed pipe (`spherecal ... | head`) is not an error worth a panic.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+
+macro_rules! sayln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
 }
 
 fn main() -> ExitCode {
@@ -53,6 +80,71 @@ fn main() -> ExitCode {
     match cli.cmd {
         Cmd::Decode { file, csv } => decode(file, csv),
         Cmd::Ins { file, csv } => ins(file, csv),
+        Cmd::Synth {
+            scenario,
+            out,
+            print_scenario,
+        } => synth(scenario, out, print_scenario),
+    }
+}
+
+fn synth(scenario: Option<String>, out: Option<PathBuf>, print: Option<String>) -> ExitCode {
+    use spherecal_tools::scenario::{Scenario, BUILTIN};
+    if let Some(name) = print {
+        return match BUILTIN.iter().find(|b| b.0 == name) {
+            Some((_, text)) => {
+                say!("{text}");
+                ExitCode::SUCCESS
+            }
+            None => {
+                let names: Vec<&str> = BUILTIN.iter().map(|b| b.0).collect();
+                eprintln!(
+                    "spherecal synth: no built-in scenario {name:?} (have: {})",
+                    names.join(", ")
+                );
+                ExitCode::from(2)
+            }
+        };
+    }
+    let (Some(scenario), Some(out)) = (scenario, out) else {
+        eprintln!("spherecal synth: --scenario and --out are required");
+        return ExitCode::from(2);
+    };
+    let s = match Scenario::load(&scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("spherecal synth: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let t0 = std::time::Instant::now();
+    match spherecal_tools::synth::synth(&s, &out) {
+        Ok(t) => {
+            sayln!(
+                "{}: {:.1} s of scanning, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
+                s.name,
+                s.duration_s(),
+                t.data_packets,
+                t.position_packets,
+                t.ins_frames,
+                t.rays_traced,
+                t0.elapsed().as_secs_f64()
+            );
+            sayln!(
+                "points per sphere: {:?} (clutter: {})",
+                t.points_per_sphere,
+                t.clutter_points
+            );
+            sayln!(
+                "wrote {}/{{lidar.pcap, ins.bin, site.toml, truth.json}}",
+                out.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("spherecal synth: {e}");
+            ExitCode::from(2)
+        }
     }
 }
 
@@ -87,7 +179,7 @@ fn ins(file: PathBuf, csv: Option<PathBuf>) -> ExitCode {
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
     match spherecal_tools::ins::frame_bytes(&bytes, w) {
         Ok(s) => {
-            print!("{}", s.render(&file.display().to_string()));
+            say!("{}", s.render(&file.display().to_string()));
             ExitCode::SUCCESS
         }
         Err(e) => {
@@ -105,7 +197,7 @@ fn decode(file: PathBuf, csv: Option<PathBuf>) -> ExitCode {
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
     match spherecal_tools::decode::decode_file(&file, w) {
         Ok(s) => {
-            print!("{}", s.render(&file.display().to_string()));
+            say!("{}", s.render(&file.display().to_string()));
             if let Some(stop) = &s.stopped {
                 eprintln!("spherecal decode: {}: {stop}", file.display());
                 return ExitCode::from(2);

@@ -1,0 +1,565 @@
+//! Simulation scenarios: the TOML a surveyor edits (`spherecal synth --print-scenario table1`),
+//! its validation (unknown keys and impossible values are rejected by name), and the built-ins.
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use spherecal::frames::{Geodetic, LocalFrame};
+use spherecal::georef::Mount;
+use spherecal::sim::{InsConfig, LidarConfig, Motion, Object, Pass, Shape};
+use spherecal::time::{days_from_civil, unix_ns_to_gps, GpsTime};
+use spherecal::vlp16::ReturnMode;
+
+/// The built-in scenarios: name and TOML text.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("table1", include_str!("../scenarios/table1.toml")),
+    (
+        "table1-noisy",
+        include_str!("../scenarios/table1-noisy.toml"),
+    ),
+];
+
+/// A scenario file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name, for reports.
+    pub name: String,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// UTC start of the scan, `YYYY-MM-DDTHH:MM:SSZ`.
+    pub start_utc: String,
+    /// GPS - UTC [s].
+    pub leap_seconds: i64,
+    /// Site origin.
+    pub site: SiteOrigin,
+    /// Target spheres.
+    pub sphere: Vec<SphereSpec>,
+    /// True and a-priori mounting.
+    pub mount: MountSpec,
+    /// LiDAR settings.
+    pub lidar: LidarSpec,
+    /// INS settings.
+    pub ins: InsSpec,
+    /// Vessel path.
+    pub trajectory: TrajectorySpec,
+}
+
+/// Site origin (WGS84).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteOrigin {
+    /// Latitude [deg].
+    pub lat_deg: f64,
+    /// Longitude [deg].
+    pub lon_deg: f64,
+    /// Ellipsoidal height [m].
+    pub h_m: f64,
+}
+
+/// A target sphere.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereSpec {
+    /// Name.
+    pub id: String,
+    /// Centre, NED from the origin [m].
+    pub ned_m: [f64; 3],
+    /// Radius [m].
+    pub radius_m: f64,
+    /// A tripod pole under it and a patch of dock (clutter the windows catch).
+    #[serde(default)]
+    pub tripod: bool,
+}
+
+/// Mounting values.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountValues {
+    /// Roll, pitch, heading [deg].
+    pub boresight_deg: [f64; 3],
+    /// x, y, z [m] in the INS body frame.
+    pub lever_arm_m: [f64; 3],
+}
+
+/// A-priori mounting and the window margin.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Apriori {
+    /// Roll, pitch, heading [deg].
+    pub boresight_deg: [f64; 3],
+    /// x, y, z [m].
+    pub lever_arm_m: [f64; 3],
+    /// Returns within radius + this of a centre are kept [m].
+    pub window_margin_m: f64,
+}
+
+/// True and a-priori mounting.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountSpec {
+    /// The truth.
+    pub truth: MountValues,
+    /// What the surveyor believes before calibrating.
+    pub apriori: Apriori,
+}
+
+/// LiDAR settings.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarSpec {
+    /// 300..=1200.
+    pub rpm: f64,
+    /// `strongest`, `last` or `dual`.
+    pub return_mode: String,
+    /// Range noise, 1 sigma [m].
+    pub range_sigma_m: f64,
+    /// Probability of a lost data packet.
+    pub drop_prob: f64,
+}
+
+/// INS settings.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsSpec {
+    /// Output rate [Hz].
+    pub rate_hz: f64,
+    /// Attitude noise, 1 sigma [deg].
+    pub att_sigma_deg: f64,
+    /// Position noise, 1 sigma [m].
+    pub pos_sigma_m: f64,
+    /// INS clock error [s].
+    pub time_offset_s: f64,
+    /// Probability of a corrupted serial byte.
+    pub corrupt_prob: f64,
+}
+
+/// One pass.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PassSpec {
+    /// Start north, east [m].
+    pub start_ne_m: [f64; 2],
+    /// Course [deg].
+    pub heading_deg: f64,
+    /// Speed [m/s].
+    pub speed_mps: f64,
+    /// Duration [s].
+    pub duration_s: f64,
+}
+
+/// The vessel's path and motion.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectorySpec {
+    /// NED down of the INS at rest [m].
+    pub ins_down_m: f64,
+    /// Turn duration between passes [s].
+    pub turn_s: f64,
+    /// Roll amplitude [deg], period [s].
+    pub roll: [f64; 2],
+    /// Pitch amplitude [deg], period [s].
+    pub pitch: [f64; 2],
+    /// Yaw amplitude [deg], period [s].
+    pub yaw: [f64; 2],
+    /// Heave amplitude [m], period [s].
+    pub heave: [f64; 2],
+    /// The passes.
+    pub pass: Vec<PassSpec>,
+}
+
+/// A scenario that cannot be used, with the key at fault.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScenarioError(pub String);
+
+impl std::fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ScenarioError(format!("{key}: {why}")))
+    }
+}
+
+fn finite(v: &[f64]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+/// Parse `YYYY-MM-DDTHH:MM:SS[.fff]Z` to Unix nanoseconds.
+pub fn parse_utc(s: &str) -> Option<i64> {
+    let s = s.strip_suffix('Z')?;
+    let (date, time) = s.split_once('T')?;
+    let mut d = date.split('-');
+    let (y, mo, da): (i32, u8, u8) = (
+        d.next()?.parse().ok()?,
+        d.next()?.parse().ok()?,
+        d.next()?.parse().ok()?,
+    );
+    let mut t = time.split(':');
+    let (h, mi): (i64, i64) = (t.next()?.parse().ok()?, t.next()?.parse().ok()?);
+    let sec: f64 = t.next()?.parse().ok()?;
+    if !(1..=12).contains(&mo)
+        || !(1..=31).contains(&da)
+        || !(0..24).contains(&h)
+        || !(0..60).contains(&mi)
+        || !(0.0..61.0).contains(&sec)
+    {
+        return None;
+    }
+    let days = days_from_civil(y, mo, da);
+    Some((days * 86_400 + h * 3600 + mi * 60) * 1_000_000_000 + (sec * 1e9).round() as i64)
+}
+
+impl Scenario {
+    /// A built-in scenario by name, or a TOML file by path.
+    pub fn load(name_or_path: &str) -> Result<Self, ScenarioError> {
+        if let Some((_, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            return Self::from_toml(text);
+        }
+        let text = std::fs::read_to_string(name_or_path).map_err(|e| {
+            let names: Vec<&str> = BUILTIN.iter().map(|b| b.0).collect();
+            ScenarioError(format!(
+                "{name_or_path}: not a built-in scenario ({}) and not readable: {e}",
+                names.join(", ")
+            ))
+        })?;
+        Self::from_toml(&text).map_err(|e| ScenarioError(format!("{name_or_path}: {e}")))
+    }
+
+    /// Parse and validate.
+    pub fn from_toml(text: &str) -> Result<Self, ScenarioError> {
+        let s: Scenario =
+            toml::from_str(text).map_err(|e| ScenarioError(e.to_string().trim().to_string()))?;
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Reject impossible values, naming the key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        check(
+            parse_utc(&self.start_utc).is_some(),
+            "start_utc",
+            "expected YYYY-MM-DDTHH:MM:SSZ",
+        )?;
+        check(
+            (0..=100).contains(&self.leap_seconds),
+            "leap_seconds",
+            "expected 0..=100",
+        )?;
+        check(
+            self.site.lat_deg.abs() <= 90.0 && finite(&[self.site.lat_deg]),
+            "site.lat_deg",
+            "expected -90..=90",
+        )?;
+        check(
+            self.site.lon_deg.abs() <= 180.0 && finite(&[self.site.lon_deg]),
+            "site.lon_deg",
+            "expected -180..=180",
+        )?;
+        check(
+            finite(&[self.site.h_m]) && self.site.h_m.abs() < 1e4,
+            "site.h_m",
+            "expected a finite height under 10 km",
+        )?;
+        check(!self.sphere.is_empty(), "sphere", "at least one sphere")?;
+        check(
+            self.sphere.len() <= spherecal::sim::lidar::MAX_TARGETS,
+            "sphere",
+            "at most 16 spheres",
+        )?;
+        for (i, sp) in self.sphere.iter().enumerate() {
+            check(
+                sp.radius_m > 0.0 && sp.radius_m < 5.0,
+                &format!("sphere[{i}].radius_m"),
+                "expected 0 < r < 5",
+            )?;
+            check(
+                finite(&sp.ned_m),
+                &format!("sphere[{i}].ned_m"),
+                "not finite",
+            )?;
+        }
+        let t = &self.mount.truth;
+        check(
+            finite(&t.boresight_deg) && finite(&t.lever_arm_m),
+            "mount.truth",
+            "not finite",
+        )?;
+        check(
+            t.lever_arm_m.iter().all(|x| x.abs() < 50.0),
+            "mount.truth.lever_arm_m",
+            "expected |x| < 50 m",
+        )?;
+        let a = &self.mount.apriori;
+        check(
+            finite(&a.boresight_deg) && finite(&a.lever_arm_m),
+            "mount.apriori",
+            "not finite",
+        )?;
+        check(
+            a.window_margin_m > 0.0 && a.window_margin_m < 20.0,
+            "mount.apriori.window_margin_m",
+            "expected 0 < m < 20",
+        )?;
+        check(
+            (300.0..=1200.0).contains(&self.lidar.rpm),
+            "lidar.rpm",
+            "expected 300..=1200",
+        )?;
+        check(
+            self.return_mode().is_some(),
+            "lidar.return_mode",
+            "expected strongest, last or dual",
+        )?;
+        check(
+            self.lidar.range_sigma_m >= 0.0 && self.lidar.range_sigma_m < 1.0,
+            "lidar.range_sigma_m",
+            "expected 0..1 m",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.lidar.drop_prob),
+            "lidar.drop_prob",
+            "expected 0..=1",
+        )?;
+        check(
+            self.ins.rate_hz >= 1.0 && self.ins.rate_hz <= 1000.0,
+            "ins.rate_hz",
+            "expected 1..=1000",
+        )?;
+        check(
+            self.ins.att_sigma_deg >= 0.0 && self.ins.att_sigma_deg < 10.0,
+            "ins.att_sigma_deg",
+            "expected 0..10",
+        )?;
+        check(
+            self.ins.pos_sigma_m >= 0.0 && self.ins.pos_sigma_m < 10.0,
+            "ins.pos_sigma_m",
+            "expected 0..10",
+        )?;
+        check(
+            self.ins.time_offset_s.abs() < 10.0,
+            "ins.time_offset_s",
+            "expected |t| < 10 s",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.ins.corrupt_prob),
+            "ins.corrupt_prob",
+            "expected 0..=1",
+        )?;
+        let tr = &self.trajectory;
+        check(!tr.pass.is_empty(), "trajectory.pass", "at least one pass")?;
+        check(
+            tr.turn_s >= 0.0 && tr.turn_s < 600.0,
+            "trajectory.turn_s",
+            "expected 0..600",
+        )?;
+        for (k, w) in [
+            ("roll", tr.roll),
+            ("pitch", tr.pitch),
+            ("yaw", tr.yaw),
+            ("heave", tr.heave),
+        ] {
+            check(
+                finite(&w) && w[0].abs() < 45.0 && w[1] >= 0.0,
+                &format!("trajectory.{k}"),
+                "expected [amplitude, period >= 0]",
+            )?;
+        }
+        for (i, p) in tr.pass.iter().enumerate() {
+            check(
+                p.speed_mps > 0.0 && p.speed_mps < 50.0,
+                &format!("trajectory.pass[{i}].speed_mps"),
+                "expected 0 < v < 50",
+            )?;
+            check(
+                p.duration_s > 0.0,
+                &format!("trajectory.pass[{i}].duration_s"),
+                "expected > 0",
+            )?;
+            check(
+                finite(&p.start_ne_m) && p.heading_deg.is_finite(),
+                &format!("trajectory.pass[{i}]"),
+                "not finite",
+            )?;
+        }
+        check(
+            self.duration_s() <= 3600.0,
+            "trajectory",
+            "at most an hour of scanning",
+        )?;
+        Ok(())
+    }
+
+    /// Total scanning time [s].
+    pub fn duration_s(&self) -> f64 {
+        let tr = &self.trajectory;
+        tr.pass.iter().map(|p| p.duration_s).sum::<f64>()
+            + tr.turn_s * tr.pass.len().saturating_sub(1) as f64
+    }
+
+    /// The return mode.
+    pub fn return_mode(&self) -> Option<ReturnMode> {
+        match self.lidar.return_mode.as_str() {
+            "strongest" => Some(ReturnMode::Strongest),
+            "last" => Some(ReturnMode::Last),
+            "dual" => Some(ReturnMode::Dual),
+            _ => None,
+        }
+    }
+
+    /// The site frame.
+    pub fn site(&self) -> LocalFrame {
+        LocalFrame::new(Geodetic::from_deg(
+            self.site.lat_deg,
+            self.site.lon_deg,
+            self.site.h_m,
+        ))
+    }
+
+    /// GPS time of the scan start.
+    pub fn start(&self) -> GpsTime {
+        unix_ns_to_gps(parse_utc(&self.start_utc).unwrap_or(0), self.leap_seconds)
+    }
+
+    /// The true mount.
+    pub fn truth_mount(&self) -> Mount {
+        let t = &self.mount.truth;
+        Mount::new(t.boresight_deg.map(f64::to_radians), t.lever_arm_m)
+    }
+
+    /// The passes.
+    pub fn passes(&self) -> Vec<Pass> {
+        self.trajectory
+            .pass
+            .iter()
+            .map(|p| Pass {
+                start: p.start_ne_m,
+                heading: p.heading_deg.to_radians(),
+                speed: p.speed_mps,
+                duration: p.duration_s,
+            })
+            .collect()
+    }
+
+    /// Wave motion.
+    pub fn motion(&self) -> Motion {
+        let tr = &self.trajectory;
+        let deg = |w: [f64; 2]| (w[0].to_radians(), w[1]);
+        Motion {
+            roll: deg(tr.roll),
+            pitch: deg(tr.pitch),
+            yaw: deg(tr.yaw),
+            heave: (tr.heave[0], tr.heave[1]),
+        }
+    }
+
+    /// Targets, then clutter (a pole under each tripod sphere down to a 2 m x 2 m x 0.4 m patch
+    /// of dock 1.2 m below the sphere's bottom).
+    pub fn objects(&self) -> Vec<Object> {
+        let mut out: Vec<Object> = self
+            .sphere
+            .iter()
+            .enumerate()
+            .map(|(i, s)| Object {
+                shape: Shape::Sphere {
+                    c: Vector3::from(s.ned_m),
+                    r: s.radius_m,
+                },
+                target: Some(i as u8),
+            })
+            .collect();
+        for s in self.sphere.iter().filter(|s| s.tripod) {
+            let c = Vector3::from(s.ned_m);
+            let bottom = c.z + s.radius_m;
+            let deck = bottom + 1.2;
+            out.push(Object {
+                shape: Shape::Pole {
+                    base: Vector3::new(c.x, c.y, deck),
+                    r: 0.025,
+                    height: deck - bottom,
+                },
+                target: None,
+            });
+            out.push(Object {
+                shape: Shape::Box {
+                    min: Vector3::new(c.x - 1.0, c.y - 1.0, deck),
+                    max: Vector3::new(c.x + 1.0, c.y + 1.0, deck + 0.4),
+                },
+                target: None,
+            });
+        }
+        out
+    }
+
+    /// LiDAR configuration.
+    pub fn lidar_config(&self) -> LidarConfig {
+        LidarConfig {
+            rpm: self.lidar.rpm,
+            mode: self.return_mode().unwrap_or(ReturnMode::Strongest),
+            range_sigma: self.lidar.range_sigma_m,
+            drop_prob: self.lidar.drop_prob,
+            seed: self.seed.wrapping_mul(2).wrapping_add(1),
+            ..LidarConfig::default()
+        }
+    }
+
+    /// INS configuration.
+    pub fn ins_config(&self) -> InsConfig {
+        InsConfig {
+            rate_hz: self.ins.rate_hz,
+            att_sigma: self.ins.att_sigma_deg.to_radians(),
+            pos_sigma: self.ins.pos_sigma_m,
+            time_offset_ns: (self.ins.time_offset_s * 1e9).round() as i64,
+            corrupt_prob: self.ins.corrupt_prob,
+            seed: self.seed.wrapping_mul(2).wrapping_add(2),
+            ..InsConfig::default()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtins_parse() {
+        for (name, _) in BUILTIN {
+            let s = Scenario::load(name).unwrap();
+            assert_eq!(&s.name, name);
+            assert!(s.duration_s() <= 65.0, "{name}: {} s", s.duration_s());
+        }
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_are_named() {
+        let text = BUILTIN[0].1;
+        let e = Scenario::from_toml(&text.replace("rpm = 600", "rpm = 600\nrmp = 3")).unwrap_err();
+        assert!(e.0.contains("unknown field `rmp`"), "{e}");
+        let e = Scenario::from_toml(&text.replace("rpm = 600", "rpm = 5000")).unwrap_err();
+        assert_eq!(e.0, "lidar.rpm: expected 300..=1200");
+        let e = Scenario::from_toml(&text.replace("radius_m = 0.19", "radius_m = -1")).unwrap_err();
+        assert_eq!(e.0, "sphere[0].radius_m: expected 0 < r < 5");
+        let e = Scenario::from_toml(
+            &text.replace("return_mode = \"strongest\"", "return_mode = \"both\""),
+        )
+        .unwrap_err();
+        assert_eq!(e.0, "lidar.return_mode: expected strongest, last or dual");
+    }
+
+    #[test]
+    fn utc_parsing() {
+        // 2016-01-21T08:18:02Z = 16821 days + 8 h 18 min 2 s.
+        assert_eq!(
+            parse_utc("2016-01-21T08:18:02Z"),
+            Some((16_821 * 86_400 + 8 * 3600 + 18 * 60 + 2) * 1_000_000_000)
+        );
+        assert_eq!(parse_utc("2016-01-21 08:18:02"), None);
+        assert_eq!(parse_utc("2016-13-21T08:18:02Z"), None);
+    }
+}

@@ -1,0 +1,162 @@
+//! `spherecal synth`: run a scenario through the simulator and write what a rig would have
+//! recorded: `lidar.pcap`, `ins.bin`, plus `site.toml` and `truth.json`.
+
+use crate::scenario::Scenario;
+use crate::site::{Origin, Site, SiteApriori, SiteSphere};
+use serde::{Deserialize, Serialize};
+use spherecal::sim::{InsSim, LidarSim, SimPacket, World};
+use spherecal::time::gps_to_unix_ns;
+use spherecal_hal::packet::HostTime;
+use spherecal_hal::pcap::{build_udp_frame, PcapWriter, UdpEndpoints};
+use std::collections::BTreeMap;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// `truth.json`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Truth {
+    /// Scenario name.
+    pub scenario: String,
+    /// Roll, pitch, heading [deg].
+    pub boresight_deg: BTreeMap<String, f64>,
+    /// x, y, z [m].
+    pub lever_arm_m: BTreeMap<String, f64>,
+    /// GPS - UTC [s].
+    pub leap_seconds: i64,
+    /// Returns on each sphere (in packets that were not lost).
+    pub points_per_sphere: Vec<u64>,
+    /// Returns on clutter.
+    pub clutter_points: u64,
+    /// Firings simulated.
+    pub rays_traced: u64,
+    /// Data packets written.
+    pub data_packets: u64,
+    /// Data packets lost on purpose.
+    pub dropped_packets: u64,
+    /// Position packets written.
+    pub position_packets: u64,
+    /// VN-200 frames written.
+    pub ins_frames: u64,
+    /// Serial bytes corrupted on purpose.
+    pub corrupted_bytes: u64,
+}
+
+fn named(keys: [&str; 3], v: [f64; 3]) -> BTreeMap<String, f64> {
+    keys.iter()
+        .zip(v)
+        .map(|(k, x)| (k.to_string(), x))
+        .collect()
+}
+
+/// Delay between the first firing of a packet and its capture on the rig's computer.
+const NETWORK_DELAY_NS: i64 = 1_400_000;
+
+/// Simulate and write the four files into `dir` (created if needed).
+pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let passes = s.passes();
+    let objects = s.objects();
+    let world = World {
+        site: s.site(),
+        trajectory: spherecal::sim::Trajectory {
+            passes: &passes,
+            turn: s.trajectory.turn_s,
+            down: s.trajectory.ins_down_m,
+            motion: s.motion(),
+        },
+        objects: &objects,
+        mount: s.truth_mount(),
+        start: s.start(),
+        leap_seconds: s.leap_seconds,
+    };
+    let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
+
+    // lidar.pcap
+    let pcap_path = dir.join("lidar.pcap");
+    let f = std::fs::File::create(&pcap_path).map_err(|e| io(&pcap_path, e))?;
+    let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
+        .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
+    let mut lidar = LidarSim::new(&world, s.lidar_config());
+    let ep = UdpEndpoints::default();
+    let mut payload = [0u8; 1206];
+    let mut frame = Vec::with_capacity(1300);
+    while let Some(pkt) = lidar.next_packet(&mut payload) {
+        let time = match pkt {
+            SimPacket::Data { dropped: true, .. } => continue,
+            SimPacket::Data { time, .. } | SimPacket::Position { time } => time,
+        };
+        let (port, len) = pkt.port_len();
+        build_udp_frame(&mut frame, &ep, port, port, &payload[..len])
+            .map_err(|e| io(&pcap_path, e))?;
+        let host = HostTime(i128::from(
+            gps_to_unix_ns(time, s.leap_seconds) + NETWORK_DELAY_NS,
+        ));
+        pcap.write_frame(host, &frame)
+            .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
+    }
+    pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
+
+    // ins.bin
+    let ins_path = dir.join("ins.bin");
+    let f = std::fs::File::create(&ins_path).map_err(|e| io(&ins_path, e))?;
+    let mut w = BufWriter::with_capacity(1 << 20, f);
+    let mut ins = InsSim::new(&world, s.ins_config());
+    let mut buf = [0u8; 128];
+    while let Some((_, n)) = ins.next_frame(&mut buf) {
+        w.write_all(&buf[..n]).map_err(|e| io(&ins_path, e))?;
+    }
+    w.flush().map_err(|e| io(&ins_path, e))?;
+
+    // site.toml
+    let site_frame = s.site();
+    let site = Site {
+        leap_seconds: s.leap_seconds,
+        origin: Origin {
+            lat_deg: s.site.lat_deg,
+            lon_deg: s.site.lon_deg,
+            h_m: s.site.h_m,
+        },
+        sphere: s
+            .sphere
+            .iter()
+            .map(|sp| {
+                let g = site_frame.to_geodetic(&nalgebra::Vector3::from(sp.ned_m));
+                SiteSphere {
+                    id: sp.id.clone(),
+                    lat_deg: g.lat.to_degrees(),
+                    lon_deg: g.lon.to_degrees(),
+                    h_m: g.h,
+                    radius_m: sp.radius_m,
+                }
+            })
+            .collect(),
+        apriori: SiteApriori {
+            boresight_deg: s.mount.apriori.boresight_deg,
+            lever_arm_m: s.mount.apriori.lever_arm_m,
+            window_margin_m: s.mount.apriori.window_margin_m,
+        },
+    };
+    let site_path = dir.join("site.toml");
+    std::fs::write(&site_path, site.to_toml()).map_err(|e| io(&site_path, e))?;
+
+    // truth.json
+    let st = lidar.stats;
+    let truth = Truth {
+        scenario: s.name.clone(),
+        boresight_deg: named(["roll", "pitch", "heading"], s.mount.truth.boresight_deg),
+        lever_arm_m: named(["x", "y", "z"], s.mount.truth.lever_arm_m),
+        leap_seconds: s.leap_seconds,
+        points_per_sphere: st.hits[..s.sphere.len()].to_vec(),
+        clutter_points: st.clutter_hits,
+        rays_traced: st.rays,
+        data_packets: st.data_packets - st.dropped,
+        dropped_packets: st.dropped,
+        position_packets: st.position_packets,
+        ins_frames: ins.stats.frames,
+        corrupted_bytes: ins.stats.corrupted_bytes,
+    };
+    let truth_path = dir.join("truth.json");
+    let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
+    std::fs::write(&truth_path, json + "\n").map_err(|e| io(&truth_path, e))?;
+    Ok(truth)
+}
