@@ -9,7 +9,11 @@ fn six_passes() -> Scenario {
     let i = text.find("[[trajectory.pass]]").unwrap();
     let mut s = text[..i].to_string();
     for k in 0..6 {
-        let (n0, heading) = if k % 2 == 0 { (-20.0, 0.0) } else { (40.0, 180.0) };
+        let (n0, heading) = if k % 2 == 0 {
+            (-20.0, 0.0)
+        } else {
+            (40.0, 180.0)
+        };
         s.push_str(&format!(
             "[[trajectory.pass]]\nstart_ne_m = [{n0}, {}]\nheading_deg = {heading}\nspeed_mps = 2.5\nduration_s = 24.0\n",
             8.0 + 4.0 * k as f64
@@ -25,8 +29,12 @@ fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("spherecal-bench-synth-{}", std::process::id()));
     let mut g = c.benchmark_group("synth");
     g.sample_size(10);
-    g.throughput(Throughput::Elements((144.0 / (12.0 * 110.592e-6)) as u64 * 384));
-    g.bench_function("six_24s_passes_rays", |b| b.iter(|| spherecal_tools::synth::synth(&s, &dir).unwrap()));
+    g.throughput(Throughput::Elements(
+        (144.0 / (12.0 * 110.592e-6)) as u64 * 384,
+    ));
+    g.bench_function("six_24s_passes_rays", |b| {
+        b.iter(|| spherecal_tools::synth::synth(&s, &dir).unwrap())
+    });
     g.finish();
     let _ = std::fs::remove_dir_all(&dir);
 }

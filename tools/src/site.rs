@@ -72,7 +72,8 @@ impl Site {
             return Err("origin: latitude/longitude out of range".into());
         }
         for (i, s) in self.sphere.iter().enumerate() {
-            if s.radius_m.is_nan() || s.radius_m <= 0.0
+            if s.radius_m.is_nan()
+                || s.radius_m <= 0.0
                 || !s.lat_deg.is_finite()
                 || !s.lon_deg.is_finite()
                 || !s.h_m.is_finite()
