@@ -148,13 +148,9 @@ pub fn packet_period_ns(mode: ReturnMode) -> i64 {
     }
 }
 
+/// An angle wrapped into [-pi, pi).
 fn wrap_pi(a: f64) -> f64 {
-    let x = (a + PI).rem_euclid(TAU) - PI;
-    if x <= -PI {
-        x + TAU
-    } else {
-        x
-    }
+    a - TAU * libm::floor((a + PI) / TAU)
 }
 
 impl<'w, 'a> LidarSim<'w, 'a> {

@@ -157,11 +157,12 @@ mod tests {
     #[test]
     fn sphere_hand_worked_cases() {
         let c = v(10.0, 0.0, 0.0);
+        let near = |t: Option<f64>, want: f64| t.is_some_and(|t| (t - want).abs() < 1e-12);
         // Through the centre: hits at 10 - r.
-        assert_eq!(
+        assert!(near(
             ray_sphere(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &c, 0.19),
-            Some(9.81)
-        );
+            9.81
+        ));
         // Tangent: offset by exactly r, touches at t = 10.
         let t = ray_sphere(&v(0.0, 0.19, 0.0), &v(1.0, 0.0, 0.0), &c, 0.19).unwrap();
         assert!((t - 10.0).abs() < 1e-9);
@@ -176,10 +177,10 @@ mod tests {
             None
         );
         // From inside: the exit point, r away from the centre.
-        assert_eq!(
+        assert!(near(
             ray_sphere(&v(10.0, 0.0, 0.0), &v(0.0, 1.0, 0.0), &c, 0.19),
-            Some(0.19)
-        );
+            0.19
+        ));
         // Oblique: from (0, 0.1, 0) along x: chord half-length sqrt(r^2 - 0.1^2).
         let t = ray_sphere(&v(0.0, 0.1, 0.0), &v(1.0, 0.0, 0.0), &c, 0.19).unwrap();
         assert!((t - (10.0 - (0.19f64 * 0.19 - 0.01).sqrt())).abs() < 1e-12);
@@ -220,7 +221,7 @@ mod tests {
         let mut rng = super::super::rng::Rng::new(3);
         let c = v(6.0, -2.0, 1.0);
         let r = 0.5;
-        for _ in 0..500 {
+        for _ in 0..200 {
             let o = v(
                 rng.range(-2.0, 2.0),
                 rng.range(-2.0, 2.0),
