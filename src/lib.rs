@@ -11,9 +11,11 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod align;
 pub mod frames;
 pub mod georef;
 pub mod sim;
 pub mod time;
 pub mod vlp16;
 pub mod vn200;
+pub mod window;

@@ -197,3 +197,122 @@ impl GpsTime {
         (self.0.div_euclid(WEEK_NS), self.0.rem_euclid(WEEK_NS))
     }
 }
+
+/// Half an hour in microseconds: how far a stamp may move before it counts as a new hour.
+const HALF_HOUR_US: i64 = 1_800_000_000;
+/// An hour in nanoseconds.
+const HOUR_NS: i64 = 3_600_000_000_000;
+
+/// The VLP-16 clock: microseconds past the top of the UTC hour -> GPS time, with the hour taken
+/// from the position packets' RMC or from the nearest INS time, and the hour rollover unwrapped
+/// (a stamp that falls back by more than half an hour starts the next hour).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LidarClock {
+    leap_seconds: i64,
+    /// Unix ns of the top of the current hour.
+    hour_unix_ns: Option<i64>,
+    last_us: i64,
+    /// Hours rolled over so far.
+    pub rollovers: u32,
+}
+
+impl LidarClock {
+    /// A clock that does not know the hour yet.
+    pub const fn new(leap_seconds: i64) -> Self {
+        Self { leap_seconds, hour_unix_ns: None, last_us: 0, rollovers: 0 }
+    }
+
+    /// Is the hour known?
+    pub fn has_hour(&self) -> bool {
+        self.hour_unix_ns.is_some()
+    }
+
+    /// Take the hour from an RMC date-time received with a position packet stamped `stamp_us`
+    /// (the RMC second is the last whole second at or before the stamp).
+    pub fn set_from_rmc(&mut self, utc: &UtcDateTime, stamp_us: u32) {
+        let mut hour = utc.top_of_hour_unix_s() * 1_000_000_000;
+        // The RMC may name 10:59:59 while the stamp already wrapped to 00:00.5 of the next hour.
+        let rmc_us = i64::try_from(utc.micros_past_hour()).unwrap_or(0);
+        let d = i64::from(stamp_us) - rmc_us;
+        if d < -HALF_HOUR_US {
+            hour += HOUR_NS;
+        } else if d > HALF_HOUR_US {
+            hour -= HOUR_NS;
+        }
+        self.hour_unix_ns = Some(hour);
+        self.last_us = i64::from(stamp_us);
+    }
+
+    /// Take the hour from a nearby GPS time (the INS), choosing the hour that puts the stamp
+    /// nearest to it.
+    pub fn set_from_gps(&mut self, near: GpsTime, stamp_us: u32) {
+        let u = gps_to_unix_ns(near, self.leap_seconds);
+        let h = u.div_euclid(HOUR_NS) * HOUR_NS;
+        let s = i64::from(stamp_us) * 1000;
+        let best = [h - HOUR_NS, h, h + HOUR_NS].into_iter().min_by_key(|c| (c + s - u).abs()).unwrap_or(h);
+        self.hour_unix_ns = Some(best);
+        self.last_us = i64::from(stamp_us);
+    }
+
+    /// GPS time of a stamp (None until the hour is known). Stamps must come roughly in order:
+    /// a fall of more than half an hour is the next hour, a rise of more than half an hour the
+    /// previous one (a late packet from before the rollover).
+    pub fn to_gps(&mut self, stamp_us: u32) -> Option<GpsTime> {
+        let mut hour = self.hour_unix_ns?;
+        let s = i64::from(stamp_us);
+        let d = s - self.last_us;
+        if d < -HALF_HOUR_US {
+            hour += HOUR_NS;
+            self.hour_unix_ns = Some(hour);
+            self.rollovers += 1;
+            self.last_us = s;
+        } else if d > HALF_HOUR_US {
+            // Before the rollover: do not move the clock back.
+            return Some(unix_ns_to_gps(hour - HOUR_NS + s * 1000, self.leap_seconds));
+        } else {
+            self.last_us = s;
+        }
+        Some(unix_ns_to_gps(hour + s * 1000, self.leap_seconds))
+    }
+}
+
+#[cfg(test)]
+mod clock_tests {
+    use super::*;
+
+    #[test]
+    fn hour_rollover_is_unwrapped() {
+        // 2024-06-12 10:59:59.9 UTC -> 11:00:00.1: stamps 3_599_900_000 then 100_000.
+        let mut c = LidarClock::new(18);
+        let rmc = UtcDateTime { year: 2024, month: 6, day: 12, hour: 10, minute: 59, second: 59, nanos: 0 };
+        c.set_from_rmc(&rmc, 3_599_900_000);
+        let a = c.to_gps(3_599_900_000).unwrap();
+        let b = c.to_gps(100_000).unwrap();
+        assert_eq!(b.0 - a.0, 200_000_000, "0.2 s apart across the hour");
+        assert_eq!(c.rollovers, 1);
+        // A late packet from before the rollover keeps its own hour.
+        let late = c.to_gps(3_599_950_000).unwrap();
+        assert_eq!(late.0 - a.0, 50_000_000);
+        // And the clock goes on in the new hour.
+        assert_eq!(c.to_gps(200_000).unwrap().0 - b.0, 100_000_000);
+        // UTC of the result: 11:00:00.1, GPS = UTC + 18 s.
+        let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(b, 18));
+        assert_eq!((u.hour, u.minute, u.second, u.nanos), (11, 0, 0, 100_000_000));
+    }
+
+    #[test]
+    fn hour_from_ins_time() {
+        // INS says 11:00:00.3 (GPS = UTC + 18 s); a stamp of 59:59.95 belongs to 10:00's hour.
+        let ins = unix_ns_to_gps((days_from_civil(2024, 6, 12) * 86_400 + 11 * 3600) * 1_000_000_000 + 300_000_000, 18);
+        let mut c = LidarClock::new(18);
+        c.set_from_gps(ins, 3_599_950_000);
+        let t = c.to_gps(3_599_950_000).unwrap();
+        assert_eq!(ins.0 - t.0, 350_000_000);
+        // RMC given just after the rollover: 11:00:00 with stamp 0.4 s: hour 11.
+        let mut c = LidarClock::new(18);
+        let rmc = UtcDateTime { year: 2024, month: 6, day: 12, hour: 10, minute: 59, second: 59, nanos: 0 };
+        c.set_from_rmc(&rmc, 400_000); // RMC second before the wrap, stamp after it
+        let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(c.to_gps(400_000).unwrap(), 18));
+        assert_eq!((u.hour, u.minute, u.second), (11, 0, 0));
+    }
+}

@@ -8,6 +8,7 @@
 
 pub mod packet;
 pub mod pcap;
+pub mod sbet;
 pub mod serial;
 pub mod vlp16;
 

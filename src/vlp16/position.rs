@@ -135,6 +135,11 @@ impl<T: AsRef<[u8]>> PositionPacket<T> {
         }
     }
 
+    /// The underlying buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+
     /// Microseconds past the top of the hour when the packet was made.
     pub fn timestamp_us(&self) -> u32 {
         let b = self.buffer.as_ref();

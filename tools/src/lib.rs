@@ -3,7 +3,9 @@
 #![forbid(unsafe_code)]
 
 pub mod decode;
+pub mod georef;
 pub mod ins;
+pub mod pipeline;
 pub mod scenario;
 pub mod site;
 pub mod synth;

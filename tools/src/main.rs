@@ -39,6 +39,39 @@ enum Cmd {
         #[arg(long, value_name = "NAME", conflicts_with_all = ["scenario", "out"])]
         print_scenario: Option<String>,
     },
+    /// Georeference a survey: align the LiDAR with the trajectory, keep the sphere windows.
+    Georef {
+        /// The VLP-16 capture.
+        #[arg(long)]
+        pcap: PathBuf,
+        /// VN-200 serial bytes (raw or a serial log).
+        #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
+        ins: Option<PathBuf>,
+        /// An Applanix SBET trajectory instead of the VN-200.
+        #[arg(long)]
+        sbet: Option<PathBuf>,
+        /// GPS week of the SBET (default: from the capture's RMC date).
+        #[arg(long)]
+        gps_week: Option<u16>,
+        /// site.toml: spheres, origin, a-priori values.
+        #[arg(long)]
+        site: PathBuf,
+        /// Boresight roll,pitch,heading [deg] (default: the site's a-priori).
+        #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
+        boresight: Option<[f64; 3]>,
+        /// Lever arm x,y,z [m] (default: the site's a-priori).
+        #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
+        lever: Option<[f64; 3]>,
+        /// Largest INS sample spacing to interpolate over [ms].
+        #[arg(long, default_value_t = 50.0)]
+        max_gap_ms: f64,
+        /// Write the georeferenced cloud as LAS 1.4 (local east-north-up from the origin).
+        #[arg(long)]
+        las: Option<PathBuf>,
+        /// Write the window points as CSV.
+        #[arg(long)]
+        windows: Option<PathBuf>,
+    },
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins {
@@ -85,6 +118,9 @@ fn main() -> ExitCode {
             out,
             print_scenario,
         } => synth(scenario, out, print_scenario),
+        Cmd::Georef { pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows } => {
+            georef(pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows)
+        }
     }
 }
 
@@ -143,6 +179,66 @@ fn synth(scenario: Option<String>, out: Option<PathBuf>, print: Option<String>) 
         }
         Err(e) => {
             eprintln!("spherecal synth: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// `a,b,c` as three numbers.
+fn parse3(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
+    match v.as_slice() {
+        [a, b, c] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c]),
+        _ => Err(format!("{s:?}: expected three finite numbers a,b,c")),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn georef(
+    pcap: PathBuf,
+    ins: Option<PathBuf>,
+    sbet: Option<PathBuf>,
+    gps_week: Option<u16>,
+    site: PathBuf,
+    boresight: Option<[f64; 3]>,
+    lever: Option<[f64; 3]>,
+    max_gap_ms: f64,
+    las: Option<PathBuf>,
+    windows: Option<PathBuf>,
+) -> ExitCode {
+    use spherecal_tools::pipeline::{InsInput, Inputs};
+    let site = match spherecal_tools::site::Site::load(&site) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("spherecal georef: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let b = boresight.unwrap_or(site.apriori.boresight_deg);
+    let l = lever.unwrap_or(site.apriori.lever_arm_m);
+    let ins = match (ins, sbet) {
+        (Some(i), _) => InsInput::Vn200(i),
+        (None, Some(s)) => InsInput::Sbet(s, gps_week),
+        (None, None) => {
+            eprintln!("spherecal georef: give --ins or --sbet");
+            return ExitCode::from(2);
+        }
+    };
+    let inp = Inputs {
+        pcap,
+        ins,
+        mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),
+        margin: site.apriori.window_margin_m,
+        max_gap_ns: (max_gap_ms * 1e6) as i64,
+        site,
+    };
+    match spherecal_tools::georef::georef(&inp, las.as_deref(), windows.as_deref()) {
+        Ok((_, _, text)) => {
+            say!("{text}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("spherecal georef: {e}");
             ExitCode::from(2)
         }
     }

@@ -1,0 +1,207 @@
+//! Time alignment: a fixed ring of INS pose samples and the pose at any firing time in between
+//! (position linear, attitude by quaternion slerp, so a heading from 359 to 1 deg passes through
+//! 0, never 180). A firing outside the history or between samples further apart than the
+//! allowed gap is not georeferenced; the caller counts it.
+
+use crate::frames::{rotation, LocalFrame};
+use crate::georef::PlatformPose;
+use crate::time::GpsTime;
+use crate::vn200::pose::{Attitude, Pose};
+use crate::frames::Geodetic;
+use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion, Vector3};
+
+/// One pose sample in the site frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSample {
+    /// GPS time.
+    pub time: GpsTime,
+    /// INS position, site NED [m].
+    pub position: Vector3<f64>,
+    /// Attitude, body -> site NED.
+    pub attitude: UnitQuaternion<f64>,
+}
+
+impl PoseSample {
+    /// From position [m, site NED] and body -> site NED rotation.
+    pub fn new(time: GpsTime, position: Vector3<f64>, r_ig: &Matrix3<f64>) -> Self {
+        Self { time, position, attitude: UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r_ig)) }
+    }
+
+    /// From a VN-200 pose: WGS84 position and attitude relative to the local level, into the
+    /// site frame. A VectorNav quaternion (x, y, z, w) rotates NED into body (VN-200 manual,
+    /// Attitude Quaternion; checked against YawPitchRoll on the VN-310 file in the tests).
+    pub fn from_vn200(site: &LocalFrame, pose: &Pose) -> Option<Self> {
+        let g = Geodetic { lat: pose.lat, lon: pose.lon, h: pose.h };
+        let local = match pose.attitude {
+            Attitude::YawPitchRoll([yaw, pitch, roll]) => rotation(roll, pitch, yaw),
+            Attitude::Quaternion([x, y, z, w]) => {
+                let q = UnitQuaternion::try_new(Quaternion::new(w, x, y, z), 1e-6)?;
+                q.to_rotation_matrix().into_inner().transpose()
+            }
+        };
+        let r = site.from_local_level(g.lat, g.lon) * local;
+        Some(Self::new(pose.time, site.to_ned(&g), &r))
+    }
+}
+
+/// Why a firing has no pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AlignError {
+    /// No samples yet.
+    Empty,
+    /// Before the oldest sample kept.
+    BeforeHistory,
+    /// After the newest sample (more INS data may still come).
+    AfterHistory,
+    /// The two samples around it are further apart than allowed.
+    Gap {
+        /// Their separation [ns].
+        ns: i64,
+    },
+}
+
+/// A pose history of up to `N` samples in time order (a ring: the oldest is dropped).
+#[derive(Debug, Clone)]
+pub struct PoseHistory<const N: usize> {
+    buf: [PoseSample; N],
+    head: usize,
+    len: usize,
+    /// Largest separation of two samples to interpolate between [ns].
+    pub max_gap_ns: i64,
+    /// Samples refused because they were not newer than the newest.
+    pub out_of_order: u64,
+}
+
+const ZERO: PoseSample =
+    PoseSample { time: GpsTime(0), position: Vector3::new(0.0, 0.0, 0.0), attitude: UnitQuaternion::new_unchecked(Quaternion::new(1.0, 0.0, 0.0, 0.0)) };
+
+impl<const N: usize> PoseHistory<N> {
+    /// An empty history allowing `max_gap_ns` between samples.
+    pub const fn new(max_gap_ns: i64) -> Self {
+        Self { buf: [ZERO; N], head: 0, len: 0, max_gap_ns, out_of_order: 0 }
+    }
+
+    /// Samples held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// No samples.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    fn at(&self, i: usize) -> &PoseSample {
+        &self.buf[(self.head + i) % N]
+    }
+
+    /// The oldest and newest sample times.
+    pub fn span(&self) -> Option<(GpsTime, GpsTime)> {
+        (self.len > 0).then(|| (self.at(0).time, self.at(self.len - 1).time))
+    }
+
+    /// Append a sample newer than all held; `false` (and counted) otherwise.
+    pub fn push(&mut self, s: PoseSample) -> bool {
+        if self.len > 0 && s.time <= self.at(self.len - 1).time {
+            self.out_of_order += 1;
+            return false;
+        }
+        if N == 0 {
+            return false;
+        }
+        if self.len == N {
+            self.head = (self.head + 1) % N;
+            self.len -= 1;
+        }
+        let i = (self.head + self.len) % N;
+        self.buf[i] = s;
+        self.len += 1;
+        true
+    }
+
+    /// The two samples around `t` and the fraction between them.
+    fn bracket(&self, t: GpsTime) -> Result<(&PoseSample, &PoseSample, f64), AlignError> {
+        if self.len == 0 {
+            return Err(AlignError::Empty);
+        }
+        if t < self.at(0).time {
+            return Err(AlignError::BeforeHistory);
+        }
+        if t > self.at(self.len - 1).time {
+            return Err(AlignError::AfterHistory);
+        }
+        // Binary search for the last sample at or before t.
+        let (mut lo, mut hi) = (0, self.len - 1);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if self.at(mid).time <= t {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let (a, b) = if self.len == 1 { (self.at(0), self.at(0)) } else { (self.at(lo), self.at(hi)) };
+        let dt = b.time.0 - a.time.0;
+        if dt > self.max_gap_ns {
+            return Err(AlignError::Gap { ns: dt });
+        }
+        let f = if dt == 0 { 0.0 } else { (t.0 - a.time.0) as f64 / dt as f64 };
+        Ok((a, b, f))
+    }
+
+    /// The platform pose at `t`, and the velocity [m/s] between the bracketing samples.
+    pub fn interpolate(&self, t: GpsTime) -> Result<(PlatformPose, Vector3<f64>), AlignError> {
+        let (a, b, f) = self.bracket(t)?;
+        let position = a.position.lerp(&b.position, f);
+        let q = a.attitude.try_slerp(&b.attitude, f, 1e-12).unwrap_or(a.attitude);
+        let dt = (b.time.0 - a.time.0) as f64 * 1e-9;
+        let v = if dt > 0.0 { (b.position - a.position) / dt } else { Vector3::zeros() };
+        Ok((PlatformPose { position, r_ig: q.to_rotation_matrix().into_inner() }, v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frames::roll_pitch_heading;
+
+    fn sample(t_s: f64, n: f64, heading_deg: f64) -> PoseSample {
+        PoseSample::new(GpsTime((t_s * 1e9).round() as i64), Vector3::new(n, 0.0, 0.0), &rotation(0.0, 0.0, heading_deg.to_radians()))
+    }
+
+    #[test]
+    fn heading_across_north_is_interpolated_through_zero() {
+        let mut h: PoseHistory<8> = PoseHistory::new(1_000_000_000);
+        h.push(sample(0.0, 0.0, 359.0));
+        h.push(sample(0.01, 1.0, 1.0));
+        let (p, v) = h.interpolate(GpsTime(5_000_000)).unwrap();
+        let [_, _, heading] = roll_pitch_heading(&p.r_ig);
+        assert!(heading.to_degrees().abs() < 1e-9, "{}", heading.to_degrees());
+        assert!((p.position.x - 0.5).abs() < 1e-12);
+        assert!((v.x - 100.0).abs() < 1e-9);
+        // A quarter of the way: 359.5 deg.
+        let (p, _) = h.interpolate(GpsTime(2_500_000)).unwrap();
+        let hd = roll_pitch_heading(&p.r_ig)[2].to_degrees().rem_euclid(360.0);
+        assert!((hd - 359.5).abs() < 1e-9, "{hd}");
+    }
+
+    #[test]
+    fn outside_and_gaps_are_refused() {
+        let mut h: PoseHistory<4> = PoseHistory::new(10_000_000);
+        assert_eq!(h.interpolate(GpsTime(0)).err(), Some(AlignError::Empty));
+        h.push(sample(1.0, 0.0, 0.0));
+        h.push(sample(1.005, 0.0, 0.0));
+        h.push(sample(1.5, 0.0, 0.0)); // a 495 ms INS gap
+        assert_eq!(h.interpolate(GpsTime(999_000_000)).err(), Some(AlignError::BeforeHistory));
+        assert_eq!(h.interpolate(GpsTime(1_600_000_000)).err(), Some(AlignError::AfterHistory));
+        assert_eq!(h.interpolate(GpsTime(1_200_000_000)).err(), Some(AlignError::Gap { ns: 495_000_000 }));
+        assert!(h.interpolate(GpsTime(1_002_000_000)).is_ok());
+        // Out of order is refused and counted; the ring drops its oldest.
+        assert!(!h.push(sample(1.2, 0.0, 0.0)));
+        assert_eq!(h.out_of_order, 1);
+        h.push(sample(1.51, 0.0, 0.0));
+        h.push(sample(1.52, 0.0, 0.0));
+        assert_eq!(h.len(), 4);
+        assert_eq!(h.span().unwrap().0, GpsTime(1_005_000_000));
+    }
+}
