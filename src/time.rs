@@ -219,7 +219,12 @@ pub struct LidarClock {
 impl LidarClock {
     /// A clock that does not know the hour yet.
     pub const fn new(leap_seconds: i64) -> Self {
-        Self { leap_seconds, hour_unix_ns: None, last_us: 0, rollovers: 0 }
+        Self {
+            leap_seconds,
+            hour_unix_ns: None,
+            last_us: 0,
+            rollovers: 0,
+        }
     }
 
     /// Is the hour known?
@@ -249,7 +254,10 @@ impl LidarClock {
         let u = gps_to_unix_ns(near, self.leap_seconds);
         let h = u.div_euclid(HOUR_NS) * HOUR_NS;
         let s = i64::from(stamp_us) * 1000;
-        let best = [h - HOUR_NS, h, h + HOUR_NS].into_iter().min_by_key(|c| (c + s - u).abs()).unwrap_or(h);
+        let best = [h - HOUR_NS, h, h + HOUR_NS]
+            .into_iter()
+            .min_by_key(|c| (c + s - u).abs())
+            .unwrap_or(h);
         self.hour_unix_ns = Some(best);
         self.last_us = i64::from(stamp_us);
     }
@@ -284,7 +292,15 @@ mod clock_tests {
     fn hour_rollover_is_unwrapped() {
         // 2024-06-12 10:59:59.9 UTC -> 11:00:00.1: stamps 3_599_900_000 then 100_000.
         let mut c = LidarClock::new(18);
-        let rmc = UtcDateTime { year: 2024, month: 6, day: 12, hour: 10, minute: 59, second: 59, nanos: 0 };
+        let rmc = UtcDateTime {
+            year: 2024,
+            month: 6,
+            day: 12,
+            hour: 10,
+            minute: 59,
+            second: 59,
+            nanos: 0,
+        };
         c.set_from_rmc(&rmc, 3_599_900_000);
         let a = c.to_gps(3_599_900_000).unwrap();
         let b = c.to_gps(100_000).unwrap();
@@ -297,20 +313,34 @@ mod clock_tests {
         assert_eq!(c.to_gps(200_000).unwrap().0 - b.0, 100_000_000);
         // UTC of the result: 11:00:00.1, GPS = UTC + 18 s.
         let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(b, 18));
-        assert_eq!((u.hour, u.minute, u.second, u.nanos), (11, 0, 0, 100_000_000));
+        assert_eq!(
+            (u.hour, u.minute, u.second, u.nanos),
+            (11, 0, 0, 100_000_000)
+        );
     }
 
     #[test]
     fn hour_from_ins_time() {
         // INS says 11:00:00.3 (GPS = UTC + 18 s); a stamp of 59:59.95 belongs to 10:00's hour.
-        let ins = unix_ns_to_gps((days_from_civil(2024, 6, 12) * 86_400 + 11 * 3600) * 1_000_000_000 + 300_000_000, 18);
+        let ins = unix_ns_to_gps(
+            (days_from_civil(2024, 6, 12) * 86_400 + 11 * 3600) * 1_000_000_000 + 300_000_000,
+            18,
+        );
         let mut c = LidarClock::new(18);
         c.set_from_gps(ins, 3_599_950_000);
         let t = c.to_gps(3_599_950_000).unwrap();
         assert_eq!(ins.0 - t.0, 350_000_000);
         // RMC given just after the rollover: 11:00:00 with stamp 0.4 s: hour 11.
         let mut c = LidarClock::new(18);
-        let rmc = UtcDateTime { year: 2024, month: 6, day: 12, hour: 10, minute: 59, second: 59, nanos: 0 };
+        let rmc = UtcDateTime {
+            year: 2024,
+            month: 6,
+            day: 12,
+            hour: 10,
+            minute: 59,
+            second: 59,
+            nanos: 0,
+        };
         c.set_from_rmc(&rmc, 400_000); // RMC second before the wrap, stamp after it
         let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(c.to_gps(400_000).unwrap(), 18));
         assert_eq!((u.hour, u.minute, u.second), (11, 0, 0));

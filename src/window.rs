@@ -3,14 +3,17 @@
 //! georeference it again for any boresight and lever arm: the return in the LiDAR frame
 //! `q_l = d u_l + v_k e_z` (eq. 1 and the beam offset) and the platform pose (eqs. 2-3).
 //!
-//! The pose is interpolated once per firing sequence (16 firings, 36.9 us) and the position
-//! advanced per firing with the INS velocity; the attitude change over a sequence is under
-//! 1e-5 rad at any sea state, 0.3 mm at 30 m (measured in the tests).
+//! The pose is interpolated once per firing sequence (16 firings, 34.6 us) and carried to each
+//! firing with the INS velocity and angular rate (first order). Holding the attitude over a
+//! sequence instead would cost up to 6.6e-5 rad (2 mm at 33 m) in a 1.9 rad/s turn: measured
+//! on table1's turns, see tests/georef.rs.
 
-use crate::align::{AlignError, PoseHistory};
+use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
 use crate::time::GpsTime;
-use crate::vlp16::{Point, PointBuf, COS_ELEVATION_F64, LASERS, SIN_ELEVATION_F64, VERTICAL_OFFSET_M};
+use crate::vlp16::{
+    Point, PointBuf, COS_ELEVATION_F64, LASERS, SIN_ELEVATION_F64, VERTICAL_OFFSET_M,
+};
 use nalgebra::{Matrix3, Vector3};
 
 /// Most targets the core handles.
@@ -61,7 +64,10 @@ pub struct Batch<const CAP: usize> {
 
 impl<const CAP: usize> Default for Batch<CAP> {
     fn default() -> Self {
-        Self { obs: heapless::Vec::new(), overflow: 0 }
+        Self {
+            obs: heapless::Vec::new(),
+            overflow: 0,
+        }
     }
 }
 
@@ -119,7 +125,11 @@ pub fn q_of(p: &Point) -> Vector3<f64> {
     let d = f64::from(p.distance_raw) * 0.002;
     let (s, c) = libm::sincos(f64::from(p.azimuth));
     let cw = COS_ELEVATION_F64[l] * d;
-    Vector3::new(cw * s, cw * c, SIN_ELEVATION_F64[l] * d + VERTICAL_OFFSET_M[l])
+    Vector3::new(
+        cw * s,
+        cw * c,
+        SIN_ELEVATION_F64[l] * d + VERTICAL_OFFSET_M[l],
+    )
 }
 
 /// The windowing stage: georeference with the a-priori mounting and fill the batches.
@@ -140,9 +150,15 @@ pub struct Windowing<'a, const CAP: usize> {
 impl<const CAP: usize> Windowing<'_, CAP> {
     /// Georeference and window the returns of one packet whose first firing is at `t0`;
     /// `each` sees every georeferenced return (for a point cloud).
-    pub fn add_packet<const N: usize>(&mut self, t0: GpsTime, points: &PointBuf, history: &PoseHistory<N>, mut each: impl FnMut(&GeoPoint)) {
+    pub fn add_packet<const N: usize>(
+        &mut self,
+        t0: GpsTime,
+        points: &PointBuf,
+        history: &PoseHistory<N>,
+        mut each: impl FnMut(&GeoPoint),
+    ) {
         let mut key = u16::MAX;
-        let mut pose: Option<(PlatformPose, Vector3<f64>, GpsTime)> = None;
+        let mut pose: Option<(Motion, GpsTime)> = None;
         for p in points.as_slice() {
             self.stats.points += 1;
             let t = GpsTime(t0.0 + i64::from(p.offset_ns));
@@ -150,16 +166,19 @@ impl<const CAP: usize> Windowing<'_, CAP> {
             let k = u16::from(p.block) * 2 + p.sequence() as u16;
             if k != key {
                 key = k;
-                let seq_t = GpsTime(t.0 - (p.laser() as i64) * i64::from(crate::vlp16::firing::FIRING_NS));
+                let seq_t =
+                    GpsTime(t.0 - (p.laser() as i64) * i64::from(crate::vlp16::firing::FIRING_NS));
                 pose = match history.interpolate(seq_t) {
-                    Ok((pp, v)) => Some((pp, v, seq_t)),
+                    Ok(m) => Some((m, seq_t)),
                     Err(e) => {
                         // Fall back to the firing's own time at the history's edges.
                         match history.interpolate(t) {
-                            Ok((pp, v)) => Some((pp, v, t)),
+                            Ok(m) => Some((m, t)),
                             Err(_) => {
                                 match e {
-                                    AlignError::Empty | AlignError::BeforeHistory => self.stats.before_history += 1,
+                                    AlignError::Empty | AlignError::BeforeHistory => {
+                                        self.stats.before_history += 1
+                                    }
                                     AlignError::AfterHistory => self.stats.after_history += 1,
                                     AlignError::Gap { .. } => self.stats.in_gap += 1,
                                 }
@@ -170,15 +189,22 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                     }
                 };
             }
-            let Some((pp, v, ts)) = &pose else { continue };
-            let position = pp.position + v * ((t.0 - ts.0) as f64 * 1e-9);
+            let Some((m, ts)) = &pose else { continue };
+            let PlatformPose { position, r_ig } = m.advanced((t.0 - ts.0) as f64 * 1e-9);
             let q_l = q_of(p);
-            let x = position + pp.r_ig * (self.mount.lever + self.mount.r_li * q_l);
+            let x = position + r_ig * (self.mount.lever + self.mount.r_li * q_l);
             self.stats.georeferenced += 1;
             let w = which_window(self.targets, self.margin, &x);
             if let Some(i) = w {
                 if let Some(b) = self.batches.get_mut(i) {
-                    let obs = Observation { q_l, position, r_ig: pp.r_ig, time: t, range: p.distance_m(), laser: p.laser() as u8 };
+                    let obs = Observation {
+                        q_l,
+                        position,
+                        r_ig,
+                        time: t,
+                        range: p.distance_m(),
+                        laser: p.laser() as u8,
+                    };
                     if b.obs.push(obs).is_err() {
                         b.overflow += 1;
                     } else if i < MAX_TARGETS {
@@ -186,7 +212,13 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                     }
                 }
             }
-            each(&GeoPoint { ned: x, time: t, intensity: p.intensity, laser: p.laser() as u8, window: w.map(|i| i as u8) });
+            each(&GeoPoint {
+                ned: x,
+                time: t,
+                intensity: p.intensity,
+                laser: p.laser() as u8,
+                window: w.map(|i| i as u8),
+            });
         }
     }
 }

@@ -33,14 +33,43 @@ pub struct SbetRecord {
 impl SbetRecord {
     /// Parse one 136-byte record.
     pub fn parse(b: &[u8; RECORD]) -> Self {
-        let f = |i: usize| f64::from_le_bytes([b[8 * i], b[8 * i + 1], b[8 * i + 2], b[8 * i + 3], b[8 * i + 4], b[8 * i + 5], b[8 * i + 6], b[8 * i + 7]]);
-        Self { tow_s: f(0), lat: f(1), lon: f(2), h: f(3), roll: f(7), pitch: f(8), platform_heading: f(9), wander: f(10) }
+        let f = |i: usize| {
+            f64::from_le_bytes([
+                b[8 * i],
+                b[8 * i + 1],
+                b[8 * i + 2],
+                b[8 * i + 3],
+                b[8 * i + 4],
+                b[8 * i + 5],
+                b[8 * i + 6],
+                b[8 * i + 7],
+            ])
+        };
+        Self {
+            tow_s: f(0),
+            lat: f(1),
+            lon: f(2),
+            h: f(3),
+            roll: f(7),
+            pitch: f(8),
+            platform_heading: f(9),
+            wander: f(10),
+        }
     }
 
     /// Write as a 136-byte record (velocities, accelerations and rates zero).
     pub fn emit(&self) -> [u8; RECORD] {
         let mut out = [0u8; RECORD];
-        for (i, v) in [(0, self.tow_s), (1, self.lat), (2, self.lon), (3, self.h), (7, self.roll), (8, self.pitch), (9, self.platform_heading), (10, self.wander)] {
+        for (i, v) in [
+            (0, self.tow_s),
+            (1, self.lat),
+            (2, self.lon),
+            (3, self.h),
+            (7, self.roll),
+            (8, self.pitch),
+            (9, self.platform_heading),
+            (10, self.wander),
+        ] {
             out[8 * i..8 * i + 8].copy_from_slice(&v.to_le_bytes());
         }
         out
@@ -58,7 +87,18 @@ impl SbetRecord {
 
     /// Finite, in range.
     pub fn is_valid(&self) -> bool {
-        [self.tow_s, self.lat, self.lon, self.h, self.roll, self.pitch, self.platform_heading, self.wander].iter().all(|x| x.is_finite())
+        [
+            self.tow_s,
+            self.lat,
+            self.lon,
+            self.h,
+            self.roll,
+            self.pitch,
+            self.platform_heading,
+            self.wander,
+        ]
+        .iter()
+        .all(|x| x.is_finite())
             && self.lat.abs() <= core::f64::consts::FRAC_PI_2
             && (0.0..=604_800.0).contains(&self.tow_s)
     }
@@ -78,7 +118,12 @@ pub struct SbetReader<R: Read> {
 impl<R: Read> SbetReader<R> {
     /// Wrap a reader.
     pub fn new(inner: R) -> Self {
-        Self { inner, records: 0, invalid: 0, trailing: 0 }
+        Self {
+            inner,
+            records: 0,
+            invalid: 0,
+            trailing: 0,
+        }
     }
 
     /// The next valid record, or `None` at the end.
@@ -114,7 +159,16 @@ mod tests {
 
     #[test]
     fn record_layout() {
-        let r = SbetRecord { tow_s: 200_632.5, lat: 0.8, lon: -0.07, h: 52.0, roll: 0.01, pitch: -0.02, platform_heading: 1.0, wander: 0.25 };
+        let r = SbetRecord {
+            tow_s: 200_632.5,
+            lat: 0.8,
+            lon: -0.07,
+            h: 52.0,
+            roll: 0.01,
+            pitch: -0.02,
+            platform_heading: 1.0,
+            wander: 0.25,
+        };
         let b = r.emit();
         // Field 9 (platform heading) at bytes 72..80, wander at 80..88.
         assert_eq!(f64::from_le_bytes(b[72..80].try_into().unwrap()), 1.0);

@@ -86,19 +86,21 @@ impl Trajectory<'_> {
         self.passes.iter().map(|p| p.duration).sum::<f64>() + self.turn * n.saturating_sub(1) as f64
     }
 
-    /// Position and velocity of the path (no waves) at `t` [s]; before the start and after the
-    /// end the first and last pass are extended.
-    pub fn path(&self, t: f64) -> (Vector3<f64>, Vector3<f64>) {
+    /// Position, velocity and course of the path (no waves) at `t` [s]; before the start and
+    /// after the end the first and last pass are extended. In a turn the position follows a
+    /// cubic Hermite curve and the course swings from one pass's to the next's with a smoothstep
+    /// in time (the shorter way round), as a helmsman's would: no spin where the curve is slow.
+    pub fn path(&self, t: f64) -> (Vector3<f64>, Vector3<f64>, f64) {
         let Some(first) = self.passes.first() else {
-            return (Vector3::zeros(), Vector3::zeros());
+            return (Vector3::zeros(), Vector3::zeros(), 0.0);
         };
         if t <= 0.0 {
-            return (first.at(t), first.velocity());
+            return (first.at(t), first.velocity(), first.heading);
         }
         let mut t0 = 0.0;
         for (i, p) in self.passes.iter().enumerate() {
             if t <= t0 + p.duration {
-                return (p.at(t - t0), p.velocity());
+                return (p.at(t - t0), p.velocity(), p.heading);
             }
             t0 += p.duration;
             match self.passes.get(i + 1) {
@@ -121,7 +123,10 @@ impl Trajectory<'_> {
                         + p1 * (-6.0 * s2 + 6.0 * s)
                         + v1 * (3.0 * s2 - 2.0 * s))
                         / tt;
-                    return (pos, vel);
+                    let dh = next.heading - p.heading;
+                    let dh = dh - TAU * libm::floor((dh + core::f64::consts::PI) / TAU);
+                    let course = p.heading + dh * (3.0 * s2 - 2.0 * s3);
+                    return (pos, vel, course);
                 }
                 Some(_) => t0 += self.turn,
                 None => {}
@@ -131,17 +136,13 @@ impl Trajectory<'_> {
         (
             last.at(t - (self.duration() - last.duration)),
             last.velocity(),
+            last.heading,
         )
     }
 
     /// The truth at `t` [s after the start].
     pub fn state(&self, t: f64) -> State {
-        let (mut p, v) = self.path(t);
-        let course = if v.x == 0.0 && v.y == 0.0 {
-            self.passes.first().map_or(0.0, |p| p.heading)
-        } else {
-            libm::atan2(v.y, v.x)
-        };
+        let (mut p, _, course) = self.path(t);
         p.z = self.down + wave(self.motion.heave, t, 0.3);
         let roll = wave(self.motion.roll, t, 0.0);
         let pitch = wave(self.motion.pitch, t, 1.0);

@@ -28,11 +28,19 @@ impl LasOut {
         b.gps_time_type = las::GpsTimeType::Standard;
         b.generating_software = "spherecal".into();
         b.system_identifier = "spherecal georef".into();
-        let t = las::Transform { scale: 0.0001, offset: 0.0 };
+        let t = las::Transform {
+            scale: 0.0001,
+            offset: 0.0,
+        };
         b.transforms = las::Vector { x: t, y: t, z: t };
         let header = b.into_header().map_err(|e| e.to_string())?;
-        let w = las::Writer::from_path(path, header).map_err(|e| format!("{}: {e}", path.display()))?;
-        Ok(Self { w, points: 0, error: None })
+        let w =
+            las::Writer::from_path(path, header).map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(Self {
+            w,
+            points: 0,
+            error: None,
+        })
     }
 
     /// Add one return.
@@ -47,7 +55,11 @@ impl LasOut {
             intensity: u16::from(p.intensity),
             gps_time: Some(p.time.as_secs_f64() - 1e9),
             user_data: p.window.map_or(0, |w| w + 1),
-            classification: if p.window.is_some() { las::point::Classification::Unclassified } else { las::point::Classification::CreatedNeverClassified },
+            classification: if p.window.is_some() {
+                las::point::Classification::Unclassified
+            } else {
+                las::point::Classification::CreatedNeverClassified
+            },
             return_number: 1,
             number_of_returns: 1,
             ..Default::default()
@@ -69,10 +81,16 @@ impl LasOut {
 }
 
 /// Run georef: returns the counts and the rendered summary.
-pub fn georef(inp: &Inputs, las: Option<&Path>, windows: Option<&Path>) -> Result<(RunStats, Vec<u64>, String), String> {
+pub fn georef(
+    inp: &Inputs,
+    las: Option<&Path>,
+    windows: Option<&Path>,
+) -> Result<(RunStats, Vec<u64>, String), String> {
     let mut las_out = las.map(LasOut::create).transpose()?;
     let mut wfile = match windows {
-        Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?)),
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
+        )),
         None => None,
     };
     let ids: Vec<String> = inp.site.sphere.iter().map(|s| s.id.clone()).collect();
@@ -99,7 +117,17 @@ pub fn georef(inp: &Inputs, las: Option<&Path>, windows: Option<&Path>) -> Resul
                     for o in &msg.obs {
                         let x = o.georef(&mount);
                         line.clear();
-                        let _ = writeln!(line, "{},{:.9},{:.5},{:.5},{:.5},{:.3},{}", ids[msg.sphere], o.time.as_secs_f64(), x.x, x.y, x.z, o.range, o.laser);
+                        let _ = writeln!(
+                            line,
+                            "{},{:.9},{:.5},{:.5},{:.5},{:.3},{}",
+                            ids[msg.sphere],
+                            o.time.as_secs_f64(),
+                            x.x,
+                            x.y,
+                            x.z,
+                            o.range,
+                            o.laser
+                        );
                         if let Err(e) = w.write_all(line.as_bytes()) {
                             err.get_or_insert(e.to_string());
                         }
@@ -123,8 +151,16 @@ pub fn georef(inp: &Inputs, las: Option<&Path>, windows: Option<&Path>) -> Resul
     };
     let mut o = String::new();
     let w = &stats.window;
-    let _ = writeln!(o, "data packets: {} (position packets: {}, hour rollovers: {})", stats.data_packets, stats.position_packets, stats.rollovers);
-    let _ = writeln!(o, "poses: {} (INS frames without a pose: {}, rejected: {})", stats.poses, stats.ins_frames_without_pose, stats.ins_rejected);
+    let _ = writeln!(
+        o,
+        "data packets: {} (position packets: {}, hour rollovers: {})",
+        stats.data_packets, stats.position_packets, stats.rollovers
+    );
+    let _ = writeln!(
+        o,
+        "poses: {} (INS frames without a pose: {}, rejected: {})",
+        stats.poses, stats.ins_frames_without_pose, stats.ins_rejected
+    );
     let _ = writeln!(o, "points: {} georeferenced: {}", w.points, w.georeferenced);
     let _ = writeln!(o, "not georeferenced: before the INS data {}, after it {}, in INS gaps {}, packets without time {}", w.before_history, w.after_history, w.in_gap, stats.packets_without_time);
     for (i, id) in ids.iter().enumerate() {
@@ -132,9 +168,17 @@ pub fn georef(inp: &Inputs, las: Option<&Path>, windows: Option<&Path>) -> Resul
     }
     let _ = writeln!(o, "capture skips: {}", stats.skips.total());
     for l in stats.skips.lines() {
-        let _ = writeln!(o, "  {}: {} (first at byte {}: {})", l.reason, l.count, l.first_offset, l.first);
+        let _ = writeln!(
+            o,
+            "  {}: {} (first at byte {}: {})",
+            l.reason, l.count, l.first_offset, l.first
+        );
     }
-    let _ = writeln!(o, "ring full (LiDAR, INS): {:?}; batch overflow: {}", stats.ring_full, stats.batch_overflow);
+    let _ = writeln!(
+        o,
+        "ring full (LiDAR, INS): {:?}; batch overflow: {}",
+        stats.ring_full, stats.batch_overflow
+    );
     if let Some(n) = las_points {
         let _ = writeln!(o, "LAS points written: {n}");
     }

@@ -118,9 +118,20 @@ fn main() -> ExitCode {
             out,
             print_scenario,
         } => synth(scenario, out, print_scenario),
-        Cmd::Georef { pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows } => {
-            georef(pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows)
-        }
+        Cmd::Georef {
+            pcap,
+            ins,
+            sbet,
+            gps_week,
+            site,
+            boresight,
+            lever,
+            max_gap_ms,
+            las,
+            windows,
+        } => georef(
+            pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows,
+        ),
     }
 }
 
@@ -186,7 +197,11 @@ fn synth(scenario: Option<String>, out: Option<PathBuf>, print: Option<String>) 
 
 /// `a,b,c` as three numbers.
 fn parse3(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
     match v.as_slice() {
         [a, b, c] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c]),
         _ => Err(format!("{s:?}: expected three finite numbers a,b,c")),
@@ -206,7 +221,7 @@ fn georef(
     las: Option<PathBuf>,
     windows: Option<PathBuf>,
 ) -> ExitCode {
-    use spherecal_tools::pipeline::{InsInput, Inputs};
+    use spherecal_tools::pipeline::{Inputs, InsInput};
     let site = match spherecal_tools::site::Site::load(&site) {
         Ok(s) => s,
         Err(e) => {

@@ -128,16 +128,28 @@ pub struct RunStats {
 
 /// Where the site's spheres are, in the site frame.
 pub fn targets(site: &Site) -> (LocalFrame, Vec<Target>) {
-    let frame = LocalFrame::new(Geodetic::from_deg(site.origin.lat_deg, site.origin.lon_deg, site.origin.h_m));
+    let frame = LocalFrame::new(Geodetic::from_deg(
+        site.origin.lat_deg,
+        site.origin.lon_deg,
+        site.origin.h_m,
+    ));
     let t = site
         .sphere
         .iter()
-        .map(|s| Target { center: frame.to_ned(&Geodetic::from_deg(s.lat_deg, s.lon_deg, s.h_m)), radius: s.radius_m })
+        .map(|s| Target {
+            center: frame.to_ned(&Geodetic::from_deg(s.lat_deg, s.lon_deg, s.h_m)),
+            radius: s.radius_m,
+        })
         .collect();
     (frame, t)
 }
 
-fn push_wait<T>(p: &mut heapless::spsc::Producer<'_, T>, mut item: T, policy: Overflow, full: &AtomicU64) -> bool {
+fn push_wait<T>(
+    p: &mut heapless::spsc::Producer<'_, T>,
+    mut item: T,
+    policy: Overflow,
+    full: &AtomicU64,
+) -> bool {
     loop {
         match p.enqueue(item) {
             Ok(()) => return true,
@@ -160,7 +172,8 @@ pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
         if let Record::Udp(d) = rec {
             if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {
                 if let Some(utc) = packet.nmea_time().ok().and_then(|t| t.utc()) {
-                    let g = spherecal::time::unix_ns_to_gps(utc.unix_seconds() * 1_000_000_000, leap);
+                    let g =
+                        spherecal::time::unix_ns_to_gps(utc.unix_seconds() * 1_000_000_000, leap);
                     return u16::try_from(g.week_tow_ns().0).ok();
                 }
             }
@@ -186,15 +199,23 @@ pub fn run<C: Send>(
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let pcap = PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
     let ins_bytes = match &inp.ins {
-        InsInput::Vn200(p) => Some(spherecal_hal::serial::read_byte_file(p).map_err(|e| format!("{}: {e}", p.display()))?.0),
+        InsInput::Vn200(p) => Some(
+            spherecal_hal::serial::read_byte_file(p)
+                .map_err(|e| format!("{}: {e}", p.display()))?
+                .0,
+        ),
         InsInput::Sbet(..) => None,
     };
     let sbet = match &inp.ins {
         InsInput::Sbet(p, week) => {
             let week = match week {
                 Some(w) => *w,
-                None => week_from_capture(&inp.pcap, leap)
-                    .ok_or_else(|| format!("{}: no RMC date in the capture to date the SBET; give --gps-week", inp.pcap.display()))?,
+                None => week_from_capture(&inp.pcap, leap).ok_or_else(|| {
+                    format!(
+                        "{}: no RMC date in the capture to date the SBET; give --gps-week",
+                        inp.pcap.display()
+                    )
+                })?,
             };
             let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
             Some((SbetReader::new(std::io::BufReader::new(f)), week, p.clone()))
@@ -251,7 +272,9 @@ pub fn run<C: Send>(
             if let Some(bytes) = ins_bytes {
                 let mut framer: Box<Framer> = Box::default();
                 let mut handle = |it: spherecal::vn200::Framed<'_>| match it.item {
-                    Item::Binary(f) => match Pose::from_frame(&f).and_then(|p| PoseSample::from_vn200(&frame, &p)) {
+                    Item::Binary(f) => match Pose::from_frame(&f)
+                        .and_then(|p| PoseSample::from_vn200(&frame, &p))
+                    {
                         Some(s) => {
                             poses += 1;
                             push_wait(&mut ip, InsItem::Pose(s), Overflow::Wait, &full_ref[1]);
@@ -260,7 +283,9 @@ pub fn run<C: Send>(
                     },
                     Item::Ascii(a) => {
                         if let Ok(spherecal::vn200::ascii::Vn::Ins(i)) = a.decode() {
-                            if let Some(s) = Pose::from_ins(&i).and_then(|p| PoseSample::from_vn200(&frame, &p)) {
+                            if let Some(s) =
+                                Pose::from_ins(&i).and_then(|p| PoseSample::from_vn200(&frame, &p))
+                            {
                                 poses += 1;
                                 push_wait(&mut ip, InsItem::Pose(s), Overflow::Wait, &full_ref[1]);
                             }
@@ -277,12 +302,25 @@ pub fn run<C: Send>(
                     handle(it);
                 }
             } else if let Some((mut rd, week, path)) = sbet {
-                while let Some(r) = rd.next_record().map_err(|e| format!("{}: {e}", path.display()))? {
+                while let Some(r) = rd
+                    .next_record()
+                    .map_err(|e| format!("{}: {e}", path.display()))?
+                {
                     let Some(t) = r.time(week) else { continue };
-                    let g = Geodetic { lat: r.lat, lon: r.lon, h: r.h };
-                    let rot = frame.from_local_level(g.lat, g.lon) * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                    let g = Geodetic {
+                        lat: r.lat,
+                        lon: r.lon,
+                        h: r.h,
+                    };
+                    let rot = frame.from_local_level(g.lat, g.lon)
+                        * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
                     poses += 1;
-                    push_wait(&mut ip, InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot)), Overflow::Wait, &full_ref[1]);
+                    push_wait(
+                        &mut ip,
+                        InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot)),
+                        Overflow::Wait,
+                        &full_ref[1],
+                    );
                 }
                 rejected += rd.invalid;
             }
@@ -299,27 +337,34 @@ pub fn run<C: Send>(
         let mut clock = LidarClock::new(leap);
         let mut ins_done = false;
         let mut batches: Vec<Batch<BATCH>> = (0..targets.len()).map(|_| Batch::default()).collect();
-        let mut win = Windowing { targets: &targets, margin: inp.margin, mount: inp.mount, batches: &mut batches, stats: WindowStats::default() };
+        let mut win = Windowing {
+            targets: &targets,
+            margin: inp.margin,
+            mount: inp.mount,
+            batches: &mut batches,
+            stats: WindowStats::default(),
+        };
         let mut points = PointBuf::new();
-        let mut pull_ins = |history: &mut PoseHistory<HISTORY>, until: Option<GpsTime>, ins_done: &mut bool| {
-            while !*ins_done {
-                if let (Some(u), Some((_, newest))) = (until, history.span()) {
-                    if newest > u {
+        let mut pull_ins =
+            |history: &mut PoseHistory<HISTORY>, until: Option<GpsTime>, ins_done: &mut bool| {
+                while !*ins_done {
+                    if let (Some(u), Some((_, newest))) = (until, history.span()) {
+                        if newest > u {
+                            return;
+                        }
+                    }
+                    if until.is_none() && !history.is_empty() {
                         return;
                     }
-                }
-                if until.is_none() && !history.is_empty() {
-                    return;
-                }
-                match ic.dequeue() {
-                    Some(InsItem::Pose(s)) => {
-                        history.push(s);
+                    match ic.dequeue() {
+                        Some(InsItem::Pose(s)) => {
+                            history.push(s);
+                        }
+                        Some(InsItem::End) => *ins_done = true,
+                        None => std::thread::yield_now(),
                     }
-                    Some(InsItem::End) => *ins_done = true,
-                    None => std::thread::yield_now(),
                 }
-            }
-        };
+            };
         loop {
             let item = match lc.dequeue() {
                 Some(i) => i,
@@ -363,7 +408,10 @@ pub fn run<C: Send>(
                     win.add_packet(t0, &points, &history, &mut each);
                     for (i, b) in win.batches.iter_mut().enumerate() {
                         if b.obs.len() >= BATCH / 2 {
-                            let _ = tx.send(BatchMsg { sphere: i, obs: b.obs.to_vec() });
+                            let _ = tx.send(BatchMsg {
+                                sphere: i,
+                                obs: b.obs.to_vec(),
+                            });
                             b.obs.clear();
                         }
                     }
@@ -373,7 +421,10 @@ pub fn run<C: Send>(
         for (i, b) in win.batches.iter_mut().enumerate() {
             stats.batch_overflow += b.overflow;
             if !b.obs.is_empty() {
-                let _ = tx.send(BatchMsg { sphere: i, obs: b.obs.to_vec() });
+                let _ = tx.send(BatchMsg {
+                    sphere: i,
+                    obs: b.obs.to_vec(),
+                });
                 b.obs.clear();
             }
         }
@@ -388,13 +439,22 @@ pub fn run<C: Send>(
         }
         stats.window = win.stats;
         stats.rollovers = clock.rollovers;
-        stats.skips = lidar.join().map_err(|_| "LiDAR reader panicked".to_string())??;
-        let (poses, without, rejected) = ins.join().map_err(|_| "INS reader panicked".to_string())??;
+        stats.skips = lidar
+            .join()
+            .map_err(|_| "LiDAR reader panicked".to_string())??;
+        let (poses, without, rejected) = ins
+            .join()
+            .map_err(|_| "INS reader panicked".to_string())??;
         stats.poses = poses;
         stats.ins_frames_without_pose = without;
         stats.ins_rejected = rejected;
-        stats.ring_full = [full[0].load(Ordering::Relaxed), full[1].load(Ordering::Relaxed)];
-        let c = consumer.join().map_err(|_| "consumer panicked".to_string())?;
+        stats.ring_full = [
+            full[0].load(Ordering::Relaxed),
+            full[1].load(Ordering::Relaxed),
+        ];
+        let c = consumer
+            .join()
+            .map_err(|_| "consumer panicked".to_string())?;
         Ok((stats, c))
     })
 }

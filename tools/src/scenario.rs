@@ -459,8 +459,8 @@ impl Scenario {
         }
     }
 
-    /// Targets, then clutter (a pole under each tripod sphere down to a 2 m x 2 m x 0.4 m patch
-    /// of dock 1.2 m below the sphere's bottom).
+    /// Targets, then clutter (a pole under each tripod sphere, from 5 cm below the sphere down
+    /// to a 2 m x 2 m x 0.4 m patch of dock 1.2 m below the sphere's bottom).
     pub fn objects(&self) -> Vec<Object> {
         let mut out: Vec<Object> = self
             .sphere
@@ -482,7 +482,7 @@ impl Scenario {
                 shape: Shape::Pole {
                     base: Vector3::new(c.x, c.y, deck),
                     r: 0.025,
-                    height: deck - bottom,
+                    height: deck - bottom - 0.05,
                 },
                 target: None,
             });

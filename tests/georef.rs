@@ -1,0 +1,297 @@
+//! Alignment, georeferencing and windows end to end on the synthetic table1 survey, with the
+//! VN-200 stream and with an SBET trajectory; INS gaps; the LAS output read by another reader.
+
+mod common;
+
+use spherecal::frames::{roll_pitch_heading, rotation};
+use spherecal::georef::Mount;
+use spherecal::window::Observation;
+use spherecal_tools::pipeline::{run, targets, BatchMsg, Inputs, InsInput};
+use spherecal_tools::scenario::Scenario;
+use spherecal_tools::site::Site;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// table1, synthesised once for all tests of this file.
+fn table1() -> &'static (PathBuf, Vec<u64>) {
+    static DIR: OnceLock<(PathBuf, Vec<u64>)> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("spherecal-georef-{}", std::process::id()));
+        let s = Scenario::load("table1").unwrap();
+        let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
+        (dir, truth.points_per_sphere)
+    })
+}
+
+fn truth_mount() -> Mount {
+    Mount::new(
+        [
+            179.5f64.to_radians(),
+            (-44.9f64).to_radians(),
+            1.2f64.to_radians(),
+        ],
+        [1.5, -1.24, -1.36],
+    )
+}
+
+fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
+    Inputs {
+        pcap: dir.join("lidar.pcap"),
+        ins,
+        site: Site::load(&dir.join("site.toml")).unwrap(),
+        mount,
+        margin,
+        max_gap_ns: 50_000_000,
+    }
+}
+
+fn observations(inp: &Inputs) -> (spherecal_tools::pipeline::RunStats, Vec<Vec<Observation>>) {
+    let n = inp.site.sphere.len();
+    run(
+        inp,
+        |_| {},
+        move |rx: crossbeam_channel::Receiver<BatchMsg>| {
+            let mut out = vec![Vec::new(); n];
+            for m in rx {
+                out[m.sphere].extend(m.obs);
+            }
+            out
+        },
+    )
+    .unwrap()
+}
+
+/// Distance of each observation, georeferenced with `mount`, from its sphere's surface.
+fn residuals(inp: &Inputs, obs: &[Vec<Observation>], mount: &Mount) -> Vec<Vec<f64>> {
+    let (_, t) = targets(&inp.site);
+    obs.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            v.iter()
+                .map(|o| (o.georef(mount) - t[i].center).norm() - t[i].radius)
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn truth_windows_hold_exactly_the_sphere_returns_within_a_millimetre() {
+    let (dir, truth) = table1();
+    let inp = inputs(
+        dir,
+        InsInput::Vn200(dir.join("ins.bin")),
+        truth_mount(),
+        0.01,
+    );
+    let (stats, obs) = observations(&inp);
+    assert_eq!(stats.rollovers, 1, "table1 crosses the top of the hour");
+    assert_eq!(
+        stats.window.before_history + stats.window.after_history + stats.window.in_gap,
+        0
+    );
+    let counts: Vec<u64> = obs.iter().map(|v| v.len() as u64).collect();
+    assert_eq!(
+        &counts, truth,
+        "window counts = truth.json points_per_sphere"
+    );
+    let r = residuals(&inp, &obs, &truth_mount());
+    let worst = r.iter().flatten().fold(0f64, |a, &e| a.max(e.abs()));
+    eprintln!(
+        "truth windows: {counts:?}, worst |residual| {:.3} mm",
+        worst * 1e3
+    );
+    assert!(worst < 1.2e-3, "worst residual {worst}");
+}
+
+#[test]
+fn apriori_windows_still_catch_every_sphere_return() {
+    let (dir, truth) = table1();
+    let site = Site::load(&dir.join("site.toml")).unwrap();
+    let a = Mount::new(
+        site.apriori.boresight_deg.map(f64::to_radians),
+        site.apriori.lever_arm_m,
+    );
+    let inp = inputs(
+        dir,
+        InsInput::Vn200(dir.join("ins.bin")),
+        a,
+        site.apriori.window_margin_m,
+    );
+    let (_, obs) = observations(&inp);
+    // Re-georeferenced with the truth, the sphere returns among them are all there.
+    let r = residuals(&inp, &obs, &truth_mount());
+    for (i, v) in r.iter().enumerate() {
+        let on = v.iter().filter(|e| e.abs() < 1.2e-3).count() as u64;
+        assert_eq!(
+            on,
+            truth[i],
+            "sphere {i}: {} windowed, {on} on the sphere",
+            v.len()
+        );
+        assert!(
+            v.len() as u64 > on,
+            "the a-priori windows also hold clutter (the tripod)"
+        );
+    }
+}
+
+#[test]
+fn sbet_trajectory_gives_the_same_windows() {
+    let (dir, truth) = table1();
+    // Write an SBET of the same truth: 200 Hz, wander angle 0.3 rad, from the scenario.
+    let s = Scenario::load("table1").unwrap();
+    let (passes, objects) = (s.passes(), s.objects());
+    let w = spherecal::sim::World {
+        site: s.site(),
+        trajectory: spherecal::sim::Trajectory {
+            passes: &passes,
+            turn: s.trajectory.turn_s,
+            down: s.trajectory.ins_down_m,
+            motion: s.motion(),
+        },
+        objects: &objects,
+        mount: s.truth_mount(),
+        start: s.start(),
+        leap_seconds: s.leap_seconds,
+    };
+    let mut bytes = Vec::new();
+    let (week, _) = s.start().week_tow_ns();
+    for j in 0..(65.0 * 200.0) as i64 {
+        let t = spherecal::time::GpsTime(s.start().0 - 1_000_000_000 + j * 5_000_000);
+        let st = w.trajectory.state(w.t_of(t));
+        let g = w.site.to_geodetic(&st.position);
+        let local = w.site.from_local_level(g.lat, g.lon).transpose()
+            * rotation(st.rph[0], st.rph[1], st.rph[2]);
+        let [roll, pitch, heading] = roll_pitch_heading(&local);
+        let rec = spherecal_hal::sbet::SbetRecord {
+            tow_s: t.week_tow_ns().1 as f64 * 1e-9,
+            lat: g.lat,
+            lon: g.lon,
+            h: g.h,
+            roll,
+            pitch,
+            platform_heading: heading + 0.3,
+            wander: 0.3,
+        };
+        bytes.extend_from_slice(&rec.emit());
+    }
+    let sbet = dir.join("traj.sbet");
+    std::fs::write(&sbet, bytes).unwrap();
+    // The week comes from the capture's RMC date.
+    assert_eq!(
+        spherecal_tools::pipeline::week_from_capture(&dir.join("lidar.pcap"), 18),
+        Some(week as u16)
+    );
+    let inp = inputs(dir, InsInput::Sbet(sbet, None), truth_mount(), 0.01);
+    let (_, obs) = observations(&inp);
+    let counts: Vec<u64> = obs.iter().map(|v| v.len() as u64).collect();
+    assert_eq!(&counts, truth);
+    let worst = residuals(&inp, &obs, &truth_mount())
+        .iter()
+        .flatten()
+        .fold(0f64, |a, &e| a.max(e.abs()));
+    assert!(worst < 1.2e-3, "{worst}");
+}
+
+#[test]
+fn ins_gap_is_counted_not_bridged() {
+    let (dir, _) = table1();
+    // Cut 0.4 s of VN-200 frames (52 bytes each at 200 Hz) while the first pass sees S1.
+    let bytes = std::fs::read(dir.join("ins.bin")).unwrap();
+    let frame = 52;
+    let (a, b) = (frame * 600, frame * 680);
+    let mut cut = bytes[..a].to_vec();
+    cut.extend_from_slice(&bytes[b..]);
+    let ins = dir.join("ins_gap.bin");
+    std::fs::write(&ins, cut).unwrap();
+    let inp = inputs(dir, InsInput::Vn200(ins), truth_mount(), 0.01);
+    let (stats, obs) = observations(&inp);
+    // 0.4 s of returns are refused (the gap exceeds 50 ms), nothing else.
+    assert!(stats.window.in_gap > 0, "{:?}", stats.window);
+    assert_eq!(
+        stats.window.georeferenced + stats.window.in_gap,
+        stats.window.points
+    );
+    let worst = residuals(&inp, &obs, &truth_mount())
+        .iter()
+        .flatten()
+        .fold(0f64, |a, &e| a.max(e.abs()));
+    assert!(worst < 1.2e-3);
+}
+
+#[test]
+fn las_file_reads_back() {
+    let (dir, _) = table1();
+    let las = dir.join("cloud.las");
+    let inp = inputs(
+        dir,
+        InsInput::Vn200(dir.join("ins.bin")),
+        truth_mount(),
+        0.01,
+    );
+    let (stats, _, _) = spherecal_tools::georef::georef(&inp, Some(&las), None).unwrap();
+    // With the las crate.
+    let mut r = las::Reader::from_path(&las).unwrap();
+    let n = r.header().number_of_points();
+    assert_eq!(n, stats.window.georeferenced);
+    let data = r.read_points(1000).unwrap();
+    let pts: Vec<las::Point> = data.points().map(|p| p.unwrap()).collect();
+    assert!(pts.iter().all(|p| p.gps_time.is_some()));
+    // With laspy, an independent reader (installed by scripts/test.sh).
+    let script = format!(
+        "import laspy, numpy\nf = laspy.read({:?})\nprint(f.header.point_count, f.header.version, f.header.point_format.id)\nprint(float(f.x[0]), float(f.y[0]), float(f.z[0]), float(f.gps_time[0]), int(numpy.count_nonzero(f.user_data)))",
+        las.to_str().unwrap()
+    );
+    let out = std::process::Command::new("python3")
+        .args(["-c", &script])
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "laspy must be installed (scripts/test.sh does it): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), format!("{n} 1.4 6"));
+    let v: Vec<f64> = lines
+        .next()
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let p0 = &pts[0];
+    assert!((v[0] - p0.x).abs() < 1e-4 && (v[1] - p0.y).abs() < 1e-4 && (v[2] - p0.z).abs() < 1e-4);
+    assert!((v[3] - p0.gps_time.unwrap()).abs() < 1e-6);
+    assert_eq!(v[4] as u64, stats.window.windowed.iter().sum::<u64>());
+}
+
+#[test]
+#[ignore]
+fn debug_worst() {
+    let (dir, _) = table1();
+    let inp = inputs(
+        dir,
+        InsInput::Vn200(dir.join("ins.bin")),
+        truth_mount(),
+        0.01,
+    );
+    let (_, obs) = observations(&inp);
+    let r = residuals(&inp, &obs, &truth_mount());
+    let s = Scenario::load("table1").unwrap();
+    let mut v: Vec<(f64, f64, f32, u8)> = Vec::new();
+    for (i, o) in obs.iter().enumerate() {
+        for (k, ob) in o.iter().enumerate() {
+            v.push((
+                r[i][k],
+                (ob.time.0 - s.start().0) as f64 * 1e-9,
+                ob.range,
+                ob.laser,
+            ));
+        }
+    }
+    v.sort_by(|a, b| b.0.abs().partial_cmp(&a.0.abs()).unwrap());
+    for x in v.iter().take(15) {
+        eprintln!("{x:?}");
+    }
+}
