@@ -63,6 +63,9 @@ pub struct Motion {
     pub velocity: Vector3<f64>,
     /// Angular rate in the body frame [rad/s].
     pub rate: Vector3<f64>,
+    /// The INS samples it lies between: within them position is exactly linear and the
+    /// attitude turns at exactly `rate`.
+    pub segment: (GpsTime, GpsTime),
 }
 
 impl Motion {
@@ -227,6 +230,7 @@ impl<const N: usize> PoseHistory<N> {
             },
             velocity,
             rate,
+            segment: (a.time, b.time),
         })
     }
 }

@@ -3,10 +3,12 @@
 //! georeference it again for any boresight and lever arm: the return in the LiDAR frame
 //! `q_l = d u_l + v_k e_z` (eq. 1 and the beam offset) and the platform pose (eqs. 2-3).
 //!
-//! The pose is interpolated once per firing sequence (16 firings, 34.6 us) and carried to each
-//! firing with the INS velocity and angular rate (first order). Holding the attitude over a
-//! sequence instead would cost up to 6.6e-5 rad (2 mm at 33 m) in a 1.9 rad/s turn: measured
-//! on table1's turns, see tests/georef.rs.
+//! The pose is interpolated at most every 0.7 ms, and whenever a firing falls between other INS
+//! samples, and carried to each firing with the INS velocity and angular rate: within one INS
+//! segment the position is exactly linear and the attitude turns at a constant rate, so the
+//! first-order carry errs by (rate dt)^2 / 2 < 2.5e-7 rad at 1 rad/s (8 um at 33 m). Holding
+//! the attitude fixed over even one firing sequence would cost up to 6.6e-5 rad (2 mm at 33 m)
+//! in table1's 1.9 rad/s turns (measured, tests/georef.rs).
 
 use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
@@ -132,6 +134,38 @@ pub fn q_of(p: &Point) -> Vector3<f64> {
     )
 }
 
+/// Longest carry of an interpolated pose [ns].
+const CARRY_NS: i64 = 700_000;
+
+/// An interpolated pose and what carrying it on needs.
+struct Sequence {
+    motion: Motion,
+    time: GpsTime,
+    position: Vector3<f64>,
+    velocity: Vector3<f64>,
+    /// `R_ig R_li`.
+    m: Matrix3<f64>,
+    /// `R_ig a`.
+    r_lever: Vector3<f64>,
+    /// Angular rate in the site frame, `R_ig w`.
+    omega: Vector3<f64>,
+}
+
+impl Sequence {
+    fn new(motion: &Motion, time: GpsTime, mount: &Mount) -> Self {
+        let r = motion.pose.r_ig;
+        Self {
+            motion: *motion,
+            time,
+            position: motion.pose.position,
+            velocity: motion.velocity,
+            m: r * mount.r_li,
+            r_lever: r * mount.lever,
+            omega: r * motion.rate,
+        }
+    }
+}
+
 /// The windowing stage: georeference with the a-priori mounting and fill the batches.
 #[derive(Debug)]
 pub struct Windowing<'a, const CAP: usize> {
@@ -157,46 +191,62 @@ impl<const CAP: usize> Windowing<'_, CAP> {
         history: &PoseHistory<N>,
         mut each: impl FnMut(&GeoPoint),
     ) {
-        let mut key = u16::MAX;
-        let mut pose: Option<(Motion, GpsTime)> = None;
+        // Broad phase: the box around all windows.
+        let (mut lo, mut hi) = (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        );
+        for t in self.targets {
+            let r = Vector3::repeat(t.radius + self.margin);
+            lo = lo.inf(&(t.center - r));
+            hi = hi.sup(&(t.center + r));
+        }
+        let mut seq: Option<Sequence> = None;
         for p in points.as_slice() {
             self.stats.points += 1;
             let t = GpsTime(t0.0 + i64::from(p.offset_ns));
-            // One interpolation per firing sequence (block, sequence).
-            let k = u16::from(p.block) * 2 + p.sequence() as u16;
-            if k != key {
-                key = k;
-                let seq_t =
-                    GpsTime(t.0 - (p.laser() as i64) * i64::from(crate::vlp16::firing::FIRING_NS));
-                pose = match history.interpolate(seq_t) {
-                    Ok(m) => Some((m, seq_t)),
+            let fresh = seq.as_ref().is_some_and(|s| {
+                t >= s.motion.segment.0
+                    && t <= s.motion.segment.1
+                    && (t.0 - s.time.0).abs() <= CARRY_NS
+            });
+            if !fresh {
+                seq = match history.interpolate(t) {
+                    Ok(m) => Some(Sequence::new(&m, t, &self.mount)),
                     Err(e) => {
-                        // Fall back to the firing's own time at the history's edges.
-                        match history.interpolate(t) {
-                            Ok(m) => Some((m, t)),
-                            Err(_) => {
-                                match e {
-                                    AlignError::Empty | AlignError::BeforeHistory => {
-                                        self.stats.before_history += 1
-                                    }
-                                    AlignError::AfterHistory => self.stats.after_history += 1,
-                                    AlignError::Gap { .. } => self.stats.in_gap += 1,
-                                }
-                                key = u16::MAX;
-                                None
+                        match e {
+                            AlignError::Empty | AlignError::BeforeHistory => {
+                                self.stats.before_history += 1
                             }
+                            AlignError::AfterHistory => self.stats.after_history += 1,
+                            AlignError::Gap { .. } => self.stats.in_gap += 1,
                         }
+                        None
                     }
                 };
             }
-            let Some((m, ts)) = &pose else { continue };
-            let PlatformPose { position, r_ig } = m.advanced((t.0 - ts.0) as f64 * 1e-9);
-            let q_l = q_of(p);
-            let x = position + r_ig * (self.mount.lever + self.mount.r_li * q_l);
+            let Some(sq) = &seq else { continue };
+            let dt = (t.0 - sq.time.0) as f64 * 1e-9;
+            // The return in the LiDAR frame: the decoder's point (eq. 1 + beam offset).
+            let q_l = Vector3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z));
+            // Eq. 3 carried dt on: x = P + v dt + x_r + dt (omega x x_r), x_r = R(a + R_li q).
+            let x_r = sq.m * q_l + sq.r_lever;
+            let x = sq.position + sq.velocity * dt + x_r + sq.omega.cross(&x_r) * dt;
             self.stats.georeferenced += 1;
-            let w = which_window(self.targets, self.margin, &x);
+            let inside = x.x >= lo.x
+                && x.x <= hi.x
+                && x.y >= lo.y
+                && x.y <= hi.y
+                && x.z >= lo.z
+                && x.z <= hi.z;
+            let w = if inside {
+                which_window(self.targets, self.margin, &x)
+            } else {
+                None
+            };
             if let Some(i) = w {
                 if let Some(b) = self.batches.get_mut(i) {
+                    let PlatformPose { position, r_ig } = sq.motion.advanced(dt);
                     let obs = Observation {
                         q_l,
                         position,

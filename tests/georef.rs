@@ -265,33 +265,3 @@ fn las_file_reads_back() {
     assert!((v[3] - p0.gps_time.unwrap()).abs() < 1e-6);
     assert_eq!(v[4] as u64, stats.window.windowed.iter().sum::<u64>());
 }
-
-#[test]
-#[ignore]
-fn debug_worst() {
-    let (dir, _) = table1();
-    let inp = inputs(
-        dir,
-        InsInput::Vn200(dir.join("ins.bin")),
-        truth_mount(),
-        0.01,
-    );
-    let (_, obs) = observations(&inp);
-    let r = residuals(&inp, &obs, &truth_mount());
-    let s = Scenario::load("table1").unwrap();
-    let mut v: Vec<(f64, f64, f32, u8)> = Vec::new();
-    for (i, o) in obs.iter().enumerate() {
-        for (k, ob) in o.iter().enumerate() {
-            v.push((
-                r[i][k],
-                (ob.time.0 - s.start().0) as f64 * 1e-9,
-                ob.range,
-                ob.laser,
-            ));
-        }
-    }
-    v.sort_by(|a, b| b.0.abs().partial_cmp(&a.0.abs()).unwrap());
-    for x in v.iter().take(15) {
-        eprintln!("{x:?}");
-    }
-}
