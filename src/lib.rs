@@ -12,6 +12,7 @@
 extern crate std;
 
 pub mod align;
+pub mod calib;
 pub mod frames;
 pub mod georef;
 pub mod sim;

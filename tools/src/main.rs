@@ -14,7 +14,7 @@ use std::process::ExitCode;
 )]
 struct Cli {
     #[command(subcommand)]
-    cmd: Cmd,
+    cmd: Option<Cmd>,
 }
 
 #[derive(Subcommand)]
@@ -72,6 +72,39 @@ enum Cmd {
         #[arg(long)]
         windows: Option<PathBuf>,
     },
+    /// Calibrate: georeference, window, solve for boresight and lever arm, report.
+    Calibrate {
+        /// The VLP-16 capture.
+        #[arg(long)]
+        pcap: PathBuf,
+        /// VN-200 serial bytes (raw or a serial log).
+        #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
+        ins: Option<PathBuf>,
+        /// An Applanix SBET trajectory instead of the VN-200.
+        #[arg(long)]
+        sbet: Option<PathBuf>,
+        /// GPS week of the SBET (default: from the capture's RMC date).
+        #[arg(long)]
+        gps_week: Option<u16>,
+        /// site.toml.
+        #[arg(long)]
+        site: PathBuf,
+        /// Start: roll,pitch,heading [deg],x,y,z [m] (default: the site's a-priori values).
+        #[arg(long, value_parser = parse6, allow_hyphen_values = true)]
+        init: Option<[f64; 6]>,
+        /// Write the JSON report here.
+        #[arg(long)]
+        report: Option<PathBuf>,
+        /// Write the calibrated cloud as LAS.
+        #[arg(long)]
+        las: Option<PathBuf>,
+        /// Write residual plots (SVG).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
+    /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
+    /// truth (what a bare `cargo run --release` does).
+    Demo,
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins {
@@ -110,7 +143,23 @@ fn main() -> ExitCode {
             };
         }
     };
-    match cli.cmd {
+    let Some(cmd) = cli.cmd else {
+        return demo();
+    };
+    match cmd {
+        Cmd::Demo => demo(),
+        Cmd::Calibrate { pcap, ins, sbet, gps_week, site, init, report, las, plot } => {
+            match spherecal_tools::run_calibrate(pcap, ins, sbet, gps_week, site, init, report, las, plot, None) {
+                Ok((text, ok)) => {
+                    say!("{text}");
+                    if ok { ExitCode::SUCCESS } else { ExitCode::from(1) }
+                }
+                Err(e) => {
+                    eprintln!("spherecal calibrate: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Cmd::Decode { file, csv } => decode(file, csv),
         Cmd::Ins { file, csv } => ins(file, csv),
         Cmd::Synth {
@@ -193,6 +242,71 @@ fn synth(scenario: Option<String>, out: Option<PathBuf>, print: Option<String>) 
             ExitCode::from(2)
         }
     }
+}
+
+fn demo() -> ExitCode {
+    let dir = std::env::temp_dir().join(format!("spherecal-demo-{}", std::process::id()));
+    let s = match spherecal_tools::scenario::Scenario::load("table1") {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("spherecal demo: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    sayln!("spherecal demo: the paper's Table 1 survey, synthesised into {}", dir.display());
+    let t0 = std::time::Instant::now();
+    let truth = match spherecal_tools::synth::synth(&s, &dir) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("spherecal demo: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    sayln!(
+        "synthesised {:.1} s of scanning ({} packets, {} VN-200 frames, {:?} sphere returns) in {:.2} s",
+        s.duration_s(),
+        truth.data_packets,
+        truth.ins_frames,
+        truth.points_per_sphere,
+        t0.elapsed().as_secs_f64()
+    );
+    sayln!("calibrating from the paper's erroneous a-priori values ...");
+    let t = s.mount.truth.boresight_deg;
+    let l = s.mount.truth.lever_arm_m;
+    let truth6 = [t[0], t[1], t[2], l[0], l[1], l[2]];
+    let res = spherecal_tools::run_calibrate(
+        dir.join("lidar.pcap"),
+        Some(dir.join("ins.bin")),
+        None,
+        None,
+        dir.join("site.toml"),
+        None,
+        Some(dir.join("report.json")),
+        None,
+        None,
+        Some(truth6),
+    );
+    let code = match res {
+        Ok((text, ok)) => {
+            say!("{text}");
+            sayln!("report: {}", dir.join("report.json").display());
+            if ok { ExitCode::SUCCESS } else { ExitCode::from(1) }
+        }
+        Err(e) => {
+            eprintln!("spherecal demo: {e}");
+            ExitCode::from(2)
+        }
+    };
+    for f in ["lidar.pcap", "ins.bin"] {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+    code
+}
+
+/// Six comma-separated numbers.
+fn parse6(s: &str) -> Result<[f64; 6], String> {
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
+    <[f64; 6]>::try_from(v.as_slice()).ok().filter(|a| a.iter().all(|x| x.is_finite())).ok_or_else(|| format!("{s:?}: expected six finite numbers r,p,h,x,y,z"))
 }
 
 /// `a,b,c` as three numbers.

@@ -459,8 +459,8 @@ impl Scenario {
         }
     }
 
-    /// Targets, then clutter (a pole under each tripod sphere, from 5 cm below the sphere down
-    /// to a 2 m x 2 m x 0.4 m patch of dock 1.2 m below the sphere's bottom).
+    /// Targets, then clutter: a tripod pole (2.5 cm radius) under each tripod sphere, from 5 cm
+    /// below the sphere down 1.15 m to the dock.
     pub fn objects(&self) -> Vec<Object> {
         let mut out: Vec<Object> = self
             .sphere
@@ -483,13 +483,6 @@ impl Scenario {
                     base: Vector3::new(c.x, c.y, deck),
                     r: 0.025,
                     height: deck - bottom - 0.05,
-                },
-                target: None,
-            });
-            out.push(Object {
-                shape: Shape::Box {
-                    min: Vector3::new(c.x - 1.0, c.y - 1.0, deck),
-                    max: Vector3::new(c.x + 1.0, c.y + 1.0, deck + 0.4),
                 },
                 target: None,
             });

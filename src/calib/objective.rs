@@ -1,0 +1,163 @@
+//! The objective of eq. 6 and the signed residuals of the least-squares refinement.
+//!
+//! For observation k of sphere j, eq. 3 is `x_k = P_k + R_k (a + R_li(theta) q_k)`, so
+//! `x_k - c_j = u_k + R_k a + R_k R_li q_k` with `u_k = P_k - c_j`. `R_li` is built once per
+//! evaluation (six trig calls); each observation then costs two 3x3 products and a square root.
+
+use super::P;
+use crate::frames::rotation;
+use crate::window::{Observation, Target};
+use nalgebra::{Matrix3, Vector3};
+
+/// One sphere's observations and its surveyed target.
+#[derive(Debug, Clone, Copy)]
+pub struct SphereObs<'a> {
+    /// The sphere.
+    pub target: Target,
+    /// Its windowed returns (only the first `used` take part).
+    pub obs: &'a [Observation],
+}
+
+/// The problem: spheres with their observations.
+#[derive(Debug, Clone, Copy)]
+pub struct Problem<'a> {
+    /// The spheres.
+    pub spheres: &'a [SphereObs<'a>],
+}
+
+/// `R_li` and its derivatives by roll, pitch and heading (DESIGN.md convention).
+pub fn rotation_and_derivatives(b: &[f64; P]) -> (Matrix3<f64>, [Matrix3<f64>; 3]) {
+    let (r, p, h) = (b[0], b[1], b[2]);
+    let (sr, cr) = libm::sincos(r);
+    let (sp, cp) = libm::sincos(p);
+    let (sh, ch) = libm::sincos(h);
+    let rz = Matrix3::new(ch, -sh, 0.0, sh, ch, 0.0, 0.0, 0.0, 1.0);
+    let ry = Matrix3::new(cp, 0.0, sp, 0.0, 1.0, 0.0, -sp, 0.0, cp);
+    let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cr, -sr, 0.0, sr, cr);
+    let drz = Matrix3::new(-sh, -ch, 0.0, ch, -sh, 0.0, 0.0, 0.0, 0.0);
+    let dry = Matrix3::new(-sp, 0.0, cp, 0.0, 0.0, 0.0, -cp, 0.0, -sp);
+    let drx = Matrix3::new(0.0, 0.0, 0.0, 0.0, -sr, -cr, 0.0, cr, -sr);
+    let rzy = rz * ry;
+    (rzy * rx, [rzy * drx, rz * dry * rx, drz * ry * rx])
+}
+
+impl Problem<'_> {
+    /// Observations in all.
+    pub fn len(&self) -> usize {
+        self.spheres.iter().map(|s| s.obs.len()).sum()
+    }
+
+    /// No observations.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Eq. 6: the L1 sum of `| ||x_k(b) - c_j|| - r_j |` [m].
+    pub fn l1(&self, b: &[f64; P]) -> f64 {
+        let r_li = rotation(b[0], b[1], b[2]);
+        let a = Vector3::new(b[3], b[4], b[5]);
+        let mut sum = 0.0;
+        for s in self.spheres {
+            let (c, r) = (s.target.center, s.target.radius);
+            for o in s.obs {
+                let d = (o.position - c) + o.r_ig * (a + r_li * o.q_l);
+                sum += (d.norm() - r).abs();
+            }
+        }
+        sum
+    }
+
+    /// Visit every signed residual `||x_k - c_j|| - r_j` (sphere index, residual).
+    pub fn residuals(&self, b: &[f64; P], mut f: impl FnMut(usize, f64)) {
+        let r_li = rotation(b[0], b[1], b[2]);
+        let a = Vector3::new(b[3], b[4], b[5]);
+        for (j, s) in self.spheres.iter().enumerate() {
+            for o in s.obs {
+                let d = (o.position - s.target.center) + o.r_ig * (a + r_li * o.q_l);
+                f(j, d.norm() - s.target.radius);
+            }
+        }
+    }
+
+    /// Visit every residual with its gradient by b (analytic: `n = (x - c)/||x - c||`,
+    /// `dr/da = R_k^T n`, `dr/dtheta_i = (R_k^T n) . (dR_li/dtheta_i q_k)`).
+    pub fn jacobian(&self, b: &[f64; P], mut f: impl FnMut(f64, &[f64; P])) {
+        let (r_li, d) = rotation_and_derivatives(b);
+        let a = Vector3::new(b[3], b[4], b[5]);
+        for s in self.spheres {
+            for o in s.obs {
+                let dx = (o.position - s.target.center) + o.r_ig * (a + r_li * o.q_l);
+                let norm = dx.norm();
+                if norm == 0.0 {
+                    continue;
+                }
+                let g = o.r_ig.transpose() * (dx / norm);
+                let row = [g.dot(&(d[0] * o.q_l)), g.dot(&(d[1] * o.q_l)), g.dot(&(d[2] * o.q_l)), g.x, g.y, g.z];
+                f(norm - s.target.radius, &row);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::rng::Rng;
+    use crate::time::GpsTime;
+
+    fn random_obs(rng: &mut Rng, n: usize) -> std::vec::Vec<Observation> {
+        (0..n)
+            .map(|_| Observation {
+                q_l: Vector3::new(rng.range(-20.0, 20.0), rng.range(-20.0, 20.0), rng.range(-3.0, 3.0)),
+                position: Vector3::new(rng.range(-30.0, 30.0), rng.range(-30.0, 30.0), rng.range(-1.0, 1.0)),
+                r_ig: rotation(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1), rng.range(-3.0, 3.0)),
+                time: GpsTime(0),
+                range: 10.0,
+                laser: 0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences() {
+        let mut rng = Rng::new(11);
+        let obs = random_obs(&mut rng, 50);
+        let t = Target { center: Vector3::new(1.0, 2.0, -1.5), radius: 0.19 };
+        let spheres = [SphereObs { target: t, obs: &obs }];
+        let pb = Problem { spheres: &spheres };
+        let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
+        let mut rows = std::vec::Vec::new();
+        pb.jacobian(&b, |r, row| rows.push((r, *row)));
+        for i in 0..P {
+            let h = 1e-6;
+            let (mut bp, mut bm) = (b, b);
+            bp[i] += h;
+            bm[i] -= h;
+            let (mut rp, mut rm) = (std::vec::Vec::new(), std::vec::Vec::new());
+            pb.residuals(&bp, |_, r| rp.push(r));
+            pb.residuals(&bm, |_, r| rm.push(r));
+            for k in 0..obs.len() {
+                let fd = (rp[k] - rm[k]) / (2.0 * h);
+                assert!((fd - rows[k].1[i]).abs() < 1e-6 * (1.0 + fd.abs()), "param {i} obs {k}: {fd} vs {}", rows[k].1[i]);
+            }
+        }
+        // L1 is the sum of |residuals|.
+        let mut s = 0.0;
+        pb.residuals(&b, |_, r| s += r.abs());
+        assert!((s - pb.l1(&b)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn derivative_matrices_match_the_rotation() {
+        let b = [0.3, -0.4, 2.0, 0.0, 0.0, 0.0];
+        let (r, d) = rotation_and_derivatives(&b);
+        assert!((r - rotation(0.3, -0.4, 2.0)).norm() < 1e-15);
+        for i in 0..3 {
+            let (mut bp, mut bm) = (b, b);
+            bp[i] += 1e-7;
+            bm[i] -= 1e-7;
+            let fd = (rotation(bp[0], bp[1], bp[2]) - rotation(bm[0], bm[1], bm[2])) / 2e-7;
+            assert!((fd - d[i]).norm() < 1e-7);
+        }
+    }
+}

@@ -1,0 +1,211 @@
+//! `spherecal calibrate`: the pipeline, then the solver, then the report (JSON, a human
+//! summary, optionally the calibrated cloud as LAS and the residual plots as SVG).
+
+use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
+use serde::{Deserialize, Serialize};
+use spherecal::calib::solve::{Refusal, Settings, Solution};
+use spherecal::calib::{solve, NAMES, P};
+use spherecal::window::{Observation, Target};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+/// The report's three-angle / three-axis groups.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Angles {
+    /// Roll.
+    pub roll: f64,
+    /// Pitch.
+    pub pitch: f64,
+    /// Heading.
+    pub heading: f64,
+}
+
+/// x, y, z.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Xyz {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+
+/// 1-sigma of each parameter.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Sigma {
+    /// [deg].
+    pub boresight_deg: Angles,
+    /// [m].
+    pub lever_arm_m: Xyz,
+}
+
+/// Per sphere.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PerSphere {
+    /// Sphere id.
+    pub id: String,
+    /// Returns in the a-priori window.
+    pub windowed: usize,
+    /// Returns used.
+    pub points: usize,
+    /// RMS with the starting values [m].
+    pub rms_before_m: f64,
+    /// RMS with the solution [m].
+    pub rms_after_m: f64,
+    /// Fitted minus surveyed centre, NED [m].
+    pub centre_offset_m: Option<[f64; 3]>,
+}
+
+/// `report.json` (DESIGN.md contract plus the keys).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Report {
+    /// [deg].
+    pub boresight_deg: Angles,
+    /// [m].
+    pub lever_arm_m: Xyz,
+    /// 1-sigma.
+    pub sigma: Sigma,
+    /// RMS of the residuals [m].
+    pub rms_m: f64,
+    /// Eq. 6 over the used returns [m].
+    pub objective_l1_m: f64,
+    /// Returns used per sphere.
+    pub points_per_sphere: Vec<usize>,
+    /// Objective evaluations by Nelder-Mead.
+    pub evaluations: usize,
+    /// Nelder-Mead iterations.
+    pub nm_iterations: usize,
+    /// LM iterations (last round).
+    pub lm_iterations: usize,
+    /// Re-windowing rounds.
+    pub rounds: usize,
+    /// A solution is claimed.
+    pub converged: bool,
+    /// Why not, if not.
+    pub reason: Option<String>,
+    /// Correlation matrix, order roll, pitch, heading, x, y, z.
+    pub correlation: Vec<Vec<f64>>,
+    /// Condition number of the unit-diagonal normal matrix.
+    pub condition_number: f64,
+    /// Parameters the data determine poorly.
+    pub weak_parameters: Vec<String>,
+    /// RMS of fitted minus surveyed centres [m].
+    pub sphere_centre_rms_m: Option<f64>,
+    /// Per sphere.
+    pub per_sphere: Vec<PerSphere>,
+    /// Time of the solve [ms].
+    pub solve_ms: f64,
+    /// Starting values.
+    pub start: BTreeMap<String, f64>,
+}
+
+/// Run the pipeline and collect the windowed observations per sphere.
+pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String> {
+    let n = inp.site.sphere.len();
+    run(inp, |_| {}, move |rx: crossbeam_channel::Receiver<BatchMsg>| {
+        let mut out = vec![Vec::new(); n];
+        for m in rx {
+            out[m.sphere].extend(m.obs);
+        }
+        out
+    })
+}
+
+/// A refusal in words.
+pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
+    match r {
+        Refusal::TooFewSpheres { have } => format!("{have} sphere(s): at least two are needed (one sphere cannot fix the rotation about the line to it)"),
+        Refusal::TooFewPoints { sphere, have, need } => format!("sphere {}: {have} returns, at least {need} are needed", ids.get(*sphere).map_or("?", |s| s.as_str())),
+        Refusal::IllConditioned { condition, limit } => format!(
+            "ill-conditioned: condition number {condition:.3e} > {limit:.0e}; the geometry cannot separate {}",
+            if weak.is_empty() { "the parameters".to_string() } else { weak.join(", ") }
+        ),
+        Refusal::RmsTooHigh { rms, limit } => format!("residual RMS {:.1} mm above the {:.1} mm limit", rms * 1e3, limit * 1e3),
+    }
+}
+
+/// Solve and build the report from collected observations.
+pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observation>], b0: &[f64; P], s: &Settings) -> (Solution, Report) {
+    let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
+    let t0 = std::time::Instant::now();
+    let sol = solve(targets, &mut slices, b0, s);
+    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let b = sol.b;
+    let lm = sol.lm;
+    let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
+    let weak: Vec<String> = NAMES.iter().zip(sol.weak).filter(|(_, w)| *w).map(|(n, _)| n.to_string()).collect();
+    let report = Report {
+        boresight_deg: Angles { roll: b[0].to_degrees(), pitch: b[1].to_degrees(), heading: b[2].to_degrees() },
+        lever_arm_m: Xyz { x: b[3], y: b[4], z: b[5] },
+        sigma: Sigma {
+            boresight_deg: Angles { roll: sigma[0].to_degrees(), pitch: sigma[1].to_degrees(), heading: sigma[2].to_degrees() },
+            lever_arm_m: Xyz { x: sigma[3], y: sigma[4], z: sigma[5] },
+        },
+        rms_m: lm.map_or(f64::NAN, |l| l.rms),
+        objective_l1_m: sol.l1,
+        points_per_sphere: sol.spheres.iter().map(|s| s.used).collect(),
+        evaluations: sol.nm.evaluations,
+        nm_iterations: sol.nm.iterations,
+        lm_iterations: lm.map_or(0, |l| l.iterations),
+        rounds: sol.rounds,
+        converged: sol.refusal.is_none(),
+        reason: sol.refusal.as_ref().map(|r| refusal_text(r, ids, &weak)),
+        correlation: (0..P).map(|i| (0..P).map(|j| lm.map_or(f64::NAN, |l| l.correlation[(i, j)])).collect()).collect(),
+        condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
+        weak_parameters: weak,
+        sphere_centre_rms_m: sol.center_rms,
+        per_sphere: sol
+            .spheres
+            .iter()
+            .zip(ids)
+            .map(|(s, id)| PerSphere {
+                id: id.clone(),
+                windowed: s.windowed,
+                points: s.used,
+                rms_before_m: s.rms_before,
+                rms_after_m: s.rms_after,
+                centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
+            })
+            .collect(),
+        solve_ms,
+        start: NAMES.iter().zip(b0).enumerate().map(|(i, (n, v))| (n.to_string(), if i < 3 { v.to_degrees() } else { *v })).collect(),
+    };
+    (sol, report)
+}
+
+/// The human summary.
+pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
+    let mut o = String::new();
+    let b = [r.boresight_deg.roll, r.boresight_deg.pitch, r.boresight_deg.heading, r.lever_arm_m.x, r.lever_arm_m.y, r.lever_arm_m.z];
+    let s = [r.sigma.boresight_deg.roll, r.sigma.boresight_deg.pitch, r.sigma.boresight_deg.heading, r.sigma.lever_arm_m.x, r.sigma.lever_arm_m.y, r.sigma.lever_arm_m.z];
+    let _ = writeln!(o, "{:<10}{:>14}{:>12}{:>14}{}", "parameter", "start", "solution", "1-sigma", if truth.is_some() { "         truth      error" } else { "" });
+    for i in 0..P {
+        let unit = if i < 3 { "deg" } else { "m" };
+        let _ = write!(o, "{:<10}{:>14.4}{:>12.5}{:>10.5} {unit:<3}", NAMES[i], r.start[NAMES[i]], b[i], s[i]);
+        if let Some(t) = truth {
+            let _ = write!(o, "{:>14.4}{:>11.2e}", t[i], b[i] - t[i]);
+        }
+        let _ = writeln!(o);
+    }
+    let _ = writeln!(o, "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}", r.rms_m * 1e3, r.objective_l1_m, r.condition_number, r.sphere_centre_rms_m.map_or("-".into(), |c| format!("{:.2} mm", c * 1e3)));
+    for p in &r.per_sphere {
+        let _ = writeln!(o, "  {}: {} of {} windowed returns used, RMS {:.1} mm -> {:.2} mm", p.id, p.points, p.windowed, p.rms_before_m * 1e3, p.rms_after_m * 1e3);
+    }
+    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} re-windowing rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
+    match &r.reason {
+        None => {
+            let _ = writeln!(o, "converged");
+        }
+        Some(why) => {
+            let _ = writeln!(o, "NOT CONVERGED: {why}");
+        }
+    }
+    o
+}
+
+/// Site targets and ids.
+pub fn site_targets(inp: &Inputs) -> (Vec<Target>, Vec<String>) {
+    let (_, t) = targets(&inp.site);
+    (t, inp.site.sphere.iter().map(|s| s.id.clone()).collect())
+}
