@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod decode;
 pub mod georef;
 pub mod ins;
+pub mod montecarlo;
 pub mod pipeline;
 pub mod plot;
 pub mod scenario;

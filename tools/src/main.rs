@@ -102,6 +102,27 @@ enum Cmd {
         #[arg(long)]
         plot: Option<PathBuf>,
     },
+    /// Calibrate one synthetic survey from many perturbed starts, on all cores.
+    Montecarlo {
+        /// A built-in scenario or a scenario file.
+        #[arg(long)]
+        scenario: String,
+        /// Number of starts.
+        #[arg(long, default_value_t = 200)]
+        trials: usize,
+        /// Starts within +- this of the true angles [deg].
+        #[arg(long, default_value_t = 5.0)]
+        angle_noise_deg: f64,
+        /// Starts within +- this of the true lever arm [m].
+        #[arg(long, default_value_t = 0.5)]
+        lever_noise_m: f64,
+        /// Seed of the starts.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write the JSON report here.
+        #[arg(long)]
+        report: Option<PathBuf>,
+    },
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
     Demo,
@@ -148,6 +169,32 @@ fn main() -> ExitCode {
     };
     match cmd {
         Cmd::Demo => demo(),
+        Cmd::Montecarlo { scenario, trials, angle_noise_deg, lever_noise_m, seed, report } => {
+            let s = match spherecal_tools::scenario::Scenario::load(&scenario) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("spherecal montecarlo: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            match spherecal_tools::montecarlo::montecarlo(&s, trials, angle_noise_deg, lever_noise_m, seed, true) {
+                Ok(r) => {
+                    say!("{}", spherecal_tools::montecarlo::render(&r));
+                    if let Some(p) = report {
+                        let json = serde_json::to_string_pretty(&r).unwrap_or_default();
+                        if let Err(e) = std::fs::write(&p, json + "\n") {
+                            eprintln!("spherecal montecarlo: {}: {e}", p.display());
+                            return ExitCode::from(2);
+                        }
+                    }
+                    if r.fraction_within == 1.0 { ExitCode::SUCCESS } else { ExitCode::from(1) }
+                }
+                Err(e) => {
+                    eprintln!("spherecal montecarlo: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Cmd::Calibrate { pcap, ins, sbet, gps_week, site, init, report, las, plot } => {
             match spherecal_tools::run_calibrate(pcap, ins, sbet, gps_week, site, init, report, las, plot, None) {
                 Ok((text, ok)) => {

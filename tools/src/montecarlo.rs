@@ -1,0 +1,171 @@
+//! `spherecal montecarlo`: synthesise once, then calibrate from N starts drawn uniformly within
+//! +-A deg and +-L m of the truth, on all cores.
+
+use crate::calibrate::collect;
+use crate::pipeline::{targets, Inputs, InsInput};
+use crate::scenario::Scenario;
+use serde::{Deserialize, Serialize};
+use spherecal::calib::{solve, Settings, NAMES, P};
+use spherecal::sim::Rng;
+use std::io::IsTerminal;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// One trial.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Trial {
+    /// Start [deg, m].
+    pub start: [f64; P],
+    /// Solution [deg, m].
+    pub solution: [f64; P],
+    /// Solution minus truth [deg, m].
+    pub error: [f64; P],
+    /// A solution was claimed.
+    pub converged: bool,
+    /// Within 1e-3 deg / 1e-3 m on every parameter.
+    pub within: bool,
+    /// Solve time [ms].
+    pub ms: f64,
+}
+
+/// The Monte Carlo report.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct McReport {
+    /// Scenario.
+    pub scenario: String,
+    /// Trials.
+    pub trials: usize,
+    /// Start spread [deg].
+    pub angle_noise_deg: f64,
+    /// Start spread [m].
+    pub lever_noise_m: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Fraction within 1e-3 deg / 1e-3 m.
+    pub fraction_within: f64,
+    /// Fraction claimed converged.
+    pub fraction_converged: f64,
+    /// Worst |error| per parameter [deg, m], order roll, pitch, heading, x, y, z.
+    pub worst_error: [f64; P],
+    /// Mean solve time per trial [ms].
+    pub ms_per_trial: f64,
+    /// Every trial.
+    pub runs: Vec<Trial>,
+}
+
+/// Run a Monte Carlo.
+pub fn montecarlo(scenario: &Scenario, trials: usize, angle_deg: f64, lever_m: f64, seed: u64, progress: bool) -> Result<McReport, String> {
+    let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
+    crate::synth::synth(scenario, &dir)?;
+    let site = crate::site::Site::load(&dir.join("site.toml"))?;
+    let a = &site.apriori;
+    let b_apriori = [a.boresight_deg[0].to_radians(), a.boresight_deg[1].to_radians(), a.boresight_deg[2].to_radians(), a.lever_arm_m[0], a.lever_arm_m[1], a.lever_arm_m[2]];
+    let inp = Inputs {
+        pcap: dir.join("lidar.pcap"),
+        ins: InsInput::Vn200(dir.join("ins.bin")),
+        mount: spherecal::georef::Mount::from_params(&b_apriori),
+        margin: a.window_margin_m,
+        max_gap_ns: 50_000_000,
+        site: site.clone(),
+    };
+    let (_, obs) = collect(&inp)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    let (_, tg) = targets(&site);
+    let t = &scenario.mount.truth;
+    let truth = [t.boresight_deg[0], t.boresight_deg[1], t.boresight_deg[2], t.lever_arm_m[0], t.lever_arm_m[1], t.lever_arm_m[2]];
+    let mut rng = Rng::new(seed);
+    let starts: Vec<[f64; P]> = (0..trials)
+        .map(|_| {
+            let mut s = truth;
+            for (i, v) in s.iter_mut().enumerate() {
+                *v += if i < 3 { rng.range(-angle_deg, angle_deg) } else { rng.range(-lever_m, lever_m) };
+            }
+            s
+        })
+        .collect();
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<Trial>>> = Mutex::new(vec![None; trials]);
+    let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let tty = progress && std::io::stderr().is_terminal();
+    std::thread::scope(|sc| {
+        for _ in 0..threads {
+            sc.spawn(|| {
+                let mut work = obs.clone();
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    if k >= trials {
+                        break;
+                    }
+                    let st = starts[k];
+                    let b0 = [st[0].to_radians(), st[1].to_radians(), st[2].to_radians(), st[3], st[4], st[5]];
+                    for (w, o) in work.iter_mut().zip(&obs) {
+                        w.copy_from_slice(o);
+                    }
+                    let mut slices: Vec<&mut [spherecal::window::Observation]> = work.iter_mut().map(|v| v.as_mut_slice()).collect();
+                    let t0 = std::time::Instant::now();
+                    let sol = solve(&tg, &mut slices, &b0, &Settings::default());
+                    let ms = t0.elapsed().as_secs_f64() * 1e3;
+                    let b = sol.b;
+                    let solution = [b[0].to_degrees(), b[1].to_degrees(), b[2].to_degrees(), b[3], b[4], b[5]];
+                    let mut error = [0.0; P];
+                    for i in 0..P {
+                        error[i] = solution[i] - truth[i];
+                    }
+                    let within = error.iter().all(|e| e.abs() < 1e-3);
+                    if let Ok(mut r) = results.lock() {
+                        r[k] = Some(Trial { start: st, solution, error, converged: sol.refusal.is_none(), within, ms });
+                    }
+                    let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    if tty {
+                        let w = 40 * d / trials.max(1);
+                        eprint!("\r[{}{}] {d}/{trials}", "#".repeat(w), " ".repeat(40 - w));
+                    }
+                }
+            });
+        }
+    });
+    if tty {
+        eprintln!();
+    }
+    let runs: Vec<Trial> = results.into_inner().map_err(|_| "a trial thread panicked".to_string())?.into_iter().flatten().collect();
+    let n = runs.len().max(1) as f64;
+    let mut worst = [0.0f64; P];
+    for r in &runs {
+        for i in 0..P {
+            worst[i] = worst[i].max(r.error[i].abs());
+        }
+    }
+    Ok(McReport {
+        scenario: scenario.name.clone(),
+        trials,
+        angle_noise_deg: angle_deg,
+        lever_noise_m: lever_m,
+        seed,
+        fraction_within: runs.iter().filter(|r| r.within).count() as f64 / n,
+        fraction_converged: runs.iter().filter(|r| r.converged).count() as f64 / n,
+        worst_error: worst,
+        ms_per_trial: runs.iter().map(|r| r.ms).sum::<f64>() / n,
+        runs,
+    })
+}
+
+/// The human summary.
+pub fn render(r: &McReport) -> String {
+    let mut o = format!(
+        "{}: {} trials from starts within +-{} deg / +-{} m of the truth (seed {})\nwithin 1e-3 deg / 1e-3 m: {:.1} %   claimed converged: {:.1} %   {:.1} ms per trial\nworst |error|:",
+        r.scenario,
+        r.trials,
+        r.angle_noise_deg,
+        r.lever_noise_m,
+        r.seed,
+        100.0 * r.fraction_within,
+        100.0 * r.fraction_converged,
+        r.ms_per_trial
+    );
+    for i in 0..P {
+        o.push_str(&format!(" {} {:.2e}{}", NAMES[i], r.worst_error[i], if i < 3 { " deg" } else { " m" }));
+    }
+    o.push('\n');
+    o
+}
