@@ -21,7 +21,12 @@ pub struct NmSettings {
 impl Default for NmSettings {
     fn default() -> Self {
         // The paper's tolerance: 1e-4 (m for the objective and the lever, deg for the angles).
-        Self { max_iter: 2000, tol_x: 1e-4, tol_f: 1e-4, restarts: 2 }
+        Self {
+            max_iter: 2000,
+            tol_x: 1e-4,
+            tol_f: 1e-4,
+            restarts: 2,
+        }
     }
 }
 
@@ -60,7 +65,11 @@ pub fn minimize<const N: usize, const M: usize>(
     let mut eval = |x: &[f64; N], evals: &mut usize| {
         *evals += 1;
         let v = f(x);
-        if v.is_nan() { f64::INFINITY } else { v }
+        if v.is_nan() {
+            f64::INFINITY
+        } else {
+            v
+        }
     };
     let mut best = *x0;
     let mut best_f = eval(&best, &mut evals);
@@ -90,7 +99,11 @@ pub fn minimize<const N: usize, const M: usize>(
                 }
             }
             let spread_f = fv.iter().fold(0f64, |m, &x| m.max((x - fv[0]).abs()));
-            let spread_x = v.iter().skip(1).fold(0f64, |m, x| x.iter().zip(&v[0]).fold(m, |m, (a, b)| m.max((a - b).abs())));
+            let spread_x = v.iter().skip(1).fold(0f64, |m, x| {
+                x.iter()
+                    .zip(&v[0])
+                    .fold(m, |m, (a, b)| m.max((a - b).abs()))
+            });
             if spread_f <= s.tol_f && spread_x <= s.tol_x {
                 converged = true;
                 break;
@@ -147,7 +160,11 @@ pub fn minimize<const N: usize, const M: usize>(
             }
         }
         iterations += it;
-        let (i, &fb) = fv.iter().enumerate().fold((0, &f64::INFINITY), |a, (i, x)| if x < a.1 { (i, x) } else { a });
+        let (i, &fb) =
+            fv.iter().enumerate().fold(
+                (0, &f64::INFINITY),
+                |a, (i, x)| if x < a.1 { (i, x) } else { a },
+            );
         let improved = fb < best_f;
         if fb <= best_f {
             best = v[i];
@@ -157,7 +174,13 @@ pub fn minimize<const N: usize, const M: usize>(
             break;
         }
     }
-    NmResult { x: best, f: best_f, iterations, evaluations: evals, converged }
+    NmResult {
+        x: best,
+        f: best_f,
+        iterations,
+        evaluations: evals,
+        converged,
+    }
 }
 
 #[cfg(test)]
@@ -168,10 +191,19 @@ mod tests {
     fn rosenbrock() {
         // Minimum 0 at (1, 1) (Rosenbrock 1960); the classic start (-1.2, 1).
         let f = |x: &[f64; 2]| 100.0 * (x[1] - x[0] * x[0]).powi(2) + (1.0 - x[0]).powi(2);
-        let s = NmSettings { max_iter: 5000, tol_x: 1e-10, tol_f: 1e-14, restarts: 2 };
+        let s = NmSettings {
+            max_iter: 5000,
+            tol_x: 1e-10,
+            tol_f: 1e-14,
+            restarts: 2,
+        };
         let r = minimize::<2, 3>(f, &[-1.2, 1.0], &[0.1, 0.1], &s);
         assert!(r.converged);
-        assert!((r.x[0] - 1.0).abs() < 1e-6 && (r.x[1] - 1.0).abs() < 1e-6, "{:?}", r);
+        assert!(
+            (r.x[0] - 1.0).abs() < 1e-6 && (r.x[1] - 1.0).abs() < 1e-6,
+            "{:?}",
+            r
+        );
         assert!(r.f < 1e-12);
     }
 
@@ -187,8 +219,18 @@ mod tests {
             }
             s + 0.3 * (x[0] - m[0]) * (x[3] - m[3])
         };
-        let s = NmSettings { max_iter: 20_000, tol_x: 1e-9, tol_f: 1e-16, restarts: 3 };
-        let r = minimize::<6, 7>(f, &[181.787, -42.423, 2.431, 1.312, -1.205, -1.759], &[1.0, 1.0, 1.0, 0.1, 0.1, 0.1], &s);
+        let s = NmSettings {
+            max_iter: 20_000,
+            tol_x: 1e-9,
+            tol_f: 1e-16,
+            restarts: 3,
+        };
+        let r = minimize::<6, 7>(
+            f,
+            &[181.787, -42.423, 2.431, 1.312, -1.205, -1.759],
+            &[1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
+            &s,
+        );
         for i in 0..6 {
             assert!((r.x[i] - m[i]).abs() < 1e-6, "{i}: {:?}", r.x);
         }
@@ -196,8 +238,23 @@ mod tests {
 
     #[test]
     fn bounded_work_and_nan_safe() {
-        let s = NmSettings { max_iter: 10, restarts: 0, ..NmSettings::default() };
-        let r = minimize::<2, 3>(|x| if x[0] > 3.5 { f64::NAN } else { x[0] * x[0] + x[1] * x[1] }, &[3.0, 3.0], &[1.0, 1.0], &s);
+        let s = NmSettings {
+            max_iter: 10,
+            restarts: 0,
+            ..NmSettings::default()
+        };
+        let r = minimize::<2, 3>(
+            |x| {
+                if x[0] > 3.5 {
+                    f64::NAN
+                } else {
+                    x[0] * x[0] + x[1] * x[1]
+                }
+            },
+            &[3.0, 3.0],
+            &[1.0, 1.0],
+            &s,
+        );
         assert!(r.iterations <= 10 && !r.converged);
         assert!(r.f.is_finite());
     }

@@ -23,6 +23,8 @@ pub struct SphereObs<'a> {
 pub struct Problem<'a> {
     /// The spheres.
     pub spheres: &'a [SphereObs<'a>],
+    /// [`Self::l1`] uses every `stride`-th observation of each sphere (1 = all).
+    pub stride: usize,
 }
 
 /// `R_li` and its derivatives by roll, pitch and heading (DESIGN.md convention).
@@ -59,7 +61,7 @@ impl Problem<'_> {
         let mut sum = 0.0;
         for s in self.spheres {
             let (c, r) = (s.target.center, s.target.radius);
-            for o in s.obs {
+            for o in s.obs.iter().step_by(self.stride.max(1)) {
                 let d = (o.position - c) + o.r_ig * (a + r_li * o.q_l);
                 sum += (d.norm() - r).abs();
             }
@@ -82,9 +84,18 @@ impl Problem<'_> {
     /// Visit every residual with its gradient by b (analytic: `n = (x - c)/||x - c||`,
     /// `dr/da = R_k^T n`, `dr/dtheta_i = (R_k^T n) . (dR_li/dtheta_i q_k)`).
     pub fn jacobian(&self, b: &[f64; P], mut f: impl FnMut(f64, &[f64; P])) {
+        self.jacobian_with(b, |_, _, r, row| f(r, row));
+    }
+
+    /// As [`Self::jacobian`], also giving the sphere index and the observation.
+    pub fn jacobian_with(
+        &self,
+        b: &[f64; P],
+        mut f: impl FnMut(usize, &Observation, f64, &[f64; P]),
+    ) {
         let (r_li, d) = rotation_and_derivatives(b);
         let a = Vector3::new(b[3], b[4], b[5]);
-        for s in self.spheres {
+        for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
                 let dx = (o.position - s.target.center) + o.r_ig * (a + r_li * o.q_l);
                 let norm = dx.norm();
@@ -92,8 +103,15 @@ impl Problem<'_> {
                     continue;
                 }
                 let g = o.r_ig.transpose() * (dx / norm);
-                let row = [g.dot(&(d[0] * o.q_l)), g.dot(&(d[1] * o.q_l)), g.dot(&(d[2] * o.q_l)), g.x, g.y, g.z];
-                f(norm - s.target.radius, &row);
+                let row = [
+                    g.dot(&(d[0] * o.q_l)),
+                    g.dot(&(d[1] * o.q_l)),
+                    g.dot(&(d[2] * o.q_l)),
+                    g.x,
+                    g.y,
+                    g.z,
+                ];
+                f(j, o, norm - s.target.radius, &row);
             }
         }
     }
@@ -108,9 +126,21 @@ mod tests {
     fn random_obs(rng: &mut Rng, n: usize) -> std::vec::Vec<Observation> {
         (0..n)
             .map(|_| Observation {
-                q_l: Vector3::new(rng.range(-20.0, 20.0), rng.range(-20.0, 20.0), rng.range(-3.0, 3.0)),
-                position: Vector3::new(rng.range(-30.0, 30.0), rng.range(-30.0, 30.0), rng.range(-1.0, 1.0)),
-                r_ig: rotation(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1), rng.range(-3.0, 3.0)),
+                q_l: Vector3::new(
+                    rng.range(-20.0, 20.0),
+                    rng.range(-20.0, 20.0),
+                    rng.range(-3.0, 3.0),
+                ),
+                position: Vector3::new(
+                    rng.range(-30.0, 30.0),
+                    rng.range(-30.0, 30.0),
+                    rng.range(-1.0, 1.0),
+                ),
+                r_ig: rotation(
+                    rng.range(-0.1, 0.1),
+                    rng.range(-0.1, 0.1),
+                    rng.range(-3.0, 3.0),
+                ),
                 time: GpsTime(0),
                 range: 10.0,
                 laser: 0,
@@ -122,9 +152,18 @@ mod tests {
     fn jacobian_matches_finite_differences() {
         let mut rng = Rng::new(11);
         let obs = random_obs(&mut rng, 50);
-        let t = Target { center: Vector3::new(1.0, 2.0, -1.5), radius: 0.19 };
-        let spheres = [SphereObs { target: t, obs: &obs }];
-        let pb = Problem { spheres: &spheres };
+        let t = Target {
+            center: Vector3::new(1.0, 2.0, -1.5),
+            radius: 0.19,
+        };
+        let spheres = [SphereObs {
+            target: t,
+            obs: &obs,
+        }];
+        let pb = Problem {
+            spheres: &spheres,
+            stride: 1,
+        };
         let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
         let mut rows = std::vec::Vec::new();
         pb.jacobian(&b, |r, row| rows.push((r, *row)));
@@ -138,7 +177,11 @@ mod tests {
             pb.residuals(&bm, |_, r| rm.push(r));
             for k in 0..obs.len() {
                 let fd = (rp[k] - rm[k]) / (2.0 * h);
-                assert!((fd - rows[k].1[i]).abs() < 1e-6 * (1.0 + fd.abs()), "param {i} obs {k}: {fd} vs {}", rows[k].1[i]);
+                assert!(
+                    (fd - rows[k].1[i]).abs() < 1e-6 * (1.0 + fd.abs()),
+                    "param {i} obs {k}: {fd} vs {}",
+                    rows[k].1[i]
+                );
             }
         }
         // L1 is the sum of |residuals|.

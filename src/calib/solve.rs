@@ -9,9 +9,10 @@
 //!
 //! Refusals (the solution is still reported): fewer than two spheres (a single sphere cannot fix
 //! a rotation about the line to it); fewer than `min_points` returns on a sphere; a condition
-//! number of the unit-diagonal normal matrix above `max_condition` (above 1e8 the covariance
-//! of a 6-parameter f64 solve no longer means anything, and well before that the weakest
-//! combination is determined 1e4 times worse than the best); an RMS above `max_rms`.
+//! number of the unit-diagonal normal matrix above `max_condition` = 1e3 (the weakest
+//! combination of parameters is then determined 30 times worse than the best, and some pair
+//! correlates beyond 0.998: table1's four passes give 7, a single pass 1.3e4 with roll, heading
+//! and z inseparable); an RMS above `max_rms`.
 
 use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
@@ -42,6 +43,11 @@ pub struct Settings {
     pub shell_floor: f64,
     /// Re-windowing rounds at most.
     pub max_rounds: usize,
+    /// Returns of one sphere this close in time share INS errors: one cluster for the
+    /// covariance [ns].
+    pub cluster_ns: i64,
+    /// Returns per sphere Nelder-Mead evaluates (evenly spread; LM uses all).
+    pub nm_points: usize,
 }
 
 impl Default for Settings {
@@ -51,11 +57,13 @@ impl Default for Settings {
             step: [1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
             lm_iter: 100,
             min_points: 30,
-            max_condition: 1e6,
+            max_condition: 1e3,
             max_rms: 0.1,
-            shell_sigmas: 5.0,
+            shell_sigmas: 3.5,
             shell_floor: 0.005,
             max_rounds: 10,
+            cluster_ns: 20_000_000,
+            nm_points: 150,
         }
     }
 }
@@ -132,19 +140,54 @@ pub struct Solution {
 }
 
 fn deg(b: &[f64; P]) -> [f64; P] {
-    [b[0].to_degrees(), b[1].to_degrees(), b[2].to_degrees(), b[3], b[4], b[5]]
+    [
+        b[0].to_degrees(),
+        b[1].to_degrees(),
+        b[2].to_degrees(),
+        b[3],
+        b[4],
+        b[5],
+    ]
 }
 
 fn rad(x: &[f64; P]) -> [f64; P] {
-    [x[0].to_radians(), x[1].to_radians(), x[2].to_radians(), x[3], x[4], x[5]]
+    [
+        x[0].to_radians(),
+        x[1].to_radians(),
+        x[2].to_radians(),
+        x[3],
+        x[4],
+        x[5],
+    ]
 }
 
-fn with_problem<R>(targets: &[Target], obs: &[&mut [Observation]], used: &[usize], f: impl FnOnce(&Problem<'_>) -> R) -> R {
+fn with_problem<R>(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    f: impl FnOnce(&Problem<'_>) -> R,
+) -> R {
+    with_problem_stride(targets, obs, used, 1, f)
+}
+
+fn with_problem_stride<R>(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    stride: usize,
+    f: impl FnOnce(&Problem<'_>) -> R,
+) -> R {
     let mut spheres: heapless::Vec<SphereObs<'_>, MAX_TARGETS> = heapless::Vec::new();
     for (j, t) in targets.iter().enumerate().take(MAX_TARGETS) {
-        let _ = spheres.push(SphereObs { target: *t, obs: &obs[j][..used[j]] });
+        let _ = spheres.push(SphereObs {
+            target: *t,
+            obs: &obs[j][..used[j]],
+        });
     }
-    f(&Problem { spheres: &spheres })
+    f(&Problem {
+        spheres: &spheres,
+        stride,
+    })
 }
 
 /// A median of positive values to 1 % from 256 log-spaced bins between 1e-5 and 100 m.
@@ -157,11 +200,18 @@ impl Histogram {
     const LO: f64 = 1e-5;
     const DECADES: f64 = 7.0;
     fn new() -> Self {
-        Self { bins: [0; 256], n: 0 }
+        Self {
+            bins: [0; 256],
+            n: 0,
+        }
     }
     fn add(&mut self, v: f64) {
         let x = libm::log10(v.max(Self::LO) / Self::LO) / Self::DECADES * 256.0;
-        let i = if x.is_finite() { (x as usize).min(255) } else { 255 };
+        let i = if x.is_finite() {
+            (x as usize).min(255)
+        } else {
+            255
+        };
         self.bins[i] += 1;
         self.n += 1;
     }
@@ -185,7 +235,13 @@ fn residual(o: &Observation, t: &Target, b: &[f64; P]) -> f64 {
 
 /// Keep the returns within the shell at the front of each sphere's slice; returns the counts
 /// and a fingerprint of the kept set.
-fn rewindow(targets: &[Target], obs: &mut [&mut [Observation]], used: &mut [usize], b: &[f64; P], shell: f64) -> u64 {
+fn rewindow(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    used: &mut [usize],
+    b: &[f64; P],
+    shell: f64,
+) -> u64 {
     let mount = crate::georef::Mount::from_params(b);
     let mut print = 0u64;
     for (j, t) in targets.iter().enumerate() {
@@ -194,7 +250,9 @@ fn rewindow(targets: &[Target], obs: &mut [&mut [Observation]], used: &mut [usiz
         for i in 0..v.len() {
             if ((v[i].georef(&mount) - t.center).norm() - t.radius).abs() <= shell {
                 v.swap(i, k);
-                print = print.wrapping_mul(0x100_0000_01B3).wrapping_add(v[k].time.0 as u64);
+                print = print
+                    .wrapping_mul(0x100_0000_01B3)
+                    .wrapping_add(v[k].time.0 as u64);
                 k += 1;
             }
         }
@@ -205,7 +263,12 @@ fn rewindow(targets: &[Target], obs: &mut [&mut [Observation]], used: &mut [usiz
 
 /// Solve from `b0` ([rad, m]) with every sphere's windowed returns (reordered in place: the
 /// kept ones first).
-pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], s: &Settings) -> Solution {
+pub fn solve(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    b0: &[f64; P],
+    s: &Settings,
+) -> Solution {
     let n = targets.len().min(obs.len()).min(MAX_TARGETS);
     let targets = &targets[..n];
     let obs = &mut obs[..n];
@@ -216,7 +279,13 @@ pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], 
     let windowed = used;
     let mut sol = Solution {
         b: *b0,
-        nm: NmResult { x: deg(b0), f: f64::INFINITY, iterations: 0, evaluations: 0, converged: false },
+        nm: NmResult {
+            x: deg(b0),
+            f: f64::INFINITY,
+            iterations: 0,
+            evaluations: 0,
+            converged: false,
+        },
         lm: None,
         l1: f64::INFINITY,
         rounds: 0,
@@ -230,7 +299,11 @@ pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], 
         return sol;
     }
     if let Some(j) = (0..n).find(|&j| used[j] < s.min_points) {
-        sol.refusal = Some(Refusal::TooFewPoints { sphere: j, have: used[j], need: s.min_points });
+        sol.refusal = Some(Refusal::TooFewPoints {
+            sphere: j,
+            have: used[j],
+            need: s.min_points,
+        });
         return sol;
     }
 
@@ -242,7 +315,13 @@ pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], 
     let mut iterations = 0;
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
-        let mut nm = with_problem(targets, obs, &used, |pb| minimize::<P, 7>(|x| pb.l1(&rad(x)), &deg(&b), &s.step, &s.nm));
+        // Nelder-Mead sees at most `nm_points` returns per sphere (evenly spread); the least
+        // squares at the end uses all.
+        let most = used[..n].iter().copied().max().unwrap_or(1);
+        let stride = most.div_ceil(s.nm_points.max(1)).max(1);
+        let mut nm = with_problem_stride(targets, obs, &used, stride, |pb| {
+            minimize::<P, 7>(|x| pb.l1(&rad(x)), &deg(&b), &s.step, &s.nm)
+        });
         evaluations += nm.evaluations;
         iterations += nm.iterations;
         nm.evaluations = evaluations;
@@ -263,7 +342,15 @@ pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], 
     }
 
     // 2. Least squares on the final windows: the answer and its uncertainty.
-    let lm = (!(0..n).any(|j| used[j] < s.min_points)).then(|| with_problem(targets, obs, &used, |pb| refine(pb, &b, s.lm_iter)));
+    // Time order within each sphere, for the clusters of the covariance.
+    for j in 0..n {
+        obs[j][..used[j]].sort_unstable_by_key(|o| o.time);
+    }
+    let lm = (!(0..n).any(|j| used[j] < s.min_points)).then(|| {
+        with_problem(targets, obs, &used, |pb| {
+            refine(pb, &b, s.lm_iter, s.cluster_ns)
+        })
+    });
     if let Some(r) = &lm {
         b = r.b;
     }
@@ -282,31 +369,52 @@ pub fn solve(targets: &[Target], obs: &mut [&mut [Observation]], b0: &[f64; P], 
             let s2: f64 = kept.iter().map(|o| residual(o, t, bb).powi(2)).sum();
             (s2 / kept.len().max(1) as f64).sqrt()
         };
-        let center = fit_center(kept.iter().map(|o| o.georef(&mount)), t.radius, t.center).map(|c| c - t.center);
+        let center = fit_center(kept.iter().map(|o| o.georef(&mount)), t.radius, t.center)
+            .map(|c| c - t.center);
         if let Some(d) = center {
             c2 += d.norm_squared();
             nc += 1;
         }
-        let _ = sol.spheres.push(SphereReport { windowed: windowed[j], used: used[j], rms_before: rms(b0), rms_after: rms(&b), center_offset: center });
+        let _ = sol.spheres.push(SphereReport {
+            windowed: windowed[j],
+            used: used[j],
+            rms_before: rms(b0),
+            rms_after: rms(&b),
+            center_offset: center,
+        });
     }
     sol.center_rms = (nc > 0).then(|| (c2 / nc as f64).sqrt());
 
     // 4. Checks.
     if let Some(j) = (0..n).find(|&j| used[j] < s.min_points) {
-        sol.refusal = Some(Refusal::TooFewPoints { sphere: j, have: used[j], need: s.min_points });
+        sol.refusal = Some(Refusal::TooFewPoints {
+            sphere: j,
+            have: used[j],
+            need: s.min_points,
+        });
         return sol;
     }
     let Some(lm) = sol.lm else {
-        sol.refusal = Some(Refusal::TooFewPoints { sphere: 0, have: used[0], need: s.min_points });
+        sol.refusal = Some(Refusal::TooFewPoints {
+            sphere: 0,
+            have: used[0],
+            need: s.min_points,
+        });
         return sol;
     };
     for i in 0..P {
         sol.weak[i] = lm.weakest[i].abs() > 0.3;
     }
-    if !(lm.condition <= s.max_condition) {
-        sol.refusal = Some(Refusal::IllConditioned { condition: lm.condition, limit: s.max_condition });
-    } else if !(lm.rms <= s.max_rms) {
-        sol.refusal = Some(Refusal::RmsTooHigh { rms: lm.rms, limit: s.max_rms });
+    if lm.condition.is_nan() || lm.condition > s.max_condition {
+        sol.refusal = Some(Refusal::IllConditioned {
+            condition: lm.condition,
+            limit: s.max_condition,
+        });
+    } else if lm.rms.is_nan() || lm.rms > s.max_rms {
+        sol.refusal = Some(Refusal::RmsTooHigh {
+            rms: lm.rms,
+            limit: s.max_rms,
+        });
     }
     sol
 }

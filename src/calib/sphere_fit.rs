@@ -6,7 +6,11 @@ use nalgebra::{Matrix3, Vector3};
 
 /// Fit the centre from `c0` over the points `xs` (site NED) for a sphere of radius `r`.
 /// `None` with fewer than four points or a singular geometry.
-pub fn fit_center(xs: impl Iterator<Item = Vector3<f64>> + Clone, r: f64, c0: Vector3<f64>) -> Option<Vector3<f64>> {
+pub fn fit_center(
+    xs: impl Iterator<Item = Vector3<f64>> + Clone,
+    r: f64,
+    c0: Vector3<f64>,
+) -> Option<Vector3<f64>> {
     let mut c = c0;
     for _ in 0..50 {
         let mut jtj = Matrix3::zeros();
@@ -51,7 +55,12 @@ mod tests {
                 pts.push(c + dir * 0.19).unwrap();
             }
         }
-        let got = fit_center(pts.iter().copied(), 0.19, c + Vector3::new(0.05, 0.03, -0.02)).unwrap();
+        let got = fit_center(
+            pts.iter().copied(),
+            0.19,
+            c + Vector3::new(0.05, 0.03, -0.02),
+        )
+        .unwrap();
         assert!((got - c).norm() < 1e-9, "{got}");
         assert!(fit_center(pts.iter().take(3).copied(), 0.19, c).is_none());
     }

@@ -103,13 +103,17 @@ pub struct Report {
 /// Run the pipeline and collect the windowed observations per sphere.
 pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String> {
     let n = inp.site.sphere.len();
-    run(inp, |_| {}, move |rx: crossbeam_channel::Receiver<BatchMsg>| {
-        let mut out = vec![Vec::new(); n];
-        for m in rx {
-            out[m.sphere].extend(m.obs);
-        }
-        out
-    })
+    run(
+        inp,
+        |_| {},
+        move |rx: crossbeam_channel::Receiver<BatchMsg>| {
+            let mut out = vec![Vec::new(); n];
+            for m in rx {
+                out[m.sphere].extend(m.obs);
+            }
+            out
+        },
+    )
 }
 
 /// A refusal in words.
@@ -126,7 +130,13 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
 }
 
 /// Solve and build the report from collected observations.
-pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observation>], b0: &[f64; P], s: &Settings) -> (Solution, Report) {
+pub fn solve_report(
+    targets: &[Target],
+    ids: &[String],
+    obs: &mut [Vec<Observation>],
+    b0: &[f64; P],
+    s: &Settings,
+) -> (Solution, Report) {
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
     let t0 = std::time::Instant::now();
     let sol = solve(targets, &mut slices, b0, s);
@@ -134,13 +144,34 @@ pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observati
     let b = sol.b;
     let lm = sol.lm;
     let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
-    let weak: Vec<String> = NAMES.iter().zip(sol.weak).filter(|(_, w)| *w).map(|(n, _)| n.to_string()).collect();
+    let weak: Vec<String> = NAMES
+        .iter()
+        .zip(sol.weak)
+        .filter(|(_, w)| *w)
+        .map(|(n, _)| n.to_string())
+        .collect();
     let report = Report {
-        boresight_deg: Angles { roll: b[0].to_degrees(), pitch: b[1].to_degrees(), heading: b[2].to_degrees() },
-        lever_arm_m: Xyz { x: b[3], y: b[4], z: b[5] },
+        boresight_deg: Angles {
+            roll: b[0].to_degrees(),
+            pitch: b[1].to_degrees(),
+            heading: b[2].to_degrees(),
+        },
+        lever_arm_m: Xyz {
+            x: b[3],
+            y: b[4],
+            z: b[5],
+        },
         sigma: Sigma {
-            boresight_deg: Angles { roll: sigma[0].to_degrees(), pitch: sigma[1].to_degrees(), heading: sigma[2].to_degrees() },
-            lever_arm_m: Xyz { x: sigma[3], y: sigma[4], z: sigma[5] },
+            boresight_deg: Angles {
+                roll: sigma[0].to_degrees(),
+                pitch: sigma[1].to_degrees(),
+                heading: sigma[2].to_degrees(),
+            },
+            lever_arm_m: Xyz {
+                x: sigma[3],
+                y: sigma[4],
+                z: sigma[5],
+            },
         },
         rms_m: lm.map_or(f64::NAN, |l| l.rms),
         objective_l1_m: sol.l1,
@@ -151,7 +182,13 @@ pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observati
         rounds: sol.rounds,
         converged: sol.refusal.is_none(),
         reason: sol.refusal.as_ref().map(|r| refusal_text(r, ids, &weak)),
-        correlation: (0..P).map(|i| (0..P).map(|j| lm.map_or(f64::NAN, |l| l.correlation[(i, j)])).collect()).collect(),
+        correlation: (0..P)
+            .map(|i| {
+                (0..P)
+                    .map(|j| lm.map_or(f64::NAN, |l| l.correlation[(i, j)]))
+                    .collect()
+            })
+            .collect(),
         condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
         weak_parameters: weak,
         sphere_centre_rms_m: sol.center_rms,
@@ -169,7 +206,12 @@ pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observati
             })
             .collect(),
         solve_ms,
-        start: NAMES.iter().zip(b0).enumerate().map(|(i, (n, v))| (n.to_string(), if i < 3 { v.to_degrees() } else { *v })).collect(),
+        start: NAMES
+            .iter()
+            .zip(b0)
+            .enumerate()
+            .map(|(i, (n, v))| (n.to_string(), if i < 3 { v.to_degrees() } else { *v }))
+            .collect(),
     };
     (sol, report)
 }
@@ -177,20 +219,66 @@ pub fn solve_report(targets: &[Target], ids: &[String], obs: &mut [Vec<Observati
 /// The human summary.
 pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
     let mut o = String::new();
-    let b = [r.boresight_deg.roll, r.boresight_deg.pitch, r.boresight_deg.heading, r.lever_arm_m.x, r.lever_arm_m.y, r.lever_arm_m.z];
-    let s = [r.sigma.boresight_deg.roll, r.sigma.boresight_deg.pitch, r.sigma.boresight_deg.heading, r.sigma.lever_arm_m.x, r.sigma.lever_arm_m.y, r.sigma.lever_arm_m.z];
-    let _ = writeln!(o, "{:<10}{:>14}{:>12}{:>14}{}", "parameter", "start", "solution", "1-sigma", if truth.is_some() { "         truth      error" } else { "" });
+    let b = [
+        r.boresight_deg.roll,
+        r.boresight_deg.pitch,
+        r.boresight_deg.heading,
+        r.lever_arm_m.x,
+        r.lever_arm_m.y,
+        r.lever_arm_m.z,
+    ];
+    let s = [
+        r.sigma.boresight_deg.roll,
+        r.sigma.boresight_deg.pitch,
+        r.sigma.boresight_deg.heading,
+        r.sigma.lever_arm_m.x,
+        r.sigma.lever_arm_m.y,
+        r.sigma.lever_arm_m.z,
+    ];
+    let _ = writeln!(
+        o,
+        "{:<10}{:>14}{:>12}{:>14}{}",
+        "parameter",
+        "start",
+        "solution",
+        "1-sigma",
+        if truth.is_some() {
+            "         truth      error"
+        } else {
+            ""
+        }
+    );
     for i in 0..P {
         let unit = if i < 3 { "deg" } else { "m" };
-        let _ = write!(o, "{:<10}{:>14.4}{:>12.5}{:>10.5} {unit:<3}", NAMES[i], r.start[NAMES[i]], b[i], s[i]);
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.5}{:>10.5} {unit:<3}",
+            NAMES[i], r.start[NAMES[i]], b[i], s[i]
+        );
         if let Some(t) = truth {
             let _ = write!(o, "{:>14.4}{:>11.2e}", t[i], b[i] - t[i]);
         }
         let _ = writeln!(o);
     }
-    let _ = writeln!(o, "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}", r.rms_m * 1e3, r.objective_l1_m, r.condition_number, r.sphere_centre_rms_m.map_or("-".into(), |c| format!("{:.2} mm", c * 1e3)));
+    let _ = writeln!(
+        o,
+        "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}",
+        r.rms_m * 1e3,
+        r.objective_l1_m,
+        r.condition_number,
+        r.sphere_centre_rms_m
+            .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
+    );
     for p in &r.per_sphere {
-        let _ = writeln!(o, "  {}: {} of {} windowed returns used, RMS {:.1} mm -> {:.2} mm", p.id, p.points, p.windowed, p.rms_before_m * 1e3, p.rms_after_m * 1e3);
+        let _ = writeln!(
+            o,
+            "  {}: {} of {} windowed returns used, RMS {:.1} mm -> {:.2} mm",
+            p.id,
+            p.points,
+            p.windowed,
+            p.rms_before_m * 1e3,
+            p.rms_after_m * 1e3
+        );
     }
     let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} re-windowing rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
     match &r.reason {

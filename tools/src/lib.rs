@@ -30,20 +30,47 @@ pub fn run_calibrate(
     plot: Option<PathBuf>,
     truth: Option<[f64; 6]>,
 ) -> Result<(String, bool), String> {
-    use pipeline::{InsInput, Inputs};
+    use pipeline::{Inputs, InsInput};
     let site = site::Site::load(&site)?;
     let a = &site.apriori;
-    let start = init.unwrap_or([a.boresight_deg[0], a.boresight_deg[1], a.boresight_deg[2], a.lever_arm_m[0], a.lever_arm_m[1], a.lever_arm_m[2]]);
-    let b0 = [start[0].to_radians(), start[1].to_radians(), start[2].to_radians(), start[3], start[4], start[5]];
+    let start = init.unwrap_or([
+        a.boresight_deg[0],
+        a.boresight_deg[1],
+        a.boresight_deg[2],
+        a.lever_arm_m[0],
+        a.lever_arm_m[1],
+        a.lever_arm_m[2],
+    ]);
+    let b0 = [
+        start[0].to_radians(),
+        start[1].to_radians(),
+        start[2].to_radians(),
+        start[3],
+        start[4],
+        start[5],
+    ];
     let ins = match (ins, sbet) {
         (Some(i), _) => InsInput::Vn200(i),
         (None, Some(s)) => InsInput::Sbet(s, gps_week),
         (None, None) => return Err("give --ins or --sbet".into()),
     };
-    let inp = Inputs { pcap, ins, mount: spherecal::georef::Mount::from_params(&b0), margin: site.apriori.window_margin_m, max_gap_ns: 50_000_000, site };
+    let inp = Inputs {
+        pcap,
+        ins,
+        mount: spherecal::georef::Mount::from_params(&b0),
+        margin: site.apriori.window_margin_m,
+        max_gap_ns: 50_000_000,
+        site,
+    };
     let (stats, mut obs) = calibrate::collect(&inp)?;
     let (targets, ids) = calibrate::site_targets(&inp);
-    let (sol, rep) = calibrate::solve_report(&targets, &ids, &mut obs, &b0, &spherecal::calib::Settings::default());
+    let (sol, rep) = calibrate::solve_report(
+        &targets,
+        &ids,
+        &mut obs,
+        &b0,
+        &spherecal::calib::Settings::default(),
+    );
     let mut text = format!(
         "{} data packets, {} poses, {} returns, windows {:?}\n",
         stats.data_packets,
@@ -57,7 +84,10 @@ pub fn run_calibrate(
         std::fs::write(p, json + "\n").map_err(|e| format!("{}: {e}", p.display()))?;
     }
     if let Some(p) = &las {
-        let inp2 = pipeline::Inputs { mount: spherecal::georef::Mount::from_params(&sol.b), ..inp.clone() };
+        let inp2 = pipeline::Inputs {
+            mount: spherecal::georef::Mount::from_params(&sol.b),
+            ..inp.clone()
+        };
         let (_, _, t) = georef::georef(&inp2, Some(p), None)?;
         text.push_str(&t);
     }

@@ -169,7 +169,14 @@ fn main() -> ExitCode {
     };
     match cmd {
         Cmd::Demo => demo(),
-        Cmd::Montecarlo { scenario, trials, angle_noise_deg, lever_noise_m, seed, report } => {
+        Cmd::Montecarlo {
+            scenario,
+            trials,
+            angle_noise_deg,
+            lever_noise_m,
+            seed,
+            report,
+        } => {
             let s = match spherecal_tools::scenario::Scenario::load(&scenario) {
                 Ok(s) => s,
                 Err(e) => {
@@ -177,7 +184,14 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             };
-            match spherecal_tools::montecarlo::montecarlo(&s, trials, angle_noise_deg, lever_noise_m, seed, true) {
+            match spherecal_tools::montecarlo::montecarlo(
+                &s,
+                trials,
+                angle_noise_deg,
+                lever_noise_m,
+                seed,
+                true,
+            ) {
                 Ok(r) => {
                     say!("{}", spherecal_tools::montecarlo::render(&r));
                     if let Some(p) = report {
@@ -187,7 +201,11 @@ fn main() -> ExitCode {
                             return ExitCode::from(2);
                         }
                     }
-                    if r.fraction_within == 1.0 { ExitCode::SUCCESS } else { ExitCode::from(1) }
+                    if r.fraction_within == 1.0 {
+                        ExitCode::SUCCESS
+                    } else {
+                        ExitCode::from(1)
+                    }
                 }
                 Err(e) => {
                     eprintln!("spherecal montecarlo: {e}");
@@ -195,11 +213,27 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Cmd::Calibrate { pcap, ins, sbet, gps_week, site, init, report, las, plot } => {
-            match spherecal_tools::run_calibrate(pcap, ins, sbet, gps_week, site, init, report, las, plot, None) {
+        Cmd::Calibrate {
+            pcap,
+            ins,
+            sbet,
+            gps_week,
+            site,
+            init,
+            report,
+            las,
+            plot,
+        } => {
+            match spherecal_tools::run_calibrate(
+                pcap, ins, sbet, gps_week, site, init, report, las, plot, None,
+            ) {
                 Ok((text, ok)) => {
                     say!("{text}");
-                    if ok { ExitCode::SUCCESS } else { ExitCode::from(1) }
+                    if ok {
+                        ExitCode::SUCCESS
+                    } else {
+                        ExitCode::from(1)
+                    }
                 }
                 Err(e) => {
                     eprintln!("spherecal calibrate: {e}");
@@ -300,7 +334,10 @@ fn demo() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    sayln!("spherecal demo: the paper's Table 1 survey, synthesised into {}", dir.display());
+    sayln!(
+        "spherecal demo: the paper's Table 1 survey, synthesised into {}",
+        dir.display()
+    );
     let t0 = std::time::Instant::now();
     let truth = match spherecal_tools::synth::synth(&s, &dir) {
         Ok(t) => t,
@@ -337,7 +374,11 @@ fn demo() -> ExitCode {
         Ok((text, ok)) => {
             say!("{text}");
             sayln!("report: {}", dir.join("report.json").display());
-            if ok { ExitCode::SUCCESS } else { ExitCode::from(1) }
+            if ok {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(1)
+            }
         }
         Err(e) => {
             eprintln!("spherecal demo: {e}");
@@ -352,8 +393,15 @@ fn demo() -> ExitCode {
 
 /// Six comma-separated numbers.
 fn parse6(s: &str) -> Result<[f64; 6], String> {
-    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
-    <[f64; 6]>::try_from(v.as_slice()).ok().filter(|a| a.iter().all(|x| x.is_finite())).ok_or_else(|| format!("{s:?}: expected six finite numbers r,p,h,x,y,z"))
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    <[f64; 6]>::try_from(v.as_slice())
+        .ok()
+        .filter(|a| a.iter().all(|x| x.is_finite()))
+        .ok_or_else(|| format!("{s:?}: expected six finite numbers r,p,h,x,y,z"))
 }
 
 /// `a,b,c` as three numbers.

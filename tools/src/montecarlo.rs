@@ -54,12 +54,26 @@ pub struct McReport {
 }
 
 /// Run a Monte Carlo.
-pub fn montecarlo(scenario: &Scenario, trials: usize, angle_deg: f64, lever_m: f64, seed: u64, progress: bool) -> Result<McReport, String> {
+pub fn montecarlo(
+    scenario: &Scenario,
+    trials: usize,
+    angle_deg: f64,
+    lever_m: f64,
+    seed: u64,
+    progress: bool,
+) -> Result<McReport, String> {
     let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
     crate::synth::synth(scenario, &dir)?;
     let site = crate::site::Site::load(&dir.join("site.toml"))?;
     let a = &site.apriori;
-    let b_apriori = [a.boresight_deg[0].to_radians(), a.boresight_deg[1].to_radians(), a.boresight_deg[2].to_radians(), a.lever_arm_m[0], a.lever_arm_m[1], a.lever_arm_m[2]];
+    let b_apriori = [
+        a.boresight_deg[0].to_radians(),
+        a.boresight_deg[1].to_radians(),
+        a.boresight_deg[2].to_radians(),
+        a.lever_arm_m[0],
+        a.lever_arm_m[1],
+        a.lever_arm_m[2],
+    ];
     let inp = Inputs {
         pcap: dir.join("lidar.pcap"),
         ins: InsInput::Vn200(dir.join("ins.bin")),
@@ -72,13 +86,24 @@ pub fn montecarlo(scenario: &Scenario, trials: usize, angle_deg: f64, lever_m: f
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
     let t = &scenario.mount.truth;
-    let truth = [t.boresight_deg[0], t.boresight_deg[1], t.boresight_deg[2], t.lever_arm_m[0], t.lever_arm_m[1], t.lever_arm_m[2]];
+    let truth = [
+        t.boresight_deg[0],
+        t.boresight_deg[1],
+        t.boresight_deg[2],
+        t.lever_arm_m[0],
+        t.lever_arm_m[1],
+        t.lever_arm_m[2],
+    ];
     let mut rng = Rng::new(seed);
     let starts: Vec<[f64; P]> = (0..trials)
         .map(|_| {
             let mut s = truth;
             for (i, v) in s.iter_mut().enumerate() {
-                *v += if i < 3 { rng.range(-angle_deg, angle_deg) } else { rng.range(-lever_m, lever_m) };
+                *v += if i < 3 {
+                    rng.range(-angle_deg, angle_deg)
+                } else {
+                    rng.range(-lever_m, lever_m)
+                };
             }
             s
         })
@@ -98,23 +123,45 @@ pub fn montecarlo(scenario: &Scenario, trials: usize, angle_deg: f64, lever_m: f
                         break;
                     }
                     let st = starts[k];
-                    let b0 = [st[0].to_radians(), st[1].to_radians(), st[2].to_radians(), st[3], st[4], st[5]];
+                    let b0 = [
+                        st[0].to_radians(),
+                        st[1].to_radians(),
+                        st[2].to_radians(),
+                        st[3],
+                        st[4],
+                        st[5],
+                    ];
                     for (w, o) in work.iter_mut().zip(&obs) {
                         w.copy_from_slice(o);
                     }
-                    let mut slices: Vec<&mut [spherecal::window::Observation]> = work.iter_mut().map(|v| v.as_mut_slice()).collect();
+                    let mut slices: Vec<&mut [spherecal::window::Observation]> =
+                        work.iter_mut().map(|v| v.as_mut_slice()).collect();
                     let t0 = std::time::Instant::now();
                     let sol = solve(&tg, &mut slices, &b0, &Settings::default());
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let b = sol.b;
-                    let solution = [b[0].to_degrees(), b[1].to_degrees(), b[2].to_degrees(), b[3], b[4], b[5]];
+                    let solution = [
+                        b[0].to_degrees(),
+                        b[1].to_degrees(),
+                        b[2].to_degrees(),
+                        b[3],
+                        b[4],
+                        b[5],
+                    ];
                     let mut error = [0.0; P];
                     for i in 0..P {
                         error[i] = solution[i] - truth[i];
                     }
                     let within = error.iter().all(|e| e.abs() < 1e-3);
                     if let Ok(mut r) = results.lock() {
-                        r[k] = Some(Trial { start: st, solution, error, converged: sol.refusal.is_none(), within, ms });
+                        r[k] = Some(Trial {
+                            start: st,
+                            solution,
+                            error,
+                            converged: sol.refusal.is_none(),
+                            within,
+                            ms,
+                        });
                     }
                     let d = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if tty {
@@ -128,7 +175,12 @@ pub fn montecarlo(scenario: &Scenario, trials: usize, angle_deg: f64, lever_m: f
     if tty {
         eprintln!();
     }
-    let runs: Vec<Trial> = results.into_inner().map_err(|_| "a trial thread panicked".to_string())?.into_iter().flatten().collect();
+    let runs: Vec<Trial> = results
+        .into_inner()
+        .map_err(|_| "a trial thread panicked".to_string())?
+        .into_iter()
+        .flatten()
+        .collect();
     let n = runs.len().max(1) as f64;
     let mut worst = [0.0f64; P];
     for r in &runs {
@@ -164,7 +216,12 @@ pub fn render(r: &McReport) -> String {
         r.ms_per_trial
     );
     for i in 0..P {
-        o.push_str(&format!(" {} {:.2e}{}", NAMES[i], r.worst_error[i], if i < 3 { " deg" } else { " m" }));
+        o.push_str(&format!(
+            " {} {:.2e}{}",
+            NAMES[i],
+            r.worst_error[i],
+            if i < 3 { " deg" } else { " m" }
+        ));
     }
     o.push('\n');
     o

@@ -459,8 +459,8 @@ impl Scenario {
         }
     }
 
-    /// Targets, then clutter: a tripod pole (2.5 cm radius) under each tripod sphere, from 5 cm
-    /// below the sphere down 1.15 m to the dock.
+    /// Targets, then clutter: a tripod pole (2.5 cm radius) under each tripod sphere, from
+    /// 15 cm below the sphere (the mounting spigot is too thin to return) down to the dock.
     pub fn objects(&self) -> Vec<Object> {
         let mut out: Vec<Object> = self
             .sphere
@@ -482,7 +482,7 @@ impl Scenario {
                 shape: Shape::Pole {
                     base: Vector3::new(c.x, c.y, deck),
                     r: 0.025,
-                    height: deck - bottom - 0.05,
+                    height: deck - bottom - 0.15,
                 },
                 target: None,
             });
