@@ -231,8 +231,8 @@ mod tests {
             &[1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
             &s,
         );
-        for i in 0..6 {
-            assert!((r.x[i] - m[i]).abs() < 1e-6, "{i}: {:?}", r.x);
+        for (i, (x, want)) in r.x.iter().zip(&m).enumerate() {
+            assert!((x - want).abs() < 1e-6, "{i}: {:?}", r.x);
         }
     }
 

@@ -184,8 +184,8 @@ pub fn montecarlo(
     let n = runs.len().max(1) as f64;
     let mut worst = [0.0f64; P];
     for r in &runs {
-        for i in 0..P {
-            worst[i] = worst[i].max(r.error[i].abs());
+        for (w, e) in worst.iter_mut().zip(&r.error) {
+            *w = w.max(e.abs());
         }
     }
     Ok(McReport {
@@ -215,11 +215,9 @@ pub fn render(r: &McReport) -> String {
         100.0 * r.fraction_converged,
         r.ms_per_trial
     );
-    for i in 0..P {
+    for (i, (name, w)) in NAMES.iter().zip(&r.worst_error).enumerate() {
         o.push_str(&format!(
-            " {} {:.2e}{}",
-            NAMES[i],
-            r.worst_error[i],
+            " {name} {w:.2e}{}",
             if i < 3 { " deg" } else { " m" }
         ));
     }
