@@ -3,7 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use spherecal::calib::{solve, Settings};
-use spherecal_tools::pipeline::{InsInput, Inputs};
+use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::scenario::Scenario;
 
 fn bench(c: &mut Criterion) {
@@ -11,7 +11,14 @@ fn bench(c: &mut Criterion) {
     spherecal_tools::synth::synth(&Scenario::load("table1").unwrap(), &dir).unwrap();
     let site = spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap();
     let a = &site.apriori;
-    let b0 = [a.boresight_deg[0].to_radians(), a.boresight_deg[1].to_radians(), a.boresight_deg[2].to_radians(), a.lever_arm_m[0], a.lever_arm_m[1], a.lever_arm_m[2]];
+    let b0 = [
+        a.boresight_deg[0].to_radians(),
+        a.boresight_deg[1].to_radians(),
+        a.boresight_deg[2].to_radians(),
+        a.lever_arm_m[0],
+        a.lever_arm_m[1],
+        a.lever_arm_m[2],
+    ];
     let inp = Inputs {
         pcap: dir.join("lidar.pcap"),
         ins: InsInput::Vn200(dir.join("ins.bin")),
@@ -23,14 +30,18 @@ fn bench(c: &mut Criterion) {
     let (_, obs) = spherecal_tools::calibrate::collect(&inp).unwrap();
     let (targets, _) = spherecal_tools::calibrate::site_targets(&inp);
     let _ = std::fs::remove_dir_all(&dir);
-    eprintln!("windows: {:?} returns", obs.iter().map(Vec::len).collect::<Vec<_>>());
+    eprintln!(
+        "windows: {:?} returns",
+        obs.iter().map(Vec::len).collect::<Vec<_>>()
+    );
     let mut g = c.benchmark_group("calibrate");
     g.sample_size(30);
     g.bench_function("table1_nm_lm_from_paper_start", |b| {
         b.iter_batched(
             || obs.clone(),
             |mut o| {
-                let mut s: Vec<&mut [spherecal::window::Observation]> = o.iter_mut().map(|v| v.as_mut_slice()).collect();
+                let mut s: Vec<&mut [spherecal::window::Observation]> =
+                    o.iter_mut().map(|v| v.as_mut_slice()).collect();
                 solve(&targets, &mut s, &b0, &Settings::default()).b
             },
             BatchSize::LargeInput,
