@@ -175,16 +175,16 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
     let mut sigma = [0.0; P];
     let mut sigma_classic = [0.0; P];
     for i in 0..P {
-        sigma_classic[i] = classic[(i, i)].max(0.0).sqrt();
-        sigma[i] = robust[(i, i)].max(0.0).sqrt().max(sigma_classic[i]);
+        sigma_classic[i] = libm::sqrt(classic[(i, i)].max(0.0));
+        sigma[i] = libm::sqrt(robust[(i, i)].max(0.0)).max(sigma_classic[i]);
     }
     // The reported covariance: the robust one, scaled up where the classic is larger.
     let mut covariance = robust;
     for i in 0..P {
         for j in 0..P {
             let (ri, rj) = (
-                robust[(i, i)].max(1e-300).sqrt(),
-                robust[(j, j)].max(1e-300).sqrt(),
+                libm::sqrt(robust[(i, i)].max(1e-300)),
+                libm::sqrt(robust[(j, j)].max(1e-300)),
             );
             covariance[(i, j)] = robust[(i, j)] / (ri * rj) * sigma[i] * sigma[j];
         }
@@ -199,7 +199,7 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
     let mut scaled = jtj6;
     for i in 0..P {
         for j in 0..P {
-            scaled[(i, j)] = jtj6[(i, j)] / (jtj6[(i, i)] * jtj6[(j, j)]).sqrt().max(1e-300);
+            scaled[(i, j)] = jtj6[(i, j)] / libm::sqrt(jtj6[(i, i)] * jtj6[(j, j)]).max(1e-300);
         }
     }
     let eig = SymmetricEigen::new(scaled);
@@ -222,7 +222,7 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
         iterations,
         converged,
         n,
-        rms: (cost / n.max(1) as f64).sqrt(),
+        rms: libm::sqrt(cost / n.max(1) as f64),
         normal: jtj6,
         covariance,
         sigma,

@@ -366,8 +366,11 @@ pub fn solve(
         let t = &targets[j];
         let kept = &obs[j][..used[j]];
         let rms = |bb: &[f64; P]| {
-            let s2: f64 = kept.iter().map(|o| residual(o, t, bb).powi(2)).sum();
-            (s2 / kept.len().max(1) as f64).sqrt()
+            let s2: f64 = kept
+                .iter()
+                .map(|o| libm::pow(residual(o, t, bb), 2.0))
+                .sum();
+            libm::sqrt(s2 / kept.len().max(1) as f64)
         };
         let center = fit_center(kept.iter().map(|o| o.georef(&mount)), t.radius, t.center)
             .map(|c| c - t.center);
@@ -383,7 +386,7 @@ pub fn solve(
             center_offset: center,
         });
     }
-    sol.center_rms = (nc > 0).then(|| (c2 / nc as f64).sqrt());
+    sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
 
     // 4. Checks.
     if let Some(j) = (0..n).find(|&j| used[j] < s.min_points) {
