@@ -2,7 +2,7 @@
 //! decode -> clock -> pose interpolation -> georeference -> window.
 
 use spherecal::align::{PoseHistory, PoseSample};
-use spherecal::sim::{InsSim, LidarSim, SimPacket, World};
+use spherecal::sim::{InsSim, LidarSim, SimPacket};
 use spherecal::time::LidarClock;
 use spherecal::vlp16::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
@@ -49,19 +49,7 @@ fn steady_state_allocates_nothing_per_packet() {
 fn steady_state() {
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = World {
-        site: s.site(),
-        trajectory: spherecal::sim::Trajectory {
-            passes: &passes,
-            turn: s.trajectory.turn_s,
-            down: s.trajectory.ins_down_m,
-            motion: s.motion(),
-        },
-        objects: &objects,
-        mount: s.truth_mount(),
-        start: s.start(),
-        leap_seconds: s.leap_seconds,
-    };
+    let w = s.world(&passes, &objects);
     // Everything the loop needs is made up front.
     let mut ins_bytes = Vec::new();
     let mut ins = InsSim::new(&w, s.ins_config());

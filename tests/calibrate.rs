@@ -19,24 +19,11 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 fn inputs(dir: &Path) -> Inputs {
-    let site = Site::load(&dir.join("site.toml")).unwrap();
-    let a = &site.apriori;
-    let b0 = [
-        a.boresight_deg[0].to_radians(),
-        a.boresight_deg[1].to_radians(),
-        a.boresight_deg[2].to_radians(),
-        a.lever_arm_m[0],
-        a.lever_arm_m[1],
-        a.lever_arm_m[2],
-    ];
-    Inputs {
-        pcap: dir.join("lidar.pcap"),
-        ins: InsInput::Vn200(dir.join("ins.bin")),
-        mount: spherecal::georef::Mount::from_params(&b0),
-        margin: a.window_margin_m,
-        max_gap_ns: 50_000_000,
-        site,
-    }
+    Inputs::apriori(
+        dir.join("lidar.pcap"),
+        InsInput::Vn200(dir.join("ins.bin")),
+        Site::load(&dir.join("site.toml")).unwrap(),
+    )
 }
 
 fn scenario_text(name: &str) -> String {

@@ -3,23 +3,16 @@
 mod common;
 
 use std::collections::HashMap;
-use std::process::Command;
-
-fn spherecal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_spherecal"))
-}
 
 fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("spherecal-cli-decode-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::tmp("cli-decode", name)
 }
 
 #[test]
 fn decode_mrpt_summary_and_csv() {
     let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
     let csv = tmp("mrpt.csv");
-    let out = spherecal()
+    let out = common::spherecal()
         .arg("decode")
         .arg(&pcap)
         .arg("--csv")
@@ -104,7 +97,7 @@ fn decode_mrpt_summary_and_csv() {
 
 #[test]
 fn missing_file_exits_2_with_the_path() {
-    let out = spherecal()
+    let out = common::spherecal()
         .args(["decode", "/nonexistent/capture.pcap"])
         .output()
         .unwrap();
@@ -117,7 +110,7 @@ fn missing_file_exits_2_with_the_path() {
 fn wrong_magic_and_random_bytes_exit_2() {
     let p = tmp("notpcap.bin");
     std::fs::write(&p, b"this is not a capture file at all, just text\n").unwrap();
-    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    let out = common::spherecal().arg("decode").arg(&p).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -138,7 +131,7 @@ fn wrong_magic_and_random_bytes_exit_2() {
     }
     let p = tmp("random.pcap");
     std::fs::write(&p, &bytes).unwrap();
-    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    let out = common::spherecal().arg("decode").arg(&p).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     let stdout = String::from_utf8_lossy(&out.stdout);
     // Either a corrupt record stops it (exit 2, with an offset) or every record is a counted skip.
@@ -155,7 +148,7 @@ fn truncated_capture_is_a_counted_skip() {
     let p = tmp("cut.pcap");
     // Cut inside the 11th record.
     std::fs::write(&p, &full[..24 + 10 * (16 + 1248) + 700]).unwrap();
-    let out = spherecal().arg("decode").arg(&p).output().unwrap();
+    let out = common::spherecal().arg("decode").arg(&p).output().unwrap();
     assert_eq!(out.status.code(), Some(0));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("skipped: 1"), "{stdout}");

@@ -2,22 +2,14 @@
 
 mod common;
 
-use std::process::Command;
-
-fn spherecal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_spherecal"))
-}
-
 fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("spherecal-cli-ins-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::tmp("cli-ins", name)
 }
 
 /// Every expected column is in our CSV with the same value (parsed, round-trip exact).
 fn csv_matches(file: &str, expected: &str) {
     let csv = tmp(&format!("{}.csv", file.replace('/', "_")));
-    let out = spherecal()
+    let out = common::spherecal()
         .arg("ins")
         .arg(common::shared_data(file))
         .arg("--csv")
@@ -78,7 +70,7 @@ fn ins_csv_vn100_logger() {
 
 #[test]
 fn ins_summary_counts() {
-    let out = spherecal()
+    let out = common::spherecal()
         .arg("ins")
         .arg(common::shared_data("vn200/vn100_F00294.raw"))
         .output()
@@ -93,7 +85,7 @@ fn ins_summary_counts() {
 
 #[test]
 fn ins_missing_file_exits_2() {
-    let out = spherecal()
+    let out = common::spherecal()
         .args(["ins", "/nonexistent/ins.bin"])
         .output()
         .unwrap();
@@ -107,7 +99,7 @@ fn ins_counts_crc_failures() {
     bytes[191 + 50] ^= 0x10; // inside the second frame
     let p = tmp("corrupt.bin");
     std::fs::write(&p, &bytes).unwrap();
-    let out = spherecal().arg("ins").arg(&p).output().unwrap();
+    let out = common::spherecal().arg("ins").arg(&p).output().unwrap();
     let s = String::from_utf8(out.stdout).unwrap();
     assert!(s.contains("binary frames: 17"), "{s}");
     assert!(s.contains("CRC failures: 1"), "{s}");

@@ -141,19 +141,7 @@ fn sbet_trajectory_gives_the_same_windows() {
     // Write an SBET of the same truth: 200 Hz, wander angle 0.3 rad, from the scenario.
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = spherecal::sim::World {
-        site: s.site(),
-        trajectory: spherecal::sim::Trajectory {
-            passes: &passes,
-            turn: s.trajectory.turn_s,
-            down: s.trajectory.ins_down_m,
-            motion: s.motion(),
-        },
-        objects: &objects,
-        mount: s.truth_mount(),
-        start: s.start(),
-        leap_seconds: s.leap_seconds,
-    };
+    let w = s.world(&passes, &objects);
     let mut bytes = Vec::new();
     let (week, _) = s.start().week_tow_ns();
     for j in 0..(65.0 * 200.0) as i64 {

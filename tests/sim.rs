@@ -12,26 +12,6 @@ use spherecal::vlp16::{decode, DataPacket, PointBuf, ReturnMode};
 use spherecal_tools::scenario::Scenario;
 use std::process::Command;
 
-fn world_of<'a>(
-    s: &Scenario,
-    passes: &'a [spherecal::sim::Pass],
-    objects: &'a [spherecal::sim::Object],
-) -> World<'a> {
-    World {
-        site: s.site(),
-        trajectory: spherecal::sim::Trajectory {
-            passes,
-            turn: s.trajectory.turn_s,
-            down: s.trajectory.ins_down_m,
-            motion: s.motion(),
-        },
-        objects,
-        mount: s.truth_mount(),
-        start: s.start(),
-        leap_seconds: s.leap_seconds,
-    }
-}
-
 fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
     let st = w.trajectory.state(w.t_of(t));
     PlatformPose {
@@ -55,7 +35,7 @@ fn off_surface(shape: &Shape, x: &nalgebra::Vector3<f64>) -> f64 {
 fn traced_points_lie_on_what_they_hit() {
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = world_of(&s, &passes, &objects);
+    let w = s.world(&passes, &objects);
     let mut sim = LidarSim::new(&w, s.lidar_config());
     let mut buf = [0u8; 1206];
     let (mut n, mut worst) = (0u64, 0f64);
@@ -93,7 +73,7 @@ fn traced_points_lie_on_what_they_hit() {
 fn decoded_points_lie_on_their_spheres() {
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = world_of(&s, &passes, &objects);
+    let w = s.world(&passes, &objects);
     let mut sim = LidarSim::new(&w, s.lidar_config());
     let mut buf = [0u8; 1206];
     let mut pts = PointBuf::new();

@@ -18,7 +18,7 @@ use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Problem, SphereObs};
 use super::sphere_fit::fit_center;
-use super::P;
+use super::{from_deg_m, to_deg_m, P};
 use crate::window::{Observation, Target, MAX_TARGETS};
 use nalgebra::Vector3;
 
@@ -137,28 +137,6 @@ pub struct Solution {
     pub weak: [bool; P],
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
-}
-
-fn deg(b: &[f64; P]) -> [f64; P] {
-    [
-        b[0].to_degrees(),
-        b[1].to_degrees(),
-        b[2].to_degrees(),
-        b[3],
-        b[4],
-        b[5],
-    ]
-}
-
-fn rad(x: &[f64; P]) -> [f64; P] {
-    [
-        x[0].to_radians(),
-        x[1].to_radians(),
-        x[2].to_radians(),
-        x[3],
-        x[4],
-        x[5],
-    ]
 }
 
 fn with_problem<R>(
@@ -280,7 +258,7 @@ pub fn solve(
     let mut sol = Solution {
         b: *b0,
         nm: NmResult {
-            x: deg(b0),
+            x: to_deg_m(b0),
             f: f64::INFINITY,
             iterations: 0,
             evaluations: 0,
@@ -320,14 +298,14 @@ pub fn solve(
         let most = used[..n].iter().copied().max().unwrap_or(1);
         let stride = most.div_ceil(s.nm_points.max(1)).max(1);
         let mut nm = with_problem_stride(targets, obs, &used, stride, |pb| {
-            minimize::<P, 7>(|x| pb.l1(&rad(x)), &deg(&b), &s.step, &s.nm)
+            minimize::<P, 7>(|x| pb.l1(&from_deg_m(x)), &to_deg_m(&b), &s.step, &s.nm)
         });
         evaluations += nm.evaluations;
         iterations += nm.iterations;
         nm.evaluations = evaluations;
         nm.iterations = iterations;
         sol.nm = nm;
-        b = rad(&nm.x);
+        b = from_deg_m(&nm.x);
         let med = with_problem(targets, obs, &used, |pb| {
             let mut h = Histogram::new();
             pb.residuals(&b, |_, r| h.add(r.abs()));

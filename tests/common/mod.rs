@@ -26,3 +26,15 @@ pub fn shared_data(rel: &str) -> PathBuf {
     );
     p
 }
+
+/// The `spherecal` binary of this build.
+pub fn spherecal() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_spherecal"))
+}
+
+/// A path in a per-process scratch folder for test `group` (created).
+pub fn tmp(group: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("spherecal-{group}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}

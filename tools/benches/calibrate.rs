@@ -10,23 +10,12 @@ fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("spherecal-bench-cal-{}", std::process::id()));
     spherecal_tools::synth::synth(&Scenario::load("table1").unwrap(), &dir).unwrap();
     let site = spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap();
-    let a = &site.apriori;
-    let b0 = [
-        a.boresight_deg[0].to_radians(),
-        a.boresight_deg[1].to_radians(),
-        a.boresight_deg[2].to_radians(),
-        a.lever_arm_m[0],
-        a.lever_arm_m[1],
-        a.lever_arm_m[2],
-    ];
-    let inp = Inputs {
-        pcap: dir.join("lidar.pcap"),
-        ins: InsInput::Vn200(dir.join("ins.bin")),
-        mount: spherecal::georef::Mount::from_params(&b0),
-        margin: a.window_margin_m,
-        max_gap_ns: 50_000_000,
-        site: site.clone(),
-    };
+    let inp = Inputs::apriori(
+        dir.join("lidar.pcap"),
+        InsInput::Vn200(dir.join("ins.bin")),
+        site,
+    );
+    let b0 = inp.mount.params();
     let (_, obs) = spherecal_tools::calibrate::collect(&inp).unwrap();
     let (targets, _) = spherecal_tools::calibrate::site_targets(&inp);
     let _ = std::fs::remove_dir_all(&dir);

@@ -32,36 +32,15 @@ pub fn run_calibrate(
 ) -> Result<(String, bool), String> {
     use pipeline::{Inputs, InsInput};
     let site = site::Site::load(&site)?;
-    let a = &site.apriori;
-    let start = init.unwrap_or([
-        a.boresight_deg[0],
-        a.boresight_deg[1],
-        a.boresight_deg[2],
-        a.lever_arm_m[0],
-        a.lever_arm_m[1],
-        a.lever_arm_m[2],
-    ]);
-    let b0 = [
-        start[0].to_radians(),
-        start[1].to_radians(),
-        start[2].to_radians(),
-        start[3],
-        start[4],
-        start[5],
-    ];
+    let start = init.unwrap_or(site.apriori_deg_m());
+    let b0 = spherecal::calib::from_deg_m(&start);
     let ins = match (ins, sbet) {
         (Some(i), _) => InsInput::Vn200(i),
         (None, Some(s)) => InsInput::Sbet(s, gps_week),
         (None, None) => return Err("give --ins or --sbet".into()),
     };
-    let inp = Inputs {
-        pcap,
-        ins,
-        mount: spherecal::georef::Mount::from_params(&b0),
-        margin: site.apriori.window_margin_m,
-        max_gap_ns: 50_000_000,
-        site,
-    };
+    let mut inp = Inputs::apriori(pcap, ins, site);
+    inp.mount = spherecal::georef::Mount::from_params(&b0);
     let (stats, mut obs) = calibrate::collect(&inp)?;
     let (targets, ids) = calibrate::site_targets(&inp);
     let (sol, rep) = calibrate::solve_report(

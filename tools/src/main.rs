@@ -17,6 +17,26 @@ struct Cli {
     cmd: Option<Cmd>,
 }
 
+/// The recorded survey: capture, trajectory and site.
+#[derive(clap::Args)]
+struct Survey {
+    /// The VLP-16 capture.
+    #[arg(long)]
+    pcap: PathBuf,
+    /// VN-200 serial bytes (raw or a serial log).
+    #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
+    ins: Option<PathBuf>,
+    /// An Applanix SBET trajectory instead of the VN-200.
+    #[arg(long)]
+    sbet: Option<PathBuf>,
+    /// GPS week of the SBET (default: from the capture's RMC date).
+    #[arg(long)]
+    gps_week: Option<u16>,
+    /// site.toml: spheres, origin, a-priori values.
+    #[arg(long)]
+    site: PathBuf,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Decode VLP-16 packets from a pcap/pcapng capture; print counts, optionally list points.
@@ -41,21 +61,8 @@ enum Cmd {
     },
     /// Georeference a survey: align the LiDAR with the trajectory, keep the sphere windows.
     Georef {
-        /// The VLP-16 capture.
-        #[arg(long)]
-        pcap: PathBuf,
-        /// VN-200 serial bytes (raw or a serial log).
-        #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
-        ins: Option<PathBuf>,
-        /// An Applanix SBET trajectory instead of the VN-200.
-        #[arg(long)]
-        sbet: Option<PathBuf>,
-        /// GPS week of the SBET (default: from the capture's RMC date).
-        #[arg(long)]
-        gps_week: Option<u16>,
-        /// site.toml: spheres, origin, a-priori values.
-        #[arg(long)]
-        site: PathBuf,
+        #[command(flatten)]
+        survey: Survey,
         /// Boresight roll,pitch,heading [deg] (default: the site's a-priori).
         #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
         boresight: Option<[f64; 3]>,
@@ -74,21 +81,8 @@ enum Cmd {
     },
     /// Calibrate: georeference, window, solve for boresight and lever arm, report.
     Calibrate {
-        /// The VLP-16 capture.
-        #[arg(long)]
-        pcap: PathBuf,
-        /// VN-200 serial bytes (raw or a serial log).
-        #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
-        ins: Option<PathBuf>,
-        /// An Applanix SBET trajectory instead of the VN-200.
-        #[arg(long)]
-        sbet: Option<PathBuf>,
-        /// GPS week of the SBET (default: from the capture's RMC date).
-        #[arg(long)]
-        gps_week: Option<u16>,
-        /// site.toml.
-        #[arg(long)]
-        site: PathBuf,
+        #[command(flatten)]
+        survey: Survey,
         /// Start: roll,pitch,heading [deg],x,y,z [m] (default: the site's a-priori values).
         #[arg(long, value_parser = parse6, allow_hyphen_values = true)]
         init: Option<[f64; 6]>,
@@ -214,18 +208,23 @@ fn main() -> ExitCode {
             }
         }
         Cmd::Calibrate {
-            pcap,
-            ins,
-            sbet,
-            gps_week,
-            site,
+            survey,
             init,
             report,
             las,
             plot,
         } => {
             match spherecal_tools::run_calibrate(
-                pcap, ins, sbet, gps_week, site, init, report, las, plot, None,
+                survey.pcap,
+                survey.ins,
+                survey.sbet,
+                survey.gps_week,
+                survey.site,
+                init,
+                report,
+                las,
+                plot,
+                None,
             ) {
                 Ok((text, ok)) => {
                     say!("{text}");
@@ -249,19 +248,13 @@ fn main() -> ExitCode {
             print_scenario,
         } => synth(scenario, out, print_scenario),
         Cmd::Georef {
-            pcap,
-            ins,
-            sbet,
-            gps_week,
-            site,
+            survey,
             boresight,
             lever,
             max_gap_ms,
             las,
             windows,
-        } => georef(
-            pcap, ins, sbet, gps_week, site, boresight, lever, max_gap_ms, las, windows,
-        ),
+        } => georef(survey, boresight, lever, max_gap_ms, las, windows),
     }
 }
 
@@ -417,13 +410,8 @@ fn parse3(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 fn georef(
-    pcap: PathBuf,
-    ins: Option<PathBuf>,
-    sbet: Option<PathBuf>,
-    gps_week: Option<u16>,
-    site: PathBuf,
+    survey: Survey,
     boresight: Option<[f64; 3]>,
     lever: Option<[f64; 3]>,
     max_gap_ms: f64,
@@ -431,6 +419,13 @@ fn georef(
     windows: Option<PathBuf>,
 ) -> ExitCode {
     use spherecal_tools::pipeline::{Inputs, InsInput};
+    let Survey {
+        pcap,
+        ins,
+        sbet,
+        gps_week,
+        site,
+    } = survey;
     let site = match spherecal_tools::site::Site::load(&site) {
         Ok(s) => s,
         Err(e) => {

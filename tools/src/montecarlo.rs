@@ -65,23 +65,11 @@ pub fn montecarlo(
     let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
     crate::synth::synth(scenario, &dir)?;
     let site = crate::site::Site::load(&dir.join("site.toml"))?;
-    let a = &site.apriori;
-    let b_apriori = [
-        a.boresight_deg[0].to_radians(),
-        a.boresight_deg[1].to_radians(),
-        a.boresight_deg[2].to_radians(),
-        a.lever_arm_m[0],
-        a.lever_arm_m[1],
-        a.lever_arm_m[2],
-    ];
-    let inp = Inputs {
-        pcap: dir.join("lidar.pcap"),
-        ins: InsInput::Vn200(dir.join("ins.bin")),
-        mount: spherecal::georef::Mount::from_params(&b_apriori),
-        margin: a.window_margin_m,
-        max_gap_ns: 50_000_000,
-        site: site.clone(),
-    };
+    let inp = Inputs::apriori(
+        dir.join("lidar.pcap"),
+        InsInput::Vn200(dir.join("ins.bin")),
+        site.clone(),
+    );
     let (_, obs) = collect(&inp)?;
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
@@ -123,14 +111,7 @@ pub fn montecarlo(
                         break;
                     }
                     let st = starts[k];
-                    let b0 = [
-                        st[0].to_radians(),
-                        st[1].to_radians(),
-                        st[2].to_radians(),
-                        st[3],
-                        st[4],
-                        st[5],
-                    ];
+                    let b0 = spherecal::calib::from_deg_m(&st);
                     for (w, o) in work.iter_mut().zip(&obs) {
                         w.copy_from_slice(o);
                     }
@@ -140,14 +121,7 @@ pub fn montecarlo(
                     let sol = solve(&tg, &mut slices, &b0, &Settings::default());
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let b = sol.b;
-                    let solution = [
-                        b[0].to_degrees(),
-                        b[1].to_degrees(),
-                        b[2].to_degrees(),
-                        b[3],
-                        b[4],
-                        b[5],
-                    ];
+                    let solution = spherecal::calib::to_deg_m(&b);
                     let mut error = [0.0; P];
                     for i in 0..P {
                         error[i] = solution[i] - truth[i];

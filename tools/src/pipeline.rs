@@ -90,6 +90,21 @@ pub struct Inputs {
     pub max_gap_ns: i64,
 }
 
+impl Inputs {
+    /// Georeference with the site's a-priori mounting and window margin, 50 ms INS gap limit.
+    pub fn apriori(pcap: PathBuf, ins: InsInput, site: Site) -> Self {
+        let b0 = spherecal::calib::from_deg_m(&site.apriori_deg_m());
+        Self {
+            pcap,
+            ins,
+            mount: Mount::from_params(&b0),
+            margin: site.apriori.window_margin_m,
+            max_gap_ns: 50_000_000,
+            site,
+        }
+    }
+}
+
 /// A batch of one sphere's observations.
 #[derive(Debug, Clone)]
 pub struct BatchMsg {

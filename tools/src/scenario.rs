@@ -490,6 +490,33 @@ impl Scenario {
         out
     }
 
+    /// The simulated world of this scenario over its `passes()` and `objects()`.
+    pub fn world<'a>(
+        &self,
+        passes: &'a [Pass],
+        objects: &'a [Object],
+    ) -> spherecal::sim::World<'a> {
+        spherecal::sim::World {
+            site: self.site(),
+            trajectory: spherecal::sim::Trajectory {
+                passes,
+                turn: self.trajectory.turn_s,
+                down: self.trajectory.ins_down_m,
+                motion: self.motion(),
+            },
+            objects,
+            mount: self.truth_mount(),
+            start: self.start(),
+            leap_seconds: self.leap_seconds,
+        }
+    }
+
+    /// Run `f` with the simulated world of this scenario.
+    pub fn with_world<R>(&self, f: impl FnOnce(&spherecal::sim::World<'_>) -> R) -> R {
+        let (passes, objects) = (self.passes(), self.objects());
+        f(&self.world(&passes, &objects))
+    }
+
     /// LiDAR configuration.
     pub fn lidar_config(&self) -> LidarConfig {
         LidarConfig {

@@ -90,6 +90,19 @@ impl Site {
         Ok(())
     }
 
+    /// The a-priori values as [roll, pitch, heading (deg), x, y, z (m)].
+    pub fn apriori_deg_m(&self) -> [f64; 6] {
+        let a = &self.apriori;
+        [
+            a.boresight_deg[0],
+            a.boresight_deg[1],
+            a.boresight_deg[2],
+            a.lever_arm_m[0],
+            a.lever_arm_m[1],
+            a.lever_arm_m[2],
+        ]
+    }
+
     /// As TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_default()

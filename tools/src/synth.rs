@@ -54,21 +54,10 @@ const NETWORK_DELAY_NS: i64 = 1_400_000;
 /// Simulate and write the four files into `dir` (created if needed).
 pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let passes = s.passes();
-    let objects = s.objects();
-    let world = World {
-        site: s.site(),
-        trajectory: spherecal::sim::Trajectory {
-            passes: &passes,
-            turn: s.trajectory.turn_s,
-            down: s.trajectory.ins_down_m,
-            motion: s.motion(),
-        },
-        objects: &objects,
-        mount: s.truth_mount(),
-        start: s.start(),
-        leap_seconds: s.leap_seconds,
-    };
+    s.with_world(|world| write_files(s, world, dir))
+}
+
+fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, String> {
     let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
 
     // lidar.pcap
@@ -76,7 +65,7 @@ pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     let f = std::fs::File::create(&pcap_path).map_err(|e| io(&pcap_path, e))?;
     let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
-    let mut lidar = LidarSim::new(&world, s.lidar_config());
+    let mut lidar = LidarSim::new(world, s.lidar_config());
     let ep = UdpEndpoints::default();
     let mut payload = [0u8; 1206];
     let mut frame = Vec::with_capacity(1300);
@@ -100,7 +89,7 @@ pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     let ins_path = dir.join("ins.bin");
     let f = std::fs::File::create(&ins_path).map_err(|e| io(&ins_path, e))?;
     let mut w = BufWriter::with_capacity(1 << 20, f);
-    let mut ins = InsSim::new(&world, s.ins_config());
+    let mut ins = InsSim::new(world, s.ins_config());
     let mut buf = [0u8; 128];
     while let Some((_, n)) = ins.next_frame(&mut buf) {
         w.write_all(&buf[..n]).map_err(|e| io(&ins_path, e))?;
