@@ -46,19 +46,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
 }
 
 fn observations(inp: &Inputs) -> (spherecal_tools::pipeline::RunStats, Vec<Vec<Observation>>) {
-    let n = inp.site.sphere.len();
-    run(
-        inp,
-        |_| {},
-        move |rx: crossbeam_channel::Receiver<BatchMsg>| {
-            let mut out = vec![Vec::new(); n];
-            for m in rx {
-                out[m.sphere].extend(m.obs);
-            }
-            out
-        },
-    )
-    .unwrap()
+    spherecal_tools::calibrate::collect(inp).unwrap()
 }
 
 /// Distance of each observation, georeferenced with `mount`, from its sphere's surface.
