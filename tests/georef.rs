@@ -6,7 +6,7 @@ mod common;
 use spherecal::frames::{roll_pitch_heading, rotation};
 use spherecal::georef::Mount;
 use spherecal::window::Observation;
-use spherecal_tools::pipeline::{run, targets, BatchMsg, Inputs, InsInput};
+use spherecal_tools::pipeline::{targets, Inputs, InsInput};
 use spherecal_tools::scenario::Scenario;
 use spherecal_tools::site::Site;
 use std::path::{Path, PathBuf};
