@@ -149,6 +149,8 @@ struct Sequence {
     r_lever: Vector3<f64>,
     /// Angular rate in the site frame, `R_ig w`.
     omega: Vector3<f64>,
+    /// How far carrying the pose on can move a return within `CARRY_NS` (up to 150 m away).
+    slack: f64,
 }
 
 impl Sequence {
@@ -162,6 +164,8 @@ impl Sequence {
             m: r * mount.r_li,
             r_lever: r * mount.lever,
             omega: r * motion.rate,
+            slack: (motion.velocity.norm() + motion.rate.norm() * 150.0) * CARRY_NS as f64 * 1e-9
+                + 0.01,
         }
     }
 }
@@ -183,13 +187,14 @@ pub struct Windowing<'a, const CAP: usize> {
 
 impl<const CAP: usize> Windowing<'_, CAP> {
     /// Georeference and window the returns of one packet whose first firing is at `t0`;
-    /// `each` sees every georeferenced return (for a point cloud).
+    /// `each`, if given, sees every georeferenced return (for a point cloud). Without it,
+    /// returns far from every window are only counted, not georeferenced exactly.
     pub fn add_packet<const N: usize>(
         &mut self,
         t0: GpsTime,
         points: &PointBuf,
         history: &PoseHistory<N>,
-        mut each: impl FnMut(&GeoPoint),
+        mut each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
     ) {
         // Broad phase: the box around all windows.
         let (mut lo, mut hi) = (
@@ -229,11 +234,23 @@ impl<const CAP: usize> Windowing<'_, CAP> {
             let dt = (t.0 - sq.time.0) as f64 * 1e-9;
             // The return in the LiDAR frame: the decoder's point (eq. 1 + beam offset).
             let q_l = Vector3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z));
-            // Eq. 3 carried dt on: x = P + v dt + x_r + dt (omega x x_r), x_r = R(a + R_li q).
             let x_r = sq.m * q_l + sq.r_lever;
-            let x = sq.position + sq.velocity * dt + x_r + sq.omega.cross(&x_r) * dt;
             self.stats.georeferenced += 1;
-            let inside = x.x >= lo.x
+            // Broad phase on the pose not yet carried on: off by at most `slack`.
+            let a = sq.position + x_r;
+            let near = a.x >= lo.x - sq.slack
+                && a.x <= hi.x + sq.slack
+                && a.y >= lo.y - sq.slack
+                && a.y <= hi.y + sq.slack
+                && a.z >= lo.z - sq.slack
+                && a.z <= hi.z + sq.slack;
+            if !near && each.is_none() {
+                continue;
+            }
+            // Eq. 3 carried dt on: x = P + v dt + x_r + dt (omega x x_r), x_r = R(a + R_li q).
+            let x = sq.position + sq.velocity * dt + x_r + sq.omega.cross(&x_r) * dt;
+            let inside = near
+                && x.x >= lo.x
                 && x.x <= hi.x
                 && x.y >= lo.y
                 && x.y <= hi.y
@@ -262,6 +279,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                     }
                 }
             }
+            let Some(each) = each.as_mut() else { continue };
             each(&GeoPoint {
                 ned: x,
                 time: t,

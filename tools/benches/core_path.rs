@@ -86,7 +86,7 @@ fn bench(c: &mut Criterion) {
                 let p = DataPacket::new_checked(black_box(&d[..])).unwrap();
                 let t0 = clock.to_gps(p.timestamp_us()).unwrap();
                 decode(&p, &mut points).unwrap();
-                win.add_packet(t0, &points, &history, |_| {});
+                win.add_packet(t0, &points, &history, None);
             }
             for bt in win.batches.iter_mut() {
                 bt.obs.clear();

@@ -105,7 +105,7 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String
     let n = inp.site.sphere.len();
     run(
         inp,
-        |_| {},
+        None,
         move |rx: crossbeam_channel::Receiver<BatchMsg>| {
             let mut out = vec![Vec::new(); n];
             for m in rx {

@@ -95,53 +95,51 @@ pub fn georef(
     };
     let ids: Vec<String> = inp.site.sphere.iter().map(|s| s.id.clone()).collect();
     let mount: Mount = inp.mount;
-    let (stats, (counts, werr)) = run(
-        inp,
-        |p| {
-            if let Some(l) = las_out.as_mut() {
-                l.add(p)
+    let mut add = |p: &GeoPoint| {
+        if let Some(l) = las_out.as_mut() {
+            l.add(p)
+        }
+    };
+    let each: Option<&mut dyn FnMut(&GeoPoint)> = if las.is_some() { Some(&mut add) } else { None };
+    let (stats, (counts, werr)) = run(inp, each, |rx: crossbeam_channel::Receiver<BatchMsg>| {
+        let mut counts = vec![0u64; ids.len()];
+        let mut err = None;
+        let mut line = String::new();
+        if let Some(w) = wfile.as_mut() {
+            if let Err(e) = writeln!(w, "{WINDOWS_HEADER}") {
+                err = Some(e.to_string());
             }
-        },
-        |rx: crossbeam_channel::Receiver<BatchMsg>| {
-            let mut counts = vec![0u64; ids.len()];
-            let mut err = None;
-            let mut line = String::new();
+        }
+        for msg in rx {
+            counts[msg.sphere] += msg.obs.len() as u64;
             if let Some(w) = wfile.as_mut() {
-                if let Err(e) = writeln!(w, "{WINDOWS_HEADER}") {
-                    err = Some(e.to_string());
-                }
-            }
-            for msg in rx {
-                counts[msg.sphere] += msg.obs.len() as u64;
-                if let Some(w) = wfile.as_mut() {
-                    for o in &msg.obs {
-                        let x = o.georef(&mount);
-                        line.clear();
-                        let _ = writeln!(
-                            line,
-                            "{},{:.9},{:.5},{:.5},{:.5},{:.3},{}",
-                            ids[msg.sphere],
-                            o.time.as_secs_f64(),
-                            x.x,
-                            x.y,
-                            x.z,
-                            o.range,
-                            o.laser
-                        );
-                        if let Err(e) = w.write_all(line.as_bytes()) {
-                            err.get_or_insert(e.to_string());
-                        }
+                for o in &msg.obs {
+                    let x = o.georef(&mount);
+                    line.clear();
+                    let _ = writeln!(
+                        line,
+                        "{},{:.9},{:.5},{:.5},{:.5},{:.3},{}",
+                        ids[msg.sphere],
+                        o.time.as_secs_f64(),
+                        x.x,
+                        x.y,
+                        x.z,
+                        o.range,
+                        o.laser
+                    );
+                    if let Err(e) = w.write_all(line.as_bytes()) {
+                        err.get_or_insert(e.to_string());
                     }
                 }
             }
-            if let Some(w) = wfile.as_mut() {
-                if let Err(e) = w.flush() {
-                    err.get_or_insert(e.to_string());
-                }
+        }
+        if let Some(w) = wfile.as_mut() {
+            if let Err(e) = w.flush() {
+                err.get_or_insert(e.to_string());
             }
-            (counts, err)
-        },
-    )?;
+        }
+        (counts, err)
+    })?;
     if let Some(e) = werr {
         return Err(format!("windows CSV: {e}"));
     }

@@ -197,11 +197,11 @@ pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
     None
 }
 
-/// Run the pipeline over files. `each` sees every georeferenced return; batches go to
-/// `consumer` on its own thread, which returns its result.
+/// Run the pipeline over files. `each`, if given, sees every georeferenced return; batches go
+/// to `consumer` on its own thread, which returns its result.
 pub fn run<C: Send>(
     inp: &Inputs,
-    mut each: impl FnMut(&GeoPoint),
+    mut each: Option<&mut dyn FnMut(&GeoPoint)>,
     consumer: impl FnOnce(crossbeam_channel::Receiver<BatchMsg>) -> C + Send,
 ) -> Result<(RunStats, C), String> {
     let (frame, targets) = targets(&inp.site);
@@ -420,7 +420,7 @@ pub fn run<C: Send>(
                         continue;
                     }
                     stats.data_packets += 1;
-                    win.add_packet(t0, &points, &history, &mut each);
+                    win.add_packet(t0, &points, &history, each.as_deref_mut());
                     for (i, b) in win.batches.iter_mut().enumerate() {
                         if b.obs.len() >= BATCH / 2 {
                             let _ = tx.send(BatchMsg {
