@@ -49,7 +49,7 @@ fn steady_state_allocates_nothing_per_packet() {
 fn steady_state() {
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = s.world(&passes, &objects);
+    let w = s.world(&[], &passes, &objects);
     // Everything the loop needs is made up front.
     let mut ins_bytes = Vec::new();
     let mut ins = InsSim::new(&w, s.ins_config());

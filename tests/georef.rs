@@ -129,7 +129,7 @@ fn sbet_trajectory_gives_the_same_windows() {
     // Write an SBET of the same truth: 200 Hz, wander angle 0.3 rad, from the scenario.
     let s = Scenario::load("table1").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
-    let w = s.world(&passes, &objects);
+    let w = s.world(&[], &passes, &objects);
     let mut bytes = Vec::new();
     let (week, _) = s.start().week_tow_ns();
     for j in 0..(65.0 * 200.0) as i64 {

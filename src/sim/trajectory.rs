@@ -66,9 +66,25 @@ impl State {
     }
 }
 
-/// Passes joined by cubic Hermite turns of a fixed duration.
+/// A recorded trajectory sample (from an SBET or CSV file, turned into the site frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Seconds after the start.
+    pub t: f64,
+    /// INS position, site NED [m].
+    pub position: Vector3<f64>,
+    /// Roll, pitch, heading [rad], body -> site NED.
+    pub rph: [f64; 3],
+}
+
+/// Passes joined by cubic Hermite turns of a fixed duration, or, when `samples` is not empty,
+/// a recorded trajectory interpolated between its samples (position linear, attitude by
+/// quaternion slerp; held before the first and after the last); waves are not added to recorded
+/// samples. A recorded trajectory's scan lasts until its last sample.
 #[derive(Debug, Clone, Copy)]
 pub struct Trajectory<'a> {
+    /// Recorded samples in time order (empty: use the passes).
+    pub samples: &'a [Sample],
     /// The passes, in order.
     pub passes: &'a [Pass],
     /// Duration of each turn between passes [s].
@@ -82,6 +98,9 @@ pub struct Trajectory<'a> {
 impl Trajectory<'_> {
     /// Total duration [s].
     pub fn duration(&self) -> f64 {
+        if let Some(b) = self.samples.last() {
+            return b.t.max(0.0);
+        }
         let n = self.passes.len();
         self.passes.iter().map(|p| p.duration).sum::<f64>() + self.turn * n.saturating_sub(1) as f64
     }
@@ -140,8 +159,35 @@ impl Trajectory<'_> {
         )
     }
 
+    /// A recorded trajectory at `t` (held at its ends).
+    fn sampled(&self, t: f64) -> State {
+        let s = self.samples;
+        let i = s.partition_point(|x| x.t <= t);
+        let (a, b) = match i {
+            0 => (&s[0], &s[0]),
+            i if i >= s.len() => (&s[s.len() - 1], &s[s.len() - 1]),
+            i => (&s[i - 1], &s[i]),
+        };
+        let f = if b.t > a.t {
+            ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let qa = nalgebra::UnitQuaternion::from_euler_angles(a.rph[0], a.rph[1], a.rph[2]);
+        let qb = nalgebra::UnitQuaternion::from_euler_angles(b.rph[0], b.rph[1], b.rph[2]);
+        let q = qa.try_slerp(&qb, f, 1e-12).unwrap_or(qa);
+        let (roll, pitch, heading) = q.euler_angles();
+        State {
+            position: a.position.lerp(&b.position, f),
+            rph: [roll, pitch, heading],
+        }
+    }
+
     /// The truth at `t` [s after the start].
     pub fn state(&self, t: f64) -> State {
+        if !self.samples.is_empty() {
+            return self.sampled(t);
+        }
         let (mut p, _, course) = self.path(t);
         p.z = self.down + wave(self.motion.heave, t, 0.3);
         let roll = wave(self.motion.roll, t, 0.0);
@@ -157,6 +203,38 @@ impl Trajectory<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn recorded_samples_are_interpolated_through_north() {
+        // nalgebra's from_euler_angles(r, p, y) is Rz(y) Ry(p) Rx(r): the DESIGN.md convention.
+        let r = nalgebra::UnitQuaternion::from_euler_angles(0.1, -0.2, 2.0)
+            .to_rotation_matrix()
+            .into_inner();
+        assert!((r - crate::frames::rotation(0.1, -0.2, 2.0)).norm() < 1e-14);
+        let s = [
+            Sample {
+                t: 10.0,
+                position: Vector3::new(0.0, 0.0, 0.0),
+                rph: [0.0, 0.0, 359f64.to_radians()],
+            },
+            Sample {
+                t: 11.0,
+                position: Vector3::new(2.0, 0.0, 0.0),
+                rph: [0.0, 0.0, 1f64.to_radians()],
+            },
+        ];
+        let tr = Trajectory {
+            samples: &s,
+            passes: &[],
+            turn: 0.0,
+            down: 0.0,
+            motion: Motion::default(),
+        };
+        assert_eq!(tr.duration(), 11.0);
+        let st = tr.state(10.5);
+        assert!((st.position.x - 1.0).abs() < 1e-12);
+        assert!(st.rph[2].abs() < 1e-9, "{}", st.rph[2]);
+    }
 
     #[test]
     fn passes_and_turns_are_continuous() {
@@ -175,6 +253,7 @@ mod tests {
             },
         ];
         let tr = Trajectory {
+            samples: &[],
             passes: &passes,
             turn: 5.0,
             down: -1.0,

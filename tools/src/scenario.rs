@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
+use spherecal::sim::trajectory::Sample;
 use spherecal::sim::{InsConfig, LidarConfig, Motion, Object, Pass, Shape};
 use spherecal::time::{days_from_civil, unix_ns_to_gps, GpsTime};
 use spherecal::vlp16::ReturnMode;
@@ -163,8 +164,14 @@ pub struct TrajectorySpec {
     pub yaw: [f64; 2],
     /// Heave amplitude [m], period [s].
     pub heave: [f64; 2],
-    /// The passes.
+    /// The passes (none when `file` is given).
+    #[serde(default)]
     pub pass: Vec<PassSpec>,
+    /// A recorded trajectory instead of the passes: an SBET file (`.sbet`, `.out`; dated by
+    /// `start_utc`'s GPS week) or a CSV `time_s,north_m,east_m,down_m,roll_deg,pitch_deg,heading_deg`
+    /// (seconds after `start_utc`, site NED, body -> site NED attitude).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<String>,
 }
 
 /// A scenario that cannot be used, with the key at fault.
@@ -353,7 +360,11 @@ impl Scenario {
             "expected 0..=1",
         )?;
         let tr = &self.trajectory;
-        check(!tr.pass.is_empty(), "trajectory.pass", "at least one pass")?;
+        check(
+            !tr.pass.is_empty() || tr.file.is_some(),
+            "trajectory.pass",
+            "at least one pass (or trajectory.file)",
+        )?;
         check(
             tr.turn_s >= 0.0 && tr.turn_s < 600.0,
             "trajectory.turn_s",
@@ -396,7 +407,7 @@ impl Scenario {
         Ok(())
     }
 
-    /// Total scanning time [s].
+    /// Total scanning time [s] (of the passes; a recorded trajectory's is its span).
     pub fn duration_s(&self) -> f64 {
         let tr = &self.trajectory;
         tr.pass.iter().map(|p| p.duration_s).sum::<f64>()
@@ -493,12 +504,14 @@ impl Scenario {
     /// The simulated world of this scenario over its `passes()` and `objects()`.
     pub fn world<'a>(
         &self,
+        samples: &'a [Sample],
         passes: &'a [Pass],
         objects: &'a [Object],
     ) -> spherecal::sim::World<'a> {
         spherecal::sim::World {
             site: self.site(),
             trajectory: spherecal::sim::Trajectory {
+                samples,
                 passes,
                 turn: self.trajectory.turn_s,
                 down: self.trajectory.ins_down_m,
@@ -512,9 +525,69 @@ impl Scenario {
     }
 
     /// Run `f` with the simulated world of this scenario.
-    pub fn with_world<R>(&self, f: impl FnOnce(&spherecal::sim::World<'_>) -> R) -> R {
-        let (passes, objects) = (self.passes(), self.objects());
-        f(&self.world(&passes, &objects))
+    pub fn with_world<R>(
+        &self,
+        f: impl FnOnce(&spherecal::sim::World<'_>) -> R,
+    ) -> Result<R, ScenarioError> {
+        let (samples, passes, objects) = (self.samples()?, self.passes(), self.objects());
+        Ok(f(&self.world(&samples, &passes, &objects)))
+    }
+
+    /// The recorded trajectory of `trajectory.file`, in the site frame (empty without one).
+    pub fn samples(&self) -> Result<Vec<Sample>, ScenarioError> {
+        let Some(path) = &self.trajectory.file else {
+            return Ok(Vec::new());
+        };
+        let err = |e: String| ScenarioError(format!("trajectory.file {path}: {e}"));
+        let site = self.site();
+        let start = self.start();
+        let mut out = Vec::new();
+        if path.ends_with(".csv") {
+            let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+            let mut lines = text.lines();
+            let head = lines.next().unwrap_or("");
+            if head.trim() != "time_s,north_m,east_m,down_m,roll_deg,pitch_deg,heading_deg" {
+                return Err(err("line 1: expected the header time_s,north_m,east_m,down_m,roll_deg,pitch_deg,heading_deg".into()));
+            }
+            for (i, l) in lines.enumerate() {
+                let v: Vec<f64> = l
+                    .split(',')
+                    .map(|x| x.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| err(format!("line {}: {e}", i + 2)))?;
+                if v.len() != 7 || v.iter().any(|x| !x.is_finite()) {
+                    return Err(err(format!("line {}: expected 7 finite numbers", i + 2)));
+                }
+                out.push(Sample {
+                    t: v[0],
+                    position: Vector3::new(v[1], v[2], v[3]),
+                    rph: [v[4].to_radians(), v[5].to_radians(), v[6].to_radians()],
+                });
+            }
+        } else {
+            let f = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
+            let mut rd = spherecal_hal::sbet::SbetReader::new(std::io::BufReader::new(f));
+            let week = start.week_tow_ns().0 as u16;
+            while let Some(r) = rd.next_record().map_err(|e| err(e.to_string()))? {
+                let Some(t) = r.time(week) else { continue };
+                let g = spherecal::frames::Geodetic {
+                    lat: r.lat,
+                    lon: r.lon,
+                    h: r.h,
+                };
+                let rot = site.from_local_level(g.lat, g.lon)
+                    * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                out.push(Sample {
+                    t: (t.0 - start.0) as f64 * 1e-9,
+                    position: site.to_ned(&g),
+                    rph: spherecal::frames::roll_pitch_heading(&rot),
+                });
+            }
+        }
+        if out.len() < 2 || out.windows(2).any(|w| w[1].t <= w[0].t) {
+            return Err(err("needs two or more samples in increasing time".into()));
+        }
+        Ok(out)
     }
 
     /// LiDAR configuration.

@@ -55,6 +55,7 @@ const NETWORK_DELAY_NS: i64 = 1_400_000;
 pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir))
+        .map_err(|e| e.to_string())?
 }
 
 fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, String> {
