@@ -25,7 +25,7 @@ impl Default for NmSettings {
             max_iter: 2000,
             tol_x: 1e-4,
             tol_f: 1e-4,
-            restarts: 2,
+            restarts: 1,
         }
     }
 }

@@ -63,7 +63,7 @@ impl Default for Settings {
             shell_floor: 0.005,
             max_rounds: 10,
             cluster_ns: 20_000_000,
-            nm_points: 150,
+            nm_points: 100,
         }
     }
 }
