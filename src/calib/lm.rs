@@ -11,12 +11,14 @@
 //! clusters of returns of one sphere within `cluster_ns` of each other (Liang & Zeger 1986,
 //! with the usual G/(G-1) (n-1)/(n-p) correction), and never less than the classic one.
 //!
-//! A seventh, nuisance parameter is estimated with the six: a radius offset common to all
-//! spheres (`||x - c|| - (r + dr)`). Noise across the beam (grazing range noise, INS position
-//! and attitude noise) makes a sphere look larger by about `sigma_t^2 / r`, a LiDAR range bias
-//! makes it look smaller or larger, and with a fixed radius either would leak into the lever
-//! arm (measured: -1.8 sigma mean bias in y on table1-noisy). `dr` absorbs it; the reported
-//! covariance of the six is the marginal one.
+//! Two nuisance parameters are estimated with the six: `||x - c|| - r - dr - k g`. `dr` is a
+//! radius offset common to all spheres (a LiDAR range bias, a sphere's paint, and the isotropic
+//! part of what noise across the surface adds); `k g` is the inflation range noise causes where
+//! a beam grazes the sphere: a range error e along a beam at angle (u.n) to the normal moves the
+//! return by e (u.n) radially but adds e^2 (1 - (u.n)^2) / 2r to its distance from the centre, so
+//! with `g = 1 - (u.n)^2` and `k = sigma_r^2 / 2r` (errors in variables). With a fixed radius
+//! either would leak into the lever arm (measured: -1.8 sigma mean bias in y on table1-noisy).
+//! The reported covariance of the six is the marginal one.
 
 use super::objective::Problem;
 use super::P;
@@ -26,8 +28,8 @@ use nalgebra::{Cholesky, SMatrix, SVector, SymmetricEigen};
 pub type Mat6 = SMatrix<f64, P, P>;
 /// 6-vector.
 pub type Vec6 = SVector<f64, P>;
-/// The six and the radius offset.
-const Q: usize = P + 1;
+/// The six and the two nuisance parameters (radius offset, grazing inflation).
+const Q: usize = P + 2;
 type Mat7 = SMatrix<f64, Q, Q>;
 type Vec7 = SVector<f64, Q>;
 
@@ -65,18 +67,18 @@ pub struct LmResult {
     pub weakest: [f64; P],
 }
 
-fn row7(row: &[f64; P]) -> Vec7 {
-    Vec7::from_column_slice(&[row[0], row[1], row[2], row[3], row[4], row[5], -1.0])
+fn row7(row: &[f64; P], g: f64) -> Vec7 {
+    Vec7::from_column_slice(&[row[0], row[1], row[2], row[3], row[4], row[5], -1.0, -g])
 }
 
-fn normal_equations(pb: &Problem<'_>, b: &[f64; P], dr: f64) -> (Mat7, Vec7, f64, usize) {
+fn normal_equations(pb: &Problem<'_>, b: &[f64; P], nu: [f64; 2]) -> (Mat7, Vec7, f64, usize) {
     let mut jtj = Mat7::zeros();
     let mut jtr = Vec7::zeros();
     let mut cost = 0.0;
     let mut n = 0;
-    pb.jacobian(b, |r, row| {
-        let j = row7(row);
-        let r = r - dr;
+    pb.jacobian_with(b, |_, _, r, row, g| {
+        let j = row7(row, g);
+        let r = r - nu[0] - nu[1] * g;
         jtj += j * j.transpose();
         jtr += j * r;
         cost += r * r;
@@ -87,12 +89,12 @@ fn normal_equations(pb: &Problem<'_>, b: &[f64; P], dr: f64) -> (Mat7, Vec7, f64
 
 /// The cluster-robust middle term `sum_g s_g s_g^T` and the number of clusters. Observations of
 /// each sphere must be in time order.
-fn meat(pb: &Problem<'_>, b: &[f64; P], dr: f64, cluster_ns: i64) -> (Mat7, usize) {
+fn meat(pb: &Problem<'_>, b: &[f64; P], nu: [f64; 2], cluster_ns: i64) -> (Mat7, usize) {
     let mut m = Mat7::zeros();
     let mut g = Vec7::zeros();
     let mut key: Option<(usize, i64)> = None;
     let mut clusters = 0;
-    pb.jacobian_with(b, |j, o, r, row| {
+    pb.jacobian_with(b, |j, o, r, row, gz| {
         let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
         if key != Some(k) {
             if key.is_some() {
@@ -102,7 +104,7 @@ fn meat(pb: &Problem<'_>, b: &[f64; P], dr: f64, cluster_ns: i64) -> (Mat7, usiz
             key = Some(k);
             clusters += 1;
         }
-        g += row7(row) * (r - dr);
+        g += row7(row, gz) * (r - nu[0] - nu[1] * gz);
     });
     if key.is_some() {
         m += g * g.transpose();
@@ -114,8 +116,8 @@ fn meat(pb: &Problem<'_>, b: &[f64; P], dr: f64, cluster_ns: i64) -> (Mat7, usiz
 /// `cluster_ns` of each other on one sphere count as one cluster for the covariance.
 pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64) -> LmResult {
     let mut b = *b0;
-    let mut dr = 0.0;
-    let (mut jtj, mut jtr, mut cost, mut n) = normal_equations(pb, &b, dr);
+    let mut nu = [0.0; 2];
+    let (mut jtj, mut jtr, mut cost, mut n) = normal_equations(pb, &b, nu);
     let mut lambda = 1e-3;
     let mut iterations = 0;
     let mut converged = false;
@@ -134,11 +136,11 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
         for i in 0..P {
             trial[i] += delta[i];
         }
-        let trial_dr = dr + delta[P];
-        let (tj, tr, tc, tn) = normal_equations(pb, &trial, trial_dr);
+        let trial_nu = [nu[0] + delta[P], nu[1] + delta[P + 1]];
+        let (tj, tr, tc, tn) = normal_equations(pb, &trial, trial_nu);
         if tc <= cost {
             b = trial;
-            dr = trial_dr;
+            nu = trial_nu;
             let small =
                 delta.iter().all(|d| d.abs() < 1e-11) || (cost - tc) <= 1e-15 * cost.max(1e-30);
             (jtj, jtr, cost, n) = (tj, tr, tc, tn);
@@ -158,7 +160,7 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
     let dof = n.saturating_sub(Q).max(1) as f64;
     let s2 = cost / dof;
     let inv7 = jtj.try_inverse();
-    let (mid, clusters) = meat(pb, &b, dr, cluster_ns);
+    let (mid, clusters) = meat(pb, &b, nu, cluster_ns);
     let g = clusters as f64;
     let corr = if clusters > 1 {
         g / (g - 1.0) * (n as f64 - 1.0) / dof
@@ -218,7 +220,7 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
     }
     LmResult {
         b,
-        radius_offset: dr,
+        radius_offset: nu[0],
         iterations,
         converged,
         n,

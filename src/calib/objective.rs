@@ -84,20 +84,22 @@ impl Problem<'_> {
     /// Visit every residual with its gradient by b (analytic: `n = (x - c)/||x - c||`,
     /// `dr/da = R_k^T n`, `dr/dtheta_i = (R_k^T n) . (dR_li/dtheta_i q_k)`).
     pub fn jacobian(&self, b: &[f64; P], mut f: impl FnMut(f64, &[f64; P])) {
-        self.jacobian_with(b, |_, _, r, row| f(r, row));
+        self.jacobian_with(b, |_, _, r, row, _| f(r, row));
     }
 
-    /// As [`Self::jacobian`], also giving the sphere index and the observation.
+    /// As [`Self::jacobian`], also giving the sphere index, the observation, and the grazing
+    /// factor `1 - (u.n)^2` of its beam `u` on the surface normal `n` (0 head-on, 1 tangent).
     pub fn jacobian_with(
         &self,
         b: &[f64; P],
-        mut f: impl FnMut(usize, &Observation, f64, &[f64; P]),
+        mut f: impl FnMut(usize, &Observation, f64, &[f64; P], f64),
     ) {
         let (r_li, d) = rotation_and_derivatives(b);
         let a = Vector3::new(b[3], b[4], b[5]);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                let dx = (o.position - s.target.center) + o.r_ig * (a + r_li * o.q_l);
+                let y = r_li * o.q_l;
+                let dx = (o.position - s.target.center) + o.r_ig * (a + y);
                 let norm = dx.norm();
                 if norm == 0.0 {
                     continue;
@@ -111,7 +113,10 @@ impl Problem<'_> {
                     g.y,
                     g.z,
                 ];
-                f(j, o, norm - s.target.radius, &row);
+                // The beam R_ig y against the normal: (R y).n = y.(R^T n) = y.g.
+                let yn = y.norm();
+                let cos = if yn > 0.0 { y.dot(&g) / yn } else { 1.0 };
+                f(j, o, norm - s.target.radius, &row, 1.0 - cos * cos);
             }
         }
     }
