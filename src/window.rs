@@ -151,21 +151,33 @@ struct Sequence {
     omega: Vector3<f64>,
     /// How far carrying the pose on can move a return within `CARRY_NS` (up to 150 m away).
     slack: f64,
+    /// Each window in the LiDAR frame of this pose: centre and squared reach (radius + margin +
+    /// slack), f32. `R_ig R_li` is a rotation, so distances are the same in both frames.
+    windows: heapless::Vec<([f32; 3], f32), MAX_TARGETS>,
 }
 
 impl Sequence {
-    fn new(motion: &Motion, time: GpsTime, mount: &Mount) -> Self {
+    fn new(motion: &Motion, time: GpsTime, mount: &Mount, targets: &[Target], margin: f64) -> Self {
         let r = motion.pose.r_ig;
+        let m = r * mount.r_li;
+        let r_lever = r * mount.lever;
+        let slack = (motion.velocity.norm() + motion.rate.norm() * 150.0) * CARRY_NS as f64 * 1e-9 + 0.01;
+        let mut windows = heapless::Vec::new();
+        for t in targets.iter().take(MAX_TARGETS) {
+            let c = m.transpose() * (t.center - motion.pose.position - r_lever);
+            let reach = t.radius + margin + slack;
+            let _ = windows.push(([c.x as f32, c.y as f32, c.z as f32], (reach * reach) as f32));
+        }
         Self {
+            windows,
             motion: *motion,
             time,
             position: motion.pose.position,
             velocity: motion.velocity,
-            m: r * mount.r_li,
-            r_lever: r * mount.lever,
+            m,
+            r_lever,
             omega: r * motion.rate,
-            slack: (motion.velocity.norm() + motion.rate.norm() * 150.0) * CARRY_NS as f64 * 1e-9
-                + 0.01,
+            slack,
         }
     }
 }
@@ -217,7 +229,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
             });
             if !fresh {
                 seq = match history.interpolate(t) {
-                    Ok(m) => Some(Sequence::new(&m, t, &self.mount)),
+                    Ok(m) => Some(Sequence::new(&m, t, &self.mount, self.targets, self.margin)),
                     Err(e) => {
                         match e {
                             AlignError::Empty | AlignError::BeforeHistory => {
@@ -231,6 +243,16 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                 };
             }
             let Some(sq) = &seq else { continue };
+            // Broad phase in the LiDAR frame, f32: is the return near any window at all?
+            if each.is_none()
+                && !sq.windows.iter().any(|(c, r2)| {
+                    let (dx, dy, dz) = (p.x - c[0], p.y - c[1], p.z - c[2]);
+                    dx * dx + dy * dy + dz * dz <= *r2
+                })
+            {
+                self.stats.georeferenced += 1;
+                continue;
+            }
             let dt = (t.0 - sq.time.0) as f64 * 1e-9;
             // The return in the LiDAR frame: the decoder's point (eq. 1 + beam offset).
             let q_l = Vector3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z));
