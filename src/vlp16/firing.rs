@@ -177,6 +177,23 @@ impl PointBuf {
 }
 
 const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;
+
+/// Per channel (0..31): the firing's index n = 24 s + l within its block (as f32), its time
+/// after the block's first firing [ns], and the laser's vertical offset as f32.
+const CHANNEL_TABLE: ([f32; CHANNELS], [u32; CHANNELS], [f32; CHANNELS]) = {
+    let mut k = [0f32; CHANNELS];
+    let mut off = [0u32; CHANNELS];
+    let mut v = [0f32; CHANNELS];
+    let mut ch = 0;
+    while ch < CHANNELS {
+        let (seq, laser) = (ch / LASERS, ch % LASERS);
+        k[ch] = (seq * 24 + laser) as f32;
+        off[ch] = seq as u32 * SEQUENCE_NS + laser as u32 * FIRING_NS;
+        v[ch] = VERTICAL_OFFSET_M[laser] as f32;
+        ch += 1;
+    }
+    (k, off, v)
+};
 const TWO_PI: f32 = core::f32::consts::TAU;
 /// Above this block-to-block azimuth step (about 5.7 deg; a VLP-16 at 1200 rpm turns 0.4 deg per
 /// block) the small-angle series is not used and each point gets an exact sincos.
@@ -248,9 +265,7 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
                 continue;
             }
             let laser = ch % LASERS;
-            let seq = ch / LASERS;
-            let k = (seq * 24 + laser) as f32;
-            let delta = step * k;
+            let delta = step * CHANNEL_TABLE.0[ch];
             let (st, ct) = if exact {
                 libm::sincosf(a0 + delta)
             } else {
@@ -259,17 +274,15 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
             };
             let r = f32::from(d) * 0.002;
             let rxy = r * COS_ELEVATION[laser];
-            let mut az = a0 + delta;
-            if az >= TWO_PI {
-                az -= TWO_PI;
-            }
+            let az = a0 + delta;
+            let az = az - if az >= TWO_PI { TWO_PI } else { 0.0 };
             if let Some(slot) = out.points.get_mut(n) {
                 *slot = Point {
                     x: rxy * st,
                     y: rxy * ct,
-                    z: r * SIN_ELEVATION[laser] + VERTICAL_OFFSET_M[laser] as f32,
+                    z: r * SIN_ELEVATION[laser] + CHANNEL_TABLE.2[ch],
                     azimuth: az,
-                    offset_ns: block_base + seq as u32 * SEQUENCE_NS + laser as u32 * FIRING_NS,
+                    offset_ns: block_base + CHANNEL_TABLE.1[ch],
                     distance_raw: d,
                     intensity: packet.reflectivity(b, ch),
                     block: b as u8,
