@@ -9,6 +9,10 @@
 //! first-order carry errs by (rate dt)^2 / 2 < 2.5e-7 rad at 1 rad/s (8 um at 33 m). Holding
 //! the attitude fixed over even one firing sequence would cost up to 6.6e-5 rad (2 mm at 33 m)
 //! in table1's 1.9 rad/s turns (measured, tests/georef.rs).
+//!
+//! Broad phase: for each carried pose the sphere centres are moved into the LiDAR frame once,
+//! so a return far from every window costs one f32 distance test per sphere; only returns near a
+//! window (or all of them when a point cloud is wanted) are georeferenced exactly.
 
 use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
@@ -161,7 +165,8 @@ impl Sequence {
         let r = motion.pose.r_ig;
         let m = r * mount.r_li;
         let r_lever = r * mount.lever;
-        let slack = (motion.velocity.norm() + motion.rate.norm() * 150.0) * CARRY_NS as f64 * 1e-9 + 0.01;
+        let slack =
+            (motion.velocity.norm() + motion.rate.norm() * 150.0) * CARRY_NS as f64 * 1e-9 + 0.01;
         let mut windows = heapless::Vec::new();
         for t in targets.iter().take(MAX_TARGETS) {
             let c = m.transpose() * (t.center - motion.pose.position - r_lever);

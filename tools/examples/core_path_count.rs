@@ -2,13 +2,13 @@
 //! 20 times) for deterministic instruction counts: `valgrind --tool=callgrind
 //! target/release/examples/core_path_count` (criterion timings on a shared machine swing +-15 %).
 
+use nalgebra::Vector3;
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::frames::rotation;
 use spherecal::georef::Mount;
 use spherecal::time::{GpsTime, LidarClock};
 use spherecal::vlp16::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::window::{Batch, Target, WindowStats, Windowing};
-use nalgebra::Vector3;
 use std::hint::black_box;
 
 fn main() {
@@ -73,7 +73,13 @@ fn main() {
     let mut sum = 0;
     for _ in 0..20 {
         let mut clock = clock;
-        let mut win = Windowing { targets: &targets, margin: 0.5, mount, batches: &mut batches, stats: WindowStats::default() };
+        let mut win = Windowing {
+            targets: &targets,
+            margin: 0.5,
+            mount,
+            batches: &mut batches,
+            stats: WindowStats::default(),
+        };
         for d in &data {
             let p = DataPacket::new_checked(black_box(&d[..])).unwrap();
             let t0 = clock.to_gps(p.timestamp_us()).unwrap();
