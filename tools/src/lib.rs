@@ -4,6 +4,7 @@
 
 pub mod calibrate;
 pub mod decode;
+pub mod fixtures;
 pub mod georef;
 pub mod ins;
 pub mod montecarlo;
