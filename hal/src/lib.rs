@@ -10,6 +10,7 @@ pub mod packet;
 pub mod pcap;
 pub mod sbet;
 pub mod serial;
+pub mod udp;
 pub mod vlp16;
 
 pub use packet::{Datagram, PacketSource, Record, SkipReason};
