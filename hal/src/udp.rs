@@ -35,7 +35,12 @@ impl UdpSource {
         s.bind(&SocketAddr::V4(SocketAddrV4::new(addr, port)).into())?;
         let socket: UdpSocket = s.into();
         let port = socket.local_addr()?.port();
-        Ok(Self { socket, port, buf: Box::new([0; 65_536]), received: 0 })
+        Ok(Self {
+            socket,
+            port,
+            buf: Box::new([0; 65_536]),
+            received: 0,
+        })
     }
 
     /// The port actually bound.
@@ -56,11 +61,30 @@ impl UdpSource {
                 self.received += 1;
                 let (src_addr, src_port) = match from {
                     SocketAddr::V4(a) => (*a.ip(), a.port()),
-                    SocketAddr::V6(a) => (a.ip().to_ipv4_mapped().unwrap_or(Ipv4Addr::UNSPECIFIED), a.port()),
+                    SocketAddr::V6(a) => (
+                        a.ip().to_ipv4_mapped().unwrap_or(Ipv4Addr::UNSPECIFIED),
+                        a.port(),
+                    ),
                 };
-                Ok(Some(Datagram { time, src_addr, src_port, dst_port: self.port, payload: &self.buf[..n], offset: 0 }))
+                Ok(Some(Datagram {
+                    time,
+                    src_addr,
+                    src_port,
+                    dst_port: self.port,
+                    payload: &self.buf[..n],
+                    offset: 0,
+                }))
             }
-            Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted) => Ok(None),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        | io::ErrorKind::Interrupted
+                ) =>
+            {
+                Ok(None)
+            }
             Err(e) => Err(e),
         }
     }

@@ -8,7 +8,10 @@ use std::time::{Duration, Instant};
 #[test]
 fn loopback_datagrams_arrive_whole_and_in_order() {
     let mut src = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(50)).unwrap();
-    assert!(src.recv_buffer().unwrap() >= 100_000, "a receive buffer of at least 100 kB");
+    assert!(
+        src.recv_buffer().unwrap() >= 100_000,
+        "a receive buffer of at least 100 kB"
+    );
     let port = src.port();
     let tx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
     let mut payload = vec![0u8; 1206];
@@ -20,7 +23,10 @@ fn loopback_datagrams_arrive_whole_and_in_order() {
     for i in 0..200u32 {
         let d = src.recv().unwrap().expect("a datagram");
         assert_eq!(d.payload.len(), 1206);
-        assert_eq!(u32::from_le_bytes(d.payload[1200..1204].try_into().unwrap()), i);
+        assert_eq!(
+            u32::from_le_bytes(d.payload[1200..1204].try_into().unwrap()),
+            i
+        );
         assert_eq!(d.dst_port, port);
         assert_eq!(d.src_addr, Ipv4Addr::LOCALHOST);
         if let Some(t) = last {

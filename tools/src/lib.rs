@@ -2,6 +2,7 @@
 //! and benchmarks call exactly what the command runs.
 #![forbid(unsafe_code)]
 
+pub mod board;
 pub mod calibrate;
 pub mod decode;
 pub mod fixtures;

@@ -1,0 +1,248 @@
+//! `boards/*.toml`: one file per rig (README "Boards"). Unknown keys and impossible values are
+//! refused with the key's name.
+
+use serde::{Deserialize, Serialize};
+use std::net::Ipv4Addr;
+
+/// LiDAR network settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarNet {
+    /// Address to bind on this computer.
+    pub bind_addr: String,
+    /// The sensor's address.
+    pub sensor_addr: String,
+    /// Data packets' UDP port.
+    pub data_port: u16,
+    /// Position packets' UDP port.
+    pub position_port: u16,
+}
+
+/// The INS link.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsLink {
+    /// `vn200` (live serial) or `sbet` (trajectory processed afterwards).
+    pub kind: String,
+    /// Serial device (`vn200`; empty: given on the command line).
+    #[serde(default)]
+    pub serial: String,
+    /// Baud rate (`vn200`).
+    #[serde(default)]
+    pub baud: u32,
+    /// Output rate [Hz].
+    pub rate_hz: f64,
+    /// Binary output fields expected (Common group names).
+    #[serde(default)]
+    pub fields: Vec<String>,
+}
+
+/// Status console.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Console {
+    /// A serial device or `stdout`.
+    pub device: String,
+    /// Baud rate for a serial console.
+    #[serde(default)]
+    pub baud: u32,
+}
+
+/// Raw logging.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Log {
+    /// Folder.
+    pub dir: String,
+    /// Rotate files at this size [MB].
+    pub rotate_mb: u64,
+}
+
+/// Mounting a-priori values of the rig.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountApriori {
+    /// Roll, pitch, heading [deg].
+    pub boresight_deg: [f64; 3],
+    /// x, y, z [m].
+    pub lever_arm_m: [f64; 3],
+}
+
+/// A board file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Board {
+    /// Name.
+    pub name: String,
+    /// GPS - UTC [s].
+    pub leap_seconds: i64,
+    /// LiDAR network.
+    pub lidar: LidarNet,
+    /// INS link.
+    pub ins: InsLink,
+    /// Status console.
+    pub console: Console,
+    /// Raw logging.
+    pub log: Log,
+    /// A-priori mounting.
+    pub mount: MountApriori,
+}
+
+/// Standard serial rates (VN-200 register 5 allows these).
+pub const BAUDS: [u32; 9] = [
+    9600, 19200, 38400, 57600, 115_200, 128_000, 230_400, 460_800, 921_600,
+];
+
+/// Field names the simulated and real VN-200 Common group can carry.
+pub const COMMON_FIELDS: [&str; 15] = [
+    "TimeStartup",
+    "TimeGps",
+    "TimeSyncIn",
+    "YawPitchRoll",
+    "Quaternion",
+    "AngularRate",
+    "Position",
+    "VelNed",
+    "Accel",
+    "Imu",
+    "MagPres",
+    "DeltaThetaVel",
+    "InsStatus",
+    "SyncInCnt",
+    "TimeGpsPps",
+];
+
+impl Board {
+    /// Parse and check; errors name the key.
+    pub fn from_toml(text: &str) -> Result<Self, String> {
+        let b: Board = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
+        b.check()?;
+        Ok(b)
+    }
+
+    /// Read a board file.
+    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    fn check(&self) -> Result<(), String> {
+        let bad = |k: &str, why: &str| Err(format!("{k}: {why}"));
+        if !(0..=100).contains(&self.leap_seconds) {
+            return bad("leap_seconds", "expected 0..=100");
+        }
+        for (k, v) in [
+            ("lidar.bind_addr", &self.lidar.bind_addr),
+            ("lidar.sensor_addr", &self.lidar.sensor_addr),
+        ] {
+            if v.parse::<Ipv4Addr>().is_err() {
+                return bad(k, "expected an IPv4 address");
+            }
+        }
+        if self.lidar.data_port == 0
+            || self.lidar.position_port == 0
+            || self.lidar.data_port == self.lidar.position_port
+        {
+            return bad("lidar.data_port", "ports must be non-zero and differ");
+        }
+        match self.ins.kind.as_str() {
+            "vn200" => {
+                if !BAUDS.contains(&self.ins.baud) {
+                    return bad("ins.baud", "expected a VN-200 rate (9600 .. 921600)");
+                }
+                if let Some(f) = self
+                    .ins
+                    .fields
+                    .iter()
+                    .find(|f| !COMMON_FIELDS.contains(&f.as_str()))
+                {
+                    return bad("ins.fields", &format!("unknown Common-group field {f:?}"));
+                }
+                for need in ["YawPitchRoll", "Position"] {
+                    if !self.ins.fields.iter().any(|f| f == need) {
+                        return bad("ins.fields", &format!("{need} is needed for a pose"));
+                    }
+                }
+                if !self.ins.fields.iter().any(|f| f == "TimeGps") {
+                    return bad("ins.fields", "TimeGps is needed to time the poses");
+                }
+            }
+            "sbet" => {}
+            _ => return bad("ins.kind", "expected vn200 or sbet"),
+        }
+        if !(1.0..=400.0).contains(&self.ins.rate_hz) {
+            return bad("ins.rate_hz", "expected 1..=400");
+        }
+        if self.console.device != "stdout" && !BAUDS.contains(&self.console.baud) {
+            return bad(
+                "console.baud",
+                "expected a standard rate for a serial console",
+            );
+        }
+        if self.log.rotate_mb == 0 {
+            return bad("log.rotate_mb", "expected > 0");
+        }
+        if !self
+            .mount
+            .boresight_deg
+            .iter()
+            .chain(&self.mount.lever_arm_m)
+            .all(|x| x.is_finite())
+        {
+            return bad("mount", "not finite");
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn board(name: &str) -> String {
+        std::fs::read_to_string(format!(
+            "{}/../boards/{name}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn the_three_boards_parse() {
+        for n in ["rig-vn200", "vessel-posmv", "sim"] {
+            let b = Board::from_toml(&board(n)).unwrap_or_else(|e| panic!("{n}: {e}"));
+            assert_eq!(b.name, n);
+        }
+    }
+
+    #[test]
+    fn invalid_boards_are_named() {
+        let t = board("rig-vn200");
+        assert!(
+            Board::from_toml(&t.replace("baud = 921600", "baud = 921600\nparity = 1"))
+                .unwrap_err()
+                .contains("unknown field `parity`")
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("baud = 921600", "baud = 1000")).unwrap_err(),
+            "ins.baud: expected a VN-200 rate (9600 .. 921600)"
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("position_port = 8308", "position_port = 2368"))
+                .unwrap_err(),
+            "lidar.data_port: ports must be non-zero and differ"
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("\"Position\", ", "")).unwrap_err(),
+            "ins.fields: Position is needed for a pose"
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("192.168.1.77", "lidar-host")).unwrap_err(),
+            "lidar.bind_addr: expected an IPv4 address"
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\"")).unwrap_err(),
+            "ins.kind: expected vn200 or sbet"
+        );
+    }
+}
