@@ -11,6 +11,7 @@ pub mod ins;
 pub mod montecarlo;
 pub mod pipeline;
 pub mod plot;
+pub mod replay;
 pub mod scenario;
 pub mod site;
 pub mod synth;

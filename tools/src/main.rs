@@ -117,6 +117,29 @@ enum Cmd {
         #[arg(long)]
         report: Option<PathBuf>,
     },
+    /// Play recorded files back: UDP datagrams to their ports, serial bytes to a device.
+    Replay {
+        /// A folder with lidar.pcap and ins.bin (as `synth` writes).
+        dir: Option<PathBuf>,
+        /// The capture (instead of DIR).
+        #[arg(long)]
+        pcap: Option<PathBuf>,
+        /// The serial bytes or log (instead of DIR).
+        #[arg(long)]
+        ins: Option<PathBuf>,
+        /// Host to send the datagrams to.
+        #[arg(long, default_value = "127.0.0.1")]
+        udp: std::net::Ipv4Addr,
+        /// Serial device to write the INS bytes to (none: the bytes are not replayed).
+        #[arg(long)]
+        serial: Option<String>,
+        /// Baud rate of the serial device.
+        #[arg(long, default_value_t = 921_600)]
+        baud: u32,
+        /// Speed: a factor of the recorded pacing (1 = real time) or max.
+        #[arg(long, default_value = "1")]
+        speed: spherecal_tools::replay::Speed,
+    },
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
     Demo,
@@ -163,6 +186,15 @@ fn main() -> ExitCode {
     };
     match cmd {
         Cmd::Demo => demo(),
+        Cmd::Replay {
+            dir,
+            pcap,
+            ins,
+            udp,
+            serial,
+            baud,
+            speed,
+        } => replay(dir, pcap, ins, udp, serial, baud, speed),
         Cmd::Montecarlo {
             scenario,
             trials,
@@ -382,6 +414,63 @@ fn demo() -> ExitCode {
         let _ = std::fs::remove_file(dir.join(f));
     }
     code
+}
+
+fn replay(
+    dir: Option<PathBuf>,
+    pcap: Option<PathBuf>,
+    ins: Option<PathBuf>,
+    udp: std::net::Ipv4Addr,
+    serial: Option<String>,
+    baud: u32,
+    speed: spherecal_tools::replay::Speed,
+) -> ExitCode {
+    use spherecal_tools::replay::{replay_serial, replay_udp};
+    let pcap = pcap.or_else(|| dir.as_ref().map(|d| d.join("lidar.pcap")));
+    let ins = ins.or_else(|| dir.as_ref().map(|d| d.join("ins.bin")));
+    let Some(pcap) = pcap else {
+        eprintln!("spherecal replay: give DIR or --pcap");
+        return ExitCode::from(2);
+    };
+    let result = std::thread::scope(|sc| {
+        let serial_job = match (&serial, &ins) {
+            (Some(dev), Some(ins)) => Some(sc.spawn(move || -> Result<u64, String> {
+                let mut port = serialport::new(dev.as_str(), baud)
+                    .open()
+                    .map_err(|e| format!("{dev}: {e}"))?;
+                replay_serial(ins, &mut port, baud, speed)
+            })),
+            _ => None,
+        };
+        let udp_result = replay_udp(&pcap, udp, speed);
+        let serial_result = serial_job.map(|j| {
+            j.join()
+                .unwrap_or_else(|_| Err("serial thread panicked".into()))
+        });
+        (udp_result, serial_result)
+    });
+    match result {
+        (Ok(u), s) => {
+            sayln!(
+                "sent {} datagrams to {udp} ({} records skipped)",
+                u.sent,
+                u.skipped
+            );
+            match s {
+                Some(Ok(n)) => sayln!("wrote {n} bytes to {}", serial.unwrap_or_default()),
+                Some(Err(e)) => {
+                    eprintln!("spherecal replay: {e}");
+                    return ExitCode::from(2);
+                }
+                None => {}
+            }
+            ExitCode::SUCCESS
+        }
+        (Err(e), _) => {
+            eprintln!("spherecal replay: {e}");
+            ExitCode::from(2)
+        }
+    }
 }
 
 /// Six comma-separated numbers.

@@ -1,0 +1,93 @@
+//! `replay` through loopback and a byte sink: everything sent arrives, paced as recorded.
+
+mod common;
+
+use spherecal_hal::pcap::PcapSource;
+use spherecal_hal::udp::UdpSource;
+use spherecal_hal::{PacketSource, Record};
+use spherecal_tools::replay::{replay_serial, replay_udp, Speed};
+use std::net::Ipv4Addr;
+use std::time::{Duration, Instant};
+
+#[test]
+fn capture_replayed_to_loopback_arrives_whole() {
+    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    // Bind both VLP-16 ports on loopback (any free ports would do, but the capture names them).
+    let Ok(data) = UdpSource::bind(Ipv4Addr::LOCALHOST, 2368, Duration::from_millis(50)) else {
+        panic!("UDP 2368 on loopback is taken: another spherecal is running");
+    };
+    let pos = UdpSource::bind(Ipv4Addr::LOCALHOST, 8308, Duration::from_millis(50)).unwrap();
+    // The payloads in the file.
+    let mut want = Vec::new();
+    let mut src = PcapSource::open(&pcap).unwrap();
+    while let Some(Record::Udp(d)) = src.next_record().unwrap() {
+        want.push((d.dst_port, d.payload.to_vec()));
+    }
+    let n_data = want.iter().filter(|w| w.0 == 2368).count();
+    let n_pos = want.len() - n_data;
+    // One receiver thread per port, as the rig has.
+    let recv_all = |mut src: UdpSource, n: usize| {
+        std::thread::spawn(move || {
+            let mut got = Vec::new();
+            let t = Instant::now();
+            while got.len() < n && t.elapsed() < Duration::from_secs(20) {
+                if let Some(d) = src.recv().unwrap() {
+                    got.push(d.payload.to_vec());
+                }
+            }
+            got
+        })
+    };
+    let (rd, rp) = (recv_all(data, n_data), recv_all(pos, n_pos));
+    let t0 = Instant::now();
+    let sent = replay_udp(&pcap, Ipv4Addr::LOCALHOST, Speed::Factor(4.0)).unwrap();
+    let (got_data, got_pos) = (rd.join().unwrap(), rp.join().unwrap());
+    assert_eq!(sent.sent as usize, want.len());
+    let want_data: Vec<_> = want
+        .iter()
+        .filter(|w| w.0 == 2368)
+        .map(|w| w.1.clone())
+        .collect();
+    let want_pos: Vec<_> = want
+        .iter()
+        .filter(|w| w.0 == 8308)
+        .map(|w| w.1.clone())
+        .collect();
+    assert_eq!(got_data.len(), want_data.len(), "every data packet arrives");
+    assert_eq!(
+        got_pos.len(),
+        want_pos.len(),
+        "every position packet arrives"
+    );
+    assert!(
+        got_data == want_data,
+        "data packets arrive whole and in order"
+    );
+    assert!(got_pos == want_pos, "position packets too");
+    // The capture spans 0.39 s: at 4x it takes about 0.1 s, not much less.
+    assert!(
+        t0.elapsed() >= Duration::from_millis(80),
+        "{:?}",
+        t0.elapsed()
+    );
+}
+
+#[test]
+fn serial_bytes_replayed_at_the_baud_rate() {
+    let file = common::shared_data("vn200/vn310_imu.bin");
+    let bytes = std::fs::read(&file).unwrap();
+    let mut out = Vec::new();
+    let t = Instant::now();
+    // 3,438 bytes at 115200 baud x 4: 3438 * 10 / 460800 = 75 ms.
+    let n = replay_serial(&file, &mut out, 115_200, Speed::Factor(4.0)).unwrap();
+    assert_eq!(n as usize, bytes.len());
+    assert_eq!(out, bytes);
+    assert!(
+        t.elapsed() >= Duration::from_millis(65),
+        "{:?}",
+        t.elapsed()
+    );
+    let mut fast = Vec::new();
+    replay_serial(&file, &mut fast, 115_200, Speed::Max).unwrap();
+    assert_eq!(fast, bytes);
+}
