@@ -14,6 +14,7 @@ pub mod plot;
 pub mod replay;
 pub mod scenario;
 pub mod site;
+pub mod status;
 pub mod synth;
 
 use std::path::PathBuf;

@@ -1,0 +1,160 @@
+//! The rig's status line, one a second on the console (a serial port or stdout).
+//!
+//! ```text
+//! t=12s pkt/s=754 drop=0/0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
+//! ```
+//! Fields, space separated, `key=value`: `t` seconds since start; `pkt/s` LiDAR data packets in
+//! the last second; `drop` ring drops LiDAR/INS so far; `pps` the position packets' PPS state;
+//! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time at the last aligned packet [ms];
+//! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
+//! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`.
+
+use std::fmt::Write as _;
+
+/// What the status line shows.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Status {
+    /// Seconds since start.
+    pub t_s: u64,
+    /// Data packets in the last second.
+    pub packets_per_s: u64,
+    /// Ring drops: LiDAR, INS.
+    pub drops: [u64; 2],
+    /// PPS state name.
+    pub pps: String,
+    /// INS mode name.
+    pub ins: String,
+    /// LiDAR minus INS time [ms], if known.
+    pub lag_ms: Option<f64>,
+    /// (sphere id, returns in its window).
+    pub windows: Vec<(String, u64)>,
+    /// Latest calibration [deg, m] and its 1-sigma.
+    pub calibration: Option<([f64; 6], [f64; 6])>,
+}
+
+impl Status {
+    /// The line, without a newline.
+    pub fn line(&self) -> String {
+        let mut o = String::with_capacity(160);
+        let _ = write!(
+            o,
+            "t={}s pkt/s={} drop={}/{} pps={} ins={}",
+            self.t_s, self.packets_per_s, self.drops[0], self.drops[1], self.pps, self.ins
+        );
+        match self.lag_ms {
+            Some(l) => {
+                let _ = write!(o, " lag_ms={l:+.1}");
+            }
+            None => o.push_str(" lag_ms=-"),
+        }
+        o.push_str(" win=");
+        if self.windows.is_empty() {
+            o.push('-');
+        }
+        for (i, (id, n)) in self.windows.iter().enumerate() {
+            let _ = write!(o, "{}{id}:{n}", if i > 0 { "," } else { "" });
+        }
+        match &self.calibration {
+            Some((b, s)) => {
+                let _ = write!(
+                    o,
+                    " cal={:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
+                    b[0], b[1], b[2], b[3], b[4], b[5]
+                );
+                let _ = write!(
+                    o,
+                    " sig={:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+                    s[0], s[1], s[2], s[3], s[4], s[5]
+                );
+            }
+            None => o.push_str(" cal=- sig=-"),
+        }
+        o
+    }
+
+    /// Parse a line back (for tests and for tools that watch the console).
+    pub fn parse(line: &str) -> Option<Self> {
+        let mut s = Status::default();
+        for kv in line.split_whitespace() {
+            let (k, v) = kv.split_once('=')?;
+            match k {
+                "t" => s.t_s = v.strip_suffix('s')?.parse().ok()?,
+                "pkt/s" => s.packets_per_s = v.parse().ok()?,
+                "drop" => {
+                    let (a, b) = v.split_once('/')?;
+                    s.drops = [a.parse().ok()?, b.parse().ok()?];
+                }
+                "pps" => s.pps = v.to_string(),
+                "ins" => s.ins = v.to_string(),
+                "lag_ms" => {
+                    s.lag_ms = if v == "-" {
+                        None
+                    } else {
+                        Some(v.parse().ok()?)
+                    }
+                }
+                "win" if v != "-" => {
+                    for w in v.split(',') {
+                        let (id, n) = w.split_once(':')?;
+                        s.windows.push((id.to_string(), n.parse().ok()?));
+                    }
+                }
+                "win" => {}
+                "cal" | "sig" if v == "-" => {}
+                "cal" | "sig" => {
+                    let vals: Vec<f64> = v
+                        .split(',')
+                        .map(|x| x.parse().ok())
+                        .collect::<Option<_>>()?;
+                    let a: [f64; 6] = vals.try_into().ok()?;
+                    let c = s.calibration.get_or_insert(([0.0; 6], [0.0; 6]));
+                    if k == "cal" {
+                        c.0 = a;
+                    } else {
+                        c.1 = a;
+                    }
+                }
+                _ => return None,
+            }
+        }
+        Some(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_format_and_round_trip() {
+        let s = Status {
+            t_s: 12,
+            packets_per_s: 754,
+            drops: [0, 3],
+            pps: "locked".into(),
+            ins: "tracking".into(),
+            lag_ms: Some(1.4),
+            windows: vec![("S1".into(), 812), ("S2".into(), 790)],
+            calibration: Some((
+                [179.5, -44.9, 1.2, 1.5, -1.24, -1.36],
+                [0.0003, 0.0004, 0.0002, 0.0001, 0.0001, 0.0001],
+            )),
+        };
+        assert_eq!(
+            s.line(),
+            "t=12s pkt/s=754 drop=0/3 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001"
+        );
+        assert_eq!(Status::parse(&s.line()), Some(s));
+        let empty = Status {
+            pps: "none".into(),
+            ins: "aligning".into(),
+            ..Status::default()
+        };
+        assert_eq!(
+            empty.line(),
+            "t=0s pkt/s=0 drop=0/0 pps=none ins=aligning lag_ms=- win=- cal=- sig=-"
+        );
+        assert_eq!(Status::parse(&empty.line()), Some(empty));
+        assert_eq!(Status::parse("t=1s bogus=3"), None);
+    }
+}
