@@ -205,6 +205,16 @@ impl Histogram {
     }
 }
 
+/// The first sphere with fewer than `min` returns, as a refusal.
+fn too_few(used: &[usize], min: usize) -> Option<Refusal> {
+    let (sphere, &have) = used.iter().enumerate().find(|(_, &u)| u < min)?;
+    Some(Refusal::TooFewPoints {
+        sphere,
+        have,
+        need: min,
+    })
+}
+
 /// Signed residual of one observation.
 fn residual(o: &Observation, t: &Target, b: &[f64; P]) -> f64 {
     let m = crate::georef::Mount::from_params(b);
@@ -276,12 +286,8 @@ pub fn solve(
         sol.refusal = Some(Refusal::TooFewSpheres { have: n });
         return sol;
     }
-    if let Some(j) = (0..n).find(|&j| used[j] < s.min_points) {
-        sol.refusal = Some(Refusal::TooFewPoints {
-            sphere: j,
-            have: used[j],
-            need: s.min_points,
-        });
+    if let Some(r) = too_few(&used[..n], s.min_points) {
+        sol.refusal = Some(r);
         return sol;
     }
 
@@ -367,12 +373,8 @@ pub fn solve(
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
 
     // 4. Checks.
-    if let Some(j) = (0..n).find(|&j| used[j] < s.min_points) {
-        sol.refusal = Some(Refusal::TooFewPoints {
-            sphere: j,
-            have: used[j],
-            need: s.min_points,
-        });
+    if let Some(r) = too_few(&used[..n], s.min_points) {
+        sol.refusal = Some(r);
         return sol;
     }
     let Some(lm) = sol.lm else {
