@@ -158,3 +158,86 @@ mod tests {
         assert_eq!(Status::parse("t=1s bogus=3"), None);
     }
 }
+
+/// Where status lines go: a serial console (any `Write`, e.g. a serial port or a
+/// pseudo-terminal) or stdout. Each line ends in CR LF, as serial terminals expect, and is
+/// flushed at once.
+pub struct Console {
+    out: Box<dyn std::io::Write + Send>,
+    /// Lines written.
+    pub lines: u64,
+}
+
+impl Console {
+    /// The board's console: `stdout`, or a serial device at `baud`.
+    pub fn open(device: &str, baud: u32) -> Result<Self, String> {
+        if device == "stdout" {
+            return Ok(Self::new(Box::new(std::io::stdout())));
+        }
+        let port = serialport::new(device, baud)
+            .open()
+            .map_err(|e| format!("console {device}: {e}"))?;
+        Ok(Self::new(Box::new(port)))
+    }
+
+    /// Any writer.
+    pub fn new(out: Box<dyn std::io::Write + Send>) -> Self {
+        Self { out, lines: 0 }
+    }
+
+    /// Write one status line.
+    pub fn show(&mut self, s: &Status) -> std::io::Result<()> {
+        self.out.write_all(s.line().as_bytes())?;
+        self.out.write_all(b"\r\n")?;
+        self.out.flush()?;
+        self.lines += 1;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod console_tests {
+    use super::*;
+    use serialport::{SerialPort, TTYPort};
+    use std::io::Read;
+
+    /// Status lines written to one end of a pseudo-terminal pair arrive whole at the other.
+    #[test]
+    fn console_on_a_pseudo_terminal() {
+        let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+        master
+            .set_timeout(std::time::Duration::from_millis(200))
+            .unwrap();
+        let mut console = Console::new(Box::new(slave));
+        let lines: Vec<Status> = (0..5)
+            .map(|i| Status {
+                t_s: i,
+                packets_per_s: 754,
+                pps: "locked".into(),
+                ins: "tracking".into(),
+                ..Status::default()
+            })
+            .collect();
+        for s in &lines {
+            console.show(s).unwrap();
+        }
+        assert_eq!(console.lines, 5);
+        let mut got = Vec::new();
+        let mut buf = [0u8; 512];
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        while got.iter().filter(|&&c| c == b'\n').count() < 5
+            && std::time::Instant::now() < deadline
+        {
+            if let Ok(n) = master.read(&mut buf) {
+                got.extend_from_slice(&buf[..n]);
+            }
+        }
+        let text = String::from_utf8(got).unwrap();
+        let back: Vec<Status> = text
+            .split("\r\n")
+            .filter(|l| !l.is_empty())
+            .map(|l| Status::parse(l).unwrap())
+            .collect();
+        assert_eq!(back, lines);
+    }
+}
