@@ -17,9 +17,7 @@
 use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
 use crate::time::GpsTime;
-use crate::vlp16::{
-    Point, PointBuf, COS_ELEVATION_F64, LASERS, SIN_ELEVATION_F64, VERTICAL_OFFSET_M,
-};
+use crate::vlp16::PointBuf;
 use nalgebra::{Matrix3, Vector3};
 
 /// Most targets the core handles.
@@ -121,21 +119,6 @@ pub fn which_window(targets: &[Target], margin: f64, x: &Vector3<f64>) -> Option
         }
     }
     best.map(|(i, _)| i)
-}
-
-/// The return of a decoded point in the LiDAR frame, f64 (eq. 1 + beam offset), from the raw
-/// range and the decoded azimuth.
-#[inline]
-pub fn q_of(p: &Point) -> Vector3<f64> {
-    let l = p.laser() % LASERS;
-    let d = f64::from(p.distance_raw) * 0.002;
-    let (s, c) = libm::sincos(f64::from(p.azimuth));
-    let cw = COS_ELEVATION_F64[l] * d;
-    Vector3::new(
-        cw * s,
-        cw * c,
-        SIN_ELEVATION_F64[l] * d + VERTICAL_OFFSET_M[l],
-    )
 }
 
 /// Longest carry of an interpolated pose [ns].

@@ -132,18 +132,48 @@ fn field_size(def: &FieldDef, payload: &[u8], at: usize) -> Result<usize, Error>
     })
 }
 
+/// Where everything of a frame lies: its masks, where the payload and each group start, and its
+/// total length (sync to CRC). One walk over the mask bits gives all of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// Fields present.
+    pub masks: Masks,
+    /// Offset of the payload.
+    pub payload_at: usize,
+    /// Offset of each group's first field.
+    pub group_at: [u16; GROUPS],
+    /// Total length, sync to CRC.
+    pub len: usize,
+}
+
+/// The layout of the frame at the start of `bytes`, or `Error::Incomplete` if more bytes are
+/// needed to know it.
+pub fn layout(bytes: &[u8]) -> Result<Layout, Error> {
+    let (masks, payload_at) = parse_header(bytes)?;
+    let mut group_at = [0u16; GROUPS];
+    let mut at = payload_at;
+    for g in Group::ALL {
+        group_at[g as usize] = at as u16;
+        for bit in bits(masks.0[g as usize]) {
+            let def = g.field(bit).ok_or(Error::UnknownField {
+                group: g as u8,
+                bit,
+            })?;
+            at += field_size(def, bytes, at)?;
+        }
+    }
+    Ok(Layout {
+        masks,
+        payload_at,
+        group_at,
+        len: at + 2,
+    })
+}
+
 /// Total frame length (sync to CRC) of the frame at the start of `bytes`, or
 /// `Error::Incomplete` if more bytes are needed to know it.
 pub fn frame_len(bytes: &[u8]) -> Result<usize, Error> {
-    let (masks, mut at) = parse_header(bytes)?;
-    for (g, bit) in masks.fields() {
-        let def = g.field(bit).ok_or(Error::UnknownField {
-            group: g as u8,
-            bit,
-        })?;
-        at += field_size(def, bytes, at)?;
-    }
-    Ok(at + 2)
+    layout(bytes).map(|l| l.len)
 }
 
 /// A checked binary frame: header known, length exact, CRC verified.
@@ -245,7 +275,7 @@ impl<'a> Frame<'a> {
         if bytes.first() != Some(&SYNC) {
             return Err(Error::NoSync);
         }
-        let len = match frame_len(bytes) {
+        let l = match layout(bytes) {
             Err(Error::Incomplete) => {
                 return Err(Error::Truncated {
                     expected: None,
@@ -254,6 +284,7 @@ impl<'a> Frame<'a> {
             }
             r => r?,
         };
+        let len = l.len;
         if bytes.len() != len {
             return Err(Error::Truncated {
                 expected: Some(len),
@@ -265,36 +296,17 @@ impl<'a> Frame<'a> {
         if sent != computed {
             return Err(Error::Crc { computed, sent });
         }
-        Self::from_checked(bytes)
+        Ok(Self::from_layout(bytes, &l))
     }
 
-    /// A frame whose length and CRC the framer has checked already.
-    pub(crate) fn from_checked(bytes: &'a [u8]) -> Result<Self, Error> {
-        let (masks, payload_at) = parse_header(bytes)?;
-        let mut group_at = [0u16; GROUPS];
-        let mut at = payload_at;
-        for g in Group::ALL {
-            group_at[g as usize] = at as u16;
-            for bit in bits(masks.0[g as usize]) {
-                let def = g.field(bit).ok_or(Error::UnknownField {
-                    group: g as u8,
-                    bit,
-                })?;
-                at += field_size(def, bytes, at)?;
-            }
-        }
-        if at + 2 != bytes.len() {
-            return Err(Error::Truncated {
-                expected: Some(at + 2),
-                got: bytes.len(),
-            });
-        }
-        Ok(Self {
+    /// A frame whose layout and CRC the caller has checked (`bytes` is exactly `l.len` long).
+    pub(crate) fn from_layout(bytes: &'a [u8], l: &Layout) -> Self {
+        Self {
             bytes,
-            masks,
-            payload_at,
-            group_at,
-        })
+            masks: l.masks,
+            payload_at: l.payload_at,
+            group_at: l.group_at,
+        }
     }
 
     /// All bytes, sync to CRC.

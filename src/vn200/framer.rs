@@ -8,7 +8,7 @@
 //! after a frame whose CRC byte is 0xFA) is still found.
 
 use super::ascii::{self, Sentence, MAX_SENTENCE};
-use super::binary::{frame_len, Frame, CRC16, SYNC};
+use super::binary::{layout, Frame, Layout, CRC16, SYNC};
 use super::Error;
 
 /// What the framer found, and where it starts in the stream.
@@ -75,7 +75,7 @@ impl<const N: usize> Default for Framer<N> {
 }
 
 enum Found {
-    Binary(usize),
+    Binary(Layout),
     Line { end: usize },
     Rejected(Error),
 }
@@ -168,7 +168,7 @@ impl<const N: usize> Framer<N> {
             let avail = &self.buf[start..self.len];
             let full = avail.len() >= N;
             match avail[0] {
-                SYNC => match frame_len(avail) {
+                SYNC => match layout(avail).map(|l| (l.len, l)) {
                     Err(Error::Incomplete) => {
                         if self.eof || full {
                             self.skip();
@@ -180,24 +180,24 @@ impl<const N: usize> Framer<N> {
                         self.stats.bad_headers += 1;
                         self.skip();
                     }
-                    Ok(l) if l > N => {
+                    Ok((l, _)) if l > N => {
                         self.stats.too_long += 1;
                         self.skip();
                     }
-                    Ok(l) if l > avail.len() => {
+                    Ok((l, _)) if l > avail.len() => {
                         if self.eof {
                             self.skip();
                             continue;
                         }
                         return None;
                     }
-                    Ok(l) => {
+                    Ok((l, lay)) => {
                         let sent = u16::from_be_bytes([avail[l - 2], avail[l - 1]]);
                         let computed = CRC16.checksum(&avail[1..l - 2]);
                         if sent == computed {
                             self.pos += l;
                             self.stats.frames += 1;
-                            break (start, Found::Binary(l));
+                            break (start, Found::Binary(lay));
                         }
                         self.stats.crc_failures += 1;
                         self.skip();
@@ -271,10 +271,9 @@ impl<const N: usize> Framer<N> {
         };
         let offset = self.base + start as u64;
         let item = match found {
-            Found::Binary(l) => match Frame::from_checked(&self.buf[start..start + l]) {
-                Ok(f) => Item::Binary(f),
-                Err(e) => Item::Error(e),
-            },
+            Found::Binary(l) => {
+                Item::Binary(Frame::from_layout(&self.buf[start..start + l.len], &l))
+            }
             Found::Line { end } => match ascii::parse(&self.buf[start..end]) {
                 Ok(s) if s.is_vn() => Item::Ascii(s),
                 Ok(s) => Item::Nmea(s),

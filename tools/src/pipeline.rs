@@ -26,8 +26,8 @@ use spherecal_hal::{PacketSource, Record};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// LiDAR ring capacity (holds N - 1 packets: ~1.3 s of data packets).
-pub const LIDAR_RING: usize = 1024;
+/// LiDAR ring capacity (holds N - 1 packets: ~0.68 s of data packets, 0.6 MB).
+pub const LIDAR_RING: usize = 512;
 /// INS ring capacity (holds N - 1 poses: ~20 s at 200 Hz).
 pub const INS_RING: usize = 4096;
 /// Pose history kept by the aligner.
@@ -44,15 +44,35 @@ pub enum Overflow {
     Wait,
 }
 
-/// An item on the LiDAR ring.
-#[derive(Clone)]
-pub enum LidarItem {
-    /// A data packet's payload.
-    Data(Box<[u8; 1206]>),
-    /// A position packet's payload.
-    Position(Box<[u8; 512]>),
+/// What a LiDAR ring item holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LidarKind {
+    /// A data packet.
+    Data,
+    /// A position packet (its first 512 bytes).
+    Position,
     /// The stream ended.
     End,
+}
+
+/// An item on the LiDAR ring: the payload held in place, so a packet costs one copy into the
+/// ring and no allocation.
+#[derive(Clone)]
+pub struct LidarItem {
+    /// What it is.
+    pub kind: LidarKind,
+    /// The payload (data: all 1206 bytes; position: the first 512).
+    pub bytes: [u8; 1206],
+}
+
+impl LidarItem {
+    /// An item holding `payload` (at most 1206 bytes).
+    pub fn new(kind: LidarKind, payload: &[u8]) -> Self {
+        let mut bytes = [0u8; 1206];
+        let n = payload.len().min(bytes.len());
+        bytes[..n].copy_from_slice(&payload[..n]);
+        Self { kind, bytes }
+    }
 }
 
 /// An item on the INS ring.
@@ -249,7 +269,12 @@ pub fn run<C: Send>(
                     Ok(Some(r)) => r,
                     Ok(None) => break,
                     Err(e) => {
-                        push_wait(&mut lp, LidarItem::End, Overflow::Wait, &full_ref[0]);
+                        push_wait(
+                            &mut lp,
+                            LidarItem::new(LidarKind::End, &[]),
+                            Overflow::Wait,
+                            &full_ref[0],
+                        );
                         return Err(e.to_string());
                     }
                 };
@@ -264,20 +289,21 @@ pub fn run<C: Send>(
                             continue;
                         }
                         Ok(Vlp16Packet::Data { packet, .. }) => {
-                            let mut b = Box::new([0u8; 1206]);
-                            b.copy_from_slice(&packet.into_inner()[..1206]);
-                            LidarItem::Data(b)
+                            LidarItem::new(LidarKind::Data, packet.into_inner())
                         }
                         Ok(Vlp16Packet::Position { packet, .. }) => {
-                            let mut b = Box::new([0u8; 512]);
-                            b.copy_from_slice(&packet.into_inner()[..512]);
-                            LidarItem::Position(b)
+                            LidarItem::new(LidarKind::Position, packet.into_inner())
                         }
                     },
                 };
                 push_wait(&mut lp, item, Overflow::Wait, &full_ref[0]);
             }
-            push_wait(&mut lp, LidarItem::End, Overflow::Wait, &full_ref[0]);
+            push_wait(
+                &mut lp,
+                LidarItem::new(LidarKind::End, &[]),
+                Overflow::Wait,
+                &full_ref[0],
+            );
             Ok(skips)
         });
 
@@ -388,19 +414,19 @@ pub fn run<C: Send>(
                     continue;
                 }
             };
-            match item {
-                LidarItem::End => break,
-                LidarItem::Position(b) => {
+            match item.kind {
+                LidarKind::End => break,
+                LidarKind::Position => {
                     stats.position_packets += 1;
-                    let p = PositionPacket::new_unchecked(&b[..]);
+                    let p = PositionPacket::new_unchecked(&item.bytes[..]);
                     if !clock.has_hour() {
                         if let Some(utc) = p.nmea_time().ok().and_then(|t| t.utc()) {
                             clock.set_from_rmc(&utc, p.timestamp_us());
                         }
                     }
                 }
-                LidarItem::Data(b) => {
-                    let p = DataPacket::new_unchecked(&b[..]);
+                LidarKind::Data => {
+                    let p = DataPacket::new_unchecked(&item.bytes[..]);
                     if !clock.has_hour() {
                         pull_ins(&mut history, None, &mut ins_done);
                         match history.span() {
