@@ -288,19 +288,22 @@ impl LidarClock {
 mod clock_tests {
     use super::*;
 
+    /// 2024-06-12 10:59:59 UTC: the last whole second before a top of the hour.
+    const LAST_SECOND: UtcDateTime = UtcDateTime {
+        year: 2024,
+        month: 6,
+        day: 12,
+        hour: 10,
+        minute: 59,
+        second: 59,
+        nanos: 0,
+    };
+
     #[test]
     fn hour_rollover_is_unwrapped() {
         // 2024-06-12 10:59:59.9 UTC -> 11:00:00.1: stamps 3_599_900_000 then 100_000.
         let mut c = LidarClock::new(18);
-        let rmc = UtcDateTime {
-            year: 2024,
-            month: 6,
-            day: 12,
-            hour: 10,
-            minute: 59,
-            second: 59,
-            nanos: 0,
-        };
+        let rmc = LAST_SECOND;
         c.set_from_rmc(&rmc, 3_599_900_000);
         let a = c.to_gps(3_599_900_000).unwrap();
         let b = c.to_gps(100_000).unwrap();
@@ -330,17 +333,9 @@ mod clock_tests {
         c.set_from_gps(ins, 3_599_950_000);
         let t = c.to_gps(3_599_950_000).unwrap();
         assert_eq!(ins.0 - t.0, 350_000_000);
-        // RMC given just after the rollover: 11:00:00 with stamp 0.4 s: hour 11.
+        // The RMC names 10:59:59 but the stamp (0.4 s past the hour) already wrapped: hour 11.
         let mut c = LidarClock::new(18);
-        let rmc = UtcDateTime {
-            year: 2024,
-            month: 6,
-            day: 12,
-            hour: 10,
-            minute: 59,
-            second: 59,
-            nanos: 0,
-        };
+        let rmc = LAST_SECOND;
         c.set_from_rmc(&rmc, 400_000); // RMC second before the wrap, stamp after it
         let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(c.to_gps(400_000).unwrap(), 18));
         assert_eq!((u.hour, u.minute, u.second), (11, 0, 0));

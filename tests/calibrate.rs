@@ -10,7 +10,6 @@ use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::scenario::{Scenario, BUILTIN};
 use spherecal_tools::site::Site;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 const TRUTH: [f64; 6] = [179.5, -44.9, 1.2, 1.5, -1.24, -1.36];
 
@@ -36,24 +35,14 @@ fn table1_from_the_papers_erroneous_start() {
     let s = Scenario::load("table1").unwrap();
     spherecal_tools::synth::synth(&s, &dir).unwrap();
     let report = dir.join("report.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_spherecal"))
-        .args(["calibrate", "--pcap"])
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(dir.join("site.toml"))
-        .arg("--report")
-        .arg(&report)
-        .arg("--plot")
-        .arg(dir.join("plot.svg"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
+    common::stdout_of(
+        common::spherecal()
+            .arg("calibrate")
+            .args(common::survey_args(&dir))
+            .arg("--report")
+            .arg(&report)
+            .arg("--plot")
+            .arg(dir.join("plot.svg")),
     );
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
@@ -178,25 +167,20 @@ fn one_sphere_is_refused() {
     spherecal_tools::synth::synth(&s, &dir).unwrap();
     let inp = inputs(&dir);
     let (_, mut obs) = collect(&inp).unwrap();
-    let (t, ids) = site_targets(&inp);
+    let (t, _) = site_targets(&inp);
     let mut slices: Vec<&mut [spherecal::window::Observation]> =
         obs.iter_mut().map(|v| v.as_mut_slice()).collect();
     let sol = solve(&t, &mut slices, &inp.mount.params(), &Settings::default());
     assert_eq!(sol.refusal, Some(Refusal::TooFewSpheres { have: 1 }));
     // The command says so and exits 1.
-    let out = Command::new(env!("CARGO_BIN_EXE_spherecal"))
-        .args(["calibrate", "--pcap"])
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(dir.join("site.toml"))
+    let out = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(&dir))
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stdout)
         .contains("NOT CONVERGED: 1 sphere(s): at least two are needed"));
-    let _ = ids;
     std::fs::remove_dir_all(dir).unwrap();
 }
 

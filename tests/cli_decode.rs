@@ -12,19 +12,13 @@ fn tmp(name: &str) -> std::path::PathBuf {
 fn decode_mrpt_summary_and_csv() {
     let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
     let csv = tmp("mrpt.csv");
-    let out = common::spherecal()
-        .arg("decode")
-        .arg(&pcap)
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = common::stdout_of(
+        common::spherecal()
+            .arg("decode")
+            .arg(&pcap)
+            .arg("--csv")
+            .arg(&csv),
     );
-    let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(
         stdout.contains("data packets: 293 (strongest: 293)"),
         "{stdout}"

@@ -9,17 +9,12 @@ fn tmp(name: &str) -> std::path::PathBuf {
 /// Every expected column is in our CSV with the same value (parsed, round-trip exact).
 fn csv_matches(file: &str, expected: &str) {
     let csv = tmp(&format!("{}.csv", file.replace('/', "_")));
-    let out = common::spherecal()
-        .arg("ins")
-        .arg(common::shared_data(file))
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    common::stdout_of(
+        common::spherecal()
+            .arg("ins")
+            .arg(common::shared_data(file))
+            .arg("--csv")
+            .arg(&csv),
     );
     let ours = std::fs::read_to_string(&csv).unwrap();
     let want = std::fs::read_to_string(common::shared_data(expected)).unwrap();

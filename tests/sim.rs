@@ -8,9 +8,8 @@ use spherecal::frames::rotation;
 use spherecal::georef::{point, PlatformPose};
 use spherecal::sim::{LidarSim, Shape, SimPacket, World};
 use spherecal::time::{gps_to_unix_ns, GpsTime};
-use spherecal::vlp16::{decode, DataPacket, PointBuf, ReturnMode};
+use spherecal::vlp16::{decode, DataPacket, PointBuf};
 use spherecal_tools::scenario::Scenario;
-use std::process::Command;
 
 fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
     let st = w.trajectory.state(w.t_of(t));
@@ -125,16 +124,7 @@ fn decoded_points_lie_on_their_spheres() {
 }
 
 fn run(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_spherecal"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "spherecal {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
+    common::stdout_of(common::spherecal().args(args))
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {
@@ -143,14 +133,11 @@ fn tmp(name: &str) -> std::path::PathBuf {
 
 /// A short variant of a built-in scenario (one pass) for the file-level tests.
 fn short(base: &str, edit: impl Fn(String) -> String) -> std::path::PathBuf {
-    let text = Scenario::load(base)
-        .map(|_| ())
-        .and(Ok(spherecal_tools::scenario::BUILTIN
-            .iter()
-            .find(|b| b.0 == base)
-            .unwrap()
-            .1))
-        .unwrap();
+    let text = spherecal_tools::scenario::BUILTIN
+        .iter()
+        .find(|b| b.0 == base)
+        .unwrap()
+        .1;
     let i = text.find("[[trajectory.pass]]").unwrap();
     let one = format!("{}[[trajectory.pass]]\nstart_ne_m = [-2.0, 8.0]\nheading_deg = 0.0\nspeed_mps = 2.0\nduration_s = 6.0\n", &text[..i]);
     let p = tmp(&format!("{base}.toml"));
@@ -352,7 +339,6 @@ fn dual_return_at_1200_rpm() {
         .sum::<u64>()
         + truth["clutter_points"].as_u64().unwrap();
     assert!(dec.contains(&format!("points: {pts}\n")), "{dec}");
-    let _ = ReturnMode::Dual;
     std::fs::remove_dir_all(d).unwrap();
 }
 
@@ -362,7 +348,7 @@ fn print_scenario_round_trips_and_bad_scenarios_exit_2() {
     assert!(Scenario::from_toml(&text).is_ok());
     let bad = tmp("bad.toml");
     std::fs::write(&bad, text.replace("rpm = 600", "rpm = 600\nspin = 2")).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_spherecal"))
+    let out = common::spherecal()
         .args([
             "synth",
             "--scenario",

@@ -38,3 +38,27 @@ pub fn tmp(group: &str, name: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d.join(name)
 }
+
+/// Run a command; it must succeed. Returns its stdout.
+pub fn stdout_of(cmd: &mut std::process::Command) -> String {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{cmd:?}: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// `--pcap DIR/lidar.pcap --ins DIR/ins.bin --site DIR/site.toml` (as `synth` writes them).
+pub fn survey_args(dir: &std::path::Path) -> Vec<std::ffi::OsString> {
+    vec![
+        "--pcap".into(),
+        dir.join("lidar.pcap").into(),
+        "--ins".into(),
+        dir.join("ins.bin").into(),
+        "--site".into(),
+        dir.join("site.toml").into(),
+    ]
+}
