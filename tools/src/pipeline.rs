@@ -11,14 +11,15 @@
 //! a file can be read later and must not lose data; the waits are counted too.
 
 use crate::site::Site;
-use heapless::spsc::Queue;
+use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
 use spherecal::time::{GpsTime, LidarClock};
-use spherecal::vlp16::{self, DataPacket, PointBuf, PositionPacket};
+use spherecal::vlp16::{self, DataPacket, PointBuf, PositionPacket, PpsStatus};
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing};
+use spherecal_hal::packet::{Datagram, SkipReason};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::sbet::SbetReader;
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
@@ -61,25 +62,46 @@ pub enum LidarKind {
 pub struct LidarItem {
     /// What it is.
     pub kind: LidarKind,
+    /// Host receive time [ns since 1970 on the host clock; 0 unknown].
+    pub host_ns: i64,
     /// The payload (data: all 1206 bytes; position: the first 512).
     pub bytes: [u8; 1206],
 }
 
 impl LidarItem {
-    /// An item holding `payload` (at most 1206 bytes).
-    pub fn new(kind: LidarKind, payload: &[u8]) -> Self {
+    /// An item holding `payload` (at most 1206 bytes) received at `host_ns`.
+    pub fn new(kind: LidarKind, host_ns: i64, payload: &[u8]) -> Self {
         let mut bytes = [0u8; 1206];
         let n = payload.len().min(bytes.len());
         bytes[..n].copy_from_slice(&payload[..n]);
-        Self { kind, bytes }
+        Self {
+            kind,
+            host_ns,
+            bytes,
+        }
+    }
+}
+
+impl LidarItem {
+    /// The ring item for a received datagram, or why it is skipped.
+    pub fn classify(d: &Datagram<'_>, ports: Ports) -> Result<Self, SkipReason> {
+        let host = i64::try_from(d.time.0).unwrap_or(0);
+        Ok(match classify(d, ports)? {
+            Vlp16Packet::Data { packet, .. } => {
+                Self::new(LidarKind::Data, host, packet.into_inner())
+            }
+            Vlp16Packet::Position { packet, .. } => {
+                Self::new(LidarKind::Position, host, packet.into_inner())
+            }
+        })
     }
 }
 
 /// An item on the INS ring.
 #[derive(Debug, Clone, Copy)]
 pub enum InsItem {
-    /// A pose in the site frame.
-    Pose(PoseSample),
+    /// A pose in the site frame and its host receive time [ns since 1970; 0 unknown].
+    Pose(PoseSample, i64),
     /// The stream ended.
     End,
 }
@@ -217,6 +239,213 @@ pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
     None
 }
 
+/// How the aligner waits for the INS to cover a LiDAR packet's time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InsWait {
+    /// Files: until the INS stream has poses past the packet or has ended.
+    UntilEnd,
+    /// Live: at most this long per packet; once a wait has run out, not again until a new
+    /// pose arrives (a silent INS must not stall the LiDAR).
+    AtMost(std::time::Duration),
+}
+
+/// The aligner stage (DESIGN.md data flow): the LiDAR clock, the pose history, georeferencing
+/// with the a-priori mounting and the sphere windows. The same for files and live input; only
+/// the INS waiting policy differs.
+pub struct Aligner {
+    targets: Vec<Target>,
+    margin: f64,
+    mount: Mount,
+    batches: Vec<Batch<BATCH>>,
+    history: Box<PoseHistory<HISTORY>>,
+    clock: LidarClock,
+    points: PointBuf,
+    wait: InsWait,
+    ins_done: bool,
+    ins_stalled: bool,
+    /// Newest pose's GPS time minus its host receive time [ns], if the host time is known.
+    ins_offset_ns: Option<i64>,
+    /// Counts (the alignment fields of a run's counts).
+    pub stats: RunStats,
+    /// PPS state of the last position packet.
+    pub pps: Option<PpsStatus>,
+    /// LiDAR clock minus INS time, each against the host receive clock, at the last aligned
+    /// packet [ns]: `(T_lidar - H_lidar) - (T_ins - H_ins)`.
+    pub lag_ns: Option<i64>,
+    /// Returns windowed per sphere so far.
+    pub windowed: Vec<u64>,
+}
+
+impl Aligner {
+    /// An aligner for `targets`, georeferencing with `mount`.
+    pub fn new(
+        targets: Vec<Target>,
+        margin: f64,
+        mount: Mount,
+        leap_seconds: i64,
+        max_gap_ns: i64,
+        wait: InsWait,
+    ) -> Self {
+        let n = targets.len();
+        Self {
+            batches: (0..n).map(|_| Batch::default()).collect(),
+            targets,
+            margin,
+            mount,
+            history: Box::new(PoseHistory::new(max_gap_ns)),
+            clock: LidarClock::new(leap_seconds),
+            points: PointBuf::new(),
+            wait,
+            ins_done: false,
+            ins_stalled: false,
+            ins_offset_ns: None,
+            stats: RunStats::default(),
+            pps: None,
+            lag_ns: None,
+            windowed: vec![0; n],
+        }
+    }
+
+    /// Has the INS stream ended?
+    pub fn ins_done(&self) -> bool {
+        self.ins_done
+    }
+
+    fn push_pose(&mut self, s: PoseSample, host_ns: i64) {
+        if self.history.push(s) {
+            self.ins_stalled = false;
+            self.ins_offset_ns = (host_ns != 0).then(|| s.time.0 - host_ns);
+        }
+    }
+
+    /// Move every pose waiting on the ring into the history (live input between packets).
+    pub fn drain_ins(&mut self, ic: &mut Consumer<'_, InsItem>) {
+        while let Some(it) = ic.dequeue() {
+            match it {
+                InsItem::Pose(s, h) => self.push_pose(s, h),
+                InsItem::End => self.ins_done = true,
+            }
+        }
+    }
+
+    /// Discard the ring until its End (so that its reader can finish).
+    pub fn drain_until_end(&mut self, ic: &mut Consumer<'_, InsItem>) {
+        while !self.ins_done {
+            match ic.dequeue() {
+                Some(InsItem::End) => self.ins_done = true,
+                Some(_) => {}
+                None => std::thread::yield_now(),
+            }
+        }
+    }
+
+    /// Pull poses until the history reaches past `until` (None: until it holds any), the INS
+    /// ends, or the live wait runs out.
+    fn pull_ins(&mut self, ic: &mut Consumer<'_, InsItem>, until: Option<GpsTime>) {
+        let started = std::time::Instant::now();
+        while !self.ins_done {
+            match (until, self.history.span()) {
+                (Some(u), Some((_, newest))) if newest > u => return,
+                (None, Some(_)) => return,
+                _ => {}
+            }
+            match ic.dequeue() {
+                Some(InsItem::Pose(s, h)) => self.push_pose(s, h),
+                Some(InsItem::End) => self.ins_done = true,
+                None => match self.wait {
+                    InsWait::UntilEnd => std::thread::yield_now(),
+                    InsWait::AtMost(d) => {
+                        if self.ins_stalled || started.elapsed() >= d {
+                            self.ins_stalled = true;
+                            return;
+                        }
+                        std::thread::sleep(std::time::Duration::from_micros(100));
+                    }
+                },
+            }
+        }
+    }
+
+    /// A position packet (its first 512 bytes): the PPS state, and the hour from its RMC.
+    pub fn position(&mut self, bytes: &[u8]) {
+        let Ok(p) = PositionPacket::new_checked(bytes) else {
+            return;
+        };
+        self.stats.position_packets += 1;
+        self.pps = Some(p.pps());
+        if !self.clock.has_hour() {
+            if let Some(utc) = p.nmea_time().ok().and_then(|t| t.utc()) {
+                self.clock.set_from_rmc(&utc, p.timestamp_us());
+            }
+        }
+    }
+
+    /// A data packet: time it, georeference and window its returns; a batch that is half full
+    /// goes to `emit(sphere, observations)`.
+    pub fn data(
+        &mut self,
+        item: &LidarItem,
+        ic: &mut Consumer<'_, InsItem>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let p = DataPacket::new_unchecked(&item.bytes[..]);
+        if !self.clock.has_hour() {
+            self.pull_ins(ic, None);
+            match self.history.span() {
+                Some((_, newest)) => self.clock.set_from_gps(newest, p.timestamp_us()),
+                None => {
+                    self.stats.packets_without_time += 1;
+                    return;
+                }
+            }
+        }
+        let Some(t0) = self.clock.to_gps(p.timestamp_us()) else {
+            self.stats.packets_without_time += 1;
+            return;
+        };
+        // A packet's 24 firing sequences span 1.33 ms.
+        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000)));
+        if vlp16::decode(&p, &mut self.points).is_err() {
+            return;
+        }
+        self.stats.data_packets += 1;
+        if let (Some(o), true) = (self.ins_offset_ns, item.host_ns != 0) {
+            self.lag_ns = Some((t0.0 - item.host_ns) - o);
+        }
+        let mut win = Windowing {
+            targets: &self.targets,
+            margin: self.margin,
+            mount: self.mount,
+            batches: &mut self.batches,
+            stats: self.stats.window,
+        };
+        win.add_packet(t0, &self.points, &self.history, each);
+        self.stats.window = win.stats;
+        self.stats.rollovers = self.clock.rollovers;
+        for (i, b) in self.batches.iter_mut().enumerate() {
+            if b.obs.len() >= BATCH / 2 {
+                self.windowed[i] += b.obs.len() as u64;
+                emit(i, &b.obs);
+                b.obs.clear();
+            }
+        }
+    }
+
+    /// Hand on what the batches still hold.
+    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, &[Observation])) {
+        for (i, b) in self.batches.iter_mut().enumerate() {
+            self.stats.batch_overflow += b.overflow;
+            b.overflow = 0;
+            if !b.obs.is_empty() {
+                self.windowed[i] += b.obs.len() as u64;
+                emit(i, &b.obs);
+                b.obs.clear();
+            }
+        }
+    }
+}
+
 /// Run the pipeline over files. `each`, if given, sees every georeferenced return; batches go
 /// to `consumer` on its own thread, which returns its result.
 pub fn run<C: Send>(
@@ -271,7 +500,7 @@ pub fn run<C: Send>(
                     Err(e) => {
                         push_wait(
                             &mut lp,
-                            LidarItem::new(LidarKind::End, &[]),
+                            LidarItem::new(LidarKind::End, 0, &[]),
                             Overflow::Wait,
                             &full_ref[0],
                         );
@@ -283,16 +512,11 @@ pub fn run<C: Send>(
                         skips.count(offset, &reason);
                         continue;
                     }
-                    Record::Udp(d) => match classify(&d, Ports::default()) {
+                    Record::Udp(d) => match LidarItem::classify(&d, Ports::default()) {
+                        Ok(item) => item,
                         Err(reason) => {
                             skips.count(d.offset, &reason);
                             continue;
-                        }
-                        Ok(Vlp16Packet::Data { packet, .. }) => {
-                            LidarItem::new(LidarKind::Data, packet.into_inner())
-                        }
-                        Ok(Vlp16Packet::Position { packet, .. }) => {
-                            LidarItem::new(LidarKind::Position, packet.into_inner())
                         }
                     },
                 };
@@ -300,7 +524,7 @@ pub fn run<C: Send>(
             }
             push_wait(
                 &mut lp,
-                LidarItem::new(LidarKind::End, &[]),
+                LidarItem::new(LidarKind::End, 0, &[]),
                 Overflow::Wait,
                 &full_ref[0],
             );
@@ -318,7 +542,7 @@ pub fn run<C: Send>(
                     {
                         Some(s) => {
                             poses += 1;
-                            push_wait(&mut ip, InsItem::Pose(s), Overflow::Wait, &full_ref[1]);
+                            push_wait(&mut ip, InsItem::Pose(s, 0), Overflow::Wait, &full_ref[1]);
                         }
                         None => without += 1,
                     },
@@ -328,7 +552,12 @@ pub fn run<C: Send>(
                                 Pose::from_ins(&i).and_then(|p| PoseSample::from_vn200(&frame, &p))
                             {
                                 poses += 1;
-                                push_wait(&mut ip, InsItem::Pose(s), Overflow::Wait, &full_ref[1]);
+                                push_wait(
+                                    &mut ip,
+                                    InsItem::Pose(s, 0),
+                                    Overflow::Wait,
+                                    &full_ref[1],
+                                );
                             }
                         }
                     }
@@ -358,7 +587,7 @@ pub fn run<C: Send>(
                     poses += 1;
                     push_wait(
                         &mut ip,
-                        InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot)),
+                        InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot), 0),
                         Overflow::Wait,
                         &full_ref[1],
                     );
@@ -373,113 +602,36 @@ pub fn run<C: Send>(
         let consumer = sc.spawn(move || consumer(rx));
 
         // Aligner (this thread).
-        let mut stats = RunStats::default();
-        let mut history: Box<PoseHistory<HISTORY>> = Box::new(PoseHistory::new(inp.max_gap_ns));
-        let mut clock = LidarClock::new(leap);
-        let mut ins_done = false;
-        let mut batches: Vec<Batch<BATCH>> = (0..targets.len()).map(|_| Batch::default()).collect();
-        let mut win = Windowing {
-            targets: &targets,
-            margin: inp.margin,
-            mount: inp.mount,
-            batches: &mut batches,
-            stats: WindowStats::default(),
+        let mut al = Aligner::new(
+            targets,
+            inp.margin,
+            inp.mount,
+            leap,
+            inp.max_gap_ns,
+            InsWait::UntilEnd,
+        );
+        let mut emit = |sphere: usize, obs: &[Observation]| {
+            let _ = tx.send(BatchMsg {
+                sphere,
+                obs: obs.to_vec(),
+            });
         };
-        let mut points = PointBuf::new();
-        let mut pull_ins =
-            |history: &mut PoseHistory<HISTORY>, until: Option<GpsTime>, ins_done: &mut bool| {
-                while !*ins_done {
-                    if let (Some(u), Some((_, newest))) = (until, history.span()) {
-                        if newest > u {
-                            return;
-                        }
-                    }
-                    if until.is_none() && !history.is_empty() {
-                        return;
-                    }
-                    match ic.dequeue() {
-                        Some(InsItem::Pose(s)) => {
-                            history.push(s);
-                        }
-                        Some(InsItem::End) => *ins_done = true,
-                        None => std::thread::yield_now(),
-                    }
-                }
-            };
         loop {
-            let item = match lc.dequeue() {
-                Some(i) => i,
-                None => {
-                    std::thread::yield_now();
-                    continue;
-                }
+            let Some(item) = lc.dequeue() else {
+                std::thread::yield_now();
+                continue;
             };
             match item.kind {
                 LidarKind::End => break,
-                LidarKind::Position => {
-                    stats.position_packets += 1;
-                    let p = PositionPacket::new_unchecked(&item.bytes[..]);
-                    if !clock.has_hour() {
-                        if let Some(utc) = p.nmea_time().ok().and_then(|t| t.utc()) {
-                            clock.set_from_rmc(&utc, p.timestamp_us());
-                        }
-                    }
-                }
-                LidarKind::Data => {
-                    let p = DataPacket::new_unchecked(&item.bytes[..]);
-                    if !clock.has_hour() {
-                        pull_ins(&mut history, None, &mut ins_done);
-                        match history.span() {
-                            Some((_, newest)) => clock.set_from_gps(newest, p.timestamp_us()),
-                            None => {
-                                stats.packets_without_time += 1;
-                                continue;
-                            }
-                        }
-                    }
-                    let Some(t0) = clock.to_gps(p.timestamp_us()) else {
-                        stats.packets_without_time += 1;
-                        continue;
-                    };
-                    pull_ins(&mut history, Some(GpsTime(t0.0 + 1_400_000)), &mut ins_done);
-                    if vlp16::decode(&p, &mut points).is_err() {
-                        continue;
-                    }
-                    stats.data_packets += 1;
-                    win.add_packet(t0, &points, &history, each.as_deref_mut());
-                    for (i, b) in win.batches.iter_mut().enumerate() {
-                        if b.obs.len() >= BATCH / 2 {
-                            let _ = tx.send(BatchMsg {
-                                sphere: i,
-                                obs: b.obs.to_vec(),
-                            });
-                            b.obs.clear();
-                        }
-                    }
-                }
+                LidarKind::Position => al.position(&item.bytes[..512]),
+                LidarKind::Data => al.data(&item, &mut ic, each.as_deref_mut(), &mut emit),
             }
         }
-        for (i, b) in win.batches.iter_mut().enumerate() {
-            stats.batch_overflow += b.overflow;
-            if !b.obs.is_empty() {
-                let _ = tx.send(BatchMsg {
-                    sphere: i,
-                    obs: b.obs.to_vec(),
-                });
-                b.obs.clear();
-            }
-        }
+        al.finish(&mut emit);
         drop(tx);
         // Drain the INS ring so its reader can finish.
-        while !ins_done {
-            match ic.dequeue() {
-                Some(InsItem::End) => ins_done = true,
-                Some(_) => {}
-                None => std::thread::yield_now(),
-            }
-        }
-        stats.window = win.stats;
-        stats.rollovers = clock.rollovers;
+        al.drain_until_end(&mut ic);
+        let mut stats = al.stats;
         stats.skips = lidar
             .join()
             .map_err(|_| "LiDAR reader panicked".to_string())??;
