@@ -2,8 +2,10 @@
 //! reuse, a large receive buffer so bursts wait in the kernel, a read timeout so a reader
 //! thread notices shutdown), read through std's safe `UdpSocket`.
 //!
-//! The receive time is taken on the host's wall clock right after the read returns (kernel
-//! SO_TIMESTAMPNS control messages are not read yet: see NOTES.md, issue #7).
+//! The receive time is the kernel's (SO_TIMESTAMPNS, socket(7): the time the datagram reached
+//! the socket, read from the `recvmsg` control message) where the OS gives it, else the host's
+//! wall clock right after the read returns. The kernel's own drop count for the socket (its
+//! receive buffer was full) is read from /proc/net/udp.
 
 use crate::packet::{Datagram, HostTime};
 use socket2::{Domain, Protocol, Socket, Type};
@@ -14,13 +16,21 @@ use std::time::Duration;
 /// Receive buffer asked of the kernel (the VLP-16 sends ~1 MB/s; 8 MB holds 8 s).
 pub const RECV_BUFFER: usize = 8 << 20;
 
+/// Room for one SO_TIMESTAMPNS control message, aligned as `cmsghdr` needs.
+#[repr(C, align(8))]
+struct CmsgBuf([u8; 64]);
+
 /// A bound UDP port.
 pub struct UdpSource {
     socket: UdpSocket,
     port: u16,
     buf: Box<[u8; 65_536]>,
+    cmsg: Box<CmsgBuf>,
+    kernel_stamps: bool,
     /// Datagrams received.
     pub received: u64,
+    /// Datagrams that carried a kernel receive time.
+    pub kernel_stamped: u64,
 }
 
 impl UdpSource {
@@ -35,12 +45,28 @@ impl UdpSource {
         s.bind(&SocketAddr::V4(SocketAddrV4::new(addr, port)).into())?;
         let socket: UdpSocket = s.into();
         let port = socket.local_addr()?.port();
+        let kernel_stamps = enable_kernel_stamps(&socket);
         Ok(Self {
             socket,
             port,
             buf: Box::new([0; 65_536]),
+            cmsg: Box::new(CmsgBuf([0; 64])),
+            kernel_stamps,
             received: 0,
+            kernel_stamped: 0,
         })
+    }
+
+    /// Does the kernel stamp this socket's datagrams?
+    pub fn kernel_stamps(&self) -> bool {
+        self.kernel_stamps
+    }
+
+    /// Datagrams the kernel dropped for this socket because its receive buffer was full
+    /// (the `drops` column of /proc/net/udp for this socket's inode); `None` where the OS does
+    /// not say.
+    pub fn kernel_drops(&self) -> Option<u64> {
+        kernel_drops(&self.socket)
     }
 
     /// The port actually bound.
@@ -55,9 +81,22 @@ impl UdpSource {
 
     /// The next datagram, or `None` if the read timed out.
     pub fn recv(&mut self) -> io::Result<Option<Datagram<'_>>> {
-        match self.socket.recv_from(&mut self.buf[..]) {
-            Ok((n, from)) => {
-                let time = HostTime(i128::from(crate::serial::wall_ns()));
+        let got = if self.kernel_stamps {
+            recv_stamped(&self.socket, &mut self.buf[..], &mut self.cmsg.0)
+        } else {
+            self.socket
+                .recv_from(&mut self.buf[..])
+                .map(|(n, a)| (n, a, None))
+        };
+        match got {
+            Ok((n, from, stamp)) => {
+                let time = HostTime(match stamp {
+                    Some(t) => {
+                        self.kernel_stamped += 1;
+                        t
+                    }
+                    None => i128::from(crate::serial::wall_ns()),
+                });
                 self.received += 1;
                 let (src_addr, src_port) = match from {
                     SocketAddr::V4(a) => (*a.ip(), a.port()),
@@ -87,5 +126,116 @@ impl UdpSource {
             }
             Err(e) => Err(e),
         }
+    }
+}
+
+#[cfg(target_os = "linux")]
+fn enable_kernel_stamps(s: &UdpSocket) -> bool {
+    nix::sys::socket::setsockopt(s, nix::sys::socket::sockopt::ReceiveTimestampns, &true).is_ok()
+}
+
+#[cfg(not(target_os = "linux"))]
+fn enable_kernel_stamps(_: &UdpSocket) -> bool {
+    false
+}
+
+/// `recvmsg` with the SO_TIMESTAMPNS control message: (bytes, sender, kernel time [ns]).
+#[cfg(target_os = "linux")]
+fn recv_stamped(
+    s: &UdpSocket,
+    buf: &mut [u8],
+    cmsg: &mut [u8],
+) -> io::Result<(usize, SocketAddr, Option<i128>)> {
+    use nix::sys::socket::{recvmsg, ControlMessageOwned, MsgFlags, SockaddrIn};
+    use std::os::fd::AsRawFd;
+    let mut iov = [io::IoSliceMut::new(buf)];
+    let msg = recvmsg::<SockaddrIn>(s.as_raw_fd(), &mut iov, Some(cmsg), MsgFlags::empty())
+        .map_err(io::Error::from)?;
+    let mut stamp = None;
+    if let Ok(cmsgs) = msg.cmsgs() {
+        for c in cmsgs {
+            if let ControlMessageOwned::ScmTimestampns(ts) = c {
+                stamp = Some(i128::from(ts.tv_sec()) * 1_000_000_000 + i128::from(ts.tv_nsec()));
+            }
+        }
+    }
+    let from = msg.address.map_or(
+        SocketAddr::V4(SocketAddrV4::new(Ipv4Addr::UNSPECIFIED, 0)),
+        |a| SocketAddr::V4(SocketAddrV4::new(a.ip(), a.port())),
+    );
+    Ok((msg.bytes, from, stamp))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn recv_stamped(
+    s: &UdpSocket,
+    buf: &mut [u8],
+    _: &mut [u8],
+) -> io::Result<(usize, SocketAddr, Option<i128>)> {
+    s.recv_from(buf).map(|(n, a)| (n, a, None))
+}
+
+#[cfg(target_os = "linux")]
+fn kernel_drops(s: &UdpSocket) -> Option<u64> {
+    use std::os::fd::AsRawFd;
+    let link = std::fs::read_link(format!("/proc/self/fd/{}", s.as_raw_fd())).ok()?;
+    let inode = link
+        .to_str()?
+        .strip_prefix("socket:[")?
+        .strip_suffix(']')?
+        .to_string();
+    let table = std::fs::read_to_string("/proc/net/udp").ok()?;
+    parse_proc_udp_drops(&table, &inode)
+}
+
+#[cfg(not(target_os = "linux"))]
+fn kernel_drops(_: &UdpSocket) -> Option<u64> {
+    None
+}
+
+/// The `drops` column of the /proc/net/udp row whose inode (column 10) is `inode`.
+pub fn parse_proc_udp_drops(table: &str, inode: &str) -> Option<u64> {
+    table.lines().skip(1).find_map(|l| {
+        let cols: Vec<&str> = l.split_whitespace().collect();
+        (cols.get(9) == Some(&inode))
+            .then(|| cols.last()?.parse().ok())
+            .flatten()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn proc_net_udp_drops_column() {
+        // A row as Linux 6.x prints it (header, then one socket).
+        let t = "   sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode ref pointer drops\n\
+                 \x20 1: 0100007F:0940 00000000:0000 07 00000000:00000000 00:00000000 00000000  1000        0 81234 2 0000000000000000 17\n";
+        assert_eq!(parse_proc_udp_drops(t, "81234"), Some(17));
+        assert_eq!(parse_proc_udp_drops(t, "1"), None);
+    }
+
+    /// A datagram sent to ourselves carries a kernel receive time close to the wall clock.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn kernel_receive_time() {
+        let mut rx = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(500)).unwrap();
+        assert!(rx.kernel_stamps());
+        let tx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
+        let before = i128::from(crate::serial::wall_ns());
+        tx.send_to(b"hello", (Ipv4Addr::LOCALHOST, rx.port()))
+            .unwrap();
+        let d = rx.recv().unwrap().expect("a datagram");
+        let after = i128::from(crate::serial::wall_ns());
+        assert_eq!(d.payload, b"hello");
+        assert!(
+            d.time.0 >= before - 1_000_000 && d.time.0 <= after,
+            "{:?}",
+            d.time
+        );
+        assert_eq!(d.src_port, tx.local_addr().unwrap().port());
+        assert_eq!(rx.kernel_stamped, 1);
+        assert_eq!(rx.kernel_drops(), Some(0));
     }
 }
