@@ -8,6 +8,7 @@
 
 pub mod packet;
 pub mod pcap;
+pub mod rawlog;
 pub mod sbet;
 pub mod serial;
 pub mod udp;

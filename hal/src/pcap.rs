@@ -639,41 +639,42 @@ pub fn build_udp_frame(
     b.write(out, payload).map_err(io::Error::other)
 }
 
-/// A classic pcap writer (little-endian, microsecond stamps, Ethernet), as tcpdump writes.
+/// A classic pcap writer (little-endian, microsecond stamps, Ethernet), as tcpdump writes
+/// (pcap-savefile(5): 24-byte global header, 16-byte record headers).
 pub struct PcapWriter<W: io::Write> {
-    inner: pcap_file::pcap::PcapWriter<W>,
+    inner: W,
 }
 
 impl<W: io::Write> PcapWriter<W> {
     /// Write the global header.
-    pub fn new(w: W) -> Result<Self, PcapError> {
-        let header = pcap_file::pcap::PcapHeader {
-            version_major: 2,
-            version_minor: 4,
-            ts_correction: 0,
-            ts_accuracy: 0,
-            snaplen: 65_535,
-            datalink: DataLink::ETHERNET,
-            ts_resolution: TsResolution::MicroSecond,
-            endianness: Endianness::Little,
-        };
-        let inner = pcap_file::pcap::PcapWriter::with_header(w, header).map_err(|e| {
-            PcapError::Corrupt {
-                offset: 0,
-                what: format!("writing pcap header: {e}"),
-            }
+    pub fn new(mut w: W) -> Result<Self, PcapError> {
+        let mut h = [0u8; 24];
+        h[0..4].copy_from_slice(&0xA1B2_C3D4u32.to_le_bytes());
+        h[4..6].copy_from_slice(&2u16.to_le_bytes());
+        h[6..8].copy_from_slice(&4u16.to_le_bytes());
+        // thiszone, sigfigs: 0.
+        h[16..20].copy_from_slice(&65_535u32.to_le_bytes());
+        h[20..24].copy_from_slice(&1u32.to_le_bytes()); // LINKTYPE_ETHERNET
+        w.write_all(&h).map_err(|e| PcapError::Corrupt {
+            offset: 0,
+            what: format!("writing pcap header: {e}"),
         })?;
-        Ok(Self { inner })
+        Ok(Self { inner: w })
     }
 
     /// Write one frame with its capture time.
     pub fn write_frame(&mut self, time: HostTime, frame: &[u8]) -> Result<(), PcapError> {
-        let ns = u128::try_from(time.0.max(0)).unwrap_or(0);
-        let ts = std::time::Duration::new((ns / 1_000_000_000) as u64, (ns % 1_000_000_000) as u32);
-        let p = pcap_file::pcap::PcapPacket::new(ts, frame.len() as u32, frame);
+        let us = time.0.max(0) / 1000;
+        let (sec, usec) = ((us / 1_000_000) as u32, (us % 1_000_000) as u32);
+        let len = u32::try_from(frame.len()).unwrap_or(u32::MAX);
+        let mut h = [0u8; 16];
+        h[0..4].copy_from_slice(&sec.to_le_bytes());
+        h[4..8].copy_from_slice(&usec.to_le_bytes());
+        h[8..12].copy_from_slice(&len.to_le_bytes());
+        h[12..16].copy_from_slice(&len.to_le_bytes());
         self.inner
-            .write_packet(&p)
-            .map(|_| ())
+            .write_all(&h)
+            .and_then(|()| self.inner.write_all(frame))
             .map_err(|e| PcapError::Corrupt {
                 offset: 0,
                 what: format!("writing pcap record: {e}"),
@@ -682,6 +683,11 @@ impl<W: io::Write> PcapWriter<W> {
 
     /// The underlying writer.
     pub fn into_inner(self) -> W {
-        self.inner.into_writer()
+        self.inner
+    }
+
+    /// The underlying writer, to flush it.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.inner
     }
 }

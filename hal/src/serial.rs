@@ -175,6 +175,11 @@ impl<W: Write> LogWriter<W> {
         self.inner.flush()
     }
 
+    /// The underlying writer, to flush it.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.inner
+    }
+
     /// The underlying writer.
     pub fn into_inner(self) -> W {
         self.inner
