@@ -12,6 +12,7 @@ pub mod montecarlo;
 pub mod pipeline;
 pub mod plot;
 pub mod replay;
+pub mod rig;
 pub mod scenario;
 pub mod site;
 pub mod status;

@@ -119,7 +119,7 @@ enum Cmd {
     },
     /// Play recorded files back: UDP datagrams to their ports, serial bytes to a device.
     Replay {
-        /// A folder with lidar.pcap and ins.bin (as `synth` writes).
+        /// A folder with lidar.pcap and ins.vnlog or ins.bin (as `synth` writes).
         dir: Option<PathBuf>,
         /// The capture (instead of DIR).
         #[arg(long)]
@@ -130,6 +130,9 @@ enum Cmd {
         /// Host to send the datagrams to.
         #[arg(long, default_value = "127.0.0.1")]
         udp: std::net::Ipv4Addr,
+        /// Send the capture's data (2368) and position (8308) packets to these ports instead.
+        #[arg(long, value_name = "DATA,POSITION", value_parser = parse_ports)]
+        ports: Option<[u16; 2]>,
         /// Serial device to write the INS bytes to (none: the bytes are not replayed).
         #[arg(long)]
         serial: Option<String>,
@@ -139,6 +142,32 @@ enum Cmd {
         /// Speed: a factor of the recorded pacing (1 = real time) or max.
         #[arg(long, default_value = "1")]
         speed: spherecal_tools::replay::Speed,
+    },
+    /// The rig: listen to the VLP-16 and the VN-200, log everything raw, show a status line every
+    /// second, calibrate once every sphere has been seen well enough. Stops on SIGINT/SIGTERM
+    /// or after --duration, exit 0.
+    Run {
+        /// The board file (boards/*.toml).
+        #[arg(long)]
+        board: PathBuf,
+        /// Serial device of the INS (overrides the board's).
+        #[arg(long)]
+        serial: Option<String>,
+        /// site.toml: without it the rig only acquires and logs.
+        #[arg(long)]
+        site: Option<PathBuf>,
+        /// Raw log folder (overrides the board's).
+        #[arg(long)]
+        log_dir: Option<PathBuf>,
+        /// Rotate raw log files at this size [MB] (overrides the board's).
+        #[arg(long)]
+        rotate_mb: Option<f64>,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Write the calibration report here after every solve.
+        #[arg(long)]
+        report: Option<PathBuf>,
     },
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
@@ -186,15 +215,25 @@ fn main() -> ExitCode {
     };
     match cmd {
         Cmd::Demo => demo(),
+        Cmd::Run {
+            board,
+            serial,
+            site,
+            log_dir,
+            rotate_mb,
+            duration,
+            report,
+        } => run(board, serial, site, log_dir, rotate_mb, duration, report),
         Cmd::Replay {
             dir,
             pcap,
             ins,
             udp,
+            ports,
             serial,
             baud,
             speed,
-        } => replay(dir, pcap, ins, udp, serial, baud, speed),
+        } => replay(dir, pcap, ins, udp, ports, serial, baud, speed),
         Cmd::Montecarlo {
             scenario,
             trials,
@@ -416,60 +455,145 @@ fn demo() -> ExitCode {
     code
 }
 
+fn run(
+    board: PathBuf,
+    serial: Option<String>,
+    site: Option<PathBuf>,
+    log_dir: Option<PathBuf>,
+    rotate_mb: Option<f64>,
+    duration: Option<f64>,
+    report: Option<PathBuf>,
+) -> ExitCode {
+    use spherecal_tools::rig::{run, RunOptions};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+    let fail = |e: String| {
+        eprintln!("spherecal run: {e}");
+        ExitCode::from(2)
+    };
+    let board = match spherecal_tools::board::Board::load(&board) {
+        Ok(b) => b,
+        Err(e) => return fail(e),
+    };
+    let site = match site
+        .map(|s| spherecal_tools::site::Site::load(&s))
+        .transpose()
+    {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    if let Some(d) = duration.filter(|d| !(d.is_finite() && *d > 0.0)) {
+        return fail(format!(
+            "--duration {d}: expected a positive number of seconds"
+        ));
+    }
+    if let Some(r) = rotate_mb.filter(|r| !(r.is_finite() && *r > 0.0)) {
+        return fail(format!("--rotate-mb {r}: expected a positive size"));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
+            return fail(format!("signal {sig}: {e}"));
+        }
+    }
+    let mut console =
+        match spherecal_tools::status::Console::open(&board.console.device, board.console.baud) {
+            Ok(c) => c,
+            Err(e) => return fail(e),
+        };
+    let opts = RunOptions {
+        board,
+        serial,
+        site,
+        log_dir,
+        rotate_bytes: rotate_mb.map(|m| (m * 1_048_576.0) as u64),
+        duration: duration.map(std::time::Duration::from_secs_f64),
+        report,
+        settings: spherecal::calib::Settings::default(),
+    };
+    match run(&opts, &mut console, &stop) {
+        Ok(s) => {
+            eprint!("{}", spherecal_tools::rig::render(&s));
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(e),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn replay(
     dir: Option<PathBuf>,
     pcap: Option<PathBuf>,
     ins: Option<PathBuf>,
     udp: std::net::Ipv4Addr,
+    ports: Option<[u16; 2]>,
     serial: Option<String>,
     baud: u32,
     speed: spherecal_tools::replay::Speed,
 ) -> ExitCode {
-    use spherecal_tools::replay::{replay_serial, replay_udp};
+    use spherecal_tools::replay::{replay_both, Target};
     let pcap = pcap.or_else(|| dir.as_ref().map(|d| d.join("lidar.pcap")));
-    let ins = ins.or_else(|| dir.as_ref().map(|d| d.join("ins.bin")));
+    // A serial log (with receive times) keeps the two streams in step; raw bytes go at the
+    // baud rate's pace.
+    let ins = ins.or_else(|| {
+        dir.as_ref().map(|d| {
+            let log = d.join("ins.vnlog");
+            if log.exists() {
+                log
+            } else {
+                d.join("ins.bin")
+            }
+        })
+    });
     let Some(pcap) = pcap else {
         eprintln!("spherecal replay: give DIR or --pcap");
         return ExitCode::from(2);
     };
-    let result = std::thread::scope(|sc| {
-        let serial_job = match (&serial, &ins) {
-            (Some(dev), Some(ins)) => Some(sc.spawn(move || -> Result<u64, String> {
-                let mut port = serialport::new(dev.as_str(), baud)
-                    .open()
-                    .map_err(|e| format!("{dev}: {e}"))?;
-                replay_serial(ins, &mut port, baud, speed)
-            })),
-            _ => None,
-        };
-        let udp_result = replay_udp(&pcap, udp, speed);
-        let serial_result = serial_job.map(|j| {
-            j.join()
-                .unwrap_or_else(|_| Err("serial thread panicked".into()))
-        });
-        (udp_result, serial_result)
-    });
-    match result {
-        (Ok(u), s) => {
+    let mut to = Target::host(udp);
+    if let Some([d, p]) = ports {
+        to.ports = [(2368, d), (8308, p)];
+    }
+    let mut port = match &serial {
+        Some(dev) => match serialport::new(dev.as_str(), baud).open() {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!("spherecal replay: {dev}: {e}");
+                return ExitCode::from(2);
+            }
+        },
+        None => None,
+    };
+    let serial_job = match (&mut port, &ins) {
+        (Some(p), Some(i)) => Some((i.as_path(), p as &mut (dyn std::io::Write + Send), baud)),
+        _ => None,
+    };
+    match replay_both(&pcap, to, serial_job, speed) {
+        Ok((u, s)) => {
             sayln!(
                 "sent {} datagrams to {udp} ({} records skipped)",
                 u.sent,
                 u.skipped
             );
-            match s {
-                Some(Ok(n)) => sayln!("wrote {n} bytes to {}", serial.unwrap_or_default()),
-                Some(Err(e)) => {
-                    eprintln!("spherecal replay: {e}");
-                    return ExitCode::from(2);
-                }
-                None => {}
+            if let Some(n) = s {
+                sayln!("wrote {n} bytes to {}", serial.unwrap_or_default());
             }
             ExitCode::SUCCESS
         }
-        (Err(e), _) => {
+        Err(e) => {
             eprintln!("spherecal replay: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+/// Two comma-separated ports.
+fn parse_ports(s: &str) -> Result<[u16; 2], String> {
+    match s.split_once(',') {
+        Some((a, b)) => match (a.trim().parse::<u16>(), b.trim().parse::<u16>()) {
+            (Ok(a), Ok(b)) if a > 0 && b > 0 => Ok([a, b]),
+            _ => Err(format!("{s:?}: expected two ports DATA,POSITION")),
+        },
+        None => Err(format!("{s:?}: expected two ports DATA,POSITION")),
     }
 }
 

@@ -201,7 +201,9 @@ pub fn targets(site: &Site) -> (LocalFrame, Vec<Target>) {
     (frame, t)
 }
 
-fn push_wait<T>(
+/// Enqueue `item`; a full ring counts in `full` and then drops the item ([`Overflow::Drop`])
+/// or waits for room ([`Overflow::Wait`]). Returns whether it was enqueued.
+pub fn push_wait<T>(
     p: &mut heapless::spsc::Producer<'_, T>,
     mut item: T,
     policy: Overflow,
@@ -219,6 +221,42 @@ fn push_wait<T>(
                 std::thread::yield_now();
             }
         }
+    }
+}
+
+/// What a framed VN-200 item gives the pipeline.
+#[derive(Debug, Clone, Copy)]
+pub enum InsOutcome {
+    /// A pose in the site frame and the INS status word if the message carried it.
+    Pose(PoseSample, Option<u16>),
+    /// A binary frame without a complete pose (time, attitude, position).
+    NoPose,
+    /// A frame or sentence that failed its checksum or could not be parsed.
+    Rejected,
+    /// Something else (NMEA, other $VN sentences).
+    Other,
+}
+
+/// The pose a framed VN-200 item carries: a binary frame, or an ASCII $VNINS sentence.
+pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
+    let pose = match item {
+        Item::Binary(f) => match Pose::from_frame(f) {
+            Some(p) => p,
+            None => return InsOutcome::NoPose,
+        },
+        Item::Ascii(a) => match a.decode() {
+            Ok(spherecal::vn200::ascii::Vn::Ins(i)) => match Pose::from_ins(&i) {
+                Some(p) => p,
+                None => return InsOutcome::NoPose,
+            },
+            _ => return InsOutcome::Other,
+        },
+        Item::Nmea(_) => return InsOutcome::Other,
+        Item::Error(_) => return InsOutcome::Rejected,
+    };
+    match PoseSample::from_vn200(frame, &pose) {
+        Some(s) => InsOutcome::Pose(s, pose.ins_status),
+        None => InsOutcome::NoPose,
     }
 }
 
@@ -304,6 +342,12 @@ impl Aligner {
             lag_ns: None,
             windowed: vec![0; n],
         }
+    }
+
+    /// Returns windowed for sphere `i` so far, including those not yet handed on.
+    pub fn windowed_now(&self, i: usize) -> u64 {
+        self.windowed.get(i).copied().unwrap_or(0)
+            + self.batches.get(i).map_or(0, |b| b.obs.len() as u64)
     }
 
     /// Has the INS stream ended?
@@ -536,34 +580,16 @@ pub fn run<C: Send>(
             let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
             if let Some(bytes) = ins_bytes {
                 let mut framer: Box<Framer> = Box::default();
-                let mut handle = |it: spherecal::vn200::Framed<'_>| match it.item {
-                    Item::Binary(f) => match Pose::from_frame(&f)
-                        .and_then(|p| PoseSample::from_vn200(&frame, &p))
-                    {
-                        Some(s) => {
+                let mut handle =
+                    |it: spherecal::vn200::Framed<'_>| match vn200_pose(&it.item, &frame) {
+                        InsOutcome::Pose(s, _) => {
                             poses += 1;
                             push_wait(&mut ip, InsItem::Pose(s, 0), Overflow::Wait, &full_ref[1]);
                         }
-                        None => without += 1,
-                    },
-                    Item::Ascii(a) => {
-                        if let Ok(spherecal::vn200::ascii::Vn::Ins(i)) = a.decode() {
-                            if let Some(s) =
-                                Pose::from_ins(&i).and_then(|p| PoseSample::from_vn200(&frame, &p))
-                            {
-                                poses += 1;
-                                push_wait(
-                                    &mut ip,
-                                    InsItem::Pose(s, 0),
-                                    Overflow::Wait,
-                                    &full_ref[1],
-                                );
-                            }
-                        }
-                    }
-                    Item::Nmea(_) => {}
-                    Item::Error(_) => rejected += 1,
-                };
+                        InsOutcome::NoPose => without += 1,
+                        InsOutcome::Rejected => rejected += 1,
+                        InsOutcome::Other => {}
+                    };
                 for chunk in bytes.chunks(4096) {
                     framer.consume(chunk, &mut handle);
                 }

@@ -3,7 +3,6 @@
 //! the serial bytes to a device at the baud rate's pace or the log's own timing.
 
 use spherecal_hal::pcap::PcapSource;
-use spherecal_hal::serial::{replay, Pace, RxStamp};
 use spherecal_hal::{PacketSource, Record};
 use std::io::Write;
 use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
@@ -32,6 +31,96 @@ impl std::str::FromStr for Speed {
     }
 }
 
+/// The replay's clock: a recording time (host wall clock, ns since 1970) is due at
+/// `start + (t - t0) / speed`, so that several streams replayed on threads keep their recorded
+/// order and spacing.
+#[derive(Debug, Clone, Copy)]
+pub struct Clock {
+    /// When the replay started.
+    pub start: Instant,
+    /// The recording time that is due at `start`.
+    pub t0_ns: i128,
+    /// How fast.
+    pub speed: Speed,
+}
+
+impl Clock {
+    /// A clock starting now at recording time `t0_ns`.
+    pub fn new(t0_ns: i128, speed: Speed) -> Self {
+        Self {
+            start: Instant::now(),
+            t0_ns,
+            speed,
+        }
+    }
+
+    /// Sleep until recording time `t_ns` is due (at once for `max` or a time before `t0`).
+    pub fn wait_for(&self, t_ns: i128) {
+        if let Speed::Factor(f) = self.speed {
+            let due = Duration::from_secs_f64(((t_ns - self.t0_ns).max(0) as f64 * 1e-9) / f);
+            let now = self.start.elapsed();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+    }
+}
+
+/// Where datagrams go: a host, and the capture's data/position ports mapped to others.
+#[derive(Debug, Clone, Copy)]
+pub struct Target {
+    /// Host.
+    pub host: Ipv4Addr,
+    /// (capture port, port to send to) for data and position packets.
+    pub ports: [(u16, u16); 2],
+}
+
+impl Target {
+    /// Each datagram to its own port on `host`.
+    pub fn host(host: Ipv4Addr) -> Self {
+        Self {
+            host,
+            ports: [(2368, 2368), (8308, 8308)],
+        }
+    }
+
+    fn port(&self, p: u16) -> u16 {
+        self.ports.iter().find(|m| m.0 == p).map_or(p, |m| m.1)
+    }
+}
+
+/// The first record time of a capture and of a serial log (host wall clock), for a [`Clock`].
+pub fn first_times(
+    pcap: &Path,
+    ins: Option<&Path>,
+) -> Result<(Option<i128>, Option<i128>), String> {
+    let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
+    let mut first_udp = None;
+    while let Some(rec) = src
+        .next_record()
+        .map_err(|e| format!("{}: {e}", pcap.display()))?
+    {
+        if let Record::Udp(d) = rec {
+            first_udp = Some(d.time.0);
+            break;
+        }
+    }
+    let first_log = match ins {
+        Some(p) => {
+            let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
+                Ok(mut r) => r
+                    .next_record(&mut Vec::new())
+                    .map_err(|e| format!("{}: {e}", p.display()))?
+                    .map(|s| i128::from(s.wall_ns)),
+                Err(_) => None, // raw bytes: no times
+            }
+        }
+        None => None,
+    };
+    Ok((first_udp, first_log))
+}
+
 /// What a UDP replay sent.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct UdpReplay {
@@ -41,13 +130,23 @@ pub struct UdpReplay {
     pub skipped: u64,
 }
 
-/// Send every UDP datagram of a capture to `host` at its destination port.
+/// Send every UDP datagram of a capture to `host` at its destination port, paced from its
+/// first record.
 pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay, String> {
+    let (first, _) = first_times(pcap, None)?;
+    replay_udp_on(
+        pcap,
+        Target::host(host),
+        &Clock::new(first.unwrap_or(0), speed),
+    )
+}
+
+/// Send every UDP datagram of a capture to `to`, each when `clock` says its record time is due.
+pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Clock) -> Result<UdpReplay, String> {
     let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
-    let start = Instant::now();
-    let mut first: Option<i128> = None;
+    let host = to.host;
     let mut out = UdpReplay::default();
     while let Some(rec) = src
         .next_record()
@@ -60,23 +159,14 @@ pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay
                 continue;
             }
         };
-        if let Speed::Factor(f) = speed {
-            let t0 = *first.get_or_insert(d.time.0);
-            let due = Duration::from_secs_f64(((d.time.0 - t0).max(0) as f64 * 1e-9) / f);
-            let now = start.elapsed();
-            if due > now {
-                std::thread::sleep(due - now);
-            }
-        }
-        sock.send_to(d.payload, SocketAddrV4::new(host, d.dst_port))
-            .map_err(|e| format!("send to {host}:{}: {e}", d.dst_port))?;
+        clock.wait_for(d.time.0);
+        let port = to.port(d.dst_port);
+        sock.send_to(d.payload, SocketAddrV4::new(host, port))
+            .map_err(|e| format!("send to {host}:{port}: {e}"))?;
         out.sent += 1;
     }
     Ok(out)
 }
-
-/// Bytes and when they were received.
-type Chunk<'a> = (&'a [u8], Option<RxStamp>);
 
 /// Write a VN-200 byte file (raw or serial log) to `out`: a log at its recorded timing, raw
 /// bytes at `baud`'s pace (10 bits a byte), both scaled by `speed`.
@@ -86,30 +176,97 @@ pub fn replay_serial(
     baud: u32,
     speed: Speed,
 ) -> Result<u64, String> {
+    let (_, first) = first_times_log(file)?;
+    replay_serial_on(file, out, baud, &Clock::new(first.unwrap_or(0), speed))
+}
+
+fn first_times_log(file: &Path) -> Result<(Option<i128>, Option<i128>), String> {
+    let f = std::fs::File::open(file).map_err(|e| format!("{}: {e}", file.display()))?;
+    Ok((
+        None,
+        match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
+            Ok(mut r) => r
+                .next_record(&mut Vec::new())
+                .map_err(|e| format!("{}: {e}", file.display()))?
+                .map(|s| i128::from(s.wall_ns)),
+            Err(_) => None,
+        },
+    ))
+}
+
+/// Write a VN-200 byte file to `out`: a serial log's reads each when `clock` says their
+/// receive time is due; raw bytes at `baud`'s pace (10 bits a byte) from the clock's start,
+/// scaled by its speed.
+pub fn replay_serial_on(
+    file: &Path,
+    out: &mut impl Write,
+    baud: u32,
+    clock: &Clock,
+) -> Result<u64, String> {
     let (bytes, stamps) = spherecal_hal::serial::read_byte_file(file)
         .map_err(|e| format!("{}: {e}", file.display()))?;
-    let (chunks, pace): (Vec<Chunk<'_>>, Pace) = match (&stamps, speed) {
-        (Some(st), s) => {
-            let mut v = Vec::with_capacity(st.len());
+    let write =
+        |out: &mut dyn Write, b: &[u8]| out.write_all(b).map_err(|e| format!("serial write: {e}"));
+    let mut written = 0u64;
+    match stamps {
+        Some(st) => {
             for (i, (at, stamp)) in st.iter().enumerate() {
                 let end = st.get(i + 1).map_or(bytes.len(), |n| n.0 as usize);
-                v.push((&bytes[*at as usize..end], Some(*stamp)));
+                clock.wait_for(i128::from(stamp.wall_ns));
+                write(out, &bytes[*at as usize..end])?;
+                written += (end - *at as usize) as u64;
             }
-            (
-                v,
-                match s {
-                    Speed::Max => Pace::Max,
-                    Speed::Factor(f) => Pace::Recorded(f),
-                },
-            )
         }
-        (None, s) => (
-            bytes.chunks(64).map(|c| (c, None)).collect(),
-            match s {
-                Speed::Max => Pace::Max,
-                Speed::Factor(f) => Pace::Baud((f64::from(baud) * f) as u32),
-            },
-        ),
+        None => {
+            let rate = match clock.speed {
+                Speed::Max => None,
+                Speed::Factor(f) => Some(f64::from(baud.max(1)) * f / 10.0),
+            };
+            for c in bytes.chunks(64) {
+                if let Some(r) = rate {
+                    let due = Duration::from_secs_f64(written as f64 / r);
+                    let now = clock.start.elapsed();
+                    if due > now {
+                        std::thread::sleep(due - now);
+                    }
+                }
+                write(out, c)?;
+                written += c.len() as u64;
+            }
+        }
+    }
+    out.flush().map_err(|e| format!("serial write: {e}"))?;
+    Ok(written)
+}
+
+/// Replay a capture and (optionally) a VN-200 file together on one clock: the datagrams to
+/// `to`, the serial bytes to `serial`. Their recorded times keep their order and spacing.
+pub fn replay_both(
+    pcap: &Path,
+    to: Target,
+    ins: Option<(&Path, &mut (dyn Write + Send), u32)>,
+    speed: Speed,
+) -> Result<(UdpReplay, Option<u64>), String> {
+    let (fu, fl) = first_times(pcap, ins.as_ref().map(|i| i.0))?;
+    let t0 = match (fu, fl) {
+        (Some(a), Some(b)) => a.min(b),
+        (a, b) => a.or(b).unwrap_or(0),
     };
-    replay(out, &chunks, pace).map_err(|e| format!("serial write: {e}"))
+    let clock = Clock::new(t0, speed);
+    std::thread::scope(|sc| {
+        let serial = ins.map(|(file, out, baud)| {
+            sc.spawn(move || {
+                let mut out = out;
+                replay_serial_on(file, &mut out, baud, &clock)
+            })
+        });
+        let udp = replay_udp_on(pcap, to, &clock);
+        let ser = serial
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err("serial thread panicked".into()))
+            })
+            .transpose();
+        Ok((udp?, ser?))
+    })
 }

@@ -1,10 +1,11 @@
 //! The rig's status line, one a second on the console (a serial port or stdout).
 //!
 //! ```text
-//! t=12s pkt/s=754 drop=0/0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
+//! t=12s pkt/s=754 drop=0/0/0 kdrop=0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
 //! ```
 //! Fields, space separated, `key=value`: `t` seconds since start; `pkt/s` LiDAR data packets in
-//! the last second; `drop` ring drops LiDAR/INS so far; `pps` the position packets' PPS state;
+//! the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
+//! dropped (socket buffer full) so far; `pps` the position packets' PPS state;
 //! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time at the last aligned packet [ms];
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`.
@@ -18,8 +19,10 @@ pub struct Status {
     pub t_s: u64,
     /// Data packets in the last second.
     pub packets_per_s: u64,
-    /// Ring drops: LiDAR, INS.
-    pub drops: [u64; 2],
+    /// Ring drops: LiDAR, INS, raw log.
+    pub drops: [u64; 3],
+    /// Datagrams the kernel dropped.
+    pub kernel_drops: u64,
     /// PPS state name.
     pub pps: String,
     /// INS mode name.
@@ -38,8 +41,15 @@ impl Status {
         let mut o = String::with_capacity(160);
         let _ = write!(
             o,
-            "t={}s pkt/s={} drop={}/{} pps={} ins={}",
-            self.t_s, self.packets_per_s, self.drops[0], self.drops[1], self.pps, self.ins
+            "t={}s pkt/s={} drop={}/{}/{} kdrop={} pps={} ins={}",
+            self.t_s,
+            self.packets_per_s,
+            self.drops[0],
+            self.drops[1],
+            self.drops[2],
+            self.kernel_drops,
+            self.pps,
+            self.ins
         );
         match self.lag_ms {
             Some(l) => {
@@ -81,9 +91,13 @@ impl Status {
                 "t" => s.t_s = v.strip_suffix('s')?.parse().ok()?,
                 "pkt/s" => s.packets_per_s = v.parse().ok()?,
                 "drop" => {
-                    let (a, b) = v.split_once('/')?;
-                    s.drops = [a.parse().ok()?, b.parse().ok()?];
+                    let d: Vec<u64> = v
+                        .split('/')
+                        .map(|x| x.parse().ok())
+                        .collect::<Option<_>>()?;
+                    s.drops = d.try_into().ok()?;
                 }
+                "kdrop" => s.kernel_drops = v.parse().ok()?,
                 "pps" => s.pps = v.to_string(),
                 "ins" => s.ins = v.to_string(),
                 "lag_ms" => {
@@ -130,7 +144,8 @@ mod tests {
         let s = Status {
             t_s: 12,
             packets_per_s: 754,
-            drops: [0, 3],
+            drops: [0, 3, 1],
+            kernel_drops: 7,
             pps: "locked".into(),
             ins: "tracking".into(),
             lag_ms: Some(1.4),
@@ -142,7 +157,7 @@ mod tests {
         };
         assert_eq!(
             s.line(),
-            "t=12s pkt/s=754 drop=0/3 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001"
+            "t=12s pkt/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -152,10 +167,11 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s pkt/s=0 drop=0/0 pps=none ins=aligning lag_ms=- win=- cal=- sig=-"
+            "t=0s pkt/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);
+        assert_eq!(Status::parse("t=1s drop=1/2"), None);
     }
 }
 

@@ -1,5 +1,7 @@
 //! `spherecal synth`: run a scenario through the simulator and write what a rig would have
-//! recorded: `lidar.pcap`, `ins.bin`, plus `site.toml` and `truth.json`.
+//! recorded: `lidar.pcap`, `ins.bin` (and the same bytes as `ins.vnlog`, a serial log with
+//! receive times, so that `replay` can pace both streams on one clock), plus `site.toml` and
+//! `truth.json`.
 
 use crate::scenario::Scenario;
 use crate::site::{Origin, Site, SiteApriori, SiteSphere};
@@ -8,6 +10,7 @@ use spherecal::sim::{InsSim, LidarSim, SimPacket, World};
 use spherecal::time::gps_to_unix_ns;
 use spherecal_hal::packet::HostTime;
 use spherecal_hal::pcap::{build_udp_frame, PcapWriter, UdpEndpoints};
+use spherecal_hal::serial::{LogWriter, RxStamp};
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -51,7 +54,12 @@ fn named(keys: [&str; 3], v: [f64; 3]) -> BTreeMap<String, f64> {
 /// Delay between the first firing of a packet and its capture on the rig's computer.
 const NETWORK_DELAY_NS: i64 = 1_400_000;
 
-/// Simulate and write the four files into `dir` (created if needed).
+/// The simulated VN-200's serial rate.
+const SERIAL_BAUD: u32 = 921_600;
+/// Delay between a VN-200 sample and the start of its frame on the wire.
+const SERIAL_LATENCY_NS: i64 = 1_000_000;
+
+/// Simulate and write the files into `dir` (created if needed).
 pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir))
@@ -86,16 +94,32 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
     }
     pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
 
-    // ins.bin
+    // ins.bin, and the same bytes as a serial log with the times a rig would have received
+    // them (sample time + output latency + transmission at the baud rate), for replay.
     let ins_path = dir.join("ins.bin");
+    let log_path = dir.join("ins.vnlog");
     let f = std::fs::File::create(&ins_path).map_err(|e| io(&ins_path, e))?;
     let mut w = BufWriter::with_capacity(1 << 20, f);
+    let f = std::fs::File::create(&log_path).map_err(|e| io(&log_path, e))?;
+    let mut log = LogWriter::new(BufWriter::with_capacity(1 << 20, f), SERIAL_BAUD)
+        .map_err(|e| io(&log_path, e))?;
     let mut ins = InsSim::new(world, s.ins_config());
     let mut buf = [0u8; 128];
-    while let Some((_, n)) = ins.next_frame(&mut buf) {
+    let mut first_wall: Option<i64> = None;
+    while let Some((t, n)) = ins.next_frame(&mut buf) {
         w.write_all(&buf[..n]).map_err(|e| io(&ins_path, e))?;
+        let wall = gps_to_unix_ns(t, s.leap_seconds)
+            + SERIAL_LATENCY_NS
+            + (n as i64 * 10 * 1_000_000_000) / i64::from(SERIAL_BAUD);
+        let first = *first_wall.get_or_insert(wall);
+        let stamp = RxStamp {
+            mono_ns: u64::try_from(wall - first).unwrap_or(0),
+            wall_ns: wall,
+        };
+        log.record(stamp, &buf[..n]).map_err(|e| io(&log_path, e))?;
     }
     w.flush().map_err(|e| io(&ins_path, e))?;
+    log.flush().map_err(|e| io(&log_path, e))?;
 
     // site.toml
     let site_frame = s.site();

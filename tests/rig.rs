@@ -1,0 +1,284 @@
+//! The rig on one machine: `spherecal run` listening on loopback and a pseudo-terminal, fed by
+//! the replay of a synthetic survey. Each test uses its own UDP ports.
+
+mod common;
+
+use serialport::{SerialPort, TTYPort};
+use spherecal_hal::pcap::PcapSource;
+use spherecal_hal::serial::read_byte_file;
+use spherecal_hal::{PacketSource, Record};
+use spherecal_tools::replay::{replay_both, Speed, Target};
+use spherecal_tools::status::Status;
+use std::io::{BufRead, BufReader};
+use std::net::Ipv4Addr;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// The sim board with its own ports.
+fn board(dir: &Path, data_port: u16, position_port: u16) -> PathBuf {
+    let text = std::fs::read_to_string(common::repo_root().join("boards/sim.toml")).unwrap();
+    let text = text
+        .replace("data_port = 2368", &format!("data_port = {data_port}"))
+        .replace(
+            "position_port = 8308",
+            &format!("position_port = {position_port}"),
+        );
+    assert!(text.contains(&format!("data_port = {data_port}")));
+    let p = dir.join("board.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A running `spherecal run` and its status lines.
+struct Rig {
+    child: Child,
+    lines: mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Rig {
+    fn start(args: &[&std::ffi::OsStr]) -> Self {
+        let mut child = common::spherecal()
+            .arg("run")
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let out = child.stdout.take().unwrap();
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for l in BufReader::new(out).lines().map_while(Result::ok) {
+                if tx.send(l).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut rig = Rig {
+            child,
+            lines,
+            seen: Vec::new(),
+        };
+        // The first status line means the sockets are bound and the serial port is open.
+        let l = rig.next_line(Duration::from_secs(20));
+        assert!(l.is_some(), "no status line: {}", rig.stderr());
+        rig
+    }
+
+    fn next_line(&mut self, wait: Duration) -> Option<String> {
+        let l = self.lines.recv_timeout(wait).ok()?;
+        self.seen.push(l.clone());
+        Some(l)
+    }
+
+    fn stderr(&mut self) -> String {
+        let _ = self.child.kill();
+        let mut s = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = std::io::Read::read_to_string(&mut e, &mut s);
+        }
+        s
+    }
+
+    fn signal(&self, sig: nix::sys::signal::Signal) {
+        nix::sys::signal::kill(nix::unistd::Pid::from_raw(self.child.id() as i32), sig).unwrap();
+    }
+
+    /// Wait for the exit; returns the exit code, all status lines and stderr.
+    fn wait(mut self, limit: Duration) -> (Option<i32>, Vec<String>, String) {
+        let t = Instant::now();
+        loop {
+            if let Some(st) = self.child.try_wait().unwrap() {
+                while let Some(_l) = self.next_line(Duration::from_millis(200)) {}
+                let mut err = String::new();
+                if let Some(mut e) = self.child.stderr.take() {
+                    let _ = std::io::Read::read_to_string(&mut e, &mut err);
+                }
+                return (st.code(), self.seen, err);
+            }
+            assert!(t.elapsed() < limit, "run did not stop: {}", self.stderr());
+            while self.lines.try_recv().map(|l| self.seen.push(l)).is_ok() {}
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+/// Files in `dir` whose names contain `part`, in name order (= rotation order).
+fn files(dir: &Path, part: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_name().unwrap().to_str().unwrap().contains(part))
+        .collect();
+    v.sort();
+    v
+}
+
+/// (destination port, payload) of every datagram in some captures, in order; and the skips.
+fn datagrams(pcaps: &[PathBuf]) -> (Vec<(u16, Vec<u8>)>, u64) {
+    let mut v = Vec::new();
+    let mut skipped = 0;
+    for p in pcaps {
+        let mut s = PcapSource::open(p).unwrap();
+        while let Some(r) = s.next_record().unwrap() {
+            match r {
+                Record::Udp(d) => v.push((d.dst_port, d.payload.to_vec())),
+                Record::Skipped { .. } => skipped += 1,
+            }
+        }
+    }
+    (v, skipped)
+}
+
+fn summary(log_dir: &Path) -> serde_json::Value {
+    let f = files(log_dir, "-run.json");
+    assert_eq!(f.len(), 1, "{f:?}");
+    serde_json::from_str(&std::fs::read_to_string(&f[0]).unwrap()).unwrap()
+}
+
+fn u(v: &serde_json::Value) -> u64 {
+    v.as_u64().unwrap()
+}
+
+/// table1 through the whole rig: replayed at 4x real time (the 62.5 s survey in ~16 s) to
+/// loopback and a pseudo-terminal; the run calibrates to the truth, logs every datagram and
+/// every serial byte it was sent, and stops cleanly on SIGINT.
+#[test]
+fn table1_through_the_rig() {
+    let dir = common::tmp("rig-e2e", "table1");
+    let _ = std::fs::remove_dir_all(&dir);
+    let s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
+    let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    master.set_timeout(Duration::from_secs(5)).unwrap();
+    let slave_name = slave.name().unwrap();
+    let (dp, pp) = (23_710, 23_711);
+    let board = board(&dir, dp, pp);
+    let logs = dir.join("logs");
+    let report = dir.join("run-report.json");
+    let rig = Rig::start(&[
+        "--board".as_ref(),
+        board.as_os_str(),
+        "--serial".as_ref(),
+        slave_name.as_ref(),
+        "--site".as_ref(),
+        dir.join("site.toml").as_os_str(),
+        "--log-dir".as_ref(),
+        logs.as_os_str(),
+        "--rotate-mb".as_ref(),
+        "16".as_ref(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--duration".as_ref(),
+        "600".as_ref(),
+    ]);
+    let to = Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(2368, dp), (8308, pp)],
+    };
+    let (sent, wrote) = replay_both(
+        &dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog"), &mut master, 921_600)),
+        Speed::Factor(4.0),
+    )
+    .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(60));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    drop(slave);
+
+    // The report recovers the truth.
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["converged"], true, "{rep}");
+    let t = &s.mount.truth;
+    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
+        let got = rep["boresight_deg"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
+        let got = rep["lever_arm_m"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+
+    // Nothing lost at this pace: every datagram received, enqueued and aligned.
+    let sm = summary(&logs);
+    let n = truth.data_packets + truth.position_packets;
+    assert_eq!(sent.sent, n);
+    assert_eq!(u(&sm["received"][0]), truth.data_packets, "{sm}");
+    assert_eq!(u(&sm["received"][1]), truth.position_packets, "{sm}");
+    assert_eq!(u(&sm["enqueued"][0]), truth.data_packets, "{sm}");
+    assert_eq!(u(&sm["data_packets"]), truth.data_packets, "{sm}");
+    assert_eq!(sm["ring_drops"], serde_json::json!([0, 0, 0, 0]), "{sm}");
+    assert_eq!(sm["kernel_drops"], serde_json::json!([0, 0]), "{sm}");
+    assert_eq!(u(&sm["poses"]), truth.ins_frames, "{sm}");
+    assert!(
+        u(&sm["solves"]) >= 2,
+        "solved as the data came and at the end: {sm}"
+    );
+    assert_eq!(u(&sm["kernel_stamped"]), n, "kernel receive times: {sm}");
+
+    // The raw logs hold exactly what was sent: each port's datagrams in the same order
+    // (the two sockets' streams interleave by receive time), rotated into several complete
+    // pcap files; the same serial bytes.
+    let pcaps = files(&logs, "-lidar-");
+    assert!(pcaps.len() >= 3, "rotated at 16 MB: {pcaps:?}");
+    let (got, skipped) = datagrams(&pcaps);
+    let (mut want, _) = datagrams(&[dir.join("lidar.pcap")]);
+    for w in &mut want {
+        w.0 = if w.0 == 2368 { dp } else { pp };
+    }
+    assert_eq!(skipped, 0);
+    assert_eq!(got.len(), want.len());
+    for port in [dp, pp] {
+        let g: Vec<_> = got.iter().filter(|d| d.0 == port).collect();
+        let w: Vec<_> = want.iter().filter(|d| d.0 == port).collect();
+        assert!(
+            g == w,
+            "logged datagrams to port {port} differ from those sent"
+        );
+    }
+    let mut serial = Vec::new();
+    for f in files(&logs, "-ins-") {
+        serial.extend(read_byte_file(&f).unwrap().0);
+    }
+    let ins = std::fs::read(dir.join("ins.bin")).unwrap();
+    assert_eq!(wrote, Some(ins.len() as u64));
+    assert!(
+        serial == ins,
+        "logged serial bytes differ ({} vs {})",
+        serial.len(),
+        ins.len()
+    );
+
+    // Status lines: one a second, all in the documented format; the calibration shows up.
+    let st: Vec<Status> = lines
+        .iter()
+        .map(|l| Status::parse(l).unwrap_or_else(|| panic!("bad status line {l:?}")))
+        .collect();
+    assert!(st.len() >= 15, "{lines:?}");
+    assert!(
+        st.iter().any(|s| s.packets_per_s > 2000),
+        "4 x 754 packets/s: {lines:?}"
+    );
+    assert!(st.iter().any(|s| s.ins == "tracking"));
+    assert!(st.iter().any(|s| s.pps == "locked"));
+    assert!(
+        st.iter().any(|s| s.lag_ms.is_some_and(|l| l.abs() < 10.0)),
+        "{lines:?}"
+    );
+    let last = st.last().unwrap();
+    let cal = last
+        .calibration
+        .expect("the last line shows the calibration")
+        .0;
+    assert!((cal[0] - t.boresight_deg[0]).abs() < 2e-3, "{cal:?}");
+    assert_eq!(last.windows.len(), 2);
+    assert!(last.windows.iter().all(|w| w.1 > 1000), "{last:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

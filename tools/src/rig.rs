@@ -1,0 +1,914 @@
+//! `spherecal run`: the rig. Live acquisition into the same aligner as the file pipeline, raw
+//! logging, a solver that calibrates as soon as every sphere has been seen well enough (and
+//! again as more returns arrive), and a status line every second.
+//!
+//! ```text
+//! UDP data reader ----> data ring ----\                          /--> batches --> solver
+//! UDP position reader -> position ring --> aligner (this thread) -
+//! serial reader ------> INS ring -----/
+//!   each reader also --> its log ring --> logger: rotating pcap + serial log, fsync each second
+//! status: one line a second on the console; stops everything on SIGINT/SIGTERM or --duration
+//! ```
+//! Readers never block: a full ring drops the item and counts it (data, position, INS and log
+//! rings each have their count); the kernel's own drops on each socket are read back too, so
+//! `sent = received + kernel drops` and `received = enqueued + ring drops + skipped`.
+
+use crate::board::Board;
+use crate::calibrate::{solve_report, Report};
+use crate::pipeline::{
+    push_wait, targets, vn200_pose, Aligner, BatchMsg, InsItem, InsOutcome, InsWait, LidarItem,
+    LidarKind, Overflow, BATCH, INS_RING,
+};
+use crate::site::Site;
+use crate::status::{Console, Status};
+use heapless::spsc::{Consumer, Producer, Queue};
+use serde::Serialize;
+use spherecal::calib::Settings;
+use spherecal::frames::LocalFrame;
+use spherecal::georef::Mount;
+use spherecal::vlp16::PpsStatus;
+use spherecal::vn200::pose::{ins_mode, InsMode};
+use spherecal::vn200::Framer;
+use spherecal::window::{Observation, Target};
+use spherecal_hal::packet::HostTime;
+use spherecal_hal::rawlog::{PcapLog, SerialLog};
+use spherecal_hal::serial::{ByteSource, ReadOutcome, RxStamp, SerialSource};
+use spherecal_hal::udp::UdpSource;
+use spherecal_hal::vlp16::{Ports, SkipStats};
+use std::net::Ipv4Addr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// Data ring (holds N - 1 packets: 0.68 s at 754 packets/s).
+pub const DATA_RING: usize = 512;
+/// Position ring.
+pub const POSITION_RING: usize = 32;
+/// Log ring for data datagrams.
+pub const DATA_LOG_RING: usize = 512;
+/// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes).
+pub const SERIAL_LOG_RING: usize = 256;
+/// Largest serial read.
+pub const SERIAL_CHUNK: usize = 1024;
+/// Largest datagram logged whole (an Ethernet MTU's UDP payload); longer ones are cut.
+pub const MAX_DATAGRAM: usize = 1472;
+/// Observations kept per sphere for the solver (older ones stay; newer ones are counted).
+pub const MAX_OBS_PER_SPHERE: usize = 200_000;
+/// Read timeout of every reader: how fast a stop is noticed.
+pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
+/// How long the aligner waits for the INS to cover a packet.
+pub const INS_WAIT: Duration = Duration::from_millis(100);
+
+/// What `run` is asked to do.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The board.
+    pub board: Board,
+    /// Serial device (overrides the board's).
+    pub serial: Option<String>,
+    /// The site: without one, the rig only acquires and logs.
+    pub site: Option<Site>,
+    /// Raw log folder (overrides the board's).
+    pub log_dir: Option<PathBuf>,
+    /// Rotation size in bytes (overrides the board's `rotate_mb`).
+    pub rotate_bytes: Option<u64>,
+    /// Stop after this long.
+    pub duration: Option<Duration>,
+    /// Write the calibration report here after every solve.
+    pub report: Option<PathBuf>,
+    /// Solver settings.
+    pub settings: Settings,
+}
+
+/// Counts of a run (also written as `<log dir>/<stamp>-run.json`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RunSummary {
+    /// Seconds run.
+    pub seconds: f64,
+    /// Datagrams received: data port, position port.
+    pub received: [u64; 2],
+    /// Datagrams the kernel dropped (socket buffer full): data, position.
+    pub kernel_drops: [u64; 2],
+    /// Datagrams with a kernel receive time.
+    pub kernel_stamped: u64,
+    /// Datagrams handed to the aligner's rings: data, position.
+    pub enqueued: [u64; 2],
+    /// Ring drops: data, position, INS, log.
+    pub ring_drops: [u64; 4],
+    /// Datagrams skipped by reason (wrong port, length, bad packet).
+    pub skipped: Vec<(String, u64)>,
+    /// Data packets aligned and windowed.
+    pub data_packets: u64,
+    /// Position packets seen by the aligner.
+    pub position_packets: u64,
+    /// Data packets the aligner could not time (no RMC and no INS yet).
+    pub packets_without_time: u64,
+    /// Serial bytes read.
+    pub serial_bytes: u64,
+    /// Poses decoded.
+    pub poses: u64,
+    /// INS frames without a complete pose.
+    pub ins_frames_without_pose: u64,
+    /// INS frames or sentences rejected (CRC, parse).
+    pub ins_rejected: u64,
+    /// Returns windowed per sphere.
+    pub windowed: Vec<u64>,
+    /// Observations lost because the solver's queue was full.
+    pub batch_drops: u64,
+    /// Solves run.
+    pub solves: u64,
+    /// Raw log files written.
+    pub log_files: Vec<PathBuf>,
+    /// Datagrams and serial reads logged.
+    pub logged: [u64; 2],
+    /// The last calibration.
+    pub calibration: Option<Report>,
+    /// Problems met (a reader or the logger stopping early).
+    pub errors: Vec<String>,
+}
+
+/// A datagram on its way to the log.
+#[derive(Clone)]
+struct UdpLogItem {
+    time: i128,
+    src: (Ipv4Addr, u16),
+    dst_port: u16,
+    len: u16,
+    bytes: [u8; MAX_DATAGRAM],
+}
+
+/// A serial read on its way to the log.
+#[derive(Clone)]
+struct SerialChunk {
+    stamp: RxStamp,
+    len: u16,
+    bytes: [u8; SERIAL_CHUNK],
+}
+
+const NONE_U8: u8 = u8::MAX;
+
+/// What the threads share (counters only: no locks on the packet path).
+struct Shared<'a> {
+    stop: &'a AtomicBool,
+    readers: AtomicUsize,
+    received: [AtomicU64; 2],
+    enqueued: [AtomicU64; 2],
+    kernel_drops: [AtomicU64; 2],
+    kernel_stamped: AtomicU64,
+    /// data, position, INS, log.
+    ring_drops: [AtomicU64; 4],
+    serial_bytes: AtomicU64,
+    pps: AtomicU8,
+    ins_mode: AtomicU8,
+    lag_ns: AtomicI64,
+    aligned: AtomicU64,
+    windowed: Vec<AtomicU64>,
+    batch_drops: AtomicU64,
+    solves: AtomicU64,
+    calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
+    errors: Mutex<Vec<String>>,
+}
+
+impl Shared<'_> {
+    fn error(&self, e: String) {
+        if let Ok(mut v) = self.errors.lock() {
+            v.push(e);
+        }
+    }
+}
+
+fn pps_name(b: u8) -> &'static str {
+    match b {
+        NONE_U8 => "none",
+        b => match PpsStatus::from(b) {
+            PpsStatus::Absent => "absent",
+            PpsStatus::Synchronizing => "syncing",
+            PpsStatus::Locked => "locked",
+            PpsStatus::Error => "error",
+            PpsStatus::Unknown(_) => "unknown",
+        },
+    }
+}
+
+fn ins_name(b: u8) -> &'static str {
+    match b {
+        NONE_U8 => "none",
+        b => match ins_mode(u16::from(b)) {
+            InsMode::NotTracking => "not-tracking",
+            InsMode::Aligning => "aligning",
+            InsMode::Tracking => "tracking",
+            InsMode::GnssLost => "gnss-lost",
+        },
+    }
+}
+
+/// The UTC start stamp that names a run's files, e.g. `20261122T084638Z`.
+pub fn stamp_now() -> String {
+    let t = spherecal::time::UtcDateTime::from_unix_ns(spherecal_hal::serial::wall_ns());
+    format!(
+        "{:04}{:02}{:02}T{:02}{:02}{:02}Z",
+        t.year, t.month, t.day, t.hour, t.minute, t.second
+    )
+}
+
+fn parse_addr(s: &str, key: &str) -> Result<Ipv4Addr, String> {
+    s.parse()
+        .map_err(|_| format!("board: {key} = {s:?} is not an IPv4 address"))
+}
+
+/// Run the rig until `stop` is set (by a signal) or the duration has passed. Status lines go
+/// to `console`.
+pub fn run(
+    opts: &RunOptions,
+    console: &mut Console,
+    stop: &AtomicBool,
+) -> Result<RunSummary, String> {
+    let b = &opts.board;
+    let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
+    let ports = Ports {
+        data: b.lidar.data_port,
+        position: b.lidar.position_port,
+    };
+    let data_sock = UdpSource::bind(bind, ports.data, READ_TIMEOUT)
+        .map_err(|e| format!("UDP {bind}:{}: {e}", ports.data))?;
+    let pos_sock = UdpSource::bind(bind, ports.position, READ_TIMEOUT)
+        .map_err(|e| format!("UDP {bind}:{}: {e}", ports.position))?;
+    let serial = match b.ins.kind.as_str() {
+        "vn200" => {
+            let dev = opts
+                .serial
+                .clone()
+                .filter(|s| !s.is_empty())
+                .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
+                .ok_or("board: ins.serial is empty: give --serial DEV")?;
+            let src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
+                .map_err(|e| format!("serial {dev}: {e}"))?;
+            Some((dev, src))
+        }
+        _ => None,
+    };
+    let log_dir = opts
+        .log_dir
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&b.log.dir));
+    std::fs::create_dir_all(&log_dir).map_err(|e| format!("{}: {e}", log_dir.display()))?;
+    let stamp = stamp_now();
+    let rotate = opts
+        .rotate_bytes
+        .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
+    let mut pcap_log = PcapLog::create(&log_dir, &format!("{stamp}-lidar"), rotate)
+        .map_err(|e| format!("raw log: {e}"))?;
+    let mut serial_log = match &serial {
+        Some(_) => Some(
+            SerialLog::create(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
+                .map_err(|e| format!("raw log: {e}"))?,
+        ),
+        None => None,
+    };
+
+    // The site and the a-priori mounting of the board.
+    let (frame, tg, ids, margin) = match &opts.site {
+        Some(site) => {
+            let (frame, t) = targets(site);
+            let ids: Vec<String> = site.sphere.iter().map(|s| s.id.clone()).collect();
+            (frame, t, ids, site.apriori.window_margin_m)
+        }
+        None => (
+            LocalFrame::new(spherecal::frames::Geodetic::from_deg(0.0, 0.0, 0.0)),
+            Vec::new(),
+            Vec::new(),
+            0.0,
+        ),
+    };
+    let apriori = [
+        b.mount.boresight_deg[0],
+        b.mount.boresight_deg[1],
+        b.mount.boresight_deg[2],
+        b.mount.lever_arm_m[0],
+        b.mount.lever_arm_m[1],
+        b.mount.lever_arm_m[2],
+    ];
+    let b0 = spherecal::calib::from_deg_m(&apriori);
+
+    let sh = Shared {
+        stop,
+        readers: AtomicUsize::new(2 + usize::from(serial.is_some())),
+        received: Default::default(),
+        enqueued: Default::default(),
+        kernel_drops: Default::default(),
+        kernel_stamped: AtomicU64::new(0),
+        ring_drops: Default::default(),
+        serial_bytes: AtomicU64::new(0),
+        pps: AtomicU8::new(NONE_U8),
+        ins_mode: AtomicU8::new(NONE_U8),
+        lag_ns: AtomicI64::new(i64::MIN),
+        aligned: AtomicU64::new(0),
+        windowed: ids.iter().map(|_| AtomicU64::new(0)).collect(),
+        batch_drops: AtomicU64::new(0),
+        solves: AtomicU64::new(0),
+        calibration: Mutex::new(None),
+        errors: Mutex::new(Vec::new()),
+    };
+
+    let mut data_q: Box<Queue<LidarItem, DATA_RING>> = Box::new(Queue::new());
+    let mut pos_q: Box<Queue<LidarItem, POSITION_RING>> = Box::new(Queue::new());
+    let mut ins_q: Box<Queue<InsItem, INS_RING>> = Box::new(Queue::new());
+    let mut dlog_q: Box<Queue<UdpLogItem, DATA_LOG_RING>> = Box::new(Queue::new());
+    let mut plog_q: Box<Queue<UdpLogItem, POSITION_RING>> = Box::new(Queue::new());
+    let mut slog_q: Box<Queue<SerialChunk, SERIAL_LOG_RING>> = Box::new(Queue::new());
+    let (data_p, mut data_c) = data_q.split();
+    let (pos_p, mut pos_c) = pos_q.split();
+    let (mut ins_p, mut ins_c) = ins_q.split();
+    let (dlog_p, dlog_c) = dlog_q.split();
+    let (plog_p, plog_c) = plog_q.split();
+    let (slog_p, slog_c) = slog_q.split();
+    let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
+    let (pool_tx, pool_rx) = crossbeam_channel::bounded::<Vec<Observation>>(64);
+    for _ in 0..16 {
+        let _ = pool_tx.try_send(Vec::with_capacity(BATCH));
+    }
+    let started = Instant::now();
+    let dst_addr = bind;
+
+    let (skips, ins_counts, logged, solver_out, al_stats) = std::thread::scope(|sc| {
+        let sh = &sh;
+        let data = sc.spawn(move || udp_reader(data_sock, data_p, dlog_p, ports, 0, sh, true));
+        let pos = sc.spawn(move || udp_reader(pos_sock, pos_p, plog_p, ports, 1, sh, false));
+        let ins = match serial {
+            Some((dev, src)) => {
+                Some(sc.spawn(move || serial_reader(&dev, src, &frame, ins_p, slog_p, sh)))
+            }
+            None => {
+                let _ = ins_p.enqueue(InsItem::End);
+                None
+            }
+        };
+        let logger = sc.spawn(move || {
+            logger(
+                &mut pcap_log,
+                serial_log.as_mut(),
+                dlog_c,
+                plog_c,
+                slog_c,
+                dst_addr,
+                sh,
+            );
+            let mut files = pcap_log.files().to_vec();
+            let mut n = [pcap_log.records, 0];
+            if let Some(s) = &serial_log {
+                files.extend_from_slice(s.files());
+                n[1] = s.records;
+            }
+            (files, n)
+        });
+        let tg_ref = &tg;
+        let ids_ref = &ids;
+        let solver = sc.spawn(move || {
+            solver(
+                rx,
+                pool_tx,
+                tg_ref,
+                ids_ref,
+                &b0,
+                &opts.settings,
+                opts.report.as_deref(),
+                sh,
+            )
+        });
+        let status = sc.spawn(move || status_loop(console, ids_ref, opts.duration, started, sh));
+
+        // Aligner (this thread).
+        let mut al = Aligner::new(
+            tg.clone(),
+            margin,
+            Mount::from_params(&b0),
+            b.leap_seconds,
+            50_000_000,
+            InsWait::AtMost(INS_WAIT),
+        );
+        let mut emit = |sphere: usize, obs: &[Observation]| {
+            let mut v = pool_rx
+                .try_recv()
+                .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+            v.clear();
+            v.extend_from_slice(obs);
+            if let Err(e) = tx.try_send(BatchMsg { sphere, obs: v }) {
+                sh.batch_drops
+                    .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
+            }
+        };
+        loop {
+            while let Some(p) = pos_c.dequeue() {
+                al.position(&p.bytes[..512]);
+            }
+            al.drain_ins(&mut ins_c);
+            let Some(item) = data_c.dequeue() else {
+                std::thread::sleep(Duration::from_micros(200));
+                continue;
+            };
+            match item.kind {
+                LidarKind::End => break,
+                LidarKind::Position => al.position(&item.bytes[..512]),
+                LidarKind::Data => al.data(&item, &mut ins_c, None, &mut emit),
+            }
+            sh.aligned.store(al.stats.data_packets, Ordering::Relaxed);
+            if let Some(p) = al.pps {
+                sh.pps.store(p.to_byte(), Ordering::Relaxed);
+            }
+            if let Some(l) = al.lag_ns {
+                sh.lag_ns.store(l, Ordering::Relaxed);
+            }
+            for (i, w) in sh.windowed.iter().enumerate() {
+                w.store(al.windowed_now(i), Ordering::Relaxed);
+            }
+        }
+        al.finish(&mut emit);
+        for (w, n) in sh.windowed.iter().zip(&al.windowed) {
+            w.store(*n, Ordering::Relaxed);
+        }
+        drop(tx);
+        // The position reader may still hold items; the INS reader ends with its End.
+        let skips_pos = pos.join().unwrap_or_default();
+        while let Some(p) = pos_c.dequeue() {
+            al.position(&p.bytes[..512]);
+        }
+        al.drain_until_end(&mut ins_c);
+        let skips_data = data.join().unwrap_or_default();
+        let ins_counts = ins
+            .map(|h| h.join().unwrap_or_default())
+            .unwrap_or_default();
+        let logged = logger.join().unwrap_or_default();
+        let solver_out = solver.join().unwrap_or_default();
+        let console = status.join().ok();
+        // The last line, with the final counts and calibration.
+        sh.aligned.store(al.stats.data_packets, Ordering::Relaxed);
+        if let Some(c) = console {
+            let mut last = u64::MAX;
+            let s = snapshot(sh, &ids, started, &mut last);
+            if let Err(e) = c.show(&s) {
+                sh.error(format!("console: {e}"));
+            }
+        }
+        (
+            (skips_data, skips_pos),
+            ins_counts,
+            logged,
+            solver_out,
+            al.stats,
+        )
+    });
+    let mut skipped: Vec<(String, u64)> = Vec::new();
+    for l in skips.0.lines().iter().chain(skips.1.lines()) {
+        match skipped.iter_mut().find(|s| s.0 == l.reason) {
+            Some(s) => s.1 += l.count,
+            None => skipped.push((l.reason.to_string(), l.count)),
+        }
+    }
+    let ld = |a: &[AtomicU64; 2]| [a[0].load(Ordering::Relaxed), a[1].load(Ordering::Relaxed)];
+    let summary = RunSummary {
+        seconds: started.elapsed().as_secs_f64(),
+        received: ld(&sh.received),
+        kernel_drops: ld(&sh.kernel_drops),
+        kernel_stamped: sh.kernel_stamped.load(Ordering::Relaxed),
+        enqueued: ld(&sh.enqueued),
+        ring_drops: [0, 1, 2, 3].map(|i| sh.ring_drops[i].load(Ordering::Relaxed)),
+        skipped,
+        data_packets: al_stats.data_packets,
+        position_packets: al_stats.position_packets,
+        packets_without_time: al_stats.packets_without_time,
+        serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
+        poses: ins_counts.0,
+        ins_frames_without_pose: ins_counts.1,
+        ins_rejected: ins_counts.2,
+        windowed: sh
+            .windowed
+            .iter()
+            .map(|w| w.load(Ordering::Relaxed))
+            .collect(),
+        batch_drops: sh.batch_drops.load(Ordering::Relaxed),
+        solves: sh.solves.load(Ordering::Relaxed),
+        log_files: logged.0,
+        logged: logged.1,
+        calibration: solver_out,
+        errors: sh.errors.into_inner().unwrap_or_default(),
+    };
+    let path = log_dir.join(format!("{stamp}-run.json"));
+    let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(summary)
+}
+
+fn udp_reader(
+    mut sock: UdpSource,
+    mut ring: Producer<'_, LidarItem>,
+    mut log: Producer<'_, UdpLogItem>,
+    ports: Ports,
+    which: usize,
+    sh: &Shared<'_>,
+    ends_stream: bool,
+) -> SkipStats {
+    let mut skips = SkipStats::default();
+    let mut polled = Instant::now();
+    let poll_drops = |sock: &UdpSource| {
+        if let Some(k) = sock.kernel_drops() {
+            sh.kernel_drops[which].store(k, Ordering::Relaxed);
+        }
+    };
+    let mut stamped_before = 0;
+    while !sh.stop.load(Ordering::Relaxed) {
+        match sock.recv() {
+            Ok(Some(d)) => {
+                sh.received[which].fetch_add(1, Ordering::Relaxed);
+                let n = d.payload.len().min(MAX_DATAGRAM);
+                let mut item = UdpLogItem {
+                    time: d.time.0,
+                    src: (d.src_addr, d.src_port),
+                    dst_port: d.dst_port,
+                    len: n as u16,
+                    bytes: [0; MAX_DATAGRAM],
+                };
+                item.bytes[..n].copy_from_slice(&d.payload[..n]);
+                push_wait(&mut log, item, Overflow::Drop, &sh.ring_drops[3]);
+                match LidarItem::classify(&d, ports) {
+                    Ok(item) => {
+                        if push_wait(&mut ring, item, Overflow::Drop, &sh.ring_drops[which]) {
+                            sh.enqueued[which].fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    Err(reason) => skips.count(0, &reason),
+                }
+            }
+            Ok(None) => {}
+            Err(e) => {
+                sh.error(format!("UDP port {}: {e}", sock.port()));
+                break;
+            }
+        }
+        if polled.elapsed() >= Duration::from_millis(500) {
+            polled = Instant::now();
+            poll_drops(&sock);
+        }
+        let s = sock.kernel_stamped;
+        if s != stamped_before {
+            sh.kernel_stamped
+                .fetch_add(s - stamped_before, Ordering::Relaxed);
+            stamped_before = s;
+        }
+    }
+    poll_drops(&sock);
+    if ends_stream {
+        // The aligner runs until it sees this.
+        while ring
+            .enqueue(LidarItem::new(LidarKind::End, 0, &[]))
+            .is_err()
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    sh.readers.fetch_sub(1, Ordering::Release);
+    skips
+}
+
+fn serial_reader(
+    dev: &str,
+    mut src: SerialSource,
+    frame: &LocalFrame,
+    mut ring: Producer<'_, InsItem>,
+    mut log: Producer<'_, SerialChunk>,
+    sh: &Shared<'_>,
+) -> (u64, u64, u64) {
+    let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
+    let mut framer: Box<Framer> = Box::default();
+    let mut buf = [0u8; SERIAL_CHUNK];
+    while !sh.stop.load(Ordering::Relaxed) {
+        match src.read_chunk(&mut buf) {
+            Ok(ReadOutcome::Data { len, stamp }) => {
+                let stamp = stamp.unwrap_or_else(RxStamp::now);
+                sh.serial_bytes.fetch_add(len as u64, Ordering::Relaxed);
+                let mut chunk = SerialChunk {
+                    stamp,
+                    len: len as u16,
+                    bytes: [0; SERIAL_CHUNK],
+                };
+                chunk.bytes[..len].copy_from_slice(&buf[..len]);
+                push_wait(&mut log, chunk, Overflow::Drop, &sh.ring_drops[3]);
+                framer.consume(
+                    &buf[..len],
+                    |it: spherecal::vn200::Framed<'_>| match vn200_pose(&it.item, frame) {
+                        InsOutcome::Pose(s, status) => {
+                            poses += 1;
+                            if let Some(st) = status {
+                                sh.ins_mode.store((st & 0b11) as u8, Ordering::Relaxed);
+                            }
+                            push_wait(
+                                &mut ring,
+                                InsItem::Pose(s, stamp.wall_ns),
+                                Overflow::Drop,
+                                &sh.ring_drops[2],
+                            );
+                        }
+                        InsOutcome::NoPose => without += 1,
+                        InsOutcome::Rejected => rejected += 1,
+                        InsOutcome::Other => {}
+                    },
+                );
+            }
+            Ok(ReadOutcome::Idle) => {}
+            Ok(ReadOutcome::End) => {
+                sh.error(format!("serial {dev}: the stream ended"));
+                break;
+            }
+            Err(e) => {
+                sh.error(format!("serial {dev}: {e}"));
+                break;
+            }
+        }
+    }
+    while ring.enqueue(InsItem::End).is_err() {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    sh.readers.fetch_sub(1, Ordering::Release);
+    (poses, without, rejected)
+}
+
+fn logger(
+    pcap: &mut PcapLog,
+    mut serial: Option<&mut SerialLog>,
+    mut data: Consumer<'_, UdpLogItem>,
+    mut pos: Consumer<'_, UdpLogItem>,
+    mut ser: Consumer<'_, SerialChunk>,
+    dst: Ipv4Addr,
+    sh: &Shared<'_>,
+) {
+    let mut synced = Instant::now();
+    let mut failed = false;
+    let fail = |e: std::io::Error, failed: &mut bool| {
+        if !*failed {
+            sh.error(format!("raw log: {e}; logging stopped"));
+            *failed = true;
+        }
+    };
+    loop {
+        let done = sh.readers.load(Ordering::Acquire) == 0;
+        let mut n = 0usize;
+        loop {
+            // Merge the two sockets' datagrams in receive order.
+            let take_data = match (data.peek(), pos.peek()) {
+                (Some(a), Some(b)) => a.time <= b.time,
+                (Some(_), None) => true,
+                (None, Some(_)) => false,
+                (None, None) => break,
+            };
+            let it = if take_data {
+                data.dequeue()
+            } else {
+                pos.dequeue()
+            };
+            let Some(it) = it else { break };
+            n += 1;
+            if failed {
+                sh.ring_drops[3].fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            if let Err(e) = pcap.write(
+                HostTime(it.time),
+                it.src,
+                (dst, it.dst_port),
+                &it.bytes[..usize::from(it.len)],
+            ) {
+                fail(e, &mut failed);
+            }
+        }
+        while let Some(c) = ser.dequeue() {
+            n += 1;
+            if let Some(s) = serial.as_deref_mut() {
+                if !failed {
+                    if let Err(e) = s.write(c.stamp, &c.bytes[..usize::from(c.len)]) {
+                        fail(e, &mut failed);
+                    }
+                }
+            }
+        }
+        if synced.elapsed() >= Duration::from_millis(500) || (done && n == 0) {
+            synced = Instant::now();
+            if !failed {
+                if let Err(e) = pcap.sync() {
+                    fail(e, &mut failed);
+                }
+                if let Some(s) = serial.as_deref_mut() {
+                    if let Err(e) = s.sync() {
+                        fail(e, &mut failed);
+                    }
+                }
+            }
+        }
+        if done && n == 0 {
+            return;
+        }
+        if n == 0 {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn solver(
+    rx: crossbeam_channel::Receiver<BatchMsg>,
+    pool: crossbeam_channel::Sender<Vec<Observation>>,
+    targets: &[Target],
+    ids: &[String],
+    b0: &[f64; 6],
+    settings: &Settings,
+    report: Option<&Path>,
+    sh: &Shared<'_>,
+) -> Option<Report> {
+    let n = targets.len();
+    let mut store: Vec<Vec<Observation>> = vec![Vec::new(); n];
+    let mut last_total = 0usize;
+    let mut last_solve: Option<Instant> = None;
+    let mut latest: Option<Report> = None;
+    let mut start = *b0;
+    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut [f64; 6]| {
+        let (sol, rep) = solve_report(targets, ids, store, start, settings);
+        sh.solves.fetch_add(1, Ordering::Relaxed);
+        if rep.converged {
+            *start = sol.b;
+            let d = spherecal::calib::to_deg_m(&sol.b);
+            let s = sol.lm.map_or([f64::NAN; 6], |l| {
+                let mut s = l.sigma;
+                for v in &mut s[..3] {
+                    *v = v.to_degrees();
+                }
+                [s[0], s[1], s[2], s[3], s[4], s[5]]
+            });
+            if let Ok(mut c) = sh.calibration.lock() {
+                *c = Some((d, s));
+            }
+        }
+        if let Some(p) = report {
+            if let Err(e) = write_atomically(p, &rep) {
+                sh.error(e);
+            }
+        }
+        rep
+    };
+    loop {
+        let closed = match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(m) => {
+                let room = MAX_OBS_PER_SPHERE.saturating_sub(store[m.sphere].len());
+                let k = m.obs.len().min(room);
+                store[m.sphere].extend_from_slice(&m.obs[..k]);
+                sh.batch_drops
+                    .fetch_add((m.obs.len() - k) as u64, Ordering::Relaxed);
+                let _ = pool.try_send(m.obs);
+                false
+            }
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => false,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => true,
+        };
+        if n == 0 {
+            if closed {
+                return None;
+            }
+            continue;
+        }
+        let total: usize = store.iter().map(Vec::len).sum();
+        let ready = store.iter().all(|s| s.len() >= settings.min_points);
+        if closed {
+            if ready && total > last_total {
+                latest = Some(solve(&mut store, &mut start));
+            }
+            return latest;
+        }
+        // Solve when every sphere has enough returns, then again each time a quarter more
+        // has arrived, at most once a second.
+        let due = last_solve.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+        if ready && due && total * 4 >= last_total * 5 && total > last_total {
+            latest = Some(solve(&mut store, &mut start));
+            last_total = total;
+            last_solve = Some(Instant::now());
+        }
+    }
+}
+
+fn write_atomically(p: &Path, rep: &Report) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(rep).map_err(|e| e.to_string())?;
+    let tmp = p.with_extension("json.tmp");
+    std::fs::write(&tmp, json + "\n").map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, p).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// The status line from the shared counters; `last_aligned` is the count at the previous line
+/// (`u64::MAX`: none, the line shows 0 packets/s).
+fn snapshot(sh: &Shared<'_>, ids: &[String], started: Instant, last_aligned: &mut u64) -> Status {
+    let aligned = sh.aligned.load(Ordering::Relaxed);
+    let lag = sh.lag_ns.load(Ordering::Relaxed);
+    let s = Status {
+        t_s: started.elapsed().as_secs(),
+        packets_per_s: aligned.saturating_sub(*last_aligned),
+        drops: [
+            sh.ring_drops[0].load(Ordering::Relaxed) + sh.ring_drops[1].load(Ordering::Relaxed),
+            sh.ring_drops[2].load(Ordering::Relaxed),
+            sh.ring_drops[3].load(Ordering::Relaxed),
+        ],
+        kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
+            + sh.kernel_drops[1].load(Ordering::Relaxed),
+        pps: pps_name(sh.pps.load(Ordering::Relaxed)).into(),
+        ins: ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
+        lag_ms: (lag != i64::MIN).then(|| lag as f64 * 1e-6),
+        windows: ids
+            .iter()
+            .zip(&sh.windowed)
+            .map(|(id, n)| (id.clone(), n.load(Ordering::Relaxed)))
+            .collect(),
+        calibration: sh.calibration.lock().ok().and_then(|c| *c),
+    };
+    *last_aligned = aligned;
+    s
+}
+
+/// One status line a second until the stop; sets the stop when the duration has passed.
+/// Hands the console back for the last line.
+fn status_loop<'c>(
+    console: &'c mut Console,
+    ids: &[String],
+    duration: Option<Duration>,
+    started: Instant,
+    sh: &Shared<'_>,
+) -> &'c mut Console {
+    let mut last_aligned = 0u64;
+    let mut tick = 1u64;
+    loop {
+        let next = started + Duration::from_secs(tick);
+        while Instant::now() < next && !sh.stop.load(Ordering::Relaxed) {
+            std::thread::sleep(
+                Duration::from_millis(20).min(next.saturating_duration_since(Instant::now())),
+            );
+        }
+        if sh.stop.load(Ordering::Relaxed) {
+            return console;
+        }
+        tick += 1;
+        let s = snapshot(sh, ids, started, &mut last_aligned);
+        if let Err(e) = console.show(&s) {
+            sh.error(format!("console: {e}"));
+        }
+        if duration.is_some_and(|d| started.elapsed() >= d) {
+            sh.stop.store(true, Ordering::Relaxed);
+            return console;
+        }
+    }
+}
+
+/// The run's counts in words (printed when the run ends).
+pub fn render(s: &RunSummary) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "run: {:.1} s; datagrams received data {} position {} (kernel drops {}/{}, {} with kernel receive times); enqueued {}/{}; ring drops data {} position {} INS {} log {}",
+        s.seconds,
+        s.received[0],
+        s.received[1],
+        s.kernel_drops[0],
+        s.kernel_drops[1],
+        s.kernel_stamped,
+        s.enqueued[0],
+        s.enqueued[1],
+        s.ring_drops[0],
+        s.ring_drops[1],
+        s.ring_drops[2],
+        s.ring_drops[3]
+    );
+    for (reason, n) in &s.skipped {
+        let _ = writeln!(o, "  skipped {n}: {reason}");
+    }
+    let _ = writeln!(
+        o,
+        "aligned {} data packets ({} without time), {} position packets; serial {} bytes, {} poses, {} frames without pose, {} rejected; windows {:?}; {} solves",
+        s.data_packets,
+        s.packets_without_time,
+        s.position_packets,
+        s.serial_bytes,
+        s.poses,
+        s.ins_frames_without_pose,
+        s.ins_rejected,
+        s.windowed,
+        s.solves
+    );
+    let _ = writeln!(
+        o,
+        "logged {} datagrams, {} serial reads in {} files",
+        s.logged[0],
+        s.logged[1],
+        s.log_files.len()
+    );
+    if let Some(r) = &s.calibration {
+        o.push_str(&crate::calibrate::render(r, None));
+    }
+    for e in &s.errors {
+        let _ = writeln!(o, "error: {e}");
+    }
+    o
+}
