@@ -94,8 +94,8 @@ pub struct RunSummary {
     pub kernel_stamped: u64,
     /// Datagrams handed to the aligner's rings: data, position.
     pub enqueued: [u64; 2],
-    /// Ring drops: data, position, INS, log.
-    pub ring_drops: [u64; 4],
+    /// Ring drops: data, position, INS, datagram log, serial log.
+    pub ring_drops: [u64; 5],
     /// Datagrams skipped by reason (wrong port, length, bad packet).
     pub skipped: Vec<(String, u64)>,
     /// Data packets aligned and windowed.
@@ -156,8 +156,8 @@ struct Shared<'a> {
     enqueued: [AtomicU64; 2],
     kernel_drops: [AtomicU64; 2],
     kernel_stamped: AtomicU64,
-    /// data, position, INS, log.
-    ring_drops: [AtomicU64; 4],
+    /// data, position, INS, datagram log, serial log.
+    ring_drops: [AtomicU64; 5],
     serial_bytes: AtomicU64,
     pps: AtomicU8,
     ins_mode: AtomicU8,
@@ -472,7 +472,7 @@ pub fn run(
         kernel_drops: ld(&sh.kernel_drops),
         kernel_stamped: sh.kernel_stamped.load(Ordering::Relaxed),
         enqueued: ld(&sh.enqueued),
-        ring_drops: [0, 1, 2, 3].map(|i| sh.ring_drops[i].load(Ordering::Relaxed)),
+        ring_drops: [0, 1, 2, 3, 4].map(|i| sh.ring_drops[i].load(Ordering::Relaxed)),
         skipped,
         data_packets: al_stats.data_packets,
         position_packets: al_stats.position_packets,
@@ -592,7 +592,7 @@ fn serial_reader(
                     bytes: [0; SERIAL_CHUNK],
                 };
                 chunk.bytes[..len].copy_from_slice(&buf[..len]);
-                push_wait(&mut log, chunk, Overflow::Drop, &sh.ring_drops[3]);
+                push_wait(&mut log, chunk, Overflow::Drop, &sh.ring_drops[4]);
                 framer.consume(
                     &buf[..len],
                     |it: spherecal::vn200::Framed<'_>| match vn200_pose(&it.item, frame) {
@@ -682,11 +682,14 @@ fn logger(
         }
         while let Some(c) = ser.dequeue() {
             n += 1;
-            if let Some(s) = serial.as_deref_mut() {
-                if !failed {
+            match serial.as_deref_mut() {
+                Some(s) if !failed => {
                     if let Err(e) = s.write(c.stamp, &c.bytes[..usize::from(c.len)]) {
                         fail(e, &mut failed);
                     }
+                }
+                _ => {
+                    sh.ring_drops[4].fetch_add(1, Ordering::Relaxed);
                 }
             }
         }
@@ -810,7 +813,7 @@ fn snapshot(sh: &Shared<'_>, ids: &[String], started: Instant, last_aligned: &mu
         drops: [
             sh.ring_drops[0].load(Ordering::Relaxed) + sh.ring_drops[1].load(Ordering::Relaxed),
             sh.ring_drops[2].load(Ordering::Relaxed),
-            sh.ring_drops[3].load(Ordering::Relaxed),
+            sh.ring_drops[3].load(Ordering::Relaxed) + sh.ring_drops[4].load(Ordering::Relaxed),
         ],
         kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
             + sh.kernel_drops[1].load(Ordering::Relaxed),
@@ -867,7 +870,7 @@ pub fn render(s: &RunSummary) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "run: {:.1} s; datagrams received data {} position {} (kernel drops {}/{}, {} with kernel receive times); enqueued {}/{}; ring drops data {} position {} INS {} log {}",
+        "run: {:.1} s; datagrams received data {} position {} (kernel drops {}/{}, {} with kernel receive times); enqueued {}/{}; ring drops data {} position {} INS {} log {}/{}",
         s.seconds,
         s.received[0],
         s.received[1],
@@ -879,7 +882,8 @@ pub fn render(s: &RunSummary) -> String {
         s.ring_drops[0],
         s.ring_drops[1],
         s.ring_drops[2],
-        s.ring_drops[3]
+        s.ring_drops[3],
+        s.ring_drops[4]
     );
     for (reason, n) in &s.skipped {
         let _ = writeln!(o, "  skipped {n}: {reason}");
