@@ -291,6 +291,15 @@ fn table1_through_the_rig() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A `/proc/PID/status` memory line [KiB].
+fn kib(pid: u32, key: &str) -> u64 {
+    let st = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    st.lines()
+        .find_map(|l| l.strip_prefix(key)?.strip_prefix(':'))
+        .and_then(|v| v.trim().strip_suffix("kB")?.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no {key} in /proc/{pid}/status"))
+}
+
 /// The serial log beside a synthetic capture.
 fn dir_ins(pcap: &Path) -> PathBuf {
     pcap.with_file_name("ins.vnlog")
@@ -351,12 +360,20 @@ fn overload_every_drop_is_counted() {
         .unwrap()
     });
     let mut sent = 0;
+    let mut rss = Vec::new();
     for _ in 0..10 {
         sent += replay_udp_on(&dir.join("lidar.pcap"), to, &clock)
             .unwrap()
             .sent;
+        rss.push(kib(rig.child.id(), "VmRSS"));
     }
     serial.join().unwrap();
+    let peak = kib(rig.child.id(), "VmHWM");
+    eprintln!("RSS after each replay [KiB]: {rss:?}; peak {peak}");
+    // Memory stays flat: ten surveys' worth of packets at full speed, and the resident set
+    // after the last is within 8 MiB of that after the second (the solver's store of window
+    // returns is all that may grow).
+    assert!(rss[9] < rss[1] + 8 * 1024, "{rss:?}");
     let took = t.elapsed();
     std::thread::sleep(Duration::from_millis(1500));
     rig.signal(nix::sys::signal::Signal::SIGTERM);
@@ -529,5 +546,68 @@ fn sigkill_leaves_logs_readable_up_to_the_cut() {
     let ins = std::fs::read(dir.join("ins.bin")).unwrap();
     assert!(bytes.len() > 20_000, "{}", bytes.len());
     assert!(bytes == ins[..bytes.len()]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A ten-minute survey (table1's passes eleven times over, 668 s) replayed as fast as loopback
+/// takes it: the run's resident set stays flat and its peak is printed for the notes.
+/// Ignored by default (it synthesises a 650 MB capture); run it with
+/// `cargo nextest run -p spherecal-tools --test rig --run-ignored only`.
+#[test]
+#[ignore = "a measurement: 650 MB of synthetic capture"]
+fn ten_minute_survey_at_max_speed_rss() {
+    let dir = common::tmp("rig-10min", "survey");
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
+    let passes = s.trajectory.pass.clone();
+    for _ in 0..10 {
+        s.trajectory.pass.extend(passes.iter().cloned());
+    }
+    s.name = "table1-x11".into();
+    assert!(s.duration_s() > 600.0, "{}", s.duration_s());
+    let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    master.set_timeout(Duration::from_secs(5)).unwrap();
+    let (dp, pp) = (23_750, 23_751);
+    let rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), true);
+    let to = Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(2368, dp), (8308, pp)],
+    };
+    let pid = rig.child.id();
+    let sampling = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let flag = sampling.clone();
+    let sampler = std::thread::spawn(move || {
+        let mut v = Vec::new();
+        while flag.load(std::sync::atomic::Ordering::Relaxed) {
+            v.push(kib(pid, "VmRSS"));
+            std::thread::sleep(Duration::from_millis(250));
+        }
+        v
+    });
+    let t = Instant::now();
+    let (sent, _) = replay_both(
+        &dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog"), &mut master, 921_600)),
+        Speed::Max,
+    )
+    .unwrap();
+    let took = t.elapsed();
+    std::thread::sleep(Duration::from_millis(1500));
+    sampling.store(false, std::sync::atomic::Ordering::Relaxed);
+    let rss = sampler.join().unwrap();
+    let peak = kib(pid, "VmHWM");
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, _, err) = rig.wait(Duration::from_secs(60));
+    eprintln!(
+        "{} s survey, {} datagrams sent in {took:?}; RSS samples [KiB] {rss:?}; peak {peak} KiB\n{err}",
+        s.duration_s(),
+        sent.sent
+    );
+    assert_eq!(code, Some(0));
+    assert_eq!(sent.sent, truth.data_packets + truth.position_packets);
+    let n = rss.len();
+    assert!(rss[n - 1] < rss[n / 4] + 16 * 1024, "{rss:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
