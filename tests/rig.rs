@@ -345,7 +345,7 @@ fn overload_every_drop_is_counted() {
         ports: [(2368, dp), (8308, pp)],
     };
     let pcap = dir.join("lidar.pcap");
-    let (in_file, _) = datagrams(&[pcap.clone()]);
+    let (in_file, _) = datagrams(std::slice::from_ref(&pcap));
     let pos_in_file = in_file.iter().filter(|d| d.0 == 8308).count() as u64;
     let data_in_file = in_file.len() as u64 - pos_in_file;
     let t = Instant::now();

@@ -542,6 +542,10 @@ fn udp_reader(
             Ok(None) => {}
             Err(e) => {
                 sh.error(format!("UDP port {}: {e}", sock.port()));
+                if ends_stream {
+                    // Without the data socket there is no survey: wind everything down.
+                    sh.stop.store(true, Ordering::Relaxed);
+                }
                 break;
             }
         }
@@ -819,7 +823,7 @@ fn snapshot(sh: &Shared<'_>, ids: &[String], started: Instant, last_aligned: &mu
             + sh.kernel_drops[1].load(Ordering::Relaxed),
         pps: pps_name(sh.pps.load(Ordering::Relaxed)).into(),
         ins: ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
-        lag_ms: (lag != i64::MIN).then(|| lag as f64 * 1e-6),
+        lag_ms: (lag != i64::MIN).then_some(lag as f64 * 1e-6),
         windows: ids
             .iter()
             .zip(&sh.windowed)
@@ -842,24 +846,25 @@ fn status_loop<'c>(
 ) -> &'c mut Console {
     let mut last_aligned = 0u64;
     let mut tick = 1u64;
+    let over = || duration.is_some_and(|d| started.elapsed() >= d);
     loop {
         let next = started + Duration::from_secs(tick);
-        while Instant::now() < next && !sh.stop.load(Ordering::Relaxed) {
+        while Instant::now() < next && !sh.stop.load(Ordering::Relaxed) && !over() {
             std::thread::sleep(
                 Duration::from_millis(20).min(next.saturating_duration_since(Instant::now())),
             );
         }
+        if over() {
+            sh.stop.store(true, Ordering::Relaxed);
+        }
         if sh.stop.load(Ordering::Relaxed) {
+            // The caller shows the last line once everything has stopped.
             return console;
         }
         tick += 1;
         let s = snapshot(sh, ids, started, &mut last_aligned);
         if let Err(e) = console.show(&s) {
             sh.error(format!("console: {e}"));
-        }
-        if duration.is_some_and(|d| started.elapsed() >= d) {
-            sh.stop.store(true, Ordering::Relaxed);
-            return console;
         }
     }
 }
