@@ -91,3 +91,36 @@ fn serial_bytes_replayed_at_the_baud_rate() {
     replay_serial(&file, &mut fast, 115_200, Speed::Max).unwrap();
     assert_eq!(fast, bytes);
 }
+
+/// A serial log goes out at its recorded timing: 40 reads stamped 10 ms apart, at 2x, take at
+/// least 195 ms and arrive whole and in order.
+#[test]
+fn serial_log_replayed_at_its_recorded_pace() {
+    use spherecal_hal::serial::{LogWriter, RxStamp};
+    let data: Vec<u8> = (0..40 * 50).map(|i| (i % 251) as u8).collect();
+    let mut log = LogWriter::new(Vec::new(), 921_600).unwrap();
+    for (i, c) in data.chunks(50).enumerate() {
+        let stamp = RxStamp {
+            mono_ns: i as u64 * 10_000_000,
+            wall_ns: 1_700_000_000_000_000_000 + i as i64 * 10_000_000,
+        };
+        log.record(stamp, c).unwrap();
+    }
+    let file = common::tmp("replay", "paced.vnlog");
+    std::fs::write(&file, log.into_inner()).unwrap();
+    let mut out = Vec::new();
+    let t = Instant::now();
+    let n = replay_serial(&file, &mut out, 921_600, Speed::Factor(2.0)).unwrap();
+    assert_eq!(n as usize, data.len());
+    assert_eq!(out, data);
+    assert!(
+        t.elapsed() >= Duration::from_millis(195),
+        "{:?}",
+        t.elapsed()
+    );
+    assert!(
+        t.elapsed() < Duration::from_millis(1000),
+        "{:?}",
+        t.elapsed()
+    );
+}
