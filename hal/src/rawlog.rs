@@ -1,7 +1,7 @@
 //! Raw logging on the rig: every datagram received on the LiDAR sockets into classic pcap files,
 //! every serial read into serial logs (`.vnlog`, format in [`crate::serial`]), both rotated by
-//! size and made durable (flushed and `fdatasync`ed) at least once a second, so that a power
-//! cut loses at most the last second.
+//! size. The writer hands its bytes to the OS with [`PcapLog::flush`] and another thread makes
+//! them durable (`fdatasync`) on the handle it returns; a rotation syncs the old file first.
 //!
 //! Files are `DIR/PREFIX-NNN.EXT` (`NNN` from 000): each one is complete in itself (its own
 //! pcap or log header), so any piece decodes alone.
@@ -66,6 +66,14 @@ fn durable(w: &mut BufWriter<File>) -> io::Result<()> {
     w.get_ref().sync_data()
 }
 
+/// Hand the buffered bytes to the OS and return a second handle on the file, so that another
+/// thread can `sync_data` it while this one goes on writing (a slow disk then delays
+/// durability, not logging).
+fn handed_over(w: &mut BufWriter<File>) -> io::Result<File> {
+    w.flush()?;
+    w.get_ref().try_clone()
+}
+
 /// Rotating pcap files of received datagrams (rebuilt as Ethernet/IPv4/UDP frames with the
 /// sender's address and ports, the receive time as the record time).
 pub struct PcapLog {
@@ -123,6 +131,11 @@ impl PcapLog {
         durable(self.out.get_mut())
     }
 
+    /// Flush to the OS; a handle on the current file to `sync_data` elsewhere.
+    pub fn flush(&mut self) -> io::Result<File> {
+        handed_over(self.out.get_mut())
+    }
+
     /// The files written so far.
     pub fn files(&self) -> &[PathBuf] {
         &self.rot.files
@@ -169,6 +182,11 @@ impl SerialLog {
     /// Flush to the disk (not only the OS).
     pub fn sync(&mut self) -> io::Result<()> {
         durable(self.out.get_mut())
+    }
+
+    /// Flush to the OS; a handle on the current file to `sync_data` elsewhere.
+    pub fn flush(&mut self) -> io::Result<File> {
+        handed_over(self.out.get_mut())
     }
 
     /// The files written so far.

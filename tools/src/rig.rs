@@ -6,7 +6,8 @@
 //! UDP data reader ----> data ring ----\                          /--> batches --> solver
 //! UDP position reader -> position ring --> aligner (this thread) -
 //! serial reader ------> INS ring -----/
-//!   each reader also --> its log ring --> logger: rotating pcap + serial log, fsync each second
+//!   each reader also --> its log ring --> logger: rotating pcap + serial log
+//!                                           --> syncer: fdatasync, so a power cut loses < 1 s
 //! status: one line a second on the console; stops everything on SIGINT/SIGTERM or --duration
 //! ```
 //! Readers never block: a full ring drops the item and counts it (data, position, INS and log
@@ -152,6 +153,7 @@ const NONE_U8: u8 = u8::MAX;
 struct Shared<'a> {
     stop: &'a AtomicBool,
     readers: AtomicUsize,
+    logger_done: AtomicBool,
     received: [AtomicU64; 2],
     enqueued: [AtomicU64; 2],
     kernel_drops: [AtomicU64; 2],
@@ -294,6 +296,7 @@ pub fn run(
     let sh = Shared {
         stop,
         readers: AtomicUsize::new(2 + usize::from(serial.is_some())),
+        logger_done: AtomicBool::new(false),
         received: Default::default(),
         enqueued: Default::default(),
         kernel_drops: Default::default(),
@@ -330,6 +333,7 @@ pub fn run(
     }
     let started = Instant::now();
     let dst_addr = bind;
+    let to_sync = Mutex::new(Vec::new());
 
     let (skips, ins_counts, logged, solver_out, al_stats) = std::thread::scope(|sc| {
         let sh = &sh;
@@ -344,6 +348,8 @@ pub fn run(
                 None
             }
         };
+        let to_sync: &Mutex<Vec<std::fs::File>> = &to_sync;
+        let syncer = sc.spawn(move || syncer(to_sync, sh));
         let logger = sc.spawn(move || {
             logger(
                 &mut pcap_log,
@@ -352,6 +358,7 @@ pub fn run(
                 plog_c,
                 slog_c,
                 dst_addr,
+                to_sync,
                 sh,
             );
             let mut files = pcap_log.files().to_vec();
@@ -439,6 +446,7 @@ pub fn run(
             .map(|h| h.join().unwrap_or_default())
             .unwrap_or_default();
         let logged = logger.join().unwrap_or_default();
+        let _ = syncer.join();
         let solver_out = solver.join().unwrap_or_default();
         let console = status.join().ok();
         // The last line, with the final counts and calibration.
@@ -636,6 +644,7 @@ fn serial_reader(
     (poses, without, rejected)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn logger(
     pcap: &mut PcapLog,
     mut serial: Option<&mut SerialLog>,
@@ -643,6 +652,7 @@ fn logger(
     mut pos: Consumer<'_, UdpLogItem>,
     mut ser: Consumer<'_, SerialChunk>,
     dst: Ipv4Addr,
+    to_sync: &Mutex<Vec<std::fs::File>>,
     sh: &Shared<'_>,
 ) {
     let mut synced = Instant::now();
@@ -700,22 +710,56 @@ fn logger(
         if synced.elapsed() >= Duration::from_millis(500) || (done && n == 0) {
             synced = Instant::now();
             if !failed {
-                if let Err(e) = pcap.sync() {
-                    fail(e, &mut failed);
+                // To the OS now; to the disk on the syncer thread.
+                let mut handles = Vec::with_capacity(2);
+                match pcap.flush() {
+                    Ok(f) => handles.push(f),
+                    Err(e) => fail(e, &mut failed),
                 }
                 if let Some(s) = serial.as_deref_mut() {
-                    if let Err(e) = s.sync() {
-                        fail(e, &mut failed);
+                    match s.flush() {
+                        Ok(f) => handles.push(f),
+                        Err(e) => fail(e, &mut failed),
                     }
+                }
+                if done && n == 0 {
+                    for f in &handles {
+                        if let Err(e) = f.sync_data() {
+                            fail(e, &mut failed);
+                        }
+                    }
+                } else if let Ok(mut p) = to_sync.lock() {
+                    *p = handles;
                 }
             }
         }
         if done && n == 0 {
+            sh.logger_done.store(true, Ordering::Release);
             return;
         }
         if n == 0 {
             std::thread::sleep(Duration::from_millis(2));
         }
+    }
+}
+
+/// Makes the logs durable: `fdatasync` on the handles the logger last flushed, every 200 ms,
+/// until the readers and the logger are done (the logger syncs its last bytes itself).
+fn syncer(to_sync: &Mutex<Vec<std::fs::File>>, sh: &Shared<'_>) {
+    loop {
+        let files = to_sync
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default();
+        for f in &files {
+            if let Err(e) = f.sync_data() {
+                sh.error(format!("raw log sync: {e}"));
+            }
+        }
+        if sh.readers.load(Ordering::Acquire) == 0 && sh.logger_done.load(Ordering::Acquire) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(200));
     }
 }
 
