@@ -46,10 +46,10 @@ use std::time::{Duration, Instant};
 pub const DATA_RING: usize = 512;
 /// Position ring.
 pub const POSITION_RING: usize = 32;
-/// Log ring for data datagrams.
-pub const DATA_LOG_RING: usize = 512;
-/// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes).
-pub const SERIAL_LOG_RING: usize = 256;
+/// Log ring for data datagrams (6 MB: 5.4 s of a VLP-16, for a disk that stalls).
+pub const DATA_LOG_RING: usize = 4096;
+/// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes; 2 MB, ~10 s of reads at 200 Hz).
+pub const SERIAL_LOG_RING: usize = 2048;
 /// Largest serial read.
 pub const SERIAL_CHUNK: usize = 1024;
 /// Largest datagram logged whole (an Ethernet MTU's UDP payload); longer ones are cut.
@@ -222,6 +222,24 @@ fn parse_addr(s: &str, key: &str) -> Result<Ipv4Addr, String> {
 /// Run the rig until `stop` is set (by a signal) or the duration has passed. Status lines go
 /// to `console`.
 pub fn run(
+    opts: &RunOptions,
+    console: &mut Console,
+    stop: &AtomicBool,
+) -> Result<RunSummary, String> {
+    // The rings are built on the stack before they move to the heap: give them room whatever
+    // thread the caller is on.
+    std::thread::scope(|sc| {
+        std::thread::Builder::new()
+            .name("rig".into())
+            .stack_size(64 << 20)
+            .spawn_scoped(sc, || run_rig(opts, console, stop))
+            .map_err(|e| format!("rig thread: {e}"))?
+            .join()
+            .map_err(|_| "the rig thread panicked".to_string())?
+    })
+}
+
+fn run_rig(
     opts: &RunOptions,
     console: &mut Console,
     stop: &AtomicBool,
