@@ -18,7 +18,16 @@ use std::time::{Duration, Instant};
 
 /// The sim board with its own ports.
 fn board(dir: &Path, data_port: u16, position_port: u16) -> PathBuf {
-    let text = std::fs::read_to_string(common::repo_root().join("boards/sim.toml")).unwrap();
+    board_with(dir, data_port, position_port, &[])
+}
+
+/// The sim board with its own ports and other text replacements.
+fn board_with(dir: &Path, data_port: u16, position_port: u16, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(common::repo_root().join("boards/sim.toml")).unwrap();
+    for (a, b) in edits {
+        assert!(text.contains(a), "{a}");
+        text = text.replace(a, b);
+    }
     let text = text
         .replace("data_port = 2368", &format!("data_port = {data_port}"))
         .replace(
@@ -307,7 +316,19 @@ fn dir_ins(pcap: &Path) -> PathBuf {
 
 /// Start `run` on the sim board with its own ports, a pseudo-terminal and a log folder.
 fn start_rig(dir: &Path, dp: u16, pp: u16, slave: &str, site: bool) -> Rig {
-    let board = board(dir, dp, pp);
+    start_rig_with(dir, dp, pp, slave, site, &[])
+}
+
+/// `start_rig` with edits to the board.
+fn start_rig_with(
+    dir: &Path,
+    dp: u16,
+    pp: u16,
+    slave: &str,
+    site: bool,
+    edits: &[(&str, &str)],
+) -> Rig {
+    let board = board_with(dir, dp, pp, edits);
     let logs = dir.join("logs");
     let mut args: Vec<std::ffi::OsString> = vec![
         "--board".into(),
@@ -423,7 +444,8 @@ fn overload_every_drop_is_counted() {
 
 /// Interrupted in the middle of a survey, the run still stops cleanly (exit 0) and leaves logs
 /// that decode without a single skip: a prefix of what was sent on each port and on the
-/// serial line.
+/// serial line. (The board here also expects a VN-200 output the stream lacks: the run says
+/// so.)
 #[test]
 fn sigint_mid_run_leaves_clean_logs() {
     let dir = common::tmp("rig-sigint", "table1");
@@ -433,7 +455,17 @@ fn sigint_mid_run_leaves_clean_logs() {
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
     master.set_timeout(Duration::from_secs(5)).unwrap();
     let (dp, pp) = (23_730, 23_731);
-    let rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), true);
+    let rig = start_rig_with(
+        &dir,
+        dp,
+        pp,
+        &slave.name().unwrap(),
+        true,
+        &[(
+            "\"Position\", \"InsStatus\"]",
+            "\"Position\", \"InsStatus\", \"Quaternion\"]",
+        )],
+    );
     let to = Target {
         host: Ipv4Addr::LOCALHOST,
         ports: [(2368, dp), (8308, pp)],
@@ -457,6 +489,11 @@ fn sigint_mid_run_leaves_clean_logs() {
     assert_eq!(code, Some(0), "{err}");
     let logs = dir.join("logs");
     let sm = summary(&logs);
+    let errors = sm["errors"].to_string();
+    assert!(
+        errors.contains("lacks the Common-group outputs Quaternion that the board expects"),
+        "{errors}"
+    );
     let (got, skipped) = datagrams(&files(&logs, "-lidar-"));
     assert_eq!(skipped, 0, "the pcap ends on a whole record");
     assert_eq!(got.len() as u64, u(&sm["logged"][0]));

@@ -207,6 +207,17 @@ mod tests {
         .unwrap()
     }
 
+    /// The names a board may list are the core's Common-group field names, in bit order.
+    #[test]
+    fn field_names_are_the_cores() {
+        let core: Vec<&str> = spherecal::vn200::fields::Group::Common
+            .fields()
+            .iter()
+            .map(|d| d.as_ref().map_or("", |d| d.name))
+            .collect();
+        assert_eq!(core[..COMMON_FIELDS.len()], COMMON_FIELDS[..]);
+    }
+
     #[test]
     fn the_three_boards_parse() {
         for n in ["rig-vn200", "vessel-posmv", "sim"] {

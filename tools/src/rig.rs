@@ -28,8 +28,10 @@ use spherecal::calib::Settings;
 use spherecal::frames::LocalFrame;
 use spherecal::georef::Mount;
 use spherecal::vlp16::PpsStatus;
+use spherecal::vn200::binary::Masks;
+use spherecal::vn200::fields::Group;
 use spherecal::vn200::pose::{ins_mode, InsMode};
-use spherecal::vn200::Framer;
+use spherecal::vn200::{Framer, Item};
 use spherecal::window::{Observation, Target};
 use spherecal_hal::packet::HostTime;
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
@@ -349,6 +351,15 @@ fn run_rig(
     for _ in 0..16 {
         let _ = pool_tx.try_send(Vec::with_capacity(BATCH));
     }
+    // The board's expected VN-200 outputs as Common-group bits (the core's field table).
+    let expected: Vec<(&'static str, u8)> = Group::Common
+        .fields()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
+        .filter(|(n, _)| b.ins.fields.iter().any(|f| f == n))
+        .collect();
+    let expected = &expected[..];
     let started = Instant::now();
     let dst_addr = bind;
     let to_sync = Mutex::new(Vec::new());
@@ -358,9 +369,9 @@ fn run_rig(
         let data = sc.spawn(move || udp_reader(data_sock, data_p, dlog_p, ports, 0, sh, true));
         let pos = sc.spawn(move || udp_reader(pos_sock, pos_p, plog_p, ports, 1, sh, false));
         let ins = match serial {
-            Some((dev, src)) => {
-                Some(sc.spawn(move || serial_reader(&dev, src, &frame, ins_p, slog_p, sh)))
-            }
+            Some((dev, src)) => Some(
+                sc.spawn(move || serial_reader(&dev, expected, src, &frame, ins_p, slog_p, sh)),
+            ),
             None => {
                 let _ = ins_p.enqueue(InsItem::End);
                 None
@@ -600,8 +611,37 @@ fn udp_reader(
     skips
 }
 
+/// Say once per frame layout if the VN-200 does not send the Common-group outputs the board
+/// expects (its register 75 configuration differs from `ins.fields`).
+fn check_outputs(
+    m: &Masks,
+    offset: u64,
+    last: &mut Option<Masks>,
+    expected: &[(&'static str, u8)],
+    dev: &str,
+    sh: &Shared<'_>,
+) {
+    if *last == Some(*m) {
+        return;
+    }
+    *last = Some(*m);
+    let missing: Vec<&str> = expected
+        .iter()
+        .filter(|(_, bit)| !m.has(Group::Common, *bit))
+        .map(|(name, _)| *name)
+        .collect();
+    if !missing.is_empty() {
+        sh.error(format!(
+            "serial {dev}: the VN-200 frame at byte {offset} lacks the Common-group outputs {} that the board expects (ins.fields)",
+            missing.join(", ")
+        ));
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn serial_reader(
     dev: &str,
+    expected: &[(&'static str, u8)],
     mut src: SerialSource,
     frame: &LocalFrame,
     mut ring: Producer<'_, InsItem>,
@@ -611,6 +651,7 @@ fn serial_reader(
     let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
     let mut framer: Box<Framer> = Box::default();
     let mut buf = [0u8; SERIAL_CHUNK];
+    let mut last_masks: Option<Masks> = None;
     while !sh.stop.load(Ordering::Relaxed) {
         match src.read_chunk(&mut buf) {
             Ok(ReadOutcome::Data { len, stamp }) => {
@@ -623,9 +664,11 @@ fn serial_reader(
                 };
                 chunk.bytes[..len].copy_from_slice(&buf[..len]);
                 push_wait(&mut log, chunk, Overflow::Drop, &sh.ring_drops[4]);
-                framer.consume(
-                    &buf[..len],
-                    |it: spherecal::vn200::Framed<'_>| match vn200_pose(&it.item, frame) {
+                framer.consume(&buf[..len], |it: spherecal::vn200::Framed<'_>| {
+                    if let Item::Binary(f) = &it.item {
+                        check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
+                    }
+                    match vn200_pose(&it.item, frame) {
                         InsOutcome::Pose(s, status) => {
                             poses += 1;
                             if let Some(st) = status {
@@ -641,8 +684,8 @@ fn serial_reader(
                         InsOutcome::NoPose => without += 1,
                         InsOutcome::Rejected => rejected += 1,
                         InsOutcome::Other => {}
-                    },
-                );
+                    }
+                });
             }
             Ok(ReadOutcome::Idle) => {}
             Ok(ReadOutcome::End) => {
