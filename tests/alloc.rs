@@ -156,7 +156,7 @@ fn rig_steady_state_allocates_nothing_per_packet() {
     };
     static STOP: AtomicBool = AtomicBool::new(false);
     let rig = std::thread::spawn(move || {
-        let mut console = spherecal_tools::status::Console::new(Box::new(std::io::sink()));
+        let mut console = spherecal_hal::console::Console::new(Box::new(std::io::sink()));
         spherecal_tools::rig::run(&opts, &mut console, &STOP).unwrap()
     });
     std::thread::sleep(Duration::from_millis(500));

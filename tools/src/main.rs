@@ -497,7 +497,7 @@ fn run(
         }
     }
     let mut console =
-        match spherecal_tools::status::Console::open(&board.console.device, board.console.baud) {
+        match spherecal_hal::console::Console::open(&board.console.device, board.console.baud) {
             Ok(c) => c,
             Err(e) => return fail(e),
         };

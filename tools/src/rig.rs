@@ -21,7 +21,7 @@ use crate::pipeline::{
     LidarKind, Overflow, BATCH, INS_RING,
 };
 use crate::site::Site;
-use crate::status::{Console, Status};
+use crate::status::{show, Status};
 use heapless::spsc::{Consumer, Producer, Queue};
 use serde::Serialize;
 use spherecal::calib::Settings;
@@ -33,6 +33,7 @@ use spherecal::vn200::fields::Group;
 use spherecal::vn200::pose::{ins_mode, InsMode};
 use spherecal::vn200::{Framer, Item};
 use spherecal::window::{Observation, Target};
+use spherecal_hal::console::Console;
 use spherecal_hal::packet::HostTime;
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
 use spherecal_hal::serial::{ByteSource, ReadOutcome, RxStamp, SerialSource};
@@ -483,7 +484,7 @@ fn run_rig(
         if let Some(c) = console {
             let mut last = u64::MAX;
             let s = snapshot(sh, &ids, started, &mut last);
-            if let Err(e) = c.show(&s) {
+            if let Err(e) = show(c, &s) {
                 sh.error(format!("console: {e}"));
             }
         }
@@ -968,7 +969,7 @@ fn status_loop<'c>(
         }
         tick += 1;
         let s = snapshot(sh, ids, started, &mut last_aligned);
-        if let Err(e) = console.show(&s) {
+        if let Err(e) = show(console, &s) {
             sh.error(format!("console: {e}"));
         }
     }

@@ -10,6 +10,7 @@
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`.
 
+use spherecal_hal::console::Console;
 use std::fmt::Write as _;
 
 /// What the status line shows.
@@ -175,40 +176,9 @@ mod tests {
     }
 }
 
-/// Where status lines go: a serial console (any `Write`, e.g. a serial port or a
-/// pseudo-terminal) or stdout. Each line ends in CR LF, as serial terminals expect, and is
-/// flushed at once.
-pub struct Console {
-    out: Box<dyn std::io::Write + Send>,
-    /// Lines written.
-    pub lines: u64,
-}
-
-impl Console {
-    /// The board's console: `stdout`, or a serial device at `baud`.
-    pub fn open(device: &str, baud: u32) -> Result<Self, String> {
-        if device == "stdout" {
-            return Ok(Self::new(Box::new(std::io::stdout())));
-        }
-        let port = serialport::new(device, baud)
-            .open()
-            .map_err(|e| format!("console {device}: {e}"))?;
-        Ok(Self::new(Box::new(port)))
-    }
-
-    /// Any writer.
-    pub fn new(out: Box<dyn std::io::Write + Send>) -> Self {
-        Self { out, lines: 0 }
-    }
-
-    /// Write one status line.
-    pub fn show(&mut self, s: &Status) -> std::io::Result<()> {
-        self.out.write_all(s.line().as_bytes())?;
-        self.out.write_all(b"\r\n")?;
-        self.out.flush()?;
-        self.lines += 1;
-        Ok(())
-    }
+/// Show a status line on a console (the hal's sink: a serial port or stdout).
+pub fn show(console: &mut Console, s: &Status) -> std::io::Result<()> {
+    console.write_line(&s.line())
 }
 
 #[cfg(test)]
@@ -235,7 +205,7 @@ mod console_tests {
             })
             .collect();
         for s in &lines {
-            console.show(s).unwrap();
+            show(&mut console, s).unwrap();
         }
         assert_eq!(console.lines, 5);
         let mut got = Vec::new();
