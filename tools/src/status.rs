@@ -6,7 +6,8 @@
 //! Fields, space separated, `key=value`: `t` seconds since start; `pkt/s` LiDAR data packets in
 //! the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
 //! dropped (socket buffer full) so far; `pps` the position packets' PPS state;
-//! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time at the last aligned packet [ms];
+//! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time, each against the host receive
+//! clock, at the last aligned packet [ms];
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`.
 
