@@ -124,3 +124,43 @@ fn serial_log_replayed_at_its_recorded_pace() {
         t.elapsed()
     );
 }
+
+/// `spherecal replay --ports` sends the capture's data and position packets to other ports, as
+/// fast as asked, and says how many it sent.
+#[test]
+fn cli_replay_to_other_ports() {
+    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let mut data = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(50)).unwrap();
+    let mut pos = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(50)).unwrap();
+    let ports = format!("{},{}", data.port(), pos.port());
+    let out = common::stdout_of(common::spherecal().args([
+        "replay".as_ref(),
+        "--pcap".as_ref(),
+        pcap.as_os_str(),
+        "--ports".as_ref(),
+        ports.as_ref(),
+        "--speed".as_ref(),
+        "2".as_ref(),
+    ]));
+    let mut want = (0, 0);
+    let mut src = PcapSource::open(&pcap).unwrap();
+    while let Some(Record::Udp(d)) = src.next_record().unwrap() {
+        if d.dst_port == 2368 {
+            want.0 += 1;
+        } else {
+            want.1 += 1;
+        }
+    }
+    assert!(
+        out.contains(&format!("sent {} datagrams", want.0 + want.1)),
+        "{out}"
+    );
+    let mut got = (0, 0);
+    while data.recv().unwrap().is_some() {
+        got.0 += 1;
+    }
+    while pos.recv().unwrap().is_some() {
+        got.1 += 1;
+    }
+    assert_eq!(got, want);
+}

@@ -35,7 +35,7 @@ fn board_with(dir: &Path, data_port: u16, position_port: u16, edits: &[(&str, &s
             &format!("position_port = {position_port}"),
         );
     assert!(text.contains(&format!("data_port = {data_port}")));
-    let p = dir.join("board.toml");
+    let p = dir.join(format!("board-{data_port}.toml"));
     std::fs::write(&p, text).unwrap();
     p
 }
@@ -647,4 +647,43 @@ fn ten_minute_survey_at_max_speed_rss() {
     let n = rss.len();
     assert!(rss[n - 1] < rss[n / 4] + 16 * 1024, "{rss:?}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bad boards and arguments stop `run` before it starts, exit 2, naming what is wrong.
+#[test]
+fn run_refuses_bad_boards_and_arguments() {
+    let dir = common::tmp("rig-bad", "x");
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad_key = board_with(
+        &dir,
+        23_770,
+        23_771,
+        &[("rotate_mb = 64", "rotate_mb = 64\nspeed = 3")],
+    );
+    let cases: Vec<(Vec<std::ffi::OsString>, &str)> = vec![
+        (
+            vec!["--board".into(), dir.join("none.toml").into()],
+            "none.toml",
+        ),
+        (vec!["--board".into(), bad_key.into()], "speed"),
+        (
+            vec![
+                "--board".into(),
+                board(&dir, 23_772, 23_773).into(),
+                "--duration".into(),
+                "0".into(),
+            ],
+            "--duration",
+        ),
+        (
+            vec!["--board".into(), board(&dir, 23_774, 23_775).into()],
+            "--serial",
+        ),
+    ];
+    for (args, says) in cases {
+        let out = common::spherecal().arg("run").args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }

@@ -116,6 +116,13 @@ pub struct RunSummary {
     pub ins_frames_without_pose: u64,
     /// INS frames or sentences rejected (CRC, parse).
     pub ins_rejected: u64,
+    /// Returns in the aligned packets.
+    pub returns: u64,
+    /// Returns georeferenced (near a window: the rest are only counted).
+    pub georeferenced: u64,
+    /// Returns not georeferenced: before the pose history, after it, in a gap wider than the
+    /// allowed 50 ms.
+    pub without_pose: [u64; 3],
     /// Returns windowed per sphere.
     pub windowed: Vec<u64>,
     /// Observations lost because the solver's queue was full.
@@ -515,6 +522,13 @@ fn run_rig(
         data_packets: al_stats.data_packets,
         position_packets: al_stats.position_packets,
         packets_without_time: al_stats.packets_without_time,
+        returns: al_stats.window.points,
+        georeferenced: al_stats.window.georeferenced,
+        without_pose: [
+            al_stats.window.before_history,
+            al_stats.window.after_history,
+            al_stats.window.in_gap,
+        ],
         serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
         poses: ins_counts.0,
         ins_frames_without_pose: ins_counts.1,
@@ -1011,6 +1025,11 @@ pub fn render(s: &RunSummary) -> String {
         s.ins_rejected,
         s.windowed,
         s.solves
+    );
+    let _ = writeln!(
+        o,
+        "{} returns; without a pose: {} before the INS history, {} after it, {} in INS gaps",
+        s.returns, s.without_pose[0], s.without_pose[1], s.without_pose[2]
     );
     let _ = writeln!(
         o,
