@@ -687,3 +687,43 @@ fn run_refuses_bad_boards_and_arguments() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+/// Datagrams from an address other than the board's `sensor_addr` are logged but not aligned,
+/// and counted as skipped with the reason.
+#[test]
+fn other_senders_are_logged_not_aligned() {
+    let dir = common::tmp("rig-sender", "x");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    let (dp, pp) = (23_780, 23_781);
+    let rig = start_rig_with(
+        &dir,
+        dp,
+        pp,
+        &slave.name().unwrap(),
+        false,
+        &[("sensor_addr = \"127.0.0.1\"", "sensor_addr = \"127.0.0.2\"")],
+    );
+    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let to = Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(2368, dp), (8308, pp)],
+    };
+    let sent = replay_udp_on(&pcap, to, &Clock::new(0, Speed::Max))
+        .unwrap()
+        .sent;
+    std::thread::sleep(Duration::from_millis(500));
+    rig.signal(nix::sys::signal::Signal::SIGTERM);
+    let (code, _, err) = rig.wait(Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    let sm = summary(&dir.join("logs"));
+    assert_eq!(u(&sm["logged"][0]), sent, "{sm}");
+    assert_eq!(u(&sm["enqueued"][0]) + u(&sm["enqueued"][1]), 0, "{sm}");
+    assert_eq!(
+        sm["skipped"],
+        serde_json::json!([["other sender", sent]]),
+        "{sm}"
+    );
+    assert!(err.contains("skipped"), "{err}");
+}

@@ -56,6 +56,9 @@ pub enum SkipReason {
     },
     /// A UDP port that is neither the data nor the position port.
     OtherPort(u16),
+    /// A datagram from an address other than the sensor's (live input: the board's
+    /// `sensor_addr`).
+    OtherSender(Ipv4Addr),
     /// A payload whose length is not the one its port carries.
     WrongPayloadLength {
         /// Destination port.
@@ -79,6 +82,7 @@ impl SkipReason {
             SkipReason::TruncatedRecord { .. } => "truncated record",
             SkipReason::TruncatedFile { .. } => "truncated file",
             SkipReason::OtherPort(_) => "other port",
+            SkipReason::OtherSender(_) => "other sender",
             SkipReason::WrongPayloadLength { .. } => "wrong payload length",
             SkipReason::Vlp16(e) => e.reason(),
         }
@@ -101,6 +105,7 @@ impl fmt::Display for SkipReason {
                 write!(f, "file ends inside a record ({left} bytes left)")
             }
             SkipReason::OtherPort(p) => write!(f, "UDP port {p} is neither data nor position"),
+            SkipReason::OtherSender(a) => write!(f, "datagram from {a}, not from the sensor"),
             SkipReason::WrongPayloadLength {
                 port,
                 expected,

@@ -34,7 +34,7 @@ use spherecal::vn200::pose::{ins_mode, InsMode};
 use spherecal::vn200::{Framer, Item};
 use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
-use spherecal_hal::packet::HostTime;
+use spherecal_hal::packet::{HostTime, SkipReason};
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
 use spherecal_hal::serial::{ByteSource, ReadOutcome, RxStamp, SerialSource};
 use spherecal_hal::udp::UdpSource;
@@ -256,6 +256,9 @@ fn run_rig(
 ) -> Result<RunSummary, String> {
     let b = &opts.board;
     let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
+    // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
+    let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
+        .filter(|a| !a.is_unspecified());
     let ports = Ports {
         data: b.lidar.data_port,
         position: b.lidar.position_port,
@@ -374,8 +377,10 @@ fn run_rig(
 
     let (skips, ins_counts, logged, solver_out, al_stats) = std::thread::scope(|sc| {
         let sh = &sh;
-        let data = sc.spawn(move || udp_reader(data_sock, data_p, dlog_p, ports, 0, sh, true));
-        let pos = sc.spawn(move || udp_reader(pos_sock, pos_p, plog_p, ports, 1, sh, false));
+        let data =
+            sc.spawn(move || udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true));
+        let pos =
+            sc.spawn(move || udp_reader(pos_sock, pos_p, plog_p, ports, sensor, 1, sh, false));
         let ins = match serial {
             Some((dev, src)) => Some(
                 sc.spawn(move || serial_reader(&dev, expected, src, &frame, ins_p, slog_p, sh)),
@@ -551,11 +556,13 @@ fn run_rig(
     Ok(summary)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn udp_reader(
     mut sock: UdpSource,
     mut ring: Producer<'_, LidarItem>,
     mut log: Producer<'_, UdpLogItem>,
     ports: Ports,
+    sensor: Option<Ipv4Addr>,
     which: usize,
     sh: &Shared<'_>,
     ends_stream: bool,
@@ -582,7 +589,12 @@ fn udp_reader(
                 };
                 item.bytes[..n].copy_from_slice(&d.payload[..n]);
                 push_wait(&mut log, item, Overflow::Drop, &sh.ring_drops[3]);
-                match LidarItem::classify(&d, ports) {
+                let item = if sensor.is_some_and(|a| a != d.src_addr) {
+                    Err(SkipReason::OtherSender(d.src_addr))
+                } else {
+                    LidarItem::classify(&d, ports)
+                };
+                match item {
                     Ok(item) => {
                         if push_wait(&mut ring, item, Overflow::Drop, &sh.ring_drops[which]) {
                             sh.enqueued[which].fetch_add(1, Ordering::Relaxed);
