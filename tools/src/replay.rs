@@ -1,6 +1,7 @@
-//! `spherecal replay`: recorded files back through the rig's own inputs: the capture's UDP
-//! datagrams to their ports on a host (loopback in tests) with their original pacing scaled,
-//! the serial bytes to a device at the baud rate's pace or the log's own timing.
+//! `spherecal replay`: recorded files back through the rig's own inputs, both streams on one
+//! [`Clock`]: the capture's UDP datagrams to their ports on a host (loopback in tests) at
+//! their record times, the serial bytes to a device at a serial log's receive times (raw
+//! bytes: at the baud rate's pace), the recorded spacing scaled by the speed.
 
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::{PacketSource, Record};
@@ -106,16 +107,7 @@ pub fn first_times(
         }
     }
     let first_log = match ins {
-        Some(p) => {
-            let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
-            match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
-                Ok(mut r) => r
-                    .next_record(&mut Vec::new())
-                    .map_err(|e| format!("{}: {e}", p.display()))?
-                    .map(|s| i128::from(s.wall_ns)),
-                Err(_) => None, // raw bytes: no times
-            }
-        }
+        Some(p) => first_log_time(p)?,
         None => None,
     };
     Ok((first_udp, first_log))
@@ -176,22 +168,20 @@ pub fn replay_serial(
     baud: u32,
     speed: Speed,
 ) -> Result<u64, String> {
-    let (_, first) = first_times_log(file)?;
+    let first = first_log_time(file)?;
     replay_serial_on(file, out, baud, &Clock::new(first.unwrap_or(0), speed))
 }
 
-fn first_times_log(file: &Path) -> Result<(Option<i128>, Option<i128>), String> {
+/// The first receive time of a serial log (None for raw bytes, which have no times).
+fn first_log_time(file: &Path) -> Result<Option<i128>, String> {
     let f = std::fs::File::open(file).map_err(|e| format!("{}: {e}", file.display()))?;
-    Ok((
-        None,
-        match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
-            Ok(mut r) => r
-                .next_record(&mut Vec::new())
-                .map_err(|e| format!("{}: {e}", file.display()))?
-                .map(|s| i128::from(s.wall_ns)),
-            Err(_) => None,
-        },
-    ))
+    match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
+        Ok(mut r) => Ok(r
+            .next_record(&mut Vec::new())
+            .map_err(|e| format!("{}: {e}", file.display()))?
+            .map(|s| i128::from(s.wall_ns))),
+        Err(_) => Ok(None),
+    }
 }
 
 /// Write a VN-200 byte file to `out`: a serial log's reads each when `clock` says their
