@@ -710,9 +710,10 @@ fn other_senders_are_logged_not_aligned() {
         host: Ipv4Addr::LOCALHOST,
         ports: [(2368, dp), (8308, pp)],
     };
-    let sent = replay_udp_on(&pcap, to, &Clock::new(0, Speed::Max))
-        .unwrap()
-        .sent;
+    // In real time: the capture's 0.39 s, with its burst of position packets.
+    let (first, _) = spherecal_tools::replay::first_times(&pcap, None).unwrap();
+    let clock = Clock::new(first.unwrap(), Speed::Factor(1.0));
+    let sent = replay_udp_on(&pcap, to, &clock).unwrap().sent;
     std::thread::sleep(Duration::from_millis(500));
     rig.signal(nix::sys::signal::Signal::SIGTERM);
     let (code, _, err) = rig.wait(Duration::from_secs(30));

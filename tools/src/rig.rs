@@ -47,8 +47,9 @@ use std::time::{Duration, Instant};
 
 /// Data ring (holds N - 1 packets: 0.68 s at 754 packets/s).
 pub const DATA_RING: usize = 512;
-/// Position ring.
-pub const POSITION_RING: usize = 32;
+/// Position ring (and its log ring): position packets come ~1 a second from a VLP-16, but some
+/// captures hold bursts of them.
+pub const POSITION_RING: usize = 256;
 /// Log ring for data datagrams (6 MB: 5.4 s of a VLP-16, for a disk that stalls).
 pub const DATA_LOG_RING: usize = 4096;
 /// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes; 2 MB, ~10 s of reads at 200 Hz).
