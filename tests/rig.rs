@@ -105,11 +105,21 @@ impl Rig {
                 if let Some(mut e) = self.child.stderr.take() {
                     let _ = std::io::Read::read_to_string(&mut e, &mut err);
                 }
-                return (st.code(), self.seen, err);
+                return (st.code(), std::mem::take(&mut self.seen), err);
             }
             assert!(t.elapsed() < limit, "run did not stop: {}", self.stderr());
             while self.lines.try_recv().map(|l| self.seen.push(l)).is_ok() {}
             std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Rig {
+    /// A failed test must not leave its rig running (holding ports and a pseudo-terminal).
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
         }
     }
 }
@@ -271,24 +281,27 @@ fn table1_through_the_rig() {
         .map(|l| Status::parse(l).unwrap_or_else(|| panic!("bad status line {l:?}")))
         .collect();
     assert!(st.len() >= 60, "{lines:?}");
-    assert!(
+    // Medians: a busy machine may shift a packet or a serial read across a second's edge.
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let rate = median(
         st.iter()
-            .filter(|s| (740..=770).contains(&s.packets_per_s))
-            .count()
-            >= 50,
-        "754 packets/s: {lines:?}"
+            .filter(|s| s.packets_per_s > 0)
+            .map(|s| s.packets_per_s as f64)
+            .collect(),
+    );
+    assert!(
+        (745.0..=765.0).contains(&rate),
+        "754 packets/s: {rate} {lines:?}"
     );
     assert!(st.iter().any(|s| s.ins == "tracking"));
     assert!(st.iter().any(|s| s.pps == "locked"));
     // LiDAR packets are received 1.4 ms after their stamp, INS frames 1 ms + 0.56 ms on the
     // wire after their time: the clocks agree to +0.16 ms, and the line says so.
-    assert!(
-        st.iter()
-            .filter(|s| s.lag_ms.is_some_and(|l| (-1.0..1.5).contains(&l)))
-            .count()
-            >= 50,
-        "{lines:?}"
-    );
+    let lag = median(st.iter().filter_map(|s| s.lag_ms).collect());
+    assert!((-1.0..1.5).contains(&lag), "lag {lag} ms: {lines:?}");
     let last = st.last().unwrap();
     let cal = last
         .calibration

@@ -513,7 +513,11 @@ fn run(
     };
     match run(&opts, &mut console, &stop) {
         Ok(s) => {
-            eprint!("{}", spherecal_tools::rig::render(&s));
+            // A closed stderr is no reason to fail a finished run.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                spherecal_tools::rig::render(&s).as_bytes(),
+            );
             ExitCode::SUCCESS
         }
         Err(e) => fail(e),

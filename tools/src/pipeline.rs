@@ -282,9 +282,10 @@ pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
 pub enum InsWait {
     /// Files: until the INS stream has poses past the packet or has ended.
     UntilEnd,
-    /// Live: at most this long per packet; once a wait has run out, not again until a new
-    /// pose arrives (a silent INS must not stall the LiDAR).
-    AtMost(std::time::Duration),
+    /// Live: until this long after the packet's host receive time (wall clock). A late INS
+    /// (a starved serial reader) is waited for; a silent one leaves the aligner this far
+    /// behind real time, its ring holding the packets meanwhile, never stalled.
+    Latency(std::time::Duration),
 }
 
 /// The aligner stage (DESIGN.md data flow): the LiDAR clock, the pose history, georeferencing
@@ -300,7 +301,6 @@ pub struct Aligner {
     points: PointBuf,
     wait: InsWait,
     ins_done: bool,
-    ins_stalled: bool,
     /// Newest pose's GPS time minus its host receive time [ns], if the host time is known.
     ins_offset_ns: Option<i64>,
     /// Counts (the alignment fields of a run's counts).
@@ -335,7 +335,6 @@ impl Aligner {
             points: PointBuf::new(),
             wait,
             ins_done: false,
-            ins_stalled: false,
             ins_offset_ns: None,
             stats: RunStats::default(),
             pps: None,
@@ -357,7 +356,6 @@ impl Aligner {
 
     fn push_pose(&mut self, s: PoseSample, host_ns: i64) {
         if self.history.push(s) {
-            self.ins_stalled = false;
             self.ins_offset_ns = (host_ns != 0).then(|| s.time.0 - host_ns);
         }
     }
@@ -384,9 +382,20 @@ impl Aligner {
     }
 
     /// Pull poses until the history reaches past `until` (None: until it holds any), the INS
-    /// ends, or the live wait runs out.
-    fn pull_ins(&mut self, ic: &mut Consumer<'_, InsItem>, until: Option<GpsTime>) {
-        let started = std::time::Instant::now();
+    /// ends, or (live) the latency allowed after the packet's receive time `host_ns` has passed.
+    fn pull_ins(&mut self, ic: &mut Consumer<'_, InsItem>, until: Option<GpsTime>, host_ns: i64) {
+        let deadline = match self.wait {
+            InsWait::UntilEnd => None,
+            InsWait::Latency(d) => {
+                let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
+                let from = if host_ns != 0 {
+                    host_ns
+                } else {
+                    spherecal_hal::serial::wall_ns()
+                };
+                Some(from.saturating_add(d))
+            }
+        };
         while !self.ins_done {
             match (until, self.history.span()) {
                 (Some(u), Some((_, newest))) if newest > u => return,
@@ -396,15 +405,10 @@ impl Aligner {
             match ic.dequeue() {
                 Some(InsItem::Pose(s, h)) => self.push_pose(s, h),
                 Some(InsItem::End) => self.ins_done = true,
-                None => match self.wait {
-                    InsWait::UntilEnd => std::thread::yield_now(),
-                    InsWait::AtMost(d) => {
-                        if self.ins_stalled || started.elapsed() >= d {
-                            self.ins_stalled = true;
-                            return;
-                        }
-                        std::thread::sleep(std::time::Duration::from_micros(100));
-                    }
+                None => match deadline {
+                    None => std::thread::yield_now(),
+                    Some(t) if spherecal_hal::serial::wall_ns() >= t => return,
+                    Some(_) => std::thread::sleep(std::time::Duration::from_millis(1)),
                 },
             }
         }
@@ -435,7 +439,7 @@ impl Aligner {
     ) {
         let p = DataPacket::new_unchecked(&item.bytes[..]);
         if !self.clock.has_hour() {
-            self.pull_ins(ic, None);
+            self.pull_ins(ic, None, item.host_ns);
             match self.history.span() {
                 Some((_, newest)) => self.clock.set_from_gps(newest, p.timestamp_us()),
                 None => {
@@ -449,7 +453,7 @@ impl Aligner {
             return;
         };
         // A packet's 24 firing sequences span 1.33 ms.
-        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000)));
+        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000)), item.host_ns);
         if vlp16::decode(&p, &mut self.points).is_err() {
             return;
         }

@@ -45,8 +45,8 @@ use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, AtomicUsize,
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Data ring (holds N - 1 packets: 0.68 s at 754 packets/s).
-pub const DATA_RING: usize = 512;
+/// Data ring (holds N - 1 packets: 1.36 s at 754 packets/s, 0.68 s dual return).
+pub const DATA_RING: usize = 1024;
 /// Position ring (and its log ring): position packets come ~1 a second from a VLP-16, but some
 /// captures hold bursts of them.
 pub const POSITION_RING: usize = 256;
@@ -62,8 +62,9 @@ pub const MAX_DATAGRAM: usize = 1472;
 pub const MAX_OBS_PER_SPHERE: usize = 200_000;
 /// Read timeout of every reader: how fast a stop is noticed.
 pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
-/// How long the aligner waits for the INS to cover a packet.
-pub const INS_WAIT: Duration = Duration::from_millis(100);
+/// How long after a packet's arrival the aligner waits for the INS to cover it (the data ring
+/// holds 1.36 s of single-return packets, 0.68 s of dual).
+pub const INS_LATENCY: Duration = Duration::from_millis(300);
 
 /// What `run` is asked to do.
 #[derive(Debug, Clone)]
@@ -164,6 +165,7 @@ const NONE_U8: u8 = u8::MAX;
 struct Shared<'a> {
     stop: &'a AtomicBool,
     readers: AtomicUsize,
+    aligner_gone: AtomicBool,
     logger_done: AtomicBool,
     received: [AtomicU64; 2],
     enqueued: [AtomicU64; 2],
@@ -181,6 +183,42 @@ struct Shared<'a> {
     solves: AtomicU64,
     calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
     errors: Mutex<Vec<String>>,
+}
+
+/// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
+/// OS has no threads left, which ends the program as `std::thread::spawn` would.
+fn spawn<'s, 'e, T: Send + 's>(
+    sc: &'s std::thread::Scope<'s, 'e>,
+    name: &str,
+    f: impl FnOnce() -> T + Send + 's,
+) -> std::thread::ScopedJoinHandle<'s, T> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn_scoped(sc, f)
+        .unwrap_or_else(|e| panic!("cannot start the {name} thread: {e}"))
+}
+
+/// Counts a reader out however it ends (the logger runs until every reader is out).
+struct ReaderGuard<'s, 'a>(&'s Shared<'a>);
+
+impl Drop for ReaderGuard<'_, '_> {
+    fn drop(&mut self) {
+        self.0.readers.fetch_sub(1, Ordering::Release);
+    }
+}
+
+/// Set when the aligner's loop is left, by its end or by a panic: readers stop waiting to
+/// hand it their End, and (on a panic) everything stops.
+struct AlignerGuard<'s, 'a>(&'s Shared<'a>);
+
+impl Drop for AlignerGuard<'_, '_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.error("the aligner failed; stopping".into());
+            self.0.stop.store(true, Ordering::Relaxed);
+        }
+        self.0.aligner_gone.store(true, Ordering::Release);
+    }
 }
 
 impl Shared<'_> {
@@ -328,6 +366,7 @@ fn run_rig(
     let sh = Shared {
         stop,
         readers: AtomicUsize::new(2 + usize::from(serial.is_some())),
+        aligner_gone: AtomicBool::new(false),
         logger_done: AtomicBool::new(false),
         received: Default::default(),
         enqueued: Default::default(),
@@ -378,22 +417,24 @@ fn run_rig(
 
     let (skips, ins_counts, logged, solver_out, al_stats) = std::thread::scope(|sc| {
         let sh = &sh;
-        let data =
-            sc.spawn(move || udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true));
-        let pos =
-            sc.spawn(move || udp_reader(pos_sock, pos_p, plog_p, ports, sensor, 1, sh, false));
+        let data = spawn(sc, "udp-data", move || {
+            udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true)
+        });
+        let pos = spawn(sc, "udp-position", move || {
+            udp_reader(pos_sock, pos_p, plog_p, ports, sensor, 1, sh, false)
+        });
         let ins = match serial {
-            Some((dev, src)) => Some(
-                sc.spawn(move || serial_reader(&dev, expected, src, &frame, ins_p, slog_p, sh)),
-            ),
+            Some((dev, src)) => Some(spawn(sc, "serial", move || {
+                serial_reader(&dev, expected, src, &frame, ins_p, slog_p, sh)
+            })),
             None => {
                 let _ = ins_p.enqueue(InsItem::End);
                 None
             }
         };
         let to_sync: &Mutex<Vec<std::fs::File>> = &to_sync;
-        let syncer = sc.spawn(move || syncer(to_sync, sh));
-        let logger = sc.spawn(move || {
+        let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh));
+        let logger = spawn(sc, "logger", move || {
             logger(
                 &mut pcap_log,
                 serial_log.as_mut(),
@@ -414,7 +455,7 @@ fn run_rig(
         });
         let tg_ref = &tg;
         let ids_ref = &ids;
-        let solver = sc.spawn(move || {
+        let solver = spawn(sc, "solver", move || {
             solver(
                 rx,
                 pool_tx,
@@ -426,16 +467,19 @@ fn run_rig(
                 sh,
             )
         });
-        let status = sc.spawn(move || status_loop(console, ids_ref, opts.duration, started, sh));
+        let status = spawn(sc, "status", move || {
+            status_loop(console, ids_ref, opts.duration, started, sh)
+        });
 
-        // Aligner (this thread).
+        // Aligner (this thread). Should it fail, everything winds down.
+        let _aligner = AlignerGuard(sh);
         let mut al = Aligner::new(
             tg.clone(),
             margin,
             Mount::from_params(&b0),
             b.leap_seconds,
             50_000_000,
-            InsWait::AtMost(INS_WAIT),
+            InsWait::Latency(INS_LATENCY),
         );
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let mut v = pool_rx
@@ -454,7 +498,7 @@ fn run_rig(
             }
             al.drain_ins(&mut ins_c);
             let Some(item) = data_c.dequeue() else {
-                std::thread::sleep(Duration::from_micros(200));
+                std::thread::sleep(Duration::from_millis(1));
                 continue;
             };
             match item.kind {
@@ -568,6 +612,7 @@ fn udp_reader(
     sh: &Shared<'_>,
     ends_stream: bool,
 ) -> SkipStats {
+    let _alive = ReaderGuard(sh);
     let mut skips = SkipStats::default();
     let mut polled = Instant::now();
     let poll_drops = |sock: &UdpSource| {
@@ -627,15 +672,15 @@ fn udp_reader(
     }
     poll_drops(&sock);
     if ends_stream {
-        // The aligner runs until it sees this.
+        // The aligner runs until it sees this (unless it is gone).
         while ring
             .enqueue(LidarItem::new(LidarKind::End, 0, &[]))
             .is_err()
+            && !sh.aligner_gone.load(Ordering::Acquire)
         {
             std::thread::sleep(Duration::from_millis(1));
         }
     }
-    sh.readers.fetch_sub(1, Ordering::Release);
     skips
 }
 
@@ -676,6 +721,7 @@ fn serial_reader(
     mut log: Producer<'_, SerialChunk>,
     sh: &Shared<'_>,
 ) -> (u64, u64, u64) {
+    let _alive = ReaderGuard(sh);
     let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
     let mut framer: Box<Framer> = Box::default();
     let mut buf = [0u8; SERIAL_CHUNK];
@@ -726,10 +772,9 @@ fn serial_reader(
             }
         }
     }
-    while ring.enqueue(InsItem::End).is_err() {
+    while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
-    sh.readers.fetch_sub(1, Ordering::Release);
     (poses, without, rejected)
 }
 
