@@ -17,7 +17,7 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("pcap 10k data datagrams", |b| {
         b.iter(|| {
-            let mut log = PcapLog::create(&dir, "bench-lidar", 64 << 20).unwrap();
+            let mut log = PcapLog::create_pcap(&dir, "bench-lidar", 64 << 20).unwrap();
             for i in 0..n {
                 log.write(
                     HostTime(1_700_000_000_000_000_000 + i128::from(i) * 1_326_000),
@@ -33,7 +33,7 @@ fn bench(c: &mut Criterion) {
     let chunk = [0xAAu8; 52];
     g.bench_function("serial log 10k reads of 52 bytes", |b| {
         b.iter(|| {
-            let mut log = SerialLog::create(&dir, "bench-ins", 64 << 20, 921_600).unwrap();
+            let mut log = SerialLog::create_vnlog(&dir, "bench-ins", 64 << 20, 921_600).unwrap();
             for i in 0..n {
                 let stamp = RxStamp {
                     mono_ns: i * 5_000_000,

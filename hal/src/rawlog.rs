@@ -17,85 +17,145 @@ use std::path::{Path, PathBuf};
 /// Write buffer per open file.
 const BUFFER: usize = 1 << 20;
 
-/// What both raw logs share: the folder, naming, rotation size and the files written.
-#[derive(Debug, Clone)]
-pub struct Rotation {
+/// A file format the raw logs rotate: how a file starts, and where its bytes go.
+pub trait Format {
+    /// The writer over one file, its header written.
+    type Writer;
+    /// File name extension.
+    const EXT: &'static str;
+    /// Bytes of the file header.
+    const HEADER: u64;
+    /// Write the header on a new file.
+    fn start(&self, file: BufWriter<File>) -> io::Result<Self::Writer>;
+    /// The buffered file under a writer.
+    fn file(w: &mut Self::Writer) -> &mut BufWriter<File>;
+}
+
+/// Classic pcap (Ethernet), as [`PcapWriter`] writes it; holds the frame being rebuilt.
+pub struct Pcap {
+    frame: Vec<u8>,
+}
+
+impl Format for Pcap {
+    type Writer = PcapWriter<BufWriter<File>>;
+    const EXT: &'static str = "pcap";
+    const HEADER: u64 = 24;
+    fn start(&self, file: BufWriter<File>) -> io::Result<Self::Writer> {
+        PcapWriter::new(file).map_err(io::Error::other)
+    }
+    fn file(w: &mut Self::Writer) -> &mut BufWriter<File> {
+        w.get_mut()
+    }
+}
+
+/// The serial log format of [`crate::serial`], with the port's baud rate in its header.
+pub struct Vnlog {
+    baud: u32,
+}
+
+impl Format for Vnlog {
+    type Writer = LogWriter<BufWriter<File>>;
+    const EXT: &'static str = "vnlog";
+    const HEADER: u64 = 16;
+    fn start(&self, file: BufWriter<File>) -> io::Result<Self::Writer> {
+        LogWriter::new(file, self.baud)
+    }
+    fn file(w: &mut Self::Writer) -> &mut BufWriter<File> {
+        w.get_mut()
+    }
+}
+
+/// Rotating files of one format: `DIR/PREFIX-NNN.EXT`, a new one (header first) before a
+/// record would take the current one past the size limit.
+pub struct Rotating<F: Format> {
+    format: F,
     dir: PathBuf,
     prefix: String,
-    ext: &'static str,
     limit: u64,
-    index: u32,
+    out: F::Writer,
     /// Bytes in the current file.
-    pub written: u64,
-    /// Files opened so far, in order.
-    pub files: Vec<PathBuf>,
-}
-
-impl Rotation {
-    fn new(dir: &Path, prefix: &str, ext: &'static str, limit: u64) -> Self {
-        Self {
-            dir: dir.to_path_buf(),
-            prefix: prefix.to_string(),
-            ext,
-            limit: limit.max(1),
-            index: 0,
-            written: 0,
-            files: Vec::new(),
-        }
-    }
-
-    fn next_file(&mut self) -> io::Result<BufWriter<File>> {
-        let path = self
-            .dir
-            .join(format!("{}-{:03}.{}", self.prefix, self.index, self.ext));
-        self.index += 1;
-        let f = File::create(&path)
-            .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
-        self.files.push(path);
-        self.written = 0;
-        Ok(BufWriter::with_capacity(BUFFER, f))
-    }
-
-    fn full(&self, next: usize) -> bool {
-        self.written > 0 && self.written + next as u64 > self.limit
-    }
-}
-
-fn durable(w: &mut BufWriter<File>) -> io::Result<()> {
-    w.flush()?;
-    w.get_ref().sync_data()
-}
-
-/// Hand the buffered bytes to the OS and return a second handle on the file, so that another
-/// thread can `sync_data` it while this one goes on writing (a slow disk then delays
-/// durability, not logging).
-fn handed_over(w: &mut BufWriter<File>) -> io::Result<File> {
-    w.flush()?;
-    w.get_ref().try_clone()
+    written: u64,
+    files: Vec<PathBuf>,
+    /// Records written.
+    pub records: u64,
 }
 
 /// Rotating pcap files of received datagrams (rebuilt as Ethernet/IPv4/UDP frames with the
 /// sender's address and ports, the receive time as the record time).
-pub struct PcapLog {
-    rot: Rotation,
-    out: PcapWriter<BufWriter<File>>,
-    frame: Vec<u8>,
-    /// Datagrams written.
-    pub records: u64,
+pub type PcapLog = Rotating<Pcap>;
+
+/// Rotating serial logs.
+pub type SerialLog = Rotating<Vnlog>;
+
+fn open(
+    dir: &Path,
+    prefix: &str,
+    ext: &str,
+    index: usize,
+) -> io::Result<(PathBuf, BufWriter<File>)> {
+    let path = dir.join(format!("{prefix}-{index:03}.{ext}"));
+    let f = File::create(&path)
+        .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    Ok((path, BufWriter::with_capacity(BUFFER, f)))
 }
 
-impl PcapLog {
-    /// Start `DIR/PREFIX-000.pcap`; rotate past `limit` bytes.
-    pub fn create(dir: &Path, prefix: &str, limit: u64) -> io::Result<Self> {
-        let mut rot = Rotation::new(dir, prefix, "pcap", limit);
-        let out = PcapWriter::new(rot.next_file()?).map_err(io::Error::other)?;
-        rot.written = 24;
+impl<F: Format> Rotating<F> {
+    fn create(dir: &Path, prefix: &str, limit: u64, format: F) -> io::Result<Self> {
+        let (path, file) = open(dir, prefix, F::EXT, 0)?;
         Ok(Self {
-            rot,
-            out,
-            frame: Vec::with_capacity(2048),
+            out: format.start(file)?,
+            format,
+            dir: dir.to_path_buf(),
+            prefix: prefix.to_string(),
+            limit: limit.max(1),
+            written: F::HEADER,
+            files: vec![path],
             records: 0,
         })
+    }
+
+    /// Make room for a record of `need` bytes: start the next file (the current one synced to
+    /// the disk first) if this one would pass the limit; count the record.
+    fn room(&mut self, need: usize) -> io::Result<()> {
+        if self.written > F::HEADER && self.written + need as u64 > self.limit {
+            self.sync()?;
+            let (path, file) = open(&self.dir, &self.prefix, F::EXT, self.files.len())?;
+            self.out = self.format.start(file)?;
+            self.files.push(path);
+            self.written = F::HEADER;
+        }
+        self.written += need as u64;
+        self.records += 1;
+        Ok(())
+    }
+
+    /// Flush to the disk (not only the OS).
+    pub fn sync(&mut self) -> io::Result<()> {
+        let w = F::file(&mut self.out);
+        w.flush()?;
+        w.get_ref().sync_data()
+    }
+
+    /// Hand the buffered bytes to the OS and return a second handle on the file, so that
+    /// another thread can `sync_data` it while this one goes on writing (a slow disk then
+    /// delays durability, not logging).
+    pub fn flush(&mut self) -> io::Result<File> {
+        let w = F::file(&mut self.out);
+        w.flush()?;
+        w.get_ref().try_clone()
+    }
+
+    /// The files written so far, in order.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+}
+
+impl Rotating<Pcap> {
+    /// Start `DIR/PREFIX-000.pcap`; rotate past `limit` bytes.
+    pub fn create_pcap(dir: &Path, prefix: &str, limit: u64) -> io::Result<Self> {
+        let frame = Vec::with_capacity(2048);
+        Self::create(dir, prefix, limit, Pcap { frame })
     }
 
     /// Append a datagram from `src` to `dst` received at `time`.
@@ -111,87 +171,24 @@ impl PcapLog {
             dst_ip: dst.0.octets(),
             ..UdpEndpoints::default()
         };
-        build_udp_frame(&mut self.frame, &ep, src.1, dst.1, payload)?;
-        let need = 16 + self.frame.len();
-        if self.rot.full(need) {
-            durable(self.out.get_mut())?;
-            self.out = PcapWriter::new(self.rot.next_file()?).map_err(io::Error::other)?;
-            self.rot.written = 24;
-        }
+        build_udp_frame(&mut self.format.frame, &ep, src.1, dst.1, payload)?;
+        self.room(16 + self.format.frame.len())?;
         self.out
-            .write_frame(time, &self.frame)
-            .map_err(io::Error::other)?;
-        self.rot.written += need as u64;
-        self.records += 1;
-        Ok(())
-    }
-
-    /// Flush to the disk (not only the OS).
-    pub fn sync(&mut self) -> io::Result<()> {
-        durable(self.out.get_mut())
-    }
-
-    /// Flush to the OS; a handle on the current file to `sync_data` elsewhere.
-    pub fn flush(&mut self) -> io::Result<File> {
-        handed_over(self.out.get_mut())
-    }
-
-    /// The files written so far.
-    pub fn files(&self) -> &[PathBuf] {
-        &self.rot.files
+            .write_frame(time, &self.format.frame)
+            .map_err(io::Error::other)
     }
 }
 
-/// Rotating serial logs.
-pub struct SerialLog {
-    rot: Rotation,
-    out: LogWriter<BufWriter<File>>,
-    baud: u32,
-    /// Reads written.
-    pub records: u64,
-}
-
-impl SerialLog {
+impl Rotating<Vnlog> {
     /// Start `DIR/PREFIX-000.vnlog`; rotate past `limit` bytes.
-    pub fn create(dir: &Path, prefix: &str, limit: u64, baud: u32) -> io::Result<Self> {
-        let mut rot = Rotation::new(dir, prefix, "vnlog", limit);
-        let out = LogWriter::new(rot.next_file()?, baud)?;
-        rot.written = 16;
-        Ok(Self {
-            rot,
-            out,
-            baud,
-            records: 0,
-        })
+    pub fn create_vnlog(dir: &Path, prefix: &str, limit: u64, baud: u32) -> io::Result<Self> {
+        Self::create(dir, prefix, limit, Vnlog { baud })
     }
 
     /// Append one read.
     pub fn write(&mut self, stamp: RxStamp, bytes: &[u8]) -> io::Result<()> {
-        let need = crate::serial::RECORD_HEADER + bytes.len();
-        if self.rot.full(need) {
-            durable(self.out.get_mut())?;
-            self.out = LogWriter::new(self.rot.next_file()?, self.baud)?;
-            self.rot.written = 16;
-        }
-        self.out.record(stamp, bytes)?;
-        self.rot.written += need as u64;
-        self.records += 1;
-        Ok(())
-    }
-
-    /// Flush to the disk (not only the OS).
-    pub fn sync(&mut self) -> io::Result<()> {
-        durable(self.out.get_mut())
-    }
-
-    /// Flush to the OS; a handle on the current file to `sync_data` elsewhere.
-    pub fn flush(&mut self) -> io::Result<File> {
-        handed_over(self.out.get_mut())
-    }
-
-    /// The files written so far.
-    pub fn files(&self) -> &[PathBuf] {
-        &self.rot.files
+        self.room(crate::serial::RECORD_HEADER + bytes.len())?;
+        self.out.record(stamp, bytes)
     }
 }
 
@@ -215,7 +212,7 @@ mod tests {
     #[test]
     fn pcap_pieces_hold_every_datagram() {
         let dir = tmp("pcap");
-        let mut log = PcapLog::create(&dir, "lidar", 3000).unwrap();
+        let mut log = PcapLog::create_pcap(&dir, "lidar", 3000).unwrap();
         let src = (Ipv4Addr::new(192, 168, 1, 201), 2368);
         let dst = (Ipv4Addr::new(192, 168, 1, 77), 2368);
         for i in 0..100u32 {
@@ -249,7 +246,7 @@ mod tests {
     #[test]
     fn serial_pieces_hold_every_read() {
         let dir = tmp("serial");
-        let mut log = SerialLog::create(&dir, "ins", 500, 921_600).unwrap();
+        let mut log = SerialLog::create_vnlog(&dir, "ins", 500, 921_600).unwrap();
         let mut want = Vec::new();
         for i in 0..50u8 {
             let chunk = vec![i; 1 + usize::from(i)];

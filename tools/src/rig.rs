@@ -329,11 +329,11 @@ fn run_rig(
     let rotate = opts
         .rotate_bytes
         .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
-    let mut pcap_log = PcapLog::create(&log_dir, &format!("{stamp}-lidar"), rotate)
+    let mut pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
         .map_err(|e| format!("raw log: {e}"))?;
     let mut serial_log = match &serial {
         Some(_) => Some(
-            SerialLog::create(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
+            SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
                 .map_err(|e| format!("raw log: {e}"))?,
         ),
         None => None,
