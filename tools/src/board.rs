@@ -68,6 +68,13 @@ pub struct MountApriori {
     pub lever_arm_m: [f64; 3],
 }
 
+impl MountApriori {
+    /// Roll, pitch, heading [deg], x, y, z [m], the order the solver takes.
+    pub fn deg_m(&self) -> [f64; 6] {
+        crate::site::deg_m(self.boresight_deg, self.lever_arm_m)
+    }
+}
+
 /// A board file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -419,9 +419,8 @@ fn demo() -> ExitCode {
         t0.elapsed().as_secs_f64()
     );
     sayln!("calibrating from the paper's erroneous a-priori values ...");
-    let t = s.mount.truth.boresight_deg;
-    let l = s.mount.truth.lever_arm_m;
-    let truth6 = [t[0], t[1], t[2], l[0], l[1], l[2]];
+    let truth6 =
+        spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m);
     let res = spherecal_tools::run_calibrate(
         dir.join("lidar.pcap"),
         Some(dir.join("ins.bin")),

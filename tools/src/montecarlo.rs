@@ -74,14 +74,7 @@ pub fn montecarlo(
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
     let t = &scenario.mount.truth;
-    let truth = [
-        t.boresight_deg[0],
-        t.boresight_deg[1],
-        t.boresight_deg[2],
-        t.lever_arm_m[0],
-        t.lever_arm_m[1],
-        t.lever_arm_m[2],
-    ];
+    let truth = crate::site::deg_m(t.boresight_deg, t.lever_arm_m);
     let mut rng = Rng::new(seed);
     let starts: Vec<[f64; P]> = (0..trials)
         .map(|_| {

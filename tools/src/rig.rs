@@ -170,7 +170,6 @@ struct Shared<'a> {
     received: [AtomicU64; 2],
     enqueued: [AtomicU64; 2],
     kernel_drops: [AtomicU64; 2],
-    kernel_stamped: AtomicU64,
     /// data, position, INS, datagram log, serial log.
     ring_drops: [AtomicU64; 5],
     serial_bytes: AtomicU64,
@@ -353,15 +352,7 @@ fn run_rig(
             0.0,
         ),
     };
-    let apriori = [
-        b.mount.boresight_deg[0],
-        b.mount.boresight_deg[1],
-        b.mount.boresight_deg[2],
-        b.mount.lever_arm_m[0],
-        b.mount.lever_arm_m[1],
-        b.mount.lever_arm_m[2],
-    ];
-    let b0 = spherecal::calib::from_deg_m(&apriori);
+    let b0 = spherecal::calib::from_deg_m(&b.mount.deg_m());
 
     let sh = Shared {
         stop,
@@ -371,7 +362,6 @@ fn run_rig(
         received: Default::default(),
         enqueued: Default::default(),
         kernel_drops: Default::default(),
-        kernel_stamped: AtomicU64::new(0),
         ring_drops: Default::default(),
         serial_bytes: AtomicU64::new(0),
         pps: AtomicU8::new(NONE_U8),
@@ -554,7 +544,7 @@ fn run_rig(
         )
     });
     let mut skipped: Vec<(String, u64)> = Vec::new();
-    for l in skips.0.lines().iter().chain(skips.1.lines()) {
+    for l in skips.0 .0.lines().iter().chain(skips.1 .0.lines()) {
         match skipped.iter_mut().find(|s| s.0 == l.reason) {
             Some(s) => s.1 += l.count,
             None => skipped.push((l.reason.to_string(), l.count)),
@@ -565,7 +555,7 @@ fn run_rig(
         seconds: started.elapsed().as_secs_f64(),
         received: ld(&sh.received),
         kernel_drops: ld(&sh.kernel_drops),
-        kernel_stamped: sh.kernel_stamped.load(Ordering::Relaxed),
+        kernel_stamped: skips.0 .1 + skips.1 .1,
         enqueued: ld(&sh.enqueued),
         ring_drops: [0, 1, 2, 3, 4].map(|i| sh.ring_drops[i].load(Ordering::Relaxed)),
         skipped,
@@ -601,6 +591,8 @@ fn run_rig(
     Ok(summary)
 }
 
+/// One socket until the stop: every datagram to the log ring, the sensor's VLP-16 packets to
+/// the aligner's ring. Returns the skips and how many datagrams had kernel receive times.
 #[allow(clippy::too_many_arguments)]
 fn udp_reader(
     mut sock: UdpSource,
@@ -611,7 +603,7 @@ fn udp_reader(
     which: usize,
     sh: &Shared<'_>,
     ends_stream: bool,
-) -> SkipStats {
+) -> (SkipStats, u64) {
     let _alive = ReaderGuard(sh);
     let mut skips = SkipStats::default();
     let mut polled = Instant::now();
@@ -620,7 +612,6 @@ fn udp_reader(
             sh.kernel_drops[which].store(k, Ordering::Relaxed);
         }
     };
-    let mut stamped_before = 0;
     while !sh.stop.load(Ordering::Relaxed) {
         match sock.recv() {
             Ok(Some(d)) => {
@@ -663,12 +654,6 @@ fn udp_reader(
             polled = Instant::now();
             poll_drops(&sock);
         }
-        let s = sock.kernel_stamped;
-        if s != stamped_before {
-            sh.kernel_stamped
-                .fetch_add(s - stamped_before, Ordering::Relaxed);
-            stamped_before = s;
-        }
     }
     poll_drops(&sock);
     if ends_stream {
@@ -681,7 +666,7 @@ fn udp_reader(
             std::thread::sleep(Duration::from_millis(1));
         }
     }
-    skips
+    (skips, sock.kernel_stamped)
 }
 
 /// Say once per frame layout if the VN-200 does not send the Common-group outputs the board
@@ -920,13 +905,9 @@ fn solver(
         if rep.converged {
             *start = sol.b;
             let d = spherecal::calib::to_deg_m(&sol.b);
-            let s = sol.lm.map_or([f64::NAN; 6], |l| {
-                let mut s = l.sigma;
-                for v in &mut s[..3] {
-                    *v = v.to_degrees();
-                }
-                [s[0], s[1], s[2], s[3], s[4], s[5]]
-            });
+            let s = sol
+                .lm
+                .map_or([f64::NAN; 6], |l| spherecal::calib::to_deg_m(&l.sigma));
             if let Ok(mut c) = sh.calibration.lock() {
                 *c = Some((d, s));
             }

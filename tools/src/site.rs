@@ -92,19 +92,18 @@ impl Site {
 
     /// The a-priori values as [roll, pitch, heading (deg), x, y, z (m)].
     pub fn apriori_deg_m(&self) -> [f64; 6] {
-        let a = &self.apriori;
-        [
-            a.boresight_deg[0],
-            a.boresight_deg[1],
-            a.boresight_deg[2],
-            a.lever_arm_m[0],
-            a.lever_arm_m[1],
-            a.lever_arm_m[2],
-        ]
+        deg_m(self.apriori.boresight_deg, self.apriori.lever_arm_m)
     }
 
     /// As TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_default()
     }
+}
+
+/// Boresight [deg] and lever arm [m] as the solver's six parameters: roll, pitch, heading, x,
+/// y, z.
+pub fn deg_m(boresight_deg: [f64; 3], lever_arm_m: [f64; 3]) -> [f64; 6] {
+    let (b, l) = (boresight_deg, lever_arm_m);
+    [b[0], b[1], b[2], l[0], l[1], l[2]]
 }
