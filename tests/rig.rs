@@ -124,6 +124,57 @@ impl Drop for Rig {
     }
 }
 
+/// A scenario synthesised into a fresh folder for test `group`, a pseudo-terminal pair for the
+/// INS, and the loopback target for the data and position ports `dp`, `pp`.
+struct Setup {
+    dir: PathBuf,
+    truth: spherecal_tools::synth::Truth,
+    master: TTYPort,
+    slave: TTYPort,
+    to: Target,
+}
+
+fn setup(group: &str, s: &spherecal_tools::scenario::Scenario, dp: u16, pp: u16) -> Setup {
+    let dir = common::tmp(group, &s.name);
+    let _ = std::fs::remove_dir_all(&dir);
+    let truth = spherecal_tools::synth::synth(s, &dir).unwrap();
+    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    master.set_timeout(Duration::from_secs(5)).unwrap();
+    Setup {
+        dir,
+        truth,
+        master,
+        slave,
+        to: loopback(dp, pp),
+    }
+}
+
+fn table1() -> spherecal_tools::scenario::Scenario {
+    spherecal_tools::scenario::Scenario::load("table1").unwrap()
+}
+
+/// The capture's data and position ports sent to `dp`, `pp` on loopback.
+fn loopback(dp: u16, pp: u16) -> Target {
+    Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(2368, dp), (8308, pp)],
+    }
+}
+
+/// Replay `dir`'s capture and serial log in the background; the thread is left to run out
+/// (the test process ends with the test).
+fn replay_in_background(dir: &Path, to: Target, mut master: TTYPort, speed: Speed) {
+    let pcap = dir.join("lidar.pcap");
+    std::thread::spawn(move || {
+        let _ = replay_both(
+            &pcap,
+            to,
+            Some((&dir_ins(&pcap), &mut master, 921_600)),
+            speed,
+        );
+    });
+}
+
 /// Files in `dir` whose names contain `part`, in name order (= rotation order).
 fn files(dir: &Path, part: &str) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -166,14 +217,16 @@ fn u(v: &serde_json::Value) -> u64 {
 /// every serial byte it was sent, and stops cleanly on SIGINT.
 #[test]
 fn table1_through_the_rig() {
-    let dir = common::tmp("rig-e2e", "table1");
-    let _ = std::fs::remove_dir_all(&dir);
-    let s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
-    let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
-    master.set_timeout(Duration::from_secs(5)).unwrap();
-    let slave_name = slave.name().unwrap();
+    let s = table1();
     let (dp, pp) = (23_710, 23_711);
+    let Setup {
+        dir,
+        truth,
+        mut master,
+        slave,
+        to,
+    } = setup("rig-e2e", &s, dp, pp);
+    let slave_name = slave.name().unwrap();
     let board = board(&dir, dp, pp);
     let logs = dir.join("logs");
     let report = dir.join("run-report.json");
@@ -193,10 +246,6 @@ fn table1_through_the_rig() {
         "--duration".as_ref(),
         "600".as_ref(),
     ]);
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
     let (sent, wrote) = replay_both(
         &dir.join("lidar.pcap"),
         to,
@@ -366,18 +415,15 @@ fn start_rig_with(
 /// enqueued + ring drops + skipped, and the aligner and the logger account for every item.
 #[test]
 fn overload_every_drop_is_counted() {
-    let dir = common::tmp("rig-overload", "table1");
-    let _ = std::fs::remove_dir_all(&dir);
-    let s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
-    master.set_timeout(Duration::from_secs(5)).unwrap();
     let (dp, pp) = (23_720, 23_721);
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        to,
+        ..
+    } = setup("rig-overload", &table1(), dp, pp);
     let rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), true);
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
     let pcap = dir.join("lidar.pcap");
     let (in_file, _) = datagrams(std::slice::from_ref(&pcap));
     let pos_in_file = in_file.iter().filter(|d| d.0 == 8308).count() as u64;
@@ -461,13 +507,14 @@ fn overload_every_drop_is_counted() {
 /// so.)
 #[test]
 fn sigint_mid_run_leaves_clean_logs() {
-    let dir = common::tmp("rig-sigint", "table1");
-    let _ = std::fs::remove_dir_all(&dir);
-    let s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
-    master.set_timeout(Duration::from_secs(5)).unwrap();
     let (dp, pp) = (23_730, 23_731);
+    let Setup {
+        dir,
+        master,
+        slave,
+        to,
+        ..
+    } = setup("rig-sigint", &table1(), dp, pp);
     let rig = start_rig_with(
         &dir,
         dp,
@@ -479,22 +526,8 @@ fn sigint_mid_run_leaves_clean_logs() {
             "\"Position\", \"InsStatus\", \"Quaternion\"]",
         )],
     );
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
-    let pcap = dir.join("lidar.pcap");
-    let p2 = pcap.clone();
-    // The replay goes on in the background; the run is interrupted 4 s in (of ~31 s).
-    // The replay thread is left to run out: the test process ends with the test.
-    std::thread::spawn(move || {
-        let _ = replay_both(
-            &p2,
-            to,
-            Some((&dir_ins(&p2), &mut master, 921_600)),
-            Speed::Factor(2.0),
-        );
-    });
+    // The run is interrupted 4 s into the replay (of ~31 s).
+    replay_in_background(&dir, to, master, Speed::Factor(2.0));
     std::thread::sleep(Duration::from_secs(4));
     rig.signal(nix::sys::signal::Signal::SIGINT);
     let (code, lines, err) = rig.wait(Duration::from_secs(30));
@@ -515,7 +548,7 @@ fn sigint_mid_run_leaves_clean_logs() {
         "about 4 s at 2 x 754 packets/s: {}",
         got.len()
     );
-    let (mut want, _) = datagrams(&[pcap]);
+    let (mut want, _) = datagrams(&[dir.join("lidar.pcap")]);
     for w in &mut want {
         w.0 = if w.0 == 2368 { dp } else { pp };
     }
@@ -547,29 +580,16 @@ fn sigint_mid_run_leaves_clean_logs() {
 /// decode up to the last whole record, and hold everything up to about a second before.
 #[test]
 fn sigkill_leaves_logs_readable_up_to_the_cut() {
-    let dir = common::tmp("rig-sigkill", "table1");
-    let _ = std::fs::remove_dir_all(&dir);
-    let s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
-    master.set_timeout(Duration::from_secs(5)).unwrap();
     let (dp, pp) = (23_740, 23_741);
+    let Setup {
+        dir,
+        master,
+        slave,
+        to,
+        ..
+    } = setup("rig-sigkill", &table1(), dp, pp);
     let rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), false);
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
-    let pcap = dir.join("lidar.pcap");
-    let p2 = pcap.clone();
-    // The replay thread is left to run out: the test process ends with the test.
-    std::thread::spawn(move || {
-        let _ = replay_both(
-            &p2,
-            to,
-            Some((&dir_ins(&p2), &mut master, 921_600)),
-            Speed::Factor(1.0),
-        );
-    });
+    replay_in_background(&dir, to, master, Speed::Factor(1.0));
     std::thread::sleep(Duration::from_secs(4));
     rig.signal(nix::sys::signal::Signal::SIGKILL);
     let (code, _, _) = rig.wait(Duration::from_secs(30));
@@ -606,24 +626,22 @@ fn sigkill_leaves_logs_readable_up_to_the_cut() {
 #[test]
 #[ignore = "a measurement: 650 MB of synthetic capture"]
 fn ten_minute_survey_at_max_speed_rss() {
-    let dir = common::tmp("rig-10min", "survey");
-    let _ = std::fs::remove_dir_all(&dir);
-    let mut s = spherecal_tools::scenario::Scenario::load("table1").unwrap();
+    let mut s = table1();
     let passes = s.trajectory.pass.clone();
     for _ in 0..10 {
         s.trajectory.pass.extend(passes.iter().cloned());
     }
     s.name = "table1-x11".into();
     assert!(s.duration_s() > 600.0, "{}", s.duration_s());
-    let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
-    master.set_timeout(Duration::from_secs(5)).unwrap();
     let (dp, pp) = (23_750, 23_751);
+    let Setup {
+        dir,
+        truth,
+        mut master,
+        slave,
+        to,
+    } = setup("rig-10min", &s, dp, pp);
     let rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), true);
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
     let pid = rig.child.id();
     let sampling = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
     let flag = sampling.clone();
@@ -719,10 +737,7 @@ fn other_senders_are_logged_not_aligned() {
         &[("sensor_addr = \"127.0.0.1\"", "sensor_addr = \"127.0.0.2\"")],
     );
     let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
-    };
+    let to = loopback(dp, pp);
     // In real time: the capture's 0.39 s, with its burst of position packets.
     let (first, _) = spherecal_tools::replay::first_times(&pcap, None).unwrap();
     let clock = Clock::new(first.unwrap(), Speed::Factor(1.0));
