@@ -349,11 +349,6 @@ impl Aligner {
             + self.batches.get(i).map_or(0, |b| b.obs.len() as u64)
     }
 
-    /// Has the INS stream ended?
-    pub fn ins_done(&self) -> bool {
-        self.ins_done
-    }
-
     fn push_pose(&mut self, s: PoseSample, host_ns: i64) {
         if self.history.push(s) {
             self.ins_offset_ns = (host_ns != 0).then(|| s.time.0 - host_ns);
