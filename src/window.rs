@@ -45,8 +45,50 @@ pub struct Observation {
     pub time: GpsTime,
     /// Range [m].
     pub range: f32,
+    /// Data packet index (file or arrival order): with `block` and `channel`, where the return
+    /// is in the capture.
+    pub packet: u32,
+    /// Block 0..11.
+    pub block: u8,
+    /// Channel 0..31 (laser id = channel % 16).
+    pub channel: u8,
     /// Laser id.
     pub laser: u8,
+    /// The calibration's working state (the return with the current mounting, and its verdict);
+    /// callers leave it at its default.
+    pub work: Work,
+}
+
+impl Default for Observation {
+    fn default() -> Self {
+        Self {
+            q_l: Vector3::zeros(),
+            position: Vector3::zeros(),
+            r_ig: Matrix3::identity(),
+            time: GpsTime(0),
+            range: 0.0,
+            packet: 0,
+            block: 0,
+            channel: 0,
+            laser: 0,
+            work: Work::default(),
+        }
+    }
+}
+
+/// The calibration's working state of one observation.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Work {
+    /// The return with the current mounting, relative to its sphere's surveyed centre [m].
+    pub x: [f32; 3],
+    /// The beam's unit direction in the site frame.
+    pub u: [f32; 3],
+    /// Length of the scan-line segment the return belongs to [m] (`calib::extract::runs`).
+    pub run: f32,
+    /// The slice of time it belongs to (`calib::extract::assign_slices`).
+    pub slice: u32,
+    /// The extraction's verdict (`calib::extract::Verdict`).
+    pub verdict: u8,
 }
 
 impl Observation {
@@ -186,11 +228,13 @@ pub struct Windowing<'a, const CAP: usize> {
 }
 
 impl<const CAP: usize> Windowing<'_, CAP> {
-    /// Georeference and window the returns of one packet whose first firing is at `t0`;
-    /// `each`, if given, sees every georeferenced return (for a point cloud). Without it,
-    /// returns far from every window are only counted, not georeferenced exactly.
+    /// Georeference and window the returns of data packet number `packet` (file or arrival
+    /// order) whose first firing is at `t0`; `each`, if given, sees every georeferenced return
+    /// (for a point cloud). Without it, returns far from every window are only counted, not
+    /// georeferenced exactly.
     pub fn add_packet<const N: usize>(
         &mut self,
+        packet: u32,
         t0: GpsTime,
         points: &PointBuf,
         history: &PoseHistory<N>,
@@ -280,7 +324,11 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                         r_ig,
                         time: t,
                         range: p.distance_m(),
+                        packet,
+                        block: p.block,
+                        channel: p.channel,
                         laser: p.laser() as u8,
+                        work: Work::default(),
                     };
                     if b.obs.push(obs).is_err() {
                         b.overflow += 1;

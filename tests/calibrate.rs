@@ -170,7 +170,14 @@ fn one_sphere_is_refused() {
     let (t, _) = site_targets(&inp);
     let mut slices: Vec<&mut [spherecal::window::Observation]> =
         obs.iter_mut().map(|v| v.as_mut_slice()).collect();
-    let sol = solve(&t, &mut slices, &inp.mount.params(), &Settings::default());
+    let mut scratch = spherecal_tools::calibrate::Scratch::default();
+    let sol = solve(
+        &t,
+        &mut slices,
+        &inp.mount.params(),
+        &Settings::default(),
+        &mut scratch.workspace(),
+    );
     assert_eq!(sol.refusal, Some(Refusal::TooFewSpheres { have: 1 }));
     // The command says so and exits 1.
     let out = common::spherecal()

@@ -4,9 +4,10 @@
 
 mod common;
 
+use nalgebra::Vector3;
 use spherecal::frames::rotation;
 use spherecal::georef::{point, PlatformPose};
-use spherecal::sim::{LidarSim, Shape, SimPacket, World};
+use spherecal::sim::{Frame, LidarSim, Shape, SimPacket, World};
 use spherecal::time::{gps_to_unix_ns, GpsTime};
 use spherecal::vlp16::{decode, DataPacket, PointBuf};
 use spherecal_tools::scenario::Scenario;
@@ -19,25 +20,68 @@ fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
     }
 }
 
-/// Distance of a point from an object's surface.
-fn off_surface(shape: &Shape, x: &nalgebra::Vector3<f64>) -> f64 {
-    match shape {
+/// Distance of a point from a shape's surface, written out here independently of the
+/// simulator's own intersection code.
+fn off_surface(shape: &Shape, x: &Vector3<f64>) -> f64 {
+    match *shape {
         Shape::Sphere { c, r } => ((x - c).norm() - r).abs(),
-        Shape::Pole { base, r, .. } => ((x.x - base.x).hypot(x.y - base.y) - r).abs(),
-        Shape::Box { min, max } => (0..3)
-            .map(|i| (x[i] - min[i]).abs().min((x[i] - max[i]).abs()))
-            .fold(f64::INFINITY, f64::min),
+        Shape::Cylinder { a, b, r } => {
+            // Side: distance from the axis minus r; caps: distance from the end planes.
+            let w = (b - a).normalize();
+            let h = (x - a).dot(&w);
+            let len = (b - a).norm();
+            let rho = ((x - a) - w * h).norm();
+            let side = if (-1e-9..=len + 1e-9).contains(&h) {
+                (rho - r).abs()
+            } else {
+                f64::INFINITY
+            };
+            let cap = if rho <= r + 1e-9 {
+                h.abs().min((h - len).abs())
+            } else {
+                f64::INFINITY
+            };
+            side.min(cap)
+        }
+        Shape::Box { c, half, rot } => {
+            let q = rot.transpose() * (x - c);
+            (0..3)
+                .map(|i| (q[i].abs() - half[i]).abs())
+                .fold(f64::INFINITY, f64::min)
+        }
+        Shape::Rect { p, u, v } => (x - p).dot(&u.cross(&v).normalize()).abs(),
     }
 }
 
+/// Distance of a traced return from the object it is labelled with, in the object's frame and
+/// at the firing time (vessel parts in the body frame, walkers where they are then).
+fn off_object(w: &World<'_>, obj: u16, t: GpsTime, x: &Vector3<f64>) -> f64 {
+    if obj == spherecal::sim::lidar::LABEL_WATER {
+        return (x.z - w.water.unwrap().down).abs();
+    }
+    let o = &w.objects[usize::from(obj)];
+    match o.frame {
+        Frame::Site => off_surface(&o.shape, &(x - o.velocity * w.t_of(t))),
+        Frame::Body => {
+            let pose = truth_pose(w, t);
+            off_surface(&o.shape, &(pose.r_ig.transpose() * (x - pose.position)))
+        }
+    }
+}
+
+/// Every traced return of the quay (an ideal beam: no footprint) lies on what it is labelled
+/// with, to 1e-6 m, for every kind of object: spheres, tripod legs, boxes, the walker, the
+/// vessel's own parts.
 #[test]
 fn traced_points_lie_on_what_they_hit() {
     let s = Scenario::load("table1").unwrap();
-    let (passes, objects) = (s.passes(), s.objects());
-    let w = s.world(&[], &passes, &objects);
+    let scene = s.scene();
+    let passes = s.passes();
+    let w = s.world(&[], &passes, &scene.objects);
     let mut sim = LidarSim::new(&w, s.lidar_config());
     let mut buf = [0u8; 1206];
     let (mut n, mut worst) = (0u64, 0f64);
+    let mut kinds = std::collections::BTreeMap::<&str, u64>::new();
     while let Some(p) = sim.next_packet(&mut buf) {
         if !matches!(p, SimPacket::Data { .. }) {
             continue;
@@ -53,21 +97,81 @@ fn traced_points_lie_on_what_they_hit() {
                 h.azimuth.sin(),
                 h.azimuth.cos(),
             );
-            let e = off_surface(&objects[usize::from(h.object)].shape, &x);
+            let e = off_object(&w, h.object, h.time, &x);
             worst = worst.max(e);
             assert!(e < 1e-6, "hit off its surface by {e} m: {h:?}");
+            assert_eq!(h.purity, 255, "an ideal beam has no mixed pixels");
+            let kind = scene
+                .kinds
+                .get(usize::from(h.object))
+                .copied()
+                .unwrap_or("water");
+            *kinds.entry(kind).or_default() += 1;
             n += 1;
         }
     }
     let st = sim.stats;
     assert_eq!(n, st.hits.iter().sum::<u64>() + st.clutter_hits);
     assert!(st.hits[0] > 800 && st.hits[1] > 800, "{:?}", &st.hits[..2]);
-    eprintln!("{n} traced returns, worst {worst:.2e} m off the surface; {} of {} rays passed the broad phase", st.candidates, st.rays);
+    for k in [
+        "sphere", "stand", "box", "pole", "crate", "post", "bush", "vessel",
+    ] {
+        assert!(
+            kinds.get(k).copied().unwrap_or(0) > 0,
+            "no returns off a {k}: {kinds:?}"
+        );
+    }
+    eprintln!("{n} traced returns, worst {worst:.2e} m off the surface; {} of {} rays passed the broad phase; by kind {kinds:?}", st.candidates, st.rays);
+}
+
+/// The broad phase only culls: a short pass traced with it and without it (every firing
+/// against every object) gives the same bytes.
+#[test]
+fn the_broad_phase_misses_nothing() {
+    let text = spherecal_tools::scenario::BUILTIN
+        .iter()
+        .find(|b| b.0 == "table1-noisy")
+        .unwrap()
+        .1;
+    let i = text.find("[[trajectory.pass]]").unwrap();
+    let j = i + text[i..].find("[water]").unwrap();
+    let one = format!(
+        "{}[[trajectory.pass]]\nstart_ne_m = [-1.0, 7.0]\nheading_deg = 20.0\nspeed_mps = 2.0\nduration_s = 1.5\n\n{}",
+        &text[..i],
+        &text[j..]
+    );
+    let s = Scenario::from_toml(&one).unwrap();
+    let scene = s.scene();
+    let passes = s.passes();
+    let w = s.world(&[], &passes, &scene.objects);
+    let trace = |cull: bool| {
+        let mut cfg = s.lidar_config();
+        cfg.cull = cull;
+        let mut sim = LidarSim::new(&w, cfg);
+        let mut buf = [0u8; 1206];
+        let mut out = Vec::new();
+        while sim.next_packet(&mut buf).is_some() {
+            out.extend_from_slice(&buf);
+        }
+        (out, sim.stats)
+    };
+    let (a, sa) = trace(true);
+    let (b, sb) = trace(false);
+    assert!(sa.hits[0] + sa.clutter_hits > 10_000, "{sa:?}");
+    assert_eq!(sa.hits, sb.hits);
+    assert_eq!(sa.clutter_hits, sb.clutter_hits);
+    assert!(a == b, "culling changed the packets");
+    assert!(
+        sa.tests * 5 < sb.tests,
+        "{} vs {} tests",
+        sa.tests,
+        sb.tests
+    );
 }
 
 /// Through the wire: decode the packets with the core decoder (integer-microsecond stamps,
 /// 0.01 deg azimuths, 2 mm ranges, f32) and georeference with the truth trajectory: every
-/// return on a sphere lands within about 1 mm of it.
+/// return lands within about 1 mm of the object it came from.
 #[test]
 fn decoded_points_lie_on_their_spheres() {
     let s = Scenario::load("table1").unwrap();
@@ -78,6 +182,7 @@ fn decoded_points_lie_on_their_spheres() {
     let mut pts = PointBuf::new();
     let hour0 = gps_to_unix_ns(w.start, w.leap_seconds).div_euclid(3_600_000_000_000);
     let (mut n, mut worst, mut last_stamp, mut rollovers) = (0u64, 0f64, 0u32, 0);
+    let mut all = 0u64;
     while let Some(p) = sim.next_packet(&mut buf) {
         let SimPacket::Data { .. } = p else { continue };
         let pkt = DataPacket::new_checked(&buf[..]).unwrap();
@@ -103,22 +208,30 @@ fn decoded_points_lie_on_their_spheres() {
                 az.sin(),
                 az.cos(),
             );
-            // The nearest surface; the returns whose nearest surface is a sphere must be on it.
-            let (best, obj) = objects.iter().map(|o| (off_surface(&o.shape, &x), o)).fold(
-                (f64::INFINITY, None),
-                |a, (e, o)| if e < a.0 { (e, Some(o)) } else { a },
-            );
-            if obj.is_some_and(|o| o.target.is_some()) {
-                worst = worst.max(best);
-                assert!(best < 1.2e-3, "decoded point {best} m off its sphere");
+            // The object this return came from, by block and channel; every decoded return
+            // lies on it (spheres to the wire's precision, everything else too).
+            let hit = sim
+                .hits
+                .iter()
+                .find(|h| h.block == q.block && h.channel == q.channel)
+                .expect("every decoded return was traced");
+            let e = off_object(&w, hit.object, t, &x);
+            assert!(e < 1.2e-3, "decoded point {e} m off its object {hit:?}");
+            if objects
+                .get(usize::from(hit.object))
+                .is_some_and(|o| o.target.is_some())
+            {
+                worst = worst.max(e);
                 n += 1;
             }
+            all += 1;
         }
     }
     assert_eq!(rollovers, 1, "table1 crosses the top of the hour");
     assert_eq!(n, sim.stats.hits.iter().sum::<u64>());
+    assert_eq!(all, n + sim.stats.clutter_hits);
     eprintln!(
-        "{n} decoded sphere returns, worst {:.3} mm off",
+        "{n} decoded sphere returns, worst {:.3} mm off; {all} returns in all",
         worst * 1e3
     );
 }

@@ -148,7 +148,11 @@ mod tests {
                 ),
                 time: GpsTime(0),
                 range: 10.0,
+                packet: 0,
+                block: 0,
+                channel: 0,
                 laser: 0,
+                work: Default::default(),
             })
             .collect()
     }

@@ -1,26 +1,43 @@
-//! The whole solve: Nelder-Mead on eq. 6 from the a-priori values (the authors' method), then
-//! re-windowing and Levenberg-Marquardt until the windows stop changing, then the checks.
+//! The whole solve: find each sphere's returns among the clutter of its window
+//! ([`super::extract`]), solve the six parameters on them against the surveyed centres
+//! (Nelder-Mead on eq. 6, the authors' method), re-georeference, re-detect with a tighter prior
+//! and shell, until the kept returns stop changing; then Levenberg-Marquardt on the kept
+//! returns for the answer and its uncertainty, and the checks.
 //!
-//! Windows from the a-priori values also catch returns that are not on the spheres (the tripod,
-//! the dock). After each solve every windowed return is kept only if its distance to the
-//! sphere's surface is within `shell_sigmas` robust sigmas (sigma = 1.4826 x the median
-//! |residual| of the kept returns, from a fixed log-spaced histogram: no heap, no sort), never
-//! below `shell_floor`; Nelder-Mead runs again on the new windows, until they stop changing.
+//! Rounds. Round 1 knows nothing of where the sphere appears (a wrong a-priori mounting moves it
+//! by metres): each slice of time is searched over its whole window, and only detections whose
+//! cap is clearly curved are accepted; the returns within `tau0` of each detected sphere are
+//! kept. After each solve the shell `tau` becomes `shell_sigmas` robust sigmas of the kept
+//! returns' residuals against the surveyed spheres (sigma = 1.4826 x the median |residual|, from
+//! a fixed log-spaced histogram: no heap, no sort), never below `shell_floor`, and the prior
+//! radius three times the RMS offset of the slices' apparent spheres from the surveyed ones (at
+//! least three shells): later rounds detect only near the surveyed centre. The last round keeps
+//! the returns within the shell of the *surveyed* sphere, in the slices where the sphere was
+//! detected there.
 //!
-//! Refusals (the solution is still reported): fewer than two spheres (a single sphere cannot fix
-//! a rotation about the line to it); fewer than `min_points` returns on a sphere; a condition
-//! number of the unit-diagonal normal matrix above `max_condition` = 1e3 (the weakest
-//! combination of parameters is then determined 30 times worse than the best, and some pair
-//! correlates beyond 0.998: table1's four passes give 7, a single pass 1.3e4 with roll, heading
-//! and z inseparable); an RMS above `max_rms`.
+//! A sphere detected in too few slices to give `min_points` returns is reported as not found
+//! and left out; the others calibrate if at least two remain.
+//!
+//! Refusals (the solution is still reported): fewer than two spheres found (a single sphere
+//! cannot fix a rotation about the line to it); a condition number of the unit-diagonal normal
+//! matrix above `max_condition` = 1e3 (the weakest combination of parameters is then determined
+//! 30 times worse than the best, and some pair correlates beyond 0.998: table1's four passes give
+//! 7, a single pass 1.3e4 with roll, heading and z inseparable); an RMS above `max_rms`.
 
+use super::extract::{self, Directions, ExtractSettings, Verdict};
 use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Problem, SphereObs};
 use super::sphere_fit::fit_center;
 use super::{from_deg_m, to_deg_m, P};
+use crate::georef::Mount;
+use crate::time::GpsTime;
 use crate::window::{Observation, Target, MAX_TARGETS};
+use core::ops::Range;
 use nalgebra::Vector3;
+
+/// Most passes (sightings of a sphere) reported per solve; later ones are added to the last.
+pub const MAX_PASSES: usize = 128;
 
 /// Solver settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,17 +54,19 @@ pub struct Settings {
     pub max_condition: f64,
     /// Largest acceptable residual RMS [m].
     pub max_rms: f64,
-    /// Re-window shell: this many robust sigmas ...
+    /// The shell: this many robust sigmas ...
     pub shell_sigmas: f64,
     /// ... but at least this [m].
     pub shell_floor: f64,
-    /// Re-windowing rounds at most.
+    /// Detect-and-solve rounds at most.
     pub max_rounds: usize,
     /// Returns of one sphere this close in time share INS errors: one cluster for the
     /// covariance [ns].
     pub cluster_ns: i64,
     /// Returns per sphere Nelder-Mead evaluates (evenly spread; LM uses all).
     pub nm_points: usize,
+    /// Sphere extraction.
+    pub extract: ExtractSettings,
 }
 
 impl Default for Settings {
@@ -60,10 +79,11 @@ impl Default for Settings {
             max_condition: 1e3,
             max_rms: 0.1,
             shell_sigmas: 3.5,
-            shell_floor: 0.005,
-            max_rounds: 10,
+            shell_floor: 0.004,
+            max_rounds: 12,
             cluster_ns: 20_000_000,
             nm_points: 100,
+            extract: ExtractSettings::default(),
         }
     }
 }
@@ -71,9 +91,9 @@ impl Default for Settings {
 /// Why a solution is not claimed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Refusal {
-    /// Fewer than two spheres.
+    /// Fewer than two spheres (given, or found among the clutter).
     TooFewSpheres {
-        /// Spheres given.
+        /// Spheres given or found.
         have: usize,
     },
     /// A sphere with too few returns.
@@ -101,19 +121,64 @@ pub enum Refusal {
     },
 }
 
+/// Counts of windowed returns by [`Verdict`] (indexed by its number).
+pub type Tally = [u32; 8];
+
 /// Per sphere.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SphereReport {
     /// Returns in the a-priori window.
     pub windowed: usize,
-    /// Returns kept after re-windowing.
+    /// Returns kept (used by the solution).
     pub used: usize,
+    /// The sphere was found among the clutter (enough returns in detected slices).
+    pub found: bool,
+    /// Slices of time with window returns, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Windowed returns by verdict.
+    pub verdicts: Tally,
     /// RMS of the kept returns' residuals with the starting values [m].
     pub rms_before: f64,
     /// ... with the solution [m].
     pub rms_after: f64,
     /// Fitted minus surveyed centre [m, NED].
     pub center_offset: Option<Vector3<f64>>,
+}
+
+/// One pass over one sphere (its window's returns without a gap of `pass_gap_ns`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PassReport {
+    /// Sphere index.
+    pub sphere: u8,
+    /// First and last windowed return.
+    pub start: GpsTime,
+    /// ...
+    pub end: GpsTime,
+    /// Slices of time, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Mean inliers of its detections (the detection score).
+    pub mean_inliers: f32,
+    /// Windowed returns by verdict.
+    pub verdicts: Tally,
+}
+
+/// One detect-and-solve round.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Round {
+    /// The shell (inlier band) used [m].
+    pub tau: f64,
+    /// The prior radius used (`None`: the whole window) [m].
+    pub prior: Option<f64>,
+    /// Returns kept, all spheres.
+    pub kept: usize,
+    /// Slices where a sphere was detected, all spheres.
+    pub detected: u32,
+    /// The parameters after the round's solve [rad, m].
+    pub b: [f64; P],
 }
 
 /// The answer and everything known about it.
@@ -127,10 +192,16 @@ pub struct Solution {
     pub lm: Option<LmResult>,
     /// Eq. 6 at the solution over the kept returns [m].
     pub l1: f64,
-    /// Re-windowing rounds.
+    /// Detect-and-solve rounds.
     pub rounds: usize,
+    /// What each round did.
+    pub log: heapless::Vec<Round, 16>,
+    /// The final shell half-width [m].
+    pub shell: f64,
     /// Per sphere.
     pub spheres: heapless::Vec<SphereReport, MAX_TARGETS>,
+    /// Per pass over each sphere.
+    pub passes: heapless::Vec<PassReport, MAX_PASSES>,
     /// RMS of fitted minus surveyed centres [m].
     pub center_rms: Option<f64>,
     /// Parameters the data determine poorly (large share of the weakest direction).
@@ -140,15 +211,6 @@ pub struct Solution {
 }
 
 fn with_problem<R>(
-    targets: &[Target],
-    obs: &[&mut [Observation]],
-    used: &[usize],
-    f: impl FnOnce(&Problem<'_>) -> R,
-) -> R {
-    with_problem_stride(targets, obs, used, 1, f)
-}
-
-fn with_problem_stride<R>(
     targets: &[Target],
     obs: &[&mut [Observation]],
     used: &[usize],
@@ -205,66 +267,193 @@ impl Histogram {
     }
 }
 
-/// The first sphere with fewer than `min` returns, as a refusal.
-fn too_few(used: &[usize], min: usize) -> Option<Refusal> {
-    let (sphere, &have) = used.iter().enumerate().find(|(_, &u)| u < min)?;
-    Some(Refusal::TooFewPoints {
-        sphere,
-        have,
-        need: min,
-    })
-}
-
 /// Signed residual of one observation.
 fn residual(o: &Observation, t: &Target, b: &[f64; P]) -> f64 {
-    let m = crate::georef::Mount::from_params(b);
+    let m = Mount::from_params(b);
     (o.georef(&m) - t.center).norm() - t.radius
 }
 
-/// Keep the returns within the shell at the front of each sphere's slice; returns the counts
-/// and a fingerprint of the kept set.
-fn rewindow(
-    targets: &[Target],
-    obs: &mut [&mut [Observation]],
-    used: &mut [usize],
-    b: &[f64; P],
-    shell: f64,
-) -> u64 {
-    let mount = crate::georef::Mount::from_params(b);
-    let mut print = 0u64;
-    for (j, t) in targets.iter().enumerate() {
-        let v = &mut obs[j];
-        let mut k = 0;
-        for i in 0..v.len() {
-            if ((v[i].georef(&mount) - t.center).norm() - t.radius).abs() <= shell {
-                v.swap(i, k);
-                print = print
-                    .wrapping_mul(0x100_0000_01B3)
-                    .wrapping_add(v[k].time.0 as u64);
-                k += 1;
-            }
+/// Move the kept observations to the front in time order (the others follow in no particular
+/// order); returns how many are kept.
+fn partition(v: &mut [Observation]) -> usize {
+    let mut k = 0;
+    for i in 0..v.len() {
+        if v[i].work.verdict == Verdict::Kept as u8 {
+            v.swap(i, k);
+            k += 1;
         }
-        used[j] = k;
     }
-    print
+    v[..k].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+    k
+}
+
+/// The fingerprint of a kept set.
+fn fingerprint(h: u64, v: &[Observation]) -> u64 {
+    let mut h = h;
+    for o in v {
+        h = (h ^ o.time.0 as u64 ^ (u64::from(o.channel) << 56)).wrapping_mul(0x100_0000_01b3);
+    }
+    (h ^ v.len() as u64).wrapping_mul(0x100_0000_01b3)
+}
+
+/// The solver's scratch, from the caller (no heap in the core).
+#[derive(Debug)]
+pub struct Workspace<'a> {
+    /// The detection's vote grid, all zero (64^3 = 262,144 cells suit windows of a few metres;
+    /// fewer cells make coarser votes).
+    pub grid: &'a mut [u16],
+    /// Room for the kept returns of a round (all spheres); a round that keeps more solves on an
+    /// evenly spread subset (the last solve always uses every kept return).
+    pub kept: &'a mut [Observation],
+}
+
+/// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
+/// the surveyed one with the current mounting, into `h` (slices with eight or more kept
+/// returns: a slice's fit is poor with fewer). `v` holds kept returns grouped by slice.
+fn apparent_offsets(v: &[Observation], r: f64, h: &mut Histogram) {
+    for sl in extract::slices(v) {
+        let kept = v[sl].iter().map(|o| {
+            Vector3::new(
+                f64::from(o.work.x[0]),
+                f64::from(o.work.x[1]),
+                f64::from(o.work.x[2]),
+            )
+        });
+        if kept.len() < 8 {
+            continue;
+        }
+        if let Some(c) = fit_center(kept, r, Vector3::zeros()) {
+            h.add(c.norm());
+        }
+    }
+}
+
+/// Detect the sphere in every slice of one sphere's observations (grouped by slice, in time
+/// order of slices) and tag them; `surveyed`: keep around the surveyed centre (the last
+/// round) rather than the detection. Returns (kept, slices, detected); with `passes`, also the
+/// report of each pass over sphere `j`.
+#[allow(clippy::too_many_arguments)]
+fn extract_sphere(
+    v: &mut [Observation],
+    t: &Target,
+    tau: f64,
+    prior: Option<f64>,
+    surveyed: bool,
+    grid: &mut [u16],
+    dirs: &Directions,
+    st: &ExtractSettings,
+    mut passes: Option<(usize, &mut heapless::Vec<PassReport, MAX_PASSES>)>,
+) -> (usize, u32, u32) {
+    let (mut kept, mut slices, mut detected) = (0, 0, 0);
+    let mut start = 0;
+    let mut cur: Option<PassReport> = None;
+    let mut inliers = 0u64;
+    while start < v.len() {
+        let Some(sl) = extract::slices(&v[start..]).next() else {
+            break;
+        };
+        let sl = start + sl.start..start + sl.end;
+        start = sl.end;
+        slices += 1;
+        let (mut t0, mut t1) = (GpsTime(i64::MAX), GpsTime(i64::MIN));
+        for o in &v[sl.clone()] {
+            t0 = t0.min(o.time);
+            t1 = t1.max(o.time);
+        }
+        let det = extract::detect(&mut v[sl.clone()], t.radius, tau, prior, grid, dirs, st);
+        match det {
+            Some(d) => {
+                detected += 1;
+                let c = if surveyed { [0.0; 3] } else { d.center };
+                kept += extract::keep(&mut v[sl.clone()], c, t.radius, tau);
+            }
+            None => extract::tag(&mut v[sl.clone()], Verdict::Undetected),
+        }
+        let Some((j, out)) = passes.as_mut() else {
+            continue;
+        };
+        if cur.is_some_and(|p| t0.0 - p.end.0 > st.pass_gap_ns) {
+            push_pass(out, cur.take(), inliers);
+            inliers = 0;
+        }
+        let p = cur.get_or_insert(PassReport {
+            sphere: *j as u8,
+            start: t0,
+            end: t1,
+            slices: 0,
+            detected: 0,
+            mean_inliers: 0.0,
+            verdicts: [0; 8],
+        });
+        p.end = t1;
+        p.slices += 1;
+        if let Some(d) = det {
+            p.detected += 1;
+            inliers += u64::from(d.inliers);
+        }
+        for o in &v[sl] {
+            p.verdicts[usize::from(o.work.verdict).min(7)] += 1;
+        }
+    }
+    if let Some((_, out)) = passes {
+        push_pass(out, cur, inliers);
+    }
+    (kept, slices, detected)
+}
+
+/// Copy the kept returns of every sphere into `buf` (at most its length, evenly spread when
+/// they do not fit); returns each sphere's range in `buf`.
+fn gather(
+    obs: &[&mut [Observation]],
+    kept: &[usize],
+    buf: &mut [Observation],
+) -> [Range<usize>; MAX_TARGETS] {
+    let total: usize = kept.iter().sum();
+    let stride = total.div_ceil(buf.len().max(1)).max(1);
+    let mut out: [Range<usize>; MAX_TARGETS] = core::array::from_fn(|_| 0..0);
+    let mut w = 0;
+    for (j, v) in obs.iter().enumerate().take(MAX_TARGETS) {
+        let start = w;
+        let mut k = 0usize;
+        for o in v.iter().filter(|o| o.work.verdict == Verdict::Kept as u8) {
+            if k.is_multiple_of(stride) && w < buf.len() {
+                buf[w] = *o;
+                w += 1;
+            }
+            k += 1;
+        }
+        out[j] = start..w;
+    }
+    out
 }
 
 /// Solve from `b0` ([rad, m]) with every sphere's windowed returns (reordered in place: the
-/// kept ones first).
+/// kept ones first, in time order; each tagged with its [`Verdict`]).
 pub fn solve(
     targets: &[Target],
     obs: &mut [&mut [Observation]],
     b0: &[f64; P],
     s: &Settings,
+    ws: &mut Workspace<'_>,
 ) -> Solution {
     let n = targets.len().min(obs.len()).min(MAX_TARGETS);
     let targets = &targets[..n];
     let obs = &mut obs[..n];
+    let st = &s.extract;
+    let dirs = Directions::default();
     let mut used = [0usize; MAX_TARGETS];
+    let mut windowed = [0usize; MAX_TARGETS];
+    let mount0 = Mount::from_params(b0);
     for j in 0..n {
-        used[j] = obs[j].len();
+        windowed[j] = obs[j].len();
+        // Time order once: the scan-line segments (their lengths do not depend on the
+        // mounting: a few milliseconds of a scan line move rigidly) and the slices.
+        obs[j].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+        extract::georeference(obs[j], &targets[j], &mount0);
+        extract::runs(obs[j], st.firing_ns, st.jump);
+        extract::assign_slices(obs[j], st.slice_ns);
+        extract::tag(obs[j], Verdict::Unclassified);
     }
-    let windowed = used;
     let mut sol = Solution {
         b: *b0,
         nm: NmResult {
@@ -277,7 +466,10 @@ pub fn solve(
         lm: None,
         l1: f64::INFINITY,
         rounds: 0,
+        log: heapless::Vec::new(),
+        shell: st.tau0,
         spheres: heapless::Vec::new(),
+        passes: heapless::Vec::new(),
         center_rms: None,
         weak: [false; P],
         refusal: None,
@@ -286,52 +478,176 @@ pub fn solve(
         sol.refusal = Some(Refusal::TooFewSpheres { have: n });
         return sol;
     }
-    if let Some(r) = too_few(&used[..n], s.min_points) {
-        sol.refusal = Some(r);
-        return sol;
-    }
 
-    // 1. Nelder-Mead on eq. 6 (L1), in degrees and metres, re-windowing after each solve until
-    //    the windows stop changing.
+    // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
     let mut b = *b0;
-    let mut last_print = None;
-    let mut evaluations = 0;
-    let mut iterations = 0;
+    let mut tau = st.tau0;
+    let mut prior: Option<f64> = None;
+    let mut prints: heapless::Vec<u64, 4> = heapless::Vec::new();
+    let mut last_kept: Option<usize> = None;
+    let (mut evaluations, mut iterations) = (0, 0);
+    let mut counts = [(0u32, 0u32); MAX_TARGETS];
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
-        // Nelder-Mead sees at most `nm_points` returns per sphere (evenly spread); the least
-        // squares at the end uses all.
-        let most = used[..n].iter().copied().max().unwrap_or(1);
-        let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-        let mut nm = with_problem_stride(targets, obs, &used, stride, |pb| {
-            minimize::<P, 7>(|x| pb.l1(&from_deg_m(x)), &to_deg_m(&b), &s.step, &s.nm)
-        });
-        evaluations += nm.evaluations;
-        iterations += nm.iterations;
-        nm.evaluations = evaluations;
-        nm.iterations = iterations;
-        sol.nm = nm;
-        b = from_deg_m(&nm.x);
-        let med = with_problem(targets, obs, &used, |pb| {
+        let round_tau = tau;
+        let b_before = b;
+        let mount = Mount::from_params(&b);
+        let mut kept = [0usize; MAX_TARGETS];
+        for j in 0..n {
+            extract::georeference(obs[j], &targets[j], &mount);
+            let (k, sl, det) = extract_sphere(
+                obs[j],
+                &targets[j],
+                tau,
+                prior,
+                false,
+                ws.grid,
+                &dirs,
+                st,
+                None,
+            );
+            counts[j] = (sl, det);
+            kept[j] = k;
+        }
+        if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
+            break;
+        }
+        // Spheres not found take no part.
+        for k in kept.iter_mut().take(n) {
+            if *k < s.min_points {
+                *k = 0;
+            }
+        }
+        for (j, v) in obs.iter_mut().enumerate() {
+            if kept[j] == 0 {
+                extract::tag(v, Verdict::Undetected);
+            }
+        }
+        let ranges = gather(obs, &kept[..n], ws.kept);
+        let buf = &mut *ws.kept;
+        let mut print = 0xcbf2_9ce4_8422_2325u64;
+        for r in ranges.iter().take(n) {
+            print = fingerprint(print, &buf[r.clone()]);
+        }
+        let mut part: heapless::Vec<&mut [Observation], MAX_TARGETS> = heapless::Vec::new();
+        let mut rest: &mut [Observation] = &mut buf[..];
+        let mut pos = 0;
+        for r in ranges.iter().take(n) {
+            let (head, tail) = core::mem::take(&mut rest).split_at_mut(r.end - pos);
+            let _ = part.push(head);
+            rest = tail;
+            pos = r.end;
+        }
+        let lens: [usize; MAX_TARGETS] =
+            core::array::from_fn(|j| part.get(j).map_or(0, |p| p.len()));
+        if prior.is_none() {
+            // From afar: Nelder-Mead on eq. 6 (L1) over at most `nm_points` returns per
+            // sphere, evenly spread, with a restart.
+            let most = lens[..n].iter().copied().max().unwrap_or(1);
+            let stride = most.div_ceil(s.nm_points.max(1)).max(1);
+            let mut nm = with_problem(targets, &part, &lens, stride, |pb| {
+                minimize::<P, 7>(|x| pb.l1(&from_deg_m(x)), &to_deg_m(&b), &s.step, &s.nm)
+            });
+            evaluations += nm.evaluations;
+            iterations += nm.iterations;
+            nm.evaluations = evaluations;
+            nm.iterations = iterations;
+            sol.nm = nm;
+            b = from_deg_m(&nm.x);
+        } else {
+            // Close: least squares on the kept returns (time order for its clusters).
+            for p in part.iter_mut().take(n) {
+                p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+            }
+            b = with_problem(targets, &part, &lens, 1, |pb| {
+                refine(pb, &b, s.lm_iter, s.cluster_ns).b
+            });
+        }
+        // The new shell and prior, from the kept returns against the surveyed spheres.
+        let med = with_problem(targets, &part, &lens, 1, |pb| {
             let mut h = Histogram::new();
             pb.residuals(&b, |_, r| h.add(r.abs()));
             h.median()
         });
-        let shell = (s.shell_sigmas * 1.4826 * med).max(s.shell_floor);
-        let print = rewindow(targets, obs, &mut used[..n], &b, shell);
-        if (0..n).any(|j| used[j] < s.min_points) || last_print == Some(print) {
+        tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, st.tau0);
+        let mount = Mount::from_params(&b);
+        let mut offsets = Histogram::new();
+        for j in (0..n).filter(|&j| lens[j] > 0) {
+            part[j].sort_unstable_by_key(|o| o.work.slice);
+            extract::georeference(part[j], &targets[j], &mount);
+            apparent_offsets(part[j], targets[j].radius, &mut offsets);
+        }
+        let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
+        let r_prior = (4.0 * off).max(3.0 * tau).max(0.02);
+        let total: usize = kept[..n].iter().sum();
+        let _ = sol.log.push(Round {
+            tau: round_tau,
+            prior,
+            kept: total,
+            detected: counts[..n].iter().map(|c| c.1).sum(),
+            b,
+        });
+        // Settled: the kept sets barely change and the parameters stand still (to a tenth of
+        // the 1e-3 deg / 1e-3 m the method aims for), or the kept sets go round a cycle (a few
+        // returns at the shell's edge in, out).
+        let moved = to_deg_m(&b)
+            .iter()
+            .zip(to_deg_m(&b_before))
+            .map(|(a, c)| (a - c).abs())
+            .fold(0.0, f64::max);
+        let settled = prior.is_some()
+            && ((last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total)
+                && moved < 2e-3)
+                || prints.contains(&print));
+        prior = Some(r_prior);
+        last_kept = Some(total);
+        if prints.is_full() {
+            prints.remove(0);
+        }
+        let _ = prints.push(print);
+        if settled {
             break;
         }
-        last_print = Some(print);
     }
+    sol.shell = tau;
 
-    // 2. Least squares on the final windows: the answer and its uncertainty.
-    // Time order within each sphere, for the clusters of the covariance.
+    // 2. The last extraction: around the surveyed spheres, in the slices where the sphere is
+    //    detected near them; spheres with too few returns are not found.
+    let mount = Mount::from_params(&b);
+    let mut tallies = [[0u32; 8]; MAX_TARGETS];
     for j in 0..n {
-        obs[j][..used[j]].sort_unstable_by_key(|o| o.time);
+        extract::georeference(obs[j], &targets[j], &mount);
+        let (_, sl, det) = extract_sphere(
+            obs[j],
+            &targets[j],
+            tau,
+            Some(prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
+            true,
+            ws.grid,
+            &dirs,
+            st,
+            Some((j, &mut sol.passes)),
+        );
+        counts[j] = (sl, det);
+        used[j] = partition(obs[j]);
+        if used[j] < s.min_points {
+            extract::tag(obs[j], Verdict::NotFound);
+            used[j] = 0;
+            for p in sol.passes.iter_mut().filter(|p| usize::from(p.sphere) == j) {
+                let all = p.verdicts.iter().sum();
+                p.verdicts = [0; 8];
+                p.verdicts[Verdict::NotFound as usize] = all;
+            }
+        }
+        for o in obs[j].iter() {
+            tallies[j][usize::from(o.work.verdict).min(7)] += 1;
+        }
     }
-    let lm = (!(0..n).any(|j| used[j] < s.min_points)).then(|| {
-        with_problem(targets, obs, &used, |pb| {
+    let found = (0..n).filter(|&j| used[j] > 0).count();
+
+    // 3. Least squares on the kept returns: the answer and its uncertainty.
+    let lm = (found >= 2).then(|| {
+        with_problem(targets, obs, &used, 1, |pb| {
             refine(pb, &b, s.lm_iter, s.cluster_ns)
         })
     });
@@ -340,10 +656,10 @@ pub fn solve(
     }
     sol.b = b;
     sol.lm = lm;
-    sol.l1 = with_problem(targets, obs, &used, |pb| pb.l1(&b));
+    sol.l1 = with_problem(targets, obs, &used, 1, |pb| pb.l1(&b));
 
-    // 3. Per sphere: RMS before/after over the kept returns, centre fit.
-    let mount = crate::georef::Mount::from_params(&b);
+    // 4. Per sphere.
+    let mount = Mount::from_params(&b);
     let mut c2 = 0.0;
     let mut nc = 0;
     for j in 0..n {
@@ -365,6 +681,10 @@ pub fn solve(
         let _ = sol.spheres.push(SphereReport {
             windowed: windowed[j],
             used: used[j],
+            found: used[j] > 0,
+            slices: counts[j].0,
+            detected: counts[j].1,
+            verdicts: tallies[j],
             rms_before: rms(b0),
             rms_after: rms(&b),
             center_offset: center,
@@ -372,17 +692,12 @@ pub fn solve(
     }
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
 
-    // 4. Checks.
-    if let Some(r) = too_few(&used[..n], s.min_points) {
-        sol.refusal = Some(r);
+    // 5. Checks.
+    if found < 2 {
+        sol.refusal = Some(Refusal::TooFewSpheres { have: found });
         return sol;
     }
     let Some(lm) = sol.lm else {
-        sol.refusal = Some(Refusal::TooFewPoints {
-            sphere: 0,
-            have: used[0],
-            need: s.min_points,
-        });
         return sol;
     };
     for i in 0..P {
@@ -400,4 +715,26 @@ pub fn solve(
         });
     }
     sol
+}
+
+fn push_pass(out: &mut heapless::Vec<PassReport, MAX_PASSES>, p: Option<PassReport>, inliers: u64) {
+    let Some(mut p) = p else { return };
+    p.mean_inliers = if p.detected > 0 {
+        inliers as f32 / p.detected as f32
+    } else {
+        0.0
+    };
+    if out.is_full() {
+        // Fold into the last one (counted, never lost).
+        if let Some(l) = out.last_mut() {
+            l.end = p.end;
+            l.slices += p.slices;
+            l.detected += p.detected;
+            for (a, b) in l.verdicts.iter_mut().zip(p.verdicts) {
+                *a += b;
+            }
+        }
+    } else {
+        let _ = out.push(p);
+    }
 }

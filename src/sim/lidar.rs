@@ -3,13 +3,39 @@
 //! the packet (integer-microsecond stamps, block azimuths quantized to 0.01 deg, per-block
 //! interpolation), and the packets written through the data/position emit sides.
 //!
-//! Broad phase: once per packet, each object's bounding sphere gives an azimuth window in the
-//! sensor frame (and is dropped if it is beyond range or outside the lasers' +-15 deg); only
-//! firings inside a window get the exact pose and the narrow-phase test.
+//! The beam (all optional; off, a firing is one ideal ray as in the paper's simulator):
+//! - **Footprint.** The VLP-16's beam diverges 3.0 mrad along the scan and 1.5 mrad across it
+//!   (full angles; the Velodyne manuals' "beam divergence" tables). A firing is traced as five
+//!   sub-rays of a Gaussian footprint (centre weight 0.4; four at +-1.83 sigma on the two axes,
+//!   0.15 each: the stencil has the Gaussian's second moments). What they hit forms echoes.
+//! - **Echoes and mixed pixels.** Surfaces less than `merge_distance` apart along the beam
+//!   return one merged pulse whose range is the energy-weighted mean (a *mixed pixel*: Hebert
+//!   & Krotkov 1992, "3D measurements from imaging laser radars"); farther apart they are
+//!   separate echoes (the VLS-128 manual, 6.2.3: both returns are recorded only 1 m or more
+//!   apart). An echo's energy is sum(w rho cos(incidence)); its received power that over the
+//!   range squared; echoes below the detection threshold are lost. The strongest mode reports
+//!   the most powerful echo, the last mode the farthest, the dual mode both (manual 9.3.2: the
+//!   even block the last, the odd block the strongest or, when that is the last, the second
+//!   strongest; identical when there is one). A beam whose centre misses a sphere but whose
+//!   edge touches it returns from the sphere at the tangent range, off the surface ("blooming").
+//! - **Range noise** `sigma^2 = sigma_0^2 + (R sigma_b tan(theta))^2`: the range spread of the
+//!   footprint (1-sigma beam half-angle `sigma_b`) over a surface at incidence `theta`
+//!   (Soudarissanane et al. 2011, "Scanning geometry: influencing factor on the quality of
+//!   terrestrial laser scanning points", ISPRS J. 66(4)); tan capped at 10.
+//! - **Range walk** (optional): weak returns are timed late, `bias = walk (1 - I/100)` for a
+//!   calibrated intensity I (the leading-edge timing walk of a threshold detector).
+//! - **Water** absorbs the beam; within `specular` of nadir it may glint back.
+//!
+//! Broad phase: every [`CACHE_PACKETS`] packets each object's bounding sphere gives an azimuth
+//! window in the sensor frame (dropped if beyond range or outside the lasers' +-15 deg),
+//! widened by what the platform's motion can change over those packets; per packet only the
+//! windows over the packet's azimuth span remain, and per firing only the windows holding its
+//! azimuth get the exact pose and the narrow-phase tests.
 
 use super::rng::Rng;
+use super::scene::{Frame, Water};
 use super::World;
-use crate::georef::{ray, PlatformPose};
+use crate::georef::{beam_origin_l, beam_unit, PlatformPose};
 use crate::time::{gps_to_unix_ns, micros_past_hour, unix_ns_to_gps, GpsTime, UtcDateTime};
 use crate::vlp16::data::{field, DATA_PACKET_LEN};
 use crate::vlp16::firing::{firing_offset_ns, BLOCK_NS};
@@ -18,12 +44,16 @@ use crate::vlp16::{
     DataPacket, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, LASERS, POSITION_PORT,
 };
 use core::f64::consts::{PI, TAU};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Most target spheres a scene may have.
 pub const MAX_TARGETS: usize = 16;
-/// Most objects (targets and clutter) a scene may have.
-pub const MAX_OBJECTS: usize = 32;
+/// Most objects (targets, scenery and vessel parts) a scene may have.
+pub const MAX_OBJECTS: usize = 1024;
+/// The label of a return from the water surface (a glint).
+pub const LABEL_WATER: u16 = 0xFFFE;
+/// Packets between two computations of the broad-phase windows.
+pub const CACHE_PACKETS: u64 = 8;
 
 /// LiDAR settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,6 +74,19 @@ pub struct LidarConfig {
     pub max_range: f64,
     /// Seed of the range noise and drops.
     pub seed: u64,
+    /// Full-angle beam divergence along the scan and across it [rad]; zero: an ideal ray.
+    pub divergence: [f64; 2],
+    /// Echoes closer than this along the beam merge into one (mixed pixel) [m].
+    pub merge_distance: f64,
+    /// Range noise grows at grazing incidence (the footprint's range spread).
+    pub incidence_noise: bool,
+    /// Range walk: the bias of a zero-intensity return relative to a full one [m].
+    pub range_walk: f64,
+    /// Probability that a return off anything but a target sphere is reported (1: all; less
+    /// thins the scenery uniformly, for clutter-density sweeps).
+    pub clutter_keep: f64,
+    /// Cull with the broad phase (false: every firing against every object; for tests).
+    pub cull: bool,
 }
 
 impl Default for LidarConfig {
@@ -57,6 +100,12 @@ impl Default for LidarConfig {
             min_range: 0.5,
             max_range: 100.0,
             seed: 1,
+            divergence: [0.0, 0.0],
+            merge_distance: 1.0,
+            incidence_noise: false,
+            range_walk: 0.0,
+            clutter_keep: 1.0,
+            cull: true,
         }
     }
 }
@@ -101,13 +150,21 @@ pub struct LidarStats {
     pub rays: u64,
     /// Rays that passed the broad phase.
     pub candidates: u64,
-    /// Returns on each target sphere, in packets that were not lost.
+    /// Narrow-phase ray-object tests (sub-rays included).
+    pub tests: u64,
+    /// Returns whose echo is mostly from each target sphere, in packets that were not lost.
     pub hits: [u64; MAX_TARGETS],
-    /// Returns on clutter, in packets that were not lost.
+    /// Returns on everything else (scenery, vessel, water glints).
     pub clutter_hits: u64,
+    /// Returns mixed from more than one object (under 90 % from the main one).
+    pub mixed: u64,
+    /// Echoes too weak to be detected.
+    pub too_weak: u64,
+    /// Beams absorbed by the water.
+    pub water: u64,
 }
 
-/// One traced return of the last data packet, before range noise and quantization.
+/// One return of the last data packet, before range noise and quantization.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
     /// Block 0..11.
@@ -118,11 +175,56 @@ pub struct Hit {
     pub time: GpsTime,
     /// Firing azimuth [rad], as the decoder reconstructs it.
     pub azimuth: f64,
-    /// Exact range [m].
+    /// Range of the echo [m] (an ideal beam: exactly the surface along the ray).
     pub range: f64,
-    /// Index of the object hit.
-    pub object: u8,
+    /// Index of the object the echo's energy mostly came from ([`LABEL_WATER`]: water).
+    pub object: u16,
+    /// That object's share of the echo's energy, 0..=255.
+    pub purity: u8,
 }
+
+/// A broad-phase window: object, azimuth centre and half-width [rad] in the LiDAR frame.
+#[derive(Debug, Clone, Copy)]
+struct Window {
+    obj: u16,
+    center: f64,
+    half: f64,
+}
+
+/// What one sub-ray hit.
+#[derive(Debug, Clone, Copy)]
+struct SubHit {
+    t: f64,
+    /// `w rho cos(incidence)`; 0 for an absorbing surface (water).
+    energy: f64,
+    obj: u16,
+    cos: f64,
+}
+
+/// One echo of a firing.
+#[derive(Debug, Clone, Copy)]
+struct Echo {
+    range: f64,
+    energy: f64,
+    obj: u16,
+    purity: f64,
+    /// Cosine of the incidence on the main object.
+    cos: f64,
+}
+
+/// Sub-rays of the footprint: offsets in units of the 1-sigma beam half-angle (along, across)
+/// and weights.
+const STENCIL: [(f64, f64, f64); 5] = [
+    (0.0, 0.0, 0.4),
+    (1.8257, 0.0, 0.15),
+    (-1.8257, 0.0, 0.15),
+    (0.0, 1.8257, 0.15),
+    (0.0, -1.8257, 0.15),
+];
+/// Received power `E (R_REF / R)^2` below which an echo is lost: a 10 % reflective surface
+/// filling the beam head-on at 100 m is at the threshold.
+const R_REF: f64 = 100.0;
+const P_MIN: f64 = 0.1;
 
 /// The VLP-16 simulator: call [`Self::next_packet`] until it returns `None`.
 pub struct LidarSim<'w, 'a> {
@@ -134,9 +236,12 @@ pub struct LidarSim<'w, 'a> {
     next_position_s: i64,
     rng: Rng,
     omega: f64,
+    /// Windows of the current cache span, and the packet's own.
+    windows: heapless::Vec<Window, MAX_OBJECTS>,
+    live: heapless::Vec<Window, MAX_OBJECTS>,
     /// Counts so far.
     pub stats: LidarStats,
-    /// The returns of the last data packet, exact (for tests and truth checks).
+    /// The returns of the last data packet (for labels, tests and truth checks).
     pub hits: heapless::Vec<Hit, 384>,
 }
 
@@ -151,6 +256,37 @@ pub fn packet_period_ns(mode: ReturnMode) -> i64 {
 /// An angle wrapped into [-pi, pi).
 fn wrap_pi(a: f64) -> f64 {
     a - TAU * libm::floor((a + PI) / TAU)
+}
+
+/// The rotation angle between two rotation matrices [rad].
+fn angle_between(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+    let m = a.tr_mul(b);
+    libm::acos(((m.trace() - 1.0) / 2.0).clamp(-1.0, 1.0))
+}
+
+/// A firing's beam in one frame: origin, centre direction and the two footprint axes.
+#[derive(Debug, Clone, Copy)]
+struct Beam {
+    o: Vector3<f64>,
+    d: Vector3<f64>,
+    along: Vector3<f64>,
+    across: Vector3<f64>,
+}
+
+impl Beam {
+    fn rotated(&self, r: &Matrix3<f64>, shift: &Vector3<f64>) -> Self {
+        Self {
+            o: shift + r * self.o,
+            d: r * self.d,
+            along: r * self.along,
+            across: r * self.across,
+        }
+    }
+
+    fn sub(&self, ka: f64, kc: f64) -> Vector3<f64> {
+        let v = self.d + self.along * ka + self.across * kc;
+        v / v.norm()
+    }
 }
 
 impl<'w, 'a> LidarSim<'w, 'a> {
@@ -168,6 +304,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             next_position_s: start_unix.div_euclid(1_000_000_000) + 1,
             rng: Rng::new(cfg.seed),
             omega: cfg.rpm / 60.0 * TAU,
+            windows: heapless::Vec::new(),
+            live: heapless::Vec::new(),
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
         }
@@ -212,6 +350,9 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             self.write_position(pos_time, out);
             return Some(SimPacket::Position { time: pos_time });
         }
+        if self.k.is_multiple_of(CACHE_PACKETS) {
+            self.cache_windows(t);
+        }
         self.k += 1;
         self.stats.data_packets += 1;
         let dropped = self.rng.chance(self.cfg.drop_prob);
@@ -236,6 +377,62 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         p.set_nmea(&s[..n]);
     }
 
+    /// The broad-phase windows for the packets from `t` on: each object's bounding sphere in
+    /// the LiDAR frame at the span's middle, widened by how far the platform turns and moves
+    /// (and the object moves) in half the span.
+    fn cache_windows(&mut self, t: GpsTime) {
+        self.windows.clear();
+        let span = self.period_ns * CACHE_PACKETS as i64 + 2 * i64::from(BLOCK_NS);
+        let (p0, p1) = (self.pose(t), self.pose(GpsTime(t.0 + span)));
+        let mid = GpsTime(t.0 + span / 2);
+        let pose = self.pose(mid);
+        let mount = &self.world.mount;
+        let turn = angle_between(&(p0.r_ig * mount.r_li), &(p1.r_ig * mount.r_li));
+        let travel = (p1.position - p0.position).norm();
+        let half_span_s = span as f64 * 0.5e-9;
+        let origin = pose.position + pose.r_ig * mount.lever;
+        let to_l = (pose.r_ig * mount.r_li).transpose();
+        let t_mid = self.world.t_of(mid);
+        let lim = 16f64.to_radians();
+        let all = !self.cfg.cull;
+        for (i, obj) in self.world.objects.iter().enumerate().take(MAX_OBJECTS) {
+            let (c, r) = obj.bound();
+            // The bound in the LiDAR frame, and how far it can drift in half the span.
+            let (v, turn, drift) = match obj.frame {
+                Frame::Site => {
+                    let c = c + obj.velocity * t_mid;
+                    let drift = travel / 2.0 + obj.velocity.norm() * half_span_s;
+                    (to_l * (c - origin), turn, drift)
+                }
+                // Fixed to the vessel: it does not move in the LiDAR frame.
+                Frame::Body => (mount.r_li.tr_mul(&(c - mount.lever)), 0.0, 0.0),
+            };
+            let dist = v.norm();
+            let rr = r + 0.05 + drift;
+            if !all && dist - rr > self.cfg.max_range {
+                continue;
+            }
+            let full = all || dist <= rr * 1.05;
+            let (center, half) = if full {
+                (0.0, 4.0)
+            } else {
+                let alpha = libm::asin(rr / dist) + turn * 0.75 + 0.01;
+                let elev = libm::asin((v.z / dist).clamp(-1.0, 1.0));
+                if elev - alpha > lim || elev + alpha < -lim {
+                    continue;
+                }
+                let ce = libm::cos(elev.abs() + alpha);
+                let half = if ce <= 0.05 { 4.0 } else { alpha / ce + 0.01 };
+                (libm::atan2(v.x, v.y), half)
+            };
+            let _ = self.windows.push(Window {
+                obj: i as u16,
+                center,
+                half,
+            });
+        }
+    }
+
     fn write_data(&mut self, t: GpsTime, trace: bool, buf: &mut [u8]) {
         let mode = self.cfg.mode;
         self.hits.clear();
@@ -258,40 +455,18 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             return;
         }
 
-        // Broad phase at the packet's middle.
-        let mid = GpsTime(t.0 + self.period_ns / 2);
-        let pose = self.pose(mid);
-        let mount = &self.world.mount;
-        let origin = pose.position + pose.r_ig * mount.lever;
-        let to_l = (pose.r_ig * mount.r_li).transpose();
-        let mut windows: heapless::Vec<(usize, f64, f64), MAX_OBJECTS> = heapless::Vec::new();
-        for (i, obj) in self.world.objects.iter().enumerate() {
-            let (c, r) = obj.bound();
-            let v = to_l * (c - origin);
-            let dist = v.norm();
-            let rr = r + 0.05;
-            if dist - rr > self.cfg.max_range {
-                continue;
-            }
-            let full = dist <= rr * 1.05;
-            let (center, half) = if full {
-                (0.0, 4.0)
-            } else {
-                let alpha = libm::asin(rr / dist) + 0.01;
-                let elev = libm::asin((v.z / dist).clamp(-1.0, 1.0));
-                let lim = 16f64.to_radians();
-                if elev - alpha > lim || elev + alpha < -lim {
-                    continue;
-                }
-                let ce = libm::cos(elev.abs() + alpha);
-                let half = if ce <= 0.05 { 4.0 } else { alpha / ce + 0.01 };
-                (libm::atan2(v.x, v.y), half)
-            };
-            if windows.push((i, center, half)).is_err() {
-                break;
+        // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm).
+        let a0 = f64::from(az[0]).to_radians() / 100.0;
+        let a1 = f64::from(az[field::BLOCKS - 1]).to_radians() / 100.0;
+        let span_half = wrap_pi(a1 - a0).abs() / 2.0 + 0.01;
+        let mid = a0 + wrap_pi(a1 - a0) / 2.0;
+        self.live.clear();
+        for w in &self.windows {
+            if w.half >= PI || wrap_pi(w.center - mid).abs() <= w.half + span_half {
+                let _ = self.live.push(*w);
             }
         }
-        if windows.is_empty() {
+        if self.live.is_empty() {
             return;
         }
 
@@ -312,51 +487,232 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 let (seq, laser) = (ch / LASERS, ch % LASERS);
                 let n = (seq * 24 + laser) as f64;
                 let a = (f64::from(az[b]) + step * n / 48.0).to_radians() / 100.0;
-                let mut hit: Option<(f64, usize)> = None;
-                let mut pose_ray: Option<(Vector3<f64>, Vector3<f64>)> = None;
-                for &(i, center, half) in &windows {
-                    if wrap_pi(a - center).abs() > half {
-                        continue;
-                    }
-                    let (o, d) = *pose_ray.get_or_insert_with(|| {
-                        self.stats.candidates += 1;
-                        let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, seq, laser)));
-                        let pf = self.pose(tf);
-                        let (s, c) = libm::sincos(a);
-                        ray(&pf, mount, laser, s, c)
-                    });
-                    if let Some(th) = self.world.objects[i].shape.intersect(&o, &d) {
-                        if th >= self.cfg.min_range
-                            && th <= self.cfg.max_range
-                            && hit.is_none_or(|(h, _)| th < h)
-                        {
-                            hit = Some((th, i));
-                        }
-                    }
+                if !self
+                    .live
+                    .iter()
+                    .any(|w| w.half >= PI || wrap_pi(a - w.center).abs() <= w.half)
+                {
+                    continue;
                 }
-                if let Some((th, i)) = hit {
-                    let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, seq, laser)));
-                    let _ = self.hits.push(Hit {
-                        block: b as u8,
-                        channel: ch as u8,
-                        time: tf,
-                        azimuth: a,
-                        range: th,
-                        object: i as u8,
-                    });
-                    let d = th + self.rng.gauss(self.cfg.range_sigma);
-                    let raw = libm::round(d / 0.002).clamp(1.0, 65_535.0) as u16;
-                    let target = self.world.objects[i].target;
-                    p.set_channel(b, ch, raw, if target.is_some() { 80 } else { 25 });
-                    match target {
-                        Some(tg) if usize::from(tg) < MAX_TARGETS => {
-                            self.stats.hits[usize::from(tg)] += 1
-                        }
-                        _ => self.stats.clutter_hits += 1,
+                self.stats.candidates += 1;
+                let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, seq, laser)));
+                let mut echoes: heapless::Vec<Echo, 5> = heapless::Vec::new();
+                self.trace(tf, a, laser, &mut echoes);
+                self.report(&mut p, b, ch, tf, a, mode, &echoes);
+            }
+            b += stride;
+        }
+    }
+
+    /// Trace one firing's footprint and form its echoes (nearest first).
+    fn trace(&mut self, tf: GpsTime, a: f64, laser: usize, echoes: &mut heapless::Vec<Echo, 5>) {
+        let pf = self.pose(tf);
+        let mount = &self.world.mount;
+        let (s, c) = libm::sincos(a);
+        let u = beam_unit(laser, s, c);
+        // Footprint axes in the LiDAR frame: along the scan (horizontal) and across it.
+        let along = Vector3::new(c, -s, 0.0);
+        let across = u.cross(&along);
+        let sig = [self.cfg.divergence[0] / 4.0, self.cfg.divergence[1] / 4.0];
+        let thin = sig[0] <= 0.0 && sig[1] <= 0.0;
+        let in_l = Beam {
+            o: beam_origin_l(laser),
+            d: u,
+            along: along * sig[0],
+            across: across * sig[1],
+        };
+        let body = in_l.rotated(&mount.r_li, &mount.lever);
+        let site = body.rotated(&pf.r_ig, &pf.position);
+        let t_rel = self.world.t_of(tf);
+        let stencil: &[(f64, f64, f64)] = if thin { &[(0.0, 0.0, 1.0)] } else { &STENCIL };
+        let mut subs: heapless::Vec<SubHit, 5> = heapless::Vec::new();
+        for &(ka, kc, w) in stencil {
+            let ds = site.sub(ka, kc);
+            let db = body.sub(ka, kc);
+            let mut best: Option<(f64, u16)> = None;
+            for win in &self.live {
+                if win.half < PI && wrap_pi(a - win.center).abs() > win.half {
+                    continue;
+                }
+                let obj = &self.world.objects[usize::from(win.obj)];
+                self.stats.tests += 1;
+                let th = match obj.frame {
+                    Frame::Site if obj.moves() => {
+                        obj.shape.intersect(&(site.o - obj.velocity * t_rel), &ds)
+                    }
+                    Frame::Site => obj.shape.intersect(&site.o, &ds),
+                    Frame::Body => obj.shape.intersect(&body.o, &db),
+                };
+                if let Some(th) = th {
+                    if th <= self.cfg.max_range && best.is_none_or(|(h, _)| th < h) {
+                        best = Some((th, win.obj));
                     }
                 }
             }
-            b += stride;
+            // The water stops the beam where it is nearer than any object.
+            let water = self.world.water.and_then(|wt: Water| {
+                let tw = wt.intersect(&site.o, &ds)?;
+                Some((tw, wt))
+            });
+            let sub = match (best, water) {
+                (_, Some((tw, wt))) if best.is_none_or(|(h, _)| tw < h) => {
+                    self.stats.water += u64::from(ka == 0.0 && kc == 0.0);
+                    let glint = libm::acos(ds.z.clamp(-1.0, 1.0)) <= wt.specular
+                        && self.rng.chance(wt.specular_prob);
+                    SubHit {
+                        t: tw,
+                        energy: if glint { w } else { 0.0 },
+                        obj: LABEL_WATER,
+                        cos: 1.0,
+                    }
+                }
+                (Some((th, i)), _) => {
+                    let obj = &self.world.objects[usize::from(i)];
+                    let (x, d) = match obj.frame {
+                        Frame::Site => (site.o - obj.velocity * t_rel + ds * th, ds),
+                        Frame::Body => (body.o + db * th, db),
+                    };
+                    let cos = obj.shape.normal(&x).dot(&d).abs();
+                    SubHit {
+                        t: th,
+                        energy: w * obj.reflectivity * cos,
+                        obj: i,
+                        cos,
+                    }
+                }
+                (None, _) => continue,
+            };
+            let _ = subs.push(sub);
+        }
+        // Nearest first, then merge what lies within the merge distance.
+        subs.sort_unstable_by(|x, y| x.t.total_cmp(&y.t));
+        let mut i = 0;
+        while i < subs.len() {
+            let first = subs[i].t;
+            let mut j = i;
+            let (mut e, mut et) = (0.0, 0.0);
+            let mut shares: heapless::Vec<(u16, f64, f64), 5> = heapless::Vec::new();
+            while j < subs.len() && subs[j].t - first < self.cfg.merge_distance {
+                let sh = subs[j];
+                e += sh.energy;
+                et += sh.energy * sh.t;
+                match shares.iter_mut().find(|x| x.0 == sh.obj) {
+                    Some(x) => x.1 += sh.energy,
+                    None => {
+                        let _ = shares.push((sh.obj, sh.energy, sh.cos));
+                    }
+                }
+                j += 1;
+            }
+            if e > 0.0 {
+                let (obj, main, cos) =
+                    shares
+                        .iter()
+                        .copied()
+                        .fold((0, -1.0, 1.0), |a, x| if x.1 > a.1 { x } else { a });
+                let range = et / e;
+                if range >= self.cfg.min_range {
+                    if e * (R_REF / range) * (R_REF / range) >= P_MIN {
+                        let _ = echoes.push(Echo {
+                            range,
+                            energy: e,
+                            obj,
+                            purity: main / e,
+                            cos,
+                        });
+                    } else {
+                        self.stats.too_weak += 1;
+                    }
+                }
+            }
+            i = j;
+        }
+    }
+
+    /// Write a firing's reported echo(es) into the packet and the hit list.
+    #[allow(clippy::too_many_arguments)]
+    fn report(
+        &mut self,
+        p: &mut DataPacket<&mut [u8]>,
+        b: usize,
+        ch: usize,
+        tf: GpsTime,
+        a: f64,
+        mode: ReturnMode,
+        echoes: &[Echo],
+    ) {
+        if echoes.is_empty() {
+            return;
+        }
+        let power = |e: &Echo| e.energy / (e.range * e.range);
+        let strongest = (0..echoes.len())
+            .max_by(|&i, &j| power(&echoes[i]).total_cmp(&power(&echoes[j])))
+            .unwrap_or(0);
+        let last = echoes.len() - 1;
+        let picks: [(usize, usize); 2] = match mode {
+            ReturnMode::Strongest => [(b, strongest), (usize::MAX, 0)],
+            ReturnMode::Last => [(b, last), (usize::MAX, 0)],
+            ReturnMode::Dual => {
+                // Odd block: the strongest, or the second strongest when that is the last.
+                let second = if strongest == last && echoes.len() > 1 {
+                    (0..last)
+                        .max_by(|&i, &j| power(&echoes[i]).total_cmp(&power(&echoes[j])))
+                        .unwrap_or(last)
+                } else {
+                    strongest
+                };
+                [(b, last), (b + 1, second)]
+            }
+        };
+        let is_target = |e: &Echo| {
+            self.world
+                .objects
+                .get(usize::from(e.obj))
+                .is_some_and(|o| o.target.is_some())
+        };
+        let keep = self.cfg.clutter_keep >= 1.0
+            || echoes.iter().all(is_target)
+            || self.rng.chance(self.cfg.clutter_keep);
+        for (block, e) in picks {
+            if block >= field::BLOCKS {
+                continue;
+            }
+            let e = echoes[e];
+            if !keep && !is_target(&e) {
+                continue;
+            }
+            let intensity = (100.0 * e.energy).clamp(0.0, 100.0);
+            let mut sigma = self.cfg.range_sigma;
+            if self.cfg.incidence_noise {
+                let tan = (libm::sqrt((1.0 - e.cos * e.cos).max(0.0)) / e.cos.max(1e-6)).min(10.0);
+                let spread = e.range * self.cfg.divergence[0] / 4.0 * tan;
+                sigma = libm::sqrt(sigma * sigma + spread * spread);
+            }
+            let walk = self.cfg.range_walk * (1.0 - intensity / 100.0);
+            let d = e.range + walk + self.rng.gauss(sigma);
+            let raw = libm::round(d / 0.002).clamp(1.0, 65_535.0) as u16;
+            p.set_channel(block, ch, raw, libm::round(intensity) as u8);
+            let _ = self.hits.push(Hit {
+                block: block as u8,
+                channel: ch as u8,
+                time: tf,
+                azimuth: a,
+                range: e.range,
+                object: e.obj,
+                purity: libm::round(e.purity * 255.0) as u8,
+            });
+            let target = self
+                .world
+                .objects
+                .get(usize::from(e.obj))
+                .and_then(|o| o.target);
+            match target {
+                Some(tg) if usize::from(tg) < MAX_TARGETS => self.stats.hits[usize::from(tg)] += 1,
+                _ => self.stats.clutter_hits += 1,
+            }
+            if e.purity < 0.9 {
+                self.stats.mixed += 1;
+            }
         }
     }
 }

@@ -11,7 +11,7 @@ pub mod trajectory;
 pub use ins::{InsConfig, InsSim};
 pub use lidar::{LidarConfig, LidarSim, SimPacket};
 pub use rng::Rng;
-pub use scene::{Object, Shape};
+pub use scene::{Frame, Object, Shape, Water};
 pub use trajectory::{Motion, Pass, State, Trajectory};
 
 use crate::frames::LocalFrame;
@@ -25,8 +25,10 @@ pub struct World<'a> {
     pub site: LocalFrame,
     /// The vessel's path and motion.
     pub trajectory: Trajectory<'a>,
-    /// Targets and clutter.
+    /// Targets, scenery and the vessel's own parts.
     pub objects: &'a [Object],
+    /// The water surface, if any.
+    pub water: Option<Water>,
     /// The true mounting.
     pub mount: Mount,
     /// GPS time of trajectory time 0.

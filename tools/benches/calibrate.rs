@@ -25,13 +25,21 @@ fn bench(c: &mut Criterion) {
     );
     let mut g = c.benchmark_group("calibrate");
     g.sample_size(30);
+    let mut scratch = spherecal_tools::calibrate::Scratch::default();
     g.bench_function("table1_nm_lm_from_paper_start", |b| {
         b.iter_batched(
             || obs.clone(),
             |mut o| {
                 let mut s: Vec<&mut [spherecal::window::Observation]> =
                     o.iter_mut().map(|v| v.as_mut_slice()).collect();
-                solve(&targets, &mut s, &b0, &Settings::default()).b
+                solve(
+                    &targets,
+                    &mut s,
+                    &b0,
+                    &Settings::default(),
+                    &mut scratch.workspace(),
+                )
+                .b
             },
             BatchSize::LargeInput,
         )

@@ -3,7 +3,7 @@
 
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::solve::{Refusal, Settings, Solution};
+use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
 use spherecal::calib::{solve, NAMES, P};
 use spherecal::window::{Observation, Target};
 use std::collections::BTreeMap;
@@ -40,15 +40,89 @@ pub struct Sigma {
     pub lever_arm_m: Xyz,
 }
 
+/// Windowed returns by the extraction's verdict.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Verdicts {
+    /// On the sphere: used.
+    pub kept: u32,
+    /// In slices of time where the sphere was not detected.
+    pub undetected: u32,
+    /// Off the sphere's shell.
+    pub outside_shell: u32,
+    /// On the far side of the sphere as seen from the sensor.
+    pub hidden_side: u32,
+    /// On a plane that continues beyond the sphere.
+    pub plane: u32,
+    /// On a pole that continues beyond the sphere.
+    pub pole: u32,
+    /// The sphere was not found.
+    pub sphere_not_found: u32,
+}
+
+impl Verdicts {
+    fn from_tally(t: &spherecal::calib::solve::Tally) -> Self {
+        use spherecal::calib::extract::Verdict as V;
+        let g = |v: V| t[v as usize];
+        Self {
+            kept: g(V::Kept),
+            undetected: g(V::Undetected),
+            outside_shell: g(V::OutsideShell),
+            hidden_side: g(V::Hidden),
+            plane: g(V::Plane),
+            pole: g(V::Pole),
+            sphere_not_found: g(V::NotFound) + g(V::Unclassified),
+        }
+    }
+
+    /// Returns rejected (everything but the kept ones).
+    pub fn rejected(&self) -> u32 {
+        self.undetected
+            + self.outside_shell
+            + self.hidden_side
+            + self.plane
+            + self.pole
+            + self.sphere_not_found
+    }
+}
+
+/// One pass over one sphere.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PerPass {
+    /// Sphere id.
+    pub sphere: String,
+    /// GPS seconds of its first and last windowed return.
+    pub start_gps_s: f64,
+    /// ...
+    pub end_gps_s: f64,
+    /// Slices of time (0.4 s) with windowed returns.
+    pub slices: u32,
+    /// Slices where the sphere was detected.
+    pub detected: u32,
+    /// Mean inliers per detection (the detection score).
+    pub mean_inliers: f32,
+    /// Windowed returns.
+    pub windowed: u32,
+    /// By verdict.
+    pub verdicts: Verdicts,
+}
+
 /// Per sphere.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PerSphere {
     /// Sphere id.
     pub id: String,
+    /// Found among the clutter (else left out of the solution).
+    pub found: bool,
     /// Returns in the a-priori window.
     pub windowed: usize,
     /// Returns used.
     pub points: usize,
+    /// Slices of time with windowed returns, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Windowed returns by verdict.
+    pub verdicts: Verdicts,
     /// RMS with the starting values [m].
     pub rms_before_m: f64,
     /// RMS with the solution [m].
@@ -94,6 +168,12 @@ pub struct Report {
     pub sphere_centre_rms_m: Option<f64>,
     /// Per sphere.
     pub per_sphere: Vec<PerSphere>,
+    /// Per pass over each sphere.
+    pub per_pass: Vec<PerPass>,
+    /// The final shell: kept returns are within this of their sphere's surface [m].
+    pub shell_m: f64,
+    /// Windowed returns rejected as clutter, all spheres.
+    pub clutter_rejected: u64,
     /// Time of the solve [ms].
     pub solve_ms: f64,
     /// Starting values.
@@ -119,13 +199,44 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String
 /// A refusal in words.
 pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
     match r {
-        Refusal::TooFewSpheres { have } => format!("{have} sphere(s): at least two are needed (one sphere cannot fix the rotation about the line to it)"),
+        Refusal::TooFewSpheres { have } => format!("{have} sphere(s) found: at least two are needed (one sphere cannot fix the rotation about the line to it)"),
         Refusal::TooFewPoints { sphere, have, need } => format!("sphere {}: {have} returns, at least {need} are needed", ids.get(*sphere).map_or("?", |s| s.as_str())),
         Refusal::IllConditioned { condition, limit } => format!(
             "ill-conditioned: condition number {condition:.3e} > {limit:.0e}; the geometry cannot separate {}",
             if weak.is_empty() { "the parameters".to_string() } else { weak.join(", ") }
         ),
         Refusal::RmsTooHigh { rms, limit } => format!("residual RMS {:.1} mm above the {:.1} mm limit", rms * 1e3, limit * 1e3),
+    }
+}
+
+/// Cells of the detection's vote grid (64^3: 512 KB).
+pub const GRID_CELLS: usize = 64 * 64 * 64;
+/// Kept returns a detect-and-solve round solves on at most (8.6 MB).
+pub const KEPT_CAPACITY: usize = 50_000;
+
+/// The solver's scratch, owned.
+#[derive(Debug, Clone)]
+pub struct Scratch {
+    grid: Vec<u16>,
+    kept: Vec<Observation>,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Self {
+            grid: vec![0; GRID_CELLS],
+            kept: vec![Observation::default(); KEPT_CAPACITY],
+        }
+    }
+}
+
+impl Scratch {
+    /// The workspace [`solve`] borrows.
+    pub fn workspace(&mut self) -> Workspace<'_> {
+        Workspace {
+            grid: &mut self.grid,
+            kept: &mut self.kept,
+        }
     }
 }
 
@@ -138,8 +249,9 @@ pub fn solve_report(
     s: &Settings,
 ) -> (Solution, Report) {
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
+    let mut scratch = Scratch::default();
     let t0 = std::time::Instant::now();
-    let sol = solve(targets, &mut slices, b0, s);
+    let sol = solve(targets, &mut slices, b0, s, &mut scratch.workspace());
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
     let b = sol.b;
     let lm = sol.lm;
@@ -192,14 +304,38 @@ pub fn solve_report(
         condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
         weak_parameters: weak,
         sphere_centre_rms_m: sol.center_rms,
+        per_pass: sol
+            .passes
+            .iter()
+            .map(|p| PerPass {
+                sphere: ids.get(usize::from(p.sphere)).cloned().unwrap_or_default(),
+                start_gps_s: p.start.as_secs_f64(),
+                end_gps_s: p.end.as_secs_f64(),
+                slices: p.slices,
+                detected: p.detected,
+                mean_inliers: p.mean_inliers,
+                windowed: p.verdicts.iter().sum(),
+                verdicts: Verdicts::from_tally(&p.verdicts),
+            })
+            .collect(),
+        shell_m: sol.shell,
+        clutter_rejected: sol
+            .spheres
+            .iter()
+            .map(|s| u64::from(Verdicts::from_tally(&s.verdicts).rejected()))
+            .sum(),
         per_sphere: sol
             .spheres
             .iter()
             .zip(ids)
             .map(|(s, id)| PerSphere {
                 id: id.clone(),
+                found: s.found,
                 windowed: s.windowed,
                 points: s.used,
+                slices: s.slices,
+                detected: s.detected,
+                verdicts: Verdicts::from_tally(&s.verdicts),
                 rms_before_m: s.rms_before,
                 rms_after_m: s.rms_after,
                 centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
@@ -270,17 +406,38 @@ pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
             .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
     );
     for p in &r.per_sphere {
+        let v = &p.verdicts;
+        if !p.found {
+            let _ = writeln!(
+                o,
+                "  {}: NOT FOUND among {} windowed returns (detected in {} of {} slices): left out",
+                p.id, p.windowed, p.detected, p.slices
+            );
+            continue;
+        }
         let _ = writeln!(
             o,
-            "  {}: {} of {} windowed returns used, RMS {:.1} mm -> {:.2} mm",
+            "  {}: {} of {} windowed returns on the sphere (detected in {} of {} slices); rejected: {} off the shell, {} where undetected, {} on planes, {} on poles, {} behind it; RMS {:.2} mm",
             p.id,
             p.points,
             p.windowed,
-            p.rms_before_m * 1e3,
+            p.detected,
+            p.slices,
+            v.outside_shell,
+            v.undetected,
+            v.plane,
+            v.pole,
+            v.hidden_side,
             p.rms_after_m * 1e3
         );
     }
-    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} re-windowing rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
+    let _ = writeln!(
+        o,
+        "clutter rejected: {} returns; kept within {:.1} mm of the spheres",
+        r.clutter_rejected,
+        r.shell_m * 1e3
+    );
+    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
     match &r.reason {
         None => {
             let _ = writeln!(o, "converged");

@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// The windows CSV header.
-pub const WINDOWS_HEADER: &str = "sphere,time_gps_s,x_m,y_m,z_m,range_m,laser";
+pub const WINDOWS_HEADER: &str = "sphere,time_gps_s,x_m,y_m,z_m,range_m,laser,packet,block,channel";
 
 /// A LAS 1.4 writer (point format 6: GPS time, intensity, user data = window + 1), local
 /// east-north-up metres from the site origin.
@@ -118,14 +118,17 @@ pub fn georef(
                     line.clear();
                     let _ = writeln!(
                         line,
-                        "{},{:.9},{:.5},{:.5},{:.5},{:.3},{}",
+                        "{},{:.9},{:.5},{:.5},{:.5},{:.3},{},{},{},{}",
                         ids[msg.sphere],
                         o.time.as_secs_f64(),
                         x.x,
                         x.y,
                         x.z,
                         o.range,
-                        o.laser
+                        o.laser,
+                        o.packet,
+                        o.block,
+                        o.channel
                     );
                     if let Err(e) = w.write_all(line.as_bytes()) {
                         err.get_or_insert(e.to_string());

@@ -14,6 +14,7 @@ pub mod plot;
 pub mod replay;
 pub mod rig;
 pub mod scenario;
+pub mod scene;
 pub mod site;
 pub mod status;
 pub mod synth;

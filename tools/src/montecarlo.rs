@@ -98,6 +98,7 @@ pub fn montecarlo(
         for _ in 0..threads {
             sc.spawn(|| {
                 let mut work = obs.clone();
+                let mut scratch = crate::calibrate::Scratch::default();
                 loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     if k >= trials {
@@ -111,7 +112,13 @@ pub fn montecarlo(
                     let mut slices: Vec<&mut [spherecal::window::Observation]> =
                         work.iter_mut().map(|v| v.as_mut_slice()).collect();
                     let t0 = std::time::Instant::now();
-                    let sol = solve(&tg, &mut slices, &b0, &Settings::default());
+                    let sol = solve(
+                        &tg,
+                        &mut slices,
+                        &b0,
+                        &Settings::default(),
+                        &mut scratch.workspace(),
+                    );
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let b = sol.b;
                     let solution = spherecal::calib::to_deg_m(&b);

@@ -312,6 +312,8 @@ pub struct Aligner {
     pub lag_ns: Option<i64>,
     /// Returns windowed per sphere so far.
     pub windowed: Vec<u64>,
+    /// Data packets handed to [`Self::data`] so far (the next one's index).
+    data_seen: u32,
 }
 
 impl Aligner {
@@ -340,6 +342,7 @@ impl Aligner {
             pps: None,
             lag_ns: None,
             windowed: vec![0; n],
+            data_seen: 0,
         }
     }
 
@@ -433,6 +436,8 @@ impl Aligner {
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
         let p = DataPacket::new_unchecked(&item.bytes[..]);
+        let index = self.data_seen;
+        self.data_seen = self.data_seen.wrapping_add(1);
         if !self.clock.has_hour() {
             self.pull_ins(ic, None, item.host_ns);
             match self.history.span() {
@@ -463,7 +468,7 @@ impl Aligner {
             batches: &mut self.batches,
             stats: self.stats.window,
         };
-        win.add_packet(t0, &self.points, &self.history, each);
+        win.add_packet(index, t0, &self.points, &self.history, each);
         self.stats.window = win.stats;
         self.stats.rollovers = self.clock.rollovers;
         for (i, b) in self.batches.iter_mut().enumerate() {

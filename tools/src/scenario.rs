@@ -1,6 +1,9 @@
 //! Simulation scenarios: the TOML a surveyor edits (`spherecal synth --print-scenario table1`),
 //! its validation (unknown keys and impossible values are rejected by name), and the built-ins.
 
+use crate::scene::{
+    BoxSpec, PlaneSpec, PoleSpec, ScatterSpec, Scene, SceneSpec, Stand, VesselSpec, WaterSpec,
+};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::frames::{Geodetic, LocalFrame};
@@ -13,6 +16,7 @@ use spherecal::vlp16::ReturnMode;
 /// The built-in scenarios: name and TOML text.
 pub const BUILTIN: &[(&str, &str)] = &[
     ("table1", include_str!("../scenarios/table1.toml")),
+    ("table1-bare", include_str!("../scenarios/table1-bare.toml")),
     (
         "table1-noisy",
         include_str!("../scenarios/table1-noisy.toml"),
@@ -43,6 +47,24 @@ pub struct Scenario {
     pub ins: InsSpec,
     /// Vessel path.
     pub trajectory: TrajectorySpec,
+    /// Boxes: deck slabs, quay walls, buildings, vehicles, crates.
+    #[serde(default, rename = "box", skip_serializing_if = "Vec::is_empty")]
+    pub boxes: Vec<BoxSpec>,
+    /// Cylinders: bollards, lamp posts, people (with `velocity_ned_mps`: walking).
+    #[serde(default, rename = "pole", skip_serializing_if = "Vec::is_empty")]
+    pub poles: Vec<PoleSpec>,
+    /// Flat rectangles.
+    #[serde(default, rename = "plane", skip_serializing_if = "Vec::is_empty")]
+    pub planes: Vec<PlaneSpec>,
+    /// Random clutter regions.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scatter: Vec<ScatterSpec>,
+    /// The water surface.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub water: Option<WaterSpec>,
+    /// The vessel's own structure.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vessel: Option<VesselSpec>,
 }
 
 /// Site origin (WGS84).
@@ -67,9 +89,24 @@ pub struct SphereSpec {
     pub ned_m: [f64; 3],
     /// Radius [m].
     pub radius_m: f64,
-    /// A tripod pole under it and a patch of dock (clutter the windows catch).
-    #[serde(default)]
-    pub tripod: bool,
+    /// What it stands on: `none`, `pole` (one 25 mm pole) or `tripod` (three legs, a head and
+    /// a spigot).
+    #[serde(default = "default_stand")]
+    pub stand: String,
+    /// NED down of the floor the stand stands on [m] (default: 1.2 m below the sphere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stand_down_m: Option<f64>,
+    /// Diffuse reflectivity (default 0.8: a white painted sphere).
+    #[serde(default = "default_sphere_rho")]
+    pub reflectivity: f64,
+}
+
+fn default_stand() -> String {
+    "none".into()
+}
+
+fn default_sphere_rho() -> f64 {
+    0.8
 }
 
 /// Mounting values.
@@ -116,6 +153,31 @@ pub struct LidarSpec {
     pub range_sigma_m: f64,
     /// Probability of a lost data packet.
     pub drop_prob: f64,
+    /// Full-angle beam divergence along / across the scan [mrad] (VLP-16: 3.0, 1.5); zero: an
+    /// ideal ray (no footprint, no mixed pixels).
+    #[serde(default)]
+    pub beam_divergence_mrad: [f64; 2],
+    /// Echoes closer than this merge into a mixed pixel [m] (default 1.0).
+    #[serde(default = "default_merge")]
+    pub merge_distance_m: f64,
+    /// Range noise grows at grazing incidence (needs a beam divergence).
+    #[serde(default)]
+    pub incidence_noise: bool,
+    /// Range walk: the bias of a zero-intensity return [m] (default 0).
+    #[serde(default)]
+    pub range_walk_m: f64,
+    /// Probability that a return off the scenery (anything but the target spheres) is
+    /// reported (default 1); less thins the scene uniformly, for clutter-density sweeps.
+    #[serde(default = "default_keep")]
+    pub clutter_keep: f64,
+}
+
+fn default_keep() -> f64 {
+    1.0
+}
+
+fn default_merge() -> f64 {
+    1.0
 }
 
 /// INS settings.
@@ -291,6 +353,22 @@ impl Scenario {
                 &format!("sphere[{i}].ned_m"),
                 "not finite",
             )?;
+            check(
+                Stand::parse(&sp.stand).is_some(),
+                &format!("sphere[{i}].stand"),
+                "expected none, pole or tripod",
+            )?;
+            check(
+                sp.stand_down_m
+                    .is_none_or(|f| f.is_finite() && f > sp.ned_m[2] + sp.radius_m + 0.3),
+                &format!("sphere[{i}].stand_down_m"),
+                "expected a floor at least 0.3 m below the sphere",
+            )?;
+            check(
+                sp.reflectivity > 0.0 && sp.reflectivity <= 1.0,
+                &format!("sphere[{i}].reflectivity"),
+                "expected 0 < rho <= 1",
+            )?;
         }
         let t = &self.mount.truth;
         check(
@@ -333,6 +411,36 @@ impl Scenario {
             (0.0..=1.0).contains(&self.lidar.drop_prob),
             "lidar.drop_prob",
             "expected 0..=1",
+        )?;
+        check(
+            self.lidar
+                .beam_divergence_mrad
+                .iter()
+                .all(|x| (0.0..50.0).contains(x)),
+            "lidar.beam_divergence_mrad",
+            "expected 0..50 mrad",
+        )?;
+        check(
+            self.lidar.merge_distance_m >= 0.0 && self.lidar.merge_distance_m < 20.0,
+            "lidar.merge_distance_m",
+            "expected 0..20 m",
+        )?;
+        check(
+            self.lidar.clutter_keep > 0.0 && self.lidar.clutter_keep <= 1.0,
+            "lidar.clutter_keep",
+            "expected 0 < p <= 1",
+        )?;
+        check(
+            self.lidar.range_walk_m.abs() < 1.0,
+            "lidar.range_walk_m",
+            "expected |walk| < 1 m",
+        )?;
+        let spec = self.scene_spec();
+        spec.validate()?;
+        check(
+            self.sphere.len() * 6 + spec.max_objects() <= spherecal::sim::lidar::MAX_OBJECTS,
+            "scatter",
+            "too many objects: at most 1024 in a scene (spheres and stands included)",
         )?;
         check(
             self.ins.rate_hz >= 1.0 && self.ins.rate_hz <= 1000.0,
@@ -470,35 +578,47 @@ impl Scenario {
         }
     }
 
-    /// Targets, then clutter: a tripod pole (2.5 cm radius) under each tripod sphere, from
-    /// 15 cm below the sphere (the mounting spigot is too thin to return) down to the dock.
-    pub fn objects(&self) -> Vec<Object> {
-        let mut out: Vec<Object> = self
-            .sphere
-            .iter()
-            .enumerate()
-            .map(|(i, s)| Object {
-                shape: Shape::Sphere {
-                    c: Vector3::from(s.ned_m),
-                    r: s.radius_m,
-                },
-                target: Some(i as u8),
-            })
-            .collect();
-        for s in self.sphere.iter().filter(|s| s.tripod) {
-            let c = Vector3::from(s.ned_m);
-            let bottom = c.z + s.radius_m;
-            let deck = bottom + 1.2;
-            out.push(Object {
-                shape: Shape::Pole {
-                    base: Vector3::new(c.x, c.y, deck),
-                    r: 0.025,
-                    height: deck - bottom - 0.15,
-                },
-                target: None,
-            });
+    /// The scenery keys as one spec.
+    pub fn scene_spec(&self) -> SceneSpec {
+        SceneSpec {
+            boxes: self.boxes.clone(),
+            poles: self.poles.clone(),
+            planes: self.planes.clone(),
+            scatter: self.scatter.clone(),
+            water: self.water.clone(),
+            vessel: self.vessel.clone(),
         }
-        out
+    }
+
+    /// The scene: the target spheres first (object i is sphere i), then their stands, then
+    /// the scenery, each object with its name and kind.
+    pub fn scene(&self) -> Scene {
+        let mut sc = Scene::default();
+        for (i, s) in self.sphere.iter().enumerate() {
+            let shape = Shape::Sphere {
+                c: Vector3::from(s.ned_m),
+                r: s.radius_m,
+            };
+            sc.objects
+                .push(Object::new(shape, Some(i as u8)).with_reflectivity(s.reflectivity));
+            sc.names.push(s.id.clone());
+            sc.kinds.push("sphere");
+        }
+        for s in &self.sphere {
+            let c = Vector3::from(s.ned_m);
+            let floor = s.stand_down_m.unwrap_or(c.z + s.radius_m + 1.2);
+            let stand = Stand::parse(&s.stand).unwrap_or(Stand::None);
+            sc.add_stand(&s.id, stand, c, s.radius_m, floor);
+        }
+        let centres: Vec<Vector3<f64>> =
+            self.sphere.iter().map(|s| Vector3::from(s.ned_m)).collect();
+        sc.add_scenery(&self.scene_spec(), &centres);
+        sc
+    }
+
+    /// The scene's objects.
+    pub fn objects(&self) -> Vec<Object> {
+        self.scene().objects
     }
 
     /// The simulated world of this scenario over its `passes()` and `objects()`.
@@ -518,6 +638,7 @@ impl Scenario {
                 motion: self.motion(),
             },
             objects,
+            water: self.water.as_ref().map(WaterSpec::water),
             mount: self.truth_mount(),
             start: self.start(),
             leap_seconds: self.leap_seconds,
@@ -597,6 +718,11 @@ impl Scenario {
             mode: self.return_mode().unwrap_or(ReturnMode::Strongest),
             range_sigma: self.lidar.range_sigma_m,
             drop_prob: self.lidar.drop_prob,
+            divergence: self.lidar.beam_divergence_mrad.map(|x| x * 1e-3),
+            merge_distance: self.lidar.merge_distance_m,
+            incidence_noise: self.lidar.incidence_noise,
+            range_walk: self.lidar.range_walk_m,
+            clutter_keep: self.lidar.clutter_keep,
             seed: self.seed.wrapping_mul(2).wrapping_add(1),
             ..LidarConfig::default()
         }

@@ -1,7 +1,14 @@
 //! `spherecal synth`: run a scenario through the simulator and write what a rig would have
 //! recorded: `lidar.pcap`, `ins.bin` (and the same bytes as `ins.vnlog`, a serial log with
-//! receive times, so that `replay` can pace both streams on one clock), plus `site.toml` and
-//! `truth.json`.
+//! receive times, so that `replay` can pace both streams on one clock), plus `site.toml`,
+//! `truth.json` and, for tests only, `labels.bin`: which object each return came from.
+//!
+//! `labels.bin` (little-endian): a 16-byte header `SCLABELS`, u32 version = 1, u32 record size
+//! = 12; then one record per return in file order: u32 data packet index (from 0, in file
+//! order, lost packets not counted), u8 block, u8 channel, u16 object (its index in
+//! `truth.json`'s `objects`; 0xFFFE a glint off the water), u8 purity (the object's share of the
+//! echo's energy x 255: below 255 a mixed pixel), three zero bytes. The calibration never reads
+//! it.
 
 use crate::scenario::Scenario;
 use crate::site::{Origin, Site, SiteApriori, SiteSphere};
@@ -42,6 +49,65 @@ pub struct Truth {
     pub ins_frames: u64,
     /// Serial bytes corrupted on purpose.
     pub corrupted_bytes: u64,
+    /// Returns mixed from two or more objects (under 90 % from the main one).
+    #[serde(default)]
+    pub mixed_points: u64,
+    /// The scene's objects: the labels' object index is the position in this list.
+    #[serde(default)]
+    pub objects: Vec<TruthObject>,
+}
+
+/// One object of the scene.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct TruthObject {
+    /// Its name (a sphere's id for targets).
+    pub name: String,
+    /// `sphere`, `stand`, `box`, `pole`, `plane`, `crate`, `post`, `person`, `bush`, `vessel`.
+    pub kind: String,
+}
+
+/// One record of `labels.bin`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Label {
+    /// Data packet index in file order.
+    pub packet: u32,
+    /// Block 0..11.
+    pub block: u8,
+    /// Channel 0..31.
+    pub channel: u8,
+    /// Object index (0xFFFE: water).
+    pub object: u16,
+    /// The object's share of the echo's energy x 255.
+    pub purity: u8,
+}
+
+/// `labels.bin`'s magic.
+pub const LABELS_MAGIC: &[u8; 8] = b"SCLABELS";
+
+/// Read a `labels.bin`.
+pub fn read_labels(path: &Path) -> Result<Vec<Label>, String> {
+    let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if b.len() < 16 || &b[..8] != LABELS_MAGIC || b[8..12] != 1u32.to_le_bytes() {
+        return Err(format!("{}: not a labels.bin (version 1)", path.display()));
+    }
+    let body = &b[16..];
+    if body.len() % 12 != 0 {
+        return Err(format!(
+            "{}: cut inside a record at byte {}",
+            path.display(),
+            16 + body.len() / 12 * 12
+        ));
+    }
+    Ok(body
+        .chunks_exact(12)
+        .map(|r| Label {
+            packet: u32::from_le_bytes([r[0], r[1], r[2], r[3]]),
+            block: r[4],
+            channel: r[5],
+            object: u16::from_le_bytes([r[6], r[7]]),
+            purity: r[8],
+        })
+        .collect())
 }
 
 fn named(keys: [&str; 3], v: [f64; 3]) -> BTreeMap<String, f64> {
@@ -67,6 +133,7 @@ pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
 }
 
 fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, String> {
+    let scene = s.scene();
     let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
 
     // lidar.pcap
@@ -75,13 +142,35 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
     let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     let mut lidar = LidarSim::new(world, s.lidar_config());
+    let labels_path = dir.join("labels.bin");
+    let f = std::fs::File::create(&labels_path).map_err(|e| io(&labels_path, e))?;
+    let mut labels = BufWriter::with_capacity(1 << 20, f);
+    let mut head = [0u8; 16];
+    head[..8].copy_from_slice(LABELS_MAGIC);
+    head[8..12].copy_from_slice(&1u32.to_le_bytes());
+    head[12..].copy_from_slice(&12u32.to_le_bytes());
+    labels.write_all(&head).map_err(|e| io(&labels_path, e))?;
+    let mut packet_index = 0u32;
     let ep = UdpEndpoints::default();
     let mut payload = [0u8; 1206];
     let mut frame = Vec::with_capacity(1300);
     while let Some(pkt) = lidar.next_packet(&mut payload) {
         let time = match pkt {
             SimPacket::Data { dropped: true, .. } => continue,
-            SimPacket::Data { time, .. } | SimPacket::Position { time } => time,
+            SimPacket::Data { time, .. } => {
+                for h in &lidar.hits {
+                    let mut r = [0u8; 12];
+                    r[..4].copy_from_slice(&packet_index.to_le_bytes());
+                    r[4] = h.block;
+                    r[5] = h.channel;
+                    r[6..8].copy_from_slice(&h.object.to_le_bytes());
+                    r[8] = h.purity;
+                    labels.write_all(&r).map_err(|e| io(&labels_path, e))?;
+                }
+                packet_index += 1;
+                time
+            }
+            SimPacket::Position { time } => time,
         };
         let (port, len) = pkt.port_len();
         build_udp_frame(&mut frame, &ep, port, port, &payload[..len])
@@ -93,6 +182,7 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
             .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     }
     pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
+    labels.flush().map_err(|e| io(&labels_path, e))?;
 
     // ins.bin, and the same bytes as a serial log with the times a rig would have received
     // them (sample time + output latency + transmission at the baud rate), for replay.
@@ -168,6 +258,16 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
         position_packets: st.position_packets,
         ins_frames: ins.stats.frames,
         corrupted_bytes: ins.stats.corrupted_bytes,
+        mixed_points: st.mixed,
+        objects: scene
+            .names
+            .iter()
+            .zip(&scene.kinds)
+            .map(|(n, k)| TruthObject {
+                name: n.clone(),
+                kind: k.to_string(),
+            })
+            .collect(),
     };
     let truth_path = dir.join("truth.json");
     let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
