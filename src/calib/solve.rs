@@ -569,7 +569,10 @@ pub fn solve(
             pb.residuals(&b, |_, r| h.add(r.abs()));
             h.median()
         });
-        tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, st.tau0);
+        let widest = st
+            .tau0
+            .max(0.5 * targets.iter().map(|t| t.radius).fold(0.0, f64::max));
+        tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, widest);
         let mount = Mount::from_params(&b);
         let mut offsets = Histogram::new();
         for j in (0..n).filter(|&j| lens[j] > 0) {
@@ -629,6 +632,12 @@ pub fn solve(
             Some((j, &mut sol.passes)),
         );
         counts[j] = (sl, det);
+        // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
+        let kept = obs[j]
+            .iter()
+            .filter(|o| o.work.verdict == Verdict::Kept as u8)
+            .count() as u32;
+        extract::reject_attachments(obs[j], targets[j].radius, tau, &dirs, (kept / 33).max(8));
         used[j] = partition(obs[j]);
         if used[j] < s.min_points {
             extract::tag(obs[j], Verdict::NotFound);

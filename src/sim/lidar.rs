@@ -54,6 +54,15 @@ pub const MAX_OBJECTS: usize = 1024;
 pub const LABEL_WATER: u16 = 0xFFFE;
 /// Packets between two computations of the broad-phase windows.
 pub const CACHE_PACKETS: u64 = 8;
+/// Vessel parts (objects fixed to the body) with a table of the firings that can hit them;
+/// more are tested on every firing.
+pub const MAX_BODY_TABLES: usize = 32;
+/// Azimuth bins of those tables (0.25 deg).
+const BODY_BINS: usize = 1440;
+const BODY_WORDS: usize = BODY_BINS.div_ceil(64);
+
+/// Which (laser, azimuth bin) firings can hit one vessel part, as bits.
+type BodyTable = [[u64; BODY_WORDS]; LASERS];
 
 /// LiDAR settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -183,12 +192,14 @@ pub struct Hit {
     pub purity: u8,
 }
 
-/// A broad-phase window: object, azimuth centre and half-width [rad] in the LiDAR frame.
+/// A broad-phase window: object, azimuth centre and half-width [rad] in the LiDAR frame, and
+/// the widest a footprint gets at the object's far side [m].
 #[derive(Debug, Clone, Copy)]
 struct Window {
     obj: u16,
     center: f64,
     half: f64,
+    rho: f64,
 }
 
 /// What one sub-ray hit.
@@ -239,6 +250,12 @@ pub struct LidarSim<'w, 'a> {
     /// Windows of the current cache span, and the packet's own.
     windows: heapless::Vec<Window, MAX_OBJECTS>,
     live: heapless::Vec<Window, MAX_OBJECTS>,
+    /// The widest angle of a footprint sub-ray from the beam's centre [rad] (0: ideal beam).
+    spread: f64,
+    /// Cosine of the water's glint angle.
+    glint_cos: f64,
+    /// Vessel parts: object index and the firings that can hit it.
+    body: heapless::Vec<(u16, BodyTable), MAX_BODY_TABLES>,
     /// Counts so far.
     pub stats: LidarStats,
     /// The returns of the last data packet (for labels, tests and truth checks).
@@ -306,9 +323,60 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             omega: cfg.rpm / 60.0 * TAU,
             windows: heapless::Vec::new(),
             live: heapless::Vec::new(),
+            spread: STENCIL
+                .iter()
+                .map(|&(ka, kc, _)| {
+                    libm::hypot(ka * cfg.divergence[0] / 4.0, kc * cfg.divergence[1] / 4.0)
+                })
+                .fold(0.0, f64::max),
+            glint_cos: world.water.map_or(2.0, |w| libm::cos(w.specular)),
+            body: heapless::Vec::new(),
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
         }
+        .with_body_tables()
+    }
+
+    /// Tabulate, for each vessel part (fixed in the body frame, so fixed for the sensor), the
+    /// (laser, 0.25 deg azimuth bin) firings whose footprint can touch it: the bin's centre ray
+    /// against the part grown by half a bin at its far side plus the footprint's radius (any
+    /// ray of the bin that hits the part is that close to the centre ray).
+    fn with_body_tables(mut self) -> Self {
+        let mount = self.world.mount;
+        let bin = TAU / BODY_BINS as f64;
+        for (i, obj) in self.world.objects.iter().enumerate() {
+            if obj.frame != Frame::Body || self.body.is_full() {
+                continue;
+            }
+            let (c, r) = obj.bound();
+            let far = (mount.r_li.tr_mul(&(c - mount.lever))).norm() + r;
+            let grow = far * (bin * 0.75 + self.spread * 1.2) + 1e-3;
+            let Some(grown) = obj.shape.offset(grow) else {
+                continue;
+            };
+            let mut table = [[0u64; BODY_WORDS]; LASERS];
+            for (laser, row) in table.iter_mut().enumerate() {
+                let o = mount.lever + mount.r_li * beam_origin_l(laser);
+                for k in 0..BODY_BINS {
+                    let (sa, ca) = libm::sincos((k as f64 + 0.5) * bin);
+                    let d = mount.r_li * beam_unit(laser, sa, ca);
+                    if grown.intersect(&o, &d).is_some() {
+                        row[k / 64] |= 1 << (k % 64);
+                    }
+                }
+            }
+            let _ = self.body.push((i as u16, table));
+        }
+        self
+    }
+
+    /// A vessel part cannot be touched by this firing (by its table).
+    fn body_misses(&self, obj: u16, laser: usize, a: f64) -> bool {
+        let Some((_, table)) = self.body.iter().find(|(i, _)| *i == obj) else {
+            return false;
+        };
+        let k = ((a.rem_euclid(TAU) / TAU * BODY_BINS as f64) as usize).min(BODY_BINS - 1);
+        table[laser % LASERS][k / 64] & (1 << (k % 64)) == 0
     }
 
     /// Data packets the run will make.
@@ -429,6 +497,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 obj: i as u16,
                 center,
                 half,
+                rho: (dist + rr) * self.spread * 1.2,
             });
         }
     }
@@ -455,7 +524,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             return;
         }
 
-        // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm).
+        // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm), their
+        // centres made relative to the first block's azimuth (no wrapping per firing).
         let a0 = f64::from(az[0]).to_radians() / 100.0;
         let a1 = f64::from(az[field::BLOCKS - 1]).to_radians() / 100.0;
         let span_half = wrap_pi(a1 - a0).abs() / 2.0 + 0.01;
@@ -463,13 +533,24 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         self.live.clear();
         for w in &self.windows {
             if w.half >= PI || wrap_pi(w.center - mid).abs() <= w.half + span_half {
-                let _ = self.live.push(*w);
+                let _ = self.live.push(Window {
+                    center: wrap_pi(w.center - a0),
+                    ..*w
+                });
             }
         }
-        if self.live.is_empty() {
+        let glints = self
+            .world
+            .water
+            .is_some_and(|w| w.specular_prob > 0.0 && w.specular > 0.0);
+        if self.live.is_empty() && !glints {
             return;
         }
 
+        // Poses at the block boundaries, interpolated to each firing (within 110.6 us the
+        // attitude turns by at most a few 1e-4 rad: the linear blend errs by < 1e-8 rad).
+        let mut pose_a: Option<(GpsTime, PlatformPose, PlatformPose)> = None;
+        let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
         let mut b = 0;
         while b < field::BLOCKS {
             // The decoder's azimuth step for this block (PROTOCOLS.md): to the next block or
@@ -483,69 +564,140 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             } else {
                 gap(b - stride, b)
             };
+            let from0 = gap(0, b);
+            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, 0, 0)));
+            let (ta, pa, pe) = match pose_a {
+                Some((ta, pa, pe)) if ta == tb => (ta, pa, pe),
+                _ => {
+                    let pa = self.pose(tb);
+                    let pe = self.pose(GpsTime(tb.0 + i64::from(BLOCK_NS)));
+                    pose_a = Some((tb, pa, pe));
+                    (tb, pa, pe)
+                }
+            };
+            // Nadir in the LiDAR frame (for the water's glints).
+            let nadir_l = (pa.r_ig * self.world.mount.r_li).tr_mul(&Vector3::z());
             for ch in 0..field::CHANNELS {
                 let (seq, laser) = (ch / LASERS, ch % LASERS);
                 let n = (seq * 24 + laser) as f64;
                 let a = (f64::from(az[b]) + step * n / 48.0).to_radians() / 100.0;
-                if !self
-                    .live
-                    .iter()
-                    .any(|w| w.half >= PI || wrap_pi(a - w.center).abs() <= w.half)
-                {
+                let rel = (from0 + step * n / 48.0).to_radians() / 100.0;
+                // The objects whose windows hold this firing (vessel parts by their tables).
+                near.clear();
+                for (k, w) in self.live.iter().enumerate() {
+                    if w.half < PI && (rel - w.center).abs() > w.half {
+                        continue;
+                    }
+                    if self.world.objects[usize::from(w.obj)].frame == Frame::Body
+                        && self.body_misses(w.obj, laser, a)
+                    {
+                        continue;
+                    }
+                    let _ = near.push(k as u16);
+                }
+                let (sa, ca) = libm::sincos(a);
+                let u = beam_unit(laser, sa, ca);
+                let glint = glints && u.dot(&nadir_l) >= self.glint_cos;
+                if near.is_empty() && !glint {
                     continue;
                 }
                 self.stats.candidates += 1;
                 let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, seq, laser)));
+                let f = (tf.0 - ta.0) as f64 / f64::from(BLOCK_NS);
+                let pf = PlatformPose {
+                    position: pa.position + (pe.position - pa.position) * f,
+                    r_ig: pa.r_ig + (pe.r_ig - pa.r_ig) * f,
+                };
                 let mut echoes: heapless::Vec<Echo, 5> = heapless::Vec::new();
-                self.trace(tf, a, laser, &mut echoes);
+                self.trace(&pf, tf, (sa, ca), laser, &near, &mut echoes);
                 self.report(&mut p, b, ch, tf, a, mode, &echoes);
             }
             b += stride;
         }
     }
 
-    /// Trace one firing's footprint and form its echoes (nearest first).
-    fn trace(&mut self, tf: GpsTime, a: f64, laser: usize, echoes: &mut heapless::Vec<Echo, 5>) {
-        let pf = self.pose(tf);
+    /// Trace one firing's footprint (the platform at `pf`, azimuth (sin, cos), the live
+    /// windows `cand` that hold it) and form its echoes (nearest first). The five sub-rays are
+    /// traced only where the footprint straddles an edge: each candidate is first tested with
+    /// the centre ray against itself grown by the footprint's radius at its far side (a miss:
+    /// no sub-ray can hit it) and shrunk by it (a hit: every sub-ray hits it); if no object's
+    /// edge is in between, the centre ray stands for the whole footprint.
+    fn trace(
+        &mut self,
+        pf: &PlatformPose,
+        tf: GpsTime,
+        (s, c): (f64, f64),
+        laser: usize,
+        cand: &[u16],
+        echoes: &mut heapless::Vec<Echo, 5>,
+    ) {
         let mount = &self.world.mount;
-        let (s, c) = libm::sincos(a);
         let u = beam_unit(laser, s, c);
-        // Footprint axes in the LiDAR frame: along the scan (horizontal) and across it.
-        let along = Vector3::new(c, -s, 0.0);
-        let across = u.cross(&along);
         let sig = [self.cfg.divergence[0] / 4.0, self.cfg.divergence[1] / 4.0];
-        let thin = sig[0] <= 0.0 && sig[1] <= 0.0;
         let in_l = Beam {
             o: beam_origin_l(laser),
             d: u,
-            along: along * sig[0],
-            across: across * sig[1],
+            along: Vector3::zeros(),
+            across: Vector3::zeros(),
         };
-        let body = in_l.rotated(&mount.r_li, &mount.lever);
-        let site = body.rotated(&pf.r_ig, &pf.position);
+        let mut body = in_l.rotated(&mount.r_li, &mount.lever);
+        let mut site = body.rotated(&pf.r_ig, &pf.position);
         let t_rel = self.world.t_of(tf);
-        let stencil: &[(f64, f64, f64)] = if thin { &[(0.0, 0.0, 1.0)] } else { &STENCIL };
+        // The ray in an object's own frame.
+        let frame_ray =
+            |obj: &super::Object, site: &Beam, body: &Beam, ka: f64, kc: f64| match obj.frame {
+                Frame::Site if obj.moves() => (site.o - obj.velocity * t_rel, site.sub(ka, kc)),
+                Frame::Site => (site.o, site.sub(ka, kc)),
+                Frame::Body => (body.o, body.sub(ka, kc)),
+            };
+        // The objects the footprint can touch, and whether any edge is inside it.
+        let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
+        let mut edge = false;
+        for &k in cand {
+            let Window { obj: i, rho, .. } = self.live[usize::from(k)];
+            let obj = &self.world.objects[usize::from(i)];
+            let (o, d) = frame_ray(obj, &site, &body, 0.0, 0.0);
+            self.stats.tests += 1;
+            if self.spread > 0.0 {
+                let Some(grown) = obj.shape.offset(rho) else {
+                    continue;
+                };
+                if grown.intersect(&o, &d).is_none() {
+                    continue;
+                }
+                let deep = obj
+                    .shape
+                    .offset(-rho)
+                    .is_some_and(|sh| sh.intersect(&o, &d).is_some());
+                edge |= !deep;
+            }
+            let _ = near.push(i);
+        }
+        let stencil: &[(f64, f64, f64)] = if self.spread <= 0.0 || !edge {
+            &[(0.0, 0.0, 1.0)]
+        } else {
+            // The footprint's axes: along the scan (horizontal in the LiDAR frame), across it.
+            let along = Vector3::new(c, -s, 0.0);
+            let in_l = Beam {
+                along: along * sig[0],
+                across: u.cross(&along) * sig[1],
+                ..in_l
+            };
+            body = in_l.rotated(&mount.r_li, &mount.lever);
+            site = body.rotated(&pf.r_ig, &pf.position);
+            &STENCIL
+        };
         let mut subs: heapless::Vec<SubHit, 5> = heapless::Vec::new();
         for &(ka, kc, w) in stencil {
             let ds = site.sub(ka, kc);
-            let db = body.sub(ka, kc);
             let mut best: Option<(f64, u16)> = None;
-            for win in &self.live {
-                if win.half < PI && wrap_pi(a - win.center).abs() > win.half {
-                    continue;
-                }
-                let obj = &self.world.objects[usize::from(win.obj)];
+            for &i in &near {
+                let obj = &self.world.objects[usize::from(i)];
+                let (o, d) = frame_ray(obj, &site, &body, ka, kc);
                 self.stats.tests += 1;
-                let th = match obj.frame {
-                    Frame::Site if obj.moves() => {
-                        obj.shape.intersect(&(site.o - obj.velocity * t_rel), &ds)
-                    }
-                    Frame::Site => obj.shape.intersect(&site.o, &ds),
-                    Frame::Body => obj.shape.intersect(&body.o, &db),
-                };
-                if let Some(th) = th {
+                if let Some(th) = obj.shape.intersect(&o, &d) {
                     if th <= self.cfg.max_range && best.is_none_or(|(h, _)| th < h) {
-                        best = Some((th, win.obj));
+                        best = Some((th, i));
                     }
                 }
             }
@@ -557,8 +709,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let sub = match (best, water) {
                 (_, Some((tw, wt))) if best.is_none_or(|(h, _)| tw < h) => {
                     self.stats.water += u64::from(ka == 0.0 && kc == 0.0);
-                    let glint = libm::acos(ds.z.clamp(-1.0, 1.0)) <= wt.specular
-                        && self.rng.chance(wt.specular_prob);
+                    let glint = ds.z >= self.glint_cos && self.rng.chance(wt.specular_prob);
                     SubHit {
                         t: tw,
                         energy: if glint { w } else { 0.0 },
@@ -568,11 +719,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 }
                 (Some((th, i)), _) => {
                     let obj = &self.world.objects[usize::from(i)];
-                    let (x, d) = match obj.frame {
-                        Frame::Site => (site.o - obj.velocity * t_rel + ds * th, ds),
-                        Frame::Body => (body.o + db * th, db),
-                    };
-                    let cos = obj.shape.normal(&x).dot(&d).abs();
+                    let (o, d) = frame_ray(obj, &site, &body, ka, kc);
+                    let cos = obj.shape.normal(&(o + d * th)).dot(&d).abs();
                     SubHit {
                         t: th,
                         energy: w * obj.reflectivity * cos,

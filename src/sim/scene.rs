@@ -403,6 +403,42 @@ impl Shape {
         }
     }
 
+    /// The shape grown (`d > 0`) or shrunk (`d < 0`) by `d` on every side; `None` when shrinking
+    /// leaves nothing.
+    pub fn offset(&self, d: f64) -> Option<Self> {
+        match *self {
+            Shape::Sphere { c, r } => (r + d > 0.0).then_some(Shape::Sphere { c, r: r + d }),
+            Shape::Cylinder { a, b, r } => {
+                let len = (b - a).norm();
+                if r + d <= 0.0 || len + 2.0 * d <= 0.0 || len <= 0.0 {
+                    return None;
+                }
+                let w = (b - a) / len;
+                Some(Shape::Cylinder {
+                    a: a - w * d,
+                    b: b + w * d,
+                    r: r + d,
+                })
+            }
+            Shape::Box { c, half, rot } => {
+                let h = half.add_scalar(d);
+                (h.min() > 0.0).then_some(Shape::Box { c, half: h, rot })
+            }
+            Shape::Rect { p, u, v } => {
+                let (lu, lv) = (u.norm(), v.norm());
+                if lu + 2.0 * d <= 0.0 || lv + 2.0 * d <= 0.0 || lu <= 0.0 || lv <= 0.0 {
+                    return None;
+                }
+                let (uu, vv) = (u / lu, v / lv);
+                Some(Shape::Rect {
+                    p: p - (uu + vv) * d,
+                    u: u + uu * (2.0 * d),
+                    v: v + vv * (2.0 * d),
+                })
+            }
+        }
+    }
+
     /// The same shape moved by `dx`.
     pub fn translated(&self, dx: &Vector3<f64>) -> Self {
         match *self {

@@ -75,6 +75,35 @@ fn main() {
             (0..6).map(|i| got[i] - truth[i]).collect::<Vec<_>>(),
             sol.refusal
         );
+        if std::env::var("HEAD").is_ok() {
+            let m = spherecal::georef::Mount::from_params(&sol.b);
+            for (j, v) in o2.iter().enumerate() {
+                let t = &targets[j];
+                let mut rows = vec![];
+                for o in v.iter() {
+                    let l = lab
+                        .get(&(o.packet, o.block, o.channel))
+                        .copied()
+                        .unwrap_or((9999, 0));
+                    let nm = names.get(l.0 as usize).cloned().unwrap_or_default();
+                    let x = o.georef(&m) - t.center;
+                    let e = x.norm() - t.radius;
+                    if e.abs() > 0.12 || x.norm() > 0.5 {
+                        continue;
+                    }
+                    let ang = (x.z / x.norm()).acos().to_degrees(); // 0 = straight down (NED z down)
+                    rows.push((nm, e, ang, o.work.verdict));
+                }
+                for (nm, e, ang, v) in &rows {
+                    if nm.contains("head")
+                        || nm.contains("spigot")
+                        || (nm.starts_with('S') && nm.len() == 2 && *ang < 45.0)
+                    {
+                        println!("{nm:>18} e={:+.3} nadir_angle={:5.1} verdict={v}", e, ang);
+                    }
+                }
+            }
+        }
         for (j, v) in o2.iter().enumerate() {
             let (mut tp, mut fp, mut pos) = (0, 0, 0);
             let mut fpby: HashMap<String, usize> = HashMap::new();

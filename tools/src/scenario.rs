@@ -17,6 +17,7 @@ use spherecal::vlp16::ReturnMode;
 pub const BUILTIN: &[(&str, &str)] = &[
     ("table1", include_str!("../scenarios/table1.toml")),
     ("table1-bare", include_str!("../scenarios/table1-bare.toml")),
+    ("pontoon", include_str!("../scenarios/pontoon.toml")),
     (
         "table1-noisy",
         include_str!("../scenarios/table1-noisy.toml"),

@@ -77,8 +77,11 @@ pub struct ScatterSpec {
     pub kind: String,
     /// Centre of the region on its floor [m, site NED].
     pub center_m: [f64; 3],
-    /// Extent north, east [m].
+    /// Extent along and across `heading_deg` [m].
     pub size_m: [f64; 2],
+    /// Heading of the region's length [deg from north] (default 0: north, east).
+    #[serde(default)]
+    pub heading_deg: f64,
     /// How many.
     pub count: usize,
     /// Nothing within this horizontal distance of a sphere centre [m] (default 0.8: a surveyor
@@ -319,8 +322,13 @@ impl Scene {
         let mut tries = 0;
         while placed < s.count && tries < 100 * s.count.max(1) {
             tries += 1;
-            let n = s.center_m[0] + rng.range(-0.5, 0.5) * s.size_m[0];
-            let e = s.center_m[1] + rng.range(-0.5, 0.5) * s.size_m[1];
+            let (along, across) = (
+                rng.range(-0.5, 0.5) * s.size_m[0],
+                rng.range(-0.5, 0.5) * s.size_m[1],
+            );
+            let (sh, ch) = s.heading_deg.to_radians().sin_cos();
+            let n = s.center_m[0] + along * ch - across * sh;
+            let e = s.center_m[1] + along * sh + across * ch;
             // Its footprint radius, to keep the sphere clear.
             let (foot, shapes) = scatter_shapes(kind, n, e, floor, rng);
             if centres
@@ -518,7 +526,11 @@ impl SceneSpec {
                 format!("{key}.kind"),
                 "expected crate, post, person or bush",
             )?;
-            check(finite(&s.center_m), format!("{key}.center_m"), "not finite")?;
+            check(
+                finite(&s.center_m) && s.heading_deg.is_finite(),
+                format!("{key}.center_m"),
+                "not finite",
+            )?;
             check(
                 s.size_m
                     .iter()
