@@ -539,15 +539,9 @@ fn recorded_trajectory_from_csv_and_sbet() {
             );
         }
         let (text, ok) = spherecal_tools::run_calibrate(
-            out.join("lidar.pcap"),
-            Some(out.join("ins.bin")),
+            spherecal_tools::Survey::synth_dir(&out),
             None,
-            None,
-            out.join("site.toml"),
-            None,
-            None,
-            None,
-            None,
+            &Default::default(),
             None,
         )
         .unwrap();

@@ -174,6 +174,10 @@ pub struct Report {
     pub shell_m: f64,
     /// Windowed returns rejected as clutter, all spheres.
     pub clutter_rejected: u64,
+    /// Windowed returns lost because a fixed-capacity batch was full (never expected; counted
+    /// so that a truncated window cannot pass unnoticed).
+    #[serde(default)]
+    pub batch_overflow: u64,
     /// Time of the solve [ms].
     pub solve_ms: f64,
     /// Starting values.
@@ -319,6 +323,7 @@ pub fn solve_report(
             })
             .collect(),
         shell_m: sol.shell,
+        batch_overflow: 0,
         clutter_rejected: sol
             .spheres
             .iter()
@@ -437,6 +442,13 @@ pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
         r.clutter_rejected,
         r.shell_m * 1e3
     );
+    if r.batch_overflow > 0 {
+        let _ = writeln!(
+            o,
+            "WARNING: {} windowed returns lost to full batches",
+            r.batch_overflow
+        );
+    }
     let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
     match &r.reason {
         None => {
@@ -447,6 +459,49 @@ pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
         }
     }
     o
+}
+
+/// Write every windowed return with its verdict (`--returns`): sphere id, where it is in the
+/// capture, its time, laser and range, its place with the solution `b` (site NED), its signed
+/// distance from the sphere's surface, and the extraction's verdict.
+pub fn write_returns(
+    path: &std::path::Path,
+    targets: &[Target],
+    ids: &[String],
+    obs: &[Vec<Observation>],
+    b: &[f64; P],
+) -> Result<(), String> {
+    use std::io::Write as _;
+    let err = |e: std::io::Error| format!("{}: {e}", path.display());
+    let f = std::fs::File::create(path).map_err(err)?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+    writeln!(w, "{}", crate::RETURNS_HEADER).map_err(err)?;
+    let mount = spherecal::georef::Mount::from_params(b);
+    let mut line = String::new();
+    for ((t, id), v) in targets.iter().zip(ids).zip(obs) {
+        for o in v {
+            let x = o.georef(&mount);
+            let e = (x - t.center).norm() - t.radius;
+            line.clear();
+            let _ = writeln!(
+                line,
+                "{id},{},{},{},{:.9},{},{:.3},{:.5},{:.5},{:.5},{:.5},{}",
+                o.packet,
+                o.block,
+                o.channel,
+                o.time.as_secs_f64(),
+                o.laser,
+                o.range,
+                x.x,
+                x.y,
+                x.z,
+                e,
+                spherecal::calib::extract::Verdict::from_u8(o.work.verdict).name()
+            );
+            w.write_all(line.as_bytes()).map_err(err)?;
+        }
+    }
+    w.flush().map_err(err)
 }
 
 /// Site targets and ids.

@@ -21,41 +21,81 @@ pub mod synth;
 
 use std::path::PathBuf;
 
+/// What `spherecal calibrate` reads.
+#[derive(Debug, Clone)]
+pub struct Survey {
+    /// The VLP-16 capture.
+    pub pcap: PathBuf,
+    /// VN-200 serial bytes (raw or a serial log) ...
+    pub ins: Option<PathBuf>,
+    /// ... or an Applanix SBET and its GPS week (None: from the capture's RMC date).
+    pub sbet: Option<PathBuf>,
+    /// The SBET's GPS week.
+    pub gps_week: Option<u16>,
+    /// site.toml.
+    pub site: PathBuf,
+}
+
+impl Survey {
+    /// A `synth` folder: `lidar.pcap`, `ins.bin`, `site.toml`.
+    pub fn synth_dir(dir: &std::path::Path) -> Self {
+        Self {
+            pcap: dir.join("lidar.pcap"),
+            ins: Some(dir.join("ins.bin")),
+            sbet: None,
+            gps_week: None,
+            site: dir.join("site.toml"),
+        }
+    }
+}
+
+/// What `spherecal calibrate` writes besides its summary.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs {
+    /// The JSON report.
+    pub report: Option<PathBuf>,
+    /// The cloud georeferenced with the result, as LAS.
+    pub las: Option<PathBuf>,
+    /// Residual plots (SVG).
+    pub plot: Option<PathBuf>,
+    /// Every windowed return with its verdict (CSV).
+    pub returns: Option<PathBuf>,
+}
+
+/// The `--returns` CSV header.
+pub const RETURNS_HEADER: &str =
+    "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
+
 /// `spherecal calibrate` as a function: returns the summary and whether a solution is claimed.
-/// `truth` (for the demo) is printed beside the result.
-#[allow(clippy::too_many_arguments)]
+/// `init` overrides the site's a-priori start [deg, m]; `truth` (for the demo) is printed beside
+/// the result.
 pub fn run_calibrate(
-    pcap: PathBuf,
-    ins: Option<PathBuf>,
-    sbet: Option<PathBuf>,
-    gps_week: Option<u16>,
-    site: PathBuf,
+    survey: Survey,
     init: Option<[f64; 6]>,
-    report: Option<PathBuf>,
-    las: Option<PathBuf>,
-    plot: Option<PathBuf>,
+    out: &Outputs,
     truth: Option<[f64; 6]>,
 ) -> Result<(String, bool), String> {
     use pipeline::{Inputs, InsInput};
-    let site = site::Site::load(&site)?;
+    let site = site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = spherecal::calib::from_deg_m(&start);
-    let ins = match (ins, sbet) {
+    let ins = match (survey.ins, survey.sbet) {
         (Some(i), _) => InsInput::Vn200(i),
-        (None, Some(s)) => InsInput::Sbet(s, gps_week),
+        (None, Some(s)) => InsInput::Sbet(s, survey.gps_week),
         (None, None) => return Err("give --ins or --sbet".into()),
     };
-    let mut inp = Inputs::apriori(pcap, ins, site);
+    let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.mount = spherecal::georef::Mount::from_params(&b0);
     let (stats, mut obs) = calibrate::collect(&inp)?;
     let (targets, ids) = calibrate::site_targets(&inp);
-    let (sol, rep) = calibrate::solve_report(
+    let (sol, mut rep) = calibrate::solve_report(
         &targets,
         &ids,
         &mut obs,
         &b0,
         &spherecal::calib::Settings::default(),
     );
+    rep.batch_overflow = stats.batch_overflow;
     let mut text = format!(
         "{} data packets, {} poses, {} returns, windows {:?}\n",
         stats.data_packets,
@@ -64,11 +104,15 @@ pub fn run_calibrate(
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     );
     text.push_str(&calibrate::render(&rep, truth.as_ref()));
-    if let Some(p) = &report {
+    if let Some(p) = &out.report {
         let json = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
         std::fs::write(p, json + "\n").map_err(|e| format!("{}: {e}", p.display()))?;
     }
-    if let Some(p) = &las {
+    if let Some(p) = &out.returns {
+        calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)?;
+        text.push_str(&format!("returns: {}\n", p.display()));
+    }
+    if let Some(p) = &out.las {
         let inp2 = pipeline::Inputs {
             mount: spherecal::georef::Mount::from_params(&sol.b),
             ..inp.clone()
@@ -76,7 +120,7 @@ pub fn run_calibrate(
         let (_, _, t) = georef::georef(&inp2, Some(p), None)?;
         text.push_str(&t);
     }
-    if let Some(p) = &plot {
+    if let Some(p) = &out.plot {
         plot::plot(p, &targets, &ids, &obs, &sol, &b0)?;
         text.push_str(&format!("plot: {}\n", p.display()));
     }

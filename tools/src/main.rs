@@ -95,6 +95,9 @@ enum Cmd {
         /// Write residual plots (SVG).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Write every windowed return with its verdict (kept, or why not) as CSV.
+        #[arg(long)]
+        returns: Option<PathBuf>,
     },
     /// Calibrate one synthetic survey from many perturbed starts, on all cores.
     Montecarlo {
@@ -284,19 +287,22 @@ fn main() -> ExitCode {
             report,
             las,
             plot,
+            returns,
         } => {
-            match spherecal_tools::run_calibrate(
-                survey.pcap,
-                survey.ins,
-                survey.sbet,
-                survey.gps_week,
-                survey.site,
-                init,
+            let survey = spherecal_tools::Survey {
+                pcap: survey.pcap,
+                ins: survey.ins,
+                sbet: survey.sbet,
+                gps_week: survey.gps_week,
+                site: survey.site,
+            };
+            let out = spherecal_tools::Outputs {
                 report,
                 las,
                 plot,
-                None,
-            ) {
+                returns,
+            };
+            match spherecal_tools::run_calibrate(survey, init, &out, None) {
                 Ok((text, ok)) => {
                     say!("{text}");
                     if ok {
@@ -421,16 +427,14 @@ fn demo() -> ExitCode {
     sayln!("calibrating from the paper's erroneous a-priori values ...");
     let truth6 =
         spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m);
+    let out = spherecal_tools::Outputs {
+        report: Some(dir.join("report.json")),
+        ..Default::default()
+    };
     let res = spherecal_tools::run_calibrate(
-        dir.join("lidar.pcap"),
-        Some(dir.join("ins.bin")),
+        spherecal_tools::Survey::synth_dir(&dir),
         None,
-        None,
-        dir.join("site.toml"),
-        None,
-        Some(dir.join("report.json")),
-        None,
-        None,
+        &out,
         Some(truth6),
     );
     let code = match res {

@@ -19,6 +19,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("table1-bare", include_str!("../scenarios/table1-bare.toml")),
     ("pontoon", include_str!("../scenarios/pontoon.toml")),
     (
+        "pontoon-noisy",
+        include_str!("../scenarios/pontoon-noisy.toml"),
+    ),
+    (
         "table1-noisy",
         include_str!("../scenarios/table1-noisy.toml"),
     ),
