@@ -1,5 +1,7 @@
-//! Alignment, georeferencing and windows end to end on the synthetic table1 survey, with the
-//! VN-200 stream and with an SBET trajectory; INS gaps; the LAS output read by another reader.
+//! Alignment, georeferencing and windows end to end on the synthetic table1 survey in the
+//! paper's idealised world (`table1-bare`: the spheres on thin poles and nothing else, so that
+//! the windows at the truth hold exactly the sphere returns), with the VN-200 stream and with an
+//! SBET trajectory; INS gaps; the LAS output read by another reader.
 
 mod common;
 
@@ -17,7 +19,7 @@ fn table1() -> &'static (PathBuf, Vec<u64>) {
     static DIR: OnceLock<(PathBuf, Vec<u64>)> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = std::env::temp_dir().join(format!("spherecal-georef-{}", std::process::id()));
-        let s = Scenario::load("table1").unwrap();
+        let s = Scenario::load("table1-bare").unwrap();
         let truth = spherecal_tools::synth::synth(&s, &dir).unwrap();
         (dir, truth.points_per_sphere)
     })
@@ -127,7 +129,7 @@ fn apriori_windows_still_catch_every_sphere_return() {
 fn sbet_trajectory_gives_the_same_windows() {
     let (dir, truth) = table1();
     // Write an SBET of the same truth: 200 Hz, wander angle 0.3 rad, from the scenario.
-    let s = Scenario::load("table1").unwrap();
+    let s = Scenario::load("table1-bare").unwrap();
     let (passes, objects) = (s.passes(), s.objects());
     let w = s.world(&[], &passes, &objects);
     let mut bytes = Vec::new();

@@ -182,9 +182,10 @@ fn norm(a: V3) -> f32 {
 /// surveyed centre and the beam's direction, into `work`.
 pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount) {
     for o in obs.iter_mut() {
-        let y = mount.r_li * o.q_l;
-        let x = o.position + o.r_ig * (mount.lever + y) - t.center;
-        let u = o.r_ig * y;
+        let rot = o.rot();
+        let y = mount.r_li * o.q();
+        let x = o.position + rot * (mount.lever + y) - t.center;
+        let u = rot * y;
         let n = u.norm().max(1e-9);
         o.work.x = [x.x as f32, x.y as f32, x.z as f32];
         o.work.u = [(u.x / n) as f32, (u.y / n) as f32, (u.z / n) as f32];
@@ -238,19 +239,22 @@ pub fn runs(obs: &mut [Observation], firing_ns: i64, jump: f64) {
 }
 
 /// Number the slices of time of observations sorted by time (into `work.slice`): runs no
-/// longer than `slice_ns`; a gap longer than `slice_ns / 2` also ends one. Returns how many.
-pub fn assign_slices(obs: &mut [Observation], slice_ns: i64) -> u32 {
+/// longer than `slice_ns` and no more than `max_len` returns; a gap longer than
+/// `slice_ns / 2` also ends one. Returns how many.
+pub fn assign_slices(obs: &mut [Observation], slice_ns: i64, max_len: usize) -> u32 {
     let mut id = 0u32;
-    let mut t0 = i64::MIN;
+    let (mut t0, mut len) = (i64::MIN, 0usize);
     for i in 0..obs.len() {
         let t = obs[i].time.0;
         let gap = i > 0 && !(0..=slice_ns / 2).contains(&(t - obs[i - 1].time.0));
-        if i == 0 || gap || t - t0 > slice_ns {
+        if i == 0 || gap || t - t0 > slice_ns || len >= max_len.max(1) {
             if i > 0 {
                 id += 1;
             }
             t0 = t;
+            len = 0;
         }
+        len += 1;
         obs[i].work.slice = id;
     }
     if obs.is_empty() {
@@ -290,21 +294,49 @@ pub struct Support {
     pub collar: u32,
 }
 
-/// The returns of an x-sorted slice whose x lies within `reach` of `cx`.
-fn near(obs: &[Observation], cx: f32, reach: f32) -> &[Observation] {
-    let a = obs.partition_point(|o| o.work.x[0] < cx - reach);
-    let b = obs.partition_point(|o| o.work.x[0] <= cx + reach);
-    &obs[a..b.max(a)]
+/// A slice of observations with its index sorted by x (`keys`: x and the observation's
+/// index): the returns near a point are a contiguous run of the index.
+#[derive(Debug, Clone, Copy)]
+pub struct Sorted<'a> {
+    /// The observations (any order).
+    pub obs: &'a [Observation],
+    /// (x, index), by x.
+    pub keys: &'a [(f32, u32)],
+}
+
+impl<'a> Sorted<'a> {
+    /// Index `obs` by x into `keys` (at least as long as `obs`; the rest is left alone).
+    pub fn new(obs: &'a [Observation], keys: &'a mut [(f32, u32)]) -> Self {
+        let n = obs.len().min(keys.len());
+        for (i, (k, o)) in keys.iter_mut().zip(obs).enumerate() {
+            *k = (o.work.x[0], i as u32);
+        }
+        keys[..n].sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        Self {
+            obs: &obs[..n],
+            keys: &keys[..n],
+        }
+    }
+
+    /// The returns whose x lies within `reach` of `cx`.
+    pub fn near(&self, cx: f32, reach: f32) -> impl Iterator<Item = &'a Observation> + Clone {
+        let a = self.keys.partition_point(|k| k.0 < cx - reach);
+        let b = self.keys.partition_point(|k| k.0 <= cx + reach);
+        let obs = self.obs;
+        self.keys[a..b.max(a)]
+            .iter()
+            .map(move |k| &obs[k.1 as usize])
+    }
 }
 
 /// What a candidate centre `c` (relative) of radius `r` with band `tau` explains among the
 /// returns near it (of an x-sorted slice): inliers, returns inside the solid sphere, returns in
 /// the collar just outside it.
-pub fn support(obs: &[Observation], c: V3, r: f32, tau: f32) -> Support {
+pub fn support(obs: &Sorted<'_>, c: V3, r: f32, tau: f32) -> Support {
     let mut s = Support::default();
     let collar = r + tau + (2.0 * tau).max(0.05);
     let inner = r - tau.max(0.02);
-    for o in near(obs, c[0], collar) {
+    for o in obs.near(c[0], collar) {
         let d = sub(o.work.x, c);
         let e2 = dot(d, d);
         if e2 > collar * collar {
@@ -351,13 +383,13 @@ pub fn seen_through(obs: &[Observation], c: V3, r: f32, tau: f32) -> u32 {
 
 /// Fit a sphere centre of radius `r` (fixed) to the visible-side returns within `band` of the
 /// surface around `c` (Gauss-Newton, a few steps).
-pub fn refine(obs: &[Observation], mut c: V3, r: f32, band: f32) -> V3 {
+pub fn refine(obs: &Sorted<'_>, mut c: V3, r: f32, band: f32) -> V3 {
     for _ in 0..4 {
         let mut jtj = Matrix3::<f32>::zeros();
         let mut jtr = Vector3::<f32>::zeros();
         let mut n = 0;
         let reach = r + band;
-        for o in near(obs, c[0], reach) {
+        for o in obs.near(c[0], reach) {
             let d = sub(o.work.x, c);
             let e2 = dot(d, d);
             if e2 > reach * reach {
@@ -391,7 +423,7 @@ pub fn refine(obs: &[Observation], mut c: V3, r: f32, band: f32) -> V3 {
 
 /// RMS distances of the inliers of `c` from the sphere and from their best plane: a cap of a
 /// sphere is fitted better by the sphere; a plane patch (deck, wall) equally well by a plane.
-pub fn plane_vs_sphere(obs: &[Observation], c: V3, r: f32, tau: f32) -> (f32, f32) {
+pub fn plane_vs_sphere(obs: &Sorted<'_>, c: V3, r: f32, tau: f32) -> (f32, f32) {
     let (mut n, mut m, mut e2) = (0f32, [0f32; 3], 0f32);
     let inlier = |o: &Observation| {
         let d = sub(o.work.x, c);
@@ -399,8 +431,8 @@ pub fn plane_vs_sphere(obs: &[Observation], c: V3, r: f32, tau: f32) -> (f32, f3
         let e = dist - r;
         (e.abs() < tau && dot(d, o.work.u) <= 0.25 * dist).then_some(e)
     };
-    let obs = near(obs, c[0], r + tau);
-    for o in obs {
+    let obs = obs.near(c[0], r + tau);
+    for o in obs.clone() {
         if let Some(e) = inlier(o) {
             n += 1.0;
             e2 += e * e;
@@ -493,12 +525,13 @@ impl Grid {
     #[inline]
     fn index(&self, c: V3) -> Option<u32> {
         let mut k = 0u32;
-        for a in 0..3 {
-            let f = (c[a] - self.lo[a]) / self.h;
-            if !(f >= 0.0) || f >= self.dims[a] as f32 {
+        for ((&ca, &lo), &dim) in c.iter().zip(&self.lo).zip(&self.dims) {
+            let f = (ca - lo) / self.h;
+            // NaN fails both tests.
+            if f.is_nan() || f < 0.0 || f >= dim as f32 {
                 return None;
             }
-            k = k * self.dims[a] + f as u32;
+            k = k * dim + f as u32;
         }
         Some(k)
     }
@@ -515,10 +548,12 @@ impl Grid {
 /// Detect the sphere of radius `r` in one slice (observations georeferenced by
 /// [`georeference`]). `prior`: the centre must lie within this distance of the surveyed one
 /// (`None`: anywhere, with the shape test). `grid` is scratch for the votes (all zero on entry
-/// and on return; 64^3 cells are plenty). The slice is left sorted by x (the caller restores
-/// time order when it needs it).
+/// and on return; 64^3 cells are plenty); `keys` is scratch for the slice's index by x (at
+/// least as long as the slice; a longer slice is searched in its first `keys.len()` returns).
+#[allow(clippy::too_many_arguments)]
 pub fn detect(
-    obs: &mut [Observation],
+    obs: &[Observation],
+    keys: &mut [(f32, u32)],
     r: f64,
     tau: f64,
     prior: Option<f64>,
@@ -575,13 +610,14 @@ pub fn detect(
         dims[a] = (((hi[a] - lo[a]) / h) as u32 + 1).min(nmax);
     }
     let g = Grid { lo, h, dims };
-    // Sorted by x, the returns near a candidate are a contiguous run.
-    obs.sort_unstable_by(|a, b| a.work.x[0].total_cmp(&b.work.x[0]));
-    let obs = &*obs;
+    // Indexed by x, the returns near a candidate are a contiguous run of the index.
+    let sorted = Sorted::new(obs, keys);
+    let obs = sorted.obs;
     let mut peaks = Peaks::<K>::new(dims);
     let mut min = 0u16;
-    // Vote, find the peaks, then take the votes back (the grid is left all zero).
-    for pass in 0..3 {
+    // Vote; then, per vote, read the cell (its first reader sees its full count: the peaks)
+    // and take the vote back (the grid is left all zero).
+    for pass in 0..2 {
         for o in obs.iter().filter(|o| voter(o)) {
             let (x, u) = (o.work.x, o.work.u);
             for d in &dirs.0 {
@@ -591,10 +627,11 @@ pub fn detect(
                 let c = [x[0] + r * d[0], x[1] + r * d[1], x[2] + r * d[2]];
                 let Some(k) = g.index(c) else { continue };
                 let cell = &mut grid[k as usize];
-                match pass {
-                    0 => *cell = cell.wrapping_add(1),
-                    1 => peaks.offer(k, *cell, &mut min),
-                    _ => *cell = cell.wrapping_sub(1),
+                if pass == 0 {
+                    *cell = cell.wrapping_add(1);
+                } else {
+                    peaks.offer(k, *cell, &mut min);
+                    *cell = cell.wrapping_sub(1);
                 }
             }
         }
@@ -614,14 +651,14 @@ pub fn detect(
             .map(|&i| (g.center(peaks.at[i]), (1.5 * h).max(2.0 * tau))),
     );
     for (c0, band) in cands {
-        let c1 = refine(obs, c0, r, band);
-        let c = refine(obs, c1, r, tau.max(0.01));
+        let c1 = refine(&sorted, c0, r, band);
+        let c = refine(&sorted, c1, r, tau.max(0.01));
         if let Some(p) = prior {
             if norm(c) > p {
                 continue;
             }
         }
-        let s = support(obs, c, r, tau);
+        let s = support(&sorted, c, r, tau);
         let score = s.weight
             - st.violation_weight * s.violations as f32
             - st.collar_weight * s.collar as f32;
@@ -635,7 +672,7 @@ pub fn detect(
         if prior.is_none() {
             // Without a prior the cap must be curved like the sphere: a plane must fit it
             // clearly worse.
-            let (sph, pl) = plane_vs_sphere(obs, c, r, tau);
+            let (sph, pl) = plane_vs_sphere(&sorted, c, r, tau);
             if pl < 1.5 * sph || pl < 0.004 {
                 continue;
             }
@@ -821,7 +858,7 @@ mod tests {
         let d = x - sensor;
         let u = d / d.norm();
         Observation {
-            q_l: d,
+            q_l: d.cast(),
             position: sensor,
             r_ig: Matrix3::identity(),
             time: GpsTime(0),
@@ -891,9 +928,11 @@ mod tests {
             let _ = obs.push(at(p, sensor));
         }
         let mut grid = [0u16; 32 * 32 * 32];
+        let mut keys = [(0f32, 0u32); 8192];
         let dirs = Directions::default();
         let st = ExtractSettings::default();
-        let det = detect(&mut obs, r, 0.01, None, &mut grid, &dirs, &st).expect("a detection");
+        let det =
+            detect(&obs, &mut keys, r, 0.01, None, &mut grid, &dirs, &st).expect("a detection");
         let got = Vector3::new(
             f64::from(det.center[0]),
             f64::from(det.center[1]),
@@ -914,7 +953,7 @@ mod tests {
         );
         assert!(kept - true_kept <= 10, "{} clutter kept", kept - true_kept);
         // With a prior that excludes it, nothing is found there.
-        let far = detect(&mut obs, r, 0.01, Some(0.3), &mut grid, &dirs, &st);
+        let far = detect(&obs, &mut keys, r, 0.01, Some(0.3), &mut grid, &dirs, &st);
         assert!(far.is_none_or(|d| norm(d.center) <= 0.3), "{far:?}");
     }
 
@@ -938,8 +977,10 @@ mod tests {
             let _ = obs.push(at(p, sensor));
         }
         let mut grid = [0u16; 32 * 32 * 32];
+        let mut keys = [(0f32, 0u32); 8192];
         let det = detect(
-            &mut obs,
+            &obs,
+            &mut keys,
             0.19,
             0.01,
             None,
@@ -958,7 +999,7 @@ mod tests {
             o.time = GpsTime(t * 1_000_000);
             let _ = obs.push(o);
         }
-        assert_eq!(assign_slices(&mut obs, 400_000_000), 3);
+        assert_eq!(assign_slices(&mut obs, 400_000_000, 100), 3);
         let mut it = slices(&obs);
         assert_eq!(it.next(), Some(0..3));
         assert_eq!(it.next(), Some(3..5));

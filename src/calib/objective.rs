@@ -62,7 +62,7 @@ impl Problem<'_> {
         for s in self.spheres {
             let (c, r) = (s.target.center, s.target.radius);
             for o in s.obs.iter().step_by(self.stride.max(1)) {
-                let d = (o.position - c) + o.r_ig * (a + r_li * o.q_l);
+                let d = (o.position - c) + o.rot() * (a + r_li * o.q());
                 sum += (d.norm() - r).abs();
             }
         }
@@ -75,7 +75,7 @@ impl Problem<'_> {
         let a = Vector3::new(b[3], b[4], b[5]);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                let d = (o.position - s.target.center) + o.r_ig * (a + r_li * o.q_l);
+                let d = (o.position - s.target.center) + o.rot() * (a + r_li * o.q());
                 f(j, d.norm() - s.target.radius);
             }
         }
@@ -98,17 +98,18 @@ impl Problem<'_> {
         let a = Vector3::new(b[3], b[4], b[5]);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                let y = r_li * o.q_l;
-                let dx = (o.position - s.target.center) + o.r_ig * (a + y);
+                let (q, rot) = (o.q(), o.rot());
+                let y = r_li * q;
+                let dx = (o.position - s.target.center) + rot * (a + y);
                 let norm = dx.norm();
                 if norm == 0.0 {
                     continue;
                 }
-                let g = o.r_ig.transpose() * (dx / norm);
+                let g = rot.transpose() * (dx / norm);
                 let row = [
-                    g.dot(&(d[0] * o.q_l)),
-                    g.dot(&(d[1] * o.q_l)),
-                    g.dot(&(d[2] * o.q_l)),
+                    g.dot(&(d[0] * q)),
+                    g.dot(&(d[1] * q)),
+                    g.dot(&(d[2] * q)),
                     g.x,
                     g.y,
                     g.z,
@@ -132,9 +133,9 @@ mod tests {
         (0..n)
             .map(|_| Observation {
                 q_l: Vector3::new(
-                    rng.range(-20.0, 20.0),
-                    rng.range(-20.0, 20.0),
-                    rng.range(-3.0, 3.0),
+                    rng.range(-20.0, 20.0) as f32,
+                    rng.range(-20.0, 20.0) as f32,
+                    rng.range(-3.0, 3.0) as f32,
                 ),
                 position: Vector3::new(
                     rng.range(-30.0, 30.0),
@@ -145,7 +146,8 @@ mod tests {
                     rng.range(-0.1, 0.1),
                     rng.range(-0.1, 0.1),
                     rng.range(-3.0, 3.0),
-                ),
+                )
+                .cast(),
                 time: GpsTime(0),
                 range: 10.0,
                 packet: 0,

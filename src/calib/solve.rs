@@ -305,6 +305,9 @@ pub struct Workspace<'a> {
     /// Room for the kept returns of a round (all spheres); a round that keeps more solves on an
     /// evenly spread subset (the last solve always uses every kept return).
     pub kept: &'a mut [Observation],
+    /// A slice's index by x; its length caps a slice's returns (32,768 is ample: 0.4 s of a
+    /// window rarely holds 10,000).
+    pub keys: &'a mut [(f32, u32)],
 }
 
 /// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
@@ -330,8 +333,8 @@ fn apparent_offsets(v: &[Observation], r: f64, h: &mut Histogram) {
 
 /// Detect the sphere in every slice of one sphere's observations (grouped by slice, in time
 /// order of slices) and tag them; `surveyed`: keep around the surveyed centre (the last
-/// round) rather than the detection. Returns (kept, slices, detected); with `passes`, also the
-/// report of each pass over sphere `j`.
+/// round) rather than the detection. Returns (kept, slices, detected); with `passes` (this
+/// sphere's), also counts each pass's slices and detections.
 #[allow(clippy::too_many_arguments)]
 fn extract_sphere(
     v: &mut [Observation],
@@ -340,14 +343,13 @@ fn extract_sphere(
     prior: Option<f64>,
     surveyed: bool,
     grid: &mut [u16],
+    keys: &mut [(f32, u32)],
     dirs: &Directions,
     st: &ExtractSettings,
-    mut passes: Option<(usize, &mut heapless::Vec<PassReport, MAX_PASSES>)>,
+    mut passes: Option<&mut [PassReport]>,
 ) -> (usize, u32, u32) {
     let (mut kept, mut slices, mut detected) = (0, 0, 0);
     let mut start = 0;
-    let mut cur: Option<PassReport> = None;
-    let mut inliers = 0u64;
     while start < v.len() {
         let Some(sl) = extract::slices(&v[start..]).next() else {
             break;
@@ -355,12 +357,12 @@ fn extract_sphere(
         let sl = start + sl.start..start + sl.end;
         start = sl.end;
         slices += 1;
-        let (mut t0, mut t1) = (GpsTime(i64::MAX), GpsTime(i64::MIN));
-        for o in &v[sl.clone()] {
-            t0 = t0.min(o.time);
-            t1 = t1.max(o.time);
-        }
-        let det = extract::detect(&mut v[sl.clone()], t.radius, tau, prior, grid, dirs, st);
+        let t0 = v[sl.clone()]
+            .iter()
+            .map(|o| o.time)
+            .min()
+            .unwrap_or(GpsTime(0));
+        let det = extract::detect(&v[sl.clone()], keys, t.radius, tau, prior, grid, dirs, st);
         match det {
             Some(d) => {
                 detected += 1;
@@ -369,42 +371,75 @@ fn extract_sphere(
             }
             None => extract::tag(&mut v[sl.clone()], Verdict::Undetected),
         }
-        let Some((j, out)) = passes.as_mut() else {
-            continue;
-        };
-        if cur.is_some_and(|p| t0.0 - p.end.0 > st.pass_gap_ns) {
-            push_pass(out, cur.take(), inliers);
-            inliers = 0;
+        if let Some(p) = passes.as_deref_mut().and_then(|ps| pass_of(ps, t0)) {
+            p.slices += 1;
+            if let Some(d) = det {
+                p.detected += 1;
+                p.mean_inliers += d.inliers as f32;
+            }
         }
-        let p = cur.get_or_insert(PassReport {
-            sphere: *j as u8,
-            start: t0,
-            end: t1,
-            slices: 0,
-            detected: 0,
-            mean_inliers: 0.0,
-            verdicts: [0; 8],
-        });
-        p.end = t1;
-        p.slices += 1;
-        if let Some(d) = det {
-            p.detected += 1;
-            inliers += u64::from(d.inliers);
-        }
-        for o in &v[sl] {
-            p.verdicts[usize::from(o.work.verdict).min(7)] += 1;
-        }
-    }
-    if let Some((_, out)) = passes {
-        push_pass(out, cur, inliers);
     }
     (kept, slices, detected)
+}
+
+/// The pass holding time `t` (the last one starting at or before it).
+fn pass_of(ps: &mut [PassReport], t: GpsTime) -> Option<&mut PassReport> {
+    let i = ps.partition_point(|p| p.start <= t);
+    ps.get_mut(i.checked_sub(1)?)
+}
+
+/// The passes over one sphere: its windowed returns (in time order) split at gaps longer than
+/// `gap_ns`; appended to `out` (beyond its capacity the last one is extended).
+fn find_passes(
+    v: &[Observation],
+    j: usize,
+    gap_ns: i64,
+    out: &mut heapless::Vec<PassReport, MAX_PASSES>,
+) {
+    let mut last: Option<GpsTime> = None;
+    for o in v {
+        let new = last.is_none_or(|l| o.time.0 - l.0 > gap_ns);
+        last = Some(o.time);
+        if new && !out.is_full() {
+            let _ = out.push(PassReport {
+                sphere: j as u8,
+                start: o.time,
+                end: o.time,
+                slices: 0,
+                detected: 0,
+                mean_inliers: 0.0,
+                verdicts: [0; 8],
+            });
+        } else if let Some(p) = out.last_mut() {
+            p.end = o.time;
+        }
+    }
+}
+
+/// Move the returns of a sphere farther than `reach` from its surface (with the current
+/// georeference) behind the others, tagged `OutsideShell`; the near ones keep their order.
+/// Returns how many are near.
+fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
+    let (r, reach) = (r as f32, reach as f32);
+    let mut w = 0;
+    for i in 0..v.len() {
+        let x = v[i].work.x;
+        let d = libm::sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        if (d - r).abs() <= reach {
+            v.swap(i, w);
+            w += 1;
+        } else {
+            v[i].work.verdict = Verdict::OutsideShell as u8;
+        }
+    }
+    w
 }
 
 /// Copy the kept returns of every sphere into `buf` (at most its length, evenly spread when
 /// they do not fit); returns each sphere's range in `buf`.
 fn gather(
     obs: &[&mut [Observation]],
+    active: &[usize],
     kept: &[usize],
     buf: &mut [Observation],
 ) -> [Range<usize>; MAX_TARGETS] {
@@ -414,13 +449,14 @@ fn gather(
     let mut w = 0;
     for (j, v) in obs.iter().enumerate().take(MAX_TARGETS) {
         let start = w;
-        let mut k = 0usize;
-        for o in v.iter().filter(|o| o.work.verdict == Verdict::Kept as u8) {
+        let kept = v[..active[j]]
+            .iter()
+            .filter(|o| o.work.verdict == Verdict::Kept as u8);
+        for (k, o) in kept.enumerate() {
             if k.is_multiple_of(stride) && w < buf.len() {
                 buf[w] = *o;
                 w += 1;
             }
-            k += 1;
         }
         out[j] = start..w;
     }
@@ -451,9 +487,15 @@ pub fn solve(
         obs[j].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
         extract::georeference(obs[j], &targets[j], &mount0);
         extract::runs(obs[j], st.firing_ns, st.jump);
-        extract::assign_slices(obs[j], st.slice_ns);
+        extract::assign_slices(obs[j], st.slice_ns, ws.keys.len());
         extract::tag(obs[j], Verdict::Unclassified);
     }
+    let mut passes: heapless::Vec<PassReport, MAX_PASSES> = heapless::Vec::new();
+    for (j, v) in obs.iter().enumerate() {
+        find_passes(v, j, st.pass_gap_ns, &mut passes);
+    }
+    // Each sphere's returns still taking part (the others are far from it).
+    let mut active = windowed;
     let mut sol = Solution {
         b: *b0,
         nm: NmResult {
@@ -494,14 +536,22 @@ pub fn solve(
         let mount = Mount::from_params(&b);
         let mut kept = [0usize; MAX_TARGETS];
         for j in 0..n {
-            extract::georeference(obs[j], &targets[j], &mount);
+            let v = &mut obs[j][..active[j]];
+            extract::georeference(v, &targets[j], &mount);
+            if let Some(p) = prior {
+                // Returns far from the sphere (a few prior radii beyond its surface, at least
+                // half a metre) cannot become its returns any more: they leave the rounds.
+                active[j] = compact(v, targets[j].radius, (4.0 * p).max(0.5) + tau);
+            }
+            let v = &mut obs[j][..active[j]];
             let (k, sl, det) = extract_sphere(
-                obs[j],
+                v,
                 &targets[j],
                 tau,
                 prior,
                 false,
                 ws.grid,
+                ws.keys,
                 &dirs,
                 st,
                 None,
@@ -520,10 +570,10 @@ pub fn solve(
         }
         for (j, v) in obs.iter_mut().enumerate() {
             if kept[j] == 0 {
-                extract::tag(v, Verdict::Undetected);
+                extract::tag(&mut v[..active[j]], Verdict::Undetected);
             }
         }
-        let ranges = gather(obs, &kept[..n], ws.kept);
+        let ranges = gather(obs, &active[..n], &kept[..n], ws.kept);
         let buf = &mut *ws.kept;
         let mut print = 0xcbf2_9ce4_8422_2325u64;
         for r in ranges.iter().take(n) {
@@ -619,39 +669,51 @@ pub fn solve(
     let mount = Mount::from_params(&b);
     let mut tallies = [[0u32; 8]; MAX_TARGETS];
     for j in 0..n {
-        extract::georeference(obs[j], &targets[j], &mount);
+        let v = &mut obs[j][..active[j]];
+        extract::georeference(v, &targets[j], &mount);
+        let mine = {
+            let a = passes.partition_point(|p| usize::from(p.sphere) < j);
+            let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
+            &mut passes[a..b]
+        };
         let (_, sl, det) = extract_sphere(
-            obs[j],
+            v,
             &targets[j],
             tau,
             Some(prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
             true,
             ws.grid,
+            ws.keys,
             &dirs,
             st,
-            Some((j, &mut sol.passes)),
+            Some(&mut *mine),
         );
         counts[j] = (sl, det);
         // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
-        let kept = obs[j]
+        let kept = v
             .iter()
             .filter(|o| o.work.verdict == Verdict::Kept as u8)
             .count() as u32;
-        extract::reject_attachments(obs[j], targets[j].radius, tau, &dirs, (kept / 33).max(8));
+        extract::reject_attachments(v, targets[j].radius, tau, &dirs, (kept / 33).max(8));
         used[j] = partition(obs[j]);
         if used[j] < s.min_points {
             extract::tag(obs[j], Verdict::NotFound);
             used[j] = 0;
-            for p in sol.passes.iter_mut().filter(|p| usize::from(p.sphere) == j) {
-                let all = p.verdicts.iter().sum();
-                p.verdicts = [0; 8];
-                p.verdicts[Verdict::NotFound as usize] = all;
-            }
         }
         for o in obs[j].iter() {
-            tallies[j][usize::from(o.work.verdict).min(7)] += 1;
+            let k = usize::from(o.work.verdict).min(7);
+            tallies[j][k] += 1;
+            if let Some(p) = pass_of(mine, o.time) {
+                p.verdicts[k] += 1;
+            }
+        }
+        for p in mine.iter_mut() {
+            if p.detected > 0 {
+                p.mean_inliers /= p.detected as f32;
+            }
         }
     }
+    sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
 
     // 3. Least squares on the kept returns: the answer and its uncertainty.
@@ -724,26 +786,4 @@ pub fn solve(
         });
     }
     sol
-}
-
-fn push_pass(out: &mut heapless::Vec<PassReport, MAX_PASSES>, p: Option<PassReport>, inliers: u64) {
-    let Some(mut p) = p else { return };
-    p.mean_inliers = if p.detected > 0 {
-        inliers as f32 / p.detected as f32
-    } else {
-        0.0
-    };
-    if out.is_full() {
-        // Fold into the last one (counted, never lost).
-        if let Some(l) = out.last_mut() {
-            l.end = p.end;
-            l.slices += p.slices;
-            l.detected += p.detected;
-            for (a, b) in l.verdicts.iter_mut().zip(p.verdicts) {
-                *a += b;
-            }
-        }
-    } else {
-        let _ = out.push(p);
-    }
 }

@@ -96,6 +96,9 @@ pub struct LidarConfig {
     pub clutter_keep: f64,
     /// Cull with the broad phase (false: every firing against every object; for tests).
     pub cull: bool,
+    /// Seed of what the tracing draws (the water's glints): the scene's, not the noise's, so
+    /// that one trace serves every noise seed.
+    pub trace_seed: u64,
 }
 
 impl Default for LidarConfig {
@@ -115,6 +118,7 @@ impl Default for LidarConfig {
             range_walk: 0.0,
             clutter_keep: 1.0,
             cull: true,
+            trace_seed: 0x5CE7E,
         }
     }
 }
@@ -192,6 +196,26 @@ pub struct Hit {
     pub purity: u8,
 }
 
+/// A reported echo of one firing as the tracing found it, before noise: what a trace cache
+/// holds so that the same scene can be re-noised with other seeds without tracing it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Traced {
+    /// Range of the echo [m].
+    pub range: f64,
+    /// Its energy, `sum(w rho cos)`.
+    pub energy: f32,
+    /// Cosine of its incidence on the main object.
+    pub cos: f32,
+    /// The main object (or [`LABEL_WATER`]).
+    pub obj: u16,
+    /// The main object's share of the energy, x 255.
+    pub purity: u8,
+    /// Block it is written in.
+    pub block: u8,
+    /// Channel.
+    pub channel: u8,
+}
+
 /// A broad-phase window: object, azimuth centre and half-width [rad] in the LiDAR frame, and
 /// the widest a footprint gets at the object's far side [m].
 #[derive(Debug, Clone, Copy)]
@@ -260,6 +284,9 @@ pub struct LidarSim<'w, 'a> {
     pub stats: LidarStats,
     /// The returns of the last data packet (for labels, tests and truth checks).
     pub hits: heapless::Vec<Hit, 384>,
+    /// The last data packet's echoes before noise (traced, or replayed).
+    pub traced: heapless::Vec<Traced, 384>,
+    trace_rng: Rng,
 }
 
 /// Packet period [ns]: 12 blocks (single) or 6 pairs (dual) of 110.592 us.
@@ -333,6 +360,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             body: heapless::Vec::new(),
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
+            traced: heapless::Vec::new(),
+            trace_rng: Rng::new(cfg.trace_seed),
         }
         .with_body_tables()
     }
@@ -375,7 +404,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let Some((_, table)) = self.body.iter().find(|(i, _)| *i == obj) else {
             return false;
         };
-        let k = ((a.rem_euclid(TAU) / TAU * BODY_BINS as f64) as usize).min(BODY_BINS - 1);
+        let turns = a / TAU - libm::floor(a / TAU);
+        let k = ((turns * BODY_BINS as f64) as usize).min(BODY_BINS - 1);
         table[laser % LASERS][k / 64] & (1 << (k % 64)) == 0
     }
 
@@ -406,6 +436,17 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// Write the next packet into `out` (at least 1206 bytes); `None` at the end.
     pub fn next_packet(&mut self, out: &mut [u8]) -> Option<SimPacket> {
+        self.next(out, None)
+    }
+
+    /// As [`Self::next_packet`], but a data packet's echoes are `traced` (this packet's
+    /// [`Self::traced`] from an earlier run over the same scene) instead of traced again: only
+    /// the noise is drawn anew. The schedule is the same, so position packets need nothing.
+    pub fn next_packet_replayed(&mut self, out: &mut [u8], traced: &[Traced]) -> Option<SimPacket> {
+        self.next(out, Some(traced))
+    }
+
+    fn next(&mut self, out: &mut [u8], replay: Option<&[Traced]>) -> Option<SimPacket> {
         if self.k >= self.packets || out.len() < DATA_PACKET_LEN {
             return None;
         }
@@ -418,7 +459,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             self.write_position(pos_time, out);
             return Some(SimPacket::Position { time: pos_time });
         }
-        if self.k.is_multiple_of(CACHE_PACKETS) {
+        if replay.is_none() && self.k.is_multiple_of(CACHE_PACKETS) {
             self.cache_windows(t);
         }
         self.k += 1;
@@ -427,7 +468,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         if dropped {
             self.stats.dropped += 1;
         }
-        self.write_data(t, !dropped, &mut out[..DATA_PACKET_LEN]);
+        self.write_data(t, dropped, replay, &mut out[..DATA_PACKET_LEN]);
         Some(SimPacket::Data { time: t, dropped })
     }
 
@@ -502,9 +543,30 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         }
     }
 
-    fn write_data(&mut self, t: GpsTime, trace: bool, buf: &mut [u8]) {
+    /// The azimuth [rad] the decoder reconstructs for channel `ch` of block `b` (PROTOCOLS.md:
+    /// interpolated per block; the step to the next block or pair, the last reuses the
+    /// previous), and the step from the first block's [rad].
+    fn firing_azimuth(az: &[u16; field::BLOCKS], b: usize, stride: usize, ch: usize) -> (f64, f64) {
+        let next = b + stride;
+        let gap = |i: usize, j: usize| {
+            f64::from(((36_000 + u32::from(az[j]) - u32::from(az[i])) % 36_000) as u16)
+        };
+        let step = if next < field::BLOCKS {
+            gap(b, next)
+        } else {
+            gap(b - stride, b)
+        };
+        let (seq, laser) = (ch / LASERS, ch % LASERS);
+        let n = (seq * 24 + laser) as f64;
+        let a = (f64::from(az[b]) + step * n / 48.0).to_radians() / 100.0;
+        let rel = (gap(0, b) + step * n / 48.0).to_radians() / 100.0;
+        (a, rel)
+    }
+
+    fn write_data(&mut self, t: GpsTime, dropped: bool, replay: Option<&[Traced]>, buf: &mut [u8]) {
         let mode = self.cfg.mode;
         self.hits.clear();
+        self.traced.clear();
         buf.fill(0);
         let mut p = DataPacket::new_unchecked(buf);
         let mut az = [0u16; field::BLOCKS];
@@ -520,9 +582,23 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         p.set_product_raw(0x22);
         let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
         self.stats.rays += (field::BLOCKS / stride * field::CHANNELS) as u64;
-        if !trace {
-            return;
+        // What the firings return: traced now (also for a lost packet, so that a trace does
+        // not depend on the noise seed), or as an earlier trace found it.
+        match replay {
+            Some(list) => {
+                let n = list.len().min(self.traced.capacity());
+                let _ = self.traced.extend_from_slice(&list[..n]);
+            }
+            None => self.trace_packet(t, &az, stride),
         }
+        if !dropped {
+            self.emit(&mut p, t, &az, stride);
+        }
+    }
+
+    /// Trace every firing of the packet at `t` (block azimuths `az`) into `self.traced`.
+    fn trace_packet(&mut self, t: GpsTime, az: &[u16; field::BLOCKS], stride: usize) {
+        let mode = self.cfg.mode;
 
         // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm), their
         // centres made relative to the first block's azimuth (no wrapping per firing).
@@ -553,18 +629,6 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
         let mut b = 0;
         while b < field::BLOCKS {
-            // The decoder's azimuth step for this block (PROTOCOLS.md): to the next block or
-            // pair; the last reuses the previous step.
-            let next = b + stride;
-            let gap = |i: usize, j: usize| {
-                f64::from(((36_000 + u32::from(az[j]) - u32::from(az[i])) % 36_000) as u16)
-            };
-            let step = if next < field::BLOCKS {
-                gap(b, next)
-            } else {
-                gap(b - stride, b)
-            };
-            let from0 = gap(0, b);
             let tb = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, 0, 0)));
             let (ta, pa, pe) = match pose_a {
                 Some((ta, pa, pe)) if ta == tb => (ta, pa, pe),
@@ -579,9 +643,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let nadir_l = (pa.r_ig * self.world.mount.r_li).tr_mul(&Vector3::z());
             for ch in 0..field::CHANNELS {
                 let (seq, laser) = (ch / LASERS, ch % LASERS);
-                let n = (seq * 24 + laser) as f64;
-                let a = (f64::from(az[b]) + step * n / 48.0).to_radians() / 100.0;
-                let rel = (from0 + step * n / 48.0).to_radians() / 100.0;
+                let (a, rel) = Self::firing_azimuth(az, b, stride, ch);
                 // The objects whose windows hold this firing (vessel parts by their tables).
                 near.clear();
                 for (k, w) in self.live.iter().enumerate() {
@@ -610,7 +672,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 };
                 let mut echoes: heapless::Vec<Echo, 5> = heapless::Vec::new();
                 self.trace(&pf, tf, (sa, ca), laser, &near, &mut echoes);
-                self.report(&mut p, b, ch, tf, a, mode, &echoes);
+                self.pick(b, ch, mode, &echoes);
             }
             b += stride;
         }
@@ -709,7 +771,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let sub = match (best, water) {
                 (_, Some((tw, wt))) if best.is_none_or(|(h, _)| tw < h) => {
                     self.stats.water += u64::from(ka == 0.0 && kc == 0.0);
-                    let glint = ds.z >= self.glint_cos && self.rng.chance(wt.specular_prob);
+                    let glint = ds.z >= self.glint_cos && self.trace_rng.chance(wt.specular_prob);
                     SubHit {
                         t: tw,
                         energy: if glint { w } else { 0.0 },
@@ -777,18 +839,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         }
     }
 
-    /// Write a firing's reported echo(es) into the packet and the hit list.
-    #[allow(clippy::too_many_arguments)]
-    fn report(
-        &mut self,
-        p: &mut DataPacket<&mut [u8]>,
-        b: usize,
-        ch: usize,
-        tf: GpsTime,
-        a: f64,
-        mode: ReturnMode,
-        echoes: &[Echo],
-    ) {
+    /// The echo(es) a firing reports by the return mode, into `self.traced`.
+    fn pick(&mut self, b: usize, ch: usize, mode: ReturnMode, echoes: &[Echo]) {
         if echoes.is_empty() {
             return;
         }
@@ -812,27 +864,57 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 [(b, last), (b + 1, second)]
             }
         };
-        let is_target = |e: &Echo| {
-            self.world
-                .objects
-                .get(usize::from(e.obj))
-                .is_some_and(|o| o.target.is_some())
-        };
-        let keep = self.cfg.clutter_keep >= 1.0
-            || echoes.iter().all(is_target)
-            || self.rng.chance(self.cfg.clutter_keep);
-        for (block, e) in picks {
+        for (block, i) in picks {
             if block >= field::BLOCKS {
                 continue;
             }
-            let e = echoes[e];
-            if !keep && !is_target(&e) {
+            let e = echoes[i];
+            let _ = self.traced.push(Traced {
+                range: e.range,
+                energy: e.energy as f32,
+                cos: e.cos as f32,
+                obj: e.obj,
+                purity: libm::round(e.purity * 255.0) as u8,
+                block: block as u8,
+                channel: ch as u8,
+            });
+        }
+    }
+
+    /// Write the packet's echoes (`self.traced`) with their noise into the packet and the hit
+    /// list.
+    fn emit(
+        &mut self,
+        p: &mut DataPacket<&mut [u8]>,
+        t: GpsTime,
+        az: &[u16; field::BLOCKS],
+        stride: usize,
+    ) {
+        let mode = self.cfg.mode;
+        for k in 0..self.traced.len() {
+            let e = self.traced[k];
+            let target = self
+                .world
+                .objects
+                .get(usize::from(e.obj))
+                .and_then(|o| o.target);
+            if target.is_none()
+                && self.cfg.clutter_keep < 1.0
+                && !self.rng.chance(self.cfg.clutter_keep)
+            {
                 continue;
             }
-            let intensity = (100.0 * e.energy).clamp(0.0, 100.0);
+            let (block, ch) = (usize::from(e.block), usize::from(e.channel));
+            // The firing's block: in dual mode the pair's even one.
+            let fb = block - block % stride;
+            let (a, _) = Self::firing_azimuth(az, fb, stride, ch);
+            let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, fb, ch / LASERS, ch % LASERS)));
+            let energy = f64::from(e.energy);
+            let cos = f64::from(e.cos);
+            let intensity = (100.0 * energy).clamp(0.0, 100.0);
             let mut sigma = self.cfg.range_sigma;
             if self.cfg.incidence_noise {
-                let tan = (libm::sqrt((1.0 - e.cos * e.cos).max(0.0)) / e.cos.max(1e-6)).min(10.0);
+                let tan = (libm::sqrt((1.0 - cos * cos).max(0.0)) / cos.max(1e-6)).min(10.0);
                 let spread = e.range * self.cfg.divergence[0] / 4.0 * tan;
                 sigma = libm::sqrt(sigma * sigma + spread * spread);
             }
@@ -841,24 +923,19 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let raw = libm::round(d / 0.002).clamp(1.0, 65_535.0) as u16;
             p.set_channel(block, ch, raw, libm::round(intensity) as u8);
             let _ = self.hits.push(Hit {
-                block: block as u8,
-                channel: ch as u8,
+                block: e.block,
+                channel: e.channel,
                 time: tf,
                 azimuth: a,
                 range: e.range,
                 object: e.obj,
-                purity: libm::round(e.purity * 255.0) as u8,
+                purity: e.purity,
             });
-            let target = self
-                .world
-                .objects
-                .get(usize::from(e.obj))
-                .and_then(|o| o.target);
             match target {
                 Some(tg) if usize::from(tg) < MAX_TARGETS => self.stats.hits[usize::from(tg)] += 1,
                 _ => self.stats.clutter_hits += 1,
             }
-            if e.purity < 0.9 {
+            if e.purity < 230 {
                 self.stats.mixed += 1;
             }
         }

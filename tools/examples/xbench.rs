@@ -23,14 +23,12 @@ fn main() {
         let mut o2 = obs.clone();
         let mut sl: Vec<&mut [spherecal::window::Observation]> =
             o2.iter_mut().map(|v| v.as_mut_slice()).collect();
+        let mut st = spherecal::calib::Settings::default();
+        if let Ok(r) = std::env::var("ROUNDS") {
+            st.max_rounds = r.parse().unwrap();
+        }
         let t0 = std::time::Instant::now();
-        let sol = spherecal::calib::solve(
-            &targets,
-            &mut sl,
-            &b0,
-            &spherecal::calib::Settings::default(),
-            &mut scratch.workspace(),
-        );
+        let sol = spherecal::calib::solve(&targets, &mut sl, &b0, &st, &mut scratch.workspace());
         eprintln!(
             "solve {:.1} ms rounds {} {:?}",
             t0.elapsed().as_secs_f64() * 1e3,
@@ -39,3 +37,5 @@ fn main() {
         );
     }
 }
+#[allow(dead_code)]
+fn unused() {}

@@ -145,7 +145,7 @@ fn main() {
         v.sort_unstable_by_key(|o| (o.time, o.channel));
         extract::georeference(v, t, &mount);
         extract::runs(v, st.firing_ns, st.jump);
-        extract::assign_slices(v, st.slice_ns);
+        extract::assign_slices(v, st.slice_ns, 32768);
         let ranges: Vec<_> = extract::slices(v).collect();
         let (mut tp, mut fp, mut total_sphere) = (0, 0, 0);
         for o in v.iter() {
@@ -167,62 +167,9 @@ fn main() {
                         == Some(j)
                 })
                 .count();
-            {
-                let pts: Vec<nalgebra::Vector3<f64>> = s
-                    .iter()
-                    .filter(|o| {
-                        lab.get(&(o.packet, o.block, o.channel))
-                            .map(|l| l.0 as usize)
-                            == Some(j)
-                    })
-                    .map(|o| {
-                        nalgebra::Vector3::new(
-                            o.work.x[0] as f64,
-                            o.work.x[1] as f64,
-                            o.work.x[2] as f64,
-                        )
-                    })
-                    .collect();
-                if pts.len() >= 4 {
-                    if let Some(c) = spherecal::calib::sphere_fit::fit_center(
-                        pts.iter().copied(),
-                        t.radius,
-                        pts.iter().sum::<nalgebra::Vector3<f64>>() / pts.len() as f64,
-                    ) {
-                        let rms = (pts
-                            .iter()
-                            .map(|p| ((p - c).norm() - t.radius).powi(2))
-                            .sum::<f64>()
-                            / pts.len() as f64)
-                            .sqrt();
-                        let cf = [c.x as f32, c.y as f32, c.z as f32];
-                        let sp = {
-                            let mut s2 = s.to_vec();
-                            s2.sort_unstable_by(|a, b| a.work.x[0].total_cmp(&b.work.x[0]));
-                            extract::support(&s2, cf, t.radius as f32, tau as f32)
-                        };
-                        let (a, b) = {
-                            let mut s2 = s.to_vec();
-                            s2.sort_unstable_by(|a, b| a.work.x[0].total_cmp(&b.work.x[0]));
-                            extract::plane_vs_sphere(&s2, cf, t.radius as f32, tau as f32)
-                        };
-                        let voters = s.iter().filter(|o| o.work.run <= 0.5).count();
-                        let sv = s
-                            .iter()
-                            .filter(|o| {
-                                o.work.run <= 0.5
-                                    && lab
-                                        .get(&(o.packet, o.block, o.channel))
-                                        .map(|l| l.0 as usize)
-                                        == Some(j)
-                            })
-                            .count();
-                        println!("   true apparent c=({:.3},{:.3},{:.3}) rms={:.4} support w={:.1} inl={} viol={} collar={} sph_rms={:.4} plane_rms={:.4} voters {voters} sphere voters {sv}", c.x, c.y, c.z, rms, sp.weight, sp.inliers, sp.violations, sp.collar, a, b);
-                    }
-                }
-            }
             let t0 = std::time::Instant::now();
-            let det = extract::detect(s, t.radius, tau, prior, &mut grid, &dirs, &st);
+            let mut keys = vec![(0f32, 0u32); 32768];
+            let det = extract::detect(s, &mut keys, t.radius, tau, prior, &mut grid, &dirs, &st);
             let us = t0.elapsed().as_micros();
             match det {
                 Some(d) => {

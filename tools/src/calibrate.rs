@@ -217,12 +217,15 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
 pub const GRID_CELLS: usize = 64 * 64 * 64;
 /// Kept returns a detect-and-solve round solves on at most (8.6 MB).
 pub const KEPT_CAPACITY: usize = 50_000;
+/// Returns in one slice of time at most (longer ones are split).
+pub const SLICE_CAPACITY: usize = 32_768;
 
 /// The solver's scratch, owned.
 #[derive(Debug, Clone)]
 pub struct Scratch {
     grid: Vec<u16>,
     kept: Vec<Observation>,
+    keys: Vec<(f32, u32)>,
 }
 
 impl Default for Scratch {
@@ -230,6 +233,7 @@ impl Default for Scratch {
         Self {
             grid: vec![0; GRID_CELLS],
             kept: vec![Observation::default(); KEPT_CAPACITY],
+            keys: vec![(0.0, 0); SLICE_CAPACITY],
         }
     }
 }
@@ -240,6 +244,7 @@ impl Scratch {
         Workspace {
             grid: &mut self.grid,
             kept: &mut self.kept,
+            keys: &mut self.keys,
         }
     }
 }
@@ -420,26 +425,36 @@ pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
             );
             continue;
         }
+        let mut why = format!(
+            "{} off the sphere, {} in slices without it",
+            v.outside_shell, v.undetected
+        );
+        for (n, what) in [
+            (v.plane, "on a plane"),
+            (v.pole, "on a pole or stand"),
+            (v.hidden_side, "behind it"),
+        ] {
+            if n > 0 {
+                let _ = write!(why, ", {n} {what}");
+            }
+        }
         let _ = writeln!(
             o,
-            "  {}: {} of {} windowed returns on the sphere (detected in {} of {} slices); rejected: {} off the shell, {} where undetected, {} on planes, {} on poles, {} behind it; RMS {:.2} mm",
+            "  {}: kept {} of {} windowed returns, seen in {} of {} slices; rejected {} ({why}); RMS {:.2} mm",
             p.id,
             p.points,
             p.windowed,
             p.detected,
             p.slices,
-            v.outside_shell,
-            v.undetected,
-            v.plane,
-            v.pole,
-            v.hidden_side,
+            v.rejected(),
             p.rms_after_m * 1e3
         );
     }
     let _ = writeln!(
         o,
-        "clutter rejected: {} returns; kept within {:.1} mm of the spheres",
+        "clutter rejected: {} of {} windowed returns; kept: within {:.1} mm of a sphere",
         r.clutter_rejected,
+        r.per_sphere.iter().map(|p| p.windowed).sum::<usize>(),
         r.shell_m * 1e3
     );
     if r.batch_overflow > 0 {

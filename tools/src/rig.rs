@@ -60,6 +60,10 @@ pub const SERIAL_CHUNK: usize = 1024;
 pub const MAX_DATAGRAM: usize = 1472;
 /// Observations kept per sphere for the solver (older ones stay; newer ones are counted).
 pub const MAX_OBS_PER_SPHERE: usize = 200_000;
+/// After a converged solve, the solver's store keeps only the window returns this close to a
+/// sphere's surface (with that solution) [m]: the clutter farther out cannot matter any more,
+/// and a long survey's store stays small.
+pub const KEEP_NEAR_M: f64 = 1.0;
 /// Read timeout of every reader: how fast a stop is noticed.
 pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
 /// How long after a packet's arrival the aligner waits for the INS to cover it (the data ring
@@ -904,6 +908,10 @@ fn solver(
         sh.solves.fetch_add(1, Ordering::Relaxed);
         if rep.converged {
             *start = sol.b;
+            let mount = spherecal::georef::Mount::from_params(&sol.b);
+            for (v, t) in store.iter_mut().zip(targets) {
+                v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);
+            }
             let d = spherecal::calib::to_deg_m(&sol.b);
             let s = sol
                 .lm

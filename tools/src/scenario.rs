@@ -756,7 +756,7 @@ mod tests {
         for (name, _) in BUILTIN {
             let s = Scenario::load(name).unwrap();
             assert_eq!(&s.name, name);
-            assert!(s.duration_s() <= 65.0, "{name}: {} s", s.duration_s());
+            assert!(s.duration_s() <= 120.0, "{name}: {} s", s.duration_s());
         }
     }
 

@@ -13,6 +13,7 @@
 use crate::scenario::Scenario;
 use crate::site::{Origin, Site, SiteApriori, SiteSphere};
 use serde::{Deserialize, Serialize};
+use spherecal::sim::lidar::Traced;
 use spherecal::sim::{InsSim, LidarSim, SimPacket, World};
 use spherecal::time::gps_to_unix_ns;
 use spherecal_hal::packet::HostTime;
@@ -128,11 +129,62 @@ const SERIAL_LATENCY_NS: i64 = 1_000_000;
 /// Simulate and write the files into `dir` (created if needed).
 pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    s.with_world(|world| write_files(s, world, dir))
+    s.with_world(|world| write_files(s, world, dir, None))
         .map_err(|e| e.to_string())?
 }
 
-fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, String> {
+/// A scene's trace: every data packet's echoes before noise ([`spherecal::sim::lidar::Traced`]),
+/// so that the same scene can be synthesised with other noise seeds without tracing it again
+/// (the noise-seed Monte Carlo of the tests).
+#[derive(Debug, Clone, Default)]
+pub struct TraceCache {
+    offsets: Vec<usize>,
+    echoes: Vec<Traced>,
+}
+
+impl TraceCache {
+    fn packet(&self, k: usize) -> &[Traced] {
+        match (self.offsets.get(k), self.offsets.get(k + 1)) {
+            (Some(&a), Some(&b)) => &self.echoes[a..b],
+            _ => &[],
+        }
+    }
+}
+
+/// Trace a scenario's scene once (no files).
+pub fn trace(s: &Scenario) -> Result<TraceCache, String> {
+    s.with_world(|world| {
+        let mut lidar = LidarSim::new(world, s.lidar_config());
+        let mut cache = TraceCache {
+            offsets: vec![0],
+            echoes: Vec::new(),
+        };
+        let mut payload = [0u8; 1206];
+        while let Some(p) = lidar.next_packet(&mut payload) {
+            if let SimPacket::Data { .. } = p {
+                cache.echoes.extend_from_slice(&lidar.traced);
+                cache.offsets.push(cache.echoes.len());
+            }
+        }
+        cache
+    })
+    .map_err(|e| e.to_string())
+}
+
+/// As [`synth`], with the LiDAR's echoes from `cache` (a [`trace`] of a scenario that differs
+/// from `s` at most in its seed and noise settings); the noise is `s`'s.
+pub fn synth_traced(s: &Scenario, dir: &Path, cache: &TraceCache) -> Result<Truth, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    s.with_world(|world| write_files(s, world, dir, Some(cache)))
+        .map_err(|e| e.to_string())?
+}
+
+fn write_files(
+    s: &Scenario,
+    world: &World<'_>,
+    dir: &Path,
+    cache: Option<&TraceCache>,
+) -> Result<Truth, String> {
     let scene = s.scene();
     let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
 
@@ -142,6 +194,17 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
     let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     let mut lidar = LidarSim::new(world, s.lidar_config());
+    if let Some(c) = cache {
+        if c.offsets.len() != lidar.packet_count() as usize + 1 {
+            return Err(format!(
+                "{}: the trace is of another scene ({} data packets, this one has {})",
+                s.name,
+                c.offsets.len().saturating_sub(1),
+                lidar.packet_count()
+            ));
+        }
+    }
+    let mut data_k = 0usize;
     let labels_path = dir.join("labels.bin");
     let f = std::fs::File::create(&labels_path).map_err(|e| io(&labels_path, e))?;
     let mut labels = BufWriter::with_capacity(1 << 20, f);
@@ -154,7 +217,15 @@ fn write_files(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Truth, Str
     let ep = UdpEndpoints::default();
     let mut payload = [0u8; 1206];
     let mut frame = Vec::with_capacity(1300);
-    while let Some(pkt) = lidar.next_packet(&mut payload) {
+    loop {
+        let next = match cache {
+            Some(c) => lidar.next_packet_replayed(&mut payload, c.packet(data_k)),
+            None => lidar.next_packet(&mut payload),
+        };
+        let Some(pkt) = next else { break };
+        if let SimPacket::Data { .. } = pkt {
+            data_k += 1;
+        }
         let time = match pkt {
             SimPacket::Data { dropped: true, .. } => continue,
             SimPacket::Data { time, .. } => {
