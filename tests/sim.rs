@@ -124,6 +124,88 @@ fn traced_points_lie_on_what_they_hit() {
     eprintln!("{n} traced returns, worst {worst:.2e} m off the surface; {} of {} rays passed the broad phase; by kind {kinds:?}", st.candidates, st.rays);
 }
 
+/// The VLP-16's footprint (3 x 1.5 mrad): a return the simulator labels as a sphere's lies off
+/// that sphere's surface by at most the footprint's reach at its range (blooming at the
+/// silhouette, the echo's range a weighted mean over the footprint), and some do measurably;
+/// echoes from two surfaces less than 1 m apart merge into mixed pixels; with an ideal beam
+/// none of this happens (the test above). Range walk lengthens dark returns more than bright.
+#[test]
+fn the_beam_footprint_blooms_and_mixes() {
+    let mut s = Scenario::load("table1-noisy").unwrap();
+    s.lidar.range_sigma_m = 0.0;
+    s.lidar.incidence_noise = false;
+    s.ins.att_sigma_deg = 0.0;
+    s.ins.pos_sigma_m = 0.0;
+    let scene = s.scene();
+    let passes = s.passes();
+    let w = s.world(&[], &passes, &scene.objects);
+    let mut sim = LidarSim::new(&w, s.lidar_config());
+    let mut buf = [0u8; 1206];
+    let (mut n, mut off, mut worst_ratio) = (0u64, 0u64, 0f64);
+    while let Some(p) = sim.next_packet(&mut buf) {
+        if !matches!(p, SimPacket::Data { .. }) {
+            continue;
+        }
+        for h in &sim.hits {
+            let Some(Shape::Sphere { .. }) =
+                scene.objects.get(usize::from(h.object)).map(|o| o.shape)
+            else {
+                continue;
+            };
+            if h.purity < 255 {
+                continue;
+            }
+            let pose = truth_pose(&w, h.time);
+            let laser = usize::from(h.channel) % 16;
+            let x = point(
+                &pose,
+                &w.mount,
+                h.range,
+                laser,
+                h.azimuth.sin(),
+                h.azimuth.cos(),
+            );
+            let e = off_object(&w, h.object, h.time, &x);
+            // The footprint's widest sub-ray is 1.83 sigma = 1.83 x 0.75 mrad from the centre.
+            let reach = h.range * 1.8257 * 0.75e-3;
+            worst_ratio = worst_ratio.max(e / reach);
+            off += u64::from(e > 2e-3);
+            n += 1;
+        }
+    }
+    eprintln!("{n} pure sphere returns, {off} more than 2 mm off the surface; worst {worst_ratio:.2} x the footprint's reach; {} mixed pixels", sim.stats.mixed);
+    assert!(n > 2000);
+    assert!(worst_ratio <= 1.0, "{worst_ratio}");
+    assert!(off > 20, "blooming at the silhouettes: {off}");
+    assert!(sim.stats.mixed > 100, "mixed pixels: {}", sim.stats.mixed);
+
+    // Range walk: the same scene with 5 cm of walk; decoded ranges grow by 5 cm x (1 - I/100).
+    let mut decode_all = |walk: f64| {
+        let mut cfg = s.lidar_config();
+        cfg.range_walk = walk;
+        let mut sim = LidarSim::new(&w, cfg);
+        let mut out = Vec::new();
+        let mut pts = PointBuf::new();
+        while let Some(p) = sim.next_packet(&mut buf) {
+            if matches!(p, SimPacket::Data { .. }) {
+                decode(&DataPacket::new_checked(&buf[..]).unwrap(), &mut pts).unwrap();
+                out.extend(pts.as_slice().iter().map(|q| (q.distance_raw, q.intensity)));
+            }
+        }
+        out
+    };
+    let (a, b) = (decode_all(0.0), decode_all(0.05));
+    assert_eq!(a.len(), b.len());
+    for ((ra, ia), (rb, _)) in a.iter().zip(&b).step_by(97) {
+        let want = 0.05 * (1.0 - f64::from(*ia) / 100.0);
+        let got = (f64::from(*rb) - f64::from(*ra)) * 0.002;
+        assert!(
+            (got - want).abs() <= 0.0021,
+            "intensity {ia}: {got} vs {want}"
+        );
+    }
+}
+
 /// The broad phase only culls: a short pass traced with it and without it (every firing
 /// against every object) gives the same bytes.
 #[test]
@@ -300,6 +382,29 @@ fn synthetic_files_read_back_at_the_sensor_rates() {
         ins.contains(&format!("poses: {}", truth["ins_frames"])),
         "{ins}"
     );
+
+    // The labels: one per decoded return, in file order; the spheres' counts are the truth's,
+    // and every label names an object of truth.json (or the water).
+    let labels = spherecal_tools::synth::read_labels(&dir.join("labels.bin")).unwrap();
+    let points: u64 = dec
+        .lines()
+        .find_map(|l| l.strip_prefix("points: "))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    assert_eq!(labels.len() as u64, points);
+    let objects = truth["objects"].as_array().unwrap();
+    for k in 0..2 {
+        let on = labels.iter().filter(|l| usize::from(l.object) == k).count();
+        assert_eq!(on as u64, truth["points_per_sphere"][k].as_u64().unwrap());
+        assert_eq!(objects[k]["kind"], "sphere");
+    }
+    assert!(labels
+        .iter()
+        .all(|l| usize::from(l.object) < objects.len()
+            || l.object == spherecal::sim::lidar::LABEL_WATER));
+    assert!(labels.windows(2).all(|w| w[0].packet <= w[1].packet));
 
     // The site file reads back.
     let site = spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap();

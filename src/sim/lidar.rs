@@ -224,6 +224,8 @@ struct Window {
     center: f64,
     half: f64,
     rho: f64,
+    /// Index of the vessel part's table in `body` (`u8::MAX`: none).
+    table: u8,
 }
 
 /// What one sub-ray hit.
@@ -280,6 +282,8 @@ pub struct LidarSim<'w, 'a> {
     glint_cos: f64,
     /// Vessel parts: object index and the firings that can hit it.
     body: heapless::Vec<(u16, BodyTable), MAX_BODY_TABLES>,
+    /// Each laser's beam origin in the body frame: `a + R_li v_k e_z`.
+    origins: [Vector3<f64>; LASERS],
     /// Counts so far.
     pub stats: LidarStats,
     /// The returns of the last data packet (for labels, tests and truth checks).
@@ -327,7 +331,20 @@ impl Beam {
         }
     }
 
+    /// The centre ray only (no footprint axes).
+    fn centre(o: Vector3<f64>, d: Vector3<f64>) -> Self {
+        Self {
+            o,
+            d,
+            along: Vector3::zeros(),
+            across: Vector3::zeros(),
+        }
+    }
+
     fn sub(&self, ka: f64, kc: f64) -> Vector3<f64> {
+        if ka == 0.0 && kc == 0.0 {
+            return self.d;
+        }
         let v = self.d + self.along * ka + self.across * kc;
         v / v.norm()
     }
@@ -358,6 +375,9 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 .fold(0.0, f64::max),
             glint_cos: world.water.map_or(2.0, |w| libm::cos(w.specular)),
             body: heapless::Vec::new(),
+            origins: core::array::from_fn(|k| {
+                world.mount.lever + world.mount.r_li * beam_origin_l(k)
+            }),
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
             traced: heapless::Vec::new(),
@@ -399,14 +419,18 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         self
     }
 
-    /// A vessel part cannot be touched by this firing (by its table).
-    fn body_misses(&self, obj: u16, laser: usize, a: f64) -> bool {
-        let Some((_, table)) = self.body.iter().find(|(i, _)| *i == obj) else {
-            return false;
-        };
+    /// The tables' azimuth bin of an azimuth [rad].
+    fn body_bin(a: f64) -> usize {
         let turns = a / TAU - libm::floor(a / TAU);
-        let k = ((turns * BODY_BINS as f64) as usize).min(BODY_BINS - 1);
-        table[laser % LASERS][k / 64] & (1 << (k % 64)) == 0
+        ((turns * BODY_BINS as f64) as usize).min(BODY_BINS - 1)
+    }
+
+    /// A vessel part (its table `table`) cannot be touched by a firing of `laser` in azimuth
+    /// bin `k`.
+    fn body_misses(&self, table: u8, laser: usize, k: usize) -> bool {
+        self.body
+            .get(usize::from(table))
+            .is_some_and(|(_, t)| t[laser % LASERS][k / 64] & (1 << (k % 64)) == 0)
     }
 
     /// Data packets the run will make.
@@ -539,6 +563,11 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 center,
                 half,
                 rho: (dist + rr) * self.spread * 1.2,
+                table: self
+                    .body
+                    .iter()
+                    .position(|(k, _)| usize::from(*k) == i)
+                    .map_or(u8::MAX, |k| k as u8),
             });
         }
     }
@@ -646,13 +675,12 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 let (a, rel) = Self::firing_azimuth(az, b, stride, ch);
                 // The objects whose windows hold this firing (vessel parts by their tables).
                 near.clear();
+                let bin = Self::body_bin(a);
                 for (k, w) in self.live.iter().enumerate() {
                     if w.half < PI && (rel - w.center).abs() > w.half {
                         continue;
                     }
-                    if self.world.objects[usize::from(w.obj)].frame == Frame::Body
-                        && self.body_misses(w.obj, laser, a)
-                    {
+                    if w.table != u8::MAX && self.body_misses(w.table, laser, bin) {
                         continue;
                     }
                     let _ = near.push(k as u16);
@@ -702,8 +730,12 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             along: Vector3::zeros(),
             across: Vector3::zeros(),
         };
-        let mut body = in_l.rotated(&mount.r_li, &mount.lever);
-        let mut site = body.rotated(&pf.r_ig, &pf.position);
+        let o_body = self.origins[laser % LASERS];
+        let d_body = mount.r_li * u;
+        let mut body = Beam::centre(o_body, d_body);
+        // (The interpolated attitude is orthonormal to 1e-8: the direction is renormalised.)
+        let d_site = pf.r_ig * d_body;
+        let mut site = Beam::centre(pf.position + pf.r_ig * o_body, d_site / d_site.norm());
         let t_rel = self.world.t_of(tf);
         // The ray in an object's own frame.
         let frame_ray =
