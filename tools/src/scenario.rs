@@ -253,7 +253,8 @@ impl std::fmt::Display for ScenarioError {
 
 impl std::error::Error for ScenarioError {}
 
-fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
+/// `Err(key: why)` unless `ok`.
+pub(crate) fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
     if ok {
         Ok(())
     } else {
@@ -261,7 +262,8 @@ fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
     }
 }
 
-fn finite(v: &[f64]) -> bool {
+/// Every value finite.
+pub(crate) fn finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
@@ -584,14 +586,14 @@ impl Scenario {
     }
 
     /// The scenery keys as one spec.
-    pub fn scene_spec(&self) -> SceneSpec {
+    pub fn scene_spec(&self) -> SceneSpec<'_> {
         SceneSpec {
-            boxes: self.boxes.clone(),
-            poles: self.poles.clone(),
-            planes: self.planes.clone(),
-            scatter: self.scatter.clone(),
-            water: self.water.clone(),
-            vessel: self.vessel.clone(),
+            boxes: &self.boxes,
+            poles: &self.poles,
+            planes: &self.planes,
+            scatter: &self.scatter,
+            water: self.water.as_ref(),
+            vessel: self.vessel.as_ref(),
         }
     }
 

@@ -3,7 +3,7 @@
 //! each sphere's `stand`), validated by key, and built into the simulator's objects with a name
 //! and a kind for each (the labels of `synth`'s `labels.bin` refer to them by index).
 
-use crate::scenario::ScenarioError;
+use crate::scenario::{check, finite, ScenarioError};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::sim::{Frame, Object, Rng, Shape, Water};
@@ -135,27 +135,21 @@ fn default_clearance() -> f64 {
     0.8
 }
 
-/// The scenery of a scenario (the TOML's top-level scene keys).
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct SceneSpec {
+/// The scenery of a scenario (the TOML's top-level scene keys), borrowed.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneSpec<'a> {
     /// Boxes.
-    #[serde(default, rename = "box", skip_serializing_if = "Vec::is_empty")]
-    pub boxes: Vec<BoxSpec>,
+    pub boxes: &'a [BoxSpec],
     /// Cylinders.
-    #[serde(default, rename = "pole", skip_serializing_if = "Vec::is_empty")]
-    pub poles: Vec<PoleSpec>,
+    pub poles: &'a [PoleSpec],
     /// Flat rectangles.
-    #[serde(default, rename = "plane", skip_serializing_if = "Vec::is_empty")]
-    pub planes: Vec<PlaneSpec>,
+    pub planes: &'a [PlaneSpec],
     /// Random clutter.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub scatter: Vec<ScatterSpec>,
+    pub scatter: &'a [ScatterSpec],
     /// Water.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub water: Option<WaterSpec>,
+    pub water: Option<&'a WaterSpec>,
     /// The vessel.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub vessel: Option<VesselSpec>,
+    pub vessel: Option<&'a VesselSpec>,
 }
 
 /// A target sphere's stand: nothing, one pole, or a surveying tripod.
@@ -195,9 +189,9 @@ pub struct Scene {
 }
 
 impl Scene {
-    fn push(&mut self, o: Object, name: String, kind: &'static str) {
+    fn push(&mut self, o: Object, name: impl Into<String>, kind: &'static str) {
         self.objects.push(o);
-        self.names.push(name);
+        self.names.push(name.into());
         self.kinds.push(kind);
     }
 
@@ -264,18 +258,18 @@ impl Scene {
     /// Add the scenery of `spec`, keeping scattered clutter clear of the sphere centres. The
     /// scatter layout depends only on each scatter's name and place in the list (not on the
     /// scenario's noise seed).
-    pub fn add_scenery(&mut self, spec: &SceneSpec, centres: &[Vector3<f64>]) {
-        for b in &spec.boxes {
+    pub fn add_scenery(&mut self, spec: &SceneSpec<'_>, centres: &[Vector3<f64>]) {
+        for b in spec.boxes {
             let mut o = Object::new(box_shape(b), None).with_reflectivity(b.reflectivity);
             o.velocity = Vector3::from(b.velocity_ned_mps.unwrap_or([0.0; 3]));
             self.push(o, b.name.clone(), "box");
         }
-        for p in &spec.poles {
+        for p in spec.poles {
             let mut o = Object::new(pole_shape(p), None).with_reflectivity(p.reflectivity);
             o.velocity = Vector3::from(p.velocity_ned_mps.unwrap_or([0.0; 3]));
             self.push(o, p.name.clone(), "pole");
         }
-        for p in &spec.planes {
+        for p in spec.planes {
             let shape = Shape::Rect {
                 p: Vector3::from(p.corner_m),
                 u: Vector3::from(p.edge1_m),
@@ -296,7 +290,7 @@ impl Scene {
                 });
             self.add_scatter(s, centres, &mut Rng::new(seed));
         }
-        if let Some(v) = &spec.vessel {
+        if let Some(v) = spec.vessel {
             for b in &v.boxes {
                 let mut o = Object::new(box_shape(b), None).with_reflectivity(b.reflectivity);
                 o.frame = Frame::Body;
@@ -340,9 +334,9 @@ impl Scene {
             placed += 1;
             for (k, (shape, rho)) in shapes.iter().enumerate() {
                 let name = if shapes.len() > 1 {
-                    format!("{} {placed}.{}", s.name, k + 1)
+                    &format!("{} {placed}.{}", s.name, k + 1)
                 } else {
-                    format!("{} {placed}", s.name)
+                    &format!("{} {placed}", s.name)
                 };
                 self.push(
                     Object::new(*shape, None).with_reflectivity(*rho),
@@ -426,19 +420,7 @@ fn pole_shape(p: &PoleSpec) -> Shape {
     }
 }
 
-fn check(ok: bool, key: String, why: &str) -> Result<(), ScenarioError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(ScenarioError(format!("{key}: {why}")))
-    }
-}
-
-fn finite(v: &[f64]) -> bool {
-    v.iter().all(|x| x.is_finite())
-}
-
-fn check_rho(rho: f64, key: String) -> Result<(), ScenarioError> {
+fn check_rho(rho: f64, key: &str) -> Result<(), ScenarioError> {
     check(
         rho > 0.0 && rho <= 1.0,
         key,
@@ -449,51 +431,51 @@ fn check_rho(rho: f64, key: String) -> Result<(), ScenarioError> {
 fn check_box(b: &BoxSpec, key: &str) -> Result<(), ScenarioError> {
     check(
         finite(&b.center_m) && b.heading_deg.is_finite(),
-        format!("{key}.center_m"),
+        &format!("{key}.center_m"),
         "not finite",
     )?;
     check(
         b.size_m
             .iter()
             .all(|x| x.is_finite() && *x > 0.0 && *x < 1000.0),
-        format!("{key}.size_m"),
+        &format!("{key}.size_m"),
         "expected sizes 0 < s < 1000 m",
     )?;
     check(
         b.velocity_ned_mps
             .is_none_or(|v| finite(&v) && v.iter().all(|x| x.abs() < 50.0)),
-        format!("{key}.velocity_ned_mps"),
+        &format!("{key}.velocity_ned_mps"),
         "expected |v| < 50 m/s",
     )?;
-    check_rho(b.reflectivity, format!("{key}.reflectivity"))
+    check_rho(b.reflectivity, &format!("{key}.reflectivity"))
 }
 
 fn check_pole(p: &PoleSpec, key: &str) -> Result<(), ScenarioError> {
     check(
         finite(&p.base_m) && finite(&p.top_m),
-        format!("{key}.base_m"),
+        &format!("{key}.base_m"),
         "not finite",
     )?;
     check(
         p.base_m != p.top_m,
-        format!("{key}.top_m"),
+        &format!("{key}.top_m"),
         "expected an end different from base_m",
     )?;
     check(
         p.radius_m > 0.0 && p.radius_m < 50.0,
-        format!("{key}.radius_m"),
+        &format!("{key}.radius_m"),
         "expected 0 < r < 50 m",
     )?;
     check(
         p.velocity_ned_mps
             .is_none_or(|v| finite(&v) && v.iter().all(|x| x.abs() < 50.0)),
-        format!("{key}.velocity_ned_mps"),
+        &format!("{key}.velocity_ned_mps"),
         "expected |v| < 50 m/s",
     )?;
-    check_rho(p.reflectivity, format!("{key}.reflectivity"))
+    check_rho(p.reflectivity, &format!("{key}.reflectivity"))
 }
 
-impl SceneSpec {
+impl SceneSpec<'_> {
     /// Reject impossible values, naming the key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
         for (i, b) in self.boxes.iter().enumerate() {
@@ -506,7 +488,7 @@ impl SceneSpec {
             let key = format!("plane[{i}]");
             check(
                 finite(&p.corner_m) && finite(&p.edge1_m) && finite(&p.edge2_m),
-                format!("{key}.corner_m"),
+                &format!("{key}.corner_m"),
                 "not finite",
             )?;
             check(
@@ -514,50 +496,50 @@ impl SceneSpec {
                     .cross(&Vector3::from(p.edge2_m))
                     .norm()
                     > 1e-6,
-                format!("{key}.edge2_m"),
+                &format!("{key}.edge2_m"),
                 "expected two edges that span a plane",
             )?;
-            check_rho(p.reflectivity, format!("{key}.reflectivity"))?;
+            check_rho(p.reflectivity, &format!("{key}.reflectivity"))?;
         }
         for (i, s) in self.scatter.iter().enumerate() {
             let key = format!("scatter[{i}]");
             check(
                 matches!(s.kind.as_str(), "crate" | "post" | "person" | "bush"),
-                format!("{key}.kind"),
+                &format!("{key}.kind"),
                 "expected crate, post, person or bush",
             )?;
             check(
                 finite(&s.center_m) && s.heading_deg.is_finite(),
-                format!("{key}.center_m"),
+                &format!("{key}.center_m"),
                 "not finite",
             )?;
             check(
                 s.size_m
                     .iter()
                     .all(|x| x.is_finite() && *x >= 0.0 && *x < 1000.0),
-                format!("{key}.size_m"),
+                &format!("{key}.size_m"),
                 "expected extents 0..1000 m",
             )?;
             check(
                 s.clearance_m.is_finite() && s.clearance_m >= 0.0,
-                format!("{key}.clearance_m"),
+                &format!("{key}.clearance_m"),
                 "expected >= 0",
             )?;
         }
-        if let Some(w) = &self.water {
-            check(w.down_m.is_finite(), "water.down_m".into(), "not finite")?;
+        if let Some(w) = self.water {
+            check(w.down_m.is_finite(), "water.down_m", "not finite")?;
             check(
                 (0.0..=90.0).contains(&w.specular_deg),
-                "water.specular_deg".into(),
+                "water.specular_deg",
                 "expected 0..=90",
             )?;
             check(
                 (0.0..=1.0).contains(&w.specular_prob),
-                "water.specular_prob".into(),
+                "water.specular_prob",
                 "expected 0..=1",
             )?;
         }
-        if let Some(v) = &self.vessel {
+        if let Some(v) = self.vessel {
             for (i, b) in v.boxes.iter().enumerate() {
                 check_box(b, &format!("vessel.box[{i}]"))?;
             }
