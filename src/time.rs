@@ -91,14 +91,20 @@ impl UtcDateTime {
     }
 }
 
-/// GPS time -> nanoseconds since the Unix epoch in UTC (UTC = GPS - leap seconds).
+/// GPS time -> nanoseconds since the Unix epoch in UTC (UTC = GPS - leap seconds). Saturates
+/// instead of overflowing (a [`GpsTime::is_valid`] time never comes near).
 pub fn gps_to_unix_ns(t: GpsTime, leap_seconds: i64) -> i64 {
-    t.0 - leap_seconds * 1_000_000_000 + GPS_EPOCH_UNIX_S * 1_000_000_000
+    t.0.saturating_sub(leap_seconds.saturating_mul(1_000_000_000))
+        .saturating_add(GPS_EPOCH_UNIX_S * 1_000_000_000)
 }
 
-/// Unix UTC nanoseconds -> GPS time.
+/// Unix UTC nanoseconds -> GPS time (saturating).
 pub fn unix_ns_to_gps(unix_ns: i64, leap_seconds: i64) -> GpsTime {
-    GpsTime(unix_ns + leap_seconds * 1_000_000_000 - GPS_EPOCH_UNIX_S * 1_000_000_000)
+    GpsTime(
+        unix_ns
+            .saturating_add(leap_seconds.saturating_mul(1_000_000_000))
+            .saturating_sub(GPS_EPOCH_UNIX_S * 1_000_000_000),
+    )
 }
 
 /// The VLP-16's clock: microseconds past the top of the UTC hour of a GPS time.
@@ -111,6 +117,33 @@ pub fn micros_past_hour(t: GpsTime, leap_seconds: i64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A u16 week from the wire times a week's nanoseconds overflows an i64 from week 15,251:
+    /// such times are invalid, never a panic or a wrapped value; so are times of week beyond a
+    /// week and TimeGps values past week 6000.
+    #[test]
+    fn wire_times_are_checked() {
+        assert_eq!(GpsTime::from_week_tow_ns(65_535, 0), None);
+        assert_eq!(GpsTime::from_week_tow_ns(15_251, 0), None);
+        assert_eq!(GpsTime::from_week_tow_s(65_535, 1.0), None);
+        assert_eq!(GpsTime::from_week_tow_ns(2300, u64::MAX), None);
+        assert_eq!(GpsTime::from_week_tow_ns(2300, 604_800_000_000_001), None);
+        assert_eq!(
+            GpsTime::from_week_tow_ns(2300, 5),
+            Some(GpsTime(2300 * WEEK_NS + 5))
+        );
+        assert_eq!(GpsTime::checked(i64::MAX), None);
+        assert_eq!(GpsTime::checked(-1), None);
+        // Conversions saturate instead of overflowing.
+        assert_eq!(
+            gps_to_unix_ns(GpsTime(i64::MIN), 18),
+            i64::MIN + GPS_EPOCH_UNIX_S * 1_000_000_000
+        );
+        assert_eq!(
+            unix_ns_to_gps(i64::MAX, 18),
+            GpsTime(i64::MAX - GPS_EPOCH_UNIX_S * 1_000_000_000)
+        );
+    }
 
     #[test]
     fn civil_days_known_dates() {
@@ -171,20 +204,34 @@ pub struct GpsTime(pub i64);
 pub const WEEK_NS: i64 = 604_800 * 1_000_000_000;
 
 impl GpsTime {
-    /// From GPS week and time of week in nanoseconds (PROTOCOLS.md: week * 604800e9 + tow).
+    /// The last GPS time accepted from the wire: week 6000 (year 2095). A u16 week times
+    /// [`WEEK_NS`] overflows an i64 from week 15,251, and a u64 `TimeGps` can be anything.
+    pub const LAST_VALID: GpsTime = GpsTime(6000 * WEEK_NS);
+
+    /// Between the GPS epoch and [`Self::LAST_VALID`].
+    pub fn is_valid(self) -> bool {
+        (0..=Self::LAST_VALID.0).contains(&self.0)
+    }
+
+    /// A time from the wire, if valid.
+    pub fn checked(ns: i64) -> Option<Self> {
+        Some(Self(ns)).filter(|t| t.is_valid())
+    }
+
+    /// From GPS week and time of week in nanoseconds (PROTOCOLS.md: week * 604800e9 + tow);
+    /// `None` unless the time is valid (the time of week may not exceed a week).
     pub fn from_week_tow_ns(week: u16, tow_ns: u64) -> Option<Self> {
-        let tow = i64::try_from(tow_ns).ok()?;
-        Some(Self(i64::from(week) * WEEK_NS + tow))
+        let tow = i64::try_from(tow_ns).ok().filter(|&t| t <= WEEK_NS)?;
+        Self::checked(i64::from(week).checked_mul(WEEK_NS)?.checked_add(tow)?)
     }
 
     /// From GPS week and time of week in seconds (as $VNINS and SBET files give it).
     pub fn from_week_tow_s(week: u16, tow_s: f64) -> Option<Self> {
-        if !tow_s.is_finite() || !(0.0..=1.0e6).contains(&tow_s) {
+        if !tow_s.is_finite() || !(0.0..=604_800.0).contains(&tow_s) {
             return None;
         }
-        Some(Self(
-            i64::from(week) * WEEK_NS + libm::round(tow_s * 1e9) as i64,
-        ))
+        let tow = libm::round(tow_s * 1e9) as i64;
+        Self::checked(i64::from(week).checked_mul(WEEK_NS)?.checked_add(tow)?)
     }
 
     /// Seconds since the GPS epoch.
@@ -235,7 +282,7 @@ impl LidarClock {
     /// Take the hour from an RMC date-time received with a position packet stamped `stamp_us`
     /// (the RMC second is the last whole second at or before the stamp).
     pub fn set_from_rmc(&mut self, utc: &UtcDateTime, stamp_us: u32) {
-        let mut hour = utc.top_of_hour_unix_s() * 1_000_000_000;
+        let mut hour = utc.top_of_hour_unix_s().saturating_mul(1_000_000_000);
         // The RMC may name 10:59:59 while the stamp already wrapped to 00:00.5 of the next hour.
         let rmc_us = i64::try_from(utc.micros_past_hour()).unwrap_or(0);
         let d = i64::from(stamp_us) - rmc_us;

@@ -452,9 +452,19 @@ pub fn plane_vs_sphere(obs: &Sorted<'_>, c: V3, r: f32, tau: f32) -> (f32, f32) 
             cov += d * d.transpose();
         }
     }
-    let ev = cov.symmetric_eigenvalues();
+    let Some(ev) = eigenvalues(cov) else {
+        return (0.0, 0.0);
+    };
     let lo = ev.iter().copied().fold(f32::INFINITY, f32::min).max(0.0);
     (libm::sqrtf(e2 / n), libm::sqrtf(lo / n))
+}
+
+/// Eigenvalues of a symmetric 3x3 matrix, with the iterations bounded (`None` when they do not
+/// converge, e.g. on a NaN).
+fn eigenvalues(m: Matrix3<f32>) -> Option<[f32; 3]> {
+    let e = nalgebra::SymmetricEigen::try_new(m, f32::EPSILON, 100)?;
+    let v = [e.eigenvalues[0], e.eigenvalues[1], e.eigenvalues[2]];
+    v.iter().all(|x| x.is_finite()).then_some(v)
 }
 
 /// The strongest distinct cells of the vote grid.
@@ -796,9 +806,10 @@ pub fn reject_attachments(
         let axis = [m[0] / mlen, m[1] / mlen, m[2] / mlen];
         let centroid = centroid / n.max(1.0);
         let cov = cov / n.max(1.0) - centroid * centroid.transpose();
-        let mut ev = cov.symmetric_eigenvalues();
-        ev.as_mut_slice().sort_unstable_by(|x, y| y.total_cmp(x));
-        let line = ev[1] < 0.1 * ev[0];
+        let line = eigenvalues(cov).is_some_and(|mut ev| {
+            ev.sort_unstable_by(|x, y| y.total_cmp(x));
+            ev[1] < 0.1 * ev[0]
+        });
         // 90th percentile of the angles, from a histogram of 1-degree bins up to 60 deg.
         let mut hist = [0u32; 61];
         for o in obs.iter().filter(|o| collar(o)) {

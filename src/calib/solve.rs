@@ -112,6 +112,11 @@ pub enum Refusal {
         /// Limit.
         limit: f64,
     },
+    /// The least squares did not converge (stalled, or non-finite).
+    NotConverged {
+        /// Iterations taken.
+        iterations: usize,
+    },
     /// The residuals are far above the range noise.
     RmsTooHigh {
         /// RMS [m].
@@ -774,7 +779,11 @@ pub fn solve(
     for i in 0..P {
         sol.weak[i] = lm.weakest[i].abs() > 0.3;
     }
-    if lm.condition.is_nan() || lm.condition > s.max_condition {
+    if !lm.converged {
+        sol.refusal = Some(Refusal::NotConverged {
+            iterations: lm.iterations,
+        });
+    } else if lm.condition.is_nan() || lm.condition > s.max_condition {
         sol.refusal = Some(Refusal::IllConditioned {
             condition: lm.condition,
             limit: s.max_condition,

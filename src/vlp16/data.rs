@@ -4,7 +4,7 @@
 //! ```text
 //! offset  size  field
 //!  0+100b    2  block flag 0xFF 0xEE                     (b = block 0..11)
-//!  2+100b    2  azimuth, u16 LE, 0.01 deg, 0..35999
+//!  2+100b    2  azimuth, u16 LE, 0.01 deg, 0..35999 (36000 is sent too: it is 0)
 //!  4+100b   96  32 channels x { distance u16 LE [2 mm], reflectivity u8 }
 //!   1200     4  timestamp, u32 LE, microseconds past the top of the hour
 //!   1204     1  return mode 0x37 / 0x38 / 0x39
@@ -113,7 +113,7 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
         &self.buffer.as_ref()[start..start + field::BLOCK_LEN]
     }
 
-    /// Block azimuth in hundredths of a degree (raw; 0..=35999 on a valid packet).
+    /// Block azimuth in hundredths of a degree (raw; 0..=36000 on a valid packet, 36000 = 0).
     #[inline]
     pub fn azimuth_raw(&self, block: usize) -> u16 {
         le16(self.block(block), field::AZIMUTH.start)
@@ -226,7 +226,7 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> DataPacket<T> {
 /// One data block in real units.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BlockRepr {
-    /// Azimuth, 0.01 deg, 0..=35999.
+    /// Azimuth, 0.01 deg, 0..=36000 (36000 = 0, as real units send it).
     pub azimuth: u16,
     /// Per channel: raw distance (2 mm units) and reflectivity.
     pub channels: [(u16, u8); field::CHANNELS],
@@ -257,7 +257,7 @@ impl DataRepr {
         }; field::BLOCKS];
         for (b, repr) in blocks.iter_mut().enumerate() {
             repr.azimuth = packet.azimuth_raw(b);
-            if repr.azimuth >= 36_000 {
+            if repr.azimuth > 36_000 {
                 return Err(Error::BadAzimuth {
                     block: b as u8,
                     found: repr.azimuth,
@@ -353,13 +353,13 @@ mod tests {
     #[test]
     fn repr_rejects_bad_azimuth_and_mode() {
         let mut buf = blank();
-        DataPacket::new_unchecked(&mut buf[..]).set_azimuth_raw(5, 36_000);
+        DataPacket::new_unchecked(&mut buf[..]).set_azimuth_raw(5, 36_001);
         let p = DataPacket::new_checked(&buf[..]).unwrap();
         assert_eq!(
             DataRepr::parse(&p).unwrap_err(),
             Error::BadAzimuth {
                 block: 5,
-                found: 36_000
+                found: 36_001
             }
         );
         let mut buf = blank();

@@ -199,6 +199,18 @@ const TWO_PI: f32 = core::f32::consts::TAU;
 /// block) the small-angle series is not used and each point gets an exact sincos.
 const SERIES_MAX_GAP_RAD: f32 = 0.1;
 
+/// A block's azimuth in 0.01 deg, 0..=35999: real units also send 36000, which the ROS driver
+/// and velodyne_decoder read as 0 (PROTOCOLS.md).
+#[inline]
+fn azimuth_cdeg<T: AsRef<[u8]>>(p: &DataPacket<T>, b: usize) -> u16 {
+    let a = p.azimuth_raw(b);
+    if a == 36_000 {
+        0
+    } else {
+        a
+    }
+}
+
 /// Azimuth step (0.01 deg) for each block, per PROTOCOLS.md: to the next block (single) or
 /// next pair (dual); the last block or pair reuses the previous step.
 fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BLOCKS] {
@@ -209,8 +221,8 @@ fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BL
     while b < BLOCKS {
         let next = b + stride;
         let gap = if next < BLOCKS {
-            let g =
-                (36_000 + u32::from(p.azimuth_raw(next)) - u32::from(p.azimuth_raw(b))) % 36_000;
+            let g = (36_000 + u32::from(azimuth_cdeg(p, next)) - u32::from(azimuth_cdeg(p, b)))
+                % 36_000;
             last = g as u16;
             last
         } else {
@@ -234,14 +246,14 @@ fn small_sincos(d: f32) -> (f32, f32) {
 
 /// Decode every non-zero return of a data packet into `out` (cleared first); returns the count.
 ///
-/// Fails, leaving `out` empty, on an unknown return mode or a block azimuth outside
-/// 0..=35999. Block flags are checked by [`DataPacket::new_checked`].
+/// Fails, leaving `out` empty, on an unknown return mode or a block azimuth above 36000 (36000
+/// is 0). Block flags are checked by [`DataPacket::new_checked`].
 pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Result<usize, Error> {
     out.len = 0;
     let mode = packet.return_mode()?;
     for b in 0..BLOCKS {
         let found = packet.azimuth_raw(b);
-        if found >= 36_000 {
+        if found > 36_000 {
             return Err(Error::BadAzimuth {
                 block: b as u8,
                 found,
@@ -251,7 +263,7 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
     let gaps = azimuth_gaps(packet, mode);
     let mut n = 0;
     for (b, &gap_cdeg) in gaps.iter().enumerate() {
-        let a0 = f32::from(packet.azimuth_raw(b)) * CDEG_TO_RAD;
+        let a0 = f32::from(azimuth_cdeg(packet, b)) * CDEG_TO_RAD;
         let (sa, ca) = libm::sincosf(a0);
         let gap = f32::from(gap_cdeg) * CDEG_TO_RAD;
         // Firing n = 24 s + l sits n * 2.304 / 110.592 = n / 48 of the way to the next block.

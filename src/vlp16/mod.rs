@@ -211,7 +211,7 @@ pub enum Error {
         /// The two bytes found, big-endian as they appear on the wire.
         found: u16,
     },
-    /// A block azimuth outside 0..=35999 hundredths of a degree.
+    /// A block azimuth above 36000 hundredths of a degree (36000 is read as 0).
     BadAzimuth {
         /// Block index 0..11.
         block: u8,
@@ -255,7 +255,7 @@ impl fmt::Display for Error {
             ),
             Error::BadAzimuth { block, found } => write!(
                 f,
-                "data block {block}: azimuth {found} outside 0..=35999 (0.01 deg)"
+                "data block {block}: azimuth {found} above 36000 (0.01 deg)"
             ),
             Error::UnknownReturnMode { found } => write!(
                 f,

@@ -123,6 +123,40 @@ fn azimuth_wraps_through_north() {
     }
 }
 
+/// Real units send 36000 for north (velodyne_decoder and the ROS driver read it as 0): the
+/// packet decodes exactly as with 0 there; 36001 is refused naming the block.
+#[test]
+fn azimuth_36000_is_north() {
+    let packet = |north: u16| {
+        let mut buf = [0u8; DATA_PACKET_LEN];
+        set_all_flags(&mut buf);
+        let mut p = DataPacket::new_unchecked(&mut buf[..]);
+        for b in 0..12u16 {
+            let a = (35_960 + 20 * b) % 36_000;
+            p.set_azimuth_raw(usize::from(b), if a == 0 { north } else { a });
+            p.set_channel(usize::from(b), 7, 700, 9);
+        }
+        p.set_return_mode(ReturnMode::Strongest);
+        buf
+    };
+    let (a, b) = (packet(0), packet(36_000));
+    let (mut pa, mut pb) = (PointBuf::new(), PointBuf::new());
+    decode(&DataPacket::new_checked(&a[..]).unwrap(), &mut pa).unwrap();
+    decode(&DataPacket::new_checked(&b[..]).unwrap(), &mut pb).unwrap();
+    assert_eq!(pa.as_slice(), pb.as_slice());
+    // Block 2 sits at north: 0 deg + 7/48 of the 0.2 deg step for channel 7.
+    let got = f64::from(pb.as_slice()[2].azimuth).to_degrees();
+    assert!((got - 0.2 * 7.0 / 48.0).abs() < 1e-4, "{got}");
+    let c = packet(36_001);
+    assert_eq!(
+        decode(&DataPacket::new_checked(&c[..]).unwrap(), &mut pa),
+        Err(Error::BadAzimuth {
+            block: 2,
+            found: 36_001
+        })
+    );
+}
+
 fn block_strategy() -> impl Strategy<Value = BlockRepr> {
     (
         0u16..36_000,

@@ -373,13 +373,14 @@ impl<'a> Frame<'a> {
     }
 
     /// GPS time: Common/Time TimeGps [ns since 1980-01-06, no leap seconds], else
-    /// Time.GpsWeek * 604800 s + Time.GpsTow.
+    /// Time.GpsWeek * 604800 s + Time.GpsTow; `None` when the time is not a valid GPS time
+    /// ([`GpsTime::is_valid`]).
     pub fn gps_time(&self) -> Option<GpsTime> {
         if let Some(ns) = self
             .u64_field(Group::Common, 1)
             .or_else(|| self.u64_field(Group::Time, 1))
         {
-            return i64::try_from(ns).ok().map(GpsTime);
+            return i64::try_from(ns).ok().and_then(GpsTime::checked);
         }
         let tow = self.u64_field(Group::Time, 2)?;
         let week = u16::from_le_bytes(self.field(Group::Time, 3)?.try_into().ok()?);

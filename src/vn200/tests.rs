@@ -210,3 +210,39 @@ fn too_long_frames_are_counted() {
     f.consume(&stream, |_| panic!("nothing to frame"));
     assert_eq!(f.stats().too_long, 1);
 }
+
+/// A 16-byte frame with a valid CRC and GPS week 65535 (week x 604800 s overflows an i64), and
+/// a checksummed `$VNINS` with week 65535: no time, no pose, no panic.
+#[test]
+fn week_65535_is_no_time() {
+    let masks = Masks::default().with(Group::Time, 2).with(Group::Time, 3);
+    let mut payload = [0u8; 10];
+    payload[..8].copy_from_slice(&1_000_000_000u64.to_le_bytes());
+    payload[8..].copy_from_slice(&65_535u16.to_le_bytes());
+    let mut buf = [0u8; 64];
+    let n = emit(&mut buf, &masks, &payload).unwrap();
+    assert_eq!(n, 16);
+    let f = Frame::parse(&buf[..n]).unwrap();
+    assert_eq!(f.gps_time(), None);
+    assert_eq!(super::Pose::from_frame(&f), None);
+    // A week that fits (2300) gives the time.
+    payload[8..].copy_from_slice(&2300u16.to_le_bytes());
+    let n = emit(&mut buf, &masks, &payload).unwrap();
+    let f = Frame::parse(&buf[..n]).unwrap();
+    assert_eq!(
+        f.gps_time(),
+        Some(crate::time::GpsTime(
+            2300 * crate::time::WEEK_NS + 1_000_000_000
+        ))
+    );
+
+    let body = "VNINS,123456.000,65535,0002,+010.000,-001.000,+002.000,+48.38000000,-004.49000000,+052.000,+000.000,+000.000,+000.000,1.0,0.5,0.1";
+    let cs = body.bytes().fold(0u8, |a, b| a ^ b);
+    let line = std::format!("${body}*{cs:02X}");
+    let s = super::ascii::parse(line.as_bytes()).unwrap();
+    let super::ascii::Vn::Ins(ins) = s.decode().unwrap() else {
+        panic!("not a VNINS");
+    };
+    assert_eq!(ins.gps_time(), None);
+    assert_eq!(super::Pose::from_ins(&ins), None);
+}

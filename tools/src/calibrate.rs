@@ -209,6 +209,7 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
             "ill-conditioned: condition number {condition:.3e} > {limit:.0e}; the geometry cannot separate {}",
             if weak.is_empty() { "the parameters".to_string() } else { weak.join(", ") }
         ),
+        Refusal::NotConverged { iterations } => format!("the least squares did not converge (stalled after {iterations} iterations)"),
         Refusal::RmsTooHigh { rms, limit } => format!("residual RMS {:.1} mm above the {:.1} mm limit", rms * 1e3, limit * 1e3),
     }
 }

@@ -485,6 +485,11 @@ impl Scenario {
             "trajectory.turn_s",
             "expected 0..600",
         )?;
+        check(
+            tr.ins_down_m.is_finite() && tr.ins_down_m.abs() < 1e4,
+            "trajectory.ins_down_m",
+            "expected a finite height",
+        )?;
         for (k, w) in [
             ("roll", tr.roll),
             ("pitch", tr.pitch),
@@ -776,6 +781,51 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.0, "lidar.return_mode: expected strongest, last or dual");
+    }
+
+    /// TOML reads `inf` and `nan`: every non-finite value is refused with its key.
+    #[test]
+    fn non_finite_values_are_named() {
+        let text = BUILTIN[0].1;
+        for (from, to, key) in [
+            ("radius_m = 0.19", "radius_m = inf", "sphere[0].radius_m"),
+            ("radius_m = 0.19", "radius_m = nan", "sphere[0].radius_m"),
+            (
+                "ins_down_m = 0.0",
+                "ins_down_m = nan",
+                "trajectory.ins_down_m",
+            ),
+            (
+                "range_sigma_m = 0.0",
+                "range_sigma_m = nan",
+                "lidar.range_sigma_m",
+            ),
+            (
+                "time_offset_s = 0.0",
+                "time_offset_s = inf",
+                "ins.time_offset_s",
+            ),
+            ("duration_s = 20.0", "duration_s = inf", "trajectory"),
+            (
+                "window_margin_m = 3.0",
+                "window_margin_m = nan",
+                "mount.apriori.window_margin_m",
+            ),
+            (
+                "reflectivity = 0.45",
+                "reflectivity = nan",
+                "box[1].reflectivity",
+            ),
+            (
+                "size_m = [40.0, 8.0, 6.0]",
+                "size_m = [40.0, inf, 6.0]",
+                "box[1].size_m",
+            ),
+        ] {
+            assert!(text.contains(from), "{from}");
+            let e = Scenario::from_toml(&text.replacen(from, to, 1)).unwrap_err();
+            assert!(e.0.starts_with(&format!("{key}: ")), "{to}: {e}");
+        }
     }
 
     #[test]

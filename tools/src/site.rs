@@ -66,27 +66,68 @@ impl Site {
         Ok(s)
     }
 
-    /// Values a calibration can use.
+    /// Values a calibration can use: every number finite and in its range, named by its key.
     pub fn check(&self) -> Result<(), String> {
-        if self.origin.lat_deg.abs() > 90.0 || self.origin.lon_deg.abs() > 180.0 {
-            return Err("origin: latitude/longitude out of range".into());
-        }
-        for (i, s) in self.sphere.iter().enumerate() {
-            if s.radius_m.is_nan()
-                || s.radius_m <= 0.0
-                || !s.lat_deg.is_finite()
-                || !s.lon_deg.is_finite()
-                || !s.h_m.is_finite()
-            {
-                return Err(format!(
-                    "sphere[{i}] ({}): radius must be > 0 and the centre finite",
-                    s.id
-                ));
+        let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let need = |ok: bool, key: String, why: &str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(format!("{key}: {why}"))
             }
+        };
+        let o = &self.origin;
+        need(
+            fin(&[o.lat_deg]) && o.lat_deg.abs() <= 90.0,
+            "origin.lat_deg".into(),
+            "expected a finite latitude -90..=90",
+        )?;
+        need(
+            fin(&[o.lon_deg]) && o.lon_deg.abs() <= 180.0,
+            "origin.lon_deg".into(),
+            "expected a finite longitude -180..=180",
+        )?;
+        need(
+            fin(&[o.h_m]) && o.h_m.abs() < 1e4,
+            "origin.h_m".into(),
+            "expected a finite height under 10 km",
+        )?;
+        need(
+            (0..=100).contains(&self.leap_seconds),
+            "leap_seconds".into(),
+            "expected 0..=100",
+        )?;
+        for (i, s) in self.sphere.iter().enumerate() {
+            let key = format!("sphere[{i}] ({})", s.id);
+            need(
+                s.radius_m.is_finite() && s.radius_m > 0.0 && s.radius_m < 5.0,
+                format!("{key}.radius_m"),
+                "expected a finite radius 0 < r < 5 m",
+            )?;
+            need(
+                fin(&[s.lat_deg, s.lon_deg, s.h_m])
+                    && s.lat_deg.abs() <= 90.0
+                    && s.lon_deg.abs() <= 180.0,
+                format!("{key}"),
+                "expected a finite centre (latitude, longitude in range)",
+            )?;
         }
-        if self.apriori.window_margin_m.is_nan() || self.apriori.window_margin_m <= 0.0 {
-            return Err("apriori.window_margin_m: must be > 0".into());
-        }
+        let a = &self.apriori;
+        need(
+            fin(&a.boresight_deg),
+            "apriori.boresight_deg".into(),
+            "expected finite angles",
+        )?;
+        need(
+            fin(&a.lever_arm_m) && a.lever_arm_m.iter().all(|x| x.abs() < 50.0),
+            "apriori.lever_arm_m".into(),
+            "expected finite offsets under 50 m",
+        )?;
+        need(
+            a.window_margin_m.is_finite() && a.window_margin_m > 0.0 && a.window_margin_m < 20.0,
+            "apriori.window_margin_m".into(),
+            "expected 0 < m < 20",
+        )?;
         Ok(())
     }
 
@@ -98,6 +139,58 @@ impl Site {
     /// As TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "leap_seconds = 18\n[origin]\nlat_deg = 48.38\nlon_deg = -4.49\nh_m = 52.0\n[[sphere]]\nid = \"S1\"\nlat_deg = 48.38\nlon_deg = -4.49\nh_m = 53.6\nradius_m = 0.19\n[apriori]\nboresight_deg = [181.787, -42.423, 2.431]\nlever_arm_m = [1.312, -1.205, -1.759]\nwindow_margin_m = 3.0\n";
+
+    /// TOML reads `inf` and `nan`: every non-finite value is refused with its key.
+    #[test]
+    fn non_finite_values_are_refused_by_name() {
+        let s: Site = toml::from_str(GOOD).unwrap();
+        assert_eq!(s.check(), Ok(()));
+        for (from, to, key) in [
+            (
+                "radius_m = 0.19",
+                "radius_m = inf",
+                "sphere[0] (S1).radius_m",
+            ),
+            (
+                "radius_m = 0.19",
+                "radius_m = nan",
+                "sphere[0] (S1).radius_m",
+            ),
+            ("h_m = 53.6", "h_m = -inf", "sphere[0] (S1)"),
+            (
+                "[181.787, -42.423, 2.431]",
+                "[nan, -42.423, 2.431]",
+                "apriori.boresight_deg",
+            ),
+            (
+                "[1.312, -1.205, -1.759]",
+                "[1.312, inf, -1.759]",
+                "apriori.lever_arm_m",
+            ),
+            (
+                "window_margin_m = 3.0",
+                "window_margin_m = inf",
+                "apriori.window_margin_m",
+            ),
+            ("h_m = 52.0", "h_m = nan", "origin.h_m"),
+            (
+                "lat_deg = 48.38\nlon_deg = -4.49\nh_m = 52.0",
+                "lat_deg = nan\nlon_deg = -4.49\nh_m = 52.0",
+                "origin.lat_deg",
+            ),
+        ] {
+            let s: Site = toml::from_str(&GOOD.replacen(from, to, 1)).unwrap();
+            let e = s.check().unwrap_err();
+            assert!(e.starts_with(&format!("{key}: ")), "{to}: {e}");
+        }
     }
 }
 
