@@ -311,7 +311,7 @@ mod tests {
         ];
         let truth = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
         let mut obs = exact(&truth, &t);
-        let start = [3.14, -0.77, 0.03, 1.45, -1.2, -1.3];
+        let start = [3.12, -0.77, 0.03, 1.45, -1.2, -1.3];
         let pb = |o: &[std::vec::Vec<Observation>]| {
             let s = [
                 SphereObs {

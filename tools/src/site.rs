@@ -108,7 +108,7 @@ impl Site {
                 fin(&[s.lat_deg, s.lon_deg, s.h_m])
                     && s.lat_deg.abs() <= 90.0
                     && s.lon_deg.abs() <= 180.0,
-                format!("{key}"),
+                key.clone(),
                 "expected a finite centre (latitude, longitude in range)",
             )?;
         }
