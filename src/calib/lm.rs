@@ -335,13 +335,8 @@ mod tests {
         };
         let r = pb(&obs);
         assert!(r.converged, "{r:?}");
-        for i in 0..P {
-            assert!(
-                (r.b[i] - truth[i]).abs() < 1e-5,
-                "{i}: {} vs {}",
-                r.b[i],
-                truth[i]
-            );
+        for (i, (got, want)) in r.b.iter().zip(truth).enumerate() {
+            assert!((got - want).abs() < 1e-5, "{i}: {got} vs {want}");
         }
         // One return with a NaN position: no finite cost, no convergence claimed.
         obs[0][7].position.x = f64::NAN;
