@@ -142,6 +142,13 @@ impl Site {
     }
 }
 
+/// Boresight [deg] and lever arm [m] as the solver's six parameters: roll, pitch, heading, x,
+/// y, z.
+pub fn deg_m(boresight_deg: [f64; 3], lever_arm_m: [f64; 3]) -> [f64; 6] {
+    let (b, l) = (boresight_deg, lever_arm_m);
+    [b[0], b[1], b[2], l[0], l[1], l[2]]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -192,11 +199,4 @@ mod tests {
             assert!(e.starts_with(&format!("{key}: ")), "{to}: {e}");
         }
     }
-}
-
-/// Boresight [deg] and lever arm [m] as the solver's six parameters: roll, pitch, heading, x,
-/// y, z.
-pub fn deg_m(boresight_deg: [f64; 3], lever_arm_m: [f64; 3]) -> [f64; 6] {
-    let (b, l) = (boresight_deg, lever_arm_m);
-    [b[0], b[1], b[2], l[0], l[1], l[2]]
 }
