@@ -204,6 +204,32 @@ impl<const N: usize> PoseHistory<N> {
         Ok((a, b, f))
     }
 
+    /// The platform's velocity [m/s] and angular rate in the site frame [rad/s] around `t`, by
+    /// central differences over the poses `half_ns` before and after (the white noise of single
+    /// samples averages out over the span; 0.2 s turns a 2 cm position noise at 200 Hz into
+    /// 7 cm/s instead of 5.7 m/s). Near the ends of the history the span shrinks to what is
+    /// there (down to the bracketing samples).
+    pub fn smoothed_rates(&self, t: GpsTime, half_ns: i64) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let mut h = half_ns.max(1);
+        loop {
+            let a = self.interpolate(GpsTime(t.0.saturating_sub(h)));
+            let b = self.interpolate(GpsTime(t.0.saturating_add(h)));
+            if let (Ok(a), Ok(b)) = (a, b) {
+                let span = 2.0 * h as f64 * 1e-9;
+                let v = (b.pose.position - a.pose.position) / span;
+                let turn = nalgebra::Rotation3::from_matrix_unchecked(
+                    b.pose.r_ig * a.pose.r_ig.transpose(),
+                );
+                return Some((v, turn.scaled_axis() / span));
+            }
+            if h <= 1_000_000 {
+                let m = self.interpolate(t).ok()?;
+                return Some((m.velocity, m.pose.r_ig * m.rate));
+            }
+            h /= 2;
+        }
+    }
+
     /// The platform pose at `t`, with the velocity [m/s] and the body angular rate [rad/s]
     /// between the bracketing samples (so a caller can carry the pose a few microseconds on
     /// without another interpolation).

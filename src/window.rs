@@ -42,8 +42,13 @@ pub struct Observation {
     /// `R_ig` at the firing time (f32: 1e-7 rad, 3 um at 30 m; half the memory traffic of
     /// the calibration's passes over 10^5 windowed returns).
     pub r_ig: Matrix3<f32>,
-    /// Firing time.
+    /// Firing time (on the INS clock: the LiDAR's plus the time offset the pipeline applied).
     pub time: GpsTime,
+    /// The platform's velocity then, site NED [m/s]: with `omega`, what moves the return when
+    /// the time offset changes (`calib` estimates it).
+    pub velocity: Vector3<f32>,
+    /// The platform's angular rate then, in the site frame [rad/s].
+    pub omega: Vector3<f32>,
     /// Range [m].
     pub range: f32,
     /// Data packet index (file or arrival order): with `block` and `channel`, where the return
@@ -67,6 +72,8 @@ impl Default for Observation {
             position: Vector3::zeros(),
             r_ig: Matrix3::identity(),
             time: GpsTime(0),
+            velocity: Vector3::zeros(),
+            omega: Vector3::zeros(),
             range: 0.0,
             packet: 0,
             block: 0,
@@ -109,6 +116,15 @@ impl Observation {
     #[inline]
     pub fn georef(&self, mount: &Mount) -> Vector3<f64> {
         self.position + self.rot() * (mount.lever + mount.r_li * self.q())
+    }
+
+    /// Eq. 3 for a mounting with the poses taken `dt` seconds later (first order: the
+    /// platform moves `v dt` and turns `omega dt`; exact to (rate dt)^2 / 2).
+    #[inline]
+    pub fn georef_dt(&self, mount: &Mount, dt: f64) -> Vector3<f64> {
+        let w = self.rot() * (mount.lever + mount.r_li * self.q());
+        let (v, om): (Vector3<f64>, Vector3<f64>) = (self.velocity.cast(), self.omega.cast());
+        self.position + w + (v + om.cross(&w)) * dt
     }
 }
 
@@ -178,6 +194,10 @@ pub fn which_window(targets: &[Target], margin: f64, x: &Vector3<f64>) -> Option
 
 /// Longest carry of an interpolated pose [ns].
 const CARRY_NS: i64 = 700_000;
+/// Half the span over which an observation's velocity and turn rate are taken (they move its
+/// return when the time offset changes) [ns]; the pose history must reach this far past a
+/// packet for the full span.
+pub const RATE_SPAN_NS: i64 = 200_000_000;
 
 /// An interpolated pose and what carrying it on needs.
 struct Sequence {
@@ -196,6 +216,9 @@ struct Sequence {
     /// Each window in the LiDAR frame of this pose: centre and squared reach (radius + margin +
     /// slack), f32. `R_ig R_li` is a rotation, so distances are the same in both frames.
     windows: heapless::Vec<([f32; 3], f32), MAX_TARGETS>,
+    /// The velocity and site-frame turn rate over [`RATE_SPAN_NS`] around it (for the
+    /// observations; computed when the first return falls in a window).
+    rates: Option<(Vector3<f32>, Vector3<f32>)>,
 }
 
 impl Sequence {
@@ -213,6 +236,7 @@ impl Sequence {
         }
         Self {
             windows,
+            rates: None,
             motion: *motion,
             time,
             position: motion.pose.position,
@@ -264,6 +288,15 @@ impl<const CAP: usize> Windowing<'_, CAP> {
             hi = hi.sup(&(t.center + r));
         }
         let mut seq: Option<Sequence> = None;
+        let rates = |sq: &mut Sequence| -> (Vector3<f32>, Vector3<f32>) {
+            *sq.rates.get_or_insert_with(|| {
+                history
+                    .smoothed_rates(sq.time, RATE_SPAN_NS)
+                    .map_or((Vector3::zeros(), Vector3::zeros()), |(v, w)| {
+                        (v.cast(), w.cast())
+                    })
+            })
+        };
         for p in points.as_slice() {
             self.stats.points += 1;
             let t = GpsTime(t0.0 + i64::from(p.offset_ns));
@@ -287,7 +320,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                     }
                 };
             }
-            let Some(sq) = &seq else { continue };
+            let Some(sq) = seq.as_mut() else { continue };
             // Broad phase in the LiDAR frame, f32: is the return near any window at all?
             if each.is_none()
                 && !sq.windows.iter().any(|(c, r2)| {
@@ -332,10 +365,13 @@ impl<const CAP: usize> Windowing<'_, CAP> {
             if let Some(i) = w {
                 if let Some(b) = self.batches.get_mut(i) {
                     let PlatformPose { position, r_ig } = sq.motion.advanced(dt);
+                    let (velocity, omega) = rates(sq);
                     let obs = Observation {
                         q_l: q32,
                         position,
                         r_ig: r_ig.cast(),
+                        velocity,
+                        omega,
                         time: t,
                         range: p.distance_m(),
                         packet,

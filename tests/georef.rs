@@ -44,6 +44,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         mount,
         margin,
         max_gap_ns: 50_000_000,
+        time_offset_ns: 0,
     }
 }
 

@@ -684,6 +684,7 @@ fn recorded_trajectory_from_csv_and_sbet() {
         let (text, ok) = spherecal_tools::run_calibrate(
             spherecal_tools::Survey::synth_dir(&out),
             None,
+            Default::default(),
             &Default::default(),
             None,
         )

@@ -178,13 +178,14 @@ fn norm(a: V3) -> f32 {
     libm::sqrtf(dot(a, a))
 }
 
-/// Georeference every observation of one sphere with `mount`: the return relative to the
+/// Georeference every observation of one sphere with `mount` and the time offset `dt` (on
+/// top of the observations' poses, [`Observation::georef_dt`]): the return relative to the
 /// surveyed centre and the beam's direction, into `work`.
-pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount) {
+pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount, dt: f64) {
     for o in obs.iter_mut() {
         let rot = o.rot();
         let y = mount.r_li * o.q();
-        let x = o.position + rot * (mount.lever + y) - t.center;
+        let x = o.georef_dt(mount, dt) - t.center;
         let u = rot * y;
         let n = u.norm().max(1e-9);
         o.work.x = [x.x as f32, x.y as f32, x.z as f32];
@@ -874,10 +875,6 @@ mod tests {
             r_ig: Matrix3::identity(),
             time: GpsTime(0),
             range: d.norm() as f32,
-            packet: 0,
-            block: 0,
-            channel: 0,
-            laser: 0,
             work: crate::window::Work {
                 x: [x.x as f32, x.y as f32, x.z as f32],
                 u: [u.x as f32, u.y as f32, u.z as f32],
@@ -885,6 +882,7 @@ mod tests {
                 slice: 0,
                 verdict: 0,
             },
+            ..Observation::default()
         }
     }
 

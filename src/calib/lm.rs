@@ -19,8 +19,14 @@
 //! with `g = 1 - (u.n)^2` and `k = sigma_r^2 / 2r` (errors in variables). With a fixed radius
 //! either would leak into the lever arm (measured: -1.8 sigma mean bias in y on table1-noisy).
 //! The reported covariance of the six is the marginal one.
+//!
+//! The time offset between the clocks (`dt`, INS minus LiDAR, beyond what the pipeline applied
+//! to the poses) is estimated with the six when asked: a time offset moves each return by
+//! `dt (v + omega x R (a + R_li q))` (the platform's motion, to first order), so it shows along
+//! the track, with opposite signs on passes in opposite directions, scaled by the speed and the
+//! turn rate.
 
-use super::objective::Problem;
+use super::objective::{Problem, P7};
 use super::P;
 use nalgebra::{Cholesky, SMatrix, SVector, SymmetricEigen};
 
@@ -28,16 +34,24 @@ use nalgebra::{Cholesky, SMatrix, SVector, SymmetricEigen};
 pub type Mat6 = SMatrix<f64, P, P>;
 /// 6-vector.
 pub type Vec6 = SVector<f64, P>;
-/// The six and the two nuisance parameters (radius offset, grazing inflation).
-const Q: usize = P + 2;
-type Mat7 = SMatrix<f64, Q, Q>;
-type Vec7 = SVector<f64, Q>;
+/// The six, the time offset, and the two nuisance parameters (radius offset, grazing
+/// inflation).
+const Q: usize = P + 3;
+type MatQ = SMatrix<f64, Q, Q>;
+type VecQ = SVector<f64, Q>;
+/// Index of the time offset in the parameter vector.
+const DT: usize = P;
 
 /// What LM found and how well the data determine it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LmResult {
     /// Parameters [rad, m].
     pub b: [f64; P],
+    /// The time offset on top of the observations' poses [s] (the problem's own when not
+    /// estimated).
+    pub dt: f64,
+    /// The time offset was estimated.
+    pub estimated_dt: bool,
     /// Common radius offset [m] (what the spheres' apparent radius differs by).
     pub radius_offset: f64,
     /// Iterations taken.
@@ -48,76 +62,131 @@ pub struct LmResult {
     pub n: usize,
     /// RMS of the residuals [m].
     pub rms: f64,
-    /// `J^T J` at the solution.
+    /// `J^T J` of the six at the solution.
     pub normal: Mat6,
     /// Covariance of b.
     pub covariance: Mat6,
     /// 1-sigma of each parameter [rad, m]: the larger of the cluster-robust and the classic.
     pub sigma: [f64; P],
+    /// 1-sigma of the time offset [s] (0 when not estimated).
+    pub sigma_dt: f64,
     /// The classic 1-sigma, `sqrt(diag(sigma^2 (J^T J)^-1))`.
     pub sigma_classic: [f64; P],
     /// Clusters of correlated returns used for the robust covariance.
     pub clusters: usize,
-    /// Correlation matrix.
+    /// Correlation matrix of the six.
     pub correlation: Mat6,
-    /// Condition number of the unit-diagonal normal matrix.
+    /// Correlation of the time offset with each of the six.
+    pub dt_correlation: [f64; P],
+    /// Condition number of the unit-diagonal normal matrix (of the six and the time offset
+    /// when it is estimated).
     pub condition: f64,
     /// Eigenvector of the smallest eigenvalue of the scaled normal matrix (which combination
-    /// of parameters the data pin down least).
-    pub weakest: [f64; P],
+    /// of parameters the data pin down least): the six, then the time offset.
+    pub weakest: [f64; P7],
 }
 
-fn row7(row: &[f64; P], g: f64) -> Vec7 {
-    Vec7::from_column_slice(&[row[0], row[1], row[2], row[3], row[4], row[5], -1.0, -g])
+fn row_q(row: &[f64; P7], g: f64, dt: bool) -> VecQ {
+    VecQ::from_column_slice(&[
+        row[0],
+        row[1],
+        row[2],
+        row[3],
+        row[4],
+        row[5],
+        if dt { row[6] } else { 0.0 },
+        -1.0,
+        -g,
+    ])
 }
 
-fn normal_equations(pb: &Problem<'_>, b: &[f64; P], nu: [f64; 2]) -> (Mat7, Vec7, f64, usize) {
-    let mut jtj = Mat7::zeros();
-    let mut jtr = Vec7::zeros();
-    let mut cost = 0.0;
-    let mut n = 0;
-    pb.jacobian_with(b, |_, _, r, row, g| {
-        let j = row7(row, g);
-        let r = r - nu[0] - nu[1] * g;
-        jtj += j * j.transpose();
-        jtr += j * r;
-        cost += r * r;
-        n += 1;
-    });
-    (jtj, jtr, cost, n)
+/// The problem at parameters `z` (the six, the time offset, the two nuisance terms).
+struct At<'a, 'p> {
+    pb: &'a Problem<'p>,
+    z: [f64; Q],
+    dt: bool,
 }
 
-/// The cluster-robust middle term `sum_g s_g s_g^T` and the number of clusters. Observations of
-/// each sphere must be in time order.
-fn meat(pb: &Problem<'_>, b: &[f64; P], nu: [f64; 2], cluster_ns: i64) -> (Mat7, usize) {
-    let mut m = Mat7::zeros();
-    let mut g = Vec7::zeros();
-    let mut key: Option<(usize, i64)> = None;
-    let mut clusters = 0;
-    pb.jacobian_with(b, |j, o, r, row, gz| {
-        let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
-        if key != Some(k) {
-            if key.is_some() {
-                m += g * g.transpose();
-            }
-            g = Vec7::zeros();
-            key = Some(k);
-            clusters += 1;
-        }
-        g += row7(row, gz) * (r - nu[0] - nu[1] * gz);
-    });
-    if key.is_some() {
-        m += g * g.transpose();
+impl At<'_, '_> {
+    fn b(&self) -> [f64; P] {
+        core::array::from_fn(|i| self.z[i])
     }
-    (m, clusters)
+
+    fn problem(&self) -> Problem<'_> {
+        Problem {
+            dt: self.z[DT],
+            ..*self.pb
+        }
+    }
+
+    /// `J^T J`, `J^T r`, the cost and the count.
+    fn normal_equations(&self) -> (MatQ, VecQ, f64, usize) {
+        let mut jtj = MatQ::zeros();
+        let mut jtr = VecQ::zeros();
+        let mut cost = 0.0;
+        let mut n = 0;
+        let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
+        self.problem().jacobian_with(&self.b(), |_, _, r, row, g| {
+            let j = row_q(row, g, self.dt);
+            let r = r - nu0 - nu1 * g;
+            jtj += j * j.transpose();
+            jtr += j * r;
+            cost += r * r;
+            n += 1;
+        });
+        if !self.dt {
+            // The time offset is held: its equation is dt = dt.
+            jtj[(DT, DT)] = 1.0;
+        }
+        (jtj, jtr, cost, n)
+    }
+
+    /// The cluster-robust middle term `sum_g s_g s_g^T` and the number of clusters.
+    /// Observations of each sphere must be in time order.
+    fn meat(&self, cluster_ns: i64) -> (MatQ, usize) {
+        let mut m = MatQ::zeros();
+        let mut g = VecQ::zeros();
+        let mut key: Option<(usize, i64)> = None;
+        let mut clusters = 0;
+        let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
+        self.problem().jacobian_with(&self.b(), |j, o, r, row, gz| {
+            let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
+            if key != Some(k) {
+                if key.is_some() {
+                    m += g * g.transpose();
+                }
+                g = VecQ::zeros();
+                key = Some(k);
+                clusters += 1;
+            }
+            g += row_q(row, gz, self.dt) * (r - nu0 - nu1 * gz);
+        });
+        if key.is_some() {
+            m += g * g.transpose();
+        }
+        (m, clusters)
+    }
 }
 
 /// Refine `b0` by Levenberg-Marquardt, at most `max_iter` iterations; returns within
-/// `cluster_ns` of each other on one sphere count as one cluster for the covariance.
-pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64) -> LmResult {
-    let mut b = *b0;
-    let mut nu = [0.0; 2];
-    let (mut jtj, mut jtr, mut cost, mut n) = normal_equations(pb, &b, nu);
+/// `cluster_ns` of each other on one sphere count as one cluster for the covariance. With
+/// `estimate_dt`, the time offset is estimated with the six, from the problem's `dt`.
+pub fn refine(
+    pb: &Problem<'_>,
+    b0: &[f64; P],
+    max_iter: usize,
+    cluster_ns: i64,
+    estimate_dt: bool,
+) -> LmResult {
+    let mut z = [0.0; Q];
+    z[..P].copy_from_slice(b0);
+    z[DT] = pb.dt;
+    let mut at = At {
+        pb,
+        z,
+        dt: estimate_dt,
+    };
+    let (mut jtj, mut jtr, mut cost, mut n) = at.normal_equations();
     let mut lambda = 1e-3;
     let mut iterations = 0;
     let mut converged = false;
@@ -132,15 +201,13 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
             continue;
         };
         let delta = ch.solve(&(-jtr));
-        let mut trial = b;
-        for i in 0..P {
-            trial[i] += delta[i];
-        }
-        let trial_nu = [nu[0] + delta[P], nu[1] + delta[P + 1]];
-        let (tj, tr, tc, tn) = normal_equations(pb, &trial, trial_nu);
+        let trial = At {
+            z: core::array::from_fn(|i| at.z[i] + delta[i]),
+            ..at
+        };
+        let (tj, tr, tc, tn) = trial.normal_equations();
         if tc <= cost {
-            b = trial;
-            nu = trial_nu;
+            at = trial;
             let small =
                 delta.iter().all(|d| d.abs() < 1e-11) || (cost - tc) <= 1e-15 * cost.max(1e-30);
             (jtj, jtr, cost, n) = (tj, tr, tc, tn);
@@ -164,87 +231,110 @@ pub fn refine(pb: &Problem<'_>, b0: &[f64; P], max_iter: usize, cluster_ns: i64)
             }
         }
     }
-    converged &= cost.is_finite() && b.iter().all(|x| x.is_finite());
-    let dof = n.saturating_sub(Q).max(1) as f64;
+    let b = at.b();
+    converged &= cost.is_finite() && at.z.iter().all(|x| x.is_finite());
+    // Degrees of freedom: the held time offset is no parameter.
+    let params = if estimate_dt { Q } else { Q - 1 };
+    let dof = n.saturating_sub(params).max(1) as f64;
     let s2 = cost / dof;
-    let inv7 = jtj.try_inverse();
-    let (mid, clusters) = meat(pb, &b, nu, cluster_ns);
+    let inv = jtj.try_inverse();
+    let (mid, clusters) = at.meat(cluster_ns);
     let g = clusters as f64;
     let corr = if clusters > 1 {
         g / (g - 1.0) * (n as f64 - 1.0) / dof
     } else {
         1.0
     };
-    // The six's marginal covariances: the top-left block of the 7x7 ones.
-    let block = |m: Mat7| -> Mat6 { m.fixed_view::<P, P>(0, 0).into_owned() };
-    let classic = inv7
+    // The marginal covariances of the six and the time offset: the top-left 7x7 block.
+    let block = |m: MatQ| -> SMatrix<f64, P7, P7> { m.fixed_view::<P7, P7>(0, 0).into_owned() };
+    let classic = inv
         .map(|m| block(m * s2))
-        .unwrap_or_else(|| Mat6::from_element(f64::INFINITY));
-    let robust = inv7.map(|m| block(m * mid * m * corr)).unwrap_or(classic);
-    let jtj6 = block(jtj);
-    let mut sigma = [0.0; P];
+        .unwrap_or_else(|| SMatrix::from_element(f64::INFINITY));
+    let robust = inv.map(|m| block(m * mid * m * corr)).unwrap_or(classic);
+    let mut sig7 = [0.0; P7];
     let mut sigma_classic = [0.0; P];
-    for i in 0..P {
-        sigma_classic[i] = libm::sqrt(classic[(i, i)].max(0.0));
-        sigma[i] = libm::sqrt(robust[(i, i)].max(0.0)).max(sigma_classic[i]);
+    for i in 0..P7 {
+        let c = libm::sqrt(classic[(i, i)].max(0.0));
+        sig7[i] = libm::sqrt(robust[(i, i)].max(0.0)).max(c);
+        if i < P {
+            sigma_classic[i] = c;
+        }
+    }
+    if !estimate_dt {
+        sig7[DT] = 0.0;
     }
     // The reported covariance: the robust one, scaled up where the classic is larger.
-    let mut covariance = robust;
-    for i in 0..P {
-        for j in 0..P {
+    let mut cov7 = robust;
+    for i in 0..P7 {
+        for j in 0..P7 {
             let (ri, rj) = (
                 libm::sqrt(robust[(i, i)].max(1e-300)),
                 libm::sqrt(robust[(j, j)].max(1e-300)),
             );
-            covariance[(i, j)] = robust[(i, j)] / (ri * rj) * sigma[i] * sigma[j];
+            cov7[(i, j)] = robust[(i, j)] / (ri * rj) * sig7[i] * sig7[j];
         }
     }
+    let covariance: Mat6 = cov7.fixed_view::<P, P>(0, 0).into_owned();
     let mut correlation = Mat6::zeros();
+    let mut dt_correlation = [0.0; P];
     for i in 0..P {
         for j in 0..P {
-            correlation[(i, j)] = covariance[(i, j)] / (sigma[i] * sigma[j]);
+            correlation[(i, j)] = covariance[(i, j)] / (sig7[i] * sig7[j]);
+        }
+        if estimate_dt {
+            dt_correlation[i] = cov7[(i, DT)] / (sig7[i] * sig7[DT]);
         }
     }
-    // Scale the six's normal matrix to unit diagonal; its eigenvalues give the conditioning.
-    let mut scaled = jtj6;
-    for i in 0..P {
-        for j in 0..P {
-            scaled[(i, j)] = jtj6[(i, j)] / libm::sqrt(jtj6[(i, i)] * jtj6[(j, j)]).max(1e-300);
+    // Scale the normal matrix of the six (and the time offset when estimated) to unit
+    // diagonal; its eigenvalues give the conditioning.
+    let k = if estimate_dt { P7 } else { P };
+    let mut scaled = SMatrix::<f64, P7, P7>::identity();
+    for i in 0..k {
+        for j in 0..k {
+            scaled[(i, j)] = jtj[(i, j)] / libm::sqrt(jtj[(i, i)] * jtj[(j, j)]).max(1e-300);
         }
     }
     // Bounded iterations: a non-finite matrix gives no decomposition (and an infinite
-    // condition number: refused).
+    // condition number: refused). A held time offset is an identity row: it neither weakens
+    // nor conditions anything (its eigenvalue 1 is left out).
     let (condition, weakest) = match SymmetricEigen::try_new(scaled, f64::EPSILON, 200) {
         Some(eig) if eig.eigenvalues.iter().all(|e| e.is_finite()) => {
             let (mut lo, mut hi, mut lo_i) = (f64::INFINITY, 0f64, 0);
             for (i, &e) in eig.eigenvalues.iter().enumerate() {
+                if !estimate_dt && eig.eigenvectors[(DT, i)].abs() > 0.999 {
+                    continue;
+                }
                 if e < lo {
                     lo = e;
                     lo_i = i;
                 }
                 hi = hi.max(e);
             }
-            let mut weakest = [0.0; P];
+            let mut weakest = [0.0; P7];
             for (i, w) in weakest.iter_mut().enumerate() {
                 *w = eig.eigenvectors[(i, lo_i)];
             }
             (if lo > 0.0 { hi / lo } else { f64::INFINITY }, weakest)
         }
-        _ => (f64::INFINITY, [0.0; P]),
+        _ => (f64::INFINITY, [0.0; P7]),
     };
     LmResult {
         b,
-        radius_offset: nu[0],
+        dt: at.z[DT],
+        estimated_dt: estimate_dt,
+        radius_offset: at.z[P + 1],
         iterations,
         converged,
         n,
         rms: libm::sqrt(cost / n.max(1) as f64),
-        normal: jtj6,
+        normal: jtj.fixed_view::<P, P>(0, 0).into_owned(),
         covariance,
-        sigma,
+        sigma: core::array::from_fn(|i| sig7[i]),
+        sigma_dt: sig7[DT],
         sigma_classic,
         clusters,
         correlation,
+        dt_correlation,
         condition,
         weakest,
     }
@@ -327,10 +417,12 @@ mod tests {
                 &Problem {
                     spheres: &s,
                     stride: 1,
+                    dt: 0.0,
                 },
                 &start,
                 100,
                 20_000_000,
+                false,
             )
         };
         let r = pb(&obs);

@@ -25,7 +25,13 @@ pub struct Problem<'a> {
     pub spheres: &'a [SphereObs<'a>],
     /// [`Self::l1`] uses every `stride`-th observation of each sphere (1 = all).
     pub stride: usize,
+    /// The time offset [s] to apply on top of the observations' poses (the INS clock minus the
+    /// LiDAR's, beyond what the pipeline applied), to first order ([`Observation::georef_dt`]).
+    pub dt: f64,
 }
+
+/// The parameters with the time offset: b and dt.
+pub const P7: usize = P + 1;
 
 /// `R_li` and its derivatives by roll, pitch and heading (DESIGN.md convention).
 pub fn rotation_and_derivatives(b: &[f64; P]) -> (Matrix3<f64>, [Matrix3<f64>; 3]) {
@@ -43,6 +49,12 @@ pub fn rotation_and_derivatives(b: &[f64; P]) -> (Matrix3<f64>, [Matrix3<f64>; 3
     (rzy * rx, [rzy * drx, rz * dry * rx, drz * ry * rx])
 }
 
+/// The skew matrix of a vector: `skew(w) v = w x v`.
+#[inline]
+fn skew(w: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -w.z, w.y, w.z, 0.0, -w.x, -w.y, w.x, 0.0)
+}
+
 impl Problem<'_> {
     /// Observations in all.
     pub fn len(&self) -> usize {
@@ -54,6 +66,25 @@ impl Problem<'_> {
         self.len() == 0
     }
 
+    /// `x_k - c_j` for a mounting (`R_li`, lever `a`) with the time offset applied.
+    #[inline]
+    fn offset(
+        &self,
+        o: &Observation,
+        c: &Vector3<f64>,
+        r_li: &Matrix3<f64>,
+        a: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let w = o.rot() * (a + r_li * o.q());
+        let d = (o.position - c) + w;
+        if self.dt == 0.0 {
+            d
+        } else {
+            let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
+            d + (v + om.cross(&w)) * self.dt
+        }
+    }
+
     /// Eq. 6: the L1 sum of `| ||x_k(b) - c_j|| - r_j |` [m].
     pub fn l1(&self, b: &[f64; P]) -> f64 {
         let r_li = rotation(b[0], b[1], b[2]);
@@ -62,8 +93,7 @@ impl Problem<'_> {
         for s in self.spheres {
             let (c, r) = (s.target.center, s.target.radius);
             for o in s.obs.iter().step_by(self.stride.max(1)) {
-                let d = (o.position - c) + o.rot() * (a + r_li * o.q());
-                sum += (d.norm() - r).abs();
+                sum += (self.offset(o, &c, &r_li, &a).norm() - r).abs();
             }
         }
         sum
@@ -75,24 +105,32 @@ impl Problem<'_> {
         let a = Vector3::new(b[3], b[4], b[5]);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                let d = (o.position - s.target.center) + o.rot() * (a + r_li * o.q());
-                f(j, d.norm() - s.target.radius);
+                f(
+                    j,
+                    self.offset(o, &s.target.center, &r_li, &a).norm() - s.target.radius,
+                );
             }
         }
     }
 
     /// Visit every residual with its gradient by b (analytic: `n = (x - c)/||x - c||`,
-    /// `dr/da = R_k^T n`, `dr/dtheta_i = (R_k^T n) . (dR_li/dtheta_i q_k)`).
+    /// `dr/da = M^T n`, `dr/dtheta_i = (M^T n) . (dR_li/dtheta_i q_k)` with `M = (I + dt
+    /// skew(omega)) R_k`).
     pub fn jacobian(&self, b: &[f64; P], mut f: impl FnMut(f64, &[f64; P])) {
-        self.jacobian_with(b, |_, _, r, row, _| f(r, row));
+        self.jacobian_with(b, |_, _, r, row, _| {
+            let six = [row[0], row[1], row[2], row[3], row[4], row[5]];
+            f(r, &six)
+        });
     }
 
-    /// As [`Self::jacobian`], also giving the sphere index, the observation, and the grazing
-    /// factor `1 - (u.n)^2` of its beam `u` on the surface normal `n` (0 head-on, 1 tangent).
+    /// As [`Self::jacobian`], with the derivative by the time offset as a seventh entry
+    /// (`dr/ddt = n . (v + omega x R (a + R_li q))`), the sphere index, the observation, and
+    /// the grazing factor `1 - (u.n)^2` of its beam `u` on the surface normal `n` (0 head-on,
+    /// 1 tangent).
     pub fn jacobian_with(
         &self,
         b: &[f64; P],
-        mut f: impl FnMut(usize, &Observation, f64, &[f64; P], f64),
+        mut f: impl FnMut(usize, &Observation, f64, &[f64; P7], f64),
     ) {
         let (r_li, d) = rotation_and_derivatives(b);
         let a = Vector3::new(b[3], b[4], b[5]);
@@ -100,12 +138,21 @@ impl Problem<'_> {
             for o in s.obs {
                 let (q, rot) = (o.q(), o.rot());
                 let y = r_li * q;
-                let dx = (o.position - s.target.center) + rot * (a + y);
+                let w = rot * (a + y);
+                let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
+                let moved = v + om.cross(&w);
+                let dx = (o.position - s.target.center) + w + moved * self.dt;
                 let norm = dx.norm();
                 if norm == 0.0 {
                     continue;
                 }
-                let g = rot.transpose() * (dx / norm);
+                let n = dx / norm;
+                let m = if self.dt == 0.0 {
+                    rot
+                } else {
+                    rot + skew(&om) * rot * self.dt
+                };
+                let g = m.transpose() * n;
                 let row = [
                     g.dot(&(d[0] * q)),
                     g.dot(&(d[1] * q)),
@@ -113,10 +160,15 @@ impl Problem<'_> {
                     g.x,
                     g.y,
                     g.z,
+                    n.dot(&moved),
                 ];
-                // The beam R_ig y against the normal: (R y).n = y.(R^T n) = y.g.
+                // The beam R_ig y against the normal: (R y).n = y.(R^T n).
                 let yn = y.norm();
-                let cos = if yn > 0.0 { y.dot(&g) / yn } else { 1.0 };
+                let cos = if yn > 0.0 {
+                    y.dot(&(rot.transpose() * n)) / yn
+                } else {
+                    1.0
+                };
                 f(j, o, norm - s.target.radius, &row, 1.0 - cos * cos);
             }
         }
@@ -150,11 +202,7 @@ mod tests {
                 .cast(),
                 time: GpsTime(0),
                 range: 10.0,
-                packet: 0,
-                block: 0,
-                channel: 0,
-                laser: 0,
-                work: Default::default(),
+                ..Observation::default()
             })
             .collect()
     }
@@ -174,6 +222,7 @@ mod tests {
         let pb = Problem {
             spheres: &spheres,
             stride: 1,
+            dt: 0.0,
         };
         let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
         let mut rows = std::vec::Vec::new();
@@ -192,6 +241,49 @@ mod tests {
                     (fd - rows[k].1[i]).abs() < 1e-6 * (1.0 + fd.abs()),
                     "param {i} obs {k}: {fd} vs {}",
                     rows[k].1[i]
+                );
+            }
+        }
+        // With a time offset: every derivative, the offset's too, against finite differences.
+        let obs_moving: std::vec::Vec<Observation> = obs
+            .iter()
+            .map(|o| Observation {
+                velocity: Vector3::new(2.0, -1.0, 0.1),
+                omega: Vector3::new(0.02, -0.05, 0.3),
+                ..*o
+            })
+            .collect();
+        let spheres_m = [SphereObs {
+            target: t,
+            obs: &obs_moving,
+        }];
+        let at = |dt: f64| Problem {
+            spheres: &spheres_m,
+            stride: 1,
+            dt,
+        };
+        let dt = 0.05;
+        let mut rows7 = std::vec::Vec::new();
+        at(dt).jacobian_with(&b, |_, _, r, row, _| rows7.push((r, *row)));
+        for i in 0..P7 {
+            let h = 1e-6;
+            let (mut rp, mut rm) = (std::vec::Vec::new(), std::vec::Vec::new());
+            if i < P {
+                let (mut bp, mut bm) = (b, b);
+                bp[i] += h;
+                bm[i] -= h;
+                at(dt).residuals(&bp, |_, r| rp.push(r));
+                at(dt).residuals(&bm, |_, r| rm.push(r));
+            } else {
+                at(dt + h).residuals(&b, |_, r| rp.push(r));
+                at(dt - h).residuals(&b, |_, r| rm.push(r));
+            }
+            for k in 0..obs.len() {
+                let fd = (rp[k] - rm[k]) / (2.0 * h);
+                assert!(
+                    (fd - rows7[k].1[i]).abs() < 1e-6 * (1.0 + fd.abs()),
+                    "dt: param {i} obs {k}: {fd} vs {}",
+                    rows7[k].1[i]
                 );
             }
         }

@@ -67,6 +67,8 @@ pub struct Settings {
     pub nm_points: usize,
     /// Sphere extraction.
     pub extract: ExtractSettings,
+    /// Estimate the time offset between the clocks with the six.
+    pub estimate_dt: bool,
 }
 
 impl Default for Settings {
@@ -84,6 +86,7 @@ impl Default for Settings {
             cluster_ns: 20_000_000,
             nm_points: 100,
             extract: ExtractSettings::default(),
+            estimate_dt: true,
         }
     }
 }
@@ -184,6 +187,8 @@ pub struct Round {
     pub detected: u32,
     /// The parameters after the round's solve [rad, m].
     pub b: [f64; P],
+    /// The time offset after the round's solve [s].
+    pub dt: f64,
 }
 
 /// The answer and everything known about it.
@@ -191,6 +196,9 @@ pub struct Round {
 pub struct Solution {
     /// [roll, pitch, heading (rad), x, y, z (m)].
     pub b: [f64; P],
+    /// The time offset between the clocks on top of what the pipeline applied [s] (INS minus
+    /// LiDAR); 0 when not estimated.
+    pub dt: f64,
     /// The Nelder-Mead stage.
     pub nm: NmResult<P>,
     /// The LM stage (covariance, correlation, conditioning).
@@ -209,8 +217,9 @@ pub struct Solution {
     pub passes: heapless::Vec<PassReport, MAX_PASSES>,
     /// RMS of fitted minus surveyed centres [m].
     pub center_rms: Option<f64>,
-    /// Parameters the data determine poorly (large share of the weakest direction).
-    pub weak: [bool; P],
+    /// Parameters the data determine poorly (large share of the weakest direction): the six,
+    /// then the time offset.
+    pub weak: [bool; P + 1],
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
 }
@@ -220,6 +229,7 @@ fn with_problem<R>(
     obs: &[&mut [Observation]],
     used: &[usize],
     stride: usize,
+    dt: f64,
     f: impl FnOnce(&Problem<'_>) -> R,
 ) -> R {
     let mut spheres: heapless::Vec<SphereObs<'_>, MAX_TARGETS> = heapless::Vec::new();
@@ -232,6 +242,7 @@ fn with_problem<R>(
     f(&Problem {
         spheres: &spheres,
         stride,
+        dt,
     })
 }
 
@@ -273,9 +284,9 @@ impl Histogram {
 }
 
 /// Signed residual of one observation.
-fn residual(o: &Observation, t: &Target, b: &[f64; P]) -> f64 {
+fn residual(o: &Observation, t: &Target, b: &[f64; P], dt: f64) -> f64 {
     let m = Mount::from_params(b);
-    (o.georef(&m) - t.center).norm() - t.radius
+    (o.georef_dt(&m, dt) - t.center).norm() - t.radius
 }
 
 /// Move the kept observations to the front in time order (the others follow in no particular
@@ -490,7 +501,7 @@ pub fn solve(
         // Time order once: the scan-line segments (their lengths do not depend on the
         // mounting: a few milliseconds of a scan line move rigidly) and the slices.
         obs[j].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
-        extract::georeference(obs[j], &targets[j], &mount0);
+        extract::georeference(obs[j], &targets[j], &mount0, 0.0);
         extract::runs(obs[j], st.firing_ns, st.jump);
         extract::assign_slices(obs[j], st.slice_ns, ws.keys.len());
         extract::tag(obs[j], Verdict::Unclassified);
@@ -503,6 +514,7 @@ pub fn solve(
     let mut active = windowed;
     let mut sol = Solution {
         b: *b0,
+        dt: 0.0,
         nm: NmResult {
             x: to_deg_m(b0),
             f: f64::INFINITY,
@@ -518,7 +530,7 @@ pub fn solve(
         spheres: heapless::Vec::new(),
         passes: heapless::Vec::new(),
         center_rms: None,
-        weak: [false; P],
+        weak: [false; P + 1],
         refusal: None,
     };
     if n < 2 {
@@ -528,6 +540,7 @@ pub fn solve(
 
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
     let mut b = *b0;
+    let mut dt = 0.0f64;
     let mut tau = st.tau0;
     let mut prior: Option<f64> = None;
     let mut prints: heapless::Vec<u64, 4> = heapless::Vec::new();
@@ -537,12 +550,12 @@ pub fn solve(
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
         let round_tau = tau;
-        let b_before = b;
+        let (b_before, dt_before) = (b, dt);
         let mount = Mount::from_params(&b);
         let mut kept = [0usize; MAX_TARGETS];
         for j in 0..n {
             let v = &mut obs[j][..active[j]];
-            extract::georeference(v, &targets[j], &mount);
+            extract::georeference(v, &targets[j], &mount, dt);
             if let Some(p) = prior {
                 // Returns far from the sphere (a few prior radii beyond its surface, at least
                 // half a metre) cannot become its returns any more: they leave the rounds.
@@ -600,7 +613,7 @@ pub fn solve(
             // sphere, evenly spread, with a restart.
             let most = lens[..n].iter().copied().max().unwrap_or(1);
             let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-            let mut nm = with_problem(targets, &part, &lens, stride, |pb| {
+            let mut nm = with_problem(targets, &part, &lens, stride, dt, |pb| {
                 minimize::<P, 7>(|x| pb.l1(&from_deg_m(x)), &to_deg_m(&b), &s.step, &s.nm)
             });
             evaluations += nm.evaluations;
@@ -614,12 +627,16 @@ pub fn solve(
             for p in part.iter_mut().take(n) {
                 p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
             }
-            b = with_problem(targets, &part, &lens, 1, |pb| {
-                refine(pb, &b, s.lm_iter, s.cluster_ns).b
+            let r = with_problem(targets, &part, &lens, 1, dt, |pb| {
+                refine(pb, &b, s.lm_iter, s.cluster_ns, s.estimate_dt)
             });
+            b = r.b;
+            if r.dt.is_finite() {
+                dt = r.dt;
+            }
         }
         // The new shell and prior, from the kept returns against the surveyed spheres.
-        let med = with_problem(targets, &part, &lens, 1, |pb| {
+        let med = with_problem(targets, &part, &lens, 1, dt, |pb| {
             let mut h = Histogram::new();
             pb.residuals(&b, |_, r| h.add(r.abs()));
             h.median()
@@ -632,7 +649,7 @@ pub fn solve(
         let mut offsets = Histogram::new();
         for j in (0..n).filter(|&j| lens[j] > 0) {
             part[j].sort_unstable_by_key(|o| o.work.slice);
-            extract::georeference(part[j], &targets[j], &mount);
+            extract::georeference(part[j], &targets[j], &mount, dt);
             apparent_offsets(part[j], targets[j].radius, &mut offsets);
         }
         let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
@@ -644,6 +661,7 @@ pub fn solve(
             kept: total,
             detected: counts[..n].iter().map(|c| c.1).sum(),
             b,
+            dt,
         });
         // Settled: the kept sets barely change and the parameters stand still (to a tenth of
         // the 1e-3 deg / 1e-3 m the method aims for), or the kept sets go round a cycle (a few
@@ -652,7 +670,8 @@ pub fn solve(
             .iter()
             .zip(to_deg_m(&b_before))
             .map(|(a, c)| (a - c).abs())
-            .fold(0.0, f64::max);
+            .fold(0.0, f64::max)
+            .max((dt - dt_before).abs() * 20.0);
         let settled = prior.is_some()
             && ((last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total)
                 && moved < 2e-3)
@@ -675,7 +694,7 @@ pub fn solve(
     let mut tallies = [[0u32; 8]; MAX_TARGETS];
     for j in 0..n {
         let v = &mut obs[j][..active[j]];
-        extract::georeference(v, &targets[j], &mount);
+        extract::georeference(v, &targets[j], &mount, dt);
         let mine = {
             let a = passes.partition_point(|p| usize::from(p.sphere) < j);
             let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
@@ -723,16 +742,18 @@ pub fn solve(
 
     // 3. Least squares on the kept returns: the answer and its uncertainty.
     let lm = (found >= 2).then(|| {
-        with_problem(targets, obs, &used, 1, |pb| {
-            refine(pb, &b, s.lm_iter, s.cluster_ns)
+        with_problem(targets, obs, &used, 1, dt, |pb| {
+            refine(pb, &b, s.lm_iter, s.cluster_ns, s.estimate_dt)
         })
     });
     if let Some(r) = &lm {
         b = r.b;
+        dt = r.dt;
     }
     sol.b = b;
+    sol.dt = dt;
     sol.lm = lm;
-    sol.l1 = with_problem(targets, obs, &used, 1, |pb| pb.l1(&b));
+    sol.l1 = with_problem(targets, obs, &used, 1, dt, |pb| pb.l1(&b));
 
     // 4. Per sphere.
     let mount = Mount::from_params(&b);
@@ -744,12 +765,16 @@ pub fn solve(
         let rms = |bb: &[f64; P]| {
             let s2: f64 = kept
                 .iter()
-                .map(|o| libm::pow(residual(o, t, bb), 2.0))
+                .map(|o| libm::pow(residual(o, t, bb, dt), 2.0))
                 .sum();
             libm::sqrt(s2 / kept.len().max(1) as f64)
         };
-        let center = fit_center(kept.iter().map(|o| o.georef(&mount)), t.radius, t.center)
-            .map(|c| c - t.center);
+        let center = fit_center(
+            kept.iter().map(|o| o.georef_dt(&mount, dt)),
+            t.radius,
+            t.center,
+        )
+        .map(|c| c - t.center);
         if let Some(d) = center {
             c2 += d.norm_squared();
             nc += 1;
@@ -776,8 +801,8 @@ pub fn solve(
     let Some(lm) = sol.lm else {
         return sol;
     };
-    for i in 0..P {
-        sol.weak[i] = lm.weakest[i].abs() > 0.3;
+    for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
+        *w = v.abs() > 0.3;
     }
     if !lm.converged {
         sol.refusal = Some(Refusal::NotConverged {

@@ -38,6 +38,9 @@ pub struct Sigma {
     pub boresight_deg: Angles,
     /// [m].
     pub lever_arm_m: Xyz,
+    /// [s] (0 when the time offset is not estimated).
+    #[serde(default)]
+    pub time_offset_s: f64,
 }
 
 /// Windowed returns by the extraction's verdict.
@@ -138,6 +141,12 @@ pub struct Report {
     pub boresight_deg: Angles,
     /// [m].
     pub lever_arm_m: Xyz,
+    /// The time offset between the clocks: INS time = LiDAR time + this [s] (DESIGN.md).
+    #[serde(default)]
+    pub time_offset_s: f64,
+    /// The time offset was estimated (else held at the value the pipeline applied).
+    #[serde(default)]
+    pub time_offset_estimated: bool,
     /// 1-sigma.
     pub sigma: Sigma,
     /// RMS of the residuals [m].
@@ -158,7 +167,8 @@ pub struct Report {
     pub converged: bool,
     /// Why not, if not.
     pub reason: Option<String>,
-    /// Correlation matrix, order roll, pitch, heading, x, y, z.
+    /// Correlation matrix, order roll, pitch, heading, x, y, z, time_offset (the last row and
+    /// column 0 when the time offset is not estimated).
     pub correlation: Vec<Vec<f64>>,
     /// Condition number of the unit-diagonal normal matrix.
     pub condition_number: f64,
@@ -268,6 +278,7 @@ pub fn solve_report(
     let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
     let weak: Vec<String> = NAMES
         .iter()
+        .chain(&["time_offset"])
         .zip(sol.weak)
         .filter(|(_, w)| *w)
         .map(|(n, _)| n.to_string())
@@ -294,7 +305,10 @@ pub fn solve_report(
                 y: sigma[4],
                 z: sigma[5],
             },
+            time_offset_s: lm.map_or(f64::NAN, |l| l.sigma_dt),
         },
+        time_offset_s: sol.dt,
+        time_offset_estimated: s.estimate_dt,
         rms_m: lm.map_or(f64::NAN, |l| l.rms),
         objective_l1_m: sol.l1,
         points_per_sphere: sol.spheres.iter().map(|s| s.used).collect(),
@@ -304,10 +318,16 @@ pub fn solve_report(
         rounds: sol.rounds,
         converged: sol.refusal.is_none(),
         reason: sol.refusal.as_ref().map(|r| refusal_text(r, ids, &weak)),
-        correlation: (0..P)
+        correlation: (0..=P)
             .map(|i| {
-                (0..P)
-                    .map(|j| lm.map_or(f64::NAN, |l| l.correlation[(i, j)]))
+                (0..=P)
+                    .map(|j| {
+                        lm.map_or(f64::NAN, |l| match (i, j) {
+                            (P, P) => f64::from(u8::from(l.estimated_dt)),
+                            (P, k) | (k, P) => l.dt_correlation[k],
+                            _ => l.correlation[(i, j)],
+                        })
+                    })
                     .collect()
             })
             .collect(),
@@ -364,7 +384,8 @@ pub fn solve_report(
 }
 
 /// The human summary.
-pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
+/// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
+pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     let mut o = String::new();
     let b = [
         r.boresight_deg.roll,
@@ -407,6 +428,25 @@ pub fn render(r: &Report, truth: Option<&[f64; P]>) -> String {
         }
         let _ = writeln!(o);
     }
+    // The time offset: INS time = LiDAR time + dt.
+    let start = r.start.get("time_offset").copied().unwrap_or(0.0);
+    if r.time_offset_estimated {
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.6}{:>10.6} {:<3}",
+            "dt", start, r.time_offset_s, r.sigma.time_offset_s, "s"
+        );
+    } else {
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.6}{:>10} {:<3}",
+            "dt", start, r.time_offset_s, "held", "s"
+        );
+    }
+    if let Some(t) = truth {
+        let _ = write!(o, "{:>14.4}{:>11.2e}", t[P], r.time_offset_s - t[P]);
+    }
+    let _ = writeln!(o);
     let _ = writeln!(
         o,
         "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}",

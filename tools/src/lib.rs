@@ -66,14 +66,37 @@ pub struct Outputs {
 pub const RETURNS_HEADER: &str =
     "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
 
+/// How `calibrate` treats the clocks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockOptions {
+    /// Estimate the time offset between the clocks (else hold `start`).
+    pub estimate: bool,
+    /// The time offset to start from [s] (INS time = LiDAR time + this).
+    pub start: f64,
+}
+
+impl Default for ClockOptions {
+    fn default() -> Self {
+        Self {
+            estimate: true,
+            start: 0.0,
+        }
+    }
+}
+
 /// `spherecal calibrate` as a function: returns the summary and whether a solution is claimed.
-/// `init` overrides the site's a-priori start [deg, m]; `truth` (for the demo) is printed beside
-/// the result.
+/// `init` overrides the site's a-priori start [deg, m]; `truth` (for the demo: the six and the
+/// time offset) is printed beside the result.
+///
+/// With the time offset estimated, the windows are collected again with the offset found
+/// (the solver's estimate is to first order in the offset the poses were taken at) until it
+/// changes by less than 0.5 ms (four times at most).
 pub fn run_calibrate(
     survey: Survey,
     init: Option<[f64; 6]>,
+    clock: ClockOptions,
     out: &Outputs,
-    truth: Option<[f64; 6]>,
+    truth: Option<[f64; 7]>,
 ) -> Result<(String, bool), String> {
     use pipeline::{Inputs, InsInput};
     let site = site::Site::load(&survey.site)?;
@@ -86,15 +109,33 @@ pub fn run_calibrate(
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.mount = spherecal::georef::Mount::from_params(&b0);
-    let (stats, mut obs) = calibrate::collect(&inp)?;
+    let settings = spherecal::calib::Settings {
+        estimate_dt: clock.estimate,
+        ..Default::default()
+    };
     let (targets, ids) = calibrate::site_targets(&inp);
-    let (sol, mut rep) = calibrate::solve_report(
-        &targets,
-        &ids,
-        &mut obs,
-        &b0,
-        &spherecal::calib::Settings::default(),
-    );
+    let mut applied = clock.start;
+    let mut collections = 0;
+    let (stats, obs, sol, mut rep) = loop {
+        inp.time_offset_ns = (applied * 1e9).round() as i64;
+        let (stats, mut obs) = calibrate::collect(&inp)?;
+        let (sol, rep) = calibrate::solve_report(&targets, &ids, &mut obs, &b0, &settings);
+        collections += 1;
+        // Again with the offset found, while it moves by more than 0.5 ms (and stays within
+        // 2 s of the start: beyond, the first-order estimate is no guide).
+        let next = applied + sol.dt;
+        let again = clock.estimate
+            && collections < 4
+            && sol.lm.is_some_and(|l| l.converged)
+            && sol.dt.abs() > 5e-4
+            && (next - clock.start).abs() <= 2.0;
+        if !again {
+            break (stats, obs, sol, rep);
+        }
+        applied = next;
+    };
+    rep.time_offset_s += applied;
+    rep.start.insert("time_offset".to_string(), clock.start);
     rep.batch_overflow = stats.batch_overflow;
     let mut text = format!(
         "{} data packets, {} poses, {} returns, windows {:?}\n",
@@ -115,6 +156,7 @@ pub fn run_calibrate(
     if let Some(p) = &out.las {
         let inp2 = pipeline::Inputs {
             mount: spherecal::georef::Mount::from_params(&sol.b),
+            time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
             ..inp.clone()
         };
         let (_, _, t) = georef::georef(&inp2, Some(p), None)?;

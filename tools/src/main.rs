@@ -72,6 +72,10 @@ enum Cmd {
         /// Largest INS sample spacing to interpolate over [ms].
         #[arg(long, default_value_t = 50.0)]
         max_gap_ms: f64,
+        /// The time offset between the clocks [s]: INS time = LiDAR time + this (what
+        /// `calibrate` reports as `time_offset_s`).
+        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+        time_offset: f64,
         /// Write the georeferenced cloud as LAS 1.4 (local east-north-up from the origin).
         #[arg(long)]
         las: Option<PathBuf>,
@@ -98,6 +102,12 @@ enum Cmd {
         /// Write every windowed return with its verdict (kept, or why not) as CSV.
         #[arg(long)]
         returns: Option<PathBuf>,
+        /// Start from this time offset between the clocks [s] (INS time = LiDAR time + this).
+        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+        time_offset: f64,
+        /// Hold the time offset (at `--time-offset`) instead of estimating it.
+        #[arg(long)]
+        hold_time_offset: bool,
     },
     /// Calibrate one synthetic survey from many perturbed starts, on all cores.
     Montecarlo {
@@ -288,6 +298,8 @@ fn main() -> ExitCode {
             las,
             plot,
             returns,
+            time_offset,
+            hold_time_offset,
         } => {
             let survey = spherecal_tools::Survey {
                 pcap: survey.pcap,
@@ -302,7 +314,11 @@ fn main() -> ExitCode {
                 plot,
                 returns,
             };
-            match spherecal_tools::run_calibrate(survey, init, &out, None) {
+            let clock = spherecal_tools::ClockOptions {
+                estimate: !hold_time_offset,
+                start: time_offset,
+            };
+            match spherecal_tools::run_calibrate(survey, init, clock, &out, None) {
                 Ok((text, ok)) => {
                     say!("{text}");
                     if ok {
@@ -329,9 +345,17 @@ fn main() -> ExitCode {
             boresight,
             lever,
             max_gap_ms,
+            time_offset,
             las,
             windows,
-        } => georef(survey, boresight, lever, max_gap_ms, las, windows),
+        } => georef(
+            survey,
+            boresight,
+            lever,
+            (max_gap_ms, time_offset),
+            las,
+            windows,
+        ),
     }
 }
 
@@ -425,8 +449,16 @@ fn demo() -> ExitCode {
         t0.elapsed().as_secs_f64()
     );
     sayln!("calibrating from the paper's erroneous a-priori values ...");
-    let truth6 =
-        spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m);
+    let t6 = spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m);
+    let truth7 = [
+        t6[0],
+        t6[1],
+        t6[2],
+        t6[3],
+        t6[4],
+        t6[5],
+        s.true_time_offset_s(),
+    ];
     let out = spherecal_tools::Outputs {
         report: Some(dir.join("report.json")),
         ..Default::default()
@@ -434,8 +466,9 @@ fn demo() -> ExitCode {
     let res = spherecal_tools::run_calibrate(
         spherecal_tools::Survey::synth_dir(&dir),
         None,
+        Default::default(),
         &out,
-        Some(truth6),
+        Some(truth7),
     );
     let code = match res {
         Ok((text, ok)) => {
@@ -634,7 +667,7 @@ fn georef(
     survey: Survey,
     boresight: Option<[f64; 3]>,
     lever: Option<[f64; 3]>,
-    max_gap_ms: f64,
+    (max_gap_ms, time_offset): (f64, f64),
     las: Option<PathBuf>,
     windows: Option<PathBuf>,
 ) -> ExitCode {
@@ -669,6 +702,7 @@ fn georef(
         mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),
         margin: site.apriori.window_margin_m,
         max_gap_ns: (max_gap_ms * 1e6) as i64,
+        time_offset_ns: (time_offset * 1e9).round() as i64,
         site,
     };
     match spherecal_tools::georef::georef(&inp, las.as_deref(), windows.as_deref()) {

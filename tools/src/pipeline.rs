@@ -130,6 +130,9 @@ pub struct Inputs {
     pub margin: f64,
     /// Largest INS sample spacing to interpolate over [ns].
     pub max_gap_ns: i64,
+    /// The time offset between the clocks [ns]: INS time = LiDAR time + this; each firing's
+    /// pose is taken at its LiDAR time plus this (DESIGN.md conventions).
+    pub time_offset_ns: i64,
 }
 
 impl Inputs {
@@ -142,6 +145,7 @@ impl Inputs {
             mount: Mount::from_params(&b0),
             margin: site.apriori.window_margin_m,
             max_gap_ns: 50_000_000,
+            time_offset_ns: 0,
             site,
         }
     }
@@ -314,6 +318,8 @@ pub struct Aligner {
     pub windowed: Vec<u64>,
     /// Data packets handed to [`Self::data`] so far (the next one's index).
     data_seen: u32,
+    /// INS time minus LiDAR time [ns]: a firing's pose is taken this much later.
+    pub time_offset_ns: i64,
 }
 
 impl Aligner {
@@ -343,6 +349,7 @@ impl Aligner {
             lag_ns: None,
             windowed: vec![0; n],
             data_seen: 0,
+            time_offset_ns: 0,
         }
     }
 
@@ -452,8 +459,16 @@ impl Aligner {
             self.stats.packets_without_time += 1;
             return;
         };
-        // A packet's 24 firing sequences span 1.33 ms.
-        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000)), item.host_ns);
+        // On the INS clock (the poses' times).
+        let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
+        // A packet's 24 firing sequences span 1.33 ms; from files, the poses are read on past it
+        // by the span its returns' velocity and turn rate are taken over (live input does not
+        // wait for them: the span shrinks at the newest pose).
+        let ahead = match self.wait {
+            InsWait::UntilEnd => spherecal::window::RATE_SPAN_NS,
+            InsWait::Latency(_) => 0,
+        };
+        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000 + ahead)), item.host_ns);
         if vlp16::decode(&p, &mut self.points).is_err() {
             return;
         }
@@ -640,6 +655,7 @@ pub fn run<C: Send>(
             inp.max_gap_ns,
             InsWait::UntilEnd,
         );
+        al.time_offset_ns = inp.time_offset_ns;
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let _ = tx.send(BatchMsg {
                 sphere,

@@ -558,6 +558,12 @@ impl Scenario {
         unix_ns_to_gps(parse_utc(&self.start_utc).unwrap_or(0), self.leap_seconds)
     }
 
+    /// The true time offset between the clocks [s]: INS time = LiDAR time + this (the INS
+    /// clock's error minus the LiDAR clock's).
+    pub fn true_time_offset_s(&self) -> f64 {
+        self.ins.time_offset_s
+    }
+
     /// The true mount.
     pub fn truth_mount(&self) -> Mount {
         let t = &self.mount.truth;
