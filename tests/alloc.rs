@@ -153,6 +153,7 @@ fn rig_steady_state_allocates_nothing_per_packet() {
         duration: None,
         report: None,
         settings: spherecal::calib::Settings::default(),
+        keep_untracked_ins: false,
     };
     static STOP: AtomicBool = AtomicBool::new(false);
     let rig = std::thread::spawn(move || {

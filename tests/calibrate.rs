@@ -151,6 +151,13 @@ fn table1_quay_from_the_papers_start() {
     ];
     assert_within(&got, &truth(&s), 1e-3, "table1");
     assert_eq!(r["converged"], true);
+    // No clock offset: the estimate is within 1 ms of none.
+    assert_eq!(r["time_offset_estimated"], true);
+    let dt = r["time_offset_s"].as_f64().unwrap();
+    assert!(dt.abs() < 1e-3, "time offset {dt}");
+    assert_eq!(r["inputs"]["clock_trusted"], true);
+    assert!(r["consistency"]["dispersion"].as_f64().unwrap() < 2.0);
+    assert!(r["consistency"]["worst_pass_chi2"].as_f64().unwrap() < 25.0);
     for key in [
         "sigma",
         "rms_m",

@@ -212,12 +212,14 @@ fn u(v: &serde_json::Value) -> u64 {
     v.as_u64().unwrap()
 }
 
-/// table1 through the whole rig: replayed in real time (the 62.5 s survey) to loopback and a
-/// pseudo-terminal; the run calibrates to the truth, logs every datagram and
-/// every serial byte it was sent, and stops cleanly on SIGINT.
+/// table1 through the whole rig, its INS 20 ms late (serial latency): replayed in real time
+/// (the 62.5 s survey) to loopback and a pseudo-terminal; the run estimates the time offset and
+/// moves its windows by it, calibrates to the truth, logs every datagram and every serial byte
+/// it was sent, shows the offset on its status line and stops cleanly on SIGINT.
 #[test]
 fn table1_through_the_rig() {
-    let s = table1();
+    let mut s = table1();
+    s.ins.time_offset_s = 0.02;
     let (dp, pp) = (23_710, 23_711);
     let Setup {
         dir,
@@ -273,6 +275,15 @@ fn table1_through_the_rig() {
         let got = rep["lever_arm_m"][k].as_f64().unwrap();
         assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
     }
+    let dt = rep["time_offset_s"].as_f64().unwrap();
+    assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
+    // The status line showed it.
+    let last = spherecal_tools::status::Status::parse(lines.last().unwrap()).unwrap();
+    let (dt_ms, sig_ms) = last.time_offset_ms.expect("dt on the status line");
+    assert!(
+        (dt_ms - 20.0).abs() < 1.0 && sig_ms > 0.0,
+        "{dt_ms} +- {sig_ms}"
+    );
 
     // Nothing lost at this pace: every datagram received, enqueued and aligned.
     let sm = summary(&logs);
@@ -284,7 +295,17 @@ fn table1_through_the_rig() {
     assert_eq!(u(&sm["data_packets"]), truth.data_packets, "{sm}");
     assert_eq!(sm["ring_drops"], serde_json::json!([0, 0, 0, 0, 0]), "{sm}");
     assert_eq!(sm["kernel_drops"], serde_json::json!([0, 0]), "{sm}");
-    assert_eq!(u(&sm["poses"]), truth.ins_frames, "{sm}");
+    assert_eq!(u(&sm["ins"]["poses"]), truth.ins_frames, "{sm}");
+    assert_eq!(u(&sm["ins"]["crc_failures"]), 0, "{sm}");
+    assert_eq!(sm["clock_trusted"], true, "{sm}");
+    assert_eq!(
+        u(&sm["clock"]["pps"][2]),
+        truth.position_packets,
+        "PPS locked: {sm}"
+    );
+    // The windows moved with the offset found.
+    let applied = sm["time_offset_s"].as_f64().unwrap();
+    assert!((applied - 0.02).abs() < 2e-3, "applied {applied}");
     assert!(
         u(&sm["solves"]) >= 2,
         "solved as the data came and at the end: {sm}"

@@ -22,7 +22,13 @@
 //! cannot fix a rotation about the line to it); a condition number of the unit-diagonal normal
 //! matrix above `max_condition` = 1e3 (the weakest combination of parameters is then determined
 //! 30 times worse than the best, and some pair correlates beyond 0.998: table1's four passes give
-//! 7, a single pass 1.3e4 with roll, heading and z inseparable); an RMS above `max_rms`.
+//! 7, a single pass 1.3e4 with roll, heading and z inseparable); the least squares not
+//! converged; a residual RMS above `max_dispersion` times what the noise model predicts
+//! (range, INS attitude x range, INS position, quantisation); a pass whose sphere, re-fitted to
+//! its own calibrated returns, sits off the surveyed centre by more than its uncertainty allows
+//! (chi-square over `max_pass_chi2` and more than `pass_offset_floor`): each pass must agree, not
+//! only the average (an unestimated clock offset moves passes in opposite directions along the
+//! track and cancels in the mean).
 
 use super::extract::{self, Directions, ExtractSettings, Verdict};
 use super::lm::{refine, LmResult};
@@ -52,8 +58,25 @@ pub struct Settings {
     pub min_points: usize,
     /// Largest acceptable condition number.
     pub max_condition: f64,
-    /// Largest acceptable residual RMS [m].
-    pub max_rms: f64,
+    /// The range noise the sensor is specified for, 1 sigma [m] (VLP-16: 3 cm).
+    pub range_noise: f64,
+    /// The INS attitude noise, 1 sigma [rad].
+    pub attitude_noise: f64,
+    /// The INS position noise, 1 sigma [m].
+    pub position_noise: f64,
+    /// Over-dispersion: the residual RMS may be at most this many times what the noise model
+    /// predicts.
+    pub max_dispersion: f64,
+    /// A pass's sphere centre offset fails the consistency test beyond this chi-square (3
+    /// degrees of freedom; 25: p = 1.4e-5) ...
+    pub max_pass_chi2: f64,
+    /// ... and this many metres.
+    pub pass_offset_floor: f64,
+    /// A held time offset is contradicted when the data, free to estimate it, move it by more
+    /// than this many of its sigmas ...
+    pub held_dt_sigmas: f64,
+    /// ... and this many seconds.
+    pub held_dt_floor: f64,
     /// The shell: this many robust sigmas ...
     pub shell_sigmas: f64,
     /// ... but at least this [m].
@@ -79,7 +102,14 @@ impl Default for Settings {
             lm_iter: 100,
             min_points: 30,
             max_condition: 1e3,
-            max_rms: 0.1,
+            range_noise: 0.03,
+            attitude_noise: 0.05f64.to_radians(),
+            position_noise: 0.03,
+            max_dispersion: 2.0,
+            max_pass_chi2: 25.0,
+            pass_offset_floor: 0.003,
+            held_dt_sigmas: 5.0,
+            held_dt_floor: 0.001,
             shell_sigmas: 3.5,
             shell_floor: 0.004,
             max_rounds: 12,
@@ -120,12 +150,37 @@ pub enum Refusal {
         /// Iterations taken.
         iterations: usize,
     },
-    /// The residuals are far above the range noise.
-    RmsTooHigh {
+    /// The residuals are far above what the sensors' noise explains.
+    OverDispersed {
         /// RMS [m].
         rms: f64,
-        /// Limit [m].
-        limit: f64,
+        /// What the noise model predicts [m].
+        predicted: f64,
+    },
+    /// In one pass the calibrated returns leave a sphere off its surveyed centre, beyond its
+    /// uncertainty: the model does not fit (along the track: a time offset or a lever-arm x
+    /// error; across it: the boresight).
+    Inconsistent {
+        /// Sphere index.
+        sphere: usize,
+        /// Index of the pass in [`Solution::passes`].
+        pass: usize,
+        /// The fitted minus surveyed centre [m, NED].
+        offset: [f64; 3],
+        /// Its component along the track [m].
+        along_track: f64,
+        /// Its chi-square (3 degrees of freedom).
+        chi2: f64,
+    },
+    /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
+    /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
+    TimeOffsetContradicted {
+        /// The offset held [s] (on top of what the pipeline applied).
+        held: f64,
+        /// The offset the data give [s].
+        found: f64,
+        /// Its sigma [s].
+        sigma: f64,
     },
 }
 
@@ -172,6 +227,13 @@ pub struct PassReport {
     pub mean_inliers: f32,
     /// Windowed returns by verdict.
     pub verdicts: Tally,
+    /// The sphere's centre fitted (radius fixed) to the pass's kept returns with the solution,
+    /// minus the surveyed one [m, NED] (zero with fewer than 10 returns).
+    pub centre_offset: [f32; 3],
+    /// Its component along the track (the platform's mean horizontal velocity) [m].
+    pub along_track: f32,
+    /// Its chi-square against its uncertainty (3 degrees of freedom).
+    pub chi2: f32,
 }
 
 /// One detect-and-solve round.
@@ -220,6 +282,11 @@ pub struct Solution {
     /// Parameters the data determine poorly (large share of the weakest direction): the six,
     /// then the time offset.
     pub weak: [bool; P + 1],
+    /// With the time offset held: what the data give when free to estimate it (offset, sigma
+    /// [s]), the test of the held value.
+    pub dt_free: Option<(f64, f64)>,
+    /// The residual RMS the noise model predicts [m].
+    pub predicted_rms: f64,
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
 }
@@ -287,6 +354,124 @@ impl Histogram {
 fn residual(o: &Observation, t: &Target, b: &[f64; P], dt: f64) -> f64 {
     let m = Mount::from_params(b);
     (o.georef_dt(&m, dt) - t.center).norm() - t.radius
+}
+
+/// The residual RMS the noise model predicts over the kept returns: range noise, the INS
+/// attitude noise times the range, the INS position noise, and the 2 mm range quantisation.
+fn predicted_rms(obs: &[&mut [Observation]], used: &[usize], s: &Settings) -> f64 {
+    let (mut s2, mut n) = (0.0, 0usize);
+    for (v, &u) in obs.iter().zip(used) {
+        for o in &v[..u] {
+            let r = f64::from(o.range);
+            s2 += s.range_noise * s.range_noise
+                + (r * s.attitude_noise) * (r * s.attitude_noise)
+                + s.position_noise * s.position_noise
+                + 0.002 * 0.002 / 12.0;
+            n += 1;
+        }
+    }
+    libm::sqrt(s2 / n.max(1) as f64)
+}
+
+/// Each pass's sphere centre (fitted, radius fixed, to its kept returns with the solution)
+/// against the surveyed one: its offset, along-track component and chi-square into `passes`;
+/// returns the worst pass as a refusal if any fails (beyond `max_pass_chi2` and
+/// `pass_offset_floor`). The uncertainty: the fit's, from the pass's residual scatter (at least
+/// 1 mm), inflated by the returns per 20 ms cluster (they share INS errors).
+#[allow(clippy::too_many_arguments)]
+fn consistency(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    b: &[f64; P],
+    dt: f64,
+    s: &Settings,
+    passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
+) -> Option<Refusal> {
+    let mount = Mount::from_params(b);
+    let mut worst: Option<(f64, Refusal)> = None;
+    for (k, p) in passes.iter_mut().enumerate() {
+        let j = usize::from(p.sphere);
+        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+            continue;
+        };
+        let kept = v[..used[j]]
+            .iter()
+            .filter(|o| o.time >= p.start && o.time <= p.end);
+        let Some(fit) = fit_with_covariance(kept.clone(), &mount, dt, t) else {
+            continue;
+        };
+        let (d, jtj, rms, n) = fit;
+        // Clusters of 20 ms: returns within one share INS errors.
+        let mut clusters = 0usize;
+        let mut last = i64::MIN;
+        let mut vel = Vector3::<f64>::zeros();
+        for o in kept {
+            let c = o.time.0.div_euclid(s.cluster_ns.max(1));
+            if c != last {
+                clusters += 1;
+                last = c;
+            }
+            vel += o.velocity.cast::<f64>();
+        }
+        let inflate = n as f64 / clusters.max(1) as f64;
+        let s2 = rms.max(1e-3) * rms.max(1e-3) * inflate;
+        let chi2 = d.dot(&(jtj * d)) / s2;
+        vel.z = 0.0;
+        let along = if vel.norm() > 0.0 {
+            d.dot(&(vel / vel.norm()))
+        } else {
+            0.0
+        };
+        p.centre_offset = [d.x as f32, d.y as f32, d.z as f32];
+        p.along_track = along as f32;
+        p.chi2 = chi2 as f32;
+        if chi2 > s.max_pass_chi2
+            && d.norm() > s.pass_offset_floor
+            && worst.as_ref().is_none_or(|(c, _)| chi2 > *c)
+        {
+            worst = Some((
+                chi2,
+                Refusal::Inconsistent {
+                    sphere: j,
+                    pass: k,
+                    offset: [d.x, d.y, d.z],
+                    along_track: along,
+                    chi2,
+                },
+            ));
+        }
+    }
+    worst.map(|(_, r)| r)
+}
+
+/// A sphere's centre fitted (radius fixed) to returns with a mounting and time offset, minus
+/// the surveyed one: (offset, `J^T J`, residual RMS, count); `None` with fewer than 10 returns
+/// or a singular geometry.
+fn fit_with_covariance<'a>(
+    obs: impl Iterator<Item = &'a Observation> + Clone,
+    mount: &Mount,
+    dt: f64,
+    t: &Target,
+) -> Option<(Vector3<f64>, nalgebra::Matrix3<f64>, f64, usize)> {
+    let pts = obs.map(|o| o.georef_dt(mount, dt));
+    if pts.clone().count() < 10 {
+        return None;
+    }
+    let c = fit_center(pts.clone(), t.radius, t.center)?;
+    let (mut jtj, mut e2, mut n) = (nalgebra::Matrix3::zeros(), 0.0, 0usize);
+    for x in pts {
+        let dv = x - c;
+        let norm = dv.norm();
+        if norm == 0.0 {
+            continue;
+        }
+        let g = dv / norm;
+        jtj += g * g.transpose();
+        e2 += (norm - t.radius) * (norm - t.radius);
+        n += 1;
+    }
+    Some((c - t.center, jtj, libm::sqrt(e2 / n.max(1) as f64), n))
 }
 
 /// Move the kept observations to the front in time order (the others follow in no particular
@@ -425,6 +610,9 @@ fn find_passes(
                 detected: 0,
                 mean_inliers: 0.0,
                 verdicts: [0; 8],
+                centre_offset: [0.0; 3],
+                along_track: 0.0,
+                chi2: 0.0,
             });
         } else if let Some(p) = out.last_mut() {
             p.end = o.time;
@@ -531,6 +719,8 @@ pub fn solve(
         passes: heapless::Vec::new(),
         center_rms: None,
         weak: [false; P + 1],
+        dt_free: None,
+        predicted_rms: 0.0,
         refusal: None,
     };
     if n < 2 {
@@ -750,6 +940,15 @@ pub fn solve(
         b = r.b;
         dt = r.dt;
     }
+    // With the offset held, test it: free it on the same returns.
+    if let (false, Some(r)) = (s.estimate_dt, &lm) {
+        let free = with_problem(targets, obs, &used, 1, dt, |pb| {
+            refine(pb, &r.b, s.lm_iter, s.cluster_ns, true)
+        });
+        if free.converged && free.dt.is_finite() && free.sigma_dt.is_finite() {
+            sol.dt_free = Some((free.dt, free.sigma_dt));
+        }
+    }
     sol.b = b;
     sol.dt = dt;
     sol.lm = lm;
@@ -804,6 +1003,14 @@ pub fn solve(
     for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
         *w = v.abs() > 0.3;
     }
+    // Consistency: the residuals against the noise model, and each pass's sphere centre.
+    let predicted = predicted_rms(obs, &used, s);
+    sol.predicted_rms = predicted;
+    let worst = consistency(targets, obs, &used, &b, dt, s, &mut sol.passes);
+    let contradicted = sol.dt_free.filter(|&(f, sg)| {
+        let d = (f - dt).abs();
+        d > s.held_dt_floor && d > s.held_dt_sigmas * sg
+    });
     if !lm.converged {
         sol.refusal = Some(Refusal::NotConverged {
             iterations: lm.iterations,
@@ -813,11 +1020,19 @@ pub fn solve(
             condition: lm.condition,
             limit: s.max_condition,
         });
-    } else if lm.rms.is_nan() || lm.rms > s.max_rms {
-        sol.refusal = Some(Refusal::RmsTooHigh {
+    } else if lm.rms.is_nan() || lm.rms > s.max_dispersion * predicted {
+        sol.refusal = Some(Refusal::OverDispersed {
             rms: lm.rms,
-            limit: s.max_rms,
+            predicted,
         });
+    } else if let Some((found, sigma)) = contradicted {
+        sol.refusal = Some(Refusal::TimeOffsetContradicted {
+            held: dt,
+            found,
+            sigma,
+        });
+    } else if let Some(r) = worst {
+        sol.refusal = Some(r);
     }
     sol
 }

@@ -99,6 +99,13 @@ pub struct LidarConfig {
     /// Seed of what the tracing draws (the water's glints): the scene's, not the noise's, so
     /// that one trace serves every noise seed.
     pub trace_seed: u64,
+    /// The sensor's clock error [ns]: its timestamps are the true time plus this (a unit
+    /// without PPS runs on its own oscillator).
+    pub clock_offset_ns: i64,
+    /// The PPS state its position packets report.
+    pub pps: PpsStatus,
+    /// Its GPS has a fix: the position packets' `$GPRMC` say A (valid), else V.
+    pub rmc_valid: bool,
 }
 
 impl Default for LidarConfig {
@@ -119,6 +126,9 @@ impl Default for LidarConfig {
             clutter_keep: 1.0,
             cull: true,
             trace_seed: 0x5CE7E,
+            clock_offset_ns: 0,
+            pps: PpsStatus::Locked,
+            rmc_valid: true,
         }
     }
 }
@@ -445,6 +455,14 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         GpsTime(self.world.start.0 + (ns + 500).div_euclid(1000) * 1000)
     }
 
+    /// The sensor's timestamp of a true GPS time: microseconds past its hour, on its clock.
+    fn stamp(&self, t: GpsTime) -> u32 {
+        micros_past_hour(
+            GpsTime(t.0.saturating_add(self.cfg.clock_offset_ns)),
+            self.world.leap_seconds,
+        )
+    }
+
     /// Sensor azimuth [rad] at a GPS time.
     pub fn azimuth_at(&self, t: GpsTime) -> f64 {
         self.cfg.start_azimuth + self.omega * self.world.t_of(t)
@@ -503,10 +521,17 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let whole = UtcDateTime { nanos: 0, ..utc };
         let g = self.world.site.to_geodetic(&self.pose(time).position);
         let mut s = [0u8; 96];
-        let n = write_gprmc(&mut s, &whole, g.lat.to_degrees(), g.lon.to_degrees()).unwrap_or(0);
+        let n = write_gprmc(
+            &mut s,
+            &whole,
+            g.lat.to_degrees(),
+            g.lon.to_degrees(),
+            self.cfg.rmc_valid,
+        )
+        .unwrap_or(0);
         let mut p = PositionPacket::new_unchecked(buf);
-        p.set_timestamp_us(micros_past_hour(time, self.world.leap_seconds));
-        p.set_pps(PpsStatus::Locked);
+        p.set_timestamp_us(self.stamp(time));
+        p.set_pps(self.cfg.pps);
         p.set_nmea(&s[..n]);
     }
 
@@ -606,7 +631,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             p.set_flag(b);
             p.set_azimuth_raw(b, *a);
         }
-        p.set_timestamp_us(micros_past_hour(t, self.world.leap_seconds));
+        p.set_timestamp_us(self.stamp(t));
         p.set_return_mode(mode);
         p.set_product_raw(0x22);
         let stride = if mode == ReturnMode::Dual { 2 } else { 1 };

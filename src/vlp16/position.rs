@@ -269,7 +269,13 @@ impl<'a> PositionRepr<'a> {
 /// Write `$GPRMC` for a UTC instant into `out` with its XOR checksum (NMEA 0183 4.10, 10.3.x);
 /// returns the sentence length (no CR/LF), or `None` if `out` is too small (needs 80 bytes).
 /// Position fields are the simulator's: latitude/longitude in degrees, speed in knots.
-pub fn write_gprmc(out: &mut [u8], t: &UtcDateTime, lat_deg: f64, lon_deg: f64) -> Option<usize> {
+pub fn write_gprmc(
+    out: &mut [u8],
+    t: &UtcDateTime,
+    lat_deg: f64,
+    lon_deg: f64,
+    valid: bool,
+) -> Option<usize> {
     use core::fmt::Write;
     struct W<'b> {
         buf: &'b mut [u8],
@@ -301,11 +307,12 @@ pub fn write_gprmc(out: &mut [u8], t: &UtcDateTime, lat_deg: f64, lon_deg: f64) 
     let lon_m = (lon - f64::from(lon_d)) * 60.0;
     write!(
         w,
-        "$GPRMC,{:02}{:02}{:02}.{:02},A,{:02}{:010.7},{},{:03}{:010.7},{},0.000,0.0,{:02}{:02}{:02},0.0,E,A",
+        "$GPRMC,{:02}{:02}{:02}.{:02},{},{:02}{:010.7},{},{:03}{:010.7},{},0.000,0.0,{:02}{:02}{:02},0.0,E,{}",
         t.hour,
         t.minute,
         t.second,
         t.nanos / 10_000_000,
+        if valid { 'A' } else { 'V' },
         lat_d,
         lat_m,
         ns,
@@ -314,7 +321,8 @@ pub fn write_gprmc(out: &mut [u8], t: &UtcDateTime, lat_deg: f64, lon_deg: f64) 
         ew,
         t.day,
         t.month,
-        t.year.rem_euclid(100)
+        t.year.rem_euclid(100),
+        if valid { 'A' } else { 'N' }
     )
     .ok()?;
     let cs = w.buf.get(1..w.n)?.iter().fold(0u8, |a, &c| a ^ c);
@@ -374,14 +382,18 @@ mod tests {
             nanos: 0,
         };
         let mut s = [0u8; 96];
-        let n = write_gprmc(&mut s, &t, -36.829_13, 2.407_57).unwrap();
+        let n = write_gprmc(&mut s, &t, -36.829_13, 2.407_57, true).unwrap();
         let buf = packet_with(&s[..n]);
         let back = PositionPacket::new_checked(&buf[..])
             .unwrap()
             .nmea_time()
             .unwrap();
         assert_eq!(back.utc(), Some(t));
-        assert!(write_gprmc(&mut [0u8; 20], &t, 0.0, 0.0).is_none());
+        assert!(write_gprmc(&mut [0u8; 20], &t, 0.0, 0.0, true).is_none());
+        // A void fix: status V, mode N, read back as not valid.
+        let n = write_gprmc(&mut s, &t, -36.829_13, 2.407_57, false).unwrap();
+        let line = core::str::from_utf8(&s[..n]).unwrap();
+        assert!(line.contains(",V,") && line.contains(",E,N*"), "{line}");
     }
 
     #[test]

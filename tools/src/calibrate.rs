@@ -107,6 +107,14 @@ pub struct PerPass {
     pub windowed: u32,
     /// By verdict.
     pub verdicts: Verdicts,
+    /// The sphere re-fitted to this pass's calibrated returns, minus the surveyed centre [m,
+    /// NED] (zeros with fewer than 10 returns).
+    pub centre_offset_m: [f32; 3],
+    /// Its component along the track [m] (a time offset between the clocks shows here).
+    pub along_track_m: f32,
+    /// Its chi-square against the pass's own uncertainty (3 degrees of freedom; the solution is
+    /// refused as inconsistent above 25 with more than 3 mm).
+    pub chi2: f32,
 }
 
 /// Per sphere.
@@ -132,6 +140,21 @@ pub struct PerSphere {
     pub rms_after_m: f64,
     /// Fitted minus surveyed centre, NED [m].
     pub centre_offset_m: Option<[f64; 3]>,
+}
+
+/// The tests a solution passed (or failed) before it is claimed.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Consistency {
+    /// The residual RMS the noise model predicts (range, INS attitude x range, INS position) [m].
+    pub predicted_rms_m: f64,
+    /// The residual RMS over that (refused above 2).
+    pub dispersion: f64,
+    /// The largest chi-square of a pass's sphere centre against its uncertainty (refused above
+    /// 25 with more than 3 mm).
+    pub worst_pass_chi2: f64,
+    /// With the time offset held: what the data give when free (offset on top of the held one,
+    /// sigma) [s]; refused when it differs by more than 5 sigma and 1 ms.
+    pub free_time_offset_s: Option<[f64; 2]>,
 }
 
 /// `report.json` (DESIGN.md contract plus the keys).
@@ -188,10 +211,87 @@ pub struct Report {
     /// so that a truncated window cannot pass unnoticed).
     #[serde(default)]
     pub batch_overflow: u64,
+    /// The consistency tests.
+    pub consistency: Consistency,
+    /// What the inputs held (files, clock, INS state, spans, skips).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inputs: Option<InputsReport>,
     /// Time of the solve [ms].
     pub solve_ms: f64,
     /// Starting values.
     pub start: BTreeMap<String, f64>,
+    /// The coarse search of the time offset, when one ran: each start tried.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub time_offset_search: Vec<SearchCandidate>,
+}
+
+/// One start of the time offset search.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct SearchCandidate {
+    /// The offset the windows were collected at [s].
+    pub start_s: f64,
+    /// The offset the joint solve moved it to [s] (none without a converged least squares).
+    pub found_s: Option<f64>,
+    /// Returns kept on the spheres.
+    pub kept: usize,
+    /// Their residual RMS [m].
+    pub rms_m: Option<f64>,
+}
+
+/// A calibration's run counts, windowed returns (with their verdicts), solution and report.
+pub type Calibrated = (RunStats, Vec<Vec<Observation>>, Solution, Report);
+
+/// The half-width of the time offset search when the LiDAR clock is not trusted [s].
+pub const DEFAULT_SEARCH_S: f64 = 2.0;
+/// The search's step [s]: the joint solve pulls in from at least twice this (a 0.4 s error
+/// converges from 0 on table1).
+pub const SEARCH_STEP_S: f64 = 0.25;
+
+/// A coarse 1-D search of the time offset over `centre +- half` in steps of [`SEARCH_STEP_S`]:
+/// at each start the windows are collected and the joint solve run; what each found is
+/// returned. The clock error moves the spheres' returns along the track by speed x error, so a
+/// wrong start gives fewer sphere returns (detection fails in the slices it smears) and a larger
+/// RMS: [`best_candidate`] picks the most compact.
+pub fn search_time_offset<E>(
+    centre: f64,
+    half: f64,
+    at_centre: &Solution,
+    attempt: &mut impl FnMut(f64) -> Result<Calibrated, E>,
+) -> Result<Vec<SearchCandidate>, E> {
+    let n = (half / SEARCH_STEP_S).round().clamp(1.0, 400.0) as i64;
+    let mut out = Vec::with_capacity(2 * n as usize + 1);
+    for k in -n..=n {
+        let start = centre + k as f64 * SEARCH_STEP_S;
+        let one = |sol: &Solution| SearchCandidate {
+            start_s: start,
+            found_s: sol
+                .lm
+                .filter(|l| l.converged && sol.dt.is_finite())
+                .map(|_| start + sol.dt),
+            kept: sol.spheres.iter().map(|s| s.used).sum(),
+            rms_m: sol.lm.map(|l| l.rms).filter(|r| r.is_finite()),
+        };
+        if k == 0 {
+            out.push(one(at_centre));
+        } else {
+            let (_, _, sol, _) = attempt(start)?;
+            out.push(one(&sol));
+        }
+    }
+    Ok(out)
+}
+
+/// The most compact start: among those whose solve converged, the lowest RMS of those that
+/// kept at least 80 % of the most sphere returns any kept.
+pub fn best_candidate(c: &[SearchCandidate]) -> Option<SearchCandidate> {
+    let ok = || {
+        c.iter()
+            .filter(|c| c.found_s.is_some() && c.rms_m.is_some())
+    };
+    let most = ok().map(|c| c.kept).max()?;
+    ok().filter(|c| c.kept * 5 >= most * 4)
+        .min_by(|a, b| a.rms_m.unwrap_or(0.0).total_cmp(&b.rms_m.unwrap_or(0.0)))
+        .copied()
 }
 
 /// Run the pipeline and collect the windowed observations per sphere.
@@ -220,7 +320,28 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
             if weak.is_empty() { "the parameters".to_string() } else { weak.join(", ") }
         ),
         Refusal::NotConverged { iterations } => format!("the least squares did not converge (stalled after {iterations} iterations)"),
-        Refusal::RmsTooHigh { rms, limit } => format!("residual RMS {:.1} mm above the {:.1} mm limit", rms * 1e3, limit * 1e3),
+        Refusal::OverDispersed { rms, predicted } => format!(
+            "residual RMS {:.1} mm is {:.1}x what the sensors' noise predicts ({:.1} mm): returns that are not on the spheres, or a model that does not fit",
+            rms * 1e3,
+            rms / predicted.max(1e-12),
+            predicted * 1e3
+        ),
+        Refusal::TimeOffsetContradicted { held, found, sigma } => format!(
+            "the time offset held is contradicted by the data: free to estimate it, they move it by {:+.6} s (sigma {sigma:.6} s, {:.0} sigma); the mounting found with it held has absorbed the clock error (drop --hold-time-offset, or hold the offset the data give)",
+            found - held,
+            (found - held).abs() / sigma.max(1e-12)
+        ),
+        Refusal::Inconsistent { sphere, pass, offset, along_track, chi2 } => {
+            let d = (offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]).sqrt();
+            format!(
+                "inconsistent: in pass {} over sphere {} the calibrated returns put its centre {:.1} mm off the surveyed one ({:.1} mm along the track; chi-square {chi2:.0} with 3 degrees of freedom){}",
+                pass + 1,
+                ids.get(*sphere).map_or("?", |s| s.as_str()),
+                d * 1e3,
+                along_track * 1e3,
+                if along_track.abs() > 0.7 * d { ": an along-track error of this kind is what an unestimated time offset between the clocks does" } else { "" }
+            )
+        }
     }
 }
 
@@ -346,10 +467,24 @@ pub fn solve_report(
                 mean_inliers: p.mean_inliers,
                 windowed: p.verdicts.iter().sum(),
                 verdicts: Verdicts::from_tally(&p.verdicts),
+                centre_offset_m: p.centre_offset,
+                along_track_m: p.along_track,
+                chi2: p.chi2,
             })
             .collect(),
         shell_m: sol.shell,
+        consistency: Consistency {
+            predicted_rms_m: sol.predicted_rms,
+            dispersion: lm.map_or(f64::NAN, |l| l.rms) / sol.predicted_rms.max(1e-12),
+            worst_pass_chi2: sol
+                .passes
+                .iter()
+                .map(|p| f64::from(p.chi2))
+                .fold(0.0, f64::max),
+            free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
+        },
         batch_overflow: 0,
+        inputs: None,
         clutter_rejected: sol
             .spheres
             .iter()
@@ -373,6 +508,7 @@ pub fn solve_report(
             })
             .collect(),
         solve_ms,
+        time_offset_search: Vec::new(),
         start: NAMES
             .iter()
             .zip(b0)
@@ -455,6 +591,17 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         r.condition_number,
         r.sphere_centre_rms_m
             .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
+    );
+    let c = &r.consistency;
+    let _ = writeln!(
+        o,
+        "consistency: RMS {:.2}x the {:.1} mm the noise model predicts (limit 2); worst pass chi-square {:.1} (limit 25){}",
+        c.dispersion,
+        c.predicted_rms_m * 1e3,
+        c.worst_pass_chi2,
+        c.free_time_offset_s.map_or(String::new(), |[d, sg]| format!(
+            "; time offset held, the data give {d:+.6} +- {sg:.6} s more"
+        ))
     );
     for p in &r.per_sphere {
         let v = &p.verdicts;
@@ -558,6 +705,168 @@ pub fn write_returns(
         }
     }
     w.flush().map_err(err)
+}
+
+/// The whole calibration of the files of `inp` from `b0` [rad, m]: collect the windows,
+/// solve; with the time offset estimated, collect them again at the offset found until it
+/// moves by less than 0.5 ms (the solver's estimate is first-order in the offset the poses were
+/// taken at; five collections at most, within 2 s of the start). A LiDAR clock that is not
+/// PPS-locked with valid RMCs starts from the offset its RMCs give, and is searched around it
+/// (`clock.search`, default 2 s: a coarse 1-D search, see [`search_time_offset`]); its solution
+/// is refused unless `clock.allow_unlocked` and the offset found explains the RMC
+/// disagreement. The report records the inputs' state.
+pub fn calibrate(
+    inp: &mut Inputs,
+    targets: &[Target],
+    ids: &[String],
+    b0: &[f64; P],
+    clock: crate::ClockOptions,
+) -> Result<Calibrated, String> {
+    let noise = inp.site.noise.unwrap_or_default();
+    let settings = Settings {
+        estimate_dt: clock.estimate,
+        range_noise: noise.range_m,
+        attitude_noise: noise.attitude_deg.to_radians(),
+        position_noise: noise.position_m,
+        ..Default::default()
+    };
+    let mut attempt = |applied: f64| -> Result<_, String> {
+        inp.time_offset_ns = (applied * 1e9).round() as i64;
+        let (stats, mut obs) = collect(inp)?;
+        let (sol, rep) = solve_report(targets, ids, &mut obs, b0, &settings);
+        Ok((stats, obs, sol, rep))
+    };
+    let mut start = clock.start.unwrap_or(0.0);
+    let mut first = attempt(start)?;
+    let trusted = first.0.clock.trusted();
+    // An untrusted LiDAR clock: start where its RMCs put it (INS time = LiDAR time - its
+    // error).
+    if clock.start.is_none() && !trusted {
+        if let Some(e) = first.0.clock.rmc_offset_s().filter(|e| e.abs() > 0.5) {
+            start = -e;
+            first = attempt(start)?;
+        }
+    }
+    let search = clock
+        .search
+        .or((!trusted && clock.estimate).then_some(DEFAULT_SEARCH_S));
+    let mut searched = Vec::new();
+    if let Some(half) = search.filter(|h| *h > 0.0 && clock.estimate) {
+        searched = search_time_offset(start, half, &first.2, &mut attempt)?;
+        if let Some(best) = best_candidate(&searched) {
+            let found = best.found_s.unwrap_or(best.start_s);
+            if (found - (start + first.2.dt)).abs() > 5e-4 {
+                start = found;
+                first = attempt(start)?;
+            }
+        }
+    }
+    let mut applied = start;
+    let mut collections = 1;
+    let (stats, obs, sol, mut rep) = loop {
+        let (stats, obs, sol, rep) = first;
+        // Again with the offset found, while it moves by more than 0.5 ms (and stays within
+        // 2 s of the start: beyond, the first-order estimate is no guide).
+        let next = applied + sol.dt;
+        let again = clock.estimate
+            && collections < 5
+            && sol.lm.is_some_and(|l| l.converged)
+            && sol.dt.abs() > 5e-4
+            && (next - start).abs() <= 2.0;
+        if !again {
+            break (stats, obs, sol, rep);
+        }
+        applied = next;
+        first = attempt(applied)?;
+        collections += 1;
+    };
+    rep.time_offset_search = searched;
+    rep.time_offset_s += applied;
+    rep.start.insert("time_offset".to_string(), start);
+    rep.batch_overflow = stats.batch_overflow;
+    rep.inputs = Some(InputsReport::of(inp, &stats));
+    // The LiDAR clock.
+    if rep.converged && !stats.clock.trusted() {
+        let explained = stats
+            .clock
+            .rmc_offset_s()
+            .map(|e| (rep.time_offset_s + e).abs() <= 1.5);
+        let found = format!("the time offset found is {:+.4} s", rep.time_offset_s);
+        let why = match (clock.allow_unlocked, explained) {
+            (false, _) => Some(format!(
+                "the LiDAR clock is not PPS-locked with a valid RMC ({}); {found}{}: --allow-unlocked-clock claims the solution",
+                stats.clock.describe(),
+                match explained {
+                    Some(true) => ", which explains the stamps' disagreement with the RMC",
+                    Some(false) => ", which does NOT explain the stamps' disagreement with the RMC",
+                    None => "",
+                }
+            )),
+            (true, Some(false)) => Some(format!(
+                "the LiDAR clock is not PPS-locked ({}) and {found}, which does not explain the stamps' disagreement with the RMC ({:+.3} s)",
+                stats.clock.describe(),
+                stats.clock.rmc_offset_s().unwrap_or(0.0)
+            )),
+            _ => None,
+        };
+        if let Some(why) = why {
+            rep.converged = false;
+            rep.reason = Some(why);
+        }
+    }
+    Ok((stats, obs, sol, rep))
+}
+
+/// What the inputs held, in the report.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct InputsReport {
+    /// The capture.
+    pub pcap: String,
+    /// The trajectory's file.
+    pub ins: String,
+    /// Data packets timed.
+    pub data_packets: u64,
+    /// Capture records skipped, by reason.
+    pub skipped: BTreeMap<String, u64>,
+    /// GPS seconds of the first and last data packet (LiDAR clock).
+    pub lidar_span_gps_s: Option<(f64, f64)>,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+    /// The LiDAR clock is PPS-locked with valid RMCs that agree with its stamps.
+    pub clock_trusted: bool,
+    /// The INS stream.
+    pub ins_state: crate::state::InsState,
+    /// Returns not georeferenced: before the INS data, after it, in INS gaps.
+    pub not_georeferenced: [u64; 3],
+    /// Data packets without a time.
+    pub packets_without_time: u64,
+    /// The time offset the windows were collected at [s].
+    pub time_offset_applied_s: f64,
+}
+
+impl InputsReport {
+    /// From a run's counts.
+    pub fn of(inp: &Inputs, stats: &RunStats) -> Self {
+        let w = &stats.window;
+        Self {
+            pcap: inp.pcap.display().to_string(),
+            ins: inp.ins_path().display().to_string(),
+            data_packets: stats.data_packets,
+            skipped: stats
+                .skips
+                .lines()
+                .iter()
+                .map(|l| (l.reason.to_string(), l.count))
+                .collect(),
+            lidar_span_gps_s: stats.lidar_span,
+            clock: stats.clock.clone(),
+            clock_trusted: stats.clock.trusted(),
+            ins_state: stats.ins.clone(),
+            not_georeferenced: [w.before_history, w.after_history, w.in_gap],
+            packets_without_time: stats.packets_without_time,
+            time_offset_applied_s: inp.time_offset_ns as f64 * 1e-9,
+        }
+    }
 }
 
 /// Site targets and ids.

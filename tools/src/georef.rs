@@ -157,28 +157,15 @@ pub fn georef(
         "data packets: {} (position packets: {}, hour rollovers: {})",
         stats.data_packets, stats.position_packets, stats.rollovers
     );
-    let _ = writeln!(
-        o,
-        "poses: {} (INS frames without a pose: {}, rejected: {})",
-        stats.poses, stats.ins_frames_without_pose, stats.ins_rejected
-    );
+    o.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_path()));
     let _ = writeln!(o, "points: {} georeferenced: {}", w.points, w.georeferenced);
-    let _ = writeln!(o, "not georeferenced: before the INS data {}, after it {}, in INS gaps {}, packets without time {}", w.before_history, w.after_history, w.in_gap, stats.packets_without_time);
     for (i, id) in ids.iter().enumerate() {
         let _ = writeln!(o, "window {id}: {} points", counts[i]);
     }
-    let _ = writeln!(o, "capture skips: {}", stats.skips.total());
-    for l in stats.skips.lines() {
-        let _ = writeln!(
-            o,
-            "  {}: {} (first at byte {}: {})",
-            l.reason, l.count, l.first_offset, l.first
-        );
-    }
     let _ = writeln!(
         o,
-        "ring full (LiDAR, INS): {:?}; batch overflow: {}",
-        stats.ring_full, stats.batch_overflow
+        "readers waited for room in the rings (files: nothing is lost): LiDAR {}, INS {}; windowed returns lost to full batches: {}",
+        stats.ring_full[0], stats.ring_full[1], stats.batch_overflow
     );
     if let Some(n) = las_points {
         let _ = writeln!(o, "LAS points written: {n}");

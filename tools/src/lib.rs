@@ -16,6 +16,7 @@ pub mod rig;
 pub mod scenario;
 pub mod scene;
 pub mod site;
+pub mod state;
 pub mod status;
 pub mod synth;
 
@@ -66,20 +67,32 @@ pub struct Outputs {
 pub const RETURNS_HEADER: &str =
     "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
 
-/// How `calibrate` treats the clocks.
+/// How `calibrate` treats the clocks and the INS.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClockOptions {
     /// Estimate the time offset between the clocks (else hold `start`).
     pub estimate: bool,
-    /// The time offset to start from [s] (INS time = LiDAR time + this).
-    pub start: f64,
+    /// The time offset to start from [s] (INS time = LiDAR time + this); `None`: 0, or what
+    /// the LiDAR's RMC says when its clock is not PPS-locked.
+    pub start: Option<f64>,
+    /// Claim a solution although the LiDAR clock is not PPS-locked (when the time offset
+    /// found explains its disagreement with the RMC).
+    pub allow_unlocked: bool,
+    /// Use VN-200 poses whose InsStatus says not tracking.
+    pub keep_untracked_ins: bool,
+    /// Search the time offset over +- this [s] around the start (`None`: 2 s when the LiDAR
+    /// clock is not PPS-locked with a valid RMC, no search otherwise).
+    pub search: Option<f64>,
 }
 
 impl Default for ClockOptions {
     fn default() -> Self {
         Self {
             estimate: true,
-            start: 0.0,
+            start: None,
+            allow_unlocked: false,
+            keep_untracked_ins: false,
+            search: None,
         }
     }
 }
@@ -109,41 +122,15 @@ pub fn run_calibrate(
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.mount = spherecal::georef::Mount::from_params(&b0);
-    let settings = spherecal::calib::Settings {
-        estimate_dt: clock.estimate,
-        ..Default::default()
-    };
+    inp.keep_untracked_ins = clock.keep_untracked_ins;
     let (targets, ids) = calibrate::site_targets(&inp);
-    let mut applied = clock.start;
-    let mut collections = 0;
-    let (stats, obs, sol, mut rep) = loop {
-        inp.time_offset_ns = (applied * 1e9).round() as i64;
-        let (stats, mut obs) = calibrate::collect(&inp)?;
-        let (sol, rep) = calibrate::solve_report(&targets, &ids, &mut obs, &b0, &settings);
-        collections += 1;
-        // Again with the offset found, while it moves by more than 0.5 ms (and stays within
-        // 2 s of the start: beyond, the first-order estimate is no guide).
-        let next = applied + sol.dt;
-        let again = clock.estimate
-            && collections < 4
-            && sol.lm.is_some_and(|l| l.converged)
-            && sol.dt.abs() > 5e-4
-            && (next - clock.start).abs() <= 2.0;
-        if !again {
-            break (stats, obs, sol, rep);
-        }
-        applied = next;
-    };
-    rep.time_offset_s += applied;
-    rep.start.insert("time_offset".to_string(), clock.start);
-    rep.batch_overflow = stats.batch_overflow;
-    let mut text = format!(
-        "{} data packets, {} poses, {} returns, windows {:?}\n",
-        stats.data_packets,
-        stats.poses,
+    let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
+    let mut text = stats.describe_inputs(&inp.pcap, inp.ins_path());
+    text.push_str(&format!(
+        "{} returns, windows {:?}\n",
         stats.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
-    );
+    ));
     text.push_str(&calibrate::render(&rep, truth.as_ref()));
     if let Some(p) = &out.report {
         let json = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;

@@ -102,12 +102,25 @@ enum Cmd {
         /// Write every windowed return with its verdict (kept, or why not) as CSV.
         #[arg(long)]
         returns: Option<PathBuf>,
-        /// Start from this time offset between the clocks [s] (INS time = LiDAR time + this).
-        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-        time_offset: f64,
+        /// Start from this time offset between the clocks [s] (INS time = LiDAR time + this;
+        /// default 0, or what the LiDAR's RMC says when its clock is not PPS-locked).
+        #[arg(long, allow_hyphen_values = true)]
+        time_offset: Option<f64>,
         /// Hold the time offset (at `--time-offset`) instead of estimating it.
         #[arg(long)]
         hold_time_offset: bool,
+        /// Claim a solution although the LiDAR clock is not PPS-locked with a valid RMC (when
+        /// the time offset found explains the stamps' disagreement with the RMC).
+        #[arg(long)]
+        allow_unlocked_clock: bool,
+        /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
+        #[arg(long)]
+        keep_untracked_ins: bool,
+        /// Search the time offset over +- this many seconds around the start, in 0.25 s steps
+        /// (default: 2 s when the LiDAR clock is not PPS-locked with a valid RMC, else none; 0
+        /// turns it off).
+        #[arg(long)]
+        search_time_offset: Option<f64>,
     },
     /// Calibrate one synthetic survey from many perturbed starts, on all cores.
     Montecarlo {
@@ -181,6 +194,9 @@ enum Cmd {
         /// Write the calibration report here after every solve.
         #[arg(long)]
         report: Option<PathBuf>,
+        /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
+        #[arg(long)]
+        keep_untracked_ins: bool,
     },
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
@@ -236,7 +252,17 @@ fn main() -> ExitCode {
             rotate_mb,
             duration,
             report,
-        } => run(board, serial, site, log_dir, rotate_mb, duration, report),
+            keep_untracked_ins,
+        } => run(
+            board,
+            serial,
+            site,
+            log_dir,
+            rotate_mb,
+            duration,
+            report,
+            keep_untracked_ins,
+        ),
         Cmd::Replay {
             dir,
             pcap,
@@ -300,6 +326,9 @@ fn main() -> ExitCode {
             returns,
             time_offset,
             hold_time_offset,
+            allow_unlocked_clock,
+            keep_untracked_ins,
+            search_time_offset,
         } => {
             let survey = spherecal_tools::Survey {
                 pcap: survey.pcap,
@@ -317,6 +346,9 @@ fn main() -> ExitCode {
             let clock = spherecal_tools::ClockOptions {
                 estimate: !hold_time_offset,
                 start: time_offset,
+                allow_unlocked: allow_unlocked_clock,
+                keep_untracked_ins,
+                search: search_time_offset,
             };
             match spherecal_tools::run_calibrate(survey, init, clock, &out, None) {
                 Ok((text, ok)) => {
@@ -491,6 +523,7 @@ fn demo() -> ExitCode {
     code
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run(
     board: PathBuf,
     serial: Option<String>,
@@ -499,6 +532,7 @@ fn run(
     rotate_mb: Option<f64>,
     duration: Option<f64>,
     report: Option<PathBuf>,
+    keep_untracked_ins: bool,
 ) -> ExitCode {
     use spherecal_tools::rig::{run, RunOptions};
     use std::sync::atomic::AtomicBool;
@@ -546,6 +580,7 @@ fn run(
         duration: duration.map(std::time::Duration::from_secs_f64),
         report,
         settings: spherecal::calib::Settings::default(),
+        keep_untracked_ins,
     };
     match run(&opts, &mut console, &stop) {
         Ok(s) => {
@@ -703,6 +738,7 @@ fn georef(
         margin: site.apriori.window_margin_m,
         max_gap_ns: (max_gap_ms * 1e6) as i64,
         time_offset_ns: (time_offset * 1e9).round() as i64,
+        keep_untracked_ins: false,
         site,
     };
     match spherecal_tools::georef::georef(&inp, las.as_deref(), windows.as_deref()) {

@@ -11,6 +11,7 @@
 //! a file can be read later and must not lose data; the waits are counted too.
 
 use crate::site::Site;
+use crate::state::InsState;
 use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
@@ -133,9 +134,18 @@ pub struct Inputs {
     /// The time offset between the clocks [ns]: INS time = LiDAR time + this; each firing's
     /// pose is taken at its LiDAR time plus this (DESIGN.md conventions).
     pub time_offset_ns: i64,
+    /// Use VN-200 poses whose InsStatus says not tracking (aligning, GNSS lost, no fix) too.
+    pub keep_untracked_ins: bool,
 }
 
 impl Inputs {
+    /// The trajectory's file.
+    pub fn ins_path(&self) -> &std::path::Path {
+        match &self.ins {
+            InsInput::Vn200(p) | InsInput::Sbet(p, _) => p,
+        }
+    }
+
     /// Georeference with the site's a-priori mounting and window margin, 50 ms INS gap limit.
     pub fn apriori(pcap: PathBuf, ins: InsInput, site: Site) -> Self {
         let b0 = spherecal::calib::from_deg_m(&site.apriori_deg_m());
@@ -146,6 +156,7 @@ impl Inputs {
             margin: site.apriori.window_margin_m,
             max_gap_ns: 50_000_000,
             time_offset_ns: 0,
+            keep_untracked_ins: false,
             site,
         }
     }
@@ -158,6 +169,8 @@ pub struct BatchMsg {
     pub sphere: usize,
     /// Observations.
     pub obs: Vec<Observation>,
+    /// The time offset they were aligned at [ns] (INS time = LiDAR time + this).
+    pub offset_ns: i64,
 }
 
 /// Counts of a run.
@@ -169,12 +182,12 @@ pub struct RunStats {
     pub position_packets: u64,
     /// Capture skips by reason.
     pub skips: SkipStats,
-    /// Poses received.
-    pub poses: u64,
-    /// INS frames without a complete pose.
-    pub ins_frames_without_pose: u64,
-    /// INS CRC failures / rejected items.
-    pub ins_rejected: u64,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+    /// The INS stream.
+    pub ins: crate::state::InsState,
+    /// GPS seconds of the first and last data packet timed (on the LiDAR clock).
+    pub lidar_span: Option<(f64, f64)>,
     /// Windowing counts.
     pub window: WindowStats,
     /// Packets whose time could not be known (no RMC and no INS time yet).
@@ -185,6 +198,95 @@ pub struct RunStats {
     pub rollovers: u32,
     /// Batch overflow (observations lost because a batch was full).
     pub batch_overflow: u64,
+}
+
+impl RunStats {
+    /// What the inputs held, for people: the capture, the LiDAR clock, the INS stream, their
+    /// overlap and the returns that could not be georeferenced.
+    pub fn describe_inputs(&self, pcap: &std::path::Path, ins: &std::path::Path) -> String {
+        use std::fmt::Write as _;
+        let mut o = String::new();
+        let _ = write!(
+            o,
+            "LiDAR: {}: {} data packets",
+            pcap.display(),
+            self.data_packets
+        );
+        if let Some((a, b)) = self.lidar_span {
+            let _ = write!(o, " over {:.1} s", b - a);
+        }
+        let _ = writeln!(o, ", {} skipped", self.skips.total());
+        for l in self.skips.lines() {
+            let _ = writeln!(
+                o,
+                "  skipped {}: {} (first at byte {}: {})",
+                l.reason, l.count, l.first_offset, l.first
+            );
+        }
+        let _ = writeln!(o, "clock: {}", self.clock.describe());
+        let _ = writeln!(o, "{}: {}", ins.display(), self.ins.describe());
+        let w = &self.window;
+        let missed = w.before_history + w.after_history + w.in_gap;
+        if missed + self.packets_without_time > 0 {
+            let _ = writeln!(
+                o,
+                "not georeferenced: {} returns before the INS data, {} after it, {} in INS gaps; {} packets without a time",
+                w.before_history, w.after_history, w.in_gap, self.packets_without_time
+            );
+        }
+        o
+    }
+
+    /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
+    /// file and what was found instead.
+    pub fn unusable(
+        &self,
+        pcap: &std::path::Path,
+        ins: &std::path::Path,
+        ins_head: &[u8],
+    ) -> Option<String> {
+        if self.data_packets == 0 {
+            return Some(format!(
+                "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
+                pcap.display(),
+                self.skips.total(),
+                self.packets_without_time
+            ));
+        }
+        let st = &self.ins;
+        if st.poses == 0 {
+            if st.excluded_total() > 0 {
+                return Some(format!(
+                    "{}: every one of its {} poses is left out by its InsStatus ({}); --keep-untracked-ins uses them anyway",
+                    ins.display(),
+                    st.excluded_total(),
+                    st.describe()
+                ));
+            }
+            return Some(format!(
+                "{}: no VN-200 or SBET pose in {} bytes ({} binary frames, {} CRC failures, {} $VN sentences, {} NMEA sentences): it looks like {}",
+                ins.display(),
+                st.bytes,
+                st.frames,
+                st.crc_failures,
+                st.ascii,
+                st.nmea,
+                crate::state::looks_like(ins_head)
+            ));
+        }
+        let w = &self.window;
+        if w.points > 0 && w.before_history + w.after_history == w.points {
+            let (l, i) = (
+                self.lidar_span.unwrap_or_default(),
+                st.span.unwrap_or_default(),
+            );
+            return Some(format!(
+                "the LiDAR's times (GPS {:.1} .. {:.1} s) and the INS's ({:.1} .. {:.1} s) do not overlap; the LiDAR clock: {}",
+                l.0, l.1, i.0, i.1, self.clock.describe()
+            ));
+        }
+        None
+    }
 }
 
 /// Where the site's spheres are, in the site frame.
@@ -426,9 +528,13 @@ impl Aligner {
         };
         self.stats.position_packets += 1;
         self.pps = Some(p.pps());
+        self.stats.clock.count(&p);
+        // The hour from a valid RMC only: a void one may carry a stale time (the INS gives
+        // the hour otherwise).
         if !self.clock.has_hour() {
-            if let Some(utc) = p.nmea_time().ok().and_then(|t| t.utc()) {
+            if let Some(utc) = p.nmea_time().ok().filter(|t| t.valid).and_then(|t| t.utc()) {
                 self.clock.set_from_rmc(&utc, p.timestamp_us());
+                self.stats.clock.hour_from = "RMC".into();
             }
         }
     }
@@ -448,7 +554,10 @@ impl Aligner {
         if !self.clock.has_hour() {
             self.pull_ins(ic, None, item.host_ns);
             match self.history.span() {
-                Some((_, newest)) => self.clock.set_from_gps(newest, p.timestamp_us()),
+                Some((_, newest)) => {
+                    self.clock.set_from_gps(newest, p.timestamp_us());
+                    self.stats.clock.hour_from = "INS".into();
+                }
                 None => {
                     self.stats.packets_without_time += 1;
                     return;
@@ -459,6 +568,8 @@ impl Aligner {
             self.stats.packets_without_time += 1;
             return;
         };
+        let s = t0.as_secs_f64();
+        self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
         // On the INS clock (the poses' times).
         let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
         // A packet's 24 firing sequences span 1.33 ms; from files, the poses are read on past it
@@ -509,6 +620,15 @@ impl Aligner {
     }
 }
 
+/// A time of week for a message: milliseconds, or its exponent when it is nothing like one.
+fn tow_text(t: f64) -> String {
+    if (1e-3..1e7).contains(&t.abs()) || t == 0.0 {
+        format!("{t:.3}")
+    } else {
+        format!("{t:.3e}")
+    }
+}
+
 /// Run the pipeline over files. `each`, if given, sees every georeferenced return; batches go
 /// to `consumer` on its own thread, which returns its result.
 pub fn run<C: Send>(
@@ -533,6 +653,9 @@ pub fn run<C: Send>(
         ),
         InsInput::Sbet(..) => None,
     };
+    let ins_head: Vec<u8> = ins_bytes
+        .as_ref()
+        .map_or_else(Vec::new, |b| b.iter().take(256).copied().collect());
     let sbet = match &inp.ins {
         InsInput::Sbet(p, week) => {
             let week = match week {
@@ -595,52 +718,105 @@ pub fn run<C: Send>(
         });
 
         // INS reader.
-        let ins = sc.spawn(move || -> Result<(u64, u64, u64), String> {
-            let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
-            if let Some(bytes) = ins_bytes {
-                let mut framer: Box<Framer> = Box::default();
-                let mut handle =
-                    |it: spherecal::vn200::Framed<'_>| match vn200_pose(&it.item, &frame) {
-                        InsOutcome::Pose(s, _) => {
-                            poses += 1;
-                            push_wait(&mut ip, InsItem::Pose(s, 0), Overflow::Wait, &full_ref[1]);
+        let (max_gap, keep_untracked) = (inp.max_gap_ns, inp.keep_untracked_ins);
+        let ins = sc.spawn(move || -> Result<InsState, String> {
+            // The readers that wait on this one get its end even when it fails (else the
+            // aligner would wait for poses forever).
+            let read = || -> Result<InsState, String> {
+                let mut st = InsState::default();
+                if let Some(bytes) = ins_bytes {
+                    st.bytes = bytes.len() as u64;
+                    let mut framer: Box<Framer> = Box::default();
+                    let mut handle = |it: spherecal::vn200::Framed<'_>| {
+                        match vn200_pose(&it.item, &frame) {
+                            InsOutcome::Pose(s, status) => {
+                                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
+                                match status.and_then(crate::state::excluded_by) {
+                                    Some(k) if !keep_untracked => {
+                                        st.exclude(s.time, k);
+                                        return;
+                                    }
+                                    Some(_) => st.kept_untracked += 1,
+                                    None => {}
+                                }
+                                st.used(s.time, max_gap);
+                                push_wait(
+                                    &mut ip,
+                                    InsItem::Pose(s, 0),
+                                    Overflow::Wait,
+                                    &full_ref[1],
+                                );
+                            }
+                            InsOutcome::NoPose => st.without_pose += 1,
+                            InsOutcome::Rejected | InsOutcome::Other => {}
                         }
-                        InsOutcome::NoPose => without += 1,
-                        InsOutcome::Rejected => rejected += 1,
-                        InsOutcome::Other => {}
                     };
-                for chunk in bytes.chunks(4096) {
-                    framer.consume(chunk, &mut handle);
+                    for chunk in bytes.chunks(4096) {
+                        framer.consume(chunk, &mut handle);
+                    }
+                    framer.finish();
+                    while let Some(it) = framer.next() {
+                        handle(it);
+                    }
+                    let fs = framer.stats();
+                    st.frames = fs.frames;
+                    st.crc_failures = fs.crc_failures;
+                    st.skipped_bytes = fs.skipped_bytes;
+                    st.ascii = fs.ascii;
+                    st.nmea = fs.nmea;
+                } else if let Some((mut rd, week, path)) = sbet {
+                    let bad = |why: String| format!("{}: not an SBET file: {why}", path.display());
+                    let mut last: Option<f64> = None;
+                    while let Some(r) = rd
+                        .next_record()
+                        .map_err(|e| format!("{}: {e}", path.display()))?
+                    {
+                        // Times within a week, increasing (a week rollover aside).
+                        if let Some(l) = last {
+                            if r.tow_s <= l && !(l > 600_000.0 && r.tow_s < 4_800.0) {
+                                return Err(bad(format!(
+                                    "record {} (byte {}): GPS time of week {} s after {} s (SBET times increase)",
+                                    rd.records,
+                                    (rd.records - 1) * spherecal_hal::sbet::RECORD as u64,
+                                    tow_text(r.tow_s),
+                                    tow_text(l)
+                                )));
+                            }
+                        }
+                        last = Some(r.tow_s);
+                        let Some(t) = r.time(week) else {
+                            st.without_pose += 1;
+                            continue;
+                        };
+                        let g = Geodetic {
+                            lat: r.lat,
+                            lon: r.lon,
+                            h: r.h,
+                        };
+                        let rot = frame.from_local_level(g.lat, g.lon)
+                            * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                        st.used(t, max_gap);
+                        push_wait(
+                            &mut ip,
+                            InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot), 0),
+                            Overflow::Wait,
+                            &full_ref[1],
+                        );
+                    }
+                    st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
+                    st.without_pose += rd.invalid;
+                    if rd.records > 0 && rd.invalid * 10 > rd.records {
+                        return Err(bad(format!(
+                            "{} of {} records out of range or not finite",
+                            rd.invalid, rd.records
+                        )));
+                    }
                 }
-                framer.finish();
-                while let Some(it) = framer.next() {
-                    handle(it);
-                }
-            } else if let Some((mut rd, week, path)) = sbet {
-                while let Some(r) = rd
-                    .next_record()
-                    .map_err(|e| format!("{}: {e}", path.display()))?
-                {
-                    let Some(t) = r.time(week) else { continue };
-                    let g = Geodetic {
-                        lat: r.lat,
-                        lon: r.lon,
-                        h: r.h,
-                    };
-                    let rot = frame.from_local_level(g.lat, g.lon)
-                        * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
-                    poses += 1;
-                    push_wait(
-                        &mut ip,
-                        InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot), 0),
-                        Overflow::Wait,
-                        &full_ref[1],
-                    );
-                }
-                rejected += rd.invalid;
-            }
+                Ok(st)
+            };
+            let r = read();
             push_wait(&mut ip, InsItem::End, Overflow::Wait, &full_ref[1]);
-            Ok((poses, without, rejected))
+            r
         });
 
         // Consumer.
@@ -656,10 +832,12 @@ pub fn run<C: Send>(
             InsWait::UntilEnd,
         );
         al.time_offset_ns = inp.time_offset_ns;
+        let offset_ns = inp.time_offset_ns;
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let _ = tx.send(BatchMsg {
                 sphere,
                 obs: obs.to_vec(),
+                offset_ns,
             });
         };
         loop {
@@ -681,12 +859,9 @@ pub fn run<C: Send>(
         stats.skips = lidar
             .join()
             .map_err(|_| "LiDAR reader panicked".to_string())??;
-        let (poses, without, rejected) = ins
+        stats.ins = ins
             .join()
             .map_err(|_| "INS reader panicked".to_string())??;
-        stats.poses = poses;
-        stats.ins_frames_without_pose = without;
-        stats.ins_rejected = rejected;
         stats.ring_full = [
             full[0].load(Ordering::Relaxed),
             full[1].load(Ordering::Relaxed),
@@ -694,6 +869,9 @@ pub fn run<C: Send>(
         let c = consumer
             .join()
             .map_err(|_| "consumer panicked".to_string())?;
+        if let Some(why) = stats.unusable(&inp.pcap, inp.ins_path(), &ins_head) {
+            return Err(why);
+        }
         Ok((stats, c))
     })
 }

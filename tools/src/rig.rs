@@ -21,6 +21,7 @@ use crate::pipeline::{
     LidarKind, Overflow, BATCH, INS_RING,
 };
 use crate::site::Site;
+use crate::state::{ClockState, InsState};
 use crate::status::{show, Status};
 use heapless::spsc::{Consumer, Producer, Queue};
 use serde::Serialize;
@@ -69,6 +70,8 @@ pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
 /// How long after a packet's arrival the aligner waits for the INS to cover it (the data ring
 /// holds 1.36 s of single-return packets, 0.68 s of dual).
 pub const INS_LATENCY: Duration = Duration::from_millis(300);
+/// The aligner interpolates across INS gaps up to this [ns] (wider ones are counted as gaps).
+pub const MAX_INS_GAP_NS: i64 = 50_000_000;
 
 /// What `run` is asked to do.
 #[derive(Debug, Clone)]
@@ -89,6 +92,8 @@ pub struct RunOptions {
     pub report: Option<PathBuf>,
     /// Solver settings.
     pub settings: Settings,
+    /// Use VN-200 poses whose InsStatus says not tracking (else left out, counted).
+    pub keep_untracked_ins: bool,
 }
 
 /// Counts of a run (also written as `<log dir>/<stamp>-run.json`).
@@ -116,12 +121,15 @@ pub struct RunSummary {
     pub packets_without_time: u64,
     /// Serial bytes read.
     pub serial_bytes: u64,
-    /// Poses decoded.
-    pub poses: u64,
-    /// INS frames without a complete pose.
-    pub ins_frames_without_pose: u64,
-    /// INS frames or sentences rejected (CRC, parse).
-    pub ins_rejected: u64,
+    /// The INS stream: frames, CRC failures, poses used and left out by InsStatus, gaps.
+    pub ins: InsState,
+    /// The LiDAR clock as its position packets tell it (PPS, RMC validity, stamp - RMC).
+    pub clock: ClockState,
+    /// ... PPS-locked with valid RMCs that agree with the stamps.
+    pub clock_trusted: bool,
+    /// The time offset the aligner applied at the end (INS time = LiDAR time + this) [s]:
+    /// each converged solve that moves it by more than 1 ms moves the windows with it.
+    pub time_offset_s: f64,
     /// Returns in the aligned packets.
     pub returns: u64,
     /// Returns georeferenced (near a window: the rest are only counted).
@@ -185,6 +193,10 @@ struct Shared<'a> {
     batch_drops: AtomicU64,
     solves: AtomicU64,
     calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
+    /// The time offset the aligner is to apply [ns] (set by the solver).
+    time_offset_ns: AtomicI64,
+    /// The latest estimate of the time offset and its sigma [s].
+    time_offset: Mutex<Option<(f64, f64)>>,
     errors: Mutex<Vec<String>>,
 }
 
@@ -376,6 +388,8 @@ fn run_rig(
         batch_drops: AtomicU64::new(0),
         solves: AtomicU64::new(0),
         calibration: Mutex::new(None),
+        time_offset_ns: AtomicI64::new(0),
+        time_offset: Mutex::new(None),
         errors: Mutex::new(Vec::new()),
     };
 
@@ -419,7 +433,16 @@ fn run_rig(
         });
         let ins = match serial {
             Some((dev, src)) => Some(spawn(sc, "serial", move || {
-                serial_reader(&dev, expected, src, &frame, ins_p, slog_p, sh)
+                serial_reader(
+                    &dev,
+                    expected,
+                    src,
+                    &frame,
+                    opts.keep_untracked_ins,
+                    ins_p,
+                    slog_p,
+                    sh,
+                )
             })),
             None => {
                 let _ = ins_p.enqueue(InsItem::End);
@@ -472,16 +495,22 @@ fn run_rig(
             margin,
             Mount::from_params(&b0),
             b.leap_seconds,
-            50_000_000,
+            MAX_INS_GAP_NS,
             InsWait::Latency(INS_LATENCY),
         );
+        // The offset the batches in the aligner were collected at.
+        let applied = std::cell::Cell::new(0i64);
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let mut v = pool_rx
                 .try_recv()
                 .unwrap_or_else(|_| Vec::with_capacity(BATCH));
             v.clear();
             v.extend_from_slice(obs);
-            if let Err(e) = tx.try_send(BatchMsg { sphere, obs: v }) {
+            if let Err(e) = tx.try_send(BatchMsg {
+                sphere,
+                obs: v,
+                offset_ns: applied.get(),
+            }) {
                 sh.batch_drops
                     .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
             }
@@ -495,6 +524,13 @@ fn run_rig(
                 std::thread::sleep(Duration::from_millis(1));
                 continue;
             };
+            // A new time offset from the solver: the batches so far go at the old one.
+            let want = sh.time_offset_ns.load(Ordering::Relaxed);
+            if want != applied.get() {
+                al.finish(&mut emit);
+                al.time_offset_ns = want;
+                applied.set(want);
+            }
             match item.kind {
                 LidarKind::End => break,
                 LidarKind::Position => al.position(&item.bytes[..512]),
@@ -574,9 +610,10 @@ fn run_rig(
             al_stats.window.in_gap,
         ],
         serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
-        poses: ins_counts.0,
-        ins_frames_without_pose: ins_counts.1,
-        ins_rejected: ins_counts.2,
+        clock_trusted: al_stats.clock.trusted(),
+        clock: al_stats.clock.clone(),
+        ins: ins_counts,
+        time_offset_s: sh.time_offset_ns.load(Ordering::Relaxed) as f64 * 1e-9,
         windowed: sh
             .windowed
             .iter()
@@ -706,12 +743,13 @@ fn serial_reader(
     expected: &[(&'static str, u8)],
     mut src: SerialSource,
     frame: &LocalFrame,
+    keep_untracked: bool,
     mut ring: Producer<'_, InsItem>,
     mut log: Producer<'_, SerialChunk>,
     sh: &Shared<'_>,
-) -> (u64, u64, u64) {
+) -> InsState {
     let _alive = ReaderGuard(sh);
-    let (mut poses, mut without, mut rejected) = (0u64, 0u64, 0u64);
+    let mut st = InsState::default();
     let mut framer: Box<Framer> = Box::default();
     let mut buf = [0u8; SERIAL_CHUNK];
     let mut last_masks: Option<Masks> = None;
@@ -733,10 +771,19 @@ fn serial_reader(
                     }
                     match vn200_pose(&it.item, frame) {
                         InsOutcome::Pose(s, status) => {
-                            poses += 1;
-                            if let Some(st) = status {
-                                sh.ins_mode.store((st & 0b11) as u8, Ordering::Relaxed);
+                            if let Some(m) = status {
+                                sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
                             }
+                            // Not tracking, aligning, GNSS lost, no fix: left out (counted).
+                            match status.and_then(crate::state::excluded_by) {
+                                Some(k) if !keep_untracked => {
+                                    st.exclude(s.time, k);
+                                    return;
+                                }
+                                Some(_) => st.kept_untracked += 1,
+                                None => {}
+                            }
+                            st.used(s.time, MAX_INS_GAP_NS);
                             push_wait(
                                 &mut ring,
                                 InsItem::Pose(s, stamp.wall_ns),
@@ -744,9 +791,8 @@ fn serial_reader(
                                 &sh.ring_drops[2],
                             );
                         }
-                        InsOutcome::NoPose => without += 1,
-                        InsOutcome::Rejected => rejected += 1,
-                        InsOutcome::Other => {}
+                        InsOutcome::NoPose => st.without_pose += 1,
+                        InsOutcome::Rejected | InsOutcome::Other => {}
                     }
                 });
             }
@@ -764,7 +810,14 @@ fn serial_reader(
     while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
-    (poses, without, rejected)
+    let fs = framer.stats();
+    st.bytes = sh.serial_bytes.load(Ordering::Relaxed);
+    st.frames = fs.frames;
+    st.crc_failures = fs.crc_failures;
+    st.skipped_bytes = fs.skipped_bytes;
+    st.ascii = fs.ascii;
+    st.nmea = fs.nmea;
+    st
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -903,10 +956,23 @@ fn solver(
     let mut last_solve: Option<Instant> = None;
     let mut latest: Option<Report> = None;
     let mut start = *b0;
-    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut [f64; 6]| {
-        let (sol, rep) = solve_report(targets, ids, store, start, settings);
+    // The time offset the store's observations were aligned at [ns].
+    let mut store_offset = 0i64;
+    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut [f64; 6], offset: &mut i64| {
+        let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
         sh.solves.fetch_add(1, Ordering::Relaxed);
+        rep.time_offset_s += *offset as f64 * 1e-9;
         if rep.converged {
+            if let Ok(mut t) = sh.time_offset.lock() {
+                *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
+            }
+            // Move the windows to the offset found (beyond 1 ms), and the store with them.
+            if settings.estimate_dt && sol.dt.is_finite() && sol.dt.abs() > 1e-3 {
+                let d = (sol.dt * 1e9).round() as i64;
+                rebase_or_clear(store, d);
+                *offset += d;
+                sh.time_offset_ns.store(*offset, Ordering::Relaxed);
+            }
             *start = sol.b;
             let mount = spherecal::georef::Mount::from_params(&sol.b);
             for (v, t) in store.iter_mut().zip(targets) {
@@ -929,7 +995,13 @@ fn solver(
     };
     loop {
         let closed = match rx.recv_timeout(Duration::from_millis(200)) {
-            Ok(m) => {
+            Ok(mut m) => {
+                // Aligned at an older offset (in flight when it moved): moved to the store's.
+                if m.offset_ns != store_offset {
+                    let mut one = vec![std::mem::take(&mut m.obs)];
+                    rebase_or_clear(&mut one, store_offset - m.offset_ns);
+                    m.obs = one.pop().unwrap_or_default();
+                }
                 let room = MAX_OBS_PER_SPHERE.saturating_sub(store[m.sphere].len());
                 let k = m.obs.len().min(room);
                 store[m.sphere].extend_from_slice(&m.obs[..k]);
@@ -951,17 +1023,32 @@ fn solver(
         let ready = store.iter().all(|s| s.len() >= settings.min_points);
         if closed {
             if ready && total > last_total {
-                latest = Some(solve(&mut store, &mut start));
+                latest = Some(solve(&mut store, &mut start, &mut store_offset));
             }
             return latest;
         }
-        // Solve when every sphere has enough returns, then again each time a quarter more
-        // has arrived, at most once a second.
+        // Solve when every sphere has enough returns, then again each time the store has
+        // grown by a quarter over what the last solve left in it (a converged solve prunes
+        // it), at most once a second; and at the end if anything arrived since.
         let due = last_solve.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
         if ready && due && total * 4 >= last_total * 5 && total > last_total {
-            latest = Some(solve(&mut store, &mut start));
-            last_total = total;
+            latest = Some(solve(&mut store, &mut start, &mut store_offset));
+            last_total = store.iter().map(Vec::len).sum();
             last_solve = Some(Instant::now());
+        }
+    }
+}
+
+/// Observations aligned at one time offset, moved to one larger by `d_ns` ([`Observation::rebase`],
+/// first order in the platform's velocity and turn rate, as the solver's own estimate is); beyond
+/// 2 s the first order is no guide and they are dropped.
+fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
+    let d = d_ns as f64 * 1e-9;
+    for v in store {
+        if d.abs() > 2.0 {
+            v.clear();
+        } else {
+            v.iter_mut().for_each(|o| o.rebase(d));
         }
     }
 }
@@ -997,6 +1084,12 @@ fn snapshot(sh: &Shared<'_>, ids: &[String], started: Instant, last_aligned: &mu
             .map(|(id, n)| (id.clone(), n.load(Ordering::Relaxed)))
             .collect(),
         calibration: sh.calibration.lock().ok().and_then(|c| *c),
+        time_offset_ms: sh
+            .time_offset
+            .lock()
+            .ok()
+            .and_then(|c| *c)
+            .map(|(d, s)| (d * 1e3, s * 1e3)),
     };
     *last_aligned = aligned;
     s
@@ -1062,16 +1155,29 @@ pub fn render(s: &RunSummary) -> String {
     }
     let _ = writeln!(
         o,
-        "aligned {} data packets ({} without time), {} position packets; serial {} bytes, {} poses, {} frames without pose, {} rejected; windows {:?}; {} solves",
+        "aligned {} data packets ({} without time), {} position packets; serial {} bytes; windows {:?}; {} solves",
         s.data_packets,
         s.packets_without_time,
         s.position_packets,
         s.serial_bytes,
-        s.poses,
-        s.ins_frames_without_pose,
-        s.ins_rejected,
         s.windowed,
         s.solves
+    );
+    let _ = writeln!(
+        o,
+        "clock: {}{}",
+        s.clock.describe(),
+        if s.clock_trusted {
+            ""
+        } else {
+            " (NOT trusted: not PPS-locked with valid RMCs)"
+        }
+    );
+    let _ = writeln!(o, "serial: {}", s.ins.describe());
+    let _ = writeln!(
+        o,
+        "time offset applied at the end: {:+.6} s (INS time = LiDAR time + this)",
+        s.time_offset_s
     );
     let _ = writeln!(
         o,

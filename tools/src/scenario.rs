@@ -175,6 +175,24 @@ pub struct LidarSpec {
     /// reported (default 1); less thins the scene uniformly, for clutter-density sweeps.
     #[serde(default = "default_keep")]
     pub clutter_keep: f64,
+    /// The sensor's clock error [s]: its timestamps are the true time plus this (default 0).
+    #[serde(default)]
+    pub clock_offset_s: f64,
+    /// The PPS state its position packets report: `locked` (default), `absent`, `syncing`,
+    /// `error`.
+    #[serde(default = "default_pps")]
+    pub pps: String,
+    /// Its GPS has a fix: `$GPRMC` status A (default), else V.
+    #[serde(default = "default_true")]
+    pub rmc_valid: bool,
+}
+
+fn default_pps() -> String {
+    "locked".into()
+}
+
+fn default_true() -> bool {
+    true
 }
 
 fn default_keep() -> f64 {
@@ -433,6 +451,16 @@ impl Scenario {
             "expected 0..20 m",
         )?;
         check(
+            self.lidar.clock_offset_s.abs() < 3600.0,
+            "lidar.clock_offset_s",
+            "expected |offset| < 3600 s",
+        )?;
+        check(
+            self.pps().is_some(),
+            "lidar.pps",
+            "expected locked, absent, syncing or error",
+        )?;
+        check(
             self.lidar.clutter_keep > 0.0 && self.lidar.clutter_keep <= 1.0,
             "lidar.clutter_keep",
             "expected 0 < p <= 1",
@@ -561,7 +589,19 @@ impl Scenario {
     /// The true time offset between the clocks [s]: INS time = LiDAR time + this (the INS
     /// clock's error minus the LiDAR clock's).
     pub fn true_time_offset_s(&self) -> f64 {
-        self.ins.time_offset_s
+        self.ins.time_offset_s - self.lidar.clock_offset_s
+    }
+
+    /// The PPS state of the position packets.
+    pub fn pps(&self) -> Option<spherecal::vlp16::PpsStatus> {
+        use spherecal::vlp16::PpsStatus;
+        match self.lidar.pps.as_str() {
+            "absent" => Some(PpsStatus::Absent),
+            "syncing" => Some(PpsStatus::Synchronizing),
+            "locked" => Some(PpsStatus::Locked),
+            "error" => Some(PpsStatus::Error),
+            _ => None,
+        }
     }
 
     /// The true mount.
@@ -741,6 +781,9 @@ impl Scenario {
             incidence_noise: self.lidar.incidence_noise,
             range_walk: self.lidar.range_walk_m,
             clutter_keep: self.lidar.clutter_keep,
+            clock_offset_ns: (self.lidar.clock_offset_s * 1e9).round() as i64,
+            pps: self.pps().unwrap_or(spherecal::vlp16::PpsStatus::Locked),
+            rmc_valid: self.lidar.rmc_valid,
             seed: self.seed.wrapping_mul(2).wrapping_add(1),
             ..LidarConfig::default()
         }

@@ -42,6 +42,30 @@ pub struct SiteApriori {
     pub window_margin_m: f64,
 }
 
+/// The sensors' noise, 1 sigma, for the consistency test (optional; the defaults are the
+/// VLP-16's specified range accuracy and a navigation-grade INS).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteNoise {
+    /// LiDAR range [m] (VLP-16 user manual: +-3 cm typical).
+    pub range_m: f64,
+    /// INS roll, pitch, heading [deg].
+    pub attitude_deg: f64,
+    /// INS position [m].
+    pub position_m: f64,
+}
+
+impl Default for SiteNoise {
+    fn default() -> Self {
+        let s = spherecal::calib::Settings::default();
+        Self {
+            range_m: s.range_noise,
+            attitude_deg: s.attitude_noise.to_degrees(),
+            position_m: s.position_noise,
+        }
+    }
+}
+
 /// The whole file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -54,6 +78,9 @@ pub struct Site {
     pub sphere: Vec<SiteSphere>,
     /// A-priori values.
     pub apriori: SiteApriori,
+    /// The sensors' noise (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<SiteNoise>,
 }
 
 impl Site {
@@ -128,6 +155,19 @@ impl Site {
             "apriori.window_margin_m".into(),
             "expected 0 < m < 20",
         )?;
+        if let Some(n) = &self.noise {
+            for (key, v, hi) in [
+                ("noise.range_m", n.range_m, 1.0),
+                ("noise.attitude_deg", n.attitude_deg, 5.0),
+                ("noise.position_m", n.position_m, 10.0),
+            ] {
+                need(
+                    v.is_finite() && v > 0.0 && v < hi,
+                    key.into(),
+                    &format!("expected a finite sigma 0 < s < {hi}"),
+                )?;
+            }
+        }
         Ok(())
     }
 

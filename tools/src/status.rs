@@ -35,6 +35,9 @@ pub struct Status {
     pub windows: Vec<(String, u64)>,
     /// Latest calibration [deg, m] and its 1-sigma.
     pub calibration: Option<([f64; 6], [f64; 6])>,
+    /// Latest time offset between the clocks and its 1-sigma [ms] (INS time = LiDAR time +
+    /// this).
+    pub time_offset_ms: Option<(f64, f64)>,
 }
 
 impl Status {
@@ -81,6 +84,12 @@ impl Status {
             }
             None => o.push_str(" cal=- sig=-"),
         }
+        match self.time_offset_ms {
+            Some((d, s)) => {
+                let _ = write!(o, " dt_ms={d:+.3},{s:.3}");
+            }
+            None => o.push_str(" dt_ms=-"),
+        }
         o
     }
 
@@ -116,6 +125,11 @@ impl Status {
                     }
                 }
                 "win" => {}
+                "dt_ms" if v == "-" => {}
+                "dt_ms" => {
+                    let (d, sg) = v.split_once(',')?;
+                    s.time_offset_ms = Some((d.parse().ok()?, sg.parse().ok()?));
+                }
                 "cal" | "sig" if v == "-" => {}
                 "cal" | "sig" => {
                     let vals: Vec<f64> = v
@@ -156,10 +170,11 @@ mod tests {
                 [179.5, -44.9, 1.2, 1.5, -1.24, -1.36],
                 [0.0003, 0.0004, 0.0002, 0.0001, 0.0001, 0.0001],
             )),
+            time_offset_ms: Some((100.125, 0.004)),
         };
         assert_eq!(
             s.line(),
-            "t=12s pkt/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001"
+            "t=12s pkt/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -169,7 +184,7 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s pkt/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=-"
+            "t=0s pkt/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);

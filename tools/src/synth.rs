@@ -310,6 +310,7 @@ fn write_files(
             lever_arm_m: s.mount.apriori.lever_arm_m,
             window_margin_m: s.mount.apriori.window_margin_m,
         },
+        noise: None,
     };
     let site_path = dir.join("site.toml");
     std::fs::write(&site_path, site.to_toml()).map_err(|e| io(&site_path, e))?;

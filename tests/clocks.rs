@@ -1,0 +1,522 @@
+//! Clocks, sensor states and inputs as a broken rig delivers them (issue 12): the INS stream
+//! late against the LiDAR (estimated as a seventh parameter, or refused when held), a LiDAR clock
+//! without PPS (refused unless allowed; searched), a clock 1,500 s off with void RMCs (exit 2
+//! naming the clock), and byte edits of the streams the way a faulty rig produces them: PPS
+//! byte, packet timestamps, RMC status, VN-200 InsStatus mode bits, CRC damage, gaps, wrong files.
+//! Expectations come from the edits themselves (counts and spans of what was edited), never from
+//! the code's own output.
+
+mod common;
+
+use spherecal_tools::calibrate::Report;
+use spherecal_tools::scenario::Scenario;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+fn dir(name: &str) -> PathBuf {
+    common::tmp("clocks", name)
+}
+
+/// Synthesise table1 (or `base`) with `edit` applied to its scenario.
+fn synth(base: &str, name: &str, edit: impl FnOnce(&mut Scenario)) -> (PathBuf, Scenario) {
+    let mut s = Scenario::load(base).unwrap();
+    edit(&mut s);
+    let d = dir(name);
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    (d, s)
+}
+
+fn calibrate(d: &Path, ins: &Path, extra: &[&str]) -> (Output, Option<Report>) {
+    let report = d.join(format!(
+        "report-{}.json",
+        extra.join("").replace(['-', '.'], "")
+    ));
+    let _ = std::fs::remove_file(&report);
+    let out = common::spherecal()
+        .arg("calibrate")
+        .arg("--pcap")
+        .arg(d.join("lidar.pcap"))
+        .arg("--ins")
+        .arg(ins)
+        .arg("--site")
+        .arg(d.join("site.toml"))
+        .arg("--report")
+        .arg(&report)
+        .args(extra)
+        .output()
+        .unwrap();
+    let rep = std::fs::read_to_string(&report)
+        .ok()
+        .map(|t| serde_json::from_str(&t).unwrap());
+    (out, rep)
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn six(r: &Report) -> [f64; 6] {
+    [
+        r.boresight_deg.roll,
+        r.boresight_deg.pitch,
+        r.boresight_deg.heading,
+        r.lever_arm_m.x,
+        r.lever_arm_m.y,
+        r.lever_arm_m.z,
+    ]
+}
+
+fn sigmas(r: &Report) -> [f64; 6] {
+    let s = &r.sigma;
+    [
+        s.boresight_deg.roll,
+        s.boresight_deg.pitch,
+        s.boresight_deg.heading,
+        s.lever_arm_m.x,
+        s.lever_arm_m.y,
+        s.lever_arm_m.z,
+    ]
+}
+
+fn truth(s: &Scenario) -> [f64; 6] {
+    spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m)
+}
+
+/// Every parameter within `tol` (deg, m) of the truth.
+fn assert_mount(r: &Report, s: &Scenario, tol: f64, what: &str) {
+    let (got, want) = (six(r), truth(s));
+    for i in 0..6 {
+        assert!(
+            (got[i] - want[i]).abs() <= tol,
+            "{what}: {} {} vs {} (error {:.2e})",
+            spherecal::calib::NAMES[i],
+            got[i],
+            want[i],
+            got[i] - want[i]
+        );
+    }
+}
+
+/// The INS stream 0.02 s and 0.1 s late (noise-free): the offset is estimated within 1 ms and
+/// the mount within 1e-3 deg / m. Held at 0, the 0.1 s case is refused: the data, free, move
+/// the offset by about 0.1 s (the mount had absorbed it as a lever-arm x of speed x 0.1 s).
+#[test]
+fn ins_late_is_estimated_and_a_wrong_held_offset_is_refused() {
+    let results: Vec<_> = std::thread::scope(|sc| {
+        [0.02, 0.1]
+            .map(|late| {
+                sc.spawn(move || {
+                    let (d, s) = synth("table1", &format!("late{late}"), |s| {
+                        s.ins.time_offset_s = late
+                    });
+                    let (out, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+                    (late, d, s, out, r)
+                })
+            })
+            .map(|h| h.join().unwrap())
+    })
+    .into_iter()
+    .collect();
+    for (late, d, s, out, r) in results {
+        assert!(out.status.success(), "{late}: {}", text(&out));
+        let r = r.unwrap();
+        assert!(
+            (r.time_offset_s - late).abs() < 1e-3,
+            "{late}: {}",
+            r.time_offset_s
+        );
+        assert!(r.time_offset_s == s.true_time_offset_s() || r.sigma.time_offset_s > 0.0);
+        assert_mount(&r, &s, 1e-3, &format!("INS {late} s late"));
+        if late == 0.1 {
+            let (out, r) = calibrate(&d, &d.join("ins.bin"), &["--hold-time-offset"]);
+            assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+            let r = r.unwrap();
+            assert!(!r.converged);
+            let reason = r.reason.unwrap();
+            assert!(reason.contains("time offset held"), "{reason}");
+            let [free, sigma] = r.consistency.free_time_offset_s.unwrap();
+            assert!(
+                (free - 0.1).abs() < 0.04 && free.abs() > 5.0 * sigma,
+                "{free} +- {sigma}"
+            );
+            // What it would have claimed: x off by speed x 0.1 s.
+            assert!((r.lever_arm_m.x - s.mount.truth.lever_arm_m[0]).abs() > 0.05);
+        }
+        std::fs::remove_dir_all(d).unwrap();
+    }
+}
+
+/// The noisy site with the INS 0.1 s late: the offset and the six within 3 sigma.
+#[test]
+fn noisy_ins_late_is_within_three_sigma() {
+    let (d, s) = synth("table1-noisy", "noisy-late", |s| s.ins.time_offset_s = 0.1);
+    let (out, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert!(out.status.success(), "{}", text(&out));
+    let r = r.unwrap();
+    let z = (r.time_offset_s - 0.1) / r.sigma.time_offset_s;
+    assert!(
+        z.abs() <= 3.0,
+        "dt {} +- {}",
+        r.time_offset_s,
+        r.sigma.time_offset_s
+    );
+    assert!(r.sigma.time_offset_s < 1e-3);
+    let (got, want, sg) = (six(&r), truth(&s), sigmas(&r));
+    for i in 0..6 {
+        assert!(
+            (got[i] - want[i]).abs() <= 3.0 * sg[i],
+            "{}: {} vs {} sigma {}",
+            spherecal::calib::NAMES[i],
+            got[i],
+            want[i],
+            sg[i]
+        );
+    }
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// A VLP-16 without PPS whose clock runs 0.3 s and 1.0 s ahead (RMCs valid), and 1.0 s ahead
+/// with void RMCs (nothing tells the offset: the coarse search must find it). Without the flag:
+/// exit 1 naming the PPS state and the offset found; with `--allow-unlocked-clock` the offset is
+/// recovered within 1 ms and the mount within 1e-3.
+#[test]
+fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
+    let cases = [(0.3, true), (1.0, true), (1.0, false)];
+    let results: Vec<_> = std::thread::scope(|sc| {
+        cases
+            .map(|(off, rmc)| {
+                sc.spawn(move || {
+                    let (d, s) = synth("table1", &format!("pps{off}{rmc}"), |s| {
+                        s.lidar.clock_offset_s = off;
+                        s.lidar.pps = "absent".into();
+                        s.lidar.rmc_valid = rmc;
+                    });
+                    let refused = calibrate(&d, &d.join("ins.bin"), &[]);
+                    let allowed = calibrate(&d, &d.join("ins.bin"), &["--allow-unlocked-clock"]);
+                    (off, rmc, d, s, refused, allowed)
+                })
+            })
+            .map(|h| h.join().unwrap())
+    })
+    .into_iter()
+    .collect();
+    for (off, rmc, d, s, (out, r), (out2, r2)) in results {
+        let what = format!("clock {off} s ahead, RMC valid {rmc}");
+        assert_eq!(out.status.code(), Some(1), "{what}: {}", text(&out));
+        let r = r.unwrap();
+        let reason = r.reason.clone().unwrap();
+        assert!(
+            reason.contains("not PPS-locked") && reason.contains("PPS absent"),
+            "{reason}"
+        );
+        let inputs = r.inputs.unwrap();
+        assert!(!inputs.clock_trusted);
+        // table1: 62.5 s of capture, one position packet a second, all edited to "absent".
+        assert_eq!(inputs.clock.pps[0], inputs.clock.packets(), "{what}");
+        assert!(inputs.clock.packets() >= 60);
+        if rmc {
+            assert_eq!(inputs.clock.rmc_valid, inputs.clock.packets());
+        } else {
+            assert_eq!(inputs.clock.rmc_void, inputs.clock.packets());
+        }
+        assert!(out2.status.success(), "{what}: {}", text(&out2));
+        let r2 = r2.unwrap();
+        assert!(
+            (r2.time_offset_s - s.true_time_offset_s()).abs() < 1e-3,
+            "{what}: {} vs {}",
+            r2.time_offset_s,
+            s.true_time_offset_s()
+        );
+        assert_mount(&r2, &s, 1e-3, &what);
+        if !rmc {
+            assert!(!r2.time_offset_search.is_empty(), "{what}: no search");
+        }
+        std::fs::remove_dir_all(d).unwrap();
+    }
+}
+
+/// A clock 1,500 s off with void RMCs: LiDAR and INS times do not overlap: exit 2, and the
+/// sentence names the clock's state (PPS absent, RMC void).
+#[test]
+fn a_clock_1500_s_off_with_void_rmc_exits_2_naming_the_clock() {
+    let (d, _) = synth("table1", "c1500", |s| {
+        s.lidar.clock_offset_s = 1500.0;
+        s.lidar.pps = "absent".into();
+        s.lidar.rmc_valid = false;
+    });
+    let (out, _) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    let t = text(&out);
+    assert!(
+        t.contains("do not overlap") && t.contains("PPS absent") && t.contains("RMC void"),
+        "{t}"
+    );
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// The NMEA checksum: XOR of the bytes between '$' and '*'.
+fn nmea_checksum(s: &[u8]) -> u8 {
+    s.iter().fold(0, |a, b| a ^ b)
+}
+
+/// Walk a classic pcap (24-byte header, 16-byte record headers), calling `f` with each UDP
+/// payload (Ethernet + IPv4 + UDP: 42 bytes of headers) and its destination port.
+fn each_payload(pcap: &mut [u8], mut f: impl FnMut(u16, &mut [u8])) {
+    let mut at = 24;
+    while at + 16 <= pcap.len() {
+        let incl = u32::from_le_bytes(pcap[at + 8..at + 12].try_into().unwrap()) as usize;
+        let frame = &mut pcap[at + 16..at + 16 + incl];
+        let port = u16::from_be_bytes([frame[36], frame[37]]);
+        f(port, &mut frame[42..]);
+        at += 16 + incl;
+    }
+}
+
+/// The capture edited the way a LiDAR without PPS delivers it: every position packet's PPS
+/// byte "absent", its RMC void ('A' -> 'V', checksum redone) and every data packet's timestamp
+/// 0.7 s ahead (microseconds past the hour, wrapping). Refused without the flag, naming PPS and
+/// RMC, with the counts of what was edited; with it, the offset -0.7 s is recovered.
+#[test]
+fn pcap_byte_edits_pps_rmc_and_stamps() {
+    let (d, s) = synth("table1", "edit-pcap", |_| {});
+    let mut pcap = std::fs::read(d.join("lidar.pcap")).unwrap();
+    let (mut data, mut position) = (0u64, 0u64);
+    each_payload(&mut pcap, |port, p| match (port, p.len()) {
+        (2368, 1206) => {
+            let us = u32::from_le_bytes(p[1200..1204].try_into().unwrap());
+            let shifted = (us + 700_000) % 3_600_000_000;
+            p[1200..1204].copy_from_slice(&shifted.to_le_bytes());
+            data += 1;
+        }
+        (8308, 512) => {
+            p[202] = 0; // PPS absent
+            let us = u32::from_le_bytes(p[198..202].try_into().unwrap());
+            p[198..202].copy_from_slice(&((us + 700_000) % 3_600_000_000).to_le_bytes());
+            let nmea = &mut p[206..334];
+            let star = nmea.iter().position(|&b| b == b'*').unwrap();
+            let fields: Vec<usize> = (0..star).filter(|&i| nmea[i] == b',').collect();
+            // $GPRMC,hhmmss,A,...: the status is the field after the second comma.
+            assert_eq!(nmea[fields[1] + 1], b'A');
+            nmea[fields[1] + 1] = b'V';
+            let c = nmea_checksum(&nmea[1..star]);
+            nmea[star + 1..star + 3].copy_from_slice(format!("{c:02X}").as_bytes());
+            position += 1;
+        }
+        _ => panic!("unexpected record on port {port}"),
+    });
+    assert!(data > 40_000 && position >= 60);
+    let edited = d.join("edited.pcap");
+    std::fs::write(&edited, &pcap).unwrap();
+    std::fs::copy(&edited, d.join("lidar.pcap")).unwrap();
+
+    let (out, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let r = r.unwrap();
+    let inputs = r.inputs.as_ref().unwrap();
+    assert_eq!(inputs.clock.pps[0], position);
+    assert_eq!(inputs.clock.rmc_void, position);
+    assert_eq!(inputs.data_packets, data);
+    let reason = r.reason.unwrap();
+    assert!(
+        reason.contains("PPS absent") && reason.contains("RMC void"),
+        "{reason}"
+    );
+    let t = text(&out);
+    assert!(t.contains("PPS absent") && t.contains("RMC void"), "{t}");
+
+    let (out, r) = calibrate(&d, &d.join("ins.bin"), &["--allow-unlocked-clock"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let r = r.unwrap();
+    assert!((r.time_offset_s + 0.7).abs() < 1e-3, "{}", r.time_offset_s);
+    assert_mount(&r, &s, 1e-3, "stamps 0.7 s ahead");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// CRC-16/XMODEM (poly 0x1021, init 0), bit by bit (VectorNav's "16-bit CRC"): the
+/// test's own, independent of the crate's.
+fn crc16(bytes: &[u8]) -> u16 {
+    let mut c: u16 = 0;
+    for &b in bytes {
+        c ^= u16::from(b) << 8;
+        for _ in 0..8 {
+            c = if c & 0x8000 != 0 {
+                (c << 1) ^ 0x1021
+            } else {
+                c << 1
+            };
+        }
+    }
+    c
+}
+
+/// The synthetic VN-200 frames: sync 0xFA, group 1, fields 0x104A (TimeGps u64, YPR 3 f32,
+/// Position 3 f64, InsStatus u16), CRC: 52 bytes. Their offsets in the stream.
+fn frames(ins: &[u8]) -> Vec<usize> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i + 52 <= ins.len() {
+        if ins[i..i + 4] == [0xFA, 0x01, 0x4A, 0x10] && crc16(&ins[i + 1..i + 52]) == 0 {
+            out.push(i);
+            i += 52;
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+fn frame_time_s(ins: &[u8], at: usize) -> f64 {
+    u64::from_le_bytes(ins[at + 4..at + 12].try_into().unwrap()) as f64 * 1e-9
+}
+
+fn set_status(ins: &mut [u8], at: usize, status: u16) {
+    ins[at + 48..at + 50].copy_from_slice(&status.to_le_bytes());
+    let c = crc16(&ins[at + 1..at + 50]);
+    ins[at + 50..at + 52].copy_from_slice(&c.to_be_bytes());
+}
+
+/// The VN-200 stream edited the way a real one misbehaves: 3 s of frames whose InsStatus
+/// says "aligning" (mode 1) and 2 s saying "GNSS lost" (mode 3), CRC damage in every 10th frame
+/// elsewhere, and a 2 s hole. The report counts exactly what was edited, the excluded spans
+/// match, the calibration still holds (the edits miss the sphere passes only partly: the
+/// solution must stay right), and `--keep-untracked-ins` keeps the untracked poses.
+#[test]
+fn ins_byte_edits_status_crc_and_gaps() {
+    let (d, s) = synth("table1", "edit-ins", |_| {});
+    let ins = std::fs::read(d.join("ins.bin")).unwrap();
+    let at = frames(&ins);
+    assert!(at.len() > 12_000, "{} frames", at.len());
+    let t0 = frame_time_s(&ins, at[0]);
+    let mut out = Vec::with_capacity(ins.len());
+    let (mut aligning, mut lost, mut damaged, mut removed) = (0u64, 0u64, 0u64, 0u64);
+    let (mut al_span, mut lost_span) = ((f64::MAX, 0.0f64), (f64::MAX, 0.0f64));
+    let mut prev = 0;
+    for (k, &i) in at.iter().enumerate() {
+        out.extend_from_slice(&ins[prev..i]);
+        prev = i + 52;
+        let mut f = ins[i..i + 52].to_vec();
+        let t = frame_time_s(&ins, i) - t0;
+        let status = u16::from_le_bytes([f[48], f[49]]);
+        assert_eq!(status & 3, 2, "the synthetic INS tracks");
+        if (20.0..22.0).contains(&t) {
+            removed += 1;
+            continue;
+        } else if (2.0..5.0).contains(&t) {
+            set_status(&mut f, 0, (status & !3) | 1);
+            aligning += 1;
+            al_span = (al_span.0.min(t + t0), al_span.1.max(t + t0));
+        } else if (40.0..42.0).contains(&t) {
+            set_status(&mut f, 0, status | 3);
+            lost += 1;
+            lost_span = (lost_span.0.min(t + t0), lost_span.1.max(t + t0));
+        } else if k % 10 == 5 {
+            f[20] ^= 0x5A; // the CRC no longer holds
+            damaged += 1;
+        }
+        out.extend_from_slice(&f);
+    }
+    out.extend_from_slice(&ins[prev..]);
+    let edited = d.join("edited-ins.bin");
+    std::fs::write(&edited, &out).unwrap();
+    assert!(aligning > 500 && lost > 300 && removed > 300 && damaged > 1000);
+
+    let (o, r) = calibrate(&d, &edited, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r = r.unwrap();
+    let st = &r.inputs.as_ref().unwrap().ins_state;
+    // Every damaged frame fails its CRC; a resynchronising framer may also try a false sync
+    // byte inside one (a few per thousand).
+    assert!(
+        st.crc_failures >= damaged && st.crc_failures <= damaged + damaged / 100,
+        "{} CRC failures for {damaged} damaged frames",
+        st.crc_failures
+    );
+    assert_eq!(st.excluded[1], aligning, "aligning");
+    assert_eq!(st.excluded[2], lost, "GNSS lost");
+    assert_eq!(st.excluded[0] + st.excluded[3], 0);
+    assert_eq!(st.kept_untracked, 0);
+    // The spans excluded: the edited ones, to the frame.
+    assert_eq!(st.excluded_spans.len(), 2, "{:?}", st.excluded_spans);
+    for ((a, b), (x, y)) in st.excluded_spans.iter().zip([al_span, lost_span]) {
+        assert!(
+            (a - x).abs() < 1e-6 && (b - y).abs() < 1e-6,
+            "{a}..{b} vs {x}..{y}"
+        );
+    }
+    // The hole (2 s, plus the frames either side lost to exclusion or damage, at most a
+    // few) and the exclusions are gaps in the poses used.
+    assert!(st.gaps >= 3, "{st:?}");
+    assert!(
+        (st.longest_gap_s - 3.0).abs() < 0.05,
+        "{}",
+        st.longest_gap_s
+    );
+    let t = text(&o);
+    assert!(t.contains("CRC") && t.contains("aligning"), "{t}");
+    assert_mount(&r, &s, 1e-3, "edited INS");
+
+    let (o, r) = calibrate(&d, &edited, &["--keep-untracked-ins"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let st = r.unwrap().inputs.unwrap().ins_state;
+    assert_eq!(st.excluded, [0; 4]);
+    assert_eq!(st.kept_untracked, aligning + lost);
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// Files that are not what the option says: exit 2 with a sentence naming the file and what
+/// was found instead; no calibration is attempted.
+#[test]
+fn wrong_files_exit_2_naming_them() {
+    let (d, _) = synth("table1", "wrong", |_| {});
+    let empty = d.join("empty.bin");
+    std::fs::write(&empty, b"").unwrap();
+    let random = d.join("random.bin");
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    let bytes: Vec<u8> = (0..200_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x as u8
+        })
+        .collect();
+    std::fs::write(&random, &bytes).unwrap();
+    for (f, says) in [
+        (d.join("lidar.pcap"), "pcap"),
+        (empty.clone(), "no VN-200"),
+        (random.clone(), "no VN-200"),
+    ] {
+        let (out, _) = calibrate(&d, &f, &[]);
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{}: {t}", f.display());
+        assert!(
+            t.contains(&f.display().to_string()) && t.contains(says),
+            "{t}"
+        );
+    }
+    // Not an SBET: random bytes (records of 17 doubles with times all over) and the VN-200
+    // stream itself.
+    for f in [random, d.join("ins.bin")] {
+        let out = common::spherecal()
+            .arg("calibrate")
+            .arg("--pcap")
+            .arg(d.join("lidar.pcap"))
+            .arg("--sbet")
+            .arg(&f)
+            .arg("--site")
+            .arg(d.join("site.toml"))
+            .output()
+            .unwrap();
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{}: {t}", f.display());
+        assert!(
+            t.contains(&f.display().to_string()) && t.contains("SBET"),
+            "{t}"
+        );
+    }
+    std::fs::remove_dir_all(d).unwrap();
+}

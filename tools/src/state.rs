@@ -1,0 +1,287 @@
+//! What the inputs held: the LiDAR clock as its position packets tell it (PPS, `$GPRMC`), the
+//! INS stream's state (frames, CRC failures, poses kept and excluded by their InsStatus, gaps),
+//! and the time spans of both. Every command prints it and every report records it: a
+//! calibration is only as good as its inputs, and a surveyor must see them.
+
+use serde::{Deserialize, Serialize};
+use spherecal::time::GpsTime;
+use spherecal::vlp16::{PositionPacket, PpsStatus};
+use std::fmt::Write as _;
+
+/// Seconds of a GPS time (for reports).
+fn secs(t: GpsTime) -> f64 {
+    t.as_secs_f64()
+}
+
+/// The LiDAR clock as its position packets tell it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ClockState {
+    /// Position packets by PPS state: absent, synchronizing, locked, error, other.
+    pub pps: [u64; 5],
+    /// Position packets whose `$GPRMC` says A (valid).
+    pub rmc_valid: u64,
+    /// ... V (void: no fix; its time may be stale).
+    pub rmc_void: u64,
+    /// ... none, or unreadable.
+    pub rmc_none: u64,
+    /// The packet's stamp minus its valid RMC's time [s], wrapped into the hour (the RMC names
+    /// the last whole second, so 0..1 s on a locked clock): the smallest and largest.
+    pub stamp_minus_rmc_s: Option<(f64, f64)>,
+    /// Where the LiDAR's hour came from: `RMC` (a valid one) or `INS` (the nearest hour to the
+    /// INS time); empty if never.
+    pub hour_from: String,
+}
+
+/// PPS state names, in [`ClockState::pps`] order.
+pub const PPS_NAMES: [&str; 5] = ["absent", "synchronizing", "locked", "error", "other"];
+
+impl ClockState {
+    /// Count a position packet.
+    pub fn count(&mut self, p: &PositionPacket<&[u8]>) {
+        let k = match p.pps() {
+            PpsStatus::Absent => 0,
+            PpsStatus::Synchronizing => 1,
+            PpsStatus::Locked => 2,
+            PpsStatus::Error => 3,
+            PpsStatus::Unknown(_) => 4,
+        };
+        self.pps[k] += 1;
+        match p.nmea_time() {
+            Ok(t) if t.is_rmc && t.valid => {
+                self.rmc_valid += 1;
+                let rmc = f64::from(u32::from(t.minute) * 60 + u32::from(t.second))
+                    + f64::from(t.nanos) * 1e-9;
+                let stamp = f64::from(p.timestamp_us()) * 1e-6;
+                let d = (stamp - rmc + 1800.0).rem_euclid(3600.0) - 1800.0;
+                self.stamp_minus_rmc_s = Some(match self.stamp_minus_rmc_s {
+                    Some((a, b)) => (a.min(d), b.max(d)),
+                    None => (d, d),
+                });
+            }
+            Ok(t) if t.is_rmc => self.rmc_void += 1,
+            _ => self.rmc_none += 1,
+        }
+    }
+
+    /// Position packets seen.
+    pub fn packets(&self) -> u64 {
+        self.pps.iter().sum()
+    }
+
+    /// The clock can be trusted: position packets seen, every one PPS-locked with a valid RMC
+    /// that agrees with its stamp (within 1.5 s: the RMC names a whole second).
+    pub fn trusted(&self) -> bool {
+        let n = self.packets();
+        n > 0
+            && self.pps[2] == n
+            && self.rmc_valid == n
+            && self
+                .stamp_minus_rmc_s
+                .is_some_and(|(a, b)| a > -1.5 && b < 1.5)
+    }
+
+    /// The LiDAR clock's error against the valid RMCs [s]: the middle of what the stamps
+    /// minus the RMC times span, less the half second the RMC's whole second hides.
+    pub fn rmc_offset_s(&self) -> Option<f64> {
+        self.stamp_minus_rmc_s.map(|(a, b)| (a + b) / 2.0 - 0.5)
+    }
+
+    /// One line for people.
+    pub fn describe(&self) -> String {
+        let n = self.packets();
+        if n == 0 {
+            return "no position packets (no PPS, no RMC: the LiDAR clock cannot be checked)"
+                .into();
+        }
+        let mut o = format!("{n} position packets: PPS");
+        for (k, c) in self.pps.iter().enumerate().filter(|(_, &c)| c > 0) {
+            let _ = write!(o, " {} {c}", PPS_NAMES[k]);
+        }
+        let rmc: Vec<String> = [
+            ("valid", self.rmc_valid),
+            ("void", self.rmc_void),
+            ("none", self.rmc_none),
+        ]
+        .iter()
+        .filter(|(_, c)| *c > 0)
+        .map(|(k, c)| format!("{k} {c}"))
+        .collect();
+        let _ = write!(o, "; RMC {}", rmc.join(", "));
+        if let Some((a, b)) = self.stamp_minus_rmc_s {
+            let _ = write!(o, "; stamp - RMC {a:+.3} .. {b:+.3} s");
+        }
+        if !self.hour_from.is_empty() {
+            let _ = write!(o, "; hour from {}", self.hour_from);
+        }
+        o
+    }
+}
+
+/// Why a pose was left out.
+pub const EXCLUDED_NAMES: [&str; 4] = ["not tracking", "aligning", "GNSS lost", "no GNSS fix"];
+
+/// The INS stream's state.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct InsState {
+    /// Bytes read.
+    pub bytes: u64,
+    /// Binary frames accepted (VN-200).
+    pub frames: u64,
+    /// Binary candidates whose CRC failed.
+    pub crc_failures: u64,
+    /// Bytes that were part of no accepted item.
+    pub skipped_bytes: u64,
+    /// `$VN` sentences.
+    pub ascii: u64,
+    /// Other NMEA sentences.
+    pub nmea: u64,
+    /// Frames or records without a complete, valid pose (or time).
+    pub without_pose: u64,
+    /// Poses used.
+    pub poses: u64,
+    /// Poses left out by their InsStatus: not tracking, aligning, GNSS lost, no GNSS fix.
+    pub excluded: [u64; 4],
+    /// When they were left out: GPS seconds, first and last of each run (at most 32 runs; the
+    /// rest are counted in `excluded`).
+    pub excluded_spans: Vec<(f64, f64)>,
+    /// GPS seconds of the first and last pose used.
+    pub span: Option<(f64, f64)>,
+    /// Gaps between consecutive poses used longer than the interpolation limit.
+    pub gaps: u64,
+    /// The longest gap between consecutive poses used [s].
+    pub longest_gap_s: f64,
+    /// Poses kept although their status says not tracking (the user asked).
+    pub kept_untracked: u64,
+}
+
+/// The reason a VN-200 InsStatus leaves a pose out (PROTOCOLS.md: bits 0-1 mode, 0 not
+/// tracking, 1 aligning, 2 tracking, 3 loss of GNSS; bit 2 GNSS fix), as an index into
+/// [`EXCLUDED_NAMES`].
+pub fn excluded_by(status: u16) -> Option<usize> {
+    match status & 3 {
+        0 => Some(0),
+        1 => Some(1),
+        3 => Some(2),
+        _ if status & 4 == 0 => Some(3),
+        _ => None,
+    }
+}
+
+impl InsState {
+    /// A pose used at `t`; `max_gap_ns`: the interpolation limit.
+    pub fn used(&mut self, t: GpsTime, max_gap_ns: i64) {
+        self.poses += 1;
+        let s = secs(t);
+        if let Some((_, last)) = self.span {
+            let gap = s - last;
+            if gap > max_gap_ns as f64 * 1e-9 {
+                self.gaps += 1;
+            }
+            self.longest_gap_s = self.longest_gap_s.max(gap);
+        }
+        self.span = Some(self.span.map_or((s, s), |(a, _)| (a, s)));
+    }
+
+    /// A pose left out at `t` for reason `k` ([`EXCLUDED_NAMES`]).
+    pub fn exclude(&mut self, t: GpsTime, k: usize) {
+        self.excluded[k.min(3)] += 1;
+        let s = secs(t);
+        let n = self.excluded_spans.len();
+        match self.excluded_spans.last_mut() {
+            Some(l) if s - l.1 <= 1.0 => l.1 = s,
+            _ if n < 32 => self.excluded_spans.push((s, s)),
+            _ => {}
+        }
+    }
+
+    /// Poses left out in all.
+    pub fn excluded_total(&self) -> u64 {
+        self.excluded.iter().sum()
+    }
+
+    /// Lines for people.
+    pub fn describe(&self) -> String {
+        let mut o = format!(
+            "INS: {} bytes, {} binary frames, {} CRC failures, {} bytes skipped, {} $VN, {} NMEA; {} poses used",
+            self.bytes, self.frames, self.crc_failures, self.skipped_bytes, self.ascii, self.nmea, self.poses
+        );
+        if let Some((a, b)) = self.span {
+            let _ = write!(o, " ({:.1} s)", b - a);
+        }
+        if self.without_pose > 0 {
+            let _ = write!(o, ", {} without a valid pose", self.without_pose);
+        }
+        if self.excluded_total() > 0 {
+            let _ = write!(o, "; left out by InsStatus:");
+            for (k, &c) in self.excluded.iter().enumerate().filter(|(_, &c)| c > 0) {
+                let _ = write!(o, " {} {c}", EXCLUDED_NAMES[k]);
+            }
+            if let (Some(f), Some(l)) = (self.excluded_spans.first(), self.excluded_spans.last()) {
+                let _ = write!(
+                    o,
+                    " ({} spans, {:.1}..{:.1} s into the stream)",
+                    self.excluded_spans.len(),
+                    f.0 - self.span.map_or(f.0, |s| s.0.min(f.0)),
+                    l.1 - self.span.map_or(f.0, |s| s.0.min(f.0))
+                );
+            }
+        }
+        if self.kept_untracked > 0 {
+            let _ = write!(
+                o,
+                "; {} poses kept although not tracking (asked)",
+                self.kept_untracked
+            );
+        }
+        if self.gaps > 0 {
+            let _ = write!(
+                o,
+                "; {} gaps, the longest {:.3} s",
+                self.gaps, self.longest_gap_s
+            );
+        }
+        o
+    }
+}
+
+/// The first bytes of a file, named if they are a known format (for an error message).
+pub fn looks_like(bytes: &[u8]) -> &'static str {
+    match bytes {
+        [0xD4, 0xC3, 0xB2, 0xA1, ..] | [0xA1, 0xB2, 0xC3, 0xD4, ..] => "a pcap capture",
+        [0x4D, 0x3C, 0xB2, 0xA1, ..] | [0xA1, 0xB2, 0x3C, 0x4D, ..] => "a pcap capture (ns)",
+        [0x0A, 0x0D, 0x0D, 0x0A, ..] => "a pcapng capture",
+        [] => "an empty file",
+        b if b.iter().take(256).all(|c| c.is_ascii()) => "text",
+        _ => "unknown bytes",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ins_status_gate() {
+        assert_eq!(excluded_by(0x0006), None); // tracking, GNSS fix
+        assert_eq!(excluded_by(0x0002), Some(3)); // tracking, no fix
+        assert_eq!(excluded_by(0x0004), Some(0)); // not tracking
+        assert_eq!(excluded_by(0x0005), Some(1)); // aligning
+        assert_eq!(excluded_by(0x0007), Some(2)); // GNSS lost
+    }
+
+    #[test]
+    fn spans_and_gaps() {
+        let mut s = InsState::default();
+        for k in 0..10 {
+            s.used(GpsTime(k * 5_000_000), 50_000_000);
+        }
+        s.used(GpsTime(1_000_000_000), 50_000_000);
+        assert_eq!(s.gaps, 1);
+        assert!((s.longest_gap_s - 0.955).abs() < 1e-9);
+        s.exclude(GpsTime(2_000_000_000), 1);
+        s.exclude(GpsTime(2_500_000_000), 1);
+        s.exclude(GpsTime(9_000_000_000), 2);
+        assert_eq!(s.excluded_spans, vec![(2.0, 2.5), (9.0, 9.0)]);
+        assert_eq!(s.excluded_total(), 3);
+    }
+}
