@@ -3,7 +3,8 @@
 //! without PPS (refused unless allowed; searched), a clock 1,500 s off with void RMCs (exit 2
 //! naming the clock), and byte edits of the streams the way a faulty rig produces them: PPS
 //! byte, packet timestamps, RMC status, VN-200 InsStatus mode bits, CRC damage, gaps, wrong files.
-//! Expectations come from the edits themselves (counts and spans of what was edited), never from
+//! Consistency before "converged": an INS height jump in one pass, residuals beyond the noise
+//! model. Expectations come from the edits themselves (counts and spans of what was edited), never from
 //! the code's own output.
 
 mod common;
@@ -518,5 +519,92 @@ fn wrong_files_exit_2_naming_them() {
             "{t}"
         );
     }
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// The noisy site with an INS height jump of 8 cm for 9 s (a GNSS fix that went float during
+/// one pass over S1): the solution absorbs part of it (roll off by several sigma), so the pass
+/// consistency test must refuse it, naming the pass and the sphere. The same stream without
+/// the jump converges (the test can pass).
+#[test]
+fn an_ins_jump_in_one_pass_is_inconsistent() {
+    let (d, _) = synth("table1-noisy", "jump", |_| {});
+    let ins = std::fs::read(d.join("ins.bin")).unwrap();
+    let mut out = ins.clone();
+    let at = frames(&ins);
+    let t0 = frame_time_s(&ins, at[0]);
+    let mut n = 0;
+    for &i in &at {
+        if (31.0..=40.0).contains(&(frame_time_s(&ins, i) - t0)) {
+            // Position: latitude, longitude (deg), height (m) as f64 at 24..48.
+            let h = f64::from_le_bytes(out[i + 40..i + 48].try_into().unwrap());
+            out[i + 40..i + 48].copy_from_slice(&(h + 0.08).to_le_bytes());
+            let c = crc16(&out[i + 1..i + 50]);
+            out[i + 50..i + 52].copy_from_slice(&c.to_be_bytes());
+            n += 1;
+        }
+    }
+    assert!(n > 1700);
+    let jumped = d.join("jumped.bin");
+    std::fs::write(&jumped, &out).unwrap();
+    let (o, r) = calibrate(&d, &jumped, &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let r = r.unwrap();
+    let reason = r.reason.unwrap();
+    assert!(
+        reason.contains("inconsistent") && reason.contains("S1"),
+        "{reason}"
+    );
+    assert!(r.consistency.worst_pass_chi2 > 25.0);
+    // The refused pass is the one in the jump, and its sphere sits low (the INS said high).
+    let worst = r
+        .per_pass
+        .iter()
+        .max_by(|a, b| a.chi2.total_cmp(&b.chi2))
+        .unwrap();
+    assert!(
+        worst.start_gps_s < t0 + 40.0 && worst.end_gps_s > t0 + 31.0,
+        "{worst:?}"
+    );
+    assert!(worst.centre_offset_m[2] < -0.02, "{worst:?}");
+
+    let (o, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(r.unwrap().consistency.worst_pass_chi2 < 25.0);
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// Over-dispersion: the noisy site (3 cm range noise) with a site file that claims a 5 mm
+/// LiDAR and a survey-grade INS: the residual RMS is several times what that model predicts,
+/// and the solution is refused with both numbers; with the default (specified) noise it passes.
+#[test]
+fn residuals_beyond_the_noise_model_are_refused() {
+    let (d, _) = synth("table1-noisy", "overdispersed", |_| {});
+    let site = std::fs::read_to_string(d.join("site.toml")).unwrap();
+    std::fs::write(
+        d.join("site.toml"),
+        format!("{site}\n[noise]\nrange_m = 0.005\nattitude_deg = 0.005\nposition_m = 0.005\n"),
+    )
+    .unwrap();
+    let (o, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let r = r.unwrap();
+    let reason = r.reason.unwrap();
+    assert!(
+        reason.contains("residual RMS") && reason.contains("predicts"),
+        "{reason}"
+    );
+    let c = &r.consistency;
+    // 3 cm of range noise against sqrt(5^2 + (r 0.005 deg)^2 + 5^2) mm: about 3.5x.
+    assert!(c.dispersion > 2.5 && c.dispersion < 5.0, "{c:?}");
+    assert!(
+        c.predicted_rms_m > 0.006 && c.predicted_rms_m < 0.009,
+        "{c:?}"
+    );
+    std::fs::write(d.join("site.toml"), site).unwrap();
+    let (o, r) = calibrate(&d, &d.join("ins.bin"), &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let c = r.unwrap().consistency;
+    assert!(c.dispersion > 0.4 && c.dispersion < 1.0, "{c:?}");
     std::fs::remove_dir_all(d).unwrap();
 }
