@@ -47,3 +47,28 @@ cargo test --workspace --doc -q
 
 say "tests"
 $RUNNER
+
+say "fuzzing: build every target, run each for ${FUZZ_SECONDS:-20} s from the committed corpus"
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  cargo install cargo-fuzz --locked >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
+fi
+if cargo fuzz --version >/dev/null 2>&1; then
+  # cargo-fuzz needs nightly flags; RUSTC_BOOTSTRAP lets the stable toolchain take them.
+  export RUSTC_BOOTSTRAP=1
+  (cd fuzz && cargo fuzz build -O)
+  work=$(mktemp -d)
+  trap 'rm -rf "$work"' EXIT
+  for t in $(cd fuzz && cargo fuzz list); do
+    mkdir -p "$work/$t"
+    # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
+    if ! (cd fuzz && cargo fuzz run -O "$t" "$work/$t" "seeds/$t" -- \
+        -max_total_time="${FUZZ_SECONDS:-20}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
+      tail -40 "$work/$t.log"
+      echo "error: fuzz target $t failed (reproducer in fuzz/artifacts/$t)" >&2
+      exit 1
+    fi
+    printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
+  done
+else
+  echo "warning: skipped: cargo-fuzz is not installed"
+fi

@@ -8,7 +8,9 @@ use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 
 fuzz_target!(|data: &[u8]| {
-    let Ok(mut src) = PcapSource::from_bytes(data) else { return };
+    let Ok(mut src) = PcapSource::from_bytes(data) else {
+        return;
+    };
     let mut stats = SkipStats::default();
     let mut out = PointBuf::new();
     while let Ok(Some(rec)) = src.next_record() {

@@ -13,7 +13,10 @@ fn run(parts: &[&[u8]]) -> (Vec<(u64, Vec<u8>)>, spherecal::vn200::Stats) {
     for p in parts {
         f.consume(p, |it| match it.item {
             Item::Binary(fr) => {
-                assert_eq!(Frame::parse(fr.bytes()).map(|x| x.bytes().len()), Ok(fr.bytes().len()));
+                assert_eq!(
+                    Frame::parse(fr.bytes()).map(|x| x.bytes().len()),
+                    Ok(fr.bytes().len())
+                );
                 for field in fr.fields() {
                     for _ in field.scalars() {}
                 }

@@ -620,15 +620,6 @@ impl Aligner {
     }
 }
 
-/// A time of week for a message: milliseconds, or its exponent when it is nothing like one.
-fn tow_text(t: f64) -> String {
-    if (1e-3..1e7).contains(&t.abs()) || t == 0.0 {
-        format!("{t:.3}")
-    } else {
-        format!("{t:.3e}")
-    }
-}
-
 /// Run the pipeline over files. `each`, if given, sees every georeferenced return; batches go
 /// to `consumer` on its own thread, which returns its result.
 pub fn run<C: Send>(
@@ -765,25 +756,10 @@ pub fn run<C: Send>(
                     st.ascii = fs.ascii;
                     st.nmea = fs.nmea;
                 } else if let Some((mut rd, week, path)) = sbet {
-                    let bad = |why: String| format!("{}: not an SBET file: {why}", path.display());
-                    let mut last: Option<f64> = None;
                     while let Some(r) = rd
                         .next_record()
                         .map_err(|e| format!("{}: {e}", path.display()))?
                     {
-                        // Times within a week, increasing (a week rollover aside).
-                        if let Some(l) = last {
-                            if r.tow_s <= l && !(l > 600_000.0 && r.tow_s < 4_800.0) {
-                                return Err(bad(format!(
-                                    "record {} (byte {}): GPS time of week {} s after {} s (SBET times increase)",
-                                    rd.records,
-                                    (rd.records - 1) * spherecal_hal::sbet::RECORD as u64,
-                                    tow_text(r.tow_s),
-                                    tow_text(l)
-                                )));
-                            }
-                        }
-                        last = Some(r.tow_s);
                         let Some(t) = r.time(week) else {
                             st.without_pose += 1;
                             continue;
@@ -805,12 +781,6 @@ pub fn run<C: Send>(
                     }
                     st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
                     st.without_pose += rd.invalid;
-                    if rd.records > 0 && rd.invalid * 10 > rd.records {
-                        return Err(bad(format!(
-                            "{} of {} records out of range or not finite",
-                            rd.invalid, rd.records
-                        )));
-                    }
                 }
                 Ok(st)
             };

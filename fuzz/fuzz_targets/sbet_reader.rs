@@ -1,0 +1,41 @@
+//! Any bytes as an SBET file: the reader ends (end, or why it is not an SBET) without a panic;
+//! every record it returns is finite, in range and later than the one before (a week rollover
+//! aside); its counts add up to the bytes given.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use spherecal_hal::sbet::{SbetError, SbetReader, RECORD};
+
+fuzz_target!(|data: &[u8]| {
+    let mut rd = SbetReader::new(data);
+    let mut last: Option<f64> = None;
+    let mut returned = 0u64;
+    let finished = loop {
+        match rd.next_record() {
+            Ok(Some(r)) => {
+                assert!(r.is_valid());
+                if let Some(l) = last {
+                    assert!(r.tow_s > l || (l > 600_000.0 && r.tow_s < 4_800.0));
+                }
+                last = Some(r.tow_s);
+                let _ = r.time(2300);
+                let _ = r.time(u16::MAX);
+                assert!(r.heading().is_finite());
+                returned += 1;
+            }
+            Ok(None) => break None,
+            Err(e) => {
+                let _ = e.to_string();
+                break Some(e);
+            }
+        }
+    };
+    // A record out of time order is counted read, neither returned nor invalid.
+    let out_of_order = u64::from(matches!(finished, Some(SbetError::TimeOrder { .. })));
+    assert_eq!(returned + rd.invalid + out_of_order, rd.records);
+    let finished = finished.is_none();
+    if finished {
+        assert_eq!(rd.records as usize * RECORD + rd.trailing, data.len());
+        assert!(rd.invalid * 10 <= rd.records);
+    }
+});
