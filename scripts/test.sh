@@ -63,7 +63,8 @@ if cargo fuzz --version >/dev/null 2>&1; then
     # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
     if ! (cd fuzz && cargo fuzz run -O "$t" "$work/$t" "seeds/$t" -- \
         -max_total_time="${FUZZ_SECONDS:-20}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
-      tail -40 "$work/$t.log"
+      grep -A8 "panicked at" "$work/$t.log" | cut -c1-400 || true
+      tail -20 "$work/$t.log" | cut -c1-400
       echo "error: fuzz target $t failed (reproducer in fuzz/artifacts/$t)" >&2
       exit 1
     fi

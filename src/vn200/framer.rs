@@ -220,7 +220,8 @@ impl<const N: usize> Framer<N> {
                     }
                     let (end, consumed) = match end {
                         Some(i) => (i, i + 1),
-                        None if broken || window.len() > MAX_SENTENCE => {
+                        // Too long only once the whole window (the longest line, CR, LF) is seen.
+                        None if broken || window.len() >= MAX_SENTENCE + 2 => {
                             self.skip();
                             continue;
                         }

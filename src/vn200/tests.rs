@@ -246,3 +246,43 @@ fn week_65535_is_no_time() {
     assert_eq!(ins.gps_time(), None);
     assert_eq!(super::Pose::from_ins(&ins), None);
 }
+
+/// A sentence of the longest length accepted (256 bytes, then CR LF) whose newline has not
+/// arrived yet is waited for, not dropped as too long: every chunking gives the same items
+/// (found by the vn200_framer fuzz target: a 1,024-byte buffer ended one byte short of it).
+#[test]
+fn longest_sentence_split_before_its_newline_is_kept() {
+    let mut body = std::string::String::from("GPTXT,01,01,02,");
+    while body.len() < 256 - 4 {
+        body.push('A');
+    }
+    let cs = super::binary::xor8(body.as_bytes());
+    let line = std::format!("${body}*{cs:02X}\r\n");
+    assert_eq!(line.len(), 258);
+    let lines = |chunks: &[usize]| {
+        let mut f: Framer<1024> = Framer::new();
+        let mut got = Vec::new();
+        let mut rest = line.as_bytes();
+        let mut i = 0;
+        while !rest.is_empty() {
+            let n = chunks[i % chunks.len()].clamp(1, rest.len());
+            i += 1;
+            f.consume(&rest[..n], |it| {
+                if let Item::Nmea(s) = it.item {
+                    got.push((it.offset, s.line().len()))
+                }
+            });
+            rest = &rest[n..];
+        }
+        f.finish();
+        while let Some(it) = f.next() {
+            if let Item::Nmea(s) = it.item {
+                got.push((it.offset, s.line().len()))
+            }
+        }
+        got
+    };
+    for chunks in [&[258][..], &[257, 1], &[256, 2], &[1], &[100, 157, 1]] {
+        assert_eq!(lines(chunks), [(0, 256)], "chunks {chunks:?}");
+    }
+}
