@@ -76,9 +76,14 @@ fn truth_windows_hold_exactly_the_sphere_returns_within_a_millimetre() {
         0.01,
     );
     let (stats, obs) = observations(&inp);
-    assert_eq!(stats.rollovers, 1, "table1 crosses the top of the hour");
     assert_eq!(
-        stats.window.before_history + stats.window.after_history + stats.window.in_gap,
+        stats.align.rollovers, 1,
+        "table1 crosses the top of the hour"
+    );
+    assert_eq!(
+        stats.align.window.before_history
+            + stats.align.window.after_history
+            + stats.align.window.in_gap,
         0
     );
     let counts: Vec<u64> = obs.iter().map(|v| v.len() as u64).collect();
@@ -187,10 +192,10 @@ fn ins_gap_is_counted_not_bridged() {
     let inp = inputs(dir, InsInput::Vn200(ins), truth_mount(), 0.01);
     let (stats, obs) = observations(&inp);
     // 0.4 s of returns are refused (the gap exceeds 50 ms), nothing else.
-    assert!(stats.window.in_gap > 0, "{:?}", stats.window);
+    assert!(stats.align.window.in_gap > 0, "{:?}", stats.align.window);
     assert_eq!(
-        stats.window.georeferenced + stats.window.in_gap,
-        stats.window.points
+        stats.align.window.georeferenced + stats.align.window.in_gap,
+        stats.align.window.points
     );
     let worst = residuals(&inp, &obs, &truth_mount())
         .iter()
@@ -213,7 +218,7 @@ fn las_file_reads_back() {
     // With the las crate.
     let mut r = las::Reader::from_path(&las).unwrap();
     let n = r.header().number_of_points();
-    assert_eq!(n, stats.window.georeferenced);
+    assert_eq!(n, stats.align.window.georeferenced);
     let data = r.read_points(1000).unwrap();
     let pts: Vec<las::Point> = data.points().map(|p| p.unwrap()).collect();
     assert!(pts.iter().all(|p| p.gps_time.is_some()));
@@ -243,5 +248,5 @@ fn las_file_reads_back() {
     let p0 = &pts[0];
     assert!((v[0] - p0.x).abs() < 1e-4 && (v[1] - p0.y).abs() < 1e-4 && (v[2] - p0.z).abs() < 1e-4);
     assert!((v[3] - p0.gps_time.unwrap()).abs() < 1e-6);
-    assert_eq!(v[4] as u64, stats.window.windowed.iter().sum::<u64>());
+    assert_eq!(v[4] as u64, stats.align.window.windowed.iter().sum::<u64>());
 }

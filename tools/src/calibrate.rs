@@ -783,7 +783,7 @@ pub fn calibrate(
     rep.time_offset_search = searched;
     rep.time_offset_s += applied;
     rep.start.insert("time_offset".to_string(), start);
-    rep.batch_overflow = stats.batch_overflow;
+    rep.batch_overflow = stats.align.batch_overflow;
     rep.inputs = Some(InputsReport::of(inp, &stats));
     // The LiDAR clock.
     if rep.converged && !stats.clock.trusted() {
@@ -847,23 +847,23 @@ pub struct InputsReport {
 impl InputsReport {
     /// From a run's counts.
     pub fn of(inp: &Inputs, stats: &RunStats) -> Self {
-        let w = &stats.window;
+        let w = &stats.align.window;
         Self {
             pcap: inp.pcap.display().to_string(),
             ins: inp.ins_path().display().to_string(),
-            data_packets: stats.data_packets,
+            data_packets: stats.align.data_packets,
             skipped: stats
                 .skips
                 .lines()
                 .iter()
                 .map(|l| (l.reason.to_string(), l.count))
                 .collect(),
-            lidar_span_gps_s: stats.lidar_span,
+            lidar_span_gps_s: stats.align.lidar_span,
             clock: stats.clock.clone(),
             clock_trusted: stats.clock.trusted(),
             ins_state: stats.ins.clone(),
             not_georeferenced: [w.before_history, w.after_history, w.in_gap],
-            packets_without_time: stats.packets_without_time,
+            packets_without_time: stats.align.packets_without_time,
             time_offset_applied_s: inp.time_offset_ns as f64 * 1e-9,
         }
     }

@@ -151,11 +151,11 @@ pub fn georef(
         None => None,
     };
     let mut o = String::new();
-    let w = &stats.window;
+    let w = &stats.align.window;
     let _ = writeln!(
         o,
         "data packets: {} (position packets: {}, hour rollovers: {})",
-        stats.data_packets, stats.position_packets, stats.rollovers
+        stats.align.data_packets, stats.align.position_packets, stats.align.rollovers
     );
     o.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_path()));
     let _ = writeln!(o, "points: {} georeferenced: {}", w.points, w.georeferenced);
@@ -165,7 +165,7 @@ pub fn georef(
     let _ = writeln!(
         o,
         "readers waited for room in the rings (files: nothing is lost): LiDAR {}, INS {}; windowed returns lost to full batches: {}",
-        stats.ring_full[0], stats.ring_full[1], stats.batch_overflow
+        stats.ring_full[0], stats.ring_full[1], stats.align.batch_overflow
     );
     if let Some(n) = las_points {
         let _ = writeln!(o, "LAS points written: {n}");

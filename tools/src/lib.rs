@@ -128,7 +128,7 @@ pub fn run_calibrate(
     let mut text = stats.describe_inputs(&inp.pcap, inp.ins_path());
     text.push_str(&format!(
         "{} returns, windows {:?}\n",
-        stats.window.points,
+        stats.align.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
     text.push_str(&calibrate::render(&rep, truth.as_ref()));

@@ -13,13 +13,12 @@
 use crate::site::Site;
 use crate::state::InsState;
 use heapless::spsc::{Consumer, Queue};
-use spherecal::align::{PoseHistory, PoseSample};
+use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
-use spherecal::time::{GpsTime, LidarClock};
-use spherecal::vlp16::{self, DataPacket, PointBuf, PositionPacket, PpsStatus};
+use spherecal::vlp16::PositionPacket;
 use spherecal::vn200::{Framer, Item, Pose};
-use spherecal::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing};
+use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::packet::{Datagram, SkipReason};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::sbet::SbetReader;
@@ -176,28 +175,16 @@ pub struct BatchMsg {
 /// Counts of a run.
 #[derive(Debug, Clone, Default)]
 pub struct RunStats {
-    /// Data packets aligned.
-    pub data_packets: u64,
-    /// Position packets seen.
-    pub position_packets: u64,
+    /// The align stage's counts (packets, LiDAR span, windowing, rollovers, batch overflow).
+    pub align: AlignStats,
     /// Capture skips by reason.
     pub skips: SkipStats,
     /// The LiDAR clock as its position packets tell it.
     pub clock: crate::state::ClockState,
     /// The INS stream.
     pub ins: crate::state::InsState,
-    /// GPS seconds of the first and last data packet timed (on the LiDAR clock).
-    pub lidar_span: Option<(f64, f64)>,
-    /// Windowing counts.
-    pub window: WindowStats,
-    /// Packets whose time could not be known (no RMC and no INS time yet).
-    pub packets_without_time: u64,
     /// Ring drops (live) or waits (files): lidar, ins.
     pub ring_full: [u64; 2],
-    /// Hour rollovers unwrapped.
-    pub rollovers: u32,
-    /// Batch overflow (observations lost because a batch was full).
-    pub batch_overflow: u64,
 }
 
 impl RunStats {
@@ -210,9 +197,9 @@ impl RunStats {
             o,
             "LiDAR: {}: {} data packets",
             pcap.display(),
-            self.data_packets
+            self.align.data_packets
         );
-        if let Some((a, b)) = self.lidar_span {
+        if let Some((a, b)) = self.align.lidar_span {
             let _ = write!(o, " over {:.1} s", b - a);
         }
         let _ = writeln!(o, ", {} skipped", self.skips.total());
@@ -225,13 +212,13 @@ impl RunStats {
         }
         let _ = writeln!(o, "clock: {}", self.clock.describe());
         let _ = writeln!(o, "{}: {}", ins.display(), self.ins.describe());
-        let w = &self.window;
+        let w = &self.align.window;
         let missed = w.before_history + w.after_history + w.in_gap;
-        if missed + self.packets_without_time > 0 {
+        if missed + self.align.packets_without_time > 0 {
             let _ = writeln!(
                 o,
                 "not georeferenced: {} returns before the INS data, {} after it, {} in INS gaps; {} packets without a time",
-                w.before_history, w.after_history, w.in_gap, self.packets_without_time
+                w.before_history, w.after_history, w.in_gap, self.align.packets_without_time
             );
         }
         o
@@ -245,12 +232,12 @@ impl RunStats {
         ins: &std::path::Path,
         ins_head: &[u8],
     ) -> Option<String> {
-        if self.data_packets == 0 {
+        if self.align.data_packets == 0 {
             return Some(format!(
                 "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
                 pcap.display(),
                 self.skips.total(),
-                self.packets_without_time
+                self.align.packets_without_time
             ));
         }
         let st = &self.ins;
@@ -274,10 +261,10 @@ impl RunStats {
                 crate::state::looks_like(ins_head)
             ));
         }
-        let w = &self.window;
+        let w = &self.align.window;
         if w.points > 0 && w.before_history + w.after_history == w.points {
             let (l, i) = (
-                self.lidar_span.unwrap_or_default(),
+                self.align.lidar_span.unwrap_or_default(),
                 st.span.unwrap_or_default(),
             );
             return Some(format!(
@@ -394,86 +381,80 @@ pub enum InsWait {
     Latency(std::time::Duration),
 }
 
-/// The aligner stage (DESIGN.md data flow): the LiDAR clock, the pose history, georeferencing
-/// with the a-priori mounting and the sphere windows. The same for files and live input; only
-/// the INS waiting policy differs.
-pub struct Aligner {
-    targets: Vec<Target>,
-    margin: f64,
-    mount: Mount,
-    batches: Vec<Batch<BATCH>>,
+/// The align stage's storage on the host: the pose history and one batch per sphere (the core
+/// [`CoreAligner`] borrows them).
+pub struct AlignStorage {
     history: Box<PoseHistory<HISTORY>>,
-    clock: LidarClock,
-    points: PointBuf,
-    wait: InsWait,
-    ins_done: bool,
-    /// Newest pose's GPS time minus its host receive time [ns], if the host time is known.
-    ins_offset_ns: Option<i64>,
-    /// Counts (the alignment fields of a run's counts).
-    pub stats: RunStats,
-    /// PPS state of the last position packet.
-    pub pps: Option<PpsStatus>,
-    /// LiDAR clock minus INS time, each against the host receive clock, at the last aligned
-    /// packet [ns]: `(T_lidar - H_lidar) - (T_ins - H_ins)`.
-    pub lag_ns: Option<i64>,
-    /// Returns windowed per sphere so far.
-    pub windowed: Vec<u64>,
-    /// Data packets handed to [`Self::data`] so far (the next one's index).
-    data_seen: u32,
-    /// INS time minus LiDAR time [ns]: a firing's pose is taken this much later.
-    pub time_offset_ns: i64,
+    batches: Vec<Batch<BATCH>>,
 }
 
-impl Aligner {
-    /// An aligner for `targets`, georeferencing with `mount`.
+impl AlignStorage {
+    /// Room for `spheres` windows and a history that interpolates across at most `max_gap_ns`.
+    pub fn new(spheres: usize, max_gap_ns: i64) -> Self {
+        Self {
+            history: Box::new(PoseHistory::new(max_gap_ns)),
+            batches: (0..spheres).map(|_| Batch::default()).collect(),
+        }
+    }
+}
+
+/// The core aligner fed from the rings, with a waiting policy ([`InsWait`]) and the LiDAR
+/// clock's state counted from the position packets.
+pub struct Aligner<'a> {
+    /// The core stage.
+    pub core: CoreAligner<'a, HISTORY, BATCH>,
+    wait: InsWait,
+    ins_done: bool,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+}
+
+impl<'a> Aligner<'a> {
+    /// An aligner for `targets` on `storage`, georeferencing with `mount`.
     pub fn new(
-        targets: Vec<Target>,
+        storage: &'a mut AlignStorage,
+        targets: &'a [Target],
         margin: f64,
         mount: Mount,
         leap_seconds: i64,
-        max_gap_ns: i64,
         wait: InsWait,
     ) -> Self {
-        let n = targets.len();
-        Self {
-            batches: (0..n).map(|_| Batch::default()).collect(),
+        // From files, the poses are read on past a packet by the span its returns' velocity and
+        // turn rate are taken over (live input does not wait: the span shrinks at the newest).
+        let lookahead = match wait {
+            InsWait::UntilEnd => spherecal::window::RATE_SPAN_NS,
+            InsWait::Latency(_) => 0,
+        };
+        let core = CoreAligner::new(
             targets,
+            &mut storage.batches,
+            &mut storage.history,
             margin,
             mount,
-            history: Box::new(PoseHistory::new(max_gap_ns)),
-            clock: LidarClock::new(leap_seconds),
-            points: PointBuf::new(),
+            leap_seconds,
+            lookahead,
+        );
+        Self {
+            core,
             wait,
             ins_done: false,
-            ins_offset_ns: None,
-            stats: RunStats::default(),
-            pps: None,
-            lag_ns: None,
-            windowed: vec![0; n],
-            data_seen: 0,
-            time_offset_ns: 0,
-        }
-    }
-
-    /// Returns windowed for sphere `i` so far, including those not yet handed on.
-    pub fn windowed_now(&self, i: usize) -> u64 {
-        self.windowed.get(i).copied().unwrap_or(0)
-            + self.batches.get(i).map_or(0, |b| b.obs.len() as u64)
-    }
-
-    fn push_pose(&mut self, s: PoseSample, host_ns: i64) {
-        if self.history.push(s) {
-            self.ins_offset_ns = (host_ns != 0).then(|| s.time.0 - host_ns);
+            clock: Default::default(),
         }
     }
 
     /// Move every pose waiting on the ring into the history (live input between packets).
     pub fn drain_ins(&mut self, ic: &mut Consumer<'_, InsItem>) {
         while let Some(it) = ic.dequeue() {
-            match it {
-                InsItem::Pose(s, h) => self.push_pose(s, h),
-                InsItem::End => self.ins_done = true,
+            self.take(it);
+        }
+    }
+
+    fn take(&mut self, it: InsItem) {
+        match it {
+            InsItem::Pose(s, h) => {
+                self.core.push_pose(s, h);
             }
+            InsItem::End => self.ins_done = true,
         }
     }
 
@@ -488,59 +469,16 @@ impl Aligner {
         }
     }
 
-    /// Pull poses until the history reaches past `until` (None: until it holds any), the INS
-    /// ends, or (live) the latency allowed after the packet's receive time `host_ns` has passed.
-    fn pull_ins(&mut self, ic: &mut Consumer<'_, InsItem>, until: Option<GpsTime>, host_ns: i64) {
-        let deadline = match self.wait {
-            InsWait::UntilEnd => None,
-            InsWait::Latency(d) => {
-                let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
-                let from = if host_ns != 0 {
-                    host_ns
-                } else {
-                    spherecal_hal::serial::wall_ns()
-                };
-                Some(from.saturating_add(d))
-            }
-        };
-        while !self.ins_done {
-            match (until, self.history.span()) {
-                (Some(u), Some((_, newest))) if newest > u => return,
-                (None, Some(_)) => return,
-                _ => {}
-            }
-            match ic.dequeue() {
-                Some(InsItem::Pose(s, h)) => self.push_pose(s, h),
-                Some(InsItem::End) => self.ins_done = true,
-                None => match deadline {
-                    None => std::thread::yield_now(),
-                    Some(t) if spherecal_hal::serial::wall_ns() >= t => return,
-                    Some(_) => std::thread::sleep(std::time::Duration::from_millis(1)),
-                },
-            }
-        }
-    }
-
-    /// A position packet (its first 512 bytes): the PPS state, and the hour from its RMC.
+    /// A position packet (its first 512 bytes): counted, then to the core.
     pub fn position(&mut self, bytes: &[u8]) {
-        let Ok(p) = PositionPacket::new_checked(bytes) else {
-            return;
-        };
-        self.stats.position_packets += 1;
-        self.pps = Some(p.pps());
-        self.stats.clock.count(&p);
-        // The hour from a valid RMC only: a void one may carry a stale time (the INS gives
-        // the hour otherwise).
-        if !self.clock.has_hour() {
-            if let Some(utc) = p.nmea_time().ok().filter(|t| t.valid).and_then(|t| t.utc()) {
-                self.clock.set_from_rmc(&utc, p.timestamp_us());
-                self.stats.clock.hour_from = "RMC".into();
-            }
+        if let Ok(p) = PositionPacket::new_checked(bytes) {
+            self.clock.count(&p);
         }
+        self.core.position(bytes);
     }
 
-    /// A data packet: time it, georeference and window its returns; a batch that is half full
-    /// goes to `emit(sphere, observations)`.
+    /// A data packet: poses are pulled until the history covers it, the INS ends, or (live)
+    /// the latency allowed after its receive time has passed; then the core aligns it.
     pub fn data(
         &mut self,
         item: &LidarItem,
@@ -548,74 +486,55 @@ impl Aligner {
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
-        let p = DataPacket::new_unchecked(&item.bytes[..]);
-        let index = self.data_seen;
-        self.data_seen = self.data_seen.wrapping_add(1);
-        if !self.clock.has_hour() {
-            self.pull_ins(ic, None, item.host_ns);
-            match self.history.span() {
-                Some((_, newest)) => {
-                    self.clock.set_from_gps(newest, p.timestamp_us());
-                    self.stats.clock.hour_from = "INS".into();
-                }
-                None => {
-                    self.stats.packets_without_time += 1;
-                    return;
-                }
+        let deadline = match self.wait {
+            InsWait::UntilEnd => None,
+            InsWait::Latency(d) => {
+                let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
+                let from = if item.host_ns != 0 {
+                    item.host_ns
+                } else {
+                    spherecal_hal::serial::wall_ns()
+                };
+                Some(from.saturating_add(d))
+            }
+        };
+        while !self.ins_done && self.core.wants_poses(&item.bytes) {
+            match ic.dequeue() {
+                Some(it) => self.take(it),
+                None => match deadline {
+                    None => std::thread::yield_now(),
+                    Some(t) if spherecal_hal::serial::wall_ns() >= t => break,
+                    Some(_) => std::thread::sleep(std::time::Duration::from_millis(1)),
+                },
             }
         }
-        let Some(t0) = self.clock.to_gps(p.timestamp_us()) else {
-            self.stats.packets_without_time += 1;
-            return;
-        };
-        let s = t0.as_secs_f64();
-        self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
-        // On the INS clock (the poses' times).
-        let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
-        // A packet's 24 firing sequences span 1.33 ms; from files, the poses are read on past it
-        // by the span its returns' velocity and turn rate are taken over (live input does not
-        // wait for them: the span shrinks at the newest pose).
-        let ahead = match self.wait {
-            InsWait::UntilEnd => spherecal::window::RATE_SPAN_NS,
-            InsWait::Latency(_) => 0,
-        };
-        self.pull_ins(ic, Some(GpsTime(t0.0 + 1_400_000 + ahead)), item.host_ns);
-        if vlp16::decode(&p, &mut self.points).is_err() {
-            return;
-        }
-        self.stats.data_packets += 1;
-        if let (Some(o), true) = (self.ins_offset_ns, item.host_ns != 0) {
-            self.lag_ns = Some((t0.0 - item.host_ns) - o);
-        }
-        let mut win = Windowing {
-            targets: &self.targets,
-            margin: self.margin,
-            mount: self.mount,
-            batches: &mut self.batches,
-            stats: self.stats.window,
-        };
-        win.add_packet(index, t0, &self.points, &self.history, each);
-        self.stats.window = win.stats;
-        self.stats.rollovers = self.clock.rollovers;
-        for (i, b) in self.batches.iter_mut().enumerate() {
-            if b.obs.len() >= BATCH / 2 {
-                self.windowed[i] += b.obs.len() as u64;
-                emit(i, &b.obs);
-                b.obs.clear();
-            }
-        }
+        self.core.data(&item.bytes, item.host_ns, each, emit);
     }
 
     /// Hand on what the batches still hold.
     pub fn finish(&mut self, emit: &mut dyn FnMut(usize, &[Observation])) {
-        for (i, b) in self.batches.iter_mut().enumerate() {
-            self.stats.batch_overflow += b.overflow;
-            b.overflow = 0;
-            if !b.obs.is_empty() {
-                self.windowed[i] += b.obs.len() as u64;
-                emit(i, &b.obs);
-                b.obs.clear();
-            }
+        self.core.finish(emit);
+    }
+
+    /// The LiDAR clock's state, with where its hour came from.
+    pub fn clock_state(&self) -> crate::state::ClockState {
+        let mut clock = self.clock.clone();
+        clock.hour_from = match self.core.stats.hour_from {
+            Some(spherecal::align::HourFrom::Rmc) => "RMC".into(),
+            Some(spherecal::align::HourFrom::Ins) => "INS".into(),
+            None => String::new(),
+        };
+        clock
+    }
+
+    /// The run's counts so far, with the readers' (skips, INS state, ring waits or drops).
+    pub fn run_stats(&self, skips: SkipStats, ins: InsState, ring_full: [u64; 2]) -> RunStats {
+        RunStats {
+            align: self.core.stats,
+            skips,
+            clock: self.clock_state(),
+            ins,
+            ring_full,
         }
     }
 }
@@ -769,12 +688,11 @@ pub fn run<C: Send>(
                             lon: r.lon,
                             h: r.h,
                         };
-                        let rot = frame.from_local_level(g.lat, g.lon)
-                            * spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                        let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
                         st.used(t, max_gap);
                         push_wait(
                             &mut ip,
-                            InsItem::Pose(PoseSample::new(t, frame.to_ned(&g), &rot), 0),
+                            InsItem::Pose(PoseSample::from_geodetic(&frame, t, &g, &local), 0),
                             Overflow::Wait,
                             &full_ref[1],
                         );
@@ -793,15 +711,16 @@ pub fn run<C: Send>(
         let consumer = sc.spawn(move || consumer(rx));
 
         // Aligner (this thread).
+        let mut storage = AlignStorage::new(targets.len(), inp.max_gap_ns);
         let mut al = Aligner::new(
-            targets,
+            &mut storage,
+            &targets,
             inp.margin,
             inp.mount,
             leap,
-            inp.max_gap_ns,
             InsWait::UntilEnd,
         );
-        al.time_offset_ns = inp.time_offset_ns;
+        al.core.time_offset_ns = inp.time_offset_ns;
         let offset_ns = inp.time_offset_ns;
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let _ = tx.send(BatchMsg {
@@ -825,17 +744,17 @@ pub fn run<C: Send>(
         drop(tx);
         // Drain the INS ring so its reader can finish.
         al.drain_until_end(&mut ic);
-        let mut stats = al.stats;
-        stats.skips = lidar
+        let skips = lidar
             .join()
             .map_err(|_| "LiDAR reader panicked".to_string())??;
-        stats.ins = ins
+        let ins = ins
             .join()
             .map_err(|_| "INS reader panicked".to_string())??;
-        stats.ring_full = [
+        let ring_full = [
             full[0].load(Ordering::Relaxed),
             full[1].load(Ordering::Relaxed),
         ];
+        let stats = al.run_stats(skips, ins, ring_full);
         let c = consumer
             .join()
             .map_err(|_| "consumer panicked".to_string())?;

@@ -17,8 +17,8 @@
 use crate::board::Board;
 use crate::calibrate::{solve_report, Report};
 use crate::pipeline::{
-    push_wait, targets, vn200_pose, Aligner, BatchMsg, InsItem, InsOutcome, InsWait, LidarItem,
-    LidarKind, Overflow, BATCH, INS_RING,
+    push_wait, targets, vn200_pose, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait,
+    LidarItem, LidarKind, Overflow, BATCH, INS_RING,
 };
 use crate::site::Site;
 use crate::state::{ClockState, InsState};
@@ -423,7 +423,7 @@ fn run_rig(
     let dst_addr = bind;
     let to_sync = Mutex::new(Vec::new());
 
-    let (skips, ins_counts, logged, solver_out, al_stats) = std::thread::scope(|sc| {
+    let (skips, ins_counts, logged, solver_out, (al_stats, clock)) = std::thread::scope(|sc| {
         let sh = &sh;
         let data = spawn(sc, "udp-data", move || {
             udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true)
@@ -490,12 +490,13 @@ fn run_rig(
 
         // Aligner (this thread). Should it fail, everything winds down.
         let _aligner = AlignerGuard(sh);
+        let mut storage = AlignStorage::new(tg.len(), MAX_INS_GAP_NS);
         let mut al = Aligner::new(
-            tg.clone(),
+            &mut storage,
+            &tg,
             margin,
             Mount::from_params(&b0),
             b.leap_seconds,
-            MAX_INS_GAP_NS,
             InsWait::Latency(INS_LATENCY),
         );
         // The offset the batches in the aligner were collected at.
@@ -528,7 +529,7 @@ fn run_rig(
             let want = sh.time_offset_ns.load(Ordering::Relaxed);
             if want != applied.get() {
                 al.finish(&mut emit);
-                al.time_offset_ns = want;
+                al.core.time_offset_ns = want;
                 applied.set(want);
             }
             match item.kind {
@@ -536,19 +537,20 @@ fn run_rig(
                 LidarKind::Position => al.position(&item.bytes[..512]),
                 LidarKind::Data => al.data(&item, &mut ins_c, None, &mut emit),
             }
-            sh.aligned.store(al.stats.data_packets, Ordering::Relaxed);
-            if let Some(p) = al.pps {
+            sh.aligned
+                .store(al.core.stats.data_packets, Ordering::Relaxed);
+            if let Some(p) = al.core.pps {
                 sh.pps.store(p.to_byte(), Ordering::Relaxed);
             }
-            if let Some(l) = al.lag_ns {
+            if let Some(l) = al.core.lag_ns {
                 sh.lag_ns.store(l, Ordering::Relaxed);
             }
             for (i, w) in sh.windowed.iter().enumerate() {
-                w.store(al.windowed_now(i), Ordering::Relaxed);
+                w.store(al.core.windowed_now(i), Ordering::Relaxed);
             }
         }
         al.finish(&mut emit);
-        for (w, n) in sh.windowed.iter().zip(&al.windowed) {
+        for (w, n) in sh.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);
         }
         drop(tx);
@@ -567,7 +569,8 @@ fn run_rig(
         let solver_out = solver.join().unwrap_or_default();
         let console = status.join().ok();
         // The last line, with the final counts and calibration.
-        sh.aligned.store(al.stats.data_packets, Ordering::Relaxed);
+        sh.aligned
+            .store(al.core.stats.data_packets, Ordering::Relaxed);
         if let Some(c) = console {
             let mut last = u64::MAX;
             let s = snapshot(sh, &ids, started, &mut last);
@@ -580,7 +583,7 @@ fn run_rig(
             ins_counts,
             logged,
             solver_out,
-            al.stats,
+            (al.core.stats, al.clock_state()),
         )
     });
     let mut skipped: Vec<(String, u64)> = Vec::new();
@@ -610,8 +613,8 @@ fn run_rig(
             al_stats.window.in_gap,
         ],
         serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
-        clock_trusted: al_stats.clock.trusted(),
-        clock: al_stats.clock.clone(),
+        clock_trusted: clock.trusted(),
+        clock,
         ins: ins_counts,
         time_offset_s: sh.time_offset_ns.load(Ordering::Relaxed) as f64 * 1e-9,
         windowed: sh

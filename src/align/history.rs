@@ -1,4 +1,4 @@
-//! Time alignment: a fixed ring of INS pose samples and the pose at any firing time in between
+//! The pose history: a fixed ring of INS pose samples and the pose at any firing time in between
 //! (position linear, attitude by quaternion slerp, so a heading from 359 to 1 deg passes through
 //! 0, never 180). A firing outside the history or between samples further apart than the
 //! allowed gap is not georeferenced; the caller counts it.
@@ -49,8 +49,19 @@ impl PoseSample {
                 q.to_rotation_matrix().into_inner().transpose()
             }
         };
-        let r = site.from_local_level(g.lat, g.lon) * local;
-        Some(Self::new(pose.time, site.to_ned(&g), &r))
+        Some(Self::from_geodetic(site, pose.time, &g, &local))
+    }
+
+    /// From a WGS84 position and the attitude body -> local-level NED at it, into the site
+    /// frame: every trajectory source (VN-200, SBET) goes through this one constructor.
+    pub fn from_geodetic(
+        site: &LocalFrame,
+        time: GpsTime,
+        g: &Geodetic,
+        body_to_local: &Matrix3<f64>,
+    ) -> Self {
+        let r = site.from_local_level(g.lat, g.lon) * body_to_local;
+        Self::new(time, site.to_ned(g), &r)
     }
 }
 

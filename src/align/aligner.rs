@@ -1,0 +1,435 @@
+//! The aligner: the LiDAR clock (the hour from a valid RMC, else from the INS), the pose
+//! history, each data packet's returns georeferenced with the a-priori mounting at their
+//! firing's pose (plus the clocks' time offset) and windowed around the spheres.
+//!
+//! No heap and no waiting: the caller lends the history and one batch per sphere, pushes poses
+//! with [`Aligner::push_pose`] until [`Aligner::wants_poses`] is false for a packet (or the INS
+//! has ended, or its own deadline passed), then hands the packet to [`Aligner::data`].
+
+use super::history::{PoseHistory, PoseSample};
+use crate::georef::Mount;
+use crate::time::{GpsTime, LidarClock};
+use crate::vlp16::{self, DataPacket, PointBuf, PositionPacket, PpsStatus};
+use crate::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS};
+
+/// A packet's 24 firing sequences span 1.33 ms: the history must reach this far past its
+/// first firing.
+const PACKET_SPAN_NS: i64 = 1_400_000;
+
+/// Where the LiDAR clock's hour came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HourFrom {
+    /// A position packet's valid `$GPRMC`.
+    Rmc,
+    /// The nearest hour to the newest INS time (no valid RMC before the first data packet).
+    Ins,
+}
+
+/// Counts of the align stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AlignStats {
+    /// Data packets timed, decoded and windowed.
+    pub data_packets: u64,
+    /// Position packets seen.
+    pub position_packets: u64,
+    /// Data packets whose time could not be known (no RMC and no INS time yet).
+    pub packets_without_time: u64,
+    /// GPS seconds of the first and last data packet timed (on the LiDAR clock).
+    pub lidar_span: Option<(f64, f64)>,
+    /// Windowing counts.
+    pub window: WindowStats,
+    /// Hour rollovers unwrapped.
+    pub rollovers: u32,
+    /// Observations lost because a batch was full.
+    pub batch_overflow: u64,
+    /// Where the hour came from (None: not yet).
+    pub hour_from: Option<HourFrom>,
+}
+
+/// The align stage over a history of `H` poses and batches of `B` observations.
+pub struct Aligner<'a, const H: usize, const B: usize> {
+    targets: &'a [Target],
+    batches: &'a mut [Batch<B>],
+    history: &'a mut PoseHistory<H>,
+    margin: f64,
+    mount: Mount,
+    clock: LidarClock,
+    points: PointBuf,
+    lookahead_ns: i64,
+    /// Newest pose's GPS time minus its host receive time [ns], if that time is known.
+    ins_offset_ns: Option<i64>,
+    data_seen: u32,
+    /// Counts.
+    pub stats: AlignStats,
+    /// PPS state of the last position packet.
+    pub pps: Option<PpsStatus>,
+    /// LiDAR clock minus INS time, each against the host receive clock, at the last aligned
+    /// packet [ns]: `(T_lidar - H_lidar) - (T_ins - H_ins)`.
+    pub lag_ns: Option<i64>,
+    /// Returns handed on per sphere so far.
+    pub windowed: [u64; MAX_TARGETS],
+    /// INS time minus LiDAR time [ns] (DESIGN.md conventions): a firing's pose is taken this
+    /// much later. Call [`Self::finish`] before changing it, so a batch holds one offset.
+    pub time_offset_ns: i64,
+}
+
+impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
+    /// An aligner windowing around `targets` (at most [`MAX_TARGETS`]; one batch each from
+    /// `batches`, extra ones unused) with `mount` and a window `margin` [m]. `lookahead_ns`: how
+    /// far past a packet the history should reach before it is aligned (files: the span the
+    /// returns' velocity and turn rate are taken over; live: 0).
+    pub fn new(
+        targets: &'a [Target],
+        batches: &'a mut [Batch<B>],
+        history: &'a mut PoseHistory<H>,
+        margin: f64,
+        mount: Mount,
+        leap_seconds: i64,
+        lookahead_ns: i64,
+    ) -> Self {
+        let n = targets.len().min(batches.len()).min(MAX_TARGETS);
+        Self {
+            targets: &targets[..n],
+            batches: &mut batches[..n],
+            history,
+            margin,
+            mount,
+            clock: LidarClock::new(leap_seconds),
+            points: PointBuf::new(),
+            lookahead_ns,
+            ins_offset_ns: None,
+            data_seen: 0,
+            stats: AlignStats::default(),
+            pps: None,
+            lag_ns: None,
+            windowed: [0; MAX_TARGETS],
+            time_offset_ns: 0,
+        }
+    }
+
+    /// The spheres windowed.
+    pub fn targets(&self) -> &[Target] {
+        self.targets
+    }
+
+    /// The oldest and newest pose held.
+    pub fn history_span(&self) -> Option<(GpsTime, GpsTime)> {
+        self.history.span()
+    }
+
+    /// Returns windowed for sphere `i` so far, including those not yet handed on.
+    pub fn windowed_now(&self, i: usize) -> u64 {
+        self.windowed.get(i).copied().unwrap_or(0)
+            + self.batches.get(i).map_or(0, |b| b.obs.len() as u64)
+    }
+
+    /// Add a pose received at `host_ns` [ns since 1970 on the host clock; 0 unknown]. Returns
+    /// false if it was refused (not newer than the newest).
+    pub fn push_pose(&mut self, s: PoseSample, host_ns: i64) -> bool {
+        let ok = self.history.push(s);
+        if ok {
+            self.ins_offset_ns = (host_ns != 0).then(|| s.time.0.saturating_sub(host_ns));
+        }
+        ok
+    }
+
+    /// A position packet: the PPS state, and the hour from its RMC when it is valid (a void
+    /// one may carry a stale time; the INS gives the hour otherwise).
+    pub fn position(&mut self, bytes: &[u8]) {
+        let Ok(p) = PositionPacket::new_checked(bytes) else {
+            return;
+        };
+        self.stats.position_packets += 1;
+        self.pps = Some(p.pps());
+        if !self.clock.has_hour() {
+            if let Some(utc) = p.nmea_time().ok().filter(|t| t.valid).and_then(|t| t.utc()) {
+                self.clock.set_from_rmc(&utc, p.timestamp_us());
+                self.stats.hour_from = Some(HourFrom::Rmc);
+            }
+        }
+    }
+
+    /// The packet's first firing on the INS clock, as [`Self::data`] will time it (without
+    /// changing the clock), given the history so far.
+    fn first_firing(&self, p: &DataPacket<&[u8]>) -> Option<GpsTime> {
+        let mut clock = self.clock;
+        if !clock.has_hour() {
+            let (_, newest) = self.history.span()?;
+            clock.set_from_gps(newest, p.timestamp_us());
+        }
+        let t0 = clock.to_gps(p.timestamp_us())?;
+        Some(GpsTime(t0.0.saturating_add(self.time_offset_ns)))
+    }
+
+    /// Whether more poses are needed before data packet `bytes` can be aligned: the history
+    /// must hold a pose (for the hour) and reach past the packet's last firing plus the
+    /// look-ahead. A caller that cannot wait (the INS ended, a live deadline) aligns it anyway;
+    /// what the history does not cover is counted.
+    pub fn wants_poses(&self, bytes: &[u8]) -> bool {
+        let Ok(p) = DataPacket::new_checked(bytes) else {
+            return false;
+        };
+        let Some((_, newest)) = self.history.span() else {
+            return true;
+        };
+        match self.first_firing(&p) {
+            Some(t0) => newest.0 <= t0.0.saturating_add(PACKET_SPAN_NS + self.lookahead_ns),
+            None => false,
+        }
+    }
+
+    /// A data packet received at `host_ns`: time it, georeference and window its returns;
+    /// `each`, if given, sees every georeferenced return; a batch that is half full goes to
+    /// `emit(sphere, observations)`.
+    pub fn data(
+        &mut self,
+        bytes: &[u8],
+        host_ns: i64,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let Ok(p) = DataPacket::new_checked(bytes) else {
+            return;
+        };
+        let index = self.data_seen;
+        self.data_seen = self.data_seen.wrapping_add(1);
+        if !self.clock.has_hour() {
+            let Some((_, newest)) = self.history.span() else {
+                self.stats.packets_without_time += 1;
+                return;
+            };
+            self.clock.set_from_gps(newest, p.timestamp_us());
+            self.stats.hour_from = Some(HourFrom::Ins);
+        }
+        let Some(t0) = self.clock.to_gps(p.timestamp_us()) else {
+            self.stats.packets_without_time += 1;
+            return;
+        };
+        let s = t0.as_secs_f64();
+        self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
+        // On the INS clock (the poses' times).
+        let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
+        if vlp16::decode(&p, &mut self.points).is_err() {
+            return;
+        }
+        self.stats.data_packets += 1;
+        if let (Some(o), true) = (self.ins_offset_ns, host_ns != 0) {
+            self.lag_ns = Some(t0.0.saturating_sub(host_ns).saturating_sub(o));
+        }
+        let mut win = Windowing {
+            targets: self.targets,
+            margin: self.margin,
+            mount: self.mount,
+            batches: self.batches,
+            stats: self.stats.window,
+        };
+        win.add_packet(index, t0, &self.points, self.history, each);
+        self.stats.window = win.stats;
+        self.stats.rollovers = self.clock.rollovers;
+        for (i, b) in self.batches.iter_mut().enumerate() {
+            if b.obs.len() >= B / 2 {
+                self.windowed[i] += b.obs.len() as u64;
+                emit(i, &b.obs);
+                b.obs.clear();
+            }
+        }
+    }
+
+    /// Hand on what the batches still hold.
+    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, &[Observation])) {
+        for (i, b) in self.batches.iter_mut().enumerate() {
+            self.stats.batch_overflow += b.overflow;
+            b.overflow = 0;
+            if !b.obs.is_empty() {
+                self.windowed[i] += b.obs.len() as u64;
+                emit(i, &b.obs);
+                b.obs.clear();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time::{unix_ns_to_gps, UtcDateTime};
+    use crate::vlp16::position::write_gprmc;
+    use crate::vlp16::{BlockRepr, DataRepr, PositionRepr, ReturnMode, VERTICAL_OFFSET_M};
+    use nalgebra::{Matrix3, Vector3};
+    use std::vec::Vec;
+
+    /// 2023-11-14 23:00:00 UTC; the packets are stamped 30 minutes past it.
+    const HOUR_UNIX_S: i64 = 1_700_002_800;
+    const STAMP_US: u32 = 1_800_000_000;
+    const LEAP: i64 = 18;
+
+    fn t_packet() -> GpsTime {
+        unix_ns_to_gps((HOUR_UNIX_S + 1800) * 1_000_000_000, LEAP)
+    }
+
+    /// One return: block 0, channel 1 (laser 1, +1 deg), 10.000 m, every azimuth 0.
+    fn data_packet() -> [u8; 1206] {
+        let mut blocks = [BlockRepr {
+            azimuth: 0,
+            channels: [(0, 0); 32],
+        }; 12];
+        blocks[0].channels[1] = (5000, 100);
+        let mut buf = [0u8; 1206];
+        DataRepr {
+            blocks,
+            timestamp_us: STAMP_US,
+            return_mode: ReturnMode::Strongest,
+            product: 0x22,
+        }
+        .emit(&mut DataPacket::new_unchecked(&mut buf[..]));
+        buf
+    }
+
+    /// A stationary platform at (10, 0, 0) NED, level, facing north: poses every 5 ms.
+    fn poses(from_s: f64, to_s: f64) -> impl Iterator<Item = PoseSample> {
+        let t = t_packet().0;
+        let n = ((to_s - from_s) / 0.005).round() as i64;
+        (0..=n).map(move |i| {
+            let ns = t + (from_s * 1e9) as i64 + i * 5_000_000;
+            PoseSample::new(
+                GpsTime(ns),
+                Vector3::new(10.0, 0.0, 0.0),
+                &Matrix3::identity(),
+            )
+        })
+    }
+
+    /// Hand-computed: zero mounting and a level pose put the return at P + (0, d cos 1, d sin 1
+    /// + v_1) (x right, y forward, z up; R_li = R_ig = I).
+    fn expected() -> Vector3<f64> {
+        let e = 1f64.to_radians();
+        Vector3::new(10.0, 10.0 * e.cos(), 10.0 * e.sin() + VERTICAL_OFFSET_M[1])
+    }
+
+    type Seen = Vec<(usize, Vec<Observation>)>;
+
+    fn run(offset_ns: i64, rmc: bool) -> (Vec<GeoPoint>, Seen, AlignStats) {
+        let targets = [
+            Target {
+                center: expected() + Vector3::new(0.0, 0.05, 0.0),
+                radius: 0.1,
+            },
+            Target {
+                center: Vector3::new(-50.0, 0.0, 0.0),
+                radius: 0.1,
+            },
+        ];
+        let mut batches = [Batch::<8>::default(), Batch::default()];
+        let mut history = PoseHistory::<1024>::new(50_000_000);
+        let mut al = Aligner::new(
+            &targets,
+            &mut batches,
+            &mut history,
+            0.5,
+            Mount::from_params(&[0.0; 6]),
+            LEAP,
+            0,
+        );
+        al.time_offset_ns = offset_ns;
+        let packet = data_packet();
+        // Garbage is not waited for; an empty history is.
+        assert!(!al.wants_poses(&packet[..100]));
+        assert!(al.wants_poses(&packet));
+        if rmc {
+            let utc = UtcDateTime {
+                year: 2023,
+                month: 11,
+                day: 14,
+                hour: 23,
+                minute: 30,
+                second: 0,
+                nanos: 0,
+            };
+            let mut nmea = [0u8; 80];
+            let n = write_gprmc(&mut nmea, &utc, 48.38, -4.49, true).unwrap();
+            let mut pos = [0u8; 512];
+            PositionRepr {
+                timestamp_us: STAMP_US,
+                pps: PpsStatus::Locked,
+                nmea: &nmea[..n],
+            }
+            .emit(&mut PositionPacket::new_unchecked(&mut pos[..]));
+            al.position(&pos);
+            assert_eq!(al.pps, Some(PpsStatus::Locked));
+        }
+        // Poses up to the packet's first firing (plus the offset) do not cover it...
+        for p in poses(-1.0, offset_ns as f64 * 1e-9) {
+            assert!(al.push_pose(p, 0));
+        }
+        assert!(al.wants_poses(&packet));
+        // ... 1.4 ms more do.
+        for p in poses(offset_ns as f64 * 1e-9 + 0.005, 1.0) {
+            assert!(al.push_pose(p, 0));
+        }
+        assert!(!al.wants_poses(&packet));
+        let mut points = Vec::new();
+        let mut each = |g: &GeoPoint| points.push(*g);
+        let mut seen: Seen = Vec::new();
+        let mut emit = |i: usize, o: &[Observation]| seen.push((i, o.to_vec()));
+        al.data(&packet, 0, Some(&mut each), &mut emit);
+        assert_eq!(al.windowed_now(0), 1);
+        assert_eq!(al.windowed_now(1), 0);
+        al.finish(&mut emit);
+        assert_eq!(al.windowed[..2], [1, 0]);
+        (points, seen, al.stats)
+    }
+
+    #[test]
+    fn one_return_georeferenced_timed_and_windowed_by_hand() {
+        for (offset_ns, rmc) in [
+            (0, false),
+            (0, true),
+            (5_000_000, false),
+            (-3_000_000, true),
+        ] {
+            let (points, seen, stats) = run(offset_ns, rmc);
+            assert_eq!(points.len(), 1);
+            let g = points[0];
+            assert!((g.ned - expected()).norm() < 1e-5, "{:?}", g.ned);
+            // The firing 2.304 us after the packet stamp (laser 1), on the INS clock.
+            assert_eq!(g.time.0, t_packet().0 + 2_304 + offset_ns);
+            assert_eq!(g.window, Some(0));
+            assert_eq!(seen.len(), 1);
+            let (sphere, obs) = &seen[0];
+            assert_eq!((*sphere, obs.len()), (0, 1));
+            assert_eq!((obs[0].packet, obs[0].block, obs[0].channel), (0, 0, 1));
+            assert_eq!(obs[0].time, g.time);
+            assert!((f64::from(obs[0].range) - 10.0).abs() < 1e-6);
+            let from = if rmc { HourFrom::Rmc } else { HourFrom::Ins };
+            assert_eq!(stats.hour_from, Some(from));
+            assert_eq!((stats.data_packets, stats.packets_without_time), (1, 0));
+            assert_eq!(stats.position_packets, u64::from(rmc));
+            let s = t_packet().as_secs_f64();
+            assert_eq!(stats.lidar_span, Some((s, s)));
+        }
+    }
+
+    #[test]
+    fn a_packet_without_hour_or_pose_is_counted() {
+        let targets = [Target {
+            center: Vector3::zeros(),
+            radius: 0.1,
+        }];
+        let mut batches = [Batch::<8>::default()];
+        let mut history = PoseHistory::<16>::new(50_000_000);
+        let mut al = Aligner::new(
+            &targets,
+            &mut batches,
+            &mut history,
+            0.5,
+            Mount::from_params(&[0.0; 6]),
+            LEAP,
+            0,
+        );
+        al.data(&data_packet(), 0, None, &mut |_, _| {});
+        al.data(&[0u8; 10], 0, None, &mut |_, _| {});
+        assert_eq!(al.stats.packets_without_time, 1);
+        assert_eq!(al.stats.data_packets, 0);
+        assert_eq!(al.stats.hour_from, None);
+    }
+}
