@@ -4,6 +4,7 @@
 
 pub mod board;
 pub mod calibrate;
+pub mod cmd;
 pub mod decode;
 pub mod fixtures;
 pub mod georef;

@@ -296,7 +296,7 @@ pub fn targets(site: &Site) -> (LocalFrame, Vec<Target>) {
 
 /// Enqueue `item`; a full ring counts in `full` and then drops the item ([`Overflow::Drop`])
 /// or waits for room ([`Overflow::Wait`]). Returns whether it was enqueued.
-pub fn push_wait<T>(
+pub fn enqueue<T>(
     p: &mut heapless::spsc::Producer<'_, T>,
     mut item: T,
     policy: Overflow,
@@ -594,7 +594,7 @@ pub fn run<C: Send>(
                     Ok(Some(r)) => r,
                     Ok(None) => break,
                     Err(e) => {
-                        push_wait(
+                        enqueue(
                             &mut lp,
                             LidarItem::new(LidarKind::End, 0, &[]),
                             Overflow::Wait,
@@ -616,9 +616,9 @@ pub fn run<C: Send>(
                         }
                     },
                 };
-                push_wait(&mut lp, item, Overflow::Wait, &full_ref[0]);
+                enqueue(&mut lp, item, Overflow::Wait, &full_ref[0]);
             }
-            push_wait(
+            enqueue(
                 &mut lp,
                 LidarItem::new(LidarKind::End, 0, &[]),
                 Overflow::Wait,
@@ -650,12 +650,7 @@ pub fn run<C: Send>(
                                     None => {}
                                 }
                                 st.used(s.time, max_gap);
-                                push_wait(
-                                    &mut ip,
-                                    InsItem::Pose(s, 0),
-                                    Overflow::Wait,
-                                    &full_ref[1],
-                                );
+                                enqueue(&mut ip, InsItem::Pose(s, 0), Overflow::Wait, &full_ref[1]);
                             }
                             InsOutcome::NoPose => st.without_pose += 1,
                             InsOutcome::Rejected | InsOutcome::Other => {}
@@ -690,7 +685,7 @@ pub fn run<C: Send>(
                         };
                         let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
                         st.used(t, max_gap);
-                        push_wait(
+                        enqueue(
                             &mut ip,
                             InsItem::Pose(PoseSample::from_geodetic(&frame, t, &g, &local), 0),
                             Overflow::Wait,
@@ -703,7 +698,7 @@ pub fn run<C: Send>(
                 Ok(st)
             };
             let r = read();
-            push_wait(&mut ip, InsItem::End, Overflow::Wait, &full_ref[1]);
+            enqueue(&mut ip, InsItem::End, Overflow::Wait, &full_ref[1]);
             r
         });
 

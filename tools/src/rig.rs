@@ -17,7 +17,7 @@
 use crate::board::Board;
 use crate::calibrate::{solve_report, Report};
 use crate::pipeline::{
-    push_wait, targets, vn200_pose, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait,
+    enqueue, targets, vn200_pose, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait,
     LidarItem, LidarKind, Overflow, BATCH, INS_RING,
 };
 use crate::site::Site;
@@ -173,6 +173,39 @@ struct SerialChunk {
 
 const NONE_U8: u8 = u8::MAX;
 
+/// Items dropped because a ring was full, per ring (the readers never block).
+#[derive(Default)]
+struct RingDrops {
+    data: AtomicU64,
+    position: AtomicU64,
+    ins: AtomicU64,
+    datagram_log: AtomicU64,
+    serial_log: AtomicU64,
+}
+
+impl RingDrops {
+    /// The LiDAR ring of reader `which` (0 data, 1 position).
+    fn lidar(&self, which: usize) -> &AtomicU64 {
+        if which == 0 {
+            &self.data
+        } else {
+            &self.position
+        }
+    }
+
+    /// data, position, INS, datagram log, serial log (the summary's order).
+    fn snapshot(&self) -> [u64; 5] {
+        [
+            &self.data,
+            &self.position,
+            &self.ins,
+            &self.datagram_log,
+            &self.serial_log,
+        ]
+        .map(|a| a.load(Ordering::Relaxed))
+    }
+}
+
 /// What the threads share (counters only: no locks on the packet path).
 struct Shared<'a> {
     stop: &'a AtomicBool,
@@ -182,8 +215,7 @@ struct Shared<'a> {
     received: [AtomicU64; 2],
     enqueued: [AtomicU64; 2],
     kernel_drops: [AtomicU64; 2],
-    /// data, position, INS, datagram log, serial log.
-    ring_drops: [AtomicU64; 5],
+    ring_drops: RingDrops,
     serial_bytes: AtomicU64,
     pps: AtomicU8,
     ins_mode: AtomicU8,
@@ -600,7 +632,7 @@ fn run_rig(
         kernel_drops: ld(&sh.kernel_drops),
         kernel_stamped: skips.0 .1 + skips.1 .1,
         enqueued: ld(&sh.enqueued),
-        ring_drops: [0, 1, 2, 3, 4].map(|i| sh.ring_drops[i].load(Ordering::Relaxed)),
+        ring_drops: sh.ring_drops.snapshot(),
         skipped,
         data_packets: al_stats.data_packets,
         position_packets: al_stats.position_packets,
@@ -669,7 +701,7 @@ fn udp_reader(
                     bytes: [0; MAX_DATAGRAM],
                 };
                 item.bytes[..n].copy_from_slice(&d.payload[..n]);
-                push_wait(&mut log, item, Overflow::Drop, &sh.ring_drops[3]);
+                enqueue(&mut log, item, Overflow::Drop, &sh.ring_drops.datagram_log);
                 let item = if sensor.is_some_and(|a| a != d.src_addr) {
                     Err(SkipReason::OtherSender(d.src_addr))
                 } else {
@@ -677,7 +709,7 @@ fn udp_reader(
                 };
                 match item {
                     Ok(item) => {
-                        if push_wait(&mut ring, item, Overflow::Drop, &sh.ring_drops[which]) {
+                        if enqueue(&mut ring, item, Overflow::Drop, sh.ring_drops.lidar(which)) {
                             sh.enqueued[which].fetch_add(1, Ordering::Relaxed);
                         }
                     }
@@ -767,7 +799,7 @@ fn serial_reader(
                     bytes: [0; SERIAL_CHUNK],
                 };
                 chunk.bytes[..len].copy_from_slice(&buf[..len]);
-                push_wait(&mut log, chunk, Overflow::Drop, &sh.ring_drops[4]);
+                enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
                 framer.consume(&buf[..len], |it: spherecal::vn200::Framed<'_>| {
                     if let Item::Binary(f) = &it.item {
                         check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
@@ -787,11 +819,11 @@ fn serial_reader(
                                 None => {}
                             }
                             st.used(s.time, MAX_INS_GAP_NS);
-                            push_wait(
+                            enqueue(
                                 &mut ring,
                                 InsItem::Pose(s, stamp.wall_ns),
                                 Overflow::Drop,
-                                &sh.ring_drops[2],
+                                &sh.ring_drops.ins,
                             );
                         }
                         InsOutcome::NoPose => st.without_pose += 1,
@@ -861,7 +893,7 @@ fn logger(
             let Some(it) = it else { break };
             n += 1;
             if failed {
-                sh.ring_drops[3].fetch_add(1, Ordering::Relaxed);
+                sh.ring_drops.datagram_log.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
             if let Err(e) = pcap.write(
@@ -882,7 +914,7 @@ fn logger(
                     }
                 }
                 _ => {
-                    sh.ring_drops[4].fetch_add(1, Ordering::Relaxed);
+                    sh.ring_drops.serial_log.fetch_add(1, Ordering::Relaxed);
                 }
             }
         }
@@ -1072,9 +1104,11 @@ fn snapshot(sh: &Shared<'_>, ids: &[String], started: Instant, last_aligned: &mu
         t_s: started.elapsed().as_secs(),
         packets_per_s: aligned.saturating_sub(*last_aligned),
         drops: [
-            sh.ring_drops[0].load(Ordering::Relaxed) + sh.ring_drops[1].load(Ordering::Relaxed),
-            sh.ring_drops[2].load(Ordering::Relaxed),
-            sh.ring_drops[3].load(Ordering::Relaxed) + sh.ring_drops[4].load(Ordering::Relaxed),
+            sh.ring_drops.data.load(Ordering::Relaxed)
+                + sh.ring_drops.position.load(Ordering::Relaxed),
+            sh.ring_drops.ins.load(Ordering::Relaxed),
+            sh.ring_drops.datagram_log.load(Ordering::Relaxed)
+                + sh.ring_drops.serial_log.load(Ordering::Relaxed),
         ],
         kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
             + sh.kernel_drops[1].load(Ordering::Relaxed),

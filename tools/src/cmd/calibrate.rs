@@ -1,0 +1,78 @@
+//! `spherecal calibrate --pcap P (--ins I | --sbet S) --site SITE ...`.
+
+use super::{claimed, fail, parse6, Survey};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Calibrate: georeference, window, solve for boresight and lever arm, report.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub survey: Survey,
+    /// Start: roll,pitch,heading [deg],x,y,z [m] (default: the site's a-priori values).
+    #[arg(long, value_parser = parse6, allow_hyphen_values = true)]
+    pub init: Option<[f64; 6]>,
+    /// Write the JSON report here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the calibrated cloud as LAS.
+    #[arg(long)]
+    pub las: Option<PathBuf>,
+    /// Write residual plots (SVG).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write every windowed return with its verdict (kept, or why not) as CSV.
+    #[arg(long)]
+    pub returns: Option<PathBuf>,
+    /// Start from this time offset between the clocks [s] (INS time = LiDAR time + this;
+    /// default 0, or what the LiDAR's RMC says when its clock is not PPS-locked).
+    #[arg(long, allow_hyphen_values = true)]
+    pub time_offset: Option<f64>,
+    /// Hold the time offset (at `--time-offset`) instead of estimating it.
+    #[arg(long)]
+    pub hold_time_offset: bool,
+    /// Claim a solution although the LiDAR clock is not PPS-locked with a valid RMC (when
+    /// the time offset found explains the stamps' disagreement with the RMC).
+    #[arg(long)]
+    pub allow_unlocked_clock: bool,
+    /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
+    #[arg(long)]
+    pub keep_untracked_ins: bool,
+    /// Search the time offset over +- this many seconds around the start, in 0.25 s steps
+    /// (default: 2 s when the LiDAR clock is not PPS-locked with a valid RMC, else none; 0
+    /// turns it off).
+    #[arg(long)]
+    pub search_time_offset: Option<f64>,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    let s = a.survey;
+    let survey = crate::Survey {
+        pcap: s.pcap,
+        ins: s.ins,
+        sbet: s.sbet,
+        gps_week: s.gps_week,
+        site: s.site,
+    };
+    let out = crate::Outputs {
+        report: a.report,
+        las: a.las,
+        plot: a.plot,
+        returns: a.returns,
+    };
+    let clock = crate::ClockOptions {
+        estimate: !a.hold_time_offset,
+        start: a.time_offset,
+        allow_unlocked: a.allow_unlocked_clock,
+        keep_untracked_ins: a.keep_untracked_ins,
+        search: a.search_time_offset,
+    };
+    match crate::run_calibrate(survey, a.init, clock, &out, None) {
+        Ok((text, ok)) => {
+            say!("{text}");
+            claimed(ok)
+        }
+        Err(e) => fail("calibrate", e),
+    }
+}

@@ -1,0 +1,34 @@
+//! `spherecal decode FILE [--csv OUT]`.
+
+use super::{create_csv, fail};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Decode VLP-16 packets from a pcap/pcapng capture; print counts, optionally list points.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Capture file (classic pcap or pcapng).
+    pub file: PathBuf,
+    /// Write one row per returned point to this CSV file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    let mut out = match create_csv("decode", a.csv.as_ref()) {
+        Ok(o) => o,
+        Err(code) => return code,
+    };
+    let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
+    match crate::decode::decode_file(&a.file, w) {
+        Ok(s) => {
+            say!("{}", s.render(&a.file.display().to_string()));
+            match &s.stopped {
+                Some(stop) => fail("decode", format!("{}: {stop}", a.file.display())),
+                None => ExitCode::SUCCESS,
+            }
+        }
+        Err(e) => fail("decode", e),
+    }
+}

@@ -1,0 +1,74 @@
+//! `spherecal georef --pcap P (--ins I | --sbet S) --site SITE ...`.
+
+use super::{fail, parse3, Survey};
+use crate::pipeline::{Inputs, InsInput};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Georeference a survey: align the LiDAR with the trajectory, keep the sphere windows.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub survey: Survey,
+    /// Boresight roll,pitch,heading [deg] (default: the site's a-priori).
+    #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
+    pub boresight: Option<[f64; 3]>,
+    /// Lever arm x,y,z [m] (default: the site's a-priori).
+    #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
+    pub lever: Option<[f64; 3]>,
+    /// Largest INS sample spacing to interpolate over [ms].
+    #[arg(long, default_value_t = 50.0)]
+    pub max_gap_ms: f64,
+    /// The time offset between the clocks [s]: INS time = LiDAR time + this (what
+    /// `calibrate` reports as `time_offset_s`).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub time_offset: f64,
+    /// Write the georeferenced cloud as LAS 1.4 (local east-north-up from the origin).
+    #[arg(long)]
+    pub las: Option<PathBuf>,
+    /// Write the window points as CSV.
+    #[arg(long)]
+    pub windows: Option<PathBuf>,
+    /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
+    #[arg(long)]
+    pub keep_untracked_ins: bool,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    let Survey {
+        pcap,
+        ins,
+        sbet,
+        gps_week,
+        site,
+    } = a.survey;
+    let site = match crate::site::Site::load(&site) {
+        Ok(s) => s,
+        Err(e) => return fail("georef", e),
+    };
+    let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
+    let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
+    let ins = match (ins, sbet) {
+        (Some(i), _) => InsInput::Vn200(i),
+        (None, Some(s)) => InsInput::Sbet(s, gps_week),
+        (None, None) => return fail("georef", "give --ins or --sbet"),
+    };
+    let inp = Inputs {
+        pcap,
+        ins,
+        mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),
+        margin: site.apriori.window_margin_m,
+        max_gap_ns: (a.max_gap_ms * 1e6) as i64,
+        time_offset_ns: (a.time_offset * 1e9).round() as i64,
+        keep_untracked_ins: a.keep_untracked_ins,
+        site,
+    };
+    match crate::georef::georef(&inp, a.las.as_deref(), a.windows.as_deref()) {
+        Ok((_, _, text)) => {
+            say!("{text}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail("georef", e),
+    }
+}

@@ -1,0 +1,36 @@
+//! `spherecal ins FILE [--csv OUT]`.
+
+use super::{create_csv, fail};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
+/// optionally list the binary frames' fields.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Raw serial bytes, or a timestamped serial log (magic SCSERLOG).
+    pub file: PathBuf,
+    /// Write one row per valid binary frame to this CSV file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    let (bytes, _stamps) = match spherecal_hal::serial::read_byte_file(&a.file) {
+        Ok(b) => b,
+        Err(e) => return fail("ins", format!("{}: {e}", a.file.display())),
+    };
+    let mut out = match create_csv("ins", a.csv.as_ref()) {
+        Ok(o) => o,
+        Err(code) => return code,
+    };
+    let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
+    match crate::ins::frame_bytes(&bytes, w) {
+        Ok(s) => {
+            say!("{}", s.render(&a.file.display().to_string()));
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail("ins", format!("{}: writing CSV: {e}", a.file.display())),
+    }
+}

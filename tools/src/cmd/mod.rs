@@ -1,0 +1,118 @@
+//! The `spherecal` subcommands: each module owns its clap `Args` and its `run`, which reads the
+//! arguments, calls the library and maps the outcome to the exit code of the command contract
+//! (0 success; 1 calibration refused; 2 bad arguments or unreadable input).
+
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Print to stdout; a closed pipe (`spherecal ... | head`) is not an error worth a panic.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+
+macro_rules! sayln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+pub mod calibrate;
+pub mod decode;
+pub mod demo;
+pub mod georef;
+pub mod ins;
+pub mod montecarlo;
+pub mod replay;
+pub mod run;
+pub mod synth;
+
+/// Exit 2 with `spherecal CMD: why` on stderr.
+fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
+    eprintln!("spherecal {cmd}: {why}");
+    ExitCode::from(2)
+}
+
+/// Exit 0 when the result is claimed, else 1.
+fn claimed(ok: bool) -> ExitCode {
+    if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
+
+/// The recorded survey: capture, trajectory and site.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Survey {
+    /// The VLP-16 capture.
+    #[arg(long)]
+    pub pcap: PathBuf,
+    /// VN-200 serial bytes (raw or a serial log).
+    #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
+    pub ins: Option<PathBuf>,
+    /// An Applanix SBET trajectory instead of the VN-200.
+    #[arg(long)]
+    pub sbet: Option<PathBuf>,
+    /// GPS week of the SBET (default: from the capture's RMC date).
+    #[arg(long)]
+    pub gps_week: Option<u16>,
+    /// site.toml: spheres, origin, a-priori values.
+    #[arg(long)]
+    pub site: PathBuf,
+}
+
+/// Comma-separated finite numbers, exactly `N` of them (`what` names them in the error).
+fn parse_n<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    <[f64; N]>::try_from(v.as_slice())
+        .ok()
+        .filter(|a| a.iter().all(|x| x.is_finite()))
+        .ok_or_else(|| format!("{s:?}: expected {what}"))
+}
+
+/// `r,p,h,x,y,z`.
+fn parse6(s: &str) -> Result<[f64; 6], String> {
+    parse_n(s, "six finite numbers r,p,h,x,y,z")
+}
+
+/// `a,b,c`.
+fn parse3(s: &str) -> Result<[f64; 3], String> {
+    parse_n(s, "three finite numbers a,b,c")
+}
+
+/// Two comma-separated ports.
+fn parse_ports(s: &str) -> Result<[u16; 2], String> {
+    match s.split_once(',') {
+        Some((a, b)) => match (a.trim().parse::<u16>(), b.trim().parse::<u16>()) {
+            (Ok(a), Ok(b)) if a > 0 && b > 0 => Ok([a, b]),
+            _ => Err(format!("{s:?}: expected two ports DATA,POSITION")),
+        },
+        None => Err(format!("{s:?}: expected two ports DATA,POSITION")),
+    }
+}
+
+/// The CSV file `--csv` names, buffered, or the exit code of a file that cannot be created.
+fn create_csv(
+    cmd: &str,
+    csv: Option<&PathBuf>,
+) -> Result<Option<BufWriter<std::fs::File>>, ExitCode> {
+    match csv.map(std::fs::File::create).transpose() {
+        Ok(f) => Ok(f.map(|f| BufWriter::with_capacity(1 << 20, f))),
+        Err(e) => Err(fail(
+            cmd,
+            format!(
+                "{}: cannot create: {e}",
+                csv.map(|p| p.display().to_string()).unwrap_or_default()
+            ),
+        )),
+    }
+}

@@ -1,0 +1,93 @@
+//! `spherecal run --board FILE ...`: the rig.
+
+use super::fail;
+use crate::rig::RunOptions;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// The rig: listen to the VLP-16 and the VN-200, log everything raw, show a status line every
+/// second, calibrate once every sphere has been seen well enough. Stops on SIGINT/SIGTERM or
+/// after --duration, exit 0.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The board file (boards/*.toml).
+    #[arg(long)]
+    pub board: PathBuf,
+    /// Serial device of the INS (overrides the board's).
+    #[arg(long)]
+    pub serial: Option<String>,
+    /// site.toml: without it the rig only acquires and logs.
+    #[arg(long)]
+    pub site: Option<PathBuf>,
+    /// Raw log folder (overrides the board's).
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
+    /// Rotate raw log files at this size [MB] (overrides the board's).
+    #[arg(long)]
+    pub rotate_mb: Option<f64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Write the calibration report here after every solve.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
+    #[arg(long)]
+    pub keep_untracked_ins: bool,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    let board = match crate::board::Board::load(&a.board) {
+        Ok(b) => b,
+        Err(e) => return fail("run", e),
+    };
+    let site = match a.site.map(|s| crate::site::Site::load(&s)).transpose() {
+        Ok(s) => s,
+        Err(e) => return fail("run", e),
+    };
+    if let Some(d) = a.duration.filter(|d| !(d.is_finite() && *d > 0.0)) {
+        return fail(
+            "run",
+            format!("--duration {d}: expected a positive number of seconds"),
+        );
+    }
+    if let Some(r) = a.rotate_mb.filter(|r| !(r.is_finite() && *r > 0.0)) {
+        return fail("run", format!("--rotate-mb {r}: expected a positive size"));
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if let Err(e) = signal_hook::flag::register(sig, Arc::clone(&stop)) {
+            return fail("run", format!("signal {sig}: {e}"));
+        }
+    }
+    let mut console =
+        match spherecal_hal::console::Console::open(&board.console.device, board.console.baud) {
+            Ok(c) => c,
+            Err(e) => return fail("run", e),
+        };
+    let opts = RunOptions {
+        board,
+        serial: a.serial,
+        site,
+        log_dir: a.log_dir,
+        rotate_bytes: a.rotate_mb.map(|m| (m * 1_048_576.0) as u64),
+        duration: a.duration.map(std::time::Duration::from_secs_f64),
+        report: a.report,
+        settings: spherecal::calib::Settings::default(),
+        keep_untracked_ins: a.keep_untracked_ins,
+    };
+    match crate::rig::run(&opts, &mut console, &stop) {
+        Ok(s) => {
+            // A closed stderr is no reason to fail a finished run.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                crate::rig::render(&s).as_bytes(),
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail("run", e),
+    }
+}

@@ -1,0 +1,72 @@
+//! `spherecal synth --scenario NAME|FILE --out DIR` / `--print-scenario NAME`.
+
+use super::fail;
+use crate::scenario::{Scenario, BUILTIN};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Simulate a survey: write lidar.pcap, ins.bin, site.toml and truth.json.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A built-in scenario name (table1, table1-noisy) or a scenario TOML file.
+    #[arg(long, required_unless_present = "print_scenario")]
+    pub scenario: Option<String>,
+    /// Output folder.
+    #[arg(long, required_unless_present = "print_scenario")]
+    pub out: Option<PathBuf>,
+    /// Print a built-in scenario as TOML (to edit) and exit.
+    #[arg(long, value_name = "NAME", conflicts_with_all = ["scenario", "out"])]
+    pub print_scenario: Option<String>,
+}
+
+/// Run it.
+pub fn run(a: Args) -> ExitCode {
+    if let Some(name) = a.print_scenario {
+        return match BUILTIN.iter().find(|b| b.0 == name) {
+            Some((_, text)) => {
+                say!("{text}");
+                ExitCode::SUCCESS
+            }
+            None => {
+                let names: Vec<&str> = BUILTIN.iter().map(|b| b.0).collect();
+                fail(
+                    "synth",
+                    format!("no built-in scenario {name:?} (have: {})", names.join(", ")),
+                )
+            }
+        };
+    }
+    let (Some(scenario), Some(out)) = (a.scenario, a.out) else {
+        return fail("synth", "--scenario and --out are required");
+    };
+    let s = match Scenario::load(&scenario) {
+        Ok(s) => s,
+        Err(e) => return fail("synth", e),
+    };
+    let t0 = std::time::Instant::now();
+    match crate::synth::synth(&s, &out) {
+        Ok(t) => {
+            sayln!(
+                "{}: {:.1} s of scanning, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
+                s.name,
+                s.duration_s(),
+                t.data_packets,
+                t.position_packets,
+                t.ins_frames,
+                t.rays_traced,
+                t0.elapsed().as_secs_f64()
+            );
+            sayln!(
+                "points per sphere: {:?} (clutter: {})",
+                t.points_per_sphere,
+                t.clutter_points
+            );
+            sayln!(
+                "wrote {}/{{lidar.pcap, ins.bin, site.toml, truth.json}}",
+                out.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail("synth", e),
+    }
+}
