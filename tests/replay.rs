@@ -164,3 +164,78 @@ fn cli_replay_to_other_ports() {
     }
     assert_eq!(got, want);
 }
+
+/// A writer that notes the mock clock's time of every write.
+struct Stamped<'c> {
+    clock: &'c spherecal_hal::clock::MockClock,
+    writes: Vec<(u64, Vec<u8>)>,
+}
+
+impl std::io::Write for Stamped<'_> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        use spherecal_hal::clock::Clock;
+        self.writes.push((self.clock.mono_ns(), b.to_vec()));
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// The pacing on the mock clock (no sleeping): a serial log's reads 10 ms apart at 2x go out
+/// at exactly 0, 5, 10, ... 195 ms; raw bytes at 115200 baud x 4 go out in 64-byte chunks, the
+/// k-th at k x 64 x 10 / 460800 s.
+#[test]
+fn replay_pacing_on_the_mock_clock() {
+    use spherecal_hal::clock::MockClock;
+    use spherecal_hal::serial::{LogWriter, RxStamp};
+    use spherecal_tools::replay::{replay_serial_on, Pacer};
+    let t0 = 1_700_000_000_000_000_000i64;
+    let data: Vec<u8> = (0..40 * 50).map(|i| (i % 251) as u8).collect();
+    let mut log = LogWriter::new(Vec::new(), 921_600).unwrap();
+    for (i, c) in data.chunks(50).enumerate() {
+        let stamp = RxStamp {
+            mono_ns: i as u64 * 10_000_000,
+            wall_ns: t0 + i as i64 * 10_000_000,
+        };
+        log.record(stamp, c).unwrap();
+    }
+    let file = common::tmp("replay", "mock-paced.vnlog");
+    std::fs::write(&file, log.into_inner()).unwrap();
+    let clock = MockClock::new(0);
+    let mut out = Stamped {
+        clock: &clock,
+        writes: Vec::new(),
+    };
+    let pacer = Pacer::new(&clock, i128::from(t0), Speed::Factor(2.0));
+    replay_serial_on(&file, &mut out, 921_600, &pacer).unwrap();
+    assert_eq!(out.writes.len(), 40);
+    for (i, (at, bytes)) in out.writes.iter().enumerate() {
+        let due = i as i64 * 5_000_000;
+        assert!(
+            (*at as i64 - due).abs() <= 1,
+            "read {i} at {at} ns, due {due}"
+        );
+        assert_eq!(bytes[..], data[i * 50..(i + 1) * 50]);
+    }
+
+    let raw = common::shared_data("vn200/vn310_imu.bin");
+    let bytes = std::fs::read(&raw).unwrap();
+    let clock = MockClock::new(0);
+    let mut out = Stamped {
+        clock: &clock,
+        writes: Vec::new(),
+    };
+    let pacer = Pacer::new(&clock, 0, Speed::Factor(4.0));
+    replay_serial_on(&raw, &mut out, 115_200, &pacer).unwrap();
+    assert_eq!(out.writes.len(), bytes.len().div_ceil(64));
+    for (k, (at, _)) in out.writes.iter().enumerate() {
+        let due = (k * 64 * 10) as f64 / 460_800.0 * 1e9;
+        assert!(
+            (*at as f64 - due).abs() < 2.0,
+            "chunk {k} at {at} ns, due {due}"
+        );
+    }
+    let all: Vec<u8> = out.writes.into_iter().flat_map(|w| w.1).collect();
+    assert_eq!(all, bytes);
+}

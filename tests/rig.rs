@@ -7,7 +7,7 @@ use serialport::{SerialPort, TTYPort};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::serial::read_byte_file;
 use spherecal_hal::{PacketSource, Record};
-use spherecal_tools::replay::{replay_both, replay_serial_on, replay_udp_on, Clock, Speed, Target};
+use spherecal_tools::replay::{replay_both, replay_serial_on, replay_udp_on, Pacer, Speed, Target};
 use spherecal_tools::status::Status;
 use std::io::{BufRead, BufReader};
 use std::net::Ipv4Addr;
@@ -450,13 +450,13 @@ fn overload_every_drop_is_counted() {
     let pos_in_file = in_file.iter().filter(|d| d.0 == 8308).count() as u64;
     let data_in_file = in_file.len() as u64 - pos_in_file;
     let t = Instant::now();
-    let clock = Clock::new(0, Speed::Max);
+    let clock = Pacer::new(&spherecal_hal::clock::SystemClock, 0, Speed::Max);
     let serial = std::thread::spawn(move || {
         replay_serial_on(
             &dir_ins(&pcap),
             &mut master,
             921_600,
-            &Clock::new(0, Speed::Max),
+            &Pacer::new(&spherecal_hal::clock::SystemClock, 0, Speed::Max),
         )
         .unwrap()
     });
@@ -769,7 +769,11 @@ fn other_senders_are_logged_not_aligned() {
     let to = loopback(dp, pp);
     // In real time: the capture's 0.39 s, with its burst of position packets.
     let (first, _) = spherecal_tools::replay::first_times(&pcap, None).unwrap();
-    let clock = Clock::new(first.unwrap(), Speed::Factor(1.0));
+    let clock = Pacer::new(
+        &spherecal_hal::clock::SystemClock,
+        first.unwrap(),
+        Speed::Factor(1.0),
+    );
     let sent = replay_udp_on(&pcap, to, &clock).unwrap().sent;
     std::thread::sleep(Duration::from_millis(500));
     rig.signal(nix::sys::signal::Signal::SIGTERM);

@@ -19,6 +19,7 @@ use spherecal::georef::Mount;
 use spherecal::vlp16::PositionPacket;
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
+use spherecal_hal::clock::{Clock, SystemClock};
 use spherecal_hal::packet::{Datagram, SkipReason};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::sbet::SbetReader;
@@ -404,6 +405,8 @@ pub struct Aligner<'a> {
     /// The core stage.
     pub core: CoreAligner<'a, HISTORY, BATCH>,
     wait: InsWait,
+    /// What the live deadline is measured and waited on.
+    time: &'a dyn Clock,
     ins_done: bool,
     /// The LiDAR clock as its position packets tell it.
     pub clock: crate::state::ClockState,
@@ -418,6 +421,7 @@ impl<'a> Aligner<'a> {
         mount: Mount,
         leap_seconds: i64,
         wait: InsWait,
+        time: &'a dyn Clock,
     ) -> Self {
         // From files, the poses are read on past a packet by the span its returns' velocity and
         // turn rate are taken over (live input does not wait: the span shrinks at the newest).
@@ -437,6 +441,7 @@ impl<'a> Aligner<'a> {
         Self {
             core,
             wait,
+            time,
             ins_done: false,
             clock: Default::default(),
         }
@@ -493,7 +498,7 @@ impl<'a> Aligner<'a> {
                 let from = if item.host_ns != 0 {
                     item.host_ns
                 } else {
-                    spherecal_hal::serial::wall_ns()
+                    self.time.wall_ns()
                 };
                 Some(from.saturating_add(d))
             }
@@ -503,8 +508,8 @@ impl<'a> Aligner<'a> {
                 Some(it) => self.take(it),
                 None => match deadline {
                     None => std::thread::yield_now(),
-                    Some(t) if spherecal_hal::serial::wall_ns() >= t => break,
-                    Some(_) => std::thread::sleep(std::time::Duration::from_millis(1)),
+                    Some(t) if self.time.wall_ns() >= t => break,
+                    Some(_) => self.time.sleep(std::time::Duration::from_millis(1)),
                 },
             }
         }
@@ -714,6 +719,7 @@ pub fn run<C: Send>(
             inp.mount,
             leap,
             InsWait::UntilEnd,
+            &SystemClock,
         );
         al.core.time_offset_ns = inp.time_offset_ns;
         let offset_ns = inp.time_offset_ns;
@@ -758,4 +764,66 @@ pub fn run<C: Send>(
         }
         Ok((stats, c))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spherecal::vlp16::{BlockRepr, DataPacket, DataRepr, ReturnMode};
+    use spherecal_hal::clock::MockClock;
+    use std::time::Duration;
+
+    /// A data packet with no return.
+    fn empty_packet() -> [u8; 1206] {
+        let mut buf = [0u8; 1206];
+        DataRepr {
+            blocks: [BlockRepr {
+                azimuth: 0,
+                channels: [(0, 0); 32],
+            }; 12],
+            timestamp_us: 0,
+            return_mode: ReturnMode::Strongest,
+            product: 0x22,
+        }
+        .emit(&mut DataPacket::new_unchecked(&mut buf[..]));
+        buf
+    }
+
+    /// The rig's INS deadline on the mock clock (no sleeping): with no pose on the ring, a packet
+    /// received at T is held until T + 300 ms, then aligned (here: counted without a time); a
+    /// packet already older than that, or an ended INS stream, is not waited for.
+    #[test]
+    fn live_ins_deadline_on_the_mock_clock() {
+        let t = 1_700_000_000_000_000_000i64;
+        let targets = [Target {
+            center: nalgebra::Vector3::zeros(),
+            radius: 0.1,
+        }];
+        let packet = empty_packet();
+        for (host_ns, end, waited_ms) in
+            [(t, false, 300), (t - 500_000_000, false, 0), (t, true, 0)]
+        {
+            let clock = MockClock::new(t);
+            let mut storage = AlignStorage::new(1, 50_000_000);
+            let mut al = Aligner::new(
+                &mut storage,
+                &targets,
+                0.5,
+                Mount::from_params(&[0.0; 6]),
+                18,
+                InsWait::Latency(Duration::from_millis(300)),
+                &clock,
+            );
+            let mut q: Queue<InsItem, 4> = Queue::new();
+            let (mut p, mut c) = q.split();
+            if end {
+                assert!(p.enqueue(InsItem::End).is_ok());
+            }
+            let item = LidarItem::new(LidarKind::Data, host_ns, &packet);
+            al.data(&item, &mut c, None, &mut |_, _| {});
+            let waited = clock.wall_ns() - t;
+            assert_eq!(waited, waited_ms * 1_000_000, "host {host_ns} end {end}");
+            assert_eq!(al.core.stats.packets_without_time, 1);
+        }
+    }
 }

@@ -1,14 +1,15 @@
 //! `spherecal replay`: recorded files back through the rig's own inputs, both streams on one
-//! [`Clock`]: the capture's UDP datagrams to their ports on a host (loopback in tests) at
+//! [`Pacer`]: the capture's UDP datagrams to their ports on a host (loopback in tests) at
 //! their record times, the serial bytes to a device at a serial log's receive times (raw
 //! bytes: at the baud rate's pace), the recorded spacing scaled by the speed.
 
+use spherecal_hal::clock::{Clock, SystemClock};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::{PacketSource, Record};
 use std::io::Write;
 use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// How fast.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,37 +33,51 @@ impl std::str::FromStr for Speed {
     }
 }
 
-/// The replay's clock: a recording time (host wall clock, ns since 1970) is due at
-/// `start + (t - t0) / speed`, so that several streams replayed on threads keep their recorded
-/// order and spacing.
-#[derive(Debug, Clone, Copy)]
-pub struct Clock {
-    /// When the replay started.
-    pub start: Instant,
+/// The replay's pacing: a recording time (host wall clock, ns since 1970) is due at
+/// `start + (t - t0) / speed` on a [`Clock`]'s monotonic time, so that several streams replayed
+/// on threads keep their recorded order and spacing.
+#[derive(Clone, Copy)]
+pub struct Pacer<'c> {
+    /// The clock waited on.
+    pub clock: &'c dyn Clock,
+    /// Its monotonic time when the replay started [ns].
+    pub start_ns: u64,
     /// The recording time that is due at `start`.
     pub t0_ns: i128,
     /// How fast.
     pub speed: Speed,
 }
 
-impl Clock {
-    /// A clock starting now at recording time `t0_ns`.
-    pub fn new(t0_ns: i128, speed: Speed) -> Self {
+impl<'c> Pacer<'c> {
+    /// Pacing from now on `clock`, at recording time `t0_ns`.
+    pub fn new(clock: &'c dyn Clock, t0_ns: i128, speed: Speed) -> Self {
         Self {
-            start: Instant::now(),
+            clock,
+            start_ns: clock.mono_ns(),
             t0_ns,
             speed,
         }
     }
 
-    /// Sleep until recording time `t_ns` is due (at once for `max` or a time before `t0`).
+    /// Time since the start.
+    pub fn elapsed(&self) -> Duration {
+        Duration::from_nanos(self.clock.mono_ns().saturating_sub(self.start_ns))
+    }
+
+    /// Wait until `due` after the start (at once if it has passed).
+    pub fn wait_until(&self, due: Duration) {
+        let now = self.elapsed();
+        if due > now {
+            self.clock.sleep(due - now);
+        }
+    }
+
+    /// Wait until recording time `t_ns` is due (at once for `max` or a time before `t0`).
     pub fn wait_for(&self, t_ns: i128) {
         if let Speed::Factor(f) = self.speed {
-            let due = Duration::from_secs_f64(((t_ns - self.t0_ns).max(0) as f64 * 1e-9) / f);
-            let now = self.start.elapsed();
-            if due > now {
-                std::thread::sleep(due - now);
-            }
+            self.wait_until(Duration::from_secs_f64(
+                ((t_ns - self.t0_ns).max(0) as f64 * 1e-9) / f,
+            ));
         }
     }
 }
@@ -90,7 +105,7 @@ impl Target {
     }
 }
 
-/// The first record time of a capture and of a serial log (host wall clock), for a [`Clock`].
+/// The first record time of a capture and of a serial log (host wall clock), for a [`Pacer`].
 pub fn first_times(
     pcap: &Path,
     ins: Option<&Path>,
@@ -129,12 +144,12 @@ pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay
     replay_udp_on(
         pcap,
         Target::host(host),
-        &Clock::new(first.unwrap_or(0), speed),
+        &Pacer::new(&SystemClock, first.unwrap_or(0), speed),
     )
 }
 
 /// Send every UDP datagram of a capture to `to`, each when `clock` says its record time is due.
-pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Clock) -> Result<UdpReplay, String> {
+pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Pacer<'_>) -> Result<UdpReplay, String> {
     let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
@@ -169,7 +184,12 @@ pub fn replay_serial(
     speed: Speed,
 ) -> Result<u64, String> {
     let first = first_log_time(file)?;
-    replay_serial_on(file, out, baud, &Clock::new(first.unwrap_or(0), speed))
+    replay_serial_on(
+        file,
+        out,
+        baud,
+        &Pacer::new(&SystemClock, first.unwrap_or(0), speed),
+    )
 }
 
 /// The first receive time of a serial log (None for raw bytes, which have no times).
@@ -191,7 +211,7 @@ pub fn replay_serial_on(
     file: &Path,
     out: &mut impl Write,
     baud: u32,
-    clock: &Clock,
+    clock: &Pacer<'_>,
 ) -> Result<u64, String> {
     let (bytes, stamps) = spherecal_hal::serial::read_byte_file(file)
         .map_err(|e| format!("{}: {e}", file.display()))?;
@@ -214,11 +234,7 @@ pub fn replay_serial_on(
             };
             for c in bytes.chunks(64) {
                 if let Some(r) = rate {
-                    let due = Duration::from_secs_f64(written as f64 / r);
-                    let now = clock.start.elapsed();
-                    if due > now {
-                        std::thread::sleep(due - now);
-                    }
+                    clock.wait_until(Duration::from_secs_f64(written as f64 / r));
                 }
                 write(out, c)?;
                 written += c.len() as u64;
@@ -242,7 +258,7 @@ pub fn replay_both(
         (Some(a), Some(b)) => a.min(b),
         (a, b) => a.or(b).unwrap_or(0),
     };
-    let clock = Clock::new(t0, speed);
+    let clock = Pacer::new(&SystemClock, t0, speed);
     std::thread::scope(|sc| {
         let serial = ins.map(|(file, out, baud)| {
             sc.spawn(move || {

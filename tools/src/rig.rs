@@ -530,6 +530,7 @@ fn run_rig(
             Mount::from_params(&b0),
             b.leap_seconds,
             InsWait::Latency(INS_LATENCY),
+            &spherecal_hal::clock::SystemClock,
         );
         // The offset the batches in the aligner were collected at.
         let applied = std::cell::Cell::new(0i64);
