@@ -354,6 +354,144 @@ pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
     }
 }
 
+/// The VN-200 stream into poses, the same for a file and the live port: framing, pose
+/// extraction, InsStatus gating (left-out poses counted with their spans unless kept), onto the
+/// INS ring with the given overflow policy.
+pub struct Vn200Feed {
+    framer: Box<Framer>,
+    frame: LocalFrame,
+    keep_untracked: bool,
+    max_gap_ns: i64,
+    st: InsState,
+}
+
+impl Vn200Feed {
+    /// Poses in the site `frame`; `keep_untracked` uses poses whose InsStatus says not
+    /// tracking too; samples further apart than `max_gap_ns` are counted as gaps.
+    pub fn new(frame: LocalFrame, keep_untracked: bool, max_gap_ns: i64) -> Self {
+        Self {
+            framer: Box::default(),
+            frame,
+            keep_untracked,
+            max_gap_ns,
+            st: InsState::default(),
+        }
+    }
+
+    /// Bytes received at `host_ns` [ns since 1970; 0 unknown]. Every framed item is shown to
+    /// `seen` with what it gave before its pose goes to the ring.
+    pub fn feed(
+        &mut self,
+        bytes: &[u8],
+        host_ns: i64,
+        ring: &mut heapless::spsc::Producer<'_, InsItem>,
+        policy: Overflow,
+        full: &AtomicU64,
+        seen: &mut dyn FnMut(&spherecal::vn200::Framed<'_>, &InsOutcome),
+    ) {
+        self.st.bytes += bytes.len() as u64;
+        let Self {
+            framer,
+            frame,
+            keep_untracked,
+            max_gap_ns,
+            st,
+        } = self;
+        framer.consume(bytes, |it| {
+            Self::handle(
+                &it,
+                frame,
+                *keep_untracked,
+                *max_gap_ns,
+                st,
+                host_ns,
+                ring,
+                policy,
+                full,
+                seen,
+            )
+        });
+    }
+
+    /// The stream has ended: what the framer still holds.
+    pub fn finish(
+        &mut self,
+        ring: &mut heapless::spsc::Producer<'_, InsItem>,
+        policy: Overflow,
+        full: &AtomicU64,
+    ) {
+        self.framer.finish();
+        let Self {
+            framer,
+            frame,
+            keep_untracked,
+            max_gap_ns,
+            st,
+        } = self;
+        while let Some(it) = framer.next() {
+            Self::handle(
+                &it,
+                frame,
+                *keep_untracked,
+                *max_gap_ns,
+                st,
+                0,
+                ring,
+                policy,
+                full,
+                &mut |_, _| {},
+            );
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn handle(
+        it: &spherecal::vn200::Framed<'_>,
+        frame: &LocalFrame,
+        keep_untracked: bool,
+        max_gap_ns: i64,
+        st: &mut InsState,
+        host_ns: i64,
+        ring: &mut heapless::spsc::Producer<'_, InsItem>,
+        policy: Overflow,
+        full: &AtomicU64,
+        seen: &mut dyn FnMut(&spherecal::vn200::Framed<'_>, &InsOutcome),
+    ) {
+        let out = vn200_pose(&it.item, frame);
+        seen(it, &out);
+        match out {
+            InsOutcome::Pose(s, status) => {
+                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
+                match status.and_then(crate::state::excluded_by) {
+                    Some(k) if !keep_untracked => {
+                        st.exclude(s.time, k);
+                        return;
+                    }
+                    Some(_) => st.kept_untracked += 1,
+                    None => {}
+                }
+                st.used(s.time, max_gap_ns);
+                enqueue(ring, InsItem::Pose(s, host_ns), policy, full);
+            }
+            InsOutcome::NoPose => st.without_pose += 1,
+            InsOutcome::Rejected | InsOutcome::Other => {}
+        }
+    }
+
+    /// The stream's state so far, with the framer's counts.
+    pub fn state(&self) -> InsState {
+        let fs = self.framer.stats();
+        InsState {
+            frames: fs.frames,
+            crc_failures: fs.crc_failures,
+            skipped_bytes: fs.skipped_bytes,
+            ascii: fs.ascii,
+            nmea: fs.nmea,
+            ..self.st.clone()
+        }
+    }
+}
+
 /// The GPS week of the first RMC date in a capture (for SBET times).
 pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
     let mut src = PcapSource::open(pcap).ok()?;
@@ -640,40 +778,13 @@ pub fn run<C: Send>(
             let read = || -> Result<InsState, String> {
                 let mut st = InsState::default();
                 if let Some(bytes) = ins_bytes {
-                    st.bytes = bytes.len() as u64;
-                    let mut framer: Box<Framer> = Box::default();
-                    let mut handle = |it: spherecal::vn200::Framed<'_>| {
-                        match vn200_pose(&it.item, &frame) {
-                            InsOutcome::Pose(s, status) => {
-                                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
-                                match status.and_then(crate::state::excluded_by) {
-                                    Some(k) if !keep_untracked => {
-                                        st.exclude(s.time, k);
-                                        return;
-                                    }
-                                    Some(_) => st.kept_untracked += 1,
-                                    None => {}
-                                }
-                                st.used(s.time, max_gap);
-                                enqueue(&mut ip, InsItem::Pose(s, 0), Overflow::Wait, &full_ref[1]);
-                            }
-                            InsOutcome::NoPose => st.without_pose += 1,
-                            InsOutcome::Rejected | InsOutcome::Other => {}
-                        }
-                    };
+                    let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap);
+                    let full = &full_ref[1];
                     for chunk in bytes.chunks(4096) {
-                        framer.consume(chunk, &mut handle);
+                        feed.feed(chunk, 0, &mut ip, Overflow::Wait, full, &mut |_, _| {});
                     }
-                    framer.finish();
-                    while let Some(it) = framer.next() {
-                        handle(it);
-                    }
-                    let fs = framer.stats();
-                    st.frames = fs.frames;
-                    st.crc_failures = fs.crc_failures;
-                    st.skipped_bytes = fs.skipped_bytes;
-                    st.ascii = fs.ascii;
-                    st.nmea = fs.nmea;
+                    feed.finish(&mut ip, Overflow::Wait, full);
+                    st = feed.state();
                 } else if let Some((mut rd, week, path)) = sbet {
                     while let Some(r) = rd
                         .next_record()

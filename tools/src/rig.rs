@@ -17,8 +17,8 @@
 use crate::board::Board;
 use crate::calibrate::{solve_report, Report};
 use crate::pipeline::{
-    enqueue, targets, vn200_pose, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait,
-    LidarItem, LidarKind, Overflow, BATCH, INS_RING,
+    enqueue, targets, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait, LidarItem,
+    LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
 };
 use crate::site::Site;
 use crate::state::{ClockState, InsState};
@@ -32,7 +32,7 @@ use spherecal::vlp16::PpsStatus;
 use spherecal::vn200::binary::Masks;
 use spherecal::vn200::fields::Group;
 use spherecal::vn200::pose::{ins_mode, InsMode};
-use spherecal::vn200::{Framer, Item};
+use spherecal::vn200::Item;
 use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{HostTime, SkipReason};
@@ -785,10 +785,17 @@ fn serial_reader(
     sh: &Shared<'_>,
 ) -> InsState {
     let _alive = ReaderGuard(sh);
-    let mut st = InsState::default();
-    let mut framer: Box<Framer> = Box::default();
+    let mut feed = Vn200Feed::new(*frame, keep_untracked, MAX_INS_GAP_NS);
     let mut buf = [0u8; SERIAL_CHUNK];
     let mut last_masks: Option<Masks> = None;
+    let mut seen = |it: &spherecal::vn200::Framed<'_>, out: &InsOutcome| {
+        if let Item::Binary(f) = &it.item {
+            check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
+        }
+        if let InsOutcome::Pose(_, Some(m)) = out {
+            sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
+        }
+    };
     while !sh.stop.load(Ordering::Relaxed) {
         match src.read_chunk(&mut buf) {
             Ok(ReadOutcome::Data { len, stamp }) => {
@@ -801,36 +808,14 @@ fn serial_reader(
                 };
                 chunk.bytes[..len].copy_from_slice(&buf[..len]);
                 enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
-                framer.consume(&buf[..len], |it: spherecal::vn200::Framed<'_>| {
-                    if let Item::Binary(f) = &it.item {
-                        check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
-                    }
-                    match vn200_pose(&it.item, frame) {
-                        InsOutcome::Pose(s, status) => {
-                            if let Some(m) = status {
-                                sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
-                            }
-                            // Not tracking, aligning, GNSS lost, no fix: left out (counted).
-                            match status.and_then(crate::state::excluded_by) {
-                                Some(k) if !keep_untracked => {
-                                    st.exclude(s.time, k);
-                                    return;
-                                }
-                                Some(_) => st.kept_untracked += 1,
-                                None => {}
-                            }
-                            st.used(s.time, MAX_INS_GAP_NS);
-                            enqueue(
-                                &mut ring,
-                                InsItem::Pose(s, stamp.wall_ns),
-                                Overflow::Drop,
-                                &sh.ring_drops.ins,
-                            );
-                        }
-                        InsOutcome::NoPose => st.without_pose += 1,
-                        InsOutcome::Rejected | InsOutcome::Other => {}
-                    }
-                });
+                feed.feed(
+                    &buf[..len],
+                    stamp.wall_ns,
+                    &mut ring,
+                    Overflow::Drop,
+                    &sh.ring_drops.ins,
+                    &mut seen,
+                );
             }
             Ok(ReadOutcome::Idle) => {}
             Ok(ReadOutcome::End) => {
@@ -846,14 +831,7 @@ fn serial_reader(
     while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
-    let fs = framer.stats();
-    st.bytes = sh.serial_bytes.load(Ordering::Relaxed);
-    st.frames = fs.frames;
-    st.crc_failures = fs.crc_failures;
-    st.skipped_bytes = fs.skipped_bytes;
-    st.ascii = fs.ascii;
-    st.nmea = fs.nmea;
-    st
+    feed.state()
 }
 
 #[allow(clippy::too_many_arguments)]
