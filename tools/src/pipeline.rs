@@ -359,10 +359,56 @@ pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
 /// INS ring with the given overflow policy.
 pub struct Vn200Feed {
     framer: Box<Framer>,
+    gate: PoseGate,
+    st: InsState,
+}
+
+/// Where a framed item's pose goes: converted into the site frame, gated by its InsStatus.
+struct PoseGate {
     frame: LocalFrame,
     keep_untracked: bool,
     max_gap_ns: i64,
-    st: InsState,
+}
+
+/// The INS ring end a feed writes to, and what it does when the ring is full.
+pub struct InsRing<'r, 'q> {
+    /// The ring's producer end.
+    pub ring: &'r mut heapless::spsc::Producer<'q, InsItem>,
+    /// Wait (files) or drop (live).
+    pub policy: Overflow,
+    /// Counts the full-ring events.
+    pub full: &'r AtomicU64,
+}
+
+impl PoseGate {
+    fn handle(
+        &self,
+        it: &spherecal::vn200::Framed<'_>,
+        st: &mut InsState,
+        host_ns: i64,
+        out: &mut InsRing<'_, '_>,
+        seen: &mut dyn FnMut(&spherecal::vn200::Framed<'_>, &InsOutcome),
+    ) {
+        let got = vn200_pose(&it.item, &self.frame);
+        seen(it, &got);
+        match got {
+            InsOutcome::Pose(s, status) => {
+                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
+                match status.and_then(crate::state::excluded_by) {
+                    Some(k) if !self.keep_untracked => {
+                        st.exclude(s.time, k);
+                        return;
+                    }
+                    Some(_) => st.kept_untracked += 1,
+                    None => {}
+                }
+                st.used(s.time, self.max_gap_ns);
+                enqueue(out.ring, InsItem::Pose(s, host_ns), out.policy, out.full);
+            }
+            InsOutcome::NoPose => st.without_pose += 1,
+            InsOutcome::Rejected | InsOutcome::Other => {}
+        }
+    }
 }
 
 impl Vn200Feed {
@@ -371,9 +417,11 @@ impl Vn200Feed {
     pub fn new(frame: LocalFrame, keep_untracked: bool, max_gap_ns: i64) -> Self {
         Self {
             framer: Box::default(),
-            frame,
-            keep_untracked,
-            max_gap_ns,
+            gate: PoseGate {
+                frame,
+                keep_untracked,
+                max_gap_ns,
+            },
             st: InsState::default(),
         }
     }
@@ -384,97 +432,20 @@ impl Vn200Feed {
         &mut self,
         bytes: &[u8],
         host_ns: i64,
-        ring: &mut heapless::spsc::Producer<'_, InsItem>,
-        policy: Overflow,
-        full: &AtomicU64,
+        out: &mut InsRing<'_, '_>,
         seen: &mut dyn FnMut(&spherecal::vn200::Framed<'_>, &InsOutcome),
     ) {
         self.st.bytes += bytes.len() as u64;
-        let Self {
-            framer,
-            frame,
-            keep_untracked,
-            max_gap_ns,
-            st,
-        } = self;
-        framer.consume(bytes, |it| {
-            Self::handle(
-                &it,
-                frame,
-                *keep_untracked,
-                *max_gap_ns,
-                st,
-                host_ns,
-                ring,
-                policy,
-                full,
-                seen,
-            )
-        });
+        let Self { framer, gate, st } = self;
+        framer.consume(bytes, |it| gate.handle(&it, st, host_ns, out, seen));
     }
 
     /// The stream has ended: what the framer still holds.
-    pub fn finish(
-        &mut self,
-        ring: &mut heapless::spsc::Producer<'_, InsItem>,
-        policy: Overflow,
-        full: &AtomicU64,
-    ) {
+    pub fn finish(&mut self, out: &mut InsRing<'_, '_>) {
         self.framer.finish();
-        let Self {
-            framer,
-            frame,
-            keep_untracked,
-            max_gap_ns,
-            st,
-        } = self;
+        let Self { framer, gate, st } = self;
         while let Some(it) = framer.next() {
-            Self::handle(
-                &it,
-                frame,
-                *keep_untracked,
-                *max_gap_ns,
-                st,
-                0,
-                ring,
-                policy,
-                full,
-                &mut |_, _| {},
-            );
-        }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn handle(
-        it: &spherecal::vn200::Framed<'_>,
-        frame: &LocalFrame,
-        keep_untracked: bool,
-        max_gap_ns: i64,
-        st: &mut InsState,
-        host_ns: i64,
-        ring: &mut heapless::spsc::Producer<'_, InsItem>,
-        policy: Overflow,
-        full: &AtomicU64,
-        seen: &mut dyn FnMut(&spherecal::vn200::Framed<'_>, &InsOutcome),
-    ) {
-        let out = vn200_pose(&it.item, frame);
-        seen(it, &out);
-        match out {
-            InsOutcome::Pose(s, status) => {
-                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
-                match status.and_then(crate::state::excluded_by) {
-                    Some(k) if !keep_untracked => {
-                        st.exclude(s.time, k);
-                        return;
-                    }
-                    Some(_) => st.kept_untracked += 1,
-                    None => {}
-                }
-                st.used(s.time, max_gap_ns);
-                enqueue(ring, InsItem::Pose(s, host_ns), policy, full);
-            }
-            InsOutcome::NoPose => st.without_pose += 1,
-            InsOutcome::Rejected | InsOutcome::Other => {}
+            gate.handle(&it, st, 0, out, &mut |_, _| {});
         }
     }
 
@@ -779,11 +750,15 @@ pub fn run<C: Send>(
                 let mut st = InsState::default();
                 if let Some(bytes) = ins_bytes {
                     let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap);
-                    let full = &full_ref[1];
+                    let mut out = InsRing {
+                        ring: &mut ip,
+                        policy: Overflow::Wait,
+                        full: &full_ref[1],
+                    };
                     for chunk in bytes.chunks(4096) {
-                        feed.feed(chunk, 0, &mut ip, Overflow::Wait, full, &mut |_, _| {});
+                        feed.feed(chunk, 0, &mut out, &mut |_, _| {});
                     }
-                    feed.finish(&mut ip, Overflow::Wait, full);
+                    feed.finish(&mut out);
                     st = feed.state();
                 } else if let Some((mut rd, week, path)) = sbet {
                     while let Some(r) = rd

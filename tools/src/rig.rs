@@ -17,8 +17,8 @@
 use crate::board::Board;
 use crate::calibrate::{solve_report, Report};
 use crate::pipeline::{
-    enqueue, targets, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsWait, LidarItem,
-    LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
+    enqueue, targets, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
+    LidarItem, LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
 };
 use crate::site::Site;
 use crate::state::{ClockState, InsState};
@@ -808,14 +808,12 @@ fn serial_reader(
                 };
                 chunk.bytes[..len].copy_from_slice(&buf[..len]);
                 enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
-                feed.feed(
-                    &buf[..len],
-                    stamp.wall_ns,
-                    &mut ring,
-                    Overflow::Drop,
-                    &sh.ring_drops.ins,
-                    &mut seen,
-                );
+                let mut out = InsRing {
+                    ring: &mut ring,
+                    policy: Overflow::Drop,
+                    full: &sh.ring_drops.ins,
+                };
+                feed.feed(&buf[..len], stamp.wall_ns, &mut out, &mut seen);
             }
             Ok(ReadOutcome::Idle) => {}
             Ok(ReadOutcome::End) => {
