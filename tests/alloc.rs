@@ -7,7 +7,7 @@ use spherecal::time::LidarClock;
 use spherecal::vlp16::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, Target, WindowStats, Windowing};
-use spherecal_tools::scenario::Scenario;
+use spherecal_tools::config::scenario::Scenario;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -145,9 +145,9 @@ fn rig_steady_state_allocates_nothing_per_packet() {
         .replace("data_port = 2368", "data_port = 23760")
         .replace("position_port = 8308", "position_port = 23761");
     let opts = spherecal_tools::rig::RunOptions {
-        board: spherecal_tools::board::Board::from_toml(&text).unwrap(),
+        board: spherecal_tools::config::board::Board::from_toml(&text).unwrap(),
         serial: Some(slave.name().unwrap()),
-        site: Some(spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap()),
+        site: Some(spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap()),
         log_dir: Some(dir.join("logs")),
         rotate_bytes: None,
         duration: None,

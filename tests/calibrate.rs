@@ -11,9 +11,9 @@ use spherecal::calib::solve::Refusal;
 use spherecal::calib::{solve, Settings};
 use spherecal::window::Observation;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report, Scratch};
+use spherecal_tools::config::scenario::{Scenario, BUILTIN};
+use spherecal_tools::config::site::Site;
 use spherecal_tools::pipeline::{Inputs, InsInput};
-use spherecal_tools::scenario::{Scenario, BUILTIN};
-use spherecal_tools::site::Site;
 use spherecal_tools::synth::read_labels;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -36,7 +36,7 @@ fn scenario_text(name: &str) -> String {
 
 /// The truth of a scenario [deg, m].
 fn truth(s: &Scenario) -> [f64; 6] {
-    spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m)
+    s.mount.truth.deg_m()
 }
 
 /// How well the kept returns match the simulator's labels, per sphere: (precision, recall,

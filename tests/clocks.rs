@@ -10,7 +10,7 @@
 mod common;
 
 use spherecal_tools::calibrate::Report;
-use spherecal_tools::scenario::Scenario;
+use spherecal_tools::config::scenario::Scenario;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
@@ -84,7 +84,7 @@ fn sigmas(r: &Report) -> [f64; 6] {
 }
 
 fn truth(s: &Scenario) -> [f64; 6] {
-    spherecal_tools::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m)
+    s.mount.truth.deg_m()
 }
 
 /// Every parameter within `tol` (deg, m) of the truth.

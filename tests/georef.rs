@@ -8,9 +8,9 @@ mod common;
 use spherecal::frames::{roll_pitch_heading, rotation};
 use spherecal::georef::Mount;
 use spherecal::window::Observation;
+use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::config::site::Site;
 use spherecal_tools::pipeline::{targets, Inputs, InsInput};
-use spherecal_tools::scenario::Scenario;
-use spherecal_tools::site::Site;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

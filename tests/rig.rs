@@ -8,7 +8,7 @@ use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::serial::read_byte_file;
 use spherecal_hal::{PacketSource, Record};
 use spherecal_tools::replay::{replay_both, replay_serial_on, replay_udp_on, Pacer, Speed, Target};
-use spherecal_tools::status::Status;
+use spherecal_tools::rig::status::Status;
 use std::io::{BufRead, BufReader};
 use std::net::Ipv4Addr;
 use std::path::{Path, PathBuf};
@@ -134,7 +134,7 @@ struct Setup {
     to: Target,
 }
 
-fn setup(group: &str, s: &spherecal_tools::scenario::Scenario, dp: u16, pp: u16) -> Setup {
+fn setup(group: &str, s: &spherecal_tools::config::scenario::Scenario, dp: u16, pp: u16) -> Setup {
     let dir = common::tmp(group, &s.name);
     let _ = std::fs::remove_dir_all(&dir);
     let truth = spherecal_tools::synth::synth(s, &dir).unwrap();
@@ -149,8 +149,8 @@ fn setup(group: &str, s: &spherecal_tools::scenario::Scenario, dp: u16, pp: u16)
     }
 }
 
-fn table1() -> spherecal_tools::scenario::Scenario {
-    spherecal_tools::scenario::Scenario::load("table1").unwrap()
+fn table1() -> spherecal_tools::config::scenario::Scenario {
+    spherecal_tools::config::scenario::Scenario::load("table1").unwrap()
 }
 
 /// The capture's data and position ports sent to `dp`, `pp` on loopback.
@@ -278,7 +278,7 @@ fn table1_through_the_rig() {
     let dt = rep["time_offset_s"].as_f64().unwrap();
     assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
     // The status line showed it.
-    let last = spherecal_tools::status::Status::parse(lines.last().unwrap()).unwrap();
+    let last = spherecal_tools::rig::status::Status::parse(lines.last().unwrap()).unwrap();
     let (dt_ms, sig_ms) = last.time_offset_ms.expect("dt on the status line");
     assert!(
         (dt_ms - 20.0).abs() < 1.0 && sig_ms > 0.0,

@@ -10,7 +10,7 @@ use spherecal::georef::{point, PlatformPose};
 use spherecal::sim::{Frame, LidarSim, Shape, SimPacket, World};
 use spherecal::time::{gps_to_unix_ns, GpsTime};
 use spherecal::vlp16::{decode, DataPacket, PointBuf};
-use spherecal_tools::scenario::Scenario;
+use spherecal_tools::config::scenario::Scenario;
 
 fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
     let st = w.trajectory.state(w.t_of(t));
@@ -210,7 +210,7 @@ fn the_beam_footprint_blooms_and_mixes() {
 /// against every object) gives the same bytes.
 #[test]
 fn the_broad_phase_misses_nothing() {
-    let text = spherecal_tools::scenario::BUILTIN
+    let text = spherecal_tools::config::scenario::BUILTIN
         .iter()
         .find(|b| b.0 == "table1-noisy")
         .unwrap()
@@ -328,7 +328,7 @@ fn tmp(name: &str) -> std::path::PathBuf {
 
 /// A short variant of a built-in scenario (one pass) for the file-level tests.
 fn short(base: &str, edit: impl Fn(String) -> String) -> std::path::PathBuf {
-    let text = spherecal_tools::scenario::BUILTIN
+    let text = spherecal_tools::config::scenario::BUILTIN
         .iter()
         .find(|b| b.0 == base)
         .unwrap()
@@ -407,7 +407,7 @@ fn synthetic_files_read_back_at_the_sensor_rates() {
     assert!(labels.windows(2).all(|w| w[0].packet <= w[1].packet));
 
     // The site file reads back.
-    let site = spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
     assert_eq!(site.sphere.len(), 2);
     assert_eq!(site.leap_seconds, 18);
 
@@ -660,7 +660,7 @@ fn recorded_trajectory_from_csv_and_sbet() {
         };
         sbet.extend_from_slice(&rec.emit());
     }
-    let text = spherecal_tools::scenario::BUILTIN[0].1;
+    let text = spherecal_tools::config::scenario::BUILTIN[0].1;
     let i = text.find("[[trajectory.pass]]").unwrap();
     for (name, bytes) in [("traj.csv", csv.into_bytes()), ("traj.sbet", sbet)] {
         let f = dir.join(name);

@@ -12,13 +12,13 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use spherecal::calib::{solve, Settings};
 use spherecal_tools::calibrate::{collect, site_targets, solve_report, Scratch};
+use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{run, BatchMsg, Inputs, InsInput};
-use spherecal_tools::scenario::Scenario;
 
 fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("spherecal-bench-cal-{}", std::process::id()));
     spherecal_tools::synth::synth(&Scenario::load("table1").unwrap(), &dir).unwrap();
-    let site = spherecal_tools::site::Site::load(&dir.join("site.toml")).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
     let inp = Inputs::apriori(
         dir.join("lidar.pcap"),
         InsInput::Vn200(dir.join("ins.bin")),

@@ -5,7 +5,7 @@
 //! `cargo bench -p spherecal-tools --bench synth`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use spherecal_tools::scenario::{Scenario, BUILTIN};
+use spherecal_tools::config::scenario::{Scenario, BUILTIN};
 
 fn six_passes(name: &str) -> Scenario {
     let text = BUILTIN.iter().find(|b| b.0 == name).unwrap().1;

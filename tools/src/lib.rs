@@ -2,9 +2,9 @@
 //! and benchmarks call exactly what the command runs.
 #![forbid(unsafe_code)]
 
-pub mod board;
 pub mod calibrate;
 pub mod cmd;
+pub mod config;
 pub mod decode;
 pub mod fixtures;
 pub mod georef;
@@ -14,11 +14,8 @@ pub mod pipeline;
 pub mod plot;
 pub mod replay;
 pub mod rig;
-pub mod scenario;
 pub mod scene;
-pub mod site;
 pub mod state;
-pub mod status;
 pub mod synth;
 
 use std::path::PathBuf;
@@ -113,7 +110,7 @@ pub fn run_calibrate(
     truth: Option<[f64; 7]>,
 ) -> Result<(String, bool), String> {
     use pipeline::{Inputs, InsInput};
-    let site = site::Site::load(&survey.site)?;
+    let site = config::site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = spherecal::calib::from_deg_m(&start);
     let ins = match (survey.ins, survey.sbet) {

@@ -2,8 +2,8 @@
 //! +-A deg and +-L m of the truth, on all cores.
 
 use crate::calibrate::collect;
+use crate::config::scenario::Scenario;
 use crate::pipeline::{targets, Inputs, InsInput};
-use crate::scenario::Scenario;
 use serde::{Deserialize, Serialize};
 use spherecal::calib::{solve, Settings, NAMES, P};
 use spherecal::sim::Rng;
@@ -64,7 +64,7 @@ pub fn montecarlo(
 ) -> Result<McReport, String> {
     let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
     crate::synth::synth(scenario, &dir)?;
-    let site = crate::site::Site::load(&dir.join("site.toml"))?;
+    let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
     let inp = Inputs::apriori(
         dir.join("lidar.pcap"),
         InsInput::Vn200(dir.join("ins.bin")),
@@ -74,7 +74,7 @@ pub fn montecarlo(
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
     let t = &scenario.mount.truth;
-    let truth = crate::site::deg_m(t.boresight_deg, t.lever_arm_m);
+    let truth = t.deg_m();
     let mut rng = Rng::new(seed);
     let starts: Vec<[f64; P]> = (0..trials)
         .map(|_| {

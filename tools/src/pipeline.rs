@@ -10,7 +10,7 @@
 //! newest item and counts it. A file reader ([`Overflow::Wait`]) instead waits for room, since
 //! a file can be read later and must not lose data; the waits are counted too.
 
-use crate::site::Site;
+use crate::config::site::Site;
 use crate::state::InsState;
 use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};

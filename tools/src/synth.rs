@@ -10,8 +10,8 @@
 //! echo's energy x 255: below 255 a mixed pixel), three zero bytes. The calibration never reads
 //! it.
 
-use crate::scenario::Scenario;
-use crate::site::{Origin, Site, SiteApriori, SiteSphere};
+use crate::config::scenario::Scenario;
+use crate::config::site::{Origin, Site, SiteApriori, SiteSphere};
 use serde::{Deserialize, Serialize};
 use spherecal::sim::lidar::Traced;
 use spherecal::sim::{InsSim, LidarSim, SimPacket, World};

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 /// Run it.
 pub fn run() -> ExitCode {
     let dir = std::env::temp_dir().join(format!("spherecal-demo-{}", std::process::id()));
-    let s = match crate::scenario::Scenario::load("table1") {
+    let s = match crate::config::scenario::Scenario::load("table1") {
         Ok(s) => s,
         Err(e) => return fail("demo", e),
     };
@@ -29,7 +29,7 @@ pub fn run() -> ExitCode {
         t0.elapsed().as_secs_f64()
     );
     sayln!("calibrating from the paper's erroneous a-priori values ...");
-    let t6 = crate::site::deg_m(s.mount.truth.boresight_deg, s.mount.truth.lever_arm_m);
+    let t6 = s.mount.truth.deg_m();
     let truth7 = [
         t6[0],
         t6[1],

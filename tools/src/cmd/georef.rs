@@ -43,7 +43,7 @@ pub fn run(a: Args) -> ExitCode {
         gps_week,
         site,
     } = a.survey;
-    let site = match crate::site::Site::load(&site) {
+    let site = match crate::config::site::Site::load(&site) {
         Ok(s) => s,
         Err(e) => return fail("georef", e),
     };

@@ -29,7 +29,7 @@ pub struct Args {
 
 /// Run it: exit 1 unless every trial is within the bounds.
 pub fn run(a: Args) -> ExitCode {
-    let s = match crate::scenario::Scenario::load(&a.scenario) {
+    let s = match crate::config::scenario::Scenario::load(&a.scenario) {
         Ok(s) => s,
         Err(e) => return fail("montecarlo", e),
     };

@@ -40,11 +40,15 @@ pub struct Args {
 
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
-    let board = match crate::board::Board::load(&a.board) {
+    let board = match crate::config::board::Board::load(&a.board) {
         Ok(b) => b,
         Err(e) => return fail("run", e),
     };
-    let site = match a.site.map(|s| crate::site::Site::load(&s)).transpose() {
+    let site = match a
+        .site
+        .map(|s| crate::config::site::Site::load(&s))
+        .transpose()
+    {
         Ok(s) => s,
         Err(e) => return fail("run", e),
     };

@@ -1,7 +1,7 @@
 //! `spherecal synth --scenario NAME|FILE --out DIR` / `--print-scenario NAME`.
 
 use super::fail;
-use crate::scenario::{Scenario, BUILTIN};
+use crate::config::scenario::{Scenario, BUILTIN};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

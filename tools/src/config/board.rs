@@ -58,23 +58,6 @@ pub struct Log {
     pub rotate_mb: u64,
 }
 
-/// Mounting a-priori values of the rig.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MountApriori {
-    /// Roll, pitch, heading [deg].
-    pub boresight_deg: [f64; 3],
-    /// x, y, z [m].
-    pub lever_arm_m: [f64; 3],
-}
-
-impl MountApriori {
-    /// Roll, pitch, heading [deg], x, y, z [m], the order the solver takes.
-    pub fn deg_m(&self) -> [f64; 6] {
-        crate::site::deg_m(self.boresight_deg, self.lever_arm_m)
-    }
-}
-
 /// A board file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -92,7 +75,7 @@ pub struct Board {
     /// Raw logging.
     pub log: Log,
     /// A-priori mounting.
-    pub mount: MountApriori,
+    pub mount: super::MountDegM,
 }
 
 /// Standard serial rates (VN-200 register 5 allows these).

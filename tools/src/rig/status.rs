@@ -9,8 +9,12 @@
 //! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time, each against the host receive
 //! clock, at the last aligned packet [ms];
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
-//! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`.
+//! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`; `dt_ms` the time offset
+//! between the clocks and its 1-sigma [ms] or `-`.
+//!
+//! [`status_loop`] writes it once a second from a snapshot of the rig's shared counters.
 
+use super::*;
 use spherecal_hal::console::Console;
 use std::fmt::Write as _;
 
@@ -148,6 +152,82 @@ impl Status {
             }
         }
         Some(s)
+    }
+}
+
+/// The status line from the shared counters; `last_aligned` is the count at the previous line
+/// (`u64::MAX`: none, the line shows 0 packets/s).
+pub(super) fn snapshot(
+    sh: &Shared<'_>,
+    ids: &[String],
+    started: Instant,
+    last_aligned: &mut u64,
+) -> Status {
+    let aligned = sh.aligned.load(Ordering::Relaxed);
+    let lag = sh.lag_ns.load(Ordering::Relaxed);
+    let s = Status {
+        t_s: started.elapsed().as_secs(),
+        packets_per_s: aligned.saturating_sub(*last_aligned),
+        drops: [
+            sh.ring_drops.data.load(Ordering::Relaxed)
+                + sh.ring_drops.position.load(Ordering::Relaxed),
+            sh.ring_drops.ins.load(Ordering::Relaxed),
+            sh.ring_drops.datagram_log.load(Ordering::Relaxed)
+                + sh.ring_drops.serial_log.load(Ordering::Relaxed),
+        ],
+        kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
+            + sh.kernel_drops[1].load(Ordering::Relaxed),
+        pps: pps_name(sh.pps.load(Ordering::Relaxed)).into(),
+        ins: ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
+        lag_ms: (lag != i64::MIN).then_some(lag as f64 * 1e-6),
+        windows: ids
+            .iter()
+            .zip(&sh.windowed)
+            .map(|(id, n)| (id.clone(), n.load(Ordering::Relaxed)))
+            .collect(),
+        calibration: sh.calibration.lock().ok().and_then(|c| *c),
+        time_offset_ms: sh
+            .time_offset
+            .lock()
+            .ok()
+            .and_then(|c| *c)
+            .map(|(d, s)| (d * 1e3, s * 1e3)),
+    };
+    *last_aligned = aligned;
+    s
+}
+
+/// One status line a second until the stop; sets the stop when the duration has passed.
+/// Hands the console back for the last line.
+pub(super) fn status_loop<'c>(
+    console: &'c mut Console,
+    ids: &[String],
+    duration: Option<Duration>,
+    started: Instant,
+    sh: &Shared<'_>,
+) -> &'c mut Console {
+    let mut last_aligned = 0u64;
+    let mut tick = 1u64;
+    let over = || duration.is_some_and(|d| started.elapsed() >= d);
+    loop {
+        let next = started + Duration::from_secs(tick);
+        while Instant::now() < next && !sh.stop.load(Ordering::Relaxed) && !over() {
+            std::thread::sleep(
+                Duration::from_millis(20).min(next.saturating_duration_since(Instant::now())),
+            );
+        }
+        if over() {
+            sh.stop.store(true, Ordering::Relaxed);
+        }
+        if sh.stop.load(Ordering::Relaxed) {
+            // The caller shows the last line once everything has stopped.
+            return console;
+        }
+        tick += 1;
+        let s = snapshot(sh, ids, started, &mut last_aligned);
+        if let Err(e) = show(console, &s) {
+            sh.error(format!("console: {e}"));
+        }
     }
 }
 

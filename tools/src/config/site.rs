@@ -42,6 +42,16 @@ pub struct SiteApriori {
     pub window_margin_m: f64,
 }
 
+impl SiteApriori {
+    /// The a-priori mounting.
+    pub fn mount(&self) -> super::MountDegM {
+        super::MountDegM {
+            boresight_deg: self.boresight_deg,
+            lever_arm_m: self.lever_arm_m,
+        }
+    }
+}
+
 /// The sensors' noise, 1 sigma, for the consistency test (optional; the defaults are the
 /// VLP-16's specified range accuracy and a navigation-grade INS).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -173,20 +183,13 @@ impl Site {
 
     /// The a-priori values as [roll, pitch, heading (deg), x, y, z (m)].
     pub fn apriori_deg_m(&self) -> [f64; 6] {
-        deg_m(self.apriori.boresight_deg, self.apriori.lever_arm_m)
+        self.apriori.mount().deg_m()
     }
 
     /// As TOML text.
     pub fn to_toml(&self) -> String {
         toml::to_string(self).unwrap_or_default()
     }
-}
-
-/// Boresight [deg] and lever arm [m] as the solver's six parameters: roll, pitch, heading, x,
-/// y, z.
-pub fn deg_m(boresight_deg: [f64; 3], lever_arm_m: [f64; 3]) -> [f64; 6] {
-    let (b, l) = (boresight_deg, lever_arm_m);
-    [b[0], b[1], b[2], l[0], l[1], l[2]]
 }
 
 #[cfg(test)]

@@ -15,16 +15,19 @@ use spherecal::vlp16::ReturnMode;
 
 /// The built-in scenarios: name and TOML text.
 pub const BUILTIN: &[(&str, &str)] = &[
-    ("table1", include_str!("../scenarios/table1.toml")),
-    ("table1-bare", include_str!("../scenarios/table1-bare.toml")),
-    ("pontoon", include_str!("../scenarios/pontoon.toml")),
+    ("table1", include_str!("../../scenarios/table1.toml")),
+    (
+        "table1-bare",
+        include_str!("../../scenarios/table1-bare.toml"),
+    ),
+    ("pontoon", include_str!("../../scenarios/pontoon.toml")),
     (
         "pontoon-noisy",
-        include_str!("../scenarios/pontoon-noisy.toml"),
+        include_str!("../../scenarios/pontoon-noisy.toml"),
     ),
     (
         "table1-noisy",
-        include_str!("../scenarios/table1-noisy.toml"),
+        include_str!("../../scenarios/table1-noisy.toml"),
     ),
 ];
 
@@ -114,16 +117,6 @@ fn default_sphere_rho() -> f64 {
     0.8
 }
 
-/// Mounting values.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MountValues {
-    /// Roll, pitch, heading [deg].
-    pub boresight_deg: [f64; 3],
-    /// x, y, z [m] in the INS body frame.
-    pub lever_arm_m: [f64; 3],
-}
-
 /// A-priori mounting and the window margin.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -141,7 +134,7 @@ pub struct Apriori {
 #[serde(deny_unknown_fields)]
 pub struct MountSpec {
     /// The truth.
-    pub truth: MountValues,
+    pub truth: super::MountDegM,
     /// What the surveyor believes before calibrating.
     pub apriori: Apriori,
 }

@@ -1,0 +1,167 @@
+//! The rig's readers: one per socket and the serial port, each into its rings (never blocking: a full ring drops and counts).
+
+use super::*;
+
+/// One socket until the stop: every datagram to the log ring, the sensor's VLP-16 packets to
+/// the aligner's ring. Returns the skips and how many datagrams had kernel receive times.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn udp_reader(
+    mut sock: UdpSource,
+    mut ring: Producer<'_, LidarItem>,
+    mut log: Producer<'_, UdpLogItem>,
+    ports: Ports,
+    sensor: Option<Ipv4Addr>,
+    which: usize,
+    sh: &Shared<'_>,
+    ends_stream: bool,
+) -> (SkipStats, u64) {
+    let _alive = ReaderGuard(sh);
+    let mut skips = SkipStats::default();
+    let mut polled = Instant::now();
+    let poll_drops = |sock: &UdpSource| {
+        if let Some(k) = sock.kernel_drops() {
+            sh.kernel_drops[which].store(k, Ordering::Relaxed);
+        }
+    };
+    while !sh.stop.load(Ordering::Relaxed) {
+        match sock.recv() {
+            Ok(Some(d)) => {
+                sh.received[which].fetch_add(1, Ordering::Relaxed);
+                let n = d.payload.len().min(MAX_DATAGRAM);
+                let mut item = UdpLogItem {
+                    time: d.time.0,
+                    src: (d.src_addr, d.src_port),
+                    dst_port: d.dst_port,
+                    len: n as u16,
+                    bytes: [0; MAX_DATAGRAM],
+                };
+                item.bytes[..n].copy_from_slice(&d.payload[..n]);
+                enqueue(&mut log, item, Overflow::Drop, &sh.ring_drops.datagram_log);
+                let item = if sensor.is_some_and(|a| a != d.src_addr) {
+                    Err(SkipReason::OtherSender(d.src_addr))
+                } else {
+                    LidarItem::classify(&d, ports)
+                };
+                match item {
+                    Ok(item) => {
+                        if enqueue(&mut ring, item, Overflow::Drop, sh.ring_drops.lidar(which)) {
+                            sh.enqueued[which].fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    Err(reason) => skips.count(0, &reason),
+                }
+            }
+            Ok(None) => {}
+            Err(e) => {
+                sh.error(format!("UDP port {}: {e}", sock.port()));
+                if ends_stream {
+                    // Without the data socket there is no survey: wind everything down.
+                    sh.stop.store(true, Ordering::Relaxed);
+                }
+                break;
+            }
+        }
+        if polled.elapsed() >= Duration::from_millis(500) {
+            polled = Instant::now();
+            poll_drops(&sock);
+        }
+    }
+    poll_drops(&sock);
+    if ends_stream {
+        // The aligner runs until it sees this (unless it is gone).
+        while ring
+            .enqueue(LidarItem::new(LidarKind::End, 0, &[]))
+            .is_err()
+            && !sh.aligner_gone.load(Ordering::Acquire)
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    (skips, sock.kernel_stamped)
+}
+
+/// Say once per frame layout if the VN-200 does not send the Common-group outputs the board
+/// expects (its register 75 configuration differs from `ins.fields`).
+pub(super) fn check_outputs(
+    m: &Masks,
+    offset: u64,
+    last: &mut Option<Masks>,
+    expected: &[(&'static str, u8)],
+    dev: &str,
+    sh: &Shared<'_>,
+) {
+    if *last == Some(*m) {
+        return;
+    }
+    *last = Some(*m);
+    let missing: Vec<&str> = expected
+        .iter()
+        .filter(|(_, bit)| !m.has(Group::Common, *bit))
+        .map(|(name, _)| *name)
+        .collect();
+    if !missing.is_empty() {
+        sh.error(format!(
+            "serial {dev}: the VN-200 frame at byte {offset} lacks the Common-group outputs {} that the board expects (ins.fields)",
+            missing.join(", ")
+        ));
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn serial_reader(
+    dev: &str,
+    expected: &[(&'static str, u8)],
+    mut src: SerialSource,
+    frame: &LocalFrame,
+    keep_untracked: bool,
+    mut ring: Producer<'_, InsItem>,
+    mut log: Producer<'_, SerialChunk>,
+    sh: &Shared<'_>,
+) -> InsState {
+    let _alive = ReaderGuard(sh);
+    let mut feed = Vn200Feed::new(*frame, keep_untracked, MAX_INS_GAP_NS);
+    let mut buf = [0u8; SERIAL_CHUNK];
+    let mut last_masks: Option<Masks> = None;
+    let mut seen = |it: &spherecal::vn200::Framed<'_>, out: &InsOutcome| {
+        if let Item::Binary(f) = &it.item {
+            check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
+        }
+        if let InsOutcome::Pose(_, Some(m)) = out {
+            sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
+        }
+    };
+    while !sh.stop.load(Ordering::Relaxed) {
+        match src.read_chunk(&mut buf) {
+            Ok(ReadOutcome::Data { len, stamp }) => {
+                let stamp = stamp.unwrap_or_else(RxStamp::now);
+                sh.serial_bytes.fetch_add(len as u64, Ordering::Relaxed);
+                let mut chunk = SerialChunk {
+                    stamp,
+                    len: len as u16,
+                    bytes: [0; SERIAL_CHUNK],
+                };
+                chunk.bytes[..len].copy_from_slice(&buf[..len]);
+                enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
+                let mut out = InsRing {
+                    ring: &mut ring,
+                    policy: Overflow::Drop,
+                    full: &sh.ring_drops.ins,
+                };
+                feed.feed(&buf[..len], stamp.wall_ns, &mut out, &mut seen);
+            }
+            Ok(ReadOutcome::Idle) => {}
+            Ok(ReadOutcome::End) => {
+                sh.error(format!("serial {dev}: the stream ended"));
+                break;
+            }
+            Err(e) => {
+                sh.error(format!("serial {dev}: {e}"));
+                break;
+            }
+        }
+    }
+    while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    feed.state()
+}

@@ -1,0 +1,124 @@
+//! The rig's solver thread: collects the windowed batches, solves when the windows hold enough, keeps the time offset and the report current.
+
+use super::*;
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solver(
+    rx: crossbeam_channel::Receiver<BatchMsg>,
+    pool: crossbeam_channel::Sender<Vec<Observation>>,
+    targets: &[Target],
+    ids: &[String],
+    b0: &[f64; 6],
+    settings: &Settings,
+    report: Option<&Path>,
+    sh: &Shared<'_>,
+) -> Option<Report> {
+    let n = targets.len();
+    let mut store: Vec<Vec<Observation>> = vec![Vec::new(); n];
+    let mut last_total = 0usize;
+    let mut last_solve: Option<Instant> = None;
+    let mut latest: Option<Report> = None;
+    let mut start = *b0;
+    // The time offset the store's observations were aligned at [ns].
+    let mut store_offset = 0i64;
+    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut [f64; 6], offset: &mut i64| {
+        let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
+        sh.solves.fetch_add(1, Ordering::Relaxed);
+        rep.time_offset_s += *offset as f64 * 1e-9;
+        if rep.converged {
+            if let Ok(mut t) = sh.time_offset.lock() {
+                *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
+            }
+            // Move the windows to the offset found (beyond 1 ms), and the store with them.
+            if settings.estimate_dt && sol.dt.is_finite() && sol.dt.abs() > 1e-3 {
+                let d = (sol.dt * 1e9).round() as i64;
+                rebase_or_clear(store, d);
+                *offset += d;
+                sh.time_offset_ns.store(*offset, Ordering::Relaxed);
+            }
+            *start = sol.b;
+            let mount = spherecal::georef::Mount::from_params(&sol.b);
+            for (v, t) in store.iter_mut().zip(targets) {
+                v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);
+            }
+            let d = spherecal::calib::to_deg_m(&sol.b);
+            let s = sol
+                .lm
+                .map_or([f64::NAN; 6], |l| spherecal::calib::to_deg_m(&l.sigma));
+            if let Ok(mut c) = sh.calibration.lock() {
+                *c = Some((d, s));
+            }
+        }
+        if let Some(p) = report {
+            if let Err(e) = write_atomically(p, &rep) {
+                sh.error(e);
+            }
+        }
+        rep
+    };
+    loop {
+        let closed = match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(mut m) => {
+                // Aligned at an older offset (in flight when it moved): moved to the store's.
+                if m.offset_ns != store_offset {
+                    let mut one = vec![std::mem::take(&mut m.obs)];
+                    rebase_or_clear(&mut one, store_offset - m.offset_ns);
+                    m.obs = one.pop().unwrap_or_default();
+                }
+                let room = MAX_OBS_PER_SPHERE.saturating_sub(store[m.sphere].len());
+                let k = m.obs.len().min(room);
+                store[m.sphere].extend_from_slice(&m.obs[..k]);
+                sh.batch_drops
+                    .fetch_add((m.obs.len() - k) as u64, Ordering::Relaxed);
+                let _ = pool.try_send(m.obs);
+                false
+            }
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => false,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => true,
+        };
+        if n == 0 {
+            if closed {
+                return None;
+            }
+            continue;
+        }
+        let total: usize = store.iter().map(Vec::len).sum();
+        let ready = store.iter().all(|s| s.len() >= settings.min_points);
+        if closed {
+            if ready && total > last_total {
+                latest = Some(solve(&mut store, &mut start, &mut store_offset));
+            }
+            return latest;
+        }
+        // Solve when every sphere has enough returns, then again each time the store has
+        // grown by a quarter over what the last solve left in it (a converged solve prunes
+        // it), at most once a second; and at the end if anything arrived since.
+        let due = last_solve.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+        if ready && due && total * 4 >= last_total * 5 && total > last_total {
+            latest = Some(solve(&mut store, &mut start, &mut store_offset));
+            last_total = store.iter().map(Vec::len).sum();
+            last_solve = Some(Instant::now());
+        }
+    }
+}
+
+/// Observations aligned at one time offset, moved to one larger by `d_ns` ([`Observation::rebase`],
+/// first order in the platform's velocity and turn rate, as the solver's own estimate is); beyond
+/// 2 s the first order is no guide and they are dropped.
+pub(super) fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
+    let d = d_ns as f64 * 1e-9;
+    for v in store {
+        if d.abs() > 2.0 {
+            v.clear();
+        } else {
+            v.iter_mut().for_each(|o| o.rebase(d));
+        }
+    }
+}
+
+pub(super) fn write_atomically(p: &Path, rep: &Report) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(rep).map_err(|e| e.to_string())?;
+    let tmp = p.with_extension("json.tmp");
+    std::fs::write(&tmp, json + "\n").map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, p).map_err(|e| format!("{}: {e}", p.display()))
+}

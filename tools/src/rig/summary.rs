@@ -1,0 +1,131 @@
+//! What a run did, in numbers (`<stamp>-run.json`) and in words.
+
+use super::*;
+
+/// Counts of a run (also written as `<log dir>/<stamp>-run.json`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct RunSummary {
+    /// Seconds run.
+    pub seconds: f64,
+    /// Datagrams received: data port, position port.
+    pub received: [u64; 2],
+    /// Datagrams the kernel dropped (socket buffer full): data, position.
+    pub kernel_drops: [u64; 2],
+    /// Datagrams with a kernel receive time.
+    pub kernel_stamped: u64,
+    /// Datagrams handed to the aligner's rings: data, position.
+    pub enqueued: [u64; 2],
+    /// Ring drops: data, position, INS, datagram log, serial log.
+    pub ring_drops: [u64; 5],
+    /// Datagrams skipped by reason (wrong port, length, bad packet).
+    pub skipped: Vec<(String, u64)>,
+    /// Data packets aligned and windowed.
+    pub data_packets: u64,
+    /// Position packets seen by the aligner.
+    pub position_packets: u64,
+    /// Data packets the aligner could not time (no RMC and no INS yet).
+    pub packets_without_time: u64,
+    /// Serial bytes read.
+    pub serial_bytes: u64,
+    /// The INS stream: frames, CRC failures, poses used and left out by InsStatus, gaps.
+    pub ins: InsState,
+    /// The LiDAR clock as its position packets tell it (PPS, RMC validity, stamp - RMC).
+    pub clock: ClockState,
+    /// ... PPS-locked with valid RMCs that agree with the stamps.
+    pub clock_trusted: bool,
+    /// The time offset the aligner applied at the end (INS time = LiDAR time + this) [s]:
+    /// each converged solve that moves it by more than 1 ms moves the windows with it.
+    pub time_offset_s: f64,
+    /// Returns in the aligned packets.
+    pub returns: u64,
+    /// Returns georeferenced (near a window: the rest are only counted).
+    pub georeferenced: u64,
+    /// Returns not georeferenced: before the pose history, after it, in a gap wider than the
+    /// allowed 50 ms.
+    pub without_pose: [u64; 3],
+    /// Returns windowed per sphere.
+    pub windowed: Vec<u64>,
+    /// Observations lost because the solver's queue was full.
+    pub batch_drops: u64,
+    /// Solves run.
+    pub solves: u64,
+    /// Raw log files written.
+    pub log_files: Vec<PathBuf>,
+    /// Datagrams and serial reads logged.
+    pub logged: [u64; 2],
+    /// The last calibration.
+    pub calibration: Option<Report>,
+    /// Problems met (a reader or the logger stopping early).
+    pub errors: Vec<String>,
+}
+
+/// The run's counts in words (printed when the run ends).
+pub fn render(s: &RunSummary) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "run: {:.1} s; datagrams received data {} position {} (kernel drops {}/{}, {} with kernel receive times); enqueued {}/{}; ring drops data {} position {} INS {} log {}/{}",
+        s.seconds,
+        s.received[0],
+        s.received[1],
+        s.kernel_drops[0],
+        s.kernel_drops[1],
+        s.kernel_stamped,
+        s.enqueued[0],
+        s.enqueued[1],
+        s.ring_drops[0],
+        s.ring_drops[1],
+        s.ring_drops[2],
+        s.ring_drops[3],
+        s.ring_drops[4]
+    );
+    for (reason, n) in &s.skipped {
+        let _ = writeln!(o, "  skipped {n}: {reason}");
+    }
+    let _ = writeln!(
+        o,
+        "aligned {} data packets ({} without time), {} position packets; serial {} bytes; windows {:?}; {} solves",
+        s.data_packets,
+        s.packets_without_time,
+        s.position_packets,
+        s.serial_bytes,
+        s.windowed,
+        s.solves
+    );
+    let _ = writeln!(
+        o,
+        "clock: {}{}",
+        s.clock.describe(),
+        if s.clock_trusted {
+            ""
+        } else {
+            " (NOT trusted: not PPS-locked with valid RMCs)"
+        }
+    );
+    let _ = writeln!(o, "serial: {}", s.ins.describe());
+    let _ = writeln!(
+        o,
+        "time offset applied at the end: {:+.6} s (INS time = LiDAR time + this)",
+        s.time_offset_s
+    );
+    let _ = writeln!(
+        o,
+        "{} returns; without a pose: {} before the INS history, {} after it, {} in INS gaps",
+        s.returns, s.without_pose[0], s.without_pose[1], s.without_pose[2]
+    );
+    let _ = writeln!(
+        o,
+        "logged {} datagrams, {} serial reads in {} files",
+        s.logged[0],
+        s.logged[1],
+        s.log_files.len()
+    );
+    if let Some(r) = &s.calibration {
+        o.push_str(&crate::calibrate::render(r, None));
+    }
+    for e in &s.errors {
+        let _ = writeln!(o, "error: {e}");
+    }
+    o
+}
