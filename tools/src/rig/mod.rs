@@ -55,6 +55,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
+use summary::Ended;
 pub use summary::{render, RunSummary};
 
 /// Data ring (holds N - 1 packets: 1.36 s at 754 packets/s, 0.68 s dual return).
@@ -222,7 +223,33 @@ impl Drop for AlignerGuard<'_, '_> {
     }
 }
 
-impl Shared<'_> {
+impl<'a> Shared<'a> {
+    /// Nothing counted yet; `readers` threads to wait for, `spheres` windows.
+    fn new(stop: &'a AtomicBool, readers: usize, spheres: usize) -> Self {
+        Self {
+            stop,
+            readers: AtomicUsize::new(readers),
+            aligner_gone: AtomicBool::new(false),
+            logger_done: AtomicBool::new(false),
+            received: Default::default(),
+            enqueued: Default::default(),
+            kernel_drops: Default::default(),
+            ring_drops: Default::default(),
+            serial_bytes: AtomicU64::new(0),
+            pps: AtomicU8::new(NONE_U8),
+            ins_mode: AtomicU8::new(NONE_U8),
+            lag_ns: AtomicI64::new(i64::MIN),
+            aligned: AtomicU64::new(0),
+            windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
+            batch_drops: AtomicU64::new(0),
+            solves: AtomicU64::new(0),
+            calibration: Mutex::new(None),
+            time_offset_ns: AtomicI64::new(0),
+            time_offset: Mutex::new(None),
+            errors: Mutex::new(Vec::new()),
+        }
+    }
+
     fn error(&self, e: String) {
         if let Ok(mut v) = self.errors.lock() {
             v.push(e);
@@ -356,28 +383,7 @@ fn run_rig(
     };
     let b0 = spherecal::calib::from_deg_m(&b.mount.deg_m());
 
-    let sh = Shared {
-        stop,
-        readers: AtomicUsize::new(2 + usize::from(serial.is_some())),
-        aligner_gone: AtomicBool::new(false),
-        logger_done: AtomicBool::new(false),
-        received: Default::default(),
-        enqueued: Default::default(),
-        kernel_drops: Default::default(),
-        ring_drops: Default::default(),
-        serial_bytes: AtomicU64::new(0),
-        pps: AtomicU8::new(NONE_U8),
-        ins_mode: AtomicU8::new(NONE_U8),
-        lag_ns: AtomicI64::new(i64::MIN),
-        aligned: AtomicU64::new(0),
-        windowed: ids.iter().map(|_| AtomicU64::new(0)).collect(),
-        batch_drops: AtomicU64::new(0),
-        solves: AtomicU64::new(0),
-        calibration: Mutex::new(None),
-        time_offset_ns: AtomicI64::new(0),
-        time_offset: Mutex::new(None),
-        errors: Mutex::new(Vec::new()),
-    };
+    let sh = Shared::new(stop, 2 + usize::from(serial.is_some()), ids.len());
 
     let mut data_q: Box<Queue<LidarItem, DATA_RING>> = Box::new(Queue::new());
     let mut pos_q: Box<Queue<LidarItem, POSITION_RING>> = Box::new(Queue::new());
@@ -409,7 +415,7 @@ fn run_rig(
     let dst_addr = bind;
     let to_sync = Mutex::new(Vec::new());
 
-    let (skips, ins_counts, logged, solver_out, (al_stats, clock)) = std::thread::scope(|sc| {
+    let ended = std::thread::scope(|sc| {
         let sh = &sh;
         let data = spawn(sc, "udp-data", move || {
             udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true)
@@ -486,61 +492,18 @@ fn run_rig(
             InsWait::Latency(INS_LATENCY),
             &spherecal_hal::clock::SystemClock,
         );
-        // The offset the batches in the aligner were collected at.
-        let applied = std::cell::Cell::new(0i64);
-        let mut emit = |sphere: usize, obs: &[Observation]| {
-            let mut v = pool_rx
-                .try_recv()
-                .unwrap_or_else(|_| Vec::with_capacity(BATCH));
-            v.clear();
-            v.extend_from_slice(obs);
-            if let Err(e) = tx.try_send(BatchMsg {
-                sphere,
-                obs: v,
-                offset_ns: applied.get(),
-            }) {
-                sh.batch_drops
-                    .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
-            }
+        let out = Batches {
+            tx,
+            pool: &pool_rx,
+            applied: std::cell::Cell::new(0),
+            sh,
         };
-        loop {
-            while let Some(p) = pos_c.dequeue() {
-                al.position(&p.bytes[..512]);
-            }
-            al.drain_ins(&mut ins_c);
-            let Some(item) = data_c.dequeue() else {
-                std::thread::sleep(Duration::from_millis(1));
-                continue;
-            };
-            // A new time offset from the solver: the batches so far go at the old one.
-            let want = sh.time_offset_ns.load(Ordering::Relaxed);
-            if want != applied.get() {
-                al.finish(&mut emit);
-                al.core.time_offset_ns = want;
-                applied.set(want);
-            }
-            match item.kind {
-                LidarKind::End => break,
-                LidarKind::Position => al.position(&item.bytes[..512]),
-                LidarKind::Data => al.data(&item, &mut ins_c, None, &mut emit),
-            }
-            sh.aligned
-                .store(al.core.stats.data_packets, Ordering::Relaxed);
-            if let Some(p) = al.core.pps {
-                sh.pps.store(p.to_byte(), Ordering::Relaxed);
-            }
-            if let Some(l) = al.core.lag_ns {
-                sh.lag_ns.store(l, Ordering::Relaxed);
-            }
-            for (i, w) in sh.windowed.iter().enumerate() {
-                w.store(al.core.windowed_now(i), Ordering::Relaxed);
-            }
-        }
-        al.finish(&mut emit);
+        align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, sh);
+        al.finish(&mut |i, o| out.emit(i, o));
         for (w, n) in sh.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);
         }
-        drop(tx);
+        drop(out);
         // The position reader may still hold items; the INS reader ends with its End.
         let skips_pos = pos.join().unwrap_or_default();
         while let Some(p) = pos_c.dequeue() {
@@ -565,59 +528,94 @@ fn run_rig(
                 sh.error(format!("console: {e}"));
             }
         }
-        (
-            (skips_data, skips_pos),
-            ins_counts,
+        Ended {
+            skips: [skips_data, skips_pos],
+            ins: ins_counts,
             logged,
-            solver_out,
-            (al.core.stats, al.clock_state()),
-        )
-    });
-    let mut skipped: Vec<(String, u64)> = Vec::new();
-    for l in skips.0 .0.lines().iter().chain(skips.1 .0.lines()) {
-        match skipped.iter_mut().find(|s| s.0 == l.reason) {
-            Some(s) => s.1 += l.count,
-            None => skipped.push((l.reason.to_string(), l.count)),
+            calibration: solver_out,
+            align: al.core.stats,
+            clock: al.clock_state(),
         }
-    }
-    let ld = |a: &[AtomicU64; 2]| [a[0].load(Ordering::Relaxed), a[1].load(Ordering::Relaxed)];
-    let summary = RunSummary {
-        seconds: started.elapsed().as_secs_f64(),
-        received: ld(&sh.received),
-        kernel_drops: ld(&sh.kernel_drops),
-        kernel_stamped: skips.0 .1 + skips.1 .1,
-        enqueued: ld(&sh.enqueued),
-        ring_drops: sh.ring_drops.snapshot(),
-        skipped,
-        data_packets: al_stats.data_packets,
-        position_packets: al_stats.position_packets,
-        packets_without_time: al_stats.packets_without_time,
-        returns: al_stats.window.points,
-        georeferenced: al_stats.window.georeferenced,
-        without_pose: [
-            al_stats.window.before_history,
-            al_stats.window.after_history,
-            al_stats.window.in_gap,
-        ],
-        serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
-        clock_trusted: clock.trusted(),
-        clock,
-        ins: ins_counts,
-        time_offset_s: sh.time_offset_ns.load(Ordering::Relaxed) as f64 * 1e-9,
-        windowed: sh
-            .windowed
-            .iter()
-            .map(|w| w.load(Ordering::Relaxed))
-            .collect(),
-        batch_drops: sh.batch_drops.load(Ordering::Relaxed),
-        solves: sh.solves.load(Ordering::Relaxed),
-        log_files: logged.0,
-        logged: logged.1,
-        calibration: solver_out,
-        errors: sh.errors.into_inner().unwrap_or_default(),
-    };
+    });
+    let summary = RunSummary::new(ended, &sh, started);
     let path = log_dir.join(format!("{stamp}-run.json"));
     let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(summary)
+}
+
+/// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
+/// with the time offset they were collected at; a full channel drops the batch (counted).
+struct Batches<'p, 's, 'a> {
+    tx: crossbeam_channel::Sender<BatchMsg>,
+    pool: &'p crossbeam_channel::Receiver<Vec<Observation>>,
+    applied: std::cell::Cell<i64>,
+    sh: &'s Shared<'a>,
+}
+
+impl Batches<'_, '_, '_> {
+    fn emit(&self, sphere: usize, obs: &[Observation]) {
+        let mut v = self
+            .pool
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        v.clear();
+        v.extend_from_slice(obs);
+        if let Err(e) = self.tx.try_send(BatchMsg {
+            sphere,
+            obs: v,
+            offset_ns: self.applied.get(),
+        }) {
+            self.sh
+                .batch_drops
+                .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
+        }
+    }
+}
+
+/// The aligner on the live rings until the data reader's End: position packets and poses as
+/// they come, each data packet aligned (waiting for the INS as [`InsWait::Latency`] allows),
+/// a new time offset from the solver applied between batches, the counters published.
+fn align_until_end(
+    al: &mut Aligner<'_>,
+    pos_c: &mut Consumer<'_, LidarItem>,
+    ins_c: &mut Consumer<'_, InsItem>,
+    data_c: &mut Consumer<'_, LidarItem>,
+    out: &Batches<'_, '_, '_>,
+    sh: &Shared<'_>,
+) {
+    let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
+    loop {
+        while let Some(p) = pos_c.dequeue() {
+            al.position(&p.bytes[..512]);
+        }
+        al.drain_ins(ins_c);
+        let Some(item) = data_c.dequeue() else {
+            std::thread::sleep(Duration::from_millis(1));
+            continue;
+        };
+        // A new time offset from the solver: the batches so far go at the old one.
+        let want = sh.time_offset_ns.load(Ordering::Relaxed);
+        if want != out.applied.get() {
+            al.finish(&mut emit);
+            al.core.time_offset_ns = want;
+            out.applied.set(want);
+        }
+        match item.kind {
+            LidarKind::End => break,
+            LidarKind::Position => al.position(&item.bytes[..512]),
+            LidarKind::Data => al.data(&item, ins_c, None, &mut emit),
+        }
+        sh.aligned
+            .store(al.core.stats.data_packets, Ordering::Relaxed);
+        if let Some(p) = al.core.pps {
+            sh.pps.store(p.to_byte(), Ordering::Relaxed);
+        }
+        if let Some(l) = al.core.lag_ns {
+            sh.lag_ns.store(l, Ordering::Relaxed);
+        }
+        for (i, w) in sh.windowed.iter().enumerate() {
+            w.store(al.core.windowed_now(i), Ordering::Relaxed);
+        }
+    }
 }

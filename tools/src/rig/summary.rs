@@ -59,6 +59,72 @@ pub struct RunSummary {
     pub errors: Vec<String>,
 }
 
+/// What the threads hand back when a run ends.
+pub(super) struct Ended {
+    /// Per socket (data, position): skips, and datagrams with kernel receive times.
+    pub skips: [(SkipStats, u64); 2],
+    /// The serial stream's state.
+    pub ins: InsState,
+    /// The raw log files and records logged (datagrams, serial reads).
+    pub logged: (Vec<PathBuf>, [u64; 2]),
+    /// The last calibration.
+    pub calibration: Option<Report>,
+    /// The aligner's counts.
+    pub align: spherecal::align::AlignStats,
+    /// The LiDAR clock's state.
+    pub clock: ClockState,
+}
+
+impl RunSummary {
+    /// The summary from what the threads returned and the shared counters.
+    pub(super) fn new(e: Ended, sh: &Shared<'_>, started: Instant) -> Self {
+        let mut skipped: Vec<(String, u64)> = Vec::new();
+        for l in e.skips.iter().flat_map(|s| s.0.lines()) {
+            match skipped.iter_mut().find(|s| s.0 == l.reason) {
+                Some(s) => s.1 += l.count,
+                None => skipped.push((l.reason.to_string(), l.count)),
+            }
+        }
+        let ld = |a: &[AtomicU64; 2]| a.each_ref().map(|x| x.load(Ordering::Relaxed));
+        let w = &e.align.window;
+        Self {
+            seconds: started.elapsed().as_secs_f64(),
+            received: ld(&sh.received),
+            kernel_drops: ld(&sh.kernel_drops),
+            kernel_stamped: e.skips[0].1 + e.skips[1].1,
+            enqueued: ld(&sh.enqueued),
+            ring_drops: sh.ring_drops.snapshot(),
+            skipped,
+            data_packets: e.align.data_packets,
+            position_packets: e.align.position_packets,
+            packets_without_time: e.align.packets_without_time,
+            returns: w.points,
+            georeferenced: w.georeferenced,
+            without_pose: [w.before_history, w.after_history, w.in_gap],
+            serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
+            clock_trusted: e.clock.trusted(),
+            clock: e.clock,
+            ins: e.ins,
+            time_offset_s: sh.time_offset_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+            windowed: sh
+                .windowed
+                .iter()
+                .map(|w| w.load(Ordering::Relaxed))
+                .collect(),
+            batch_drops: sh.batch_drops.load(Ordering::Relaxed),
+            solves: sh.solves.load(Ordering::Relaxed),
+            log_files: e.logged.0,
+            logged: e.logged.1,
+            calibration: e.calibration,
+            errors: sh
+                .errors
+                .lock()
+                .map(|mut v| std::mem::take(&mut *v))
+                .unwrap_or_default(),
+        }
+    }
+}
+
 /// The run's counts in words (printed when the run ends).
 pub fn render(s: &RunSummary) -> String {
     use std::fmt::Write as _;
