@@ -38,6 +38,7 @@ say "core builds as no_std for the bare-metal target"
 cargo build -p spherecal --no-default-features
 if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
   cargo build -p spherecal --no-default-features --target "$THUMB"
+  cargo build -p spherecal --no-default-features --features sim --target "$THUMB"
 else
   echo "warning: skipped: $THUMB is not installed"
 fi

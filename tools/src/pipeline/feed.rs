@@ -1,0 +1,240 @@
+//! The core aligner fed from the rings: the file pipeline waits for the INS to cover each
+//! packet until the INS ends; the rig waits until a deadline after the packet arrived, on a
+//! [`Clock`] (a mock one in the tests).
+
+use super::*;
+
+/// How the aligner waits for the INS to cover a LiDAR packet's time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InsWait {
+    /// Files: until the INS stream has poses past the packet or has ended.
+    UntilEnd,
+    /// Live: until this long after the packet's host receive time (wall clock). A late INS
+    /// (a starved serial reader) is waited for; a silent one leaves the aligner this far
+    /// behind real time, its ring holding the packets meanwhile, never stalled.
+    Latency(std::time::Duration),
+}
+
+/// The align stage's storage on the host: the pose history and one batch per sphere (the core
+/// [`CoreAligner`] borrows them).
+pub struct AlignStorage {
+    history: Box<PoseHistory<HISTORY>>,
+    batches: Vec<Batch<BATCH>>,
+}
+
+impl AlignStorage {
+    /// Room for `spheres` windows and a history that interpolates across at most `max_gap_ns`.
+    pub fn new(spheres: usize, max_gap_ns: i64) -> Self {
+        Self {
+            history: Box::new(PoseHistory::new(max_gap_ns)),
+            batches: (0..spheres).map(|_| Batch::default()).collect(),
+        }
+    }
+}
+
+/// The core aligner fed from the rings, with a waiting policy ([`InsWait`]) and the LiDAR
+/// clock's state counted from the position packets.
+pub struct Aligner<'a> {
+    /// The core stage.
+    pub core: CoreAligner<'a, HISTORY, BATCH>,
+    wait: InsWait,
+    /// What the live deadline is measured and waited on.
+    time: &'a dyn Clock,
+    ins_done: bool,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+}
+
+impl<'a> Aligner<'a> {
+    /// An aligner for `targets` on `storage`, georeferencing with `mount`.
+    pub fn new(
+        storage: &'a mut AlignStorage,
+        targets: &'a [Target],
+        margin: f64,
+        mount: Mount,
+        leap_seconds: i64,
+        wait: InsWait,
+        time: &'a dyn Clock,
+    ) -> Self {
+        // From files, the poses are read on past a packet by the span its returns' velocity and
+        // turn rate are taken over (live input does not wait: the span shrinks at the newest).
+        let lookahead = match wait {
+            InsWait::UntilEnd => spherecal::window::RATE_SPAN_NS,
+            InsWait::Latency(_) => 0,
+        };
+        let core = CoreAligner::new(
+            targets,
+            &mut storage.batches,
+            &mut storage.history,
+            margin,
+            mount,
+            leap_seconds,
+            lookahead,
+        );
+        Self {
+            core,
+            wait,
+            time,
+            ins_done: false,
+            clock: Default::default(),
+        }
+    }
+
+    /// Move every pose waiting on the ring into the history (live input between packets).
+    pub fn drain_ins(&mut self, ic: &mut Consumer<'_, InsItem>) {
+        while let Some(it) = ic.dequeue() {
+            self.take(it);
+        }
+    }
+
+    fn take(&mut self, it: InsItem) {
+        match it {
+            InsItem::Pose(s, h) => {
+                self.core.push_pose(s, h);
+            }
+            InsItem::End => self.ins_done = true,
+        }
+    }
+
+    /// Discard the ring until its End (so that its reader can finish).
+    pub fn drain_until_end(&mut self, ic: &mut Consumer<'_, InsItem>) {
+        while !self.ins_done {
+            match ic.dequeue() {
+                Some(InsItem::End) => self.ins_done = true,
+                Some(_) => {}
+                None => std::thread::yield_now(),
+            }
+        }
+    }
+
+    /// A position packet (its first 512 bytes): counted, then to the core.
+    pub fn position(&mut self, bytes: &[u8]) {
+        if let Ok(p) = PositionPacket::new_checked(bytes) {
+            self.clock.count(&p);
+        }
+        self.core.position(bytes);
+    }
+
+    /// A data packet: poses are pulled until the history covers it, the INS ends, or (live)
+    /// the latency allowed after its receive time has passed; then the core aligns it.
+    pub fn data(
+        &mut self,
+        item: &LidarItem,
+        ic: &mut Consumer<'_, InsItem>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let deadline = match self.wait {
+            InsWait::UntilEnd => None,
+            InsWait::Latency(d) => {
+                let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
+                let from = if item.host_ns != 0 {
+                    item.host_ns
+                } else {
+                    self.time.wall_ns()
+                };
+                Some(from.saturating_add(d))
+            }
+        };
+        while !self.ins_done && self.core.wants_poses(&item.bytes) {
+            match ic.dequeue() {
+                Some(it) => self.take(it),
+                None => match deadline {
+                    None => std::thread::yield_now(),
+                    Some(t) if self.time.wall_ns() >= t => break,
+                    Some(_) => self.time.sleep(std::time::Duration::from_millis(1)),
+                },
+            }
+        }
+        self.core.data(&item.bytes, item.host_ns, each, emit);
+    }
+
+    /// Hand on what the batches still hold.
+    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, &[Observation])) {
+        self.core.finish(emit);
+    }
+
+    /// The LiDAR clock's state, with where its hour came from.
+    pub fn clock_state(&self) -> crate::state::ClockState {
+        let mut clock = self.clock.clone();
+        clock.hour_from = match self.core.stats.hour_from {
+            Some(spherecal::align::HourFrom::Rmc) => "RMC".into(),
+            Some(spherecal::align::HourFrom::Ins) => "INS".into(),
+            None => String::new(),
+        };
+        clock
+    }
+
+    /// The run's counts so far, with the readers' (skips, INS state, ring waits or drops).
+    pub fn run_stats(&self, skips: SkipStats, ins: InsState, ring_full: [u64; 2]) -> RunStats {
+        RunStats {
+            align: self.core.stats,
+            skips,
+            clock: self.clock_state(),
+            ins,
+            ring_full,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spherecal::vlp16::{BlockRepr, DataPacket, DataRepr, ReturnMode};
+    use spherecal_hal::clock::MockClock;
+    use std::time::Duration;
+
+    /// A data packet with no return.
+    fn empty_packet() -> [u8; 1206] {
+        let mut buf = [0u8; 1206];
+        DataRepr {
+            blocks: [BlockRepr {
+                azimuth: 0,
+                channels: [(0, 0); 32],
+            }; 12],
+            timestamp_us: 0,
+            return_mode: ReturnMode::Strongest,
+            product: 0x22,
+        }
+        .emit(&mut DataPacket::new_unchecked(&mut buf[..]));
+        buf
+    }
+
+    /// The rig's INS deadline on the mock clock (no sleeping): with no pose on the ring, a packet
+    /// received at T is held until T + 300 ms, then aligned (here: counted without a time); a
+    /// packet already older than that, or an ended INS stream, is not waited for.
+    #[test]
+    fn live_ins_deadline_on_the_mock_clock() {
+        let t = 1_700_000_000_000_000_000i64;
+        let targets = [Target {
+            center: nalgebra::Vector3::zeros(),
+            radius: 0.1,
+        }];
+        let packet = empty_packet();
+        for (host_ns, end, waited_ms) in
+            [(t, false, 300), (t - 500_000_000, false, 0), (t, true, 0)]
+        {
+            let clock = MockClock::new(t);
+            let mut storage = AlignStorage::new(1, 50_000_000);
+            let mut al = Aligner::new(
+                &mut storage,
+                &targets,
+                0.5,
+                Mount::from_params(&[0.0; 6]),
+                18,
+                InsWait::Latency(Duration::from_millis(300)),
+                &clock,
+            );
+            let mut q: Queue<InsItem, 4> = Queue::new();
+            let (mut p, mut c) = q.split();
+            if end {
+                assert!(p.enqueue(InsItem::End).is_ok());
+            }
+            let item = LidarItem::new(LidarKind::Data, host_ns, &packet);
+            al.data(&item, &mut c, None, &mut |_, _| {});
+            let waited = clock.wall_ns() - t;
+            assert_eq!(waited, waited_ms * 1_000_000, "host {host_ns} end {end}");
+            assert_eq!(al.core.stats.packets_without_time, 1);
+        }
+    }
+}

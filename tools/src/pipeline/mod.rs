@@ -1,0 +1,433 @@
+//! The threaded pipeline that joins the two sensor streams (DESIGN.md data flow), the same for
+//! file replay and live input:
+//!
+//! ```text
+//! LiDAR reader --(packets)--> spsc ring --\
+//! INS reader   --(poses)----> spsc ring --> aligner: clock, pose history, georef, windows
+//!                                              --> batches over crossbeam-channel --> consumer
+//! ```
+//! Rings are `heapless::spsc` queues. A full ring never blocks a live producer: it drops the
+//! newest item and counts it. A file reader ([`Overflow::Wait`]) instead waits for room, since
+//! a file can be read later and must not lose data; the waits are counted too.
+//!
+//! - [`readers`]: one reader per stream (LiDAR packets from any [`PacketSource`], the VN-200
+//!   feed and SBET records into poses), shared with the rig;
+//! - [`feed`]: the core aligner fed from the rings, with the file or live waiting policy.
+
+mod feed;
+mod readers;
+
+pub use feed::{AlignStorage, Aligner, InsWait};
+pub use readers::{
+    ins_file_reader, lidar_reader, vn200_pose, week_from_capture, InsFile, InsOutcome, InsRing,
+    LidarRing, Vn200Feed,
+};
+
+use crate::config::site::Site;
+use crate::state::InsState;
+use heapless::spsc::{Consumer, Queue};
+use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};
+use spherecal::frames::{Geodetic, LocalFrame};
+use spherecal::georef::Mount;
+use spherecal::vlp16::PositionPacket;
+use spherecal::vn200::{Framer, Item, Pose};
+use spherecal::window::{Batch, GeoPoint, Observation, Target};
+use spherecal_hal::clock::{Clock, SystemClock};
+use spherecal_hal::packet::{Datagram, SkipReason};
+use spherecal_hal::pcap::PcapSource;
+use spherecal_hal::sbet::SbetReader;
+use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
+use spherecal_hal::{PacketSource, Record};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// LiDAR ring capacity (holds N - 1 packets: ~0.68 s of data packets, 0.6 MB).
+pub const LIDAR_RING: usize = 512;
+/// INS ring capacity (holds N - 1 poses: ~20 s at 200 Hz).
+pub const INS_RING: usize = 4096;
+/// Pose history kept by the aligner.
+pub const HISTORY: usize = 4096;
+/// Observations per batch sent to the consumer.
+pub const BATCH: usize = 1024;
+
+/// What a full ring does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Overflow {
+    /// Live input: drop the newest item and count it.
+    Drop,
+    /// File replay: wait for room (counted).
+    Wait,
+}
+
+/// What a LiDAR ring item holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LidarKind {
+    /// A data packet.
+    Data,
+    /// A position packet (its first 512 bytes).
+    Position,
+    /// The stream ended.
+    End,
+}
+
+/// An item on the LiDAR ring: the payload held in place, so a packet costs one copy into the
+/// ring and no allocation.
+#[derive(Clone)]
+pub struct LidarItem {
+    /// What it is.
+    pub kind: LidarKind,
+    /// Host receive time [ns since 1970 on the host clock; 0 unknown].
+    pub host_ns: i64,
+    /// The payload (data: all 1206 bytes; position: the first 512).
+    pub bytes: [u8; 1206],
+}
+
+impl LidarItem {
+    /// An item holding `payload` (at most 1206 bytes) received at `host_ns`.
+    pub fn new(kind: LidarKind, host_ns: i64, payload: &[u8]) -> Self {
+        let mut bytes = [0u8; 1206];
+        let n = payload.len().min(bytes.len());
+        bytes[..n].copy_from_slice(&payload[..n]);
+        Self {
+            kind,
+            host_ns,
+            bytes,
+        }
+    }
+}
+
+impl LidarItem {
+    /// The ring item for a received datagram, or why it is skipped.
+    pub fn classify(d: &Datagram<'_>, ports: Ports) -> Result<Self, SkipReason> {
+        let host = i64::try_from(d.time.0).unwrap_or(0);
+        Ok(match classify(d, ports)? {
+            Vlp16Packet::Data { packet, .. } => {
+                Self::new(LidarKind::Data, host, packet.into_inner())
+            }
+            Vlp16Packet::Position { packet, .. } => {
+                Self::new(LidarKind::Position, host, packet.into_inner())
+            }
+        })
+    }
+}
+
+/// An item on the INS ring.
+#[derive(Debug, Clone, Copy)]
+pub enum InsItem {
+    /// A pose in the site frame and its host receive time [ns since 1970; 0 unknown].
+    Pose(PoseSample, i64),
+    /// The stream ended.
+    End,
+}
+
+/// Where the trajectory comes from.
+#[derive(Debug, Clone)]
+pub enum InsInput {
+    /// VN-200 serial bytes (raw or a serial log).
+    Vn200(PathBuf),
+    /// An SBET file and its GPS week (None: taken from the capture's RMC date).
+    Sbet(PathBuf, Option<u16>),
+}
+
+/// Inputs of a georeferencing run.
+#[derive(Debug, Clone)]
+pub struct Inputs {
+    /// The VLP-16 capture.
+    pub pcap: PathBuf,
+    /// The trajectory.
+    pub ins: InsInput,
+    /// The site.
+    pub site: Site,
+    /// The mounting to georeference with.
+    pub mount: Mount,
+    /// Window margin [m].
+    pub margin: f64,
+    /// Largest INS sample spacing to interpolate over [ns].
+    pub max_gap_ns: i64,
+    /// The time offset between the clocks [ns]: INS time = LiDAR time + this; each firing's
+    /// pose is taken at its LiDAR time plus this (DESIGN.md conventions).
+    pub time_offset_ns: i64,
+    /// Use VN-200 poses whose InsStatus says not tracking (aligning, GNSS lost, no fix) too.
+    pub keep_untracked_ins: bool,
+}
+
+impl Inputs {
+    /// The trajectory's file.
+    pub fn ins_path(&self) -> &std::path::Path {
+        match &self.ins {
+            InsInput::Vn200(p) | InsInput::Sbet(p, _) => p,
+        }
+    }
+
+    /// Georeference with the site's a-priori mounting and window margin, 50 ms INS gap limit.
+    pub fn apriori(pcap: PathBuf, ins: InsInput, site: Site) -> Self {
+        let b0 = spherecal::calib::from_deg_m(&site.apriori_deg_m());
+        Self {
+            pcap,
+            ins,
+            mount: Mount::from_params(&b0),
+            margin: site.apriori.window_margin_m,
+            max_gap_ns: 50_000_000,
+            time_offset_ns: 0,
+            keep_untracked_ins: false,
+            site,
+        }
+    }
+}
+
+/// A batch of one sphere's observations.
+#[derive(Debug, Clone)]
+pub struct BatchMsg {
+    /// Sphere index.
+    pub sphere: usize,
+    /// Observations.
+    pub obs: Vec<Observation>,
+    /// The time offset they were aligned at [ns] (INS time = LiDAR time + this).
+    pub offset_ns: i64,
+}
+
+/// Counts of a run.
+#[derive(Debug, Clone, Default)]
+pub struct RunStats {
+    /// The align stage's counts (packets, LiDAR span, windowing, rollovers, batch overflow).
+    pub align: AlignStats,
+    /// Capture skips by reason.
+    pub skips: SkipStats,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+    /// The INS stream.
+    pub ins: crate::state::InsState,
+    /// Ring drops (live) or waits (files): lidar, ins.
+    pub ring_full: [u64; 2],
+}
+
+impl RunStats {
+    /// What the inputs held, for people: the capture, the LiDAR clock, the INS stream, their
+    /// overlap and the returns that could not be georeferenced.
+    pub fn describe_inputs(&self, pcap: &std::path::Path, ins: &std::path::Path) -> String {
+        use std::fmt::Write as _;
+        let mut o = String::new();
+        let _ = write!(
+            o,
+            "LiDAR: {}: {} data packets",
+            pcap.display(),
+            self.align.data_packets
+        );
+        if let Some((a, b)) = self.align.lidar_span {
+            let _ = write!(o, " over {:.1} s", b - a);
+        }
+        let _ = writeln!(o, ", {} skipped", self.skips.total());
+        for l in self.skips.lines() {
+            let _ = writeln!(
+                o,
+                "  skipped {}: {} (first at byte {}: {})",
+                l.reason, l.count, l.first_offset, l.first
+            );
+        }
+        let _ = writeln!(o, "clock: {}", self.clock.describe());
+        let _ = writeln!(o, "{}: {}", ins.display(), self.ins.describe());
+        let w = &self.align.window;
+        let missed = w.before_history + w.after_history + w.in_gap;
+        if missed + self.align.packets_without_time > 0 {
+            let _ = writeln!(
+                o,
+                "not georeferenced: {} returns before the INS data, {} after it, {} in INS gaps; {} packets without a time",
+                w.before_history, w.after_history, w.in_gap, self.align.packets_without_time
+            );
+        }
+        o
+    }
+
+    /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
+    /// file and what was found instead.
+    pub fn unusable(
+        &self,
+        pcap: &std::path::Path,
+        ins: &std::path::Path,
+        ins_head: &[u8],
+    ) -> Option<String> {
+        if self.align.data_packets == 0 {
+            return Some(format!(
+                "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
+                pcap.display(),
+                self.skips.total(),
+                self.align.packets_without_time
+            ));
+        }
+        let st = &self.ins;
+        if st.poses == 0 {
+            if st.excluded_total() > 0 {
+                return Some(format!(
+                    "{}: every one of its {} poses is left out by its InsStatus ({}); --keep-untracked-ins uses them anyway",
+                    ins.display(),
+                    st.excluded_total(),
+                    st.describe()
+                ));
+            }
+            return Some(format!(
+                "{}: no VN-200 or SBET pose in {} bytes ({} binary frames, {} CRC failures, {} $VN sentences, {} NMEA sentences): it looks like {}",
+                ins.display(),
+                st.bytes,
+                st.frames,
+                st.crc_failures,
+                st.ascii,
+                st.nmea,
+                crate::state::looks_like(ins_head)
+            ));
+        }
+        let w = &self.align.window;
+        if w.points > 0 && w.before_history + w.after_history == w.points {
+            let (l, i) = (
+                self.align.lidar_span.unwrap_or_default(),
+                st.span.unwrap_or_default(),
+            );
+            return Some(format!(
+                "the LiDAR's times (GPS {:.1} .. {:.1} s) and the INS's ({:.1} .. {:.1} s) do not overlap; the LiDAR clock: {}",
+                l.0, l.1, i.0, i.1, self.clock.describe()
+            ));
+        }
+        None
+    }
+}
+
+/// Where the site's spheres are, in the site frame.
+pub fn targets(site: &Site) -> (LocalFrame, Vec<Target>) {
+    let frame = LocalFrame::new(Geodetic::from_deg(
+        site.origin.lat_deg,
+        site.origin.lon_deg,
+        site.origin.h_m,
+    ));
+    let t = site
+        .sphere
+        .iter()
+        .map(|s| Target {
+            center: frame.to_ned(&Geodetic::from_deg(s.lat_deg, s.lon_deg, s.h_m)),
+            radius: s.radius_m,
+        })
+        .collect();
+    (frame, t)
+}
+
+/// Enqueue `item`; a full ring counts in `full` and then drops the item ([`Overflow::Drop`])
+/// or waits for room ([`Overflow::Wait`]). Returns whether it was enqueued.
+pub fn enqueue<T>(
+    p: &mut heapless::spsc::Producer<'_, T>,
+    mut item: T,
+    policy: Overflow,
+    full: &AtomicU64,
+) -> bool {
+    loop {
+        match p.enqueue(item) {
+            Ok(()) => return true,
+            Err(back) => {
+                full.fetch_add(1, Ordering::Relaxed);
+                if policy == Overflow::Drop {
+                    return false;
+                }
+                item = back;
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
+/// Run the pipeline over files. `each`, if given, sees every georeferenced return; batches go
+/// to `consumer` on its own thread, which returns its result.
+pub fn run<C: Send>(
+    inp: &Inputs,
+    mut each: Option<&mut dyn FnMut(&GeoPoint)>,
+    consumer: impl FnOnce(crossbeam_channel::Receiver<BatchMsg>) -> C + Send,
+) -> Result<(RunStats, C), String> {
+    let (frame, targets) = targets(&inp.site);
+    let leap = inp.site.leap_seconds;
+    let mut lq: Box<Queue<LidarItem, LIDAR_RING>> = Box::new(Queue::new());
+    let mut iq: Box<Queue<InsItem, INS_RING>> = Box::new(Queue::new());
+    let (mut lp, mut lc) = lq.split();
+    let (mut ip, mut ic) = iq.split();
+    let full = [AtomicU64::new(0), AtomicU64::new(0)];
+    let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
+    let pcap = PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
+    let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
+    let ins_head = ins_src.head();
+
+    std::thread::scope(|sc| {
+        // The readers: each ends its ring with End, even when it fails.
+        let full_ref = &full;
+        let lidar = sc.spawn(move || {
+            let mut out = LidarRing {
+                ring: &mut lp,
+                policy: Overflow::Wait,
+                full: &full_ref[0],
+            };
+            lidar_reader(pcap, &mut out, Ports::default())
+        });
+        let (max_gap, keep_untracked) = (inp.max_gap_ns, inp.keep_untracked_ins);
+        let ins = sc.spawn(move || {
+            let mut out = InsRing {
+                ring: &mut ip,
+                policy: Overflow::Wait,
+                full: &full_ref[1],
+            };
+            let r = ins_file_reader(ins_src, frame, keep_untracked, max_gap, &mut out);
+            enqueue(out.ring, InsItem::End, Overflow::Wait, out.full);
+            r
+        });
+
+        // Consumer.
+        let consumer = sc.spawn(move || consumer(rx));
+
+        // Aligner (this thread).
+        let mut storage = AlignStorage::new(targets.len(), inp.max_gap_ns);
+        let mut al = Aligner::new(
+            &mut storage,
+            &targets,
+            inp.margin,
+            inp.mount,
+            leap,
+            InsWait::UntilEnd,
+            &SystemClock,
+        );
+        al.core.time_offset_ns = inp.time_offset_ns;
+        let offset_ns = inp.time_offset_ns;
+        let mut emit = |sphere: usize, obs: &[Observation]| {
+            let _ = tx.send(BatchMsg {
+                sphere,
+                obs: obs.to_vec(),
+                offset_ns,
+            });
+        };
+        loop {
+            let Some(item) = lc.dequeue() else {
+                std::thread::yield_now();
+                continue;
+            };
+            match item.kind {
+                LidarKind::End => break,
+                LidarKind::Position => al.position(&item.bytes[..512]),
+                LidarKind::Data => al.data(&item, &mut ic, each.as_deref_mut(), &mut emit),
+            }
+        }
+        al.finish(&mut emit);
+        drop(tx);
+        // Drain the INS ring so its reader can finish.
+        al.drain_until_end(&mut ic);
+        let skips = lidar
+            .join()
+            .map_err(|_| "LiDAR reader panicked".to_string())??;
+        let ins = ins
+            .join()
+            .map_err(|_| "INS reader panicked".to_string())??;
+        let ring_full = [
+            full[0].load(Ordering::Relaxed),
+            full[1].load(Ordering::Relaxed),
+        ];
+        let stats = al.run_stats(skips, ins, ring_full);
+        let c = consumer
+            .join()
+            .map_err(|_| "consumer panicked".to_string())?;
+        if let Some(why) = stats.unusable(&inp.pcap, inp.ins_path(), &ins_head) {
+            return Err(why);
+        }
+        Ok((stats, c))
+    })
+}

@@ -1,0 +1,312 @@
+//! One reader per stream, used by the file pipeline and the rig alike: LiDAR packets from any
+//! [`PacketSource`] onto the LiDAR ring; VN-200 bytes framed into gated poses; SBET records
+//! into poses.
+
+use super::*;
+use spherecal::vn200::Framed;
+use std::path::Path;
+
+/// The LiDAR ring end a reader writes to, and what it does when the ring is full.
+pub struct LidarRing<'r, 'q> {
+    /// The ring's producer end.
+    pub ring: &'r mut heapless::spsc::Producer<'q, LidarItem>,
+    /// Wait (files) or drop (live).
+    pub policy: Overflow,
+    /// Counts the full-ring events.
+    pub full: &'r AtomicU64,
+}
+
+/// Every record of `src` classified: VLP-16 packets onto the ring, the rest counted by reason;
+/// the ring ends with End, also when the source fails.
+pub fn lidar_reader<S: PacketSource>(
+    mut src: S,
+    out: &mut LidarRing<'_, '_>,
+    ports: Ports,
+) -> Result<SkipStats, String> {
+    let mut skips = SkipStats::default();
+    let end = |out: &mut LidarRing<'_, '_>| {
+        enqueue(
+            out.ring,
+            LidarItem::new(LidarKind::End, 0, &[]),
+            out.policy,
+            out.full,
+        );
+    };
+    loop {
+        let rec = match src.next_record() {
+            Ok(Some(r)) => r,
+            Ok(None) => break,
+            Err(e) => {
+                end(out);
+                return Err(e.to_string());
+            }
+        };
+        let item = match rec {
+            Record::Skipped { offset, reason } => {
+                skips.count(offset, &reason);
+                continue;
+            }
+            Record::Udp(d) => match LidarItem::classify(&d, ports) {
+                Ok(item) => item,
+                Err(reason) => {
+                    skips.count(d.offset, &reason);
+                    continue;
+                }
+            },
+        };
+        enqueue(out.ring, item, out.policy, out.full);
+    }
+    end(out);
+    Ok(skips)
+}
+
+/// A trajectory file, opened: the VN-200 byte stream (a serial log's records joined), or an
+/// SBET reader with the GPS week that dates it.
+pub enum InsFile {
+    /// VN-200 bytes.
+    Vn200(Vec<u8>),
+    /// SBET records, their GPS week, the file.
+    Sbet(SbetReader<std::io::BufReader<std::fs::File>>, u16, PathBuf),
+}
+
+impl InsFile {
+    /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
+    pub fn open(ins: &InsInput, pcap: &Path, leap: i64) -> Result<Self, String> {
+        match ins {
+            InsInput::Vn200(p) => spherecal_hal::serial::read_byte_file(p)
+                .map(|b| Self::Vn200(b.0))
+                .map_err(|e| format!("{}: {e}", p.display())),
+            InsInput::Sbet(p, week) => {
+                let week = match week {
+                    Some(w) => *w,
+                    None => week_from_capture(pcap, leap).ok_or_else(|| {
+                        format!(
+                            "{}: no RMC date in the capture to date the SBET; give --gps-week",
+                            pcap.display()
+                        )
+                    })?,
+                };
+                let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
+                Ok(Self::Sbet(
+                    SbetReader::new(std::io::BufReader::new(f)),
+                    week,
+                    p.clone(),
+                ))
+            }
+        }
+    }
+
+    /// The first 256 bytes of a VN-200 stream (to say what a file without poses looks like).
+    pub fn head(&self) -> Vec<u8> {
+        match self {
+            Self::Vn200(b) => b.iter().take(256).copied().collect(),
+            Self::Sbet(..) => Vec::new(),
+        }
+    }
+}
+
+/// A trajectory file's poses onto the INS ring (the caller ends the ring).
+pub fn ins_file_reader(
+    src: InsFile,
+    frame: LocalFrame,
+    keep_untracked: bool,
+    max_gap_ns: i64,
+    out: &mut InsRing<'_, '_>,
+) -> Result<InsState, String> {
+    match src {
+        InsFile::Vn200(bytes) => {
+            let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap_ns);
+            for chunk in bytes.chunks(4096) {
+                feed.feed(chunk, 0, out, &mut |_, _| {});
+            }
+            feed.finish(out);
+            Ok(feed.state())
+        }
+        InsFile::Sbet(mut rd, week, path) => {
+            let mut st = InsState::default();
+            while let Some(r) = rd
+                .next_record()
+                .map_err(|e| format!("{}: {e}", path.display()))?
+            {
+                let Some(t) = r.time(week) else {
+                    st.without_pose += 1;
+                    continue;
+                };
+                let g = Geodetic {
+                    lat: r.lat,
+                    lon: r.lon,
+                    h: r.h,
+                };
+                let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                st.used(t, max_gap_ns);
+                let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
+                enqueue(out.ring, InsItem::Pose(pose, 0), out.policy, out.full);
+            }
+            st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
+            st.without_pose += rd.invalid;
+            Ok(st)
+        }
+    }
+}
+
+/// What a framed VN-200 item gives the pipeline.
+#[derive(Debug, Clone, Copy)]
+pub enum InsOutcome {
+    /// A pose in the site frame and the INS status word if the message carried it.
+    Pose(PoseSample, Option<u16>),
+    /// A binary frame without a complete pose (time, attitude, position).
+    NoPose,
+    /// A frame or sentence that failed its checksum or could not be parsed.
+    Rejected,
+    /// Something else (NMEA, other $VN sentences).
+    Other,
+}
+
+/// The pose a framed VN-200 item carries: a binary frame, or an ASCII $VNINS sentence.
+pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
+    let pose = match item {
+        Item::Binary(f) => match Pose::from_frame(f) {
+            Some(p) => p,
+            None => return InsOutcome::NoPose,
+        },
+        Item::Ascii(a) => match a.decode() {
+            Ok(spherecal::vn200::ascii::Vn::Ins(i)) => match Pose::from_ins(&i) {
+                Some(p) => p,
+                None => return InsOutcome::NoPose,
+            },
+            _ => return InsOutcome::Other,
+        },
+        Item::Nmea(_) => return InsOutcome::Other,
+        Item::Error(_) => return InsOutcome::Rejected,
+    };
+    match PoseSample::from_vn200(frame, &pose) {
+        Some(s) => InsOutcome::Pose(s, pose.ins_status),
+        None => InsOutcome::NoPose,
+    }
+}
+
+/// The VN-200 stream into poses, the same for a file and the live port: framing, pose
+/// extraction, InsStatus gating (left-out poses counted with their spans unless kept), onto the
+/// INS ring with the given overflow policy.
+pub struct Vn200Feed {
+    framer: Box<Framer>,
+    gate: PoseGate,
+    st: InsState,
+}
+
+/// Where a framed item's pose goes: converted into the site frame, gated by its InsStatus.
+struct PoseGate {
+    frame: LocalFrame,
+    keep_untracked: bool,
+    max_gap_ns: i64,
+}
+
+/// The INS ring end a feed writes to, and what it does when the ring is full.
+pub struct InsRing<'r, 'q> {
+    /// The ring's producer end.
+    pub ring: &'r mut heapless::spsc::Producer<'q, InsItem>,
+    /// Wait (files) or drop (live).
+    pub policy: Overflow,
+    /// Counts the full-ring events.
+    pub full: &'r AtomicU64,
+}
+
+impl PoseGate {
+    fn handle(
+        &self,
+        it: &Framed<'_>,
+        st: &mut InsState,
+        host_ns: i64,
+        out: &mut InsRing<'_, '_>,
+        seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
+    ) {
+        let got = vn200_pose(&it.item, &self.frame);
+        seen(it, &got);
+        match got {
+            InsOutcome::Pose(s, status) => {
+                // Not tracking, aligning, GNSS lost, no fix: left out (counted).
+                match status.and_then(crate::state::excluded_by) {
+                    Some(k) if !self.keep_untracked => {
+                        st.exclude(s.time, k);
+                        return;
+                    }
+                    Some(_) => st.kept_untracked += 1,
+                    None => {}
+                }
+                st.used(s.time, self.max_gap_ns);
+                enqueue(out.ring, InsItem::Pose(s, host_ns), out.policy, out.full);
+            }
+            InsOutcome::NoPose => st.without_pose += 1,
+            InsOutcome::Rejected | InsOutcome::Other => {}
+        }
+    }
+}
+
+impl Vn200Feed {
+    /// Poses in the site `frame`; `keep_untracked` uses poses whose InsStatus says not
+    /// tracking too; samples further apart than `max_gap_ns` are counted as gaps.
+    pub fn new(frame: LocalFrame, keep_untracked: bool, max_gap_ns: i64) -> Self {
+        Self {
+            framer: Box::default(),
+            gate: PoseGate {
+                frame,
+                keep_untracked,
+                max_gap_ns,
+            },
+            st: InsState::default(),
+        }
+    }
+
+    /// Bytes received at `host_ns` [ns since 1970; 0 unknown]. Every framed item is shown to
+    /// `seen` with what it gave before its pose goes to the ring.
+    pub fn feed(
+        &mut self,
+        bytes: &[u8],
+        host_ns: i64,
+        out: &mut InsRing<'_, '_>,
+        seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
+    ) {
+        self.st.bytes += bytes.len() as u64;
+        let Self { framer, gate, st } = self;
+        framer.consume(bytes, |it| gate.handle(&it, st, host_ns, out, seen));
+    }
+
+    /// The stream has ended: what the framer still holds.
+    pub fn finish(&mut self, out: &mut InsRing<'_, '_>) {
+        self.framer.finish();
+        let Self { framer, gate, st } = self;
+        while let Some(it) = framer.next() {
+            gate.handle(&it, st, 0, out, &mut |_, _| {});
+        }
+    }
+
+    /// The stream's state so far, with the framer's counts.
+    pub fn state(&self) -> InsState {
+        let fs = self.framer.stats();
+        InsState {
+            frames: fs.frames,
+            crc_failures: fs.crc_failures,
+            skipped_bytes: fs.skipped_bytes,
+            ascii: fs.ascii,
+            nmea: fs.nmea,
+            ..self.st.clone()
+        }
+    }
+}
+
+/// The GPS week of the first RMC date in a capture (for SBET times).
+pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
+    let mut src = PcapSource::open(pcap).ok()?;
+    while let Ok(Some(rec)) = src.next_record() {
+        if let Record::Udp(d) = rec {
+            if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {
+                if let Some(utc) = packet.nmea_time().ok().and_then(|t| t.utc()) {
+                    let g =
+                        spherecal::time::unix_ns_to_gps(utc.unix_seconds() * 1_000_000_000, leap);
+                    return u16::try_from(g.week_tow_ns().0).ok();
+                }
+            }
+        }
+    }
+    None
+}
