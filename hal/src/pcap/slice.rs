@@ -1,0 +1,108 @@
+//! Frames <-> UDP datagrams: the lax slicer readers use (real captures carry IPv4 lengths that
+//! do not match the frame: PROTOCOLS.md) and the frame builder writers use.
+
+use crate::packet::SkipReason;
+use etherparse::{EtherType, LaxNetSlice, LaxSlicedPacket, TransportSlice};
+use pcap_file::DataLink;
+use std::io;
+use std::net::Ipv4Addr;
+
+/// Link layer -> IPv4 -> UDP, laxly; the payload runs to the UDP length or the captured end.
+pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]), SkipReason> {
+    let sliced = match DataLink::from(link) {
+        DataLink::ETHERNET => {
+            LaxSlicedPacket::from_ethernet(frame).map_err(|_| SkipReason::NotIpv4Udp)?
+        }
+        DataLink::RAW | DataLink::IPV4 => {
+            LaxSlicedPacket::from_ip(frame).map_err(|_| SkipReason::NotIpv4Udp)?
+        }
+        DataLink::NULL | DataLink::LOOP => {
+            LaxSlicedPacket::from_ip(frame.get(4..).ok_or(SkipReason::NotIpv4Udp)?)
+                .map_err(|_| SkipReason::NotIpv4Udp)?
+        }
+        DataLink::LINUX_SLL => {
+            let proto = frame.get(14..16).ok_or(SkipReason::NotIpv4Udp)?;
+            LaxSlicedPacket::from_ether_type(
+                EtherType(u16::from_be_bytes([proto[0], proto[1]])),
+                &frame[16..],
+            )
+        }
+        DataLink::LINUX_SLL2 => {
+            let proto = frame.get(0..2).ok_or(SkipReason::NotIpv4Udp)?;
+            let rest = frame.get(20..).ok_or(SkipReason::NotIpv4Udp)?;
+            LaxSlicedPacket::from_ether_type(
+                EtherType(u16::from_be_bytes([proto[0], proto[1]])),
+                rest,
+            )
+        }
+        _ => return Err(SkipReason::UnsupportedLinkType(link)),
+    };
+    let Some(LaxNetSlice::Ipv4(ip)) = &sliced.net else {
+        return Err(SkipReason::NotIpv4Udp);
+    };
+    let h = ip.header();
+    if h.is_fragmenting_payload() {
+        return Err(SkipReason::IpFragment);
+    }
+    let Some(TransportSlice::Udp(udp)) = &sliced.transport else {
+        return Err(SkipReason::NotIpv4Udp);
+    };
+    // Where the UDP header sits in the frame: the payload is cut by the UDP length, not by the
+    // IPv4 total length (which some recorders fill with a canned value).
+    let udp_at = udp.slice().as_ptr() as usize - frame.as_ptr() as usize;
+    let after = &frame[udp_at + 8..];
+    let udp_len = usize::from(udp.length());
+    let payload = if udp_len >= 8 && udp_len - 8 <= after.len() {
+        &after[..udp_len - 8]
+    } else {
+        after
+    };
+    Ok((
+        h.source_addr(),
+        udp.source_port(),
+        udp.destination_port(),
+        payload,
+    ))
+}
+
+/// Addresses of a sensor's UDP frames (VLP-16 factory defaults: 192.168.1.201 broadcasting to
+/// 255.255.255.255, source MAC 60:76:88 Velodyne OUI).
+#[derive(Debug, Clone, Copy)]
+pub struct UdpEndpoints {
+    /// Source MAC.
+    pub src_mac: [u8; 6],
+    /// Destination MAC.
+    pub dst_mac: [u8; 6],
+    /// Source IPv4.
+    pub src_ip: [u8; 4],
+    /// Destination IPv4.
+    pub dst_ip: [u8; 4],
+}
+
+impl Default for UdpEndpoints {
+    fn default() -> Self {
+        Self {
+            src_mac: [0x60, 0x76, 0x88, 0x10, 0x20, 0x30],
+            dst_mac: [0xFF; 6],
+            src_ip: [192, 168, 1, 201],
+            dst_ip: [255, 255, 255, 255],
+        }
+    }
+}
+
+/// Build an Ethernet II / IPv4 / UDP frame around `payload` into `out` (cleared first), with
+/// correct lengths and IPv4 and UDP checksums. Fails only for a payload over 65507 bytes.
+pub fn build_udp_frame(
+    out: &mut Vec<u8>,
+    ep: &UdpEndpoints,
+    src_port: u16,
+    dst_port: u16,
+    payload: &[u8],
+) -> io::Result<()> {
+    out.clear();
+    let b = etherparse::PacketBuilder::ethernet2(ep.src_mac, ep.dst_mac)
+        .ipv4(ep.src_ip, ep.dst_ip, 64)
+        .udp(src_port, dst_port);
+    out.reserve(b.size(payload.len()));
+    b.write(out, payload).map_err(io::Error::other)
+}
