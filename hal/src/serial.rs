@@ -314,6 +314,78 @@ impl<R: Read> LogReader<R> {
     }
 }
 
+/// A VN-200 byte file as a [`ByteSource`]: a serial log's records with their receive stamps
+/// (a record cut by a power cut ends the stream, as [`LogReader`] reads it), or a raw file's
+/// bytes without stamps.
+pub enum FileSource {
+    /// Raw bytes.
+    Raw(RawSource<io::BufReader<std::fs::File>>),
+    /// A serial log, and what is left of the record being handed out.
+    Log {
+        /// The log.
+        reader: LogReader<io::BufReader<std::fs::File>>,
+        /// The current record's bytes.
+        record: Vec<u8>,
+        /// How many of them were handed out.
+        at: usize,
+        /// Its stamp.
+        stamp: RxStamp,
+    },
+}
+
+impl FileSource {
+    /// Open `path`, a serial log if it starts with the magic, else raw bytes.
+    pub fn open(path: &std::path::Path) -> Result<Self, LogError> {
+        let mut f = std::fs::File::open(path)?;
+        let mut magic = [0u8; 8];
+        let n = read_full(&mut f, &mut magic)?;
+        io::Seek::rewind(&mut f)?;
+        let f = io::BufReader::with_capacity(1 << 16, f);
+        if n == 8 && &magic == LOG_MAGIC {
+            Ok(Self::Log {
+                reader: LogReader::new(f)?,
+                record: Vec::new(),
+                at: 0,
+                stamp: RxStamp::default(),
+            })
+        } else {
+            Ok(Self::Raw(RawSource::new(f)))
+        }
+    }
+}
+
+impl ByteSource for FileSource {
+    type Error = LogError;
+    fn read_chunk(&mut self, buf: &mut [u8]) -> Result<ReadOutcome, LogError> {
+        match self {
+            Self::Raw(r) => Ok(r.read_chunk(buf)?),
+            Self::Log {
+                reader,
+                record,
+                at,
+                stamp,
+            } => {
+                while *at >= record.len() {
+                    match reader.next_record(record)? {
+                        Some(s) => {
+                            *stamp = s;
+                            *at = 0;
+                        }
+                        None => return Ok(ReadOutcome::End),
+                    }
+                }
+                let n = (record.len() - *at).min(buf.len());
+                buf[..n].copy_from_slice(&record[*at..*at + n]);
+                *at += n;
+                Ok(ReadOutcome::Data {
+                    len: n,
+                    stamp: Some(*stamp),
+                })
+            }
+        }
+    }
+}
+
 /// A byte stream and, for a serial log, where each record begins in it and when it arrived.
 pub type ByteStream = (Vec<u8>, Option<Vec<(u64, RxStamp)>>);
 

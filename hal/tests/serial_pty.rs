@@ -155,3 +155,75 @@ fn raw_and_logged_files_give_the_same_stream() {
     assert_eq!(sb.len(), data.len().div_ceil(333));
     assert_eq!(sb[1].0, 333);
 }
+
+/// `FileSource` hands out a serial log's record bytes with each record's stamp, in any buffer
+/// size, and a raw file's bytes without stamps; a log cut inside a record ends at the cut.
+#[test]
+fn file_source_gives_the_log_bytes_with_their_stamps() {
+    use spherecal_hal::serial::FileSource;
+    let dir = std::env::temp_dir().join(format!("sc-filesource-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let recs: Vec<(RxStamp, Vec<u8>)> = (0..5u8)
+        .map(|i| {
+            let stamp = RxStamp {
+                mono_ns: u64::from(i) * 1_000,
+                wall_ns: 1_700_000_000_000_000_000 + i64::from(i) * 1_000,
+            };
+            (stamp, (0..(10 + 7 * i)).map(|b| b ^ i).collect())
+        })
+        .collect();
+    let mut w = LogWriter::new(Vec::new(), 115_200).unwrap();
+    for (s, b) in &recs {
+        w.record(*s, b).unwrap();
+    }
+    let log = w.into_inner();
+    let read_all = |path: &std::path::Path, chunk: usize| {
+        let mut src = FileSource::open(path).unwrap();
+        let mut buf = vec![0u8; chunk];
+        let mut got: Vec<(Option<RxStamp>, Vec<u8>)> = Vec::new();
+        loop {
+            match src.read_chunk(&mut buf).unwrap() {
+                ReadOutcome::Data { len, stamp } => got.push((stamp, buf[..len].to_vec())),
+                ReadOutcome::Idle => panic!("a file is never idle"),
+                ReadOutcome::End => break got,
+            }
+        }
+    };
+    let logged = dir.join("a.vnlog");
+    std::fs::write(&logged, &log).unwrap();
+    for chunk in [1, 7, 64, 4096] {
+        let got = read_all(&logged, chunk);
+        let bytes: Vec<u8> = got.iter().flat_map(|g| g.1.clone()).collect();
+        let want: Vec<u8> = recs.iter().flat_map(|r| r.1.clone()).collect();
+        assert_eq!(bytes, want, "chunk {chunk}");
+        // Every piece carries its own record's stamp.
+        let mut at = 0usize;
+        for (stamp, piece) in &got {
+            let (mut start, mut k) = (0usize, 0usize);
+            while start + recs[k].1.len() <= at {
+                start += recs[k].1.len();
+                k += 1;
+            }
+            assert_eq!(*stamp, Some(recs[k].0), "chunk {chunk} at {at}");
+            at += piece.len();
+        }
+    }
+    // Cut inside the last record: the stream ends with the records before it.
+    let cut = dir.join("cut.vnlog");
+    std::fs::write(&cut, &log[..log.len() - 3]).unwrap();
+    let got: Vec<u8> = read_all(&cut, 64).into_iter().flat_map(|g| g.1).collect();
+    let before: usize = recs[..4].iter().map(|r| r.1.len()).sum();
+    assert!(
+        got.len() >= before && got.len() < before + recs[4].1.len(),
+        "{}",
+        got.len()
+    );
+    // Raw bytes: as they are, no stamps.
+    let raw = dir.join("raw.bin");
+    std::fs::write(&raw, b"\xfa\x01raw bytes").unwrap();
+    let got = read_all(&raw, 4);
+    assert!(got.iter().all(|g| g.0.is_none()));
+    let bytes: Vec<u8> = got.into_iter().flat_map(|g| g.1).collect();
+    assert_eq!(bytes, b"\xfa\x01raw bytes");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

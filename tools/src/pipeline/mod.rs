@@ -19,8 +19,8 @@ mod readers;
 
 pub use feed::{AlignStorage, Aligner, InsWait};
 pub use readers::{
-    ins_file_reader, lidar_reader, vn200_pose, week_from_capture, InsFile, InsOutcome, InsRing,
-    LidarRing, Vn200Feed,
+    ins_file_reader, ins_reader, lidar_reader, vn200_pose, week_from_capture, InsEnd, InsFile,
+    InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 
 use crate::config::site::Site;
@@ -348,7 +348,6 @@ pub fn run<C: Send>(
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let pcap = PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
-    let ins_head = ins_src.head();
 
     std::thread::scope(|sc| {
         // The readers: each ends its ring with End, even when it fails.
@@ -414,7 +413,7 @@ pub fn run<C: Send>(
         let skips = lidar
             .join()
             .map_err(|_| "LiDAR reader panicked".to_string())??;
-        let ins = ins
+        let (ins, ins_head) = ins
             .join()
             .map_err(|_| "INS reader panicked".to_string())??;
         let ring_full = [

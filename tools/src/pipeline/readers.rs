@@ -4,7 +4,9 @@
 
 use super::*;
 use spherecal::vn200::Framed;
+use spherecal_hal::serial::{ByteSource, FileSource, ReadOutcome, RxStamp};
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
 
 /// The LiDAR ring end a reader writes to, and what it does when the ring is full.
 pub struct LidarRing<'r, 'q> {
@@ -63,8 +65,8 @@ pub fn lidar_reader<S: PacketSource>(
 /// A trajectory file, opened: the VN-200 byte stream (a serial log's records joined), or an
 /// SBET reader with the GPS week that dates it.
 pub enum InsFile {
-    /// VN-200 bytes.
-    Vn200(Vec<u8>),
+    /// VN-200 bytes (raw, or a serial log's records with their stamps).
+    Vn200(FileSource),
     /// SBET records, their GPS week, the file.
     Sbet(SbetReader<std::io::BufReader<std::fs::File>>, u16, PathBuf),
 }
@@ -73,8 +75,8 @@ impl InsFile {
     /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
     pub fn open(ins: &InsInput, pcap: &Path, leap: i64) -> Result<Self, String> {
         match ins {
-            InsInput::Vn200(p) => spherecal_hal::serial::read_byte_file(p)
-                .map(|b| Self::Vn200(b.0))
+            InsInput::Vn200(p) => FileSource::open(p)
+                .map(Self::Vn200)
                 .map_err(|e| format!("{}: {e}", p.display())),
             InsInput::Sbet(p, week) => {
                 let week = match week {
@@ -95,32 +97,75 @@ impl InsFile {
             }
         }
     }
-
-    /// The first 256 bytes of a VN-200 stream (to say what a file without poses looks like).
-    pub fn head(&self) -> Vec<u8> {
-        match self {
-            Self::Vn200(b) => b.iter().take(256).copied().collect(),
-            Self::Sbet(..) => Vec::new(),
-        }
-    }
 }
 
-/// A trajectory file's poses onto the INS ring (the caller ends the ring).
+/// Why an INS reader stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InsEnd {
+    /// The source ended (a file's end; a serial port that closed).
+    SourceEnded,
+    /// `stop` was set.
+    Stopped,
+}
+
+/// Bytes from any [`ByteSource`] (a file, a serial log, the live port) through the VN-200
+/// feed onto the INS ring, in reads of at most `buf.len()`, until the source ends, `stop` is
+/// set, or it fails. `on_chunk` sees every read first (the rig logs it); `seen` every framed
+/// item. Stamped reads give their poses the receive time.
+#[allow(clippy::too_many_arguments)]
+pub fn ins_reader<B: ByteSource>(
+    src: &mut B,
+    buf: &mut [u8],
+    feed: &mut Vn200Feed,
+    out: &mut InsRing<'_, '_>,
+    stop: &AtomicBool,
+    on_chunk: &mut dyn FnMut(&[u8], Option<RxStamp>),
+    seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
+) -> Result<InsEnd, B::Error> {
+    while !stop.load(Ordering::Relaxed) {
+        match src.read_chunk(buf)? {
+            ReadOutcome::Data { len, stamp } => {
+                on_chunk(&buf[..len], stamp);
+                feed.feed(&buf[..len], stamp.map_or(0, |s| s.wall_ns), out, seen);
+            }
+            ReadOutcome::Idle => {}
+            ReadOutcome::End => {
+                feed.finish(out);
+                return Ok(InsEnd::SourceEnded);
+            }
+        }
+    }
+    Ok(InsEnd::Stopped)
+}
+
+/// A trajectory file's poses onto the INS ring (the caller ends the ring), with the first 256
+/// bytes of a VN-200 stream (to say what a file without poses looks like).
 pub fn ins_file_reader(
     src: InsFile,
     frame: LocalFrame,
     keep_untracked: bool,
     max_gap_ns: i64,
     out: &mut InsRing<'_, '_>,
-) -> Result<InsState, String> {
+) -> Result<(InsState, Vec<u8>), String> {
     match src {
-        InsFile::Vn200(bytes) => {
+        InsFile::Vn200(mut file) => {
             let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap_ns);
-            for chunk in bytes.chunks(4096) {
-                feed.feed(chunk, 0, out, &mut |_, _| {});
-            }
-            feed.finish(out);
-            Ok(feed.state())
+            let mut head = Vec::new();
+            let mut keep_head = |b: &[u8], _: Option<RxStamp>| {
+                let n = (256 - head.len()).min(b.len());
+                head.extend_from_slice(&b[..n]);
+            };
+            ins_reader(
+                &mut file,
+                &mut [0u8; 4096],
+                &mut feed,
+                out,
+                &AtomicBool::new(false),
+                &mut keep_head,
+                &mut |_, _| {},
+            )
+            .map_err(|e| e.to_string())?;
+            Ok((feed.state(), head))
         }
         InsFile::Sbet(mut rd, week, path) => {
             let mut st = InsState::default();
@@ -144,7 +189,7 @@ pub fn ins_file_reader(
             }
             st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
             st.without_pose += rd.invalid;
-            Ok(st)
+            Ok((st, Vec::new()))
         }
     }
 }

@@ -46,7 +46,7 @@ use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{HostTime, SkipReason};
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
-use spherecal_hal::serial::{ByteSource, ReadOutcome, RxStamp, SerialSource};
+use spherecal_hal::serial::{RxStamp, SerialSource};
 use spherecal_hal::udp::UdpSource;
 use spherecal_hal::vlp16::{Ports, SkipStats};
 use status::{show, snapshot, status_loop};

@@ -1,6 +1,7 @@
 //! The rig's readers: one per socket and the serial port, each into its rings (never blocking: a full ring drops and counts).
 
 use super::*;
+use crate::pipeline::{ins_reader, InsEnd};
 
 /// One socket until the stop: every datagram to the log ring, the sensor's VLP-16 packets to
 /// the aligner's ring. Returns the skips and how many datagrams had kernel receive times.
@@ -130,35 +131,33 @@ pub(super) fn serial_reader(
             sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
         }
     };
-    while !sh.stop.load(Ordering::Relaxed) {
-        match src.read_chunk(&mut buf) {
-            Ok(ReadOutcome::Data { len, stamp }) => {
-                let stamp = stamp.unwrap_or_else(RxStamp::now);
-                sh.serial_bytes.fetch_add(len as u64, Ordering::Relaxed);
-                let mut chunk = SerialChunk {
-                    stamp,
-                    len: len as u16,
-                    bytes: [0; SERIAL_CHUNK],
-                };
-                chunk.bytes[..len].copy_from_slice(&buf[..len]);
-                enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
-                let mut out = InsRing {
-                    ring: &mut ring,
-                    policy: Overflow::Drop,
-                    full: &sh.ring_drops.ins,
-                };
-                feed.feed(&buf[..len], stamp.wall_ns, &mut out, &mut seen);
-            }
-            Ok(ReadOutcome::Idle) => {}
-            Ok(ReadOutcome::End) => {
-                sh.error(format!("serial {dev}: the stream ended"));
-                break;
-            }
-            Err(e) => {
-                sh.error(format!("serial {dev}: {e}"));
-                break;
-            }
-        }
+    let mut log_chunk = |b: &[u8], stamp: Option<RxStamp>| {
+        sh.serial_bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
+        let mut chunk = SerialChunk {
+            stamp: stamp.unwrap_or_else(RxStamp::now),
+            len: b.len() as u16,
+            bytes: [0; SERIAL_CHUNK],
+        };
+        chunk.bytes[..b.len()].copy_from_slice(b);
+        enqueue(&mut log, chunk, Overflow::Drop, &sh.ring_drops.serial_log);
+    };
+    let mut out = InsRing {
+        ring: &mut ring,
+        policy: Overflow::Drop,
+        full: &sh.ring_drops.ins,
+    };
+    match ins_reader(
+        &mut src,
+        &mut buf,
+        &mut feed,
+        &mut out,
+        sh.stop,
+        &mut log_chunk,
+        &mut seen,
+    ) {
+        Ok(InsEnd::Stopped) => {}
+        Ok(InsEnd::SourceEnded) => sh.error(format!("serial {dev}: the stream ended")),
+        Err(e) => sh.error(format!("serial {dev}: {e}")),
     }
     while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
