@@ -13,6 +13,7 @@ pub mod montecarlo;
 pub mod pipeline;
 pub mod plot;
 pub mod replay;
+pub mod report;
 pub mod rig;
 pub mod scene;
 pub mod state;
@@ -129,10 +130,9 @@ pub fn run_calibrate(
         stats.align.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
-    text.push_str(&calibrate::render(&rep, truth.as_ref()));
+    text.push_str(&report::render(&rep, truth.as_ref()));
     if let Some(p) = &out.report {
-        let json = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
-        std::fs::write(p, json + "\n").map_err(|e| format!("{}: {e}", p.display()))?;
+        report::write_json_atomically(p, &rep)?;
     }
     if let Some(p) = &out.returns {
         calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)?;

@@ -4,54 +4,12 @@
 use crate::calibrate::collect;
 use crate::config::scenario::Scenario;
 use crate::pipeline::{targets, Inputs, InsInput};
-use serde::{Deserialize, Serialize};
-use spherecal::calib::{solve, Settings, NAMES, P};
+pub use crate::report::{render_montecarlo as render, McReport, Trial};
+use spherecal::calib::{solve, Settings, P};
 use spherecal::sim::Rng;
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
-
-/// One trial.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct Trial {
-    /// Start [deg, m].
-    pub start: [f64; P],
-    /// Solution [deg, m].
-    pub solution: [f64; P],
-    /// Solution minus truth [deg, m].
-    pub error: [f64; P],
-    /// A solution was claimed.
-    pub converged: bool,
-    /// Within 1e-3 deg / 1e-3 m on every parameter.
-    pub within: bool,
-    /// Solve time [ms].
-    pub ms: f64,
-}
-
-/// The Monte Carlo report.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct McReport {
-    /// Scenario.
-    pub scenario: String,
-    /// Trials.
-    pub trials: usize,
-    /// Start spread [deg].
-    pub angle_noise_deg: f64,
-    /// Start spread [m].
-    pub lever_noise_m: f64,
-    /// Seed.
-    pub seed: u64,
-    /// Fraction within 1e-3 deg / 1e-3 m.
-    pub fraction_within: f64,
-    /// Fraction claimed converged.
-    pub fraction_converged: f64,
-    /// Worst |error| per parameter [deg, m], order roll, pitch, heading, x, y, z.
-    pub worst_error: [f64; P],
-    /// Mean solve time per trial [ms].
-    pub ms_per_trial: f64,
-    /// Every trial.
-    pub runs: Vec<Trial>,
-}
 
 /// Run a Monte Carlo.
 pub fn montecarlo(
@@ -174,27 +132,4 @@ pub fn montecarlo(
         ms_per_trial: runs.iter().map(|r| r.ms).sum::<f64>() / n,
         runs,
     })
-}
-
-/// The human summary.
-pub fn render(r: &McReport) -> String {
-    let mut o = format!(
-        "{}: {} trials from starts within +-{} deg / +-{} m of the truth (seed {})\nwithin 1e-3 deg / 1e-3 m: {:.1} %   claimed converged: {:.1} %   {:.1} ms per trial\nworst |error|:",
-        r.scenario,
-        r.trials,
-        r.angle_noise_deg,
-        r.lever_noise_m,
-        r.seed,
-        100.0 * r.fraction_within,
-        100.0 * r.fraction_converged,
-        r.ms_per_trial
-    );
-    for (i, (name, w)) in NAMES.iter().zip(&r.worst_error).enumerate() {
-        o.push_str(&format!(
-            " {name} {w:.2e}{}",
-            if i < 3 { " deg" } else { " m" }
-        ));
-    }
-    o.push('\n');
-    o
 }

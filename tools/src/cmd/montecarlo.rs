@@ -46,9 +46,8 @@ pub fn run(a: Args) -> ExitCode {
     };
     say!("{}", crate::montecarlo::render(&r));
     if let Some(p) = a.report {
-        let json = serde_json::to_string_pretty(&r).unwrap_or_default();
-        if let Err(e) = std::fs::write(&p, json + "\n") {
-            return fail("montecarlo", format!("{}: {e}", p.display()));
+        if let Err(e) = crate::report::write_json_atomically(&p, &r) {
+            return fail("montecarlo", e);
         }
     }
     claimed(r.fraction_within == 1.0)

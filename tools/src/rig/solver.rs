@@ -50,7 +50,7 @@ pub(super) fn solver(
             }
         }
         if let Some(p) = report {
-            if let Err(e) = write_atomically(p, &rep) {
+            if let Err(e) = crate::report::write_json_atomically(p, &rep) {
                 sh.error(e);
             }
         }
@@ -114,11 +114,4 @@ pub(super) fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
             v.iter_mut().for_each(|o| o.rebase(d));
         }
     }
-}
-
-pub(super) fn write_atomically(p: &Path, rep: &Report) -> Result<(), String> {
-    let json = serde_json::to_string_pretty(rep).map_err(|e| e.to_string())?;
-    let tmp = p.with_extension("json.tmp");
-    std::fs::write(&tmp, json + "\n").map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, p).map_err(|e| format!("{}: {e}", p.display()))
 }

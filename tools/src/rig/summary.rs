@@ -188,7 +188,7 @@ pub fn render(s: &RunSummary) -> String {
         s.log_files.len()
     );
     if let Some(r) = &s.calibration {
-        o.push_str(&crate::calibrate::render(r, None));
+        o.push_str(&crate::report::render(r, None));
     }
     for e in &s.errors {
         let _ = writeln!(o, "error: {e}");

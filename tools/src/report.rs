@@ -1,0 +1,509 @@
+//! The reports: a calibration's (`calibrate`, the rig after every solve, the demo) and a Monte
+//! Carlo run's, their human summaries, and writing a report file atomically (a reader never sees
+//! half of one).
+
+use crate::pipeline::{Inputs, RunStats};
+use serde::{Deserialize, Serialize};
+use spherecal::calib::{NAMES, P};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The report's three-angle / three-axis groups.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Angles {
+    /// Roll.
+    pub roll: f64,
+    /// Pitch.
+    pub pitch: f64,
+    /// Heading.
+    pub heading: f64,
+}
+
+/// x, y, z.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Xyz {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+
+/// 1-sigma of each parameter.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Sigma {
+    /// [deg].
+    pub boresight_deg: Angles,
+    /// [m].
+    pub lever_arm_m: Xyz,
+    /// [s] (0 when the time offset is not estimated).
+    #[serde(default)]
+    pub time_offset_s: f64,
+}
+
+/// Windowed returns by the extraction's verdict.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
+pub struct Verdicts {
+    /// On the sphere: used.
+    pub kept: u32,
+    /// In slices of time where the sphere was not detected.
+    pub undetected: u32,
+    /// Off the sphere's shell.
+    pub outside_shell: u32,
+    /// On the far side of the sphere as seen from the sensor.
+    pub hidden_side: u32,
+    /// On a plane that continues beyond the sphere.
+    pub plane: u32,
+    /// On a pole that continues beyond the sphere.
+    pub pole: u32,
+    /// The sphere was not found.
+    pub sphere_not_found: u32,
+}
+
+impl Verdicts {
+    pub(crate) fn from_tally(t: &spherecal::calib::solve::Tally) -> Self {
+        use spherecal::calib::extract::Verdict as V;
+        let g = |v: V| t[v as usize];
+        Self {
+            kept: g(V::Kept),
+            undetected: g(V::Undetected),
+            outside_shell: g(V::OutsideShell),
+            hidden_side: g(V::Hidden),
+            plane: g(V::Plane),
+            pole: g(V::Pole),
+            sphere_not_found: g(V::NotFound) + g(V::Unclassified),
+        }
+    }
+
+    /// Returns rejected (everything but the kept ones).
+    pub fn rejected(&self) -> u32 {
+        self.undetected
+            + self.outside_shell
+            + self.hidden_side
+            + self.plane
+            + self.pole
+            + self.sphere_not_found
+    }
+}
+
+/// One pass over one sphere.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PerPass {
+    /// Sphere id.
+    pub sphere: String,
+    /// GPS seconds of its first and last windowed return.
+    pub start_gps_s: f64,
+    /// ...
+    pub end_gps_s: f64,
+    /// Slices of time (0.4 s) with windowed returns.
+    pub slices: u32,
+    /// Slices where the sphere was detected.
+    pub detected: u32,
+    /// Mean inliers per detection (the detection score).
+    pub mean_inliers: f32,
+    /// Windowed returns.
+    pub windowed: u32,
+    /// By verdict.
+    pub verdicts: Verdicts,
+    /// The sphere re-fitted to this pass's calibrated returns, minus the surveyed centre [m,
+    /// NED] (zeros with fewer than 10 returns).
+    pub centre_offset_m: [f32; 3],
+    /// Its component along the track [m] (a time offset between the clocks shows here).
+    pub along_track_m: f32,
+    /// Its chi-square against the pass's own uncertainty (3 degrees of freedom; the solution is
+    /// refused as inconsistent above 25 with more than 3 mm).
+    pub chi2: f32,
+}
+
+/// Per sphere.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PerSphere {
+    /// Sphere id.
+    pub id: String,
+    /// Found among the clutter (else left out of the solution).
+    pub found: bool,
+    /// Returns in the a-priori window.
+    pub windowed: usize,
+    /// Returns used.
+    pub points: usize,
+    /// Slices of time with windowed returns, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Windowed returns by verdict.
+    pub verdicts: Verdicts,
+    /// RMS with the starting values [m].
+    pub rms_before_m: f64,
+    /// RMS with the solution [m].
+    pub rms_after_m: f64,
+    /// Fitted minus surveyed centre, NED [m].
+    pub centre_offset_m: Option<[f64; 3]>,
+}
+
+/// The tests a solution passed (or failed) before it is claimed.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Consistency {
+    /// The residual RMS the noise model predicts (range, INS attitude x range, INS position) [m].
+    pub predicted_rms_m: f64,
+    /// The residual RMS over that (refused above 2).
+    pub dispersion: f64,
+    /// The largest chi-square of a pass's sphere centre against its uncertainty (refused above
+    /// 25 with more than 3 mm).
+    pub worst_pass_chi2: f64,
+    /// With the time offset held: what the data give when free (offset on top of the held one,
+    /// sigma) [s]; refused when it differs by more than 5 sigma and 1 ms.
+    pub free_time_offset_s: Option<[f64; 2]>,
+}
+
+/// `report.json` (DESIGN.md contract plus the keys).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Report {
+    /// [deg].
+    pub boresight_deg: Angles,
+    /// [m].
+    pub lever_arm_m: Xyz,
+    /// The time offset between the clocks: INS time = LiDAR time + this [s] (DESIGN.md).
+    #[serde(default)]
+    pub time_offset_s: f64,
+    /// The time offset was estimated (else held at the value the pipeline applied).
+    #[serde(default)]
+    pub time_offset_estimated: bool,
+    /// 1-sigma.
+    pub sigma: Sigma,
+    /// RMS of the residuals [m].
+    pub rms_m: f64,
+    /// Eq. 6 over the used returns [m].
+    pub objective_l1_m: f64,
+    /// Returns used per sphere.
+    pub points_per_sphere: Vec<usize>,
+    /// Objective evaluations by Nelder-Mead.
+    pub evaluations: usize,
+    /// Nelder-Mead iterations.
+    pub nm_iterations: usize,
+    /// LM iterations (last round).
+    pub lm_iterations: usize,
+    /// Re-windowing rounds.
+    pub rounds: usize,
+    /// A solution is claimed.
+    pub converged: bool,
+    /// Why not, if not.
+    pub reason: Option<String>,
+    /// Correlation matrix, order roll, pitch, heading, x, y, z, time_offset (the last row and
+    /// column 0 when the time offset is not estimated).
+    pub correlation: Vec<Vec<f64>>,
+    /// Condition number of the unit-diagonal normal matrix.
+    pub condition_number: f64,
+    /// Parameters the data determine poorly.
+    pub weak_parameters: Vec<String>,
+    /// RMS of fitted minus surveyed centres [m].
+    pub sphere_centre_rms_m: Option<f64>,
+    /// Per sphere.
+    pub per_sphere: Vec<PerSphere>,
+    /// Per pass over each sphere.
+    pub per_pass: Vec<PerPass>,
+    /// The final shell: kept returns are within this of their sphere's surface [m].
+    pub shell_m: f64,
+    /// Windowed returns rejected as clutter, all spheres.
+    pub clutter_rejected: u64,
+    /// Windowed returns lost because a fixed-capacity batch was full (never expected; counted
+    /// so that a truncated window cannot pass unnoticed).
+    #[serde(default)]
+    pub batch_overflow: u64,
+    /// The consistency tests.
+    pub consistency: Consistency,
+    /// What the inputs held (files, clock, INS state, spans, skips).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inputs: Option<InputsReport>,
+    /// Time of the solve [ms].
+    pub solve_ms: f64,
+    /// Starting values.
+    pub start: BTreeMap<String, f64>,
+    /// The coarse search of the time offset, when one ran: each start tried.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub time_offset_search: Vec<SearchCandidate>,
+}
+
+/// One start of the time offset search.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
+pub struct SearchCandidate {
+    /// The offset the windows were collected at [s].
+    pub start_s: f64,
+    /// The offset the joint solve moved it to [s] (none without a converged least squares).
+    pub found_s: Option<f64>,
+    /// Returns kept on the spheres.
+    pub kept: usize,
+    /// Their residual RMS [m].
+    pub rms_m: Option<f64>,
+}
+
+/// The human summary.
+/// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
+pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
+    let mut o = String::new();
+    let b = [
+        r.boresight_deg.roll,
+        r.boresight_deg.pitch,
+        r.boresight_deg.heading,
+        r.lever_arm_m.x,
+        r.lever_arm_m.y,
+        r.lever_arm_m.z,
+    ];
+    let s = [
+        r.sigma.boresight_deg.roll,
+        r.sigma.boresight_deg.pitch,
+        r.sigma.boresight_deg.heading,
+        r.sigma.lever_arm_m.x,
+        r.sigma.lever_arm_m.y,
+        r.sigma.lever_arm_m.z,
+    ];
+    let _ = writeln!(
+        o,
+        "{:<10}{:>14}{:>12}{:>14}{}",
+        "parameter",
+        "start",
+        "solution",
+        "1-sigma",
+        if truth.is_some() {
+            "         truth      error"
+        } else {
+            ""
+        }
+    );
+    for i in 0..P {
+        let unit = if i < 3 { "deg" } else { "m" };
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.5}{:>10.5} {unit:<3}",
+            NAMES[i], r.start[NAMES[i]], b[i], s[i]
+        );
+        if let Some(t) = truth {
+            let _ = write!(o, "{:>14.4}{:>11.2e}", t[i], b[i] - t[i]);
+        }
+        let _ = writeln!(o);
+    }
+    // The time offset: INS time = LiDAR time + dt.
+    let start = r.start.get("time_offset").copied().unwrap_or(0.0);
+    if r.time_offset_estimated {
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.6}{:>10.6} {:<3}",
+            "dt", start, r.time_offset_s, r.sigma.time_offset_s, "s"
+        );
+    } else {
+        let _ = write!(
+            o,
+            "{:<10}{:>14.4}{:>12.6}{:>10} {:<3}",
+            "dt", start, r.time_offset_s, "held", "s"
+        );
+    }
+    if let Some(t) = truth {
+        let _ = write!(o, "{:>14.4}{:>11.2e}", t[P], r.time_offset_s - t[P]);
+    }
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}",
+        r.rms_m * 1e3,
+        r.objective_l1_m,
+        r.condition_number,
+        r.sphere_centre_rms_m
+            .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
+    );
+    let c = &r.consistency;
+    let _ = writeln!(
+        o,
+        "consistency: RMS {:.2}x the {:.1} mm the noise model predicts (limit 2); worst pass chi-square {:.1} (limit 25){}",
+        c.dispersion,
+        c.predicted_rms_m * 1e3,
+        c.worst_pass_chi2,
+        c.free_time_offset_s.map_or(String::new(), |[d, sg]| format!(
+            "; time offset held, the data give {d:+.6} +- {sg:.6} s more"
+        ))
+    );
+    for p in &r.per_sphere {
+        let v = &p.verdicts;
+        if !p.found {
+            let _ = writeln!(
+                o,
+                "  {}: NOT FOUND among {} windowed returns (detected in {} of {} slices): left out",
+                p.id, p.windowed, p.detected, p.slices
+            );
+            continue;
+        }
+        let mut why = format!(
+            "{} off the sphere, {} in slices without it",
+            v.outside_shell, v.undetected
+        );
+        for (n, what) in [
+            (v.plane, "on a plane"),
+            (v.pole, "on a pole or stand"),
+            (v.hidden_side, "behind it"),
+        ] {
+            if n > 0 {
+                let _ = write!(why, ", {n} {what}");
+            }
+        }
+        let _ = writeln!(
+            o,
+            "  {}: kept {} of {} windowed returns, seen in {} of {} slices; rejected {} ({why}); RMS {:.2} mm",
+            p.id,
+            p.points,
+            p.windowed,
+            p.detected,
+            p.slices,
+            v.rejected(),
+            p.rms_after_m * 1e3
+        );
+    }
+    let _ = writeln!(
+        o,
+        "clutter rejected: {} of {} windowed returns; kept: within {:.1} mm of a sphere",
+        r.clutter_rejected,
+        r.per_sphere.iter().map(|p| p.windowed).sum::<usize>(),
+        r.shell_m * 1e3
+    );
+    if r.batch_overflow > 0 {
+        let _ = writeln!(
+            o,
+            "WARNING: {} windowed returns lost to full batches",
+            r.batch_overflow
+        );
+    }
+    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
+    match &r.reason {
+        None => {
+            let _ = writeln!(o, "converged");
+        }
+        Some(why) => {
+            let _ = writeln!(o, "NOT CONVERGED: {why}");
+        }
+    }
+    o
+}
+
+/// What the inputs held, in the report.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct InputsReport {
+    /// The capture.
+    pub pcap: String,
+    /// The trajectory's file.
+    pub ins: String,
+    /// Data packets timed.
+    pub data_packets: u64,
+    /// Capture records skipped, by reason.
+    pub skipped: BTreeMap<String, u64>,
+    /// GPS seconds of the first and last data packet (LiDAR clock).
+    pub lidar_span_gps_s: Option<(f64, f64)>,
+    /// The LiDAR clock as its position packets tell it.
+    pub clock: crate::state::ClockState,
+    /// The LiDAR clock is PPS-locked with valid RMCs that agree with its stamps.
+    pub clock_trusted: bool,
+    /// The INS stream.
+    pub ins_state: crate::state::InsState,
+    /// Returns not georeferenced: before the INS data, after it, in INS gaps.
+    pub not_georeferenced: [u64; 3],
+    /// Data packets without a time.
+    pub packets_without_time: u64,
+    /// The time offset the windows were collected at [s].
+    pub time_offset_applied_s: f64,
+}
+
+impl InputsReport {
+    /// From a run's counts.
+    pub fn of(inp: &Inputs, stats: &RunStats) -> Self {
+        let w = &stats.align.window;
+        Self {
+            pcap: inp.pcap.display().to_string(),
+            ins: inp.ins_path().display().to_string(),
+            data_packets: stats.align.data_packets,
+            skipped: stats
+                .skips
+                .lines()
+                .iter()
+                .map(|l| (l.reason.to_string(), l.count))
+                .collect(),
+            lidar_span_gps_s: stats.align.lidar_span,
+            clock: stats.clock.clone(),
+            clock_trusted: stats.clock.trusted(),
+            ins_state: stats.ins.clone(),
+            not_georeferenced: [w.before_history, w.after_history, w.in_gap],
+            packets_without_time: stats.align.packets_without_time,
+            time_offset_applied_s: inp.time_offset_ns as f64 * 1e-9,
+        }
+    }
+}
+
+/// Monte Carlo: one trial.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Trial {
+    /// Start [deg, m].
+    pub start: [f64; P],
+    /// Solution [deg, m].
+    pub solution: [f64; P],
+    /// Solution minus truth [deg, m].
+    pub error: [f64; P],
+    /// A solution was claimed.
+    pub converged: bool,
+    /// Within 1e-3 deg / 1e-3 m on every parameter.
+    pub within: bool,
+    /// Solve time [ms].
+    pub ms: f64,
+}
+
+/// The Monte Carlo report.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct McReport {
+    /// Scenario.
+    pub scenario: String,
+    /// Trials.
+    pub trials: usize,
+    /// Start spread [deg].
+    pub angle_noise_deg: f64,
+    /// Start spread [m].
+    pub lever_noise_m: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Fraction within 1e-3 deg / 1e-3 m.
+    pub fraction_within: f64,
+    /// Fraction claimed converged.
+    pub fraction_converged: f64,
+    /// Worst |error| per parameter [deg, m], order roll, pitch, heading, x, y, z.
+    pub worst_error: [f64; P],
+    /// Mean solve time per trial [ms].
+    pub ms_per_trial: f64,
+    /// Every trial.
+    pub runs: Vec<Trial>,
+}
+
+/// Monte Carlo in words.
+pub fn render_montecarlo(r: &McReport) -> String {
+    let mut o = format!(
+        "{}: {} trials from starts within +-{} deg / +-{} m of the truth (seed {})\nwithin 1e-3 deg / 1e-3 m: {:.1} %   claimed converged: {:.1} %   {:.1} ms per trial\nworst |error|:",
+        r.scenario,
+        r.trials,
+        r.angle_noise_deg,
+        r.lever_noise_m,
+        r.seed,
+        100.0 * r.fraction_within,
+        100.0 * r.fraction_converged,
+        r.ms_per_trial
+    );
+    for (i, (name, w)) in NAMES.iter().zip(&r.worst_error).enumerate() {
+        o.push_str(&format!(
+            " {name} {w:.2e}{}",
+            if i < 3 { " deg" } else { " m" }
+        ));
+    }
+    o.push('\n');
+    o
+}
+/// Write `value` as pretty JSON to `p` through a temporary file and a rename, so that a reader
+/// (a surveyor's viewer polling the rig's report) never sees half of one.
+pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
+    let tmp = p.with_extension("json.tmp");
+    std::fs::write(&tmp, json + "\n").map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, p).map_err(|e| format!("{}: {e}", p.display()))
+}
