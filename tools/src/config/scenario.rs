@@ -329,6 +329,17 @@ impl Scenario {
 
     /// Reject impossible values, naming the key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
+        self.validate_site_and_spheres()?;
+        self.validate_mount()?;
+        self.validate_lidar()?;
+        self.validate_scene()?;
+        self.validate_ins()?;
+        self.validate_trajectory()?;
+        Ok(())
+    }
+
+    /// The site and the spheres.
+    fn validate_site_and_spheres(&self) -> Result<(), ScenarioError> {
         check(
             parse_utc(&self.start_utc).is_some(),
             "start_utc",
@@ -388,6 +399,11 @@ impl Scenario {
                 "expected 0 < rho <= 1",
             )?;
         }
+        Ok(())
+    }
+
+    /// The true and a-priori mountings.
+    fn validate_mount(&self) -> Result<(), ScenarioError> {
         let t = &self.mount.truth;
         check(
             finite(&t.boresight_deg) && finite(&t.lever_arm_m),
@@ -410,6 +426,11 @@ impl Scenario {
             "mount.apriori.window_margin_m",
             "expected 0 < m < 20",
         )?;
+        Ok(())
+    }
+
+    /// The LiDAR model.
+    fn validate_lidar(&self) -> Result<(), ScenarioError> {
         check(
             (300.0..=1200.0).contains(&self.lidar.rpm),
             "lidar.rpm",
@@ -463,6 +484,11 @@ impl Scenario {
             "lidar.range_walk_m",
             "expected |walk| < 1 m",
         )?;
+        Ok(())
+    }
+
+    /// The scenery (its objects counted with the spheres and stands).
+    fn validate_scene(&self) -> Result<(), ScenarioError> {
         let spec = self.scene_spec();
         spec.validate()?;
         check(
@@ -470,6 +496,11 @@ impl Scenario {
             "scatter",
             "too many objects: at most 1024 in a scene (spheres and stands included)",
         )?;
+        Ok(())
+    }
+
+    /// The INS model.
+    fn validate_ins(&self) -> Result<(), ScenarioError> {
         check(
             self.ins.rate_hz >= 1.0 && self.ins.rate_hz <= 1000.0,
             "ins.rate_hz",
@@ -495,6 +526,11 @@ impl Scenario {
             "ins.corrupt_prob",
             "expected 0..=1",
         )?;
+        Ok(())
+    }
+
+    /// The trajectory.
+    fn validate_trajectory(&self) -> Result<(), ScenarioError> {
         let tr = &self.trajectory;
         check(
             !tr.pass.is_empty() || tr.file.is_some(),
