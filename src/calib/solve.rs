@@ -667,6 +667,77 @@ fn gather(
     out
 }
 
+/// Each sphere's windowed returns in time order (once: the scan-line segments, whose lengths
+/// do not depend on the mounting, and the slices), georeferenced with the start `b0`,
+/// unclassified; and the passes over each sphere.
+fn prepare(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    b0: &[f64; P],
+    st: &ExtractSettings,
+    slices: usize,
+) -> heapless::Vec<PassReport, MAX_PASSES> {
+    let mount0 = Mount::from_params(b0);
+    for (v, t) in obs.iter_mut().zip(targets) {
+        v.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+        extract::georeference(v, t, &mount0, 0.0);
+        extract::runs(v, st.firing_ns, st.jump);
+        extract::assign_slices(v, st.slice_ns, slices);
+        extract::tag(v, Verdict::Unclassified);
+    }
+    let mut passes = heapless::Vec::new();
+    for (j, v) in obs.iter().enumerate() {
+        find_passes(v, j, st.pass_gap_ns, &mut passes);
+    }
+    passes
+}
+
+/// `buf` cut at the ends of consecutive `ranges` (the first starting at 0): one slice each.
+fn split_ranges<'b>(
+    buf: &'b mut [Observation],
+    ranges: &[Range<usize>],
+) -> heapless::Vec<&'b mut [Observation], MAX_TARGETS> {
+    let mut part = heapless::Vec::new();
+    let mut rest = buf;
+    let mut pos = 0;
+    for r in ranges {
+        let (head, tail) = core::mem::take(&mut rest).split_at_mut(r.end - pos);
+        let _ = part.push(head);
+        rest = tail;
+        pos = r.end;
+    }
+    part
+}
+
+impl Solution {
+    /// Nothing solved yet: the start `b0`, the first shell `tau0`.
+    fn start(b0: &[f64; P], tau0: f64) -> Self {
+        Self {
+            b: *b0,
+            dt: 0.0,
+            nm: NmResult {
+                x: to_deg_m(b0),
+                f: f64::INFINITY,
+                iterations: 0,
+                evaluations: 0,
+                converged: false,
+            },
+            lm: None,
+            l1: f64::INFINITY,
+            rounds: 0,
+            log: heapless::Vec::new(),
+            shell: tau0,
+            spheres: heapless::Vec::new(),
+            passes: heapless::Vec::new(),
+            center_rms: None,
+            weak: [false; P + 1],
+            dt_free: None,
+            predicted_rms: 0.0,
+            refusal: None,
+        }
+    }
+}
+
 /// Solve from `b0` ([rad, m]) with every sphere's windowed returns (reordered in place: the
 /// kept ones first, in time order; each tagged with its [`Verdict`]).
 pub fn solve(
@@ -683,46 +754,13 @@ pub fn solve(
     let dirs = Directions::default();
     let mut used = [0usize; MAX_TARGETS];
     let mut windowed = [0usize; MAX_TARGETS];
-    let mount0 = Mount::from_params(b0);
     for j in 0..n {
         windowed[j] = obs[j].len();
-        // Time order once: the scan-line segments (their lengths do not depend on the
-        // mounting: a few milliseconds of a scan line move rigidly) and the slices.
-        obs[j].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
-        extract::georeference(obs[j], &targets[j], &mount0, 0.0);
-        extract::runs(obs[j], st.firing_ns, st.jump);
-        extract::assign_slices(obs[j], st.slice_ns, ws.keys.len());
-        extract::tag(obs[j], Verdict::Unclassified);
     }
-    let mut passes: heapless::Vec<PassReport, MAX_PASSES> = heapless::Vec::new();
-    for (j, v) in obs.iter().enumerate() {
-        find_passes(v, j, st.pass_gap_ns, &mut passes);
-    }
+    let mut passes = prepare(targets, obs, b0, st, ws.keys.len());
     // Each sphere's returns still taking part (the others are far from it).
     let mut active = windowed;
-    let mut sol = Solution {
-        b: *b0,
-        dt: 0.0,
-        nm: NmResult {
-            x: to_deg_m(b0),
-            f: f64::INFINITY,
-            iterations: 0,
-            evaluations: 0,
-            converged: false,
-        },
-        lm: None,
-        l1: f64::INFINITY,
-        rounds: 0,
-        log: heapless::Vec::new(),
-        shell: st.tau0,
-        spheres: heapless::Vec::new(),
-        passes: heapless::Vec::new(),
-        center_rms: None,
-        weak: [false; P + 1],
-        dt_free: None,
-        predicted_rms: 0.0,
-        refusal: None,
-    };
+    let mut sol = Solution::start(b0, st.tau0);
     if n < 2 {
         sol.refusal = Some(Refusal::TooFewSpheres { have: n });
         return sol;
@@ -787,15 +825,7 @@ pub fn solve(
         for r in ranges.iter().take(n) {
             print = fingerprint(print, &buf[r.clone()]);
         }
-        let mut part: heapless::Vec<&mut [Observation], MAX_TARGETS> = heapless::Vec::new();
-        let mut rest: &mut [Observation] = &mut buf[..];
-        let mut pos = 0;
-        for r in ranges.iter().take(n) {
-            let (head, tail) = core::mem::take(&mut rest).split_at_mut(r.end - pos);
-            let _ = part.push(head);
-            rest = tail;
-            pos = r.end;
-        }
+        let mut part = split_ranges(buf, &ranges[..n]);
         let lens: [usize; MAX_TARGETS] =
             core::array::from_fn(|j| part.get(j).map_or(0, |p| p.len()));
         if prior.is_none() {
