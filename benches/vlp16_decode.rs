@@ -7,8 +7,7 @@ use std::hint::black_box;
 
 /// The UDP payloads of the data packets of a classic Ethernet pcap (fixed 42-byte headers).
 fn payloads(path: &str) -> Vec<Vec<u8>> {
-    let b = std::fs::read(path)
-        .unwrap_or_else(|e| panic!("{path}: {e} (../shared/data must sit beside the repo)"));
+    let b = std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let mut off = 24;
     let mut out = Vec::new();
     while off + 16 <= b.len() {
@@ -24,7 +23,7 @@ fn payloads(path: &str) -> Vec<Vec<u8>> {
 
 fn bench(c: &mut Criterion) {
     let root = env!("CARGO_MANIFEST_DIR");
-    let packets = payloads(&format!("{root}/../shared/data/vlp16/mrpt_vlp16_gps.pcap"));
+    let packets = payloads(&format!("{root}/tests/data/vlp16/mrpt_vlp16_gps.pcap"));
     let mut out = PointBuf::new();
     let points: usize = packets
         .iter()

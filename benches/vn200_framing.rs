@@ -7,7 +7,7 @@ use spherecal::vn200::{Framer, Item, Pose};
 use std::hint::black_box;
 
 fn stream(name: &str) -> Vec<u8> {
-    let p = format!("{}/../shared/data/vn200/{name}", env!("CARGO_MANIFEST_DIR"));
+    let p = format!("{}/tests/data/vn200/{name}", env!("CARGO_MANIFEST_DIR"));
     let one = std::fs::read(&p).unwrap_or_else(|e| panic!("{p}: {e}"));
     one.iter().copied().cycle().take(4 << 20).collect()
 }

@@ -6,11 +6,6 @@ cd "$(dirname "$0")/.."
 
 say() { printf '\n== %s\n' "$*"; }
 
-if [ ! -d ../shared/data ]; then
-  echo "error: ../shared/data is missing: the tests read real captures from it (see README)" >&2
-  exit 1
-fi
-
 say "set-up"
 rustup component add rustfmt clippy >/dev/null 2>&1 || echo "warning: could not add rustfmt/clippy components"
 THUMB=thumbv7em-none-eabihf

@@ -2,8 +2,8 @@
 //! (Velodyne VLP-16 + VectorNav VN-200 or Applanix POS MV).
 //!
 //! `#![no_std]`, no heap, no I/O, no clocks: every function here is pure logic over borrowed
-//! bytes and fixed-capacity buffers, and no input makes it panic. See `../shared/DESIGN.md`
-//! (layout, data flow, normative conventions) and `../shared/PROTOCOLS.md` (wire formats).
+//! bytes and fixed-capacity buffers, and no input makes it panic. See `docs/DESIGN.md`
+//! (layout, data flow, normative conventions) and `docs/PROTOCOLS.md` (wire formats).
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

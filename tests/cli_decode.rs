@@ -10,7 +10,7 @@ fn tmp(name: &str) -> std::path::PathBuf {
 
 #[test]
 fn decode_mrpt_summary_and_csv() {
-    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let pcap = common::test_data("vlp16/mrpt_vlp16_gps.pcap");
     let csv = tmp("mrpt.csv");
     let stdout = common::stdout_of(
         common::spherecal()
@@ -36,7 +36,7 @@ fn decode_mrpt_summary_and_csv() {
 
     // The CSV against the independent decoding: same points, same raw values and times.
     let reference =
-        std::fs::read_to_string(common::shared_data("vlp16/mrpt_vlp16_gps.reference.csv")).unwrap();
+        std::fs::read_to_string(common::test_data("vlp16/mrpt_vlp16_gps.reference.csv")).unwrap();
     let mut want: HashMap<String, (String, String, String)> = HashMap::new();
     for l in reference.lines().skip(1) {
         let f: Vec<&str> = l.split(',').collect();
@@ -138,7 +138,7 @@ fn wrong_magic_and_random_bytes_exit_2() {
 
 #[test]
 fn truncated_capture_is_a_counted_skip() {
-    let full = std::fs::read(common::shared_data("vlp16/mrpt_vlp16_gps.pcap")).unwrap();
+    let full = std::fs::read(common::test_data("vlp16/mrpt_vlp16_gps.pcap")).unwrap();
     let p = tmp("cut.pcap");
     // Cut inside the 11th record.
     std::fs::write(&p, &full[..24 + 10 * (16 + 1248) + 700]).unwrap();

@@ -12,12 +12,12 @@ fn csv_matches(file: &str, expected: &str) {
     common::stdout_of(
         common::spherecal()
             .arg("ins")
-            .arg(common::shared_data(file))
+            .arg(common::test_data(file))
             .arg("--csv")
             .arg(&csv),
     );
     let ours = std::fs::read_to_string(&csv).unwrap();
-    let want = std::fs::read_to_string(common::shared_data(expected)).unwrap();
+    let want = std::fs::read_to_string(common::test_data(expected)).unwrap();
     let (oh, orows) = split(&ours);
     let (wh, wrows) = split(&want);
     assert_eq!(orows.len(), wrows.len());
@@ -67,7 +67,7 @@ fn ins_csv_vn100_logger() {
 fn ins_summary_counts() {
     let out = common::spherecal()
         .arg("ins")
-        .arg(common::shared_data("vn200/vn100_F00294.raw"))
+        .arg(common::test_data("vn200/vn100_F00294.raw"))
         .output()
         .unwrap();
     assert!(out.status.success());
@@ -90,7 +90,7 @@ fn ins_missing_file_exits_2() {
 
 #[test]
 fn ins_counts_crc_failures() {
-    let mut bytes = std::fs::read(common::shared_data("vn200/vn310_imu.bin")).unwrap();
+    let mut bytes = std::fs::read(common::test_data("vn200/vn310_imu.bin")).unwrap();
     bytes[191 + 50] ^= 0x10; // inside the second frame
     let p = tmp("corrupt.bin");
     std::fs::write(&p, &bytes).unwrap();

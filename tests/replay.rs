@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 #[test]
 fn capture_replayed_to_loopback_arrives_whole() {
-    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let pcap = common::test_data("vlp16/mrpt_vlp16_gps.pcap");
     // Bind both VLP-16 ports on loopback (any free ports would do, but the capture names them).
     let Ok(data) = UdpSource::bind(Ipv4Addr::LOCALHOST, 2368, Duration::from_millis(50)) else {
         panic!("UDP 2368 on loopback is taken: another spherecal is running");
@@ -74,7 +74,7 @@ fn capture_replayed_to_loopback_arrives_whole() {
 
 #[test]
 fn serial_bytes_replayed_at_the_baud_rate() {
-    let file = common::shared_data("vn200/vn310_imu.bin");
+    let file = common::test_data("vn200/vn310_imu.bin");
     let bytes = std::fs::read(&file).unwrap();
     let mut out = Vec::new();
     let t = Instant::now();
@@ -129,7 +129,7 @@ fn serial_log_replayed_at_its_recorded_pace() {
 /// fast as asked, and says how many it sent.
 #[test]
 fn cli_replay_to_other_ports() {
-    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let pcap = common::test_data("vlp16/mrpt_vlp16_gps.pcap");
     let mut data = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(50)).unwrap();
     let mut pos = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(50)).unwrap();
     let ports = format!("{},{}", data.port(), pos.port());
@@ -219,7 +219,7 @@ fn replay_pacing_on_the_mock_clock() {
         assert_eq!(bytes[..], data[i * 50..(i + 1) * 50]);
     }
 
-    let raw = common::shared_data("vn200/vn310_imu.bin");
+    let raw = common::test_data("vn200/vn310_imu.bin");
     let bytes = std::fs::read(&raw).unwrap();
     let clock = MockClock::new(0);
     let mut out = Stamped {

@@ -765,7 +765,7 @@ fn other_senders_are_logged_not_aligned() {
         false,
         &[("sensor_addr = \"127.0.0.1\"", "sensor_addr = \"127.0.0.2\"")],
     );
-    let pcap = common::shared_data("vlp16/mrpt_vlp16_gps.pcap");
+    let pcap = common::test_data("vlp16/mrpt_vlp16_gps.pcap");
     let to = loopback(dp, pp);
     // In real time: the capture's 0.39 s, with its burst of position packets.
     let (first, _) = spherecal_tools::replay::first_times(&pcap, None).unwrap();

@@ -458,7 +458,7 @@ fn synthetic_files_read_back_at_the_sensor_rates() {
         sum as f64 / n as f64 / 100.0
     };
     let ours = mean_step(&dir.join("lidar.pcap"));
-    let real = mean_step(&common::shared_data("vlp16/lidarutils_vlp16_example.pcap"));
+    let real = mean_step(&common::test_data("vlp16/lidarutils_vlp16_example.pcap"));
     assert!(
         (ours - 0.398).abs() < 0.002 && (ours - real).abs() < 0.01,
         "block step: synthetic {ours} deg, real {real} deg"

@@ -1,5 +1,5 @@
 //! The VLP-16 decoder against real captures and an independent decoding of them
-//! (../shared/data/vlp16/*.reference.csv, made by the velodyne-decoder package 3.1.0).
+//! (tests/data/vlp16/*.reference.csv, made by the velodyne-decoder package 3.1.0).
 
 mod common;
 
@@ -20,7 +20,7 @@ struct Ref {
 }
 
 fn load_reference(name: &str) -> BTreeMap<(u32, u8, u8, u8), Ref> {
-    let text = std::fs::read_to_string(common::shared_data(name)).unwrap();
+    let text = std::fs::read_to_string(common::test_data(name)).unwrap();
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
@@ -82,7 +82,7 @@ fn sensor_point_ros(distance_raw: u16, laser: usize, azimuth_deg: f64) -> [f64; 
 /// (pps, stamp_us, nmea time) for further checks.
 fn compare(pcap: &str, reference: &str) -> Vec<(PpsStatus, u32, Option<vlp16::NmeaTime>)> {
     let reference = load_reference(reference);
-    let mut src = PcapSource::open(common::shared_data(pcap)).unwrap();
+    let mut src = PcapSource::open(common::test_data(pcap)).unwrap();
     let mut buf = PointBuf::new();
     let mut seen = 0usize;
     let mut packet_index = 0u32;

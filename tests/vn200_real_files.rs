@@ -1,5 +1,5 @@
 //! The VN-200 framer and decoder against real and vendor files and their independent decodings
-//! (../shared/data/vn200/*.expected.csv, from a Python decoder checked against VectorNav's SDK).
+//! (tests/data/vn200/*.expected.csv, from a Python decoder checked against VectorNav's SDK).
 
 mod common;
 
@@ -101,8 +101,8 @@ fn same(v: &Value, expected: &str) -> bool {
 }
 
 fn check_wide(bin: &str, expected: &str, frames: usize) {
-    let bytes = std::fs::read(common::shared_data(bin)).unwrap();
-    let text = std::fs::read_to_string(common::shared_data(expected)).unwrap();
+    let bytes = std::fs::read(common::test_data(bin)).unwrap();
+    let text = std::fs::read_to_string(common::test_data(expected)).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(&header[..4], ["offset", "header", "len", "hex"]);
@@ -151,7 +151,7 @@ fn vn100_logger_file() {
         99,
     );
     // The back-to-back pair at offset 11754: the earlier frame's last CRC byte is 0xFA.
-    let bytes = std::fs::read(common::shared_data("vn200/vn100_F00294.raw")).unwrap();
+    let bytes = std::fs::read(common::test_data("vn200/vn100_F00294.raw")).unwrap();
     let (got, nmea, stats) = frame(&bytes, &[bytes.len()]);
     assert_eq!(bytes[11_753], 0xFA, "the earlier frame's last CRC byte");
     assert!(
@@ -180,7 +180,7 @@ fn vn310_imu_file() {
 
 /// Long-form expected files: `offset,kind,field,value`.
 fn long_form(expected: &str) -> BTreeMap<u64, Vec<(String, String)>> {
-    let text = std::fs::read_to_string(common::shared_data(expected)).unwrap();
+    let text = std::fs::read_to_string(common::test_data(expected)).unwrap();
     let mut out: BTreeMap<u64, Vec<(String, String)>> = BTreeMap::new();
     for l in text.lines() {
         let f: Vec<&str> = l.splitn(4, ',').collect();
@@ -193,7 +193,7 @@ fn long_form(expected: &str) -> BTreeMap<u64, Vec<(String, String)>> {
 
 #[test]
 fn vnproglib_mock_binary_file() {
-    let bytes = std::fs::read(common::shared_data("vn200/vnproglib_mock_binary.bin")).unwrap();
+    let bytes = std::fs::read(common::test_data("vn200/vnproglib_mock_binary.bin")).unwrap();
     let want = long_form("vn200/vnproglib_mock_binary.expected.csv");
     let (got, _, _) = frame_every_way(&bytes);
     assert_eq!(got.len(), want.len());
@@ -218,7 +218,7 @@ fn vnproglib_mock_binary_file() {
 }
 
 fn check_ascii(txt: &str, expected: &str) {
-    let bytes = std::fs::read(common::shared_data(txt)).unwrap();
+    let bytes = std::fs::read(common::test_data(txt)).unwrap();
     let want = long_form(expected);
     let (bin, got, stats) = frame_every_way(&bytes);
     assert!(bin.is_empty());
@@ -257,7 +257,7 @@ fn thirdparty_quoted_ascii_file() {
     );
     // Typed decoding of the first $VNINS, against its printed fields.
     let line =
-        std::fs::read_to_string(common::shared_data("vn200/thirdparty_quoted_ascii.txt")).unwrap();
+        std::fs::read_to_string(common::test_data("vn200/thirdparty_quoted_ascii.txt")).unwrap();
     let first = line.lines().next().unwrap();
     let s = spherecal::vn200::ascii::parse(first.as_bytes()).unwrap();
     let spherecal::vn200::ascii::Vn::Ins(ins) = s.decode().unwrap() else {

@@ -12,10 +12,9 @@ use std::time::{Duration, Instant};
 fn vn100() -> Vec<u8> {
     let p = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/vn200/vn100_F00294.raw"
+        "/../tests/data/vn200/vn100_F00294.raw"
     );
-    std::fs::read(p)
-        .unwrap_or_else(|e| panic!("{p}: {e}: ../shared/data must sit beside the repository"))
+    std::fs::read(p).unwrap_or_else(|e| panic!("{p}: {e}: the repository's tests/data"))
 }
 
 fn frames_of(bytes: &[u8]) -> Vec<(u64, Vec<u8>)> {

@@ -1,7 +1,7 @@
 //! Firing times, azimuth interpolation and the point in the sensor frame.
 //!
 //! Manual appendix B (timing) and section 9.5 (azimuth interpolation), in the corrected form of
-//! `../shared/PROTOCOLS.md`:
+//! `docs/PROTOCOLS.md`:
 //! - a firing takes 2.304 us, a 16-laser sequence 55.296 us, a block two sequences (110.592 us);
 //! - single return: offset(b, s, l) = 110.592 b + 55.296 s + 2.304 l us;
 //!   dual return: offset = 110.592 floor(b/2) + 55.296 s + 2.304 l (blocks in pairs);

@@ -1,7 +1,7 @@
 //! Velodyne VLP-16 (Puck) wire formats: data packets (UDP 2368) and position packets (UDP 8308).
 //!
 //! References: VLP-16 User Manual 63-9243 Rev. E, section 9 ("Sensor Data") and appendix B
-//! (timing), and `../shared/PROTOCOLS.md`, which records where real devices differ from it.
+//! (timing), and `docs/PROTOCOLS.md`, which records where real devices differ from it.
 //!
 //! - [`data`]: the 1206-byte data packet view ([`DataPacket`]) with its emit side.
 //! - [`position`]: the 512-byte position packet view ([`PositionPacket`]), PPS status and the

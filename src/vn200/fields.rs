@@ -1,7 +1,7 @@
 //! The binary output field table: every group and field of PROTOCOLS.md ("VectorNav binary
 //! output"; VN-200 / VN-300 user manuals, section "Binary Output Groups"), with sizes and the
 //! scalar components each field holds, named `Group.Field[.component]` as in the expected CSVs
-//! of ../shared/data/vn200.
+//! of tests/data/vn200.
 //!
 //! A field is addressed by its group index and its bit in the group's 32-bit mask (bit 15 of the
 //! first mask word says an extension word follows, whose bit k is field 16 + k).

@@ -15,15 +15,11 @@ pub fn repo_root() -> PathBuf {
     }
 }
 
-/// A file under `../shared/data`, relative to the repository root. Panics (fails the test
-/// loudly) when it is missing: these tests must never skip silently.
-pub fn shared_data(rel: &str) -> PathBuf {
-    let p = repo_root().join("..").join("shared").join("data").join(rel);
-    assert!(
-        p.exists(),
-        "missing test data {}: ../shared/data must sit beside the repository (see README)",
-        p.display()
-    );
+/// A file under `tests/data` (real captures; origins and licences in its README). Panics
+/// (fails the test loudly) when it is missing: these tests must never skip silently.
+pub fn test_data(rel: &str) -> PathBuf {
+    let p = repo_root().join("tests").join("data").join(rel);
+    assert!(p.exists(), "missing test data {}", p.display());
     p
 }
 
@@ -61,4 +57,19 @@ pub fn survey_args(dir: &std::path::Path) -> Vec<std::ffi::OsString> {
         "--site".into(),
         dir.join("site.toml").into(),
     ]
+}
+
+/// Every one of the six parameters (roll, pitch, heading [deg], x, y, z [m]) within `tol` of
+/// the truth, naming the first that is not.
+pub fn assert_within(got: &[f64; 6], want: &[f64; 6], tol: f64, what: &str) {
+    for i in 0..6 {
+        assert!(
+            (got[i] - want[i]).abs() <= tol,
+            "{what}: {} {} vs {} (error {:.2e})",
+            spherecal::calib::NAMES[i],
+            got[i],
+            want[i],
+            got[i] - want[i]
+        );
+    }
 }

@@ -24,7 +24,7 @@ fn run<R: Read>(mut src: PcapSource<R>, out: &mut PointBuf) -> usize {
 
 fn bench(c: &mut Criterion) {
     let path = format!(
-        "{}/../../shared/data/vlp16/mrpt_vlp16_gps.pcap",
+        "{}/../tests/data/vlp16/mrpt_vlp16_gps.pcap",
         env!("CARGO_MANIFEST_DIR")
     );
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));

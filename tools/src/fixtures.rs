@@ -28,10 +28,10 @@ pub struct CorePath {
 }
 
 impl CorePath {
-    /// Load `../shared/data/vlp16/mrpt_vlp16_gps.pcap` (relative to the repository root).
+    /// Load `tests/data/vlp16/mrpt_vlp16_gps.pcap` (relative to the repository root).
     pub fn load() -> Self {
         let path = format!(
-            "{}/../../shared/data/vlp16/mrpt_vlp16_gps.pcap",
+            "{}/../tests/data/vlp16/mrpt_vlp16_gps.pcap",
             env!("CARGO_MANIFEST_DIR")
         );
         let b = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{self, Write};
 
-/// Column name of one scalar: `Group.Field[.component]` (../shared/data/vn200/*.expected.csv).
+/// Column name of one scalar: `Group.Field[.component]` (tests/data/vn200/*.expected.csv).
 pub fn column_name(group: &str, field: &str, comp: &str) -> String {
     if comp.is_empty() {
         format!("{group}.{field}")

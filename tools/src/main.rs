@@ -1,4 +1,4 @@
-//! `spherecal`: the command (README.md; ../shared/DESIGN.md for the contract). Each subcommand
+//! `spherecal`: the command (README.md; docs/DESIGN.md for the contract). Each subcommand
 //! lives in `spherecal_tools::cmd`. Exit codes: 0 success; 1 calibration refused; 2 bad
 //! arguments or unreadable input.
 
