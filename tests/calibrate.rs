@@ -104,19 +104,6 @@ fn synth_and_solve(
     (dir, rep, sol, obs)
 }
 
-fn assert_within(got: &[f64; 6], want: &[f64; 6], tol: f64, what: &str) {
-    for i in 0..6 {
-        assert!(
-            (got[i] - want[i]).abs() <= tol,
-            "{what}: {} {} vs {} (error {:.2e})",
-            spherecal::calib::NAMES[i],
-            got[i],
-            want[i],
-            got[i] - want[i]
-        );
-    }
-}
-
 /// table1 at the quay, as a user runs it: `calibrate` from the paper's erroneous a-priori
 /// values finds the truth to 1e-3 deg / 1e-3 m, and the returns it kept (`--returns`) are the
 /// spheres' (precision >= 99.5 %, recall >= 90 % against the labels).
@@ -149,7 +136,7 @@ fn table1_quay_from_the_papers_start() {
         r["lever_arm_m"]["y"].as_f64().unwrap(),
         r["lever_arm_m"]["z"].as_f64().unwrap(),
     ];
-    assert_within(&got, &truth(&s), 1e-3, "table1");
+    common::assert_within(&got, &truth(&s), 1e-3, "table1");
     assert_eq!(r["converged"], true);
     // No clock offset: the estimate is within 1 ms of none.
     assert_eq!(r["time_offset_estimated"], true);
@@ -313,16 +300,9 @@ count = 12
     ] {
         let s = Scenario::from_toml(&text).unwrap();
         let (dir, rep, _, obs) = synth_and_solve(&s, &format!("density-{target}"));
-        let got = [
-            rep.boresight_deg.roll,
-            rep.boresight_deg.pitch,
-            rep.boresight_deg.heading,
-            rep.lever_arm_m.x,
-            rep.lever_arm_m.y,
-            rep.lever_arm_m.z,
-        ];
+        let got = rep.deg_m();
         assert!(rep.converged, "{target}x: {:?}", rep.reason);
-        assert_within(&got, &truth(&s), 1e-3, &format!("{target}x"));
+        common::assert_within(&got, &truth(&s), 1e-3, &format!("{target}x"));
         for (j, e) in extraction(&dir, &obs).iter().enumerate() {
             eprintln!(
                 "{target}x: sphere {j}: clutter {:.1}x, precision {:.4}, recall {:.4}",
@@ -359,16 +339,9 @@ count = 12
 fn pontoon_site() {
     let s = Scenario::load("pontoon").unwrap();
     let (dir, rep, _, obs) = synth_and_solve(&s, "pontoon");
-    let got = [
-        rep.boresight_deg.roll,
-        rep.boresight_deg.pitch,
-        rep.boresight_deg.heading,
-        rep.lever_arm_m.x,
-        rep.lever_arm_m.y,
-        rep.lever_arm_m.z,
-    ];
+    let got = rep.deg_m();
     assert!(rep.converged, "{:?}", rep.reason);
-    assert_within(&got, &truth(&s), 1e-3, "pontoon");
+    common::assert_within(&got, &truth(&s), 1e-3, "pontoon");
     for (j, e) in extraction(&dir, &obs).iter().enumerate() {
         eprintln!(
             "pontoon: sphere {j}: clutter {:.1}x, precision {:.4}, recall {:.4}",
@@ -551,15 +524,8 @@ fn a_hidden_sphere_is_not_found_and_the_others_calibrate() {
         p[2].windowed
     );
     assert!(rep.converged, "{:?}", rep.reason);
-    let got = [
-        rep.boresight_deg.roll,
-        rep.boresight_deg.pitch,
-        rep.boresight_deg.heading,
-        rep.lever_arm_m.x,
-        rep.lever_arm_m.y,
-        rep.lever_arm_m.z,
-    ];
-    assert_within(&got, &truth(&s), 2e-3, "two spheres of three");
+    let got = rep.deg_m();
+    common::assert_within(&got, &truth(&s), 2e-3, "two spheres of three");
     let text = spherecal_tools::calibrate::render(&rep, None);
     assert!(text.contains("P3: NOT FOUND"), "{text}");
     std::fs::remove_dir_all(dir).unwrap();

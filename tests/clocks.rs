@@ -60,46 +60,13 @@ fn text(o: &Output) -> String {
     )
 }
 
-fn six(r: &Report) -> [f64; 6] {
-    [
-        r.boresight_deg.roll,
-        r.boresight_deg.pitch,
-        r.boresight_deg.heading,
-        r.lever_arm_m.x,
-        r.lever_arm_m.y,
-        r.lever_arm_m.z,
-    ]
-}
-
-fn sigmas(r: &Report) -> [f64; 6] {
-    let s = &r.sigma;
-    [
-        s.boresight_deg.roll,
-        s.boresight_deg.pitch,
-        s.boresight_deg.heading,
-        s.lever_arm_m.x,
-        s.lever_arm_m.y,
-        s.lever_arm_m.z,
-    ]
-}
-
 fn truth(s: &Scenario) -> [f64; 6] {
     s.mount.truth.deg_m()
 }
 
 /// Every parameter within `tol` (deg, m) of the truth.
 fn assert_mount(r: &Report, s: &Scenario, tol: f64, what: &str) {
-    let (got, want) = (six(r), truth(s));
-    for i in 0..6 {
-        assert!(
-            (got[i] - want[i]).abs() <= tol,
-            "{what}: {} {} vs {} (error {:.2e})",
-            spherecal::calib::NAMES[i],
-            got[i],
-            want[i],
-            got[i] - want[i]
-        );
-    }
+    common::assert_within(&r.deg_m(), &truth(s), tol, what);
 }
 
 /// The INS stream 0.02 s and 0.1 s late (noise-free): the offset is estimated within 1 ms and
@@ -166,7 +133,7 @@ fn noisy_ins_late_is_within_three_sigma() {
         r.sigma.time_offset_s
     );
     assert!(r.sigma.time_offset_s < 1e-3);
-    let (got, want, sg) = (six(&r), truth(&s), sigmas(&r));
+    let (got, want, sg) = (r.deg_m(), truth(&s), r.sigma.deg_m());
     for i in 0..6 {
         assert!(
             (got[i] - want[i]).abs() <= 3.0 * sg[i],

@@ -43,6 +43,18 @@ pub struct Sigma {
     pub time_offset_s: f64,
 }
 
+/// Roll, pitch, heading [deg], x, y, z [m]: the solver's order.
+fn deg_m(b: &Angles, l: &Xyz) -> [f64; 6] {
+    [b.roll, b.pitch, b.heading, l.x, l.y, l.z]
+}
+
+impl Sigma {
+    /// The six 1-sigmas [deg, m] in the solver's order.
+    pub fn deg_m(&self) -> [f64; 6] {
+        deg_m(&self.boresight_deg, &self.lever_arm_m)
+    }
+}
+
 /// Windowed returns by the extraction's verdict.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct Verdicts {
@@ -225,6 +237,13 @@ pub struct Report {
     pub time_offset_search: Vec<SearchCandidate>,
 }
 
+impl Report {
+    /// The solution [deg, m] in the solver's order.
+    pub fn deg_m(&self) -> [f64; 6] {
+        deg_m(&self.boresight_deg, &self.lever_arm_m)
+    }
+}
+
 /// One start of the time offset search.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct SearchCandidate {
@@ -242,22 +261,7 @@ pub struct SearchCandidate {
 /// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
 pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     let mut o = String::new();
-    let b = [
-        r.boresight_deg.roll,
-        r.boresight_deg.pitch,
-        r.boresight_deg.heading,
-        r.lever_arm_m.x,
-        r.lever_arm_m.y,
-        r.lever_arm_m.z,
-    ];
-    let s = [
-        r.sigma.boresight_deg.roll,
-        r.sigma.boresight_deg.pitch,
-        r.sigma.boresight_deg.heading,
-        r.sigma.lever_arm_m.x,
-        r.sigma.lever_arm_m.y,
-        r.sigma.lever_arm_m.z,
-    ];
+    let (b, s) = (r.deg_m(), r.sigma.deg_m());
     let _ = writeln!(
         o,
         "{:<10}{:>14}{:>12}{:>14}{}",
