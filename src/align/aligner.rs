@@ -306,6 +306,23 @@ mod tests {
         Vector3::new(10.0, 10.0 * e.cos(), 10.0 * e.sin() + VERTICAL_OFFSET_M[1])
     }
 
+    /// An aligner with the zero mounting, a 0.5 m margin and no look-ahead.
+    fn level_aligner<'a, const H: usize, const B: usize>(
+        targets: &'a [Target],
+        batches: &'a mut [Batch<B>],
+        history: &'a mut PoseHistory<H>,
+    ) -> Aligner<'a, H, B> {
+        Aligner::new(
+            targets,
+            batches,
+            history,
+            0.5,
+            Mount::from_params(&[0.0; 6]),
+            LEAP,
+            0,
+        )
+    }
+
     type Seen = Vec<(usize, Vec<Observation>)>;
 
     fn run(offset_ns: i64, rmc: bool) -> (Vec<GeoPoint>, Seen, AlignStats) {
@@ -321,15 +338,7 @@ mod tests {
         ];
         let mut batches = [Batch::<8>::default(), Batch::default()];
         let mut history = PoseHistory::<1024>::new(50_000_000);
-        let mut al = Aligner::new(
-            &targets,
-            &mut batches,
-            &mut history,
-            0.5,
-            Mount::from_params(&[0.0; 6]),
-            LEAP,
-            0,
-        );
+        let mut al = level_aligner(&targets, &mut batches, &mut history);
         al.time_offset_ns = offset_ns;
         let packet = data_packet();
         // Garbage is not waited for; an empty history is.
@@ -417,15 +426,7 @@ mod tests {
         }];
         let mut batches = [Batch::<8>::default()];
         let mut history = PoseHistory::<16>::new(50_000_000);
-        let mut al = Aligner::new(
-            &targets,
-            &mut batches,
-            &mut history,
-            0.5,
-            Mount::from_params(&[0.0; 6]),
-            LEAP,
-            0,
-        );
+        let mut al = level_aligner(&targets, &mut batches, &mut history);
         al.data(&data_packet(), 0, None, &mut |_, _| {});
         al.data(&[0u8; 10], 0, None, &mut |_, _| {});
         assert_eq!(al.stats.packets_without_time, 1);
