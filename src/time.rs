@@ -245,6 +245,33 @@ impl GpsTime {
     }
 }
 
+/// Host time: nanoseconds since the Unix epoch on the receiving computer's wall clock (a pcap
+/// record's time, a socket's kernel receive time, a serial log record's stamp). A clock of its
+/// own, with its own offset and drift: it says when data arrived, never when it was measured,
+/// and is compared with sensor time only through a measured offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct HostTime(pub i64);
+
+impl HostTime {
+    /// From whole seconds and nanoseconds since the Unix epoch (saturating).
+    pub fn from_secs_nanos(secs: i64, nanos: u32) -> Self {
+        Self(
+            secs.saturating_mul(1_000_000_000)
+                .saturating_add(i64::from(nanos)),
+        )
+    }
+
+    /// Seconds since the Unix epoch (for printing).
+    pub fn as_secs_f64(self) -> f64 {
+        self.0 as f64 * 1e-9
+    }
+
+    /// Nanoseconds from `earlier` to `self` (saturating).
+    pub fn since(self, earlier: HostTime) -> i64 {
+        self.0.saturating_sub(earlier.0)
+    }
+}
+
 /// Half an hour in microseconds: how far a stamp may move before it counts as a new hour.
 const HALF_HOUR_US: i64 = 1_800_000_000;
 /// An hour in nanoseconds.

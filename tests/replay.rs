@@ -96,13 +96,14 @@ fn serial_bytes_replayed_at_the_baud_rate() {
 /// least 195 ms and arrive whole and in order.
 #[test]
 fn serial_log_replayed_at_its_recorded_pace() {
+    use spherecal_hal::clock::HostTime;
     use spherecal_hal::serial::{LogWriter, RxStamp};
     let data: Vec<u8> = (0..40 * 50).map(|i| (i % 251) as u8).collect();
     let mut log = LogWriter::new(Vec::new(), 921_600).unwrap();
     for (i, c) in data.chunks(50).enumerate() {
         let stamp = RxStamp {
             mono_ns: i as u64 * 10_000_000,
-            wall_ns: 1_700_000_000_000_000_000 + i as i64 * 10_000_000,
+            wall: HostTime(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
         };
         log.record(stamp, c).unwrap();
     }
@@ -187,7 +188,7 @@ impl std::io::Write for Stamped<'_> {
 /// k-th at k x 64 x 10 / 460800 s.
 #[test]
 fn replay_pacing_on_the_mock_clock() {
-    use spherecal_hal::clock::MockClock;
+    use spherecal_hal::clock::{HostTime, MockClock};
     use spherecal_hal::serial::{LogWriter, RxStamp};
     use spherecal_tools::replay::{replay_serial_on, Pacer};
     let t0 = 1_700_000_000_000_000_000i64;
@@ -196,18 +197,18 @@ fn replay_pacing_on_the_mock_clock() {
     for (i, c) in data.chunks(50).enumerate() {
         let stamp = RxStamp {
             mono_ns: i as u64 * 10_000_000,
-            wall_ns: t0 + i as i64 * 10_000_000,
+            wall: HostTime(t0 + i as i64 * 10_000_000),
         };
         log.record(stamp, c).unwrap();
     }
     let file = common::tmp("replay", "mock-paced.vnlog");
     std::fs::write(&file, log.into_inner()).unwrap();
-    let clock = MockClock::new(0);
+    let clock = MockClock::new(HostTime(0));
     let mut out = Stamped {
         clock: &clock,
         writes: Vec::new(),
     };
-    let pacer = Pacer::new(&clock, i128::from(t0), Speed::Factor(2.0));
+    let pacer = Pacer::new(&clock, HostTime(t0), Speed::Factor(2.0));
     replay_serial_on(&file, &mut out, 921_600, &pacer).unwrap();
     assert_eq!(out.writes.len(), 40);
     for (i, (at, bytes)) in out.writes.iter().enumerate() {
@@ -221,12 +222,12 @@ fn replay_pacing_on_the_mock_clock() {
 
     let raw = common::test_data("vn200/vn310_imu.bin");
     let bytes = std::fs::read(&raw).unwrap();
-    let clock = MockClock::new(0);
+    let clock = MockClock::new(HostTime(0));
     let mut out = Stamped {
         clock: &clock,
         writes: Vec::new(),
     };
-    let pacer = Pacer::new(&clock, 0, Speed::Factor(4.0));
+    let pacer = Pacer::new(&clock, HostTime(0), Speed::Factor(4.0));
     replay_serial_on(&raw, &mut out, 115_200, &pacer).unwrap();
     assert_eq!(out.writes.len(), bytes.len().div_ceil(64));
     for (k, (at, _)) in out.writes.iter().enumerate() {

@@ -4,6 +4,7 @@
 mod common;
 
 use serialport::{SerialPort, TTYPort};
+use spherecal_hal::clock::HostTime;
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::serial::read_byte_file;
 use spherecal_hal::{PacketSource, Record};
@@ -196,6 +197,7 @@ fn datagrams(pcaps: &[PathBuf]) -> (Vec<(u16, Vec<u8>)>, u64) {
             match r {
                 Record::Udp(d) => v.push((d.dst_port, d.payload.to_vec())),
                 Record::Skipped { .. } => skipped += 1,
+                Record::Idle => unreachable!("a file is never idle"),
             }
         }
     }
@@ -450,13 +452,13 @@ fn overload_every_drop_is_counted() {
     let pos_in_file = in_file.iter().filter(|d| d.0 == 8308).count() as u64;
     let data_in_file = in_file.len() as u64 - pos_in_file;
     let t = Instant::now();
-    let clock = Pacer::new(&spherecal_hal::clock::SystemClock, 0, Speed::Max);
+    let clock = Pacer::new(&spherecal_hal::clock::SystemClock, HostTime(0), Speed::Max);
     let serial = std::thread::spawn(move || {
         replay_serial_on(
             &dir_ins(&pcap),
             &mut master,
             921_600,
-            &Pacer::new(&spherecal_hal::clock::SystemClock, 0, Speed::Max),
+            &Pacer::new(&spherecal_hal::clock::SystemClock, HostTime(0), Speed::Max),
         )
         .unwrap()
     });
@@ -636,6 +638,7 @@ fn sigkill_leaves_logs_readable_up_to_the_cut() {
                     assert_eq!(i, pcaps.len() - 1, "only the last file may be cut");
                     assert_eq!(reason.name(), "truncated file", "{reason}");
                 }
+                Record::Idle => unreachable!("a file is never idle"),
             }
         }
     }

@@ -25,6 +25,7 @@ fuzz_target!(|data: &[u8]| {
                 }
                 Err(r) => stats.count(d.offset, &r),
             },
+            Record::Idle => panic!("a file source is never idle"),
         }
     }
 });

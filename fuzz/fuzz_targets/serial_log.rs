@@ -5,6 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use spherecal_hal::clock::HostTime;
 use spherecal_hal::serial::{LogReader, LogWriter, RxStamp, LOG_MAGIC, LOG_VERSION};
 
 fuzz_target!(|data: &[u8]| {
@@ -38,7 +39,7 @@ fuzz_target!(|data: &[u8]| {
         let n = (usize::from(rest[0]) + 1).min(rest.len());
         let stamp = RxStamp {
             mono_ns: i.wrapping_mul(1_000_003),
-            wall_ns: (i as i64).wrapping_mul(-7_000_001),
+            wall: HostTime((i as i64).wrapping_mul(-7_000_001)),
         };
         w.record(stamp, &rest[..n]).unwrap();
         records.push((stamp, rest[..n].to_vec()));
@@ -51,7 +52,7 @@ fuzz_target!(|data: &[u8]| {
     let mut buf = Vec::new();
     for (stamp, rec) in &records {
         let got = rd.next_record(&mut buf).unwrap().unwrap();
-        assert_eq!((got.mono_ns, got.wall_ns), (stamp.mono_ns, stamp.wall_ns));
+        assert_eq!((got.mono_ns, got.wall), (stamp.mono_ns, stamp.wall));
         assert_eq!(&buf, rec);
     }
     assert!(rd.next_record(&mut buf).unwrap().is_none());

@@ -20,7 +20,7 @@ fn bench(c: &mut Criterion) {
             let mut log = PcapLog::create_pcap(&dir, "bench-lidar", 64 << 20).unwrap();
             for i in 0..n {
                 log.write(
-                    HostTime(1_700_000_000_000_000_000 + i128::from(i) * 1_326_000),
+                    HostTime(1_700_000_000_000_000_000 + i as i64 * 1_326_000),
                     (Ipv4Addr::new(192, 168, 1, 201), 2368),
                     (Ipv4Addr::new(192, 168, 1, 77), 2368),
                     &payload,
@@ -37,7 +37,7 @@ fn bench(c: &mut Criterion) {
             for i in 0..n {
                 let stamp = RxStamp {
                     mono_ns: i * 5_000_000,
-                    wall_ns: i as i64 * 5_000_000,
+                    wall: HostTime(i as i64 * 5_000_000),
                 };
                 log.write(stamp, &chunk).unwrap();
             }

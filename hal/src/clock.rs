@@ -2,30 +2,46 @@
 //! or a mock clock that only moves when told, so that pacing and deadlines are tested without
 //! sleeping.
 
+pub use spherecal::time::HostTime;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
-use std::time::Duration;
+use std::sync::OnceLock;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Monotonic nanoseconds since the first call in this process.
+pub fn monotonic_ns() -> u64 {
+    static BASE: OnceLock<Instant> = OnceLock::new();
+    let base = BASE.get_or_init(Instant::now);
+    u64::try_from(base.elapsed().as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// The host's wall clock now (negative before 1970).
+pub fn wall() -> HostTime {
+    HostTime(match SystemTime::now().duration_since(UNIX_EPOCH) {
+        Ok(d) => i64::try_from(d.as_nanos()).unwrap_or(i64::MAX),
+        Err(e) => -i64::try_from(e.duration().as_nanos()).unwrap_or(i64::MAX),
+    })
+}
 
 /// A clock that can be read and waited on.
 pub trait Clock: Sync {
     /// Monotonic nanoseconds since an arbitrary start.
     fn mono_ns(&self) -> u64;
-    /// Wall-clock nanoseconds since 1970-01-01 UTC (negative before it).
-    fn wall_ns(&self) -> i64;
+    /// The wall clock.
+    fn wall(&self) -> HostTime;
     /// Block for `d`.
     fn sleep(&self, d: Duration);
 }
 
-/// The host's clocks: [`crate::serial::monotonic_ns`], [`crate::serial::wall_ns`] and a real
-/// sleep.
+/// The host's clocks: [`monotonic_ns`], [`wall`] and a real sleep.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct SystemClock;
 
 impl Clock for SystemClock {
     fn mono_ns(&self) -> u64 {
-        crate::serial::monotonic_ns()
+        monotonic_ns()
     }
-    fn wall_ns(&self) -> i64 {
-        crate::serial::wall_ns()
+    fn wall(&self) -> HostTime {
+        wall()
     }
     fn sleep(&self, d: Duration) {
         std::thread::sleep(d);
@@ -41,11 +57,11 @@ pub struct MockClock {
 }
 
 impl MockClock {
-    /// A clock at monotonic 0 and wall-clock `wall_ns`.
-    pub fn new(wall_ns: i64) -> Self {
+    /// A clock at monotonic 0 and wall-clock `wall`.
+    pub fn new(wall: HostTime) -> Self {
         Self {
             mono: AtomicU64::new(0),
-            wall: AtomicI64::new(wall_ns),
+            wall: AtomicI64::new(wall.0),
         }
     }
 
@@ -62,8 +78,8 @@ impl Clock for MockClock {
     fn mono_ns(&self) -> u64 {
         self.mono.load(Ordering::SeqCst)
     }
-    fn wall_ns(&self) -> i64 {
-        self.wall.load(Ordering::SeqCst)
+    fn wall(&self) -> HostTime {
+        HostTime(self.wall.load(Ordering::SeqCst))
     }
     fn sleep(&self, d: Duration) {
         self.advance(d);
@@ -76,10 +92,10 @@ mod tests {
 
     #[test]
     fn mock_moves_only_when_told() {
-        let c = MockClock::new(1_000);
-        assert_eq!((c.mono_ns(), c.wall_ns()), (0, 1_000));
+        let c = MockClock::new(HostTime(1_000));
+        assert_eq!((c.mono_ns(), c.wall().0), (0, 1_000));
         c.sleep(Duration::from_millis(3));
         c.advance(Duration::from_nanos(7));
-        assert_eq!((c.mono_ns(), c.wall_ns()), (3_000_007, 3_001_007));
+        assert_eq!((c.mono_ns(), c.wall().0), (3_000_007, 3_001_007));
     }
 }

@@ -16,4 +16,4 @@ pub mod serial;
 pub mod udp;
 pub mod vlp16;
 
-pub use packet::{Datagram, PacketSource, Record, SkipReason};
+pub use packet::{Datagram, PacketSource, Record, SkipReason, Tap};

@@ -3,22 +3,12 @@
 use std::fmt;
 use std::net::Ipv4Addr;
 
-/// Nanoseconds since the Unix epoch on the capturing host's clock (the pcap record time, or the
-/// kernel's receive time on a socket). A clock of its own: never compare it with sensor time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
-pub struct HostTime(pub i128);
-
-impl HostTime {
-    /// Seconds as a float (for printing).
-    pub fn as_secs_f64(self) -> f64 {
-        self.0 as f64 * 1e-9
-    }
-}
+pub use spherecal::time::HostTime;
 
 /// One UDP/IPv4 datagram, borrowed from the source's buffer.
 #[derive(Debug, Clone, Copy)]
 pub struct Datagram<'a> {
-    /// When it was received.
+    /// When it was received (the pcap record time, or the kernel's receive time on a socket).
     pub time: HostTime,
     /// Sender address.
     pub src_addr: Ipv4Addr,
@@ -121,11 +111,15 @@ impl fmt::Display for SkipReason {
     }
 }
 
-/// What a packet source yields: a datagram, or a frame it skipped and why.
+/// What a packet source yields: a datagram, a frame it skipped and why, or (a live source)
+/// nothing within its read timeout.
 #[derive(Debug, Clone)]
 pub enum Record<'a> {
     /// A UDP/IPv4 datagram.
     Udp(Datagram<'a>),
+    /// A live source had nothing within its read timeout (the caller may check for shutdown);
+    /// files never yield it.
+    Idle,
     /// A skipped frame: its byte offset in the file and the reason.
     Skipped {
         /// Byte offset of the record.
@@ -144,4 +138,89 @@ pub trait PacketSource {
 
     /// The next record, or `None` at the end of the stream.
     fn next_record(&mut self) -> Result<Option<Record<'_>>, Self::Error>;
+}
+
+/// A source whose every datagram is first shown to a closure (the rig's raw log and receive
+/// counter), as smoltcp's `PcapWriter` wraps a device: the reader downstream sees the same
+/// records.
+pub struct Tap<S, F> {
+    inner: S,
+    f: F,
+}
+
+impl<S, F> Tap<S, F> {
+    /// `inner`, with `f` called on each of its datagrams.
+    pub fn new(inner: S, f: F) -> Self {
+        Self { inner, f }
+    }
+
+    /// The wrapped source.
+    pub fn get_ref(&self) -> &S {
+        &self.inner
+    }
+}
+
+impl<S: PacketSource, F: FnMut(&Datagram<'_>)> PacketSource for Tap<S, F> {
+    type Error = S::Error;
+
+    fn next_record(&mut self) -> Result<Option<Record<'_>>, Self::Error> {
+        let r = self.inner.next_record()?;
+        if let Some(Record::Udp(d)) = &r {
+            (self.f)(d);
+        }
+        Ok(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two datagrams and a skip from a fixed list.
+    struct List(Vec<Option<&'static [u8]>>, usize);
+
+    impl PacketSource for List {
+        type Error = std::io::Error;
+        fn next_record(&mut self) -> Result<Option<Record<'_>>, Self::Error> {
+            let Some(item) = self.0.get(self.1) else {
+                return Ok(None);
+            };
+            self.1 += 1;
+            Ok(Some(match item {
+                Some(p) => Record::Udp(Datagram {
+                    time: HostTime(self.1 as i64),
+                    src_addr: Ipv4Addr::LOCALHOST,
+                    src_port: 1,
+                    dst_port: 2,
+                    payload: p,
+                    offset: 0,
+                }),
+                None => Record::Skipped {
+                    offset: 7,
+                    reason: SkipReason::NotIpv4Udp,
+                },
+            }))
+        }
+    }
+
+    #[test]
+    fn tap_sees_every_datagram_and_passes_all_records_on() {
+        let mut seen = Vec::new();
+        let mut tap = Tap::new(
+            List(vec![Some(b"a"), None, Some(b"bc")], 0),
+            |d: &Datagram<'_>| seen.push((d.time.0, d.payload.to_vec())),
+        );
+        let mut kinds = Vec::new();
+        while let Some(r) = tap.next_record().unwrap() {
+            kinds.push(match r {
+                Record::Udp(d) => d.payload.len(),
+                Record::Skipped { offset, .. } => offset as usize * 100,
+                Record::Idle => 0,
+            });
+        }
+        assert_eq!(tap.get_ref().1, 3);
+        drop(tap);
+        assert_eq!(kinds, [1, 700, 2]);
+        assert_eq!(seen, [(1, b"a".to_vec()), (3, b"bc".to_vec())]);
+    }
 }

@@ -218,7 +218,7 @@ mod tests {
         for i in 0..100u32 {
             let payload = vec![i as u8; 100 + i as usize];
             log.write(
-                HostTime(1_700_000_000_000_000_000 + i128::from(i) * 1000),
+                HostTime(1_700_000_000_000_000_000 + i64::from(i) * 1000),
                 src,
                 dst,
                 &payload,
@@ -236,7 +236,7 @@ mod tests {
                 let Record::Udp(d) = r else { panic!("{r:?}") };
                 assert_eq!(d.payload, vec![i as u8; 100 + i as usize].as_slice());
                 assert_eq!((d.src_addr, d.src_port, d.dst_port), (src.0, 2368, 2368));
-                assert_eq!(d.time.0, 1_700_000_000_000_000_000 + i128::from(i) * 1000);
+                assert_eq!(d.time.0, 1_700_000_000_000_000_000 + i64::from(i) * 1000);
                 i += 1;
             }
         }
@@ -253,7 +253,7 @@ mod tests {
             want.extend_from_slice(&chunk);
             let stamp = RxStamp {
                 mono_ns: u64::from(i),
-                wall_ns: i64::from(i) * 10,
+                wall: HostTime(i64::from(i) * 10),
             };
             log.write(stamp, &chunk).unwrap();
         }

@@ -10,9 +10,9 @@
 //! ```
 //! A file that does not start with the magic is a plain raw byte file.
 
+use crate::clock::{monotonic_ns, wall, HostTime};
 use std::io::{self, Read, Write};
-use std::sync::OnceLock;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 /// Magic at the start of a serial log.
 pub const LOG_MAGIC: &[u8; 8] = b"SCSERLOG";
@@ -28,8 +28,8 @@ pub const MAX_RECORD: usize = 1 << 20;
 pub struct RxStamp {
     /// Monotonic nanoseconds since this process's clock base (see [`monotonic_ns`]).
     pub mono_ns: u64,
-    /// Wall-clock nanoseconds since the Unix epoch.
-    pub wall_ns: i64,
+    /// The wall clock.
+    pub wall: HostTime,
 }
 
 impl RxStamp {
@@ -37,23 +37,8 @@ impl RxStamp {
     pub fn now() -> Self {
         Self {
             mono_ns: monotonic_ns(),
-            wall_ns: wall_ns(),
+            wall: wall(),
         }
-    }
-}
-
-/// Monotonic nanoseconds since the first call in this process.
-pub fn monotonic_ns() -> u64 {
-    static BASE: OnceLock<Instant> = OnceLock::new();
-    let base = BASE.get_or_init(Instant::now);
-    u64::try_from(base.elapsed().as_nanos()).unwrap_or(u64::MAX)
-}
-
-/// Wall-clock nanoseconds since the Unix epoch (negative before it).
-pub fn wall_ns() -> i64 {
-    match SystemTime::now().duration_since(UNIX_EPOCH) {
-        Ok(d) => i64::try_from(d.as_nanos()).unwrap_or(i64::MAX),
-        Err(e) => -i64::try_from(e.duration().as_nanos()).unwrap_or(i64::MAX),
     }
 }
 
@@ -164,7 +149,7 @@ impl<W: Write> LogWriter<W> {
     pub fn record(&mut self, stamp: RxStamp, bytes: &[u8]) -> io::Result<()> {
         let mut head = [0u8; RECORD_HEADER];
         head[..8].copy_from_slice(&stamp.mono_ns.to_le_bytes());
-        head[8..16].copy_from_slice(&stamp.wall_ns.to_le_bytes());
+        head[8..16].copy_from_slice(&stamp.wall.0.to_le_bytes());
         head[16..20].copy_from_slice(&(bytes.len() as u32).to_le_bytes());
         self.inner.write_all(&head)?;
         self.inner.write_all(bytes)
@@ -291,7 +276,7 @@ impl<R: Read> LogReader<R> {
         let le8 = |a: &[u8]| -> [u8; 8] { [a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]] };
         let stamp = RxStamp {
             mono_ns: u64::from_le_bytes(le8(&head[..8])),
-            wall_ns: i64::from_le_bytes(le8(&head[8..16])),
+            wall: HostTime(i64::from_le_bytes(le8(&head[8..16]))),
         };
         let len = u32::from_le_bytes([head[16], head[17], head[18], head[19]]) as usize;
         if len > MAX_RECORD {

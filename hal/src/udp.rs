@@ -7,7 +7,7 @@
 //! wall clock right after the read returns. The kernel's own drop count for the socket (its
 //! receive buffer was full) is read from /proc/net/udp.
 
-use crate::packet::{Datagram, HostTime};
+use crate::packet::{Datagram, HostTime, PacketSource, Record};
 use socket2::{Domain, Protocol, Socket, Type};
 use std::io;
 use std::net::{Ipv4Addr, SocketAddr, SocketAddrV4, UdpSocket};
@@ -69,6 +69,12 @@ impl UdpSource {
         kernel_drops(&self.socket)
     }
 
+    /// A handle that reads this socket's kernel drop count from another thread (while the
+    /// socket is open).
+    pub fn drop_probe(&self) -> DropProbe {
+        DropProbe(socket_inode(&self.socket))
+    }
+
     /// The port actually bound.
     pub fn port(&self) -> u16 {
         self.port
@@ -95,7 +101,7 @@ impl UdpSource {
                         self.kernel_stamped += 1;
                         t
                     }
-                    None => i128::from(crate::serial::wall_ns()),
+                    None => crate::clock::wall().0,
                 });
                 self.received += 1;
                 let (src_addr, src_port) = match from {
@@ -129,6 +135,32 @@ impl UdpSource {
     }
 }
 
+/// A live socket as a packet source: a timed-out read is [`Record::Idle`]; it never ends.
+impl PacketSource for UdpSource {
+    type Error = io::Error;
+
+    fn next_record(&mut self) -> io::Result<Option<Record<'_>>> {
+        Ok(Some(match self.recv()? {
+            Some(d) => Record::Udp(d),
+            None => Record::Idle,
+        }))
+    }
+}
+
+/// Reads one socket's kernel drop count (the `drops` column of /proc/net/udp); `None` where
+/// the OS does not say or the socket is closed.
+#[derive(Debug, Clone)]
+pub struct DropProbe(Option<String>);
+
+impl DropProbe {
+    /// The count now.
+    pub fn read(&self) -> Option<u64> {
+        let inode = self.0.as_deref()?;
+        let table = std::fs::read_to_string("/proc/net/udp").ok()?;
+        parse_proc_udp_drops(&table, inode)
+    }
+}
+
 #[cfg(target_os = "linux")]
 fn enable_kernel_stamps(s: &UdpSocket) -> bool {
     nix::sys::socket::setsockopt(s, nix::sys::socket::sockopt::ReceiveTimestampns, &true).is_ok()
@@ -145,7 +177,7 @@ fn recv_stamped(
     s: &UdpSocket,
     buf: &mut [u8],
     cmsg: &mut [u8],
-) -> io::Result<(usize, SocketAddr, Option<i128>)> {
+) -> io::Result<(usize, SocketAddr, Option<i64>)> {
     use nix::sys::socket::{recvmsg, ControlMessageOwned, MsgFlags, SockaddrIn};
     use std::os::fd::AsRawFd;
     let mut iov = [io::IoSliceMut::new(buf)];
@@ -155,7 +187,7 @@ fn recv_stamped(
     if let Ok(cmsgs) = msg.cmsgs() {
         for c in cmsgs {
             if let ControlMessageOwned::ScmTimestampns(ts) = c {
-                stamp = Some(i128::from(ts.tv_sec()) * 1_000_000_000 + i128::from(ts.tv_nsec()));
+                stamp = Some(HostTime::from_secs_nanos(ts.tv_sec(), ts.tv_nsec() as u32).0);
             }
         }
     }
@@ -171,25 +203,29 @@ fn recv_stamped(
     s: &UdpSocket,
     buf: &mut [u8],
     _: &mut [u8],
-) -> io::Result<(usize, SocketAddr, Option<i128>)> {
+) -> io::Result<(usize, SocketAddr, Option<i64>)> {
     s.recv_from(buf).map(|(n, a)| (n, a, None))
 }
 
-#[cfg(target_os = "linux")]
 fn kernel_drops(s: &UdpSocket) -> Option<u64> {
+    DropProbe(socket_inode(s)).read()
+}
+
+/// The socket's inode, as /proc/net/udp names it.
+#[cfg(target_os = "linux")]
+fn socket_inode(s: &UdpSocket) -> Option<String> {
     use std::os::fd::AsRawFd;
     let link = std::fs::read_link(format!("/proc/self/fd/{}", s.as_raw_fd())).ok()?;
-    let inode = link
-        .to_str()?
-        .strip_prefix("socket:[")?
-        .strip_suffix(']')?
-        .to_string();
-    let table = std::fs::read_to_string("/proc/net/udp").ok()?;
-    parse_proc_udp_drops(&table, &inode)
+    Some(
+        link.to_str()?
+            .strip_prefix("socket:[")?
+            .strip_suffix(']')?
+            .to_string(),
+    )
 }
 
 #[cfg(not(target_os = "linux"))]
-fn kernel_drops(_: &UdpSocket) -> Option<u64> {
+fn socket_inode(_: &UdpSocket) -> Option<String> {
     None
 }
 
@@ -223,11 +259,11 @@ mod tests {
         let mut rx = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(500)).unwrap();
         assert!(rx.kernel_stamps());
         let tx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
-        let before = i128::from(crate::serial::wall_ns());
+        let before = crate::clock::wall().0;
         tx.send_to(b"hello", (Ipv4Addr::LOCALHOST, rx.port()))
             .unwrap();
         let d = rx.recv().unwrap().expect("a datagram");
-        let after = i128::from(crate::serial::wall_ns());
+        let after = crate::clock::wall().0;
         assert_eq!(d.payload, b"hello");
         assert!(
             d.time.0 >= before - 1_000_000 && d.time.0 <= after,
@@ -237,5 +273,11 @@ mod tests {
         assert_eq!(d.src_port, tx.local_addr().unwrap().port());
         assert_eq!(rx.kernel_stamped, 1);
         assert_eq!(rx.kernel_drops(), Some(0));
+        assert_eq!(rx.drop_probe().read(), Some(0));
+        // Nothing more within the timeout: the source is idle, not ended.
+        assert!(matches!(rx.next_record(), Ok(Some(Record::Idle))));
+        let probe = rx.drop_probe();
+        drop(rx);
+        assert_eq!(probe.read(), None, "a closed socket has no row");
     }
 }

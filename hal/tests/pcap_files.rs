@@ -48,7 +48,7 @@ fn frames() -> Vec<(HostTime, Vec<u8>, u32)> {
     let ep = UdpEndpoints::default();
     let mut out = Vec::new();
     let mut f = Vec::new();
-    let t = |i: i128| HostTime(1_453_364_282_000_000_000 + i * 1_326_000);
+    let t = |i: i64| HostTime(1_453_364_282_000_000_000 + i * 1_326_000);
     build_udp_frame(&mut f, &ep, 2368, 2368, &data_payload(1, true)).unwrap();
     out.push((t(0), f.clone(), f.len() as u32));
     build_udp_frame(&mut f, &ep, 8308, 8308, &position_payload()).unwrap();
@@ -146,6 +146,7 @@ fn read_all<R: Read>(mut src: PcapSource<R>) -> (Vec<Seen>, SkipStats) {
                     seen.push(Seen::Skip(r.name(), d.offset));
                 }
             },
+            Record::Idle => panic!("a file is never idle"),
         }
     }
     (seen, stats)
@@ -341,7 +342,7 @@ fn nanosecond_and_big_endian_pcap() {
             seen,
             [Seen::Data {
                 stamp: 1,
-                time: HostTime(i128::from(ns)),
+                time: HostTime(ns as i64),
                 offset: 24
             }]
         );

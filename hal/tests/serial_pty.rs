@@ -3,6 +3,7 @@
 
 use serialport::TTYPort;
 use spherecal::vn200::{Framer, Item};
+use spherecal_hal::clock::HostTime;
 use spherecal_hal::serial::{
     read_byte_file, ByteSource, LogReader, LogWriter, ReadOutcome, RxStamp, SerialSource,
 };
@@ -99,7 +100,7 @@ fn log_cut_anywhere_reads_up_to_the_cut() {
         log.record(
             RxStamp {
                 mono_ns: u64::from(i) * 1000,
-                wall_ns: 7,
+                wall: HostTime(7),
             },
             &[i; 10],
         )
@@ -112,7 +113,7 @@ fn log_cut_anywhere_reads_up_to_the_cut() {
         let mut got = Vec::new();
         while let Some(s) = r.next_record(&mut rec).unwrap() {
             got.extend_from_slice(&rec);
-            assert_eq!(s.wall_ns, 7);
+            assert_eq!(s.wall, HostTime(7));
         }
         let whole = (cut - 16) / 30;
         assert!(got.len() >= whole * 10, "cut {cut}");
@@ -138,7 +139,7 @@ fn raw_and_logged_files_give_the_same_stream() {
         log.record(
             RxStamp {
                 mono_ns: i as u64 * 1_000_000,
-                wall_ns: 0,
+                wall: HostTime(0),
             },
             c,
         )
@@ -166,7 +167,7 @@ fn file_source_gives_the_log_bytes_with_their_stamps() {
         .map(|i| {
             let stamp = RxStamp {
                 mono_ns: u64::from(i) * 1_000,
-                wall_ns: 1_700_000_000_000_000_000 + i64::from(i) * 1_000,
+                wall: HostTime(1_700_000_000_000_000_000 + i64::from(i) * 1_000),
             };
             (stamp, (0..(10 + 7 * i)).map(|b| b ^ i).collect())
         })

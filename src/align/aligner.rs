@@ -8,7 +8,7 @@
 
 use super::history::{PoseHistory, PoseSample};
 use crate::georef::Mount;
-use crate::time::{GpsTime, LidarClock};
+use crate::time::{GpsTime, HostTime, LidarClock};
 use crate::vlp16::{self, DataPacket, PointBuf, PositionPacket, PpsStatus};
 use crate::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS};
 
@@ -123,12 +123,12 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             + self.batches.get(i).map_or(0, |b| b.obs.len() as u64)
     }
 
-    /// Add a pose received at `host_ns` [ns since 1970 on the host clock; 0 unknown]. Returns
-    /// false if it was refused (not newer than the newest).
-    pub fn push_pose(&mut self, s: PoseSample, host_ns: i64) -> bool {
+    /// Add a pose received at `host` (if known). Returns false if it was refused (not newer
+    /// than the newest).
+    pub fn push_pose(&mut self, s: PoseSample, host: Option<HostTime>) -> bool {
         let ok = self.history.push(s);
         if ok {
-            self.ins_offset_ns = (host_ns != 0).then(|| s.time.0.saturating_sub(host_ns));
+            self.ins_offset_ns = host.map(|h| s.time.0.saturating_sub(h.0));
         }
         ok
     }
@@ -178,13 +178,13 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         }
     }
 
-    /// A data packet received at `host_ns`: time it, georeference and window its returns;
+    /// A data packet received at `host` (if known): time it, georeference and window its returns;
     /// `each`, if given, sees every georeferenced return; a batch that is half full goes to
     /// `emit(sphere, observations)`.
     pub fn data(
         &mut self,
         bytes: &[u8],
-        host_ns: i64,
+        host: Option<HostTime>,
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
@@ -213,8 +213,8 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             return;
         }
         self.stats.data_packets += 1;
-        if let (Some(o), true) = (self.ins_offset_ns, host_ns != 0) {
-            self.lag_ns = Some(t0.0.saturating_sub(host_ns).saturating_sub(o));
+        if let (Some(o), Some(h)) = (self.ins_offset_ns, host) {
+            self.lag_ns = Some(t0.0.saturating_sub(h.0).saturating_sub(o));
         }
         let mut win = Windowing {
             targets: self.targets,
@@ -367,20 +367,34 @@ mod tests {
             assert_eq!(al.pps, Some(PpsStatus::Locked));
         }
         // Poses up to the packet's first firing (plus the offset) do not cover it...
+        // With an offset, the host receives each pose 40 ms after its time and the packet
+        // 10 ms after its stamp (on the INS clock): the LiDAR leads by 30 ms.
+        let host = |t: i64, after: i64| (offset_ns != 0).then_some(HostTime(t + after));
         for p in poses(-1.0, offset_ns as f64 * 1e-9) {
-            assert!(al.push_pose(p, 0));
+            assert!(al.push_pose(p, host(p.time.0, 40_000_000)));
         }
         assert!(al.wants_poses(&packet));
         // ... 1.4 ms more do.
         for p in poses(offset_ns as f64 * 1e-9 + 0.005, 1.0) {
-            assert!(al.push_pose(p, 0));
+            assert!(al.push_pose(p, host(p.time.0, 40_000_000)));
         }
         assert!(!al.wants_poses(&packet));
         let mut points = Vec::new();
         let mut each = |g: &GeoPoint| points.push(*g);
         let mut seen: Seen = Vec::new();
         let mut emit = |i: usize, o: &[Observation]| seen.push((i, o.to_vec()));
-        al.data(&packet, 0, Some(&mut each), &mut emit);
+        al.data(
+            &packet,
+            host(t_packet().0 + offset_ns, 10_000_000),
+            Some(&mut each),
+            &mut emit,
+        );
+        let lag = if offset_ns != 0 {
+            Some(30_000_000)
+        } else {
+            None
+        };
+        assert_eq!(al.lag_ns, lag);
         assert_eq!(al.windowed_now(0), 1);
         assert_eq!(al.windowed_now(1), 0);
         al.finish(&mut emit);
@@ -427,8 +441,8 @@ mod tests {
         let mut batches = [Batch::<8>::default()];
         let mut history = PoseHistory::<16>::new(50_000_000);
         let mut al = level_aligner(&targets, &mut batches, &mut history);
-        al.data(&data_packet(), 0, None, &mut |_, _| {});
-        al.data(&[0u8; 10], 0, None, &mut |_, _| {});
+        al.data(&data_packet(), None, None, &mut |_, _| {});
+        al.data(&[0u8; 10], None, None, &mut |_, _| {});
         assert_eq!(al.stats.packets_without_time, 1);
         assert_eq!(al.stats.data_packets, 0);
         assert_eq!(al.stats.hour_from, None);

@@ -109,6 +109,7 @@ pub fn decode_source<R: Read>(
                 continue;
             }
             Record::Udp(d) => d,
+            Record::Idle => continue,
         };
         match classify(&d, ports) {
             Err(reason) => s.skips.count(d.offset, &reason),

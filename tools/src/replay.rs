@@ -3,7 +3,7 @@
 //! their record times, the serial bytes to a device at a serial log's receive times (raw
 //! bytes: at the baud rate's pace), the recorded spacing scaled by the speed.
 
-use spherecal_hal::clock::{Clock, SystemClock};
+use spherecal_hal::clock::{Clock, HostTime, SystemClock};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::{PacketSource, Record};
 use std::io::Write;
@@ -43,18 +43,18 @@ pub struct Pacer<'c> {
     /// Its monotonic time when the replay started [ns].
     pub start_ns: u64,
     /// The recording time that is due at `start`.
-    pub t0_ns: i128,
+    pub t0: HostTime,
     /// How fast.
     pub speed: Speed,
 }
 
 impl<'c> Pacer<'c> {
-    /// Pacing from now on `clock`, at recording time `t0_ns`.
-    pub fn new(clock: &'c dyn Clock, t0_ns: i128, speed: Speed) -> Self {
+    /// Pacing from now on `clock`, at recording time `t0`.
+    pub fn new(clock: &'c dyn Clock, t0: HostTime, speed: Speed) -> Self {
         Self {
             clock,
             start_ns: clock.mono_ns(),
-            t0_ns,
+            t0,
             speed,
         }
     }
@@ -72,11 +72,11 @@ impl<'c> Pacer<'c> {
         }
     }
 
-    /// Wait until recording time `t_ns` is due (at once for `max` or a time before `t0`).
-    pub fn wait_for(&self, t_ns: i128) {
+    /// Wait until recording time `t` is due (at once for `max` or a time before `t0`).
+    pub fn wait_for(&self, t: HostTime) {
         if let Speed::Factor(f) = self.speed {
             self.wait_until(Duration::from_secs_f64(
-                ((t_ns - self.t0_ns).max(0) as f64 * 1e-9) / f,
+                (t.since(self.t0).max(0) as f64 * 1e-9) / f,
             ));
         }
     }
@@ -109,7 +109,7 @@ impl Target {
 pub fn first_times(
     pcap: &Path,
     ins: Option<&Path>,
-) -> Result<(Option<i128>, Option<i128>), String> {
+) -> Result<(Option<HostTime>, Option<HostTime>), String> {
     let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
     let mut first_udp = None;
     while let Some(rec) = src
@@ -117,7 +117,7 @@ pub fn first_times(
         .map_err(|e| format!("{}: {e}", pcap.display()))?
     {
         if let Record::Udp(d) = rec {
-            first_udp = Some(d.time.0);
+            first_udp = Some(d.time);
             break;
         }
     }
@@ -144,7 +144,7 @@ pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay
     replay_udp_on(
         pcap,
         Target::host(host),
-        &Pacer::new(&SystemClock, first.unwrap_or(0), speed),
+        &Pacer::new(&SystemClock, first.unwrap_or_default(), speed),
     )
 }
 
@@ -161,12 +161,13 @@ pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Pacer<'_>) -> Result<UdpRe
     {
         let d = match rec {
             Record::Udp(d) => d,
+            Record::Idle => continue,
             Record::Skipped { .. } => {
                 out.skipped += 1;
                 continue;
             }
         };
-        clock.wait_for(d.time.0);
+        clock.wait_for(d.time);
         let port = to.port(d.dst_port);
         sock.send_to(d.payload, SocketAddrV4::new(host, port))
             .map_err(|e| format!("send to {host}:{port}: {e}"))?;
@@ -188,18 +189,18 @@ pub fn replay_serial(
         file,
         out,
         baud,
-        &Pacer::new(&SystemClock, first.unwrap_or(0), speed),
+        &Pacer::new(&SystemClock, first.unwrap_or_default(), speed),
     )
 }
 
 /// The first receive time of a serial log (None for raw bytes, which have no times).
-fn first_log_time(file: &Path) -> Result<Option<i128>, String> {
+fn first_log_time(file: &Path) -> Result<Option<HostTime>, String> {
     let f = std::fs::File::open(file).map_err(|e| format!("{}: {e}", file.display()))?;
     match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
         Ok(mut r) => Ok(r
             .next_record(&mut Vec::new())
             .map_err(|e| format!("{}: {e}", file.display()))?
-            .map(|s| i128::from(s.wall_ns))),
+            .map(|s| s.wall)),
         Err(_) => Ok(None),
     }
 }
@@ -222,7 +223,7 @@ pub fn replay_serial_on(
         Some(st) => {
             for (i, (at, stamp)) in st.iter().enumerate() {
                 let end = st.get(i + 1).map_or(bytes.len(), |n| n.0 as usize);
-                clock.wait_for(i128::from(stamp.wall_ns));
+                clock.wait_for(stamp.wall);
                 write(out, &bytes[*at as usize..end])?;
                 written += (end - *at as usize) as u64;
             }
@@ -256,7 +257,7 @@ pub fn replay_both(
     let (fu, fl) = first_times(pcap, ins.as_ref().map(|i| i.0))?;
     let t0 = match (fu, fl) {
         (Some(a), Some(b)) => a.min(b),
-        (a, b) => a.or(b).unwrap_or(0),
+        (a, b) => a.or(b).unwrap_or_default(),
     };
     let clock = Pacer::new(&SystemClock, t0, speed);
     std::thread::scope(|sc| {

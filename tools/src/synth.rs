@@ -246,9 +246,7 @@ fn write_files(
         let (port, len) = pkt.port_len();
         build_udp_frame(&mut frame, &ep, port, port, &payload[..len])
             .map_err(|e| io(&pcap_path, e))?;
-        let host = HostTime(i128::from(
-            gps_to_unix_ns(time, s.leap_seconds) + NETWORK_DELAY_NS,
-        ));
+        let host = HostTime(gps_to_unix_ns(time, s.leap_seconds) + NETWORK_DELAY_NS);
         pcap.write_frame(host, &frame)
             .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     }
@@ -275,7 +273,7 @@ fn write_files(
         let first = *first_wall.get_or_insert(wall);
         let stamp = RxStamp {
             mono_ns: u64::try_from(wall - first).unwrap_or(0),
-            wall_ns: wall,
+            wall: HostTime(wall),
         };
         log.record(stamp, &buf[..n]).map_err(|e| io(&log_path, e))?;
     }

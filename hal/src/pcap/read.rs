@@ -291,7 +291,8 @@ impl<R: Read> PacketSource for PcapSource<R> {
                         what: format!("pcap record: {e}"),
                     })?;
                 let frac = u64::from(raw.ts_frac) * if nanos { 1 } else { 1000 };
-                let time = HostTime(i128::from(raw.ts_sec) * 1_000_000_000 + i128::from(frac));
+                // u32 seconds (to 2106) and a fraction below 2^32 us fit an i64 of nanoseconds.
+                let time = HostTime(i64::from(raw.ts_sec) * 1_000_000_000 + frac as i64);
                 let data: &[u8] = match raw.data {
                     std::borrow::Cow::Borrowed(d) => d,
                     std::borrow::Cow::Owned(_) => &self.buf[at + 16..at + len],
@@ -423,8 +424,8 @@ fn tsresol(
 }
 
 /// pcapng timestamp units -> nanoseconds (if_tsresol: bit 7 clear = 10^-n s, set = 2^-n s;
-/// default 10^-6).
-fn ng_time_ns(units: u128, resol: u8) -> i128 {
+/// default 10^-6), saturating at the i64 limit (year 2262).
+fn ng_time_ns(units: u128, resol: u8) -> i64 {
     let n = u32::from(resol & 0x7F);
     let ns = if resol & 0x80 == 0 {
         if n <= 9 {
@@ -437,7 +438,7 @@ fn ng_time_ns(units: u128, resol: u8) -> i128 {
     } else {
         0
     };
-    i128::try_from(ns).unwrap_or(i128::MAX)
+    i64::try_from(ns).unwrap_or(i64::MAX)
 }
 
 /// Slice a captured frame down to its UDP payload, or say why not.

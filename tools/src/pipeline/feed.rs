@@ -128,12 +128,8 @@ impl<'a> Aligner<'a> {
             InsWait::UntilEnd => None,
             InsWait::Latency(d) => {
                 let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
-                let from = if item.host_ns != 0 {
-                    item.host_ns
-                } else {
-                    self.time.wall_ns()
-                };
-                Some(from.saturating_add(d))
+                let from = item.host.unwrap_or_else(|| self.time.wall());
+                Some(HostTime(from.0.saturating_add(d)))
             }
         };
         while !self.ins_done && self.core.wants_poses(&item.bytes) {
@@ -141,12 +137,12 @@ impl<'a> Aligner<'a> {
                 Some(it) => self.take(it),
                 None => match deadline {
                     None => std::thread::yield_now(),
-                    Some(t) if self.time.wall_ns() >= t => break,
+                    Some(t) if self.time.wall() >= t => break,
                     Some(_) => self.time.sleep(std::time::Duration::from_millis(1)),
                 },
             }
         }
-        self.core.data(&item.bytes, item.host_ns, each, emit);
+        self.core.data(&item.bytes, item.host, each, emit);
     }
 
     /// Hand on what the batches still hold.
@@ -214,7 +210,7 @@ mod tests {
         for (host_ns, end, waited_ms) in
             [(t, false, 300), (t - 500_000_000, false, 0), (t, true, 0)]
         {
-            let clock = MockClock::new(t);
+            let clock = MockClock::new(HostTime(t));
             let mut storage = AlignStorage::new(1, 50_000_000);
             let mut al = Aligner::new(
                 &mut storage,
@@ -230,9 +226,9 @@ mod tests {
             if end {
                 assert!(p.enqueue(InsItem::End).is_ok());
             }
-            let item = LidarItem::new(LidarKind::Data, host_ns, &packet);
+            let item = LidarItem::new(LidarKind::Data, Some(HostTime(host_ns)), &packet);
             al.data(&item, &mut c, None, &mut |_, _| {});
-            let waited = clock.wall_ns() - t;
+            let waited = clock.wall().0 - t;
             assert_eq!(waited, waited_ms * 1_000_000, "host {host_ns} end {end}");
             assert_eq!(al.core.stats.packets_without_time, 1);
         }

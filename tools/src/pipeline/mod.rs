@@ -19,8 +19,8 @@ mod readers;
 
 pub use feed::{AlignStorage, Aligner, InsWait};
 pub use readers::{
-    ins_file_reader, ins_reader, lidar_reader, vn200_pose, week_from_capture, InsEnd, InsFile,
-    InsOutcome, InsRing, LidarRing, Vn200Feed,
+    end_lidar, ins_file_reader, ins_reader, lidar_reader, vn200_pose, week_from_capture, Accept,
+    InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 
 use crate::config::site::Site;
@@ -33,13 +33,13 @@ use spherecal::vlp16::PositionPacket;
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};
-use spherecal_hal::packet::{Datagram, SkipReason};
+use spherecal_hal::packet::{Datagram, HostTime, SkipReason};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::sbet::SbetReader;
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// LiDAR ring capacity (holds N - 1 packets: ~0.68 s of data packets, 0.6 MB).
 pub const LIDAR_RING: usize = 512;
@@ -76,30 +76,26 @@ pub enum LidarKind {
 pub struct LidarItem {
     /// What it is.
     pub kind: LidarKind,
-    /// Host receive time [ns since 1970 on the host clock; 0 unknown].
-    pub host_ns: i64,
+    /// When the host received it, if known.
+    pub host: Option<HostTime>,
     /// The payload (data: all 1206 bytes; position: the first 512).
     pub bytes: [u8; 1206],
 }
 
 impl LidarItem {
-    /// An item holding `payload` (at most 1206 bytes) received at `host_ns`.
-    pub fn new(kind: LidarKind, host_ns: i64, payload: &[u8]) -> Self {
+    /// An item holding `payload` (at most 1206 bytes) received at `host`.
+    pub fn new(kind: LidarKind, host: Option<HostTime>, payload: &[u8]) -> Self {
         let mut bytes = [0u8; 1206];
         let n = payload.len().min(bytes.len());
         bytes[..n].copy_from_slice(&payload[..n]);
-        Self {
-            kind,
-            host_ns,
-            bytes,
-        }
+        Self { kind, host, bytes }
     }
 }
 
 impl LidarItem {
     /// The ring item for a received datagram, or why it is skipped.
     pub fn classify(d: &Datagram<'_>, ports: Ports) -> Result<Self, SkipReason> {
-        let host = i64::try_from(d.time.0).unwrap_or(0);
+        let host = Some(d.time);
         Ok(match classify(d, ports)? {
             Vlp16Packet::Data { packet, .. } => {
                 Self::new(LidarKind::Data, host, packet.into_inner())
@@ -114,8 +110,8 @@ impl LidarItem {
 /// An item on the INS ring.
 #[derive(Debug, Clone, Copy)]
 pub enum InsItem {
-    /// A pose in the site frame and its host receive time [ns since 1970; 0 unknown].
-    Pose(PoseSample, i64),
+    /// A pose in the site frame and when the host received it, if known.
+    Pose(PoseSample, Option<HostTime>),
     /// The stream ended.
     End,
 }
@@ -346,19 +342,24 @@ pub fn run<C: Send>(
     let (mut ip, mut ic) = iq.split();
     let full = [AtomicU64::new(0), AtomicU64::new(0)];
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
-    let pcap = PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
+    let mut pcap =
+        PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
     std::thread::scope(|sc| {
         // The readers: each ends its ring with End, even when it fails.
         let full_ref = &full;
         let lidar = sc.spawn(move || {
+            let (queued, never) = (AtomicU64::new(0), AtomicBool::new(false));
             let mut out = LidarRing {
                 ring: &mut lp,
                 policy: Overflow::Wait,
                 full: &full_ref[0],
+                queued: &queued,
             };
-            lidar_reader(pcap, &mut out, Ports::default())
+            let (skips, r) = lidar_reader(&mut pcap, &mut out, Accept::default(), &never);
+            end_lidar(out.ring, &never);
+            r.map(|()| skips).map_err(|e| e.to_string())
         });
         let (max_gap, keep_untracked) = (inp.max_gap_ns, inp.keep_untracked_ins);
         let ins = sc.spawn(move || {

@@ -5,6 +5,7 @@
 use super::*;
 use spherecal::vn200::Framed;
 use spherecal_hal::serial::{ByteSource, FileSource, ReadOutcome, RxStamp};
+use std::net::Ipv4Addr;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
@@ -16,50 +17,76 @@ pub struct LidarRing<'r, 'q> {
     pub policy: Overflow,
     /// Counts the full-ring events.
     pub full: &'r AtomicU64,
+    /// Counts the items enqueued.
+    pub queued: &'r AtomicU64,
 }
 
-/// Every record of `src` classified: VLP-16 packets onto the ring, the rest counted by reason;
-/// the ring ends with End, also when the source fails.
+/// Which datagrams a LiDAR reader hands on: the sensor's two ports and, for live input, its
+/// address (the board's `sensor_addr`; `None` accepts any sender).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Accept {
+    /// The data and position ports.
+    pub ports: Ports,
+    /// The sensor's address.
+    pub sensor: Option<Ipv4Addr>,
+}
+
+impl Accept {
+    /// The ring item for `d`, or why it is skipped.
+    pub fn item(&self, d: &Datagram<'_>) -> Result<LidarItem, SkipReason> {
+        match self.sensor {
+            Some(a) if a != d.src_addr => Err(SkipReason::OtherSender(d.src_addr)),
+            _ => LidarItem::classify(d, self.ports),
+        }
+    }
+}
+
+/// Every record of `src` until it ends, fails or `stop` is set: accepted VLP-16 packets onto
+/// the ring, the rest counted by reason. The same loop reads a capture file (waiting for room)
+/// and a live socket (dropping on a full ring); the caller ends the ring ([`end_lidar`]).
 pub fn lidar_reader<S: PacketSource>(
-    mut src: S,
+    src: &mut S,
     out: &mut LidarRing<'_, '_>,
-    ports: Ports,
-) -> Result<SkipStats, String> {
+    accept: Accept,
+    stop: &AtomicBool,
+) -> (SkipStats, Result<(), S::Error>) {
     let mut skips = SkipStats::default();
-    let end = |out: &mut LidarRing<'_, '_>| {
-        enqueue(
-            out.ring,
-            LidarItem::new(LidarKind::End, 0, &[]),
-            out.policy,
-            out.full,
-        );
-    };
-    loop {
+    while !stop.load(Ordering::Relaxed) {
         let rec = match src.next_record() {
             Ok(Some(r)) => r,
             Ok(None) => break,
-            Err(e) => {
-                end(out);
-                return Err(e.to_string());
-            }
+            Err(e) => return (skips, Err(e)),
         };
-        let item = match rec {
+        let d = match rec {
             Record::Skipped { offset, reason } => {
                 skips.count(offset, &reason);
                 continue;
             }
-            Record::Udp(d) => match LidarItem::classify(&d, ports) {
-                Ok(item) => item,
-                Err(reason) => {
-                    skips.count(d.offset, &reason);
-                    continue;
-                }
-            },
+            Record::Idle => continue,
+            Record::Udp(d) => d,
         };
-        enqueue(out.ring, item, out.policy, out.full);
+        match accept.item(&d) {
+            Ok(item) => {
+                if enqueue(out.ring, item, out.policy, out.full) {
+                    out.queued.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            Err(reason) => skips.count(d.offset, &reason),
+        }
     }
-    end(out);
-    Ok(skips)
+    (skips, Ok(()))
+}
+
+/// End the LiDAR ring: wait for room for the End, unless the aligner is `gone`.
+pub fn end_lidar(ring: &mut heapless::spsc::Producer<'_, LidarItem>, gone: &AtomicBool) {
+    let mut end = LidarItem::new(LidarKind::End, None, &[]);
+    while let Err(back) = ring.enqueue(end) {
+        if gone.load(Ordering::Acquire) {
+            return;
+        }
+        end = back;
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
 }
 
 /// A trajectory file, opened: the VN-200 byte stream (a serial log's records joined), or an
@@ -126,7 +153,7 @@ pub fn ins_reader<B: ByteSource>(
         match src.read_chunk(buf)? {
             ReadOutcome::Data { len, stamp } => {
                 on_chunk(&buf[..len], stamp);
-                feed.feed(&buf[..len], stamp.map_or(0, |s| s.wall_ns), out, seen);
+                feed.feed(&buf[..len], stamp.map(|s| s.wall), out, seen);
             }
             ReadOutcome::Idle => {}
             ReadOutcome::End => {
@@ -185,7 +212,7 @@ pub fn ins_file_reader(
                 let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
                 st.used(t, max_gap_ns);
                 let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
-                enqueue(out.ring, InsItem::Pose(pose, 0), out.policy, out.full);
+                enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
             }
             st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
             st.without_pose += rd.invalid;
@@ -261,7 +288,7 @@ impl PoseGate {
         &self,
         it: &Framed<'_>,
         st: &mut InsState,
-        host_ns: i64,
+        host: Option<HostTime>,
         out: &mut InsRing<'_, '_>,
         seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
     ) {
@@ -279,7 +306,7 @@ impl PoseGate {
                     None => {}
                 }
                 st.used(s.time, self.max_gap_ns);
-                enqueue(out.ring, InsItem::Pose(s, host_ns), out.policy, out.full);
+                enqueue(out.ring, InsItem::Pose(s, host), out.policy, out.full);
             }
             InsOutcome::NoPose => st.without_pose += 1,
             InsOutcome::Rejected | InsOutcome::Other => {}
@@ -302,18 +329,18 @@ impl Vn200Feed {
         }
     }
 
-    /// Bytes received at `host_ns` [ns since 1970; 0 unknown]. Every framed item is shown to
+    /// Bytes received at `host` (if known). Every framed item is shown to
     /// `seen` with what it gave before its pose goes to the ring.
     pub fn feed(
         &mut self,
         bytes: &[u8],
-        host_ns: i64,
+        host: Option<HostTime>,
         out: &mut InsRing<'_, '_>,
         seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
     ) {
         self.st.bytes += bytes.len() as u64;
         let Self { framer, gate, st } = self;
-        framer.consume(bytes, |it| gate.handle(&it, st, host_ns, out, seen));
+        framer.consume(bytes, |it| gate.handle(&it, st, host, out, seen));
     }
 
     /// The stream has ended: what the framer still holds.
@@ -321,7 +348,7 @@ impl Vn200Feed {
         self.framer.finish();
         let Self { framer, gate, st } = self;
         while let Some(it) = framer.next() {
-            gate.handle(&it, st, 0, out, &mut |_, _| {});
+            gate.handle(&it, st, None, out, &mut |_, _| {});
         }
     }
 

@@ -44,7 +44,7 @@ pub(super) fn logger(
                 continue;
             }
             if let Err(e) = pcap.write(
-                HostTime(it.time),
+                it.time,
                 it.src,
                 (dst, it.dst_port),
                 &it.bytes[..usize::from(it.len)],

@@ -18,8 +18,8 @@ use crate::calibrate::{solve_report, Report};
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
-    enqueue, targets, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
-    LidarItem, LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
+    enqueue, targets, Accept, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsRing,
+    InsWait, LidarItem, LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
 };
 use crate::state::{ClockState, InsState};
 
@@ -44,10 +44,10 @@ use spherecal::vn200::pose::{ins_mode, InsMode};
 use spherecal::vn200::Item;
 use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
-use spherecal_hal::packet::{HostTime, SkipReason};
+use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
 use spherecal_hal::serial::{RxStamp, SerialSource};
-use spherecal_hal::udp::UdpSource;
+use spherecal_hal::udp::{DropProbe, UdpSource};
 use spherecal_hal::vlp16::{Ports, SkipStats};
 use status::{show, snapshot, status_loop};
 use std::net::Ipv4Addr;
@@ -111,11 +111,27 @@ pub struct RunOptions {
 /// A datagram on its way to the log.
 #[derive(Clone)]
 struct UdpLogItem {
-    time: i128,
+    time: HostTime,
     src: (Ipv4Addr, u16),
     dst_port: u16,
     len: u16,
     bytes: [u8; MAX_DATAGRAM],
+}
+
+impl UdpLogItem {
+    /// `d`, its payload cut at [`MAX_DATAGRAM`] bytes.
+    fn new(d: &Datagram<'_>) -> Self {
+        let n = d.payload.len().min(MAX_DATAGRAM);
+        let mut item = Self {
+            time: d.time,
+            src: (d.src_addr, d.src_port),
+            dst_port: d.dst_port,
+            len: n as u16,
+            bytes: [0; MAX_DATAGRAM],
+        };
+        item.bytes[..n].copy_from_slice(&d.payload[..n]);
+        item
+    }
 }
 
 /// A serial read on its way to the log.
@@ -170,6 +186,7 @@ struct Shared<'a> {
     received: [AtomicU64; 2],
     enqueued: [AtomicU64; 2],
     kernel_drops: [AtomicU64; 2],
+    drop_probes: [DropProbe; 2],
     ring_drops: RingDrops,
     serial_bytes: AtomicU64,
     pps: AtomicU8,
@@ -224,8 +241,14 @@ impl Drop for AlignerGuard<'_, '_> {
 }
 
 impl<'a> Shared<'a> {
-    /// Nothing counted yet; `readers` threads to wait for, `spheres` windows.
-    fn new(stop: &'a AtomicBool, readers: usize, spheres: usize) -> Self {
+    /// Nothing counted yet; `readers` threads to wait for, `spheres` windows, the two sockets'
+    /// kernel drop counts read through `drop_probes`.
+    fn new(
+        stop: &'a AtomicBool,
+        readers: usize,
+        spheres: usize,
+        drop_probes: [DropProbe; 2],
+    ) -> Self {
         Self {
             stop,
             readers: AtomicUsize::new(readers),
@@ -234,6 +257,7 @@ impl<'a> Shared<'a> {
             received: Default::default(),
             enqueued: Default::default(),
             kernel_drops: Default::default(),
+            drop_probes,
             ring_drops: Default::default(),
             serial_bytes: AtomicU64::new(0),
             pps: AtomicU8::new(NONE_U8),
@@ -247,6 +271,15 @@ impl<'a> Shared<'a> {
             time_offset_ns: AtomicI64::new(0),
             time_offset: Mutex::new(None),
             errors: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Read the sockets' kernel drop counts (a closed socket keeps its last count).
+    fn poll_kernel_drops(&self) {
+        for (p, k) in self.drop_probes.iter().zip(&self.kernel_drops) {
+            if let Some(n) = p.read() {
+                k.store(n, Ordering::Relaxed);
+            }
         }
     }
 
@@ -284,7 +317,7 @@ fn ins_name(b: u8) -> &'static str {
 
 /// The UTC start stamp that names a run's files, e.g. `20261122T084638Z`.
 pub fn stamp_now() -> String {
-    let t = spherecal::time::UtcDateTime::from_unix_ns(spherecal_hal::serial::wall_ns());
+    let t = spherecal::time::UtcDateTime::from_unix_ns(spherecal_hal::clock::wall().0);
     format!(
         "{:04}{:02}{:02}T{:02}{:02}{:02}Z",
         t.year, t.month, t.day, t.hour, t.minute, t.second
@@ -330,6 +363,7 @@ fn run_rig(
         data: b.lidar.data_port,
         position: b.lidar.position_port,
     };
+    let accept = Accept { ports, sensor };
     let data_sock = UdpSource::bind(bind, ports.data, READ_TIMEOUT)
         .map_err(|e| format!("UDP {bind}:{}: {e}", ports.data))?;
     let pos_sock = UdpSource::bind(bind, ports.position, READ_TIMEOUT)
@@ -383,7 +417,8 @@ fn run_rig(
     };
     let b0 = spherecal::calib::from_deg_m(&b.mount.deg_m());
 
-    let sh = Shared::new(stop, 2 + usize::from(serial.is_some()), ids.len());
+    let probes = [data_sock.drop_probe(), pos_sock.drop_probe()];
+    let sh = Shared::new(stop, 2 + usize::from(serial.is_some()), ids.len(), probes);
 
     let mut data_q: Box<Queue<LidarItem, DATA_RING>> = Box::new(Queue::new());
     let mut pos_q: Box<Queue<LidarItem, POSITION_RING>> = Box::new(Queue::new());
@@ -418,10 +453,10 @@ fn run_rig(
     let ended = std::thread::scope(|sc| {
         let sh = &sh;
         let data = spawn(sc, "udp-data", move || {
-            udp_reader(data_sock, data_p, dlog_p, ports, sensor, 0, sh, true)
+            udp_reader(data_sock, data_p, dlog_p, accept, 0, sh, true)
         });
         let pos = spawn(sc, "udp-position", move || {
-            udp_reader(pos_sock, pos_p, plog_p, ports, sensor, 1, sh, false)
+            udp_reader(pos_sock, pos_p, plog_p, accept, 1, sh, false)
         });
         let ins = match serial {
             Some((dev, src)) => Some(spawn(sc, "serial", move || {

@@ -1,84 +1,54 @@
 //! The rig's readers: one per socket and the serial port, each into its rings (never blocking: a full ring drops and counts).
 
 use super::*;
-use crate::pipeline::{ins_reader, InsEnd};
+use crate::pipeline::{end_lidar, ins_reader, lidar_reader, InsEnd, LidarRing};
+use spherecal_hal::Tap;
 
-/// One socket until the stop: every datagram to the log ring, the sensor's VLP-16 packets to
-/// the aligner's ring. Returns the skips and how many datagrams had kernel receive times.
+/// One socket until the stop, through the same [`lidar_reader`] as a capture file: every
+/// datagram to the log ring (a [`Tap`] on the socket), the sensor's VLP-16 packets to the
+/// aligner's ring. Returns the skips and how many datagrams had kernel receive times.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn udp_reader(
-    mut sock: UdpSource,
+    sock: UdpSource,
     mut ring: Producer<'_, LidarItem>,
     mut log: Producer<'_, UdpLogItem>,
-    ports: Ports,
-    sensor: Option<Ipv4Addr>,
+    accept: Accept,
     which: usize,
     sh: &Shared<'_>,
     ends_stream: bool,
 ) -> (SkipStats, u64) {
     let _alive = ReaderGuard(sh);
-    let mut skips = SkipStats::default();
-    let mut polled = Instant::now();
-    let poll_drops = |sock: &UdpSource| {
-        if let Some(k) = sock.kernel_drops() {
-            sh.kernel_drops[which].store(k, Ordering::Relaxed);
-        }
+    let port = sock.port();
+    let log_datagram = |d: &Datagram<'_>| {
+        sh.received[which].fetch_add(1, Ordering::Relaxed);
+        enqueue(
+            &mut log,
+            UdpLogItem::new(d),
+            Overflow::Drop,
+            &sh.ring_drops.datagram_log,
+        );
     };
-    while !sh.stop.load(Ordering::Relaxed) {
-        match sock.recv() {
-            Ok(Some(d)) => {
-                sh.received[which].fetch_add(1, Ordering::Relaxed);
-                let n = d.payload.len().min(MAX_DATAGRAM);
-                let mut item = UdpLogItem {
-                    time: d.time.0,
-                    src: (d.src_addr, d.src_port),
-                    dst_port: d.dst_port,
-                    len: n as u16,
-                    bytes: [0; MAX_DATAGRAM],
-                };
-                item.bytes[..n].copy_from_slice(&d.payload[..n]);
-                enqueue(&mut log, item, Overflow::Drop, &sh.ring_drops.datagram_log);
-                let item = if sensor.is_some_and(|a| a != d.src_addr) {
-                    Err(SkipReason::OtherSender(d.src_addr))
-                } else {
-                    LidarItem::classify(&d, ports)
-                };
-                match item {
-                    Ok(item) => {
-                        if enqueue(&mut ring, item, Overflow::Drop, sh.ring_drops.lidar(which)) {
-                            sh.enqueued[which].fetch_add(1, Ordering::Relaxed);
-                        }
-                    }
-                    Err(reason) => skips.count(0, &reason),
-                }
-            }
-            Ok(None) => {}
-            Err(e) => {
-                sh.error(format!("UDP port {}: {e}", sock.port()));
-                if ends_stream {
-                    // Without the data socket there is no survey: wind everything down.
-                    sh.stop.store(true, Ordering::Relaxed);
-                }
-                break;
-            }
-        }
-        if polled.elapsed() >= Duration::from_millis(500) {
-            polled = Instant::now();
-            poll_drops(&sock);
+    let mut src = Tap::new(sock, log_datagram);
+    let mut out = LidarRing {
+        ring: &mut ring,
+        policy: Overflow::Drop,
+        full: sh.ring_drops.lidar(which),
+        queued: &sh.enqueued[which],
+    };
+    let (skips, r) = lidar_reader(&mut src, &mut out, accept, sh.stop);
+    if let Err(e) = r {
+        sh.error(format!("UDP port {port}: {e}"));
+        if ends_stream {
+            // Without the data socket there is no survey: wind everything down.
+            sh.stop.store(true, Ordering::Relaxed);
         }
     }
-    poll_drops(&sock);
+    sh.poll_kernel_drops();
     if ends_stream {
         // The aligner runs until it sees this (unless it is gone).
-        while ring
-            .enqueue(LidarItem::new(LidarKind::End, 0, &[]))
-            .is_err()
-            && !sh.aligner_gone.load(Ordering::Acquire)
-        {
-            std::thread::sleep(Duration::from_millis(1));
-        }
+        end_lidar(&mut ring, &sh.aligner_gone);
     }
-    (skips, sock.kernel_stamped)
+    (skips, src.get_ref().kernel_stamped)
 }
 
 /// Say once per frame layout if the VN-200 does not send the Common-group outputs the board

@@ -224,6 +224,7 @@ pub(super) fn status_loop<'c>(
             return console;
         }
         tick += 1;
+        sh.poll_kernel_drops();
         let s = snapshot(sh, ids, started, &mut last_aligned);
         if let Err(e) = show(console, &s) {
             sh.error(format!("console: {e}"));
