@@ -32,21 +32,68 @@ impl Mount {
         }
     }
 
-    /// From the 6-vector b = [roll, pitch, heading, ax, ay, az] of eq. 6.
-    pub fn from_params(b: &[f64; 6]) -> Self {
+    /// From the parameters b = [roll, pitch, heading, ax, ay, az] of eq. 6.
+    pub fn from_params(b: &Params) -> Self {
+        let b = &b.0;
         Self::new([b[0], b[1], b[2]], [b[3], b[4], b[5]])
     }
 
-    /// The 6-vector of eq. 6.
-    pub fn params(&self) -> [f64; 6] {
-        [
+    /// The parameters of eq. 6.
+    pub fn params(&self) -> Params {
+        Params([
             self.boresight[0],
             self.boresight[1],
             self.boresight[2],
             self.lever.x,
             self.lever.y,
             self.lever.z,
-        ]
+        ])
+    }
+}
+
+/// The six mounting parameters b of eq. 6 in the solver's units: boresight roll, pitch,
+/// heading [rad] and lever arm x, y, z [m]. People read and write them in degrees ([`DegM`]);
+/// the two types keep the units apart.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Params(pub [f64; 6]);
+
+/// The same six in the units of the command line, the TOML files and the reports: roll,
+/// pitch, heading [deg], x, y, z [m].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DegM(pub [f64; 6]);
+
+impl Params {
+    /// In degrees and metres.
+    pub fn deg_m(&self) -> DegM {
+        let b = &self.0;
+        DegM([
+            b[0].to_degrees(),
+            b[1].to_degrees(),
+            b[2].to_degrees(),
+            b[3],
+            b[4],
+            b[5],
+        ])
+    }
+
+    /// The mounting these parameters describe.
+    pub fn mount(&self) -> Mount {
+        Mount::from_params(self)
+    }
+}
+
+impl DegM {
+    /// In radians and metres.
+    pub fn params(&self) -> Params {
+        let x = &self.0;
+        Params([
+            x[0].to_radians(),
+            x[1].to_radians(),
+            x[2].to_radians(),
+            x[3],
+            x[4],
+            x[5],
+        ])
     }
 }
 
@@ -159,5 +206,19 @@ mod tests {
         let z = m.r_li * Vector3::z();
         assert!(z.x > 0.69 && z.z < -0.69, "{z}");
         assert_eq!(Mount::from_params(&m.params()), m);
+    }
+
+    /// Angles change units, lever arms do not.
+    #[test]
+    fn degrees_and_radians_kept_apart() {
+        use core::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+        let d = DegM([90.0, -45.0, 180.0, 1.5, -2.0, 0.25]);
+        let p = d.params();
+        assert_eq!(p, Params([FRAC_PI_2, -FRAC_PI_4, PI, 1.5, -2.0, 0.25]));
+        let back = p.deg_m();
+        for (a, b) in back.0.iter().zip(d.0) {
+            assert!((a - b).abs() < 1e-12, "{back:?}");
+        }
+        assert_eq!(p.mount().boresight, [FRAC_PI_2, -FRAC_PI_4, PI]);
     }
 }

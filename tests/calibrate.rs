@@ -36,7 +36,7 @@ fn scenario_text(name: &str) -> String {
 
 /// The truth of a scenario [deg, m].
 fn truth(s: &Scenario) -> [f64; 6] {
-    s.mount.truth.deg_m()
+    s.mount.truth.deg_m().0
 }
 
 /// How well the kept returns match the simulator's labels, per sphere: (precision, recall,
@@ -392,8 +392,8 @@ fn sigmas_are_honest(name: &str) {
                         &Settings::default(),
                     );
                     let lm = sol.lm.expect("a least-squares solution");
-                    let b = spherecal::calib::to_deg_m(&sol.b);
-                    let sigma = spherecal::calib::to_deg_m(&lm.sigma);
+                    let b = sol.b.deg_m().0;
+                    let sigma = spherecal::calib::Params(lm.sigma).deg_m().0;
                     // The six, then the time offset (its truth: the scenario's).
                     let z: [f64; 7] = core::array::from_fn(|i| {
                         if i < 6 {

@@ -61,7 +61,7 @@ fn text(o: &Output) -> String {
 }
 
 fn truth(s: &Scenario) -> [f64; 6] {
-    s.mount.truth.deg_m()
+    s.mount.truth.deg_m().0
 }
 
 /// Every parameter within `tol` (deg, m) of the truth.

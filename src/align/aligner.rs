@@ -317,7 +317,7 @@ mod tests {
             batches,
             history,
             0.5,
-            Mount::from_params(&[0.0; 6]),
+            Mount::from_params(&crate::georef::Params([0.0; 6])),
             LEAP,
             0,
         )

@@ -352,7 +352,7 @@ mod tests {
     /// Returns on two spheres, made exactly by a known mounting from random poses.
     fn exact(b: &[f64; P], t: &[Target; 2]) -> std::vec::Vec<std::vec::Vec<Observation>> {
         let mut rng = crate::sim::Rng::new(4);
-        let m = crate::georef::Mount::from_params(b);
+        let m = crate::georef::Mount::from_params(&crate::georef::Params(*b));
         let mut out = std::vec![std::vec::Vec::new(), std::vec::Vec::new()];
         for (j, tg) in t.iter().enumerate() {
             for k in 0..400 {

@@ -18,6 +18,7 @@ pub mod objective;
 pub mod solve;
 pub mod sphere_fit;
 
+pub use crate::georef::{DegM, Params};
 pub use objective::Problem;
 pub use solve::{solve, Refusal, Settings, Solution};
 
@@ -25,27 +26,3 @@ pub use solve::{solve, Refusal, Settings, Solution};
 pub const P: usize = 6;
 /// Parameter names, in order.
 pub const NAMES: [&str; P] = ["roll", "pitch", "heading", "x", "y", "z"];
-
-/// [rad, m] -> [deg, m] (the units at the edges: CLI, TOML, reports).
-pub fn to_deg_m(b: &[f64; P]) -> [f64; P] {
-    [
-        b[0].to_degrees(),
-        b[1].to_degrees(),
-        b[2].to_degrees(),
-        b[3],
-        b[4],
-        b[5],
-    ]
-}
-
-/// [deg, m] -> [rad, m].
-pub fn from_deg_m(x: &[f64; P]) -> [f64; P] {
-    [
-        x[0].to_radians(),
-        x[1].to_radians(),
-        x[2].to_radians(),
-        x[3],
-        x[4],
-        x[5],
-    ]
-}

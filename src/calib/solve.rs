@@ -35,7 +35,7 @@ use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Problem, SphereObs};
 use super::sphere_fit::fit_center;
-use super::{from_deg_m, to_deg_m, P};
+use super::{DegM, Params, P};
 use crate::georef::Mount;
 use crate::time::GpsTime;
 use crate::window::{Observation, Target, MAX_TARGETS};
@@ -247,8 +247,8 @@ pub struct Round {
     pub kept: usize,
     /// Slices where a sphere was detected, all spheres.
     pub detected: u32,
-    /// The parameters after the round's solve [rad, m].
-    pub b: [f64; P],
+    /// The parameters after the round's solve.
+    pub b: Params,
     /// The time offset after the round's solve [s].
     pub dt: f64,
 }
@@ -256,8 +256,8 @@ pub struct Round {
 /// The answer and everything known about it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution {
-    /// [roll, pitch, heading (rad), x, y, z (m)].
-    pub b: [f64; P],
+    /// The mounting parameters.
+    pub b: Params,
     /// The time offset between the clocks on top of what the pipeline applied [s] (INS minus
     /// LiDAR); 0 when not estimated.
     pub dt: f64,
@@ -352,7 +352,7 @@ impl Histogram {
 
 /// Signed residual of one observation.
 fn residual(o: &Observation, t: &Target, b: &[f64; P], dt: f64) -> f64 {
-    let m = Mount::from_params(b);
+    let m = Mount::from_params(&Params(*b));
     (o.georef_dt(&m, dt) - t.center).norm() - t.radius
 }
 
@@ -388,7 +388,7 @@ fn consistency(
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
-    let mount = Mount::from_params(b);
+    let mount = Mount::from_params(&Params(*b));
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {
         let j = usize::from(p.sphere);
@@ -673,7 +673,7 @@ fn gather(
 fn prepare(
     targets: &[Target],
     obs: &mut [&mut [Observation]],
-    b0: &[f64; P],
+    b0: &Params,
     st: &ExtractSettings,
     slices: usize,
 ) -> heapless::Vec<PassReport, MAX_PASSES> {
@@ -711,12 +711,12 @@ fn split_ranges<'b>(
 
 impl Solution {
     /// Nothing solved yet: the start `b0`, the first shell `tau0`.
-    fn start(b0: &[f64; P], tau0: f64) -> Self {
+    fn start(b0: &Params, tau0: f64) -> Self {
         Self {
             b: *b0,
             dt: 0.0,
             nm: NmResult {
-                x: to_deg_m(b0),
+                x: b0.deg_m().0,
                 f: f64::INFINITY,
                 iterations: 0,
                 evaluations: 0,
@@ -738,12 +738,12 @@ impl Solution {
     }
 }
 
-/// Solve from `b0` ([rad, m]) with every sphere's windowed returns (reordered in place: the
+/// Solve from `b0` with every sphere's windowed returns (reordered in place: the
 /// kept ones first, in time order; each tagged with its [`Verdict`]).
 pub fn solve(
     targets: &[Target],
     obs: &mut [&mut [Observation]],
-    b0: &[f64; P],
+    b0: &Params,
     s: &Settings,
     ws: &mut Workspace<'_>,
 ) -> Solution {
@@ -767,7 +767,7 @@ pub fn solve(
     }
 
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
-    let mut b = *b0;
+    let mut b = b0.0;
     let mut dt = 0.0f64;
     let mut tau = st.tau0;
     let mut prior: Option<f64> = None;
@@ -779,7 +779,7 @@ pub fn solve(
         sol.rounds = round + 1;
         let round_tau = tau;
         let (b_before, dt_before) = (b, dt);
-        let mount = Mount::from_params(&b);
+        let mount = Mount::from_params(&Params(b));
         let mut kept = [0usize; MAX_TARGETS];
         for j in 0..n {
             let v = &mut obs[j][..active[j]];
@@ -834,14 +834,19 @@ pub fn solve(
             let most = lens[..n].iter().copied().max().unwrap_or(1);
             let stride = most.div_ceil(s.nm_points.max(1)).max(1);
             let mut nm = with_problem(targets, &part, &lens, stride, dt, |pb| {
-                minimize::<P, 7>(|x| pb.l1(&from_deg_m(x)), &to_deg_m(&b), &s.step, &s.nm)
+                minimize::<P, 7>(
+                    |x| pb.l1(&DegM(*x).params().0),
+                    &Params(b).deg_m().0,
+                    &s.step,
+                    &s.nm,
+                )
             });
             evaluations += nm.evaluations;
             iterations += nm.iterations;
             nm.evaluations = evaluations;
             nm.iterations = iterations;
             sol.nm = nm;
-            b = from_deg_m(&nm.x);
+            b = DegM(nm.x).params().0;
         } else {
             // Close: least squares on the kept returns (time order for its clusters).
             for p in part.iter_mut().take(n) {
@@ -865,7 +870,7 @@ pub fn solve(
             .tau0
             .max(0.5 * targets.iter().map(|t| t.radius).fold(0.0, f64::max));
         tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, widest);
-        let mount = Mount::from_params(&b);
+        let mount = Mount::from_params(&Params(b));
         let mut offsets = Histogram::new();
         for j in (0..n).filter(|&j| lens[j] > 0) {
             part[j].sort_unstable_by_key(|o| o.work.slice);
@@ -880,15 +885,17 @@ pub fn solve(
             prior,
             kept: total,
             detected: counts[..n].iter().map(|c| c.1).sum(),
-            b,
+            b: Params(b),
             dt,
         });
         // Settled: the kept sets barely change and the parameters stand still (to a tenth of
         // the 1e-3 deg / 1e-3 m the method aims for), or the kept sets go round a cycle (a few
         // returns at the shell's edge in, out).
-        let moved = to_deg_m(&b)
+        let moved = Params(b)
+            .deg_m()
+            .0
             .iter()
-            .zip(to_deg_m(&b_before))
+            .zip(Params(b_before).deg_m().0)
             .map(|(a, c)| (a - c).abs())
             .fold(0.0, f64::max)
             .max((dt - dt_before).abs() * 20.0);
@@ -910,7 +917,7 @@ pub fn solve(
 
     // 2. The last extraction: around the surveyed spheres, in the slices where the sphere is
     //    detected near them; spheres with too few returns are not found.
-    let mount = Mount::from_params(&b);
+    let mount = Mount::from_params(&Params(b));
     let mut tallies = [[0u32; 8]; MAX_TARGETS];
     for j in 0..n {
         let v = &mut obs[j][..active[j]];
@@ -979,13 +986,13 @@ pub fn solve(
             sol.dt_free = Some((free.dt, free.sigma_dt));
         }
     }
-    sol.b = b;
+    sol.b = Params(b);
     sol.dt = dt;
     sol.lm = lm;
     sol.l1 = with_problem(targets, obs, &used, 1, dt, |pb| pb.l1(&b));
 
     // 4. Per sphere.
-    let mount = Mount::from_params(&b);
+    let mount = Mount::from_params(&Params(b));
     let mut c2 = 0.0;
     let mut nc = 0;
     for j in 0..n {
@@ -1015,7 +1022,7 @@ pub fn solve(
             slices: counts[j].0,
             detected: counts[j].1,
             verdicts: tallies[j],
-            rms_before: rms(b0),
+            rms_before: rms(&b0.0),
             rms_after: rms(&b),
             center_offset: center,
         });

@@ -7,7 +7,7 @@ pub use crate::report::{
     Verdicts, Xyz,
 };
 use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
-use spherecal::calib::{solve, NAMES, P};
+use spherecal::calib::{solve, Params, NAMES, P};
 use spherecal::window::{Observation, Target};
 use std::fmt::Write as _;
 
@@ -159,7 +159,7 @@ pub fn solve_report(
     targets: &[Target],
     ids: &[String],
     obs: &mut [Vec<Observation>],
-    b0: &[f64; P],
+    b0: &Params,
     s: &Settings,
 ) -> (Solution, Report) {
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
@@ -167,7 +167,7 @@ pub fn solve_report(
     let t0 = std::time::Instant::now();
     let sol = solve(targets, &mut slices, b0, s, &mut scratch.workspace());
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let b = sol.b;
+    let b = sol.b.0;
     let lm = sol.lm;
     let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
     let weak: Vec<String> = NAMES
@@ -284,9 +284,8 @@ pub fn solve_report(
         time_offset_search: Vec::new(),
         start: NAMES
             .iter()
-            .zip(b0)
-            .enumerate()
-            .map(|(i, (n, v))| (n.to_string(), if i < 3 { v.to_degrees() } else { *v }))
+            .zip(b0.deg_m().0)
+            .map(|(n, v)| (n.to_string(), v))
             .collect(),
     };
     (sol, report)
@@ -300,7 +299,7 @@ pub fn write_returns(
     targets: &[Target],
     ids: &[String],
     obs: &[Vec<Observation>],
-    b: &[f64; P],
+    b: &Params,
 ) -> Result<(), String> {
     use std::io::Write as _;
     let err = |e: std::io::Error| format!("{}: {e}", path.display());
@@ -347,7 +346,7 @@ pub fn calibrate(
     inp: &mut Inputs,
     targets: &[Target],
     ids: &[String],
-    b0: &[f64; P],
+    b0: &Params,
     clock: crate::ClockOptions,
 ) -> Result<Calibrated, String> {
     let noise = inp.site.noise.unwrap_or_default();

@@ -19,6 +19,7 @@ pub mod scene;
 pub mod state;
 pub mod synth;
 
+use spherecal::calib::DegM;
 use std::path::PathBuf;
 
 /// What `spherecal calibrate` reads.
@@ -105,7 +106,7 @@ impl Default for ClockOptions {
 /// changes by less than 0.5 ms (four times at most).
 pub fn run_calibrate(
     survey: Survey,
-    init: Option<[f64; 6]>,
+    init: Option<DegM>,
     clock: ClockOptions,
     out: &Outputs,
     truth: Option<[f64; 7]>,
@@ -113,14 +114,14 @@ pub fn run_calibrate(
     use pipeline::{Inputs, InsInput};
     let site = config::site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
-    let b0 = spherecal::calib::from_deg_m(&start);
+    let b0 = start.params();
     let ins = match (survey.ins, survey.sbet) {
         (Some(i), _) => InsInput::Vn200(i),
         (None, Some(s)) => InsInput::Sbet(s, survey.gps_week),
         (None, None) => return Err("give --ins or --sbet".into()),
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
-    inp.mount = spherecal::georef::Mount::from_params(&b0);
+    inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     let (targets, ids) = calibrate::site_targets(&inp);
     let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
@@ -140,7 +141,7 @@ pub fn run_calibrate(
     }
     if let Some(p) = &out.las {
         let inp2 = pipeline::Inputs {
-            mount: spherecal::georef::Mount::from_params(&sol.b),
+            mount: sol.b.mount(),
             time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
             ..inp.clone()
         };

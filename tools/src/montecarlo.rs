@@ -32,7 +32,7 @@ pub fn montecarlo(
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
     let t = &scenario.mount.truth;
-    let truth = t.deg_m();
+    let truth = t.deg_m().0;
     let mut rng = Rng::new(seed);
     let starts: Vec<[f64; P]> = (0..trials)
         .map(|_| {
@@ -63,7 +63,7 @@ pub fn montecarlo(
                         break;
                     }
                     let st = starts[k];
-                    let b0 = spherecal::calib::from_deg_m(&st);
+                    let b0 = spherecal::calib::DegM(st).params();
                     for (w, o) in work.iter_mut().zip(&obs) {
                         w.copy_from_slice(o);
                     }
@@ -78,8 +78,7 @@ pub fn montecarlo(
                         &mut scratch.workspace(),
                     );
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
-                    let b = sol.b;
-                    let solution = spherecal::calib::to_deg_m(&b);
+                    let solution = sol.b.deg_m().0;
                     let mut error = [0.0; P];
                     for i in 0..P {
                         error[i] = solution[i] - truth[i];

@@ -2,7 +2,7 @@
 //! before and after (the paper's figures 4 and 6), as SVG.
 
 use spherecal::calib::solve::Solution;
-use spherecal::calib::P;
+use spherecal::calib::Params;
 use spherecal::georef::Mount;
 use spherecal::window::{Observation, Target};
 use std::path::Path;
@@ -14,7 +14,7 @@ pub fn plot(
     ids: &[String],
     obs: &[Vec<Observation>],
     sol: &Solution,
-    b0: &[f64; P],
+    b0: &Params,
 ) -> Result<(), String> {
     use plotters::prelude::*;
     let root = SVGBackend::new(path, (1200, 900)).into_drawing_area();

@@ -68,7 +68,13 @@ pub fn run(a: Args) -> ExitCode {
         keep_untracked_ins: a.keep_untracked_ins,
         search: a.search_time_offset,
     };
-    match crate::run_calibrate(survey, a.init, clock, &out, None) {
+    match crate::run_calibrate(
+        survey,
+        a.init.map(spherecal::calib::DegM),
+        clock,
+        &out,
+        None,
+    ) {
         Ok((text, ok)) => {
             say!("{text}");
             claimed(ok)

@@ -29,7 +29,7 @@ pub fn run() -> ExitCode {
         t0.elapsed().as_secs_f64()
     );
     sayln!("calibrating from the paper's erroneous a-priori values ...");
-    let t6 = s.mount.truth.deg_m();
+    let t6 = s.mount.truth.deg_m().0;
     let truth7 = [
         t6[0],
         t6[1],

@@ -3,6 +3,7 @@
 //! refused with the key's name).
 
 use serde::{Deserialize, Serialize};
+use spherecal::calib::DegM;
 
 pub mod board;
 pub mod scenario;
@@ -21,8 +22,8 @@ pub struct MountDegM {
 
 impl MountDegM {
     /// Roll, pitch, heading [deg], x, y, z [m]: the order the solver takes.
-    pub fn deg_m(&self) -> [f64; 6] {
+    pub fn deg_m(&self) -> DegM {
         let (b, l) = (self.boresight_deg, self.lever_arm_m);
-        [b[0], b[1], b[2], l[0], l[1], l[2]]
+        DegM([b[0], b[1], b[2], l[0], l[1], l[2]])
     }
 }

@@ -1,6 +1,7 @@
 //! `site.toml`: the surveyed targets and the a-priori mounting (README "site.toml").
 
 use serde::{Deserialize, Serialize};
+use spherecal::calib::DegM;
 
 /// Site origin.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -181,8 +182,8 @@ impl Site {
         Ok(())
     }
 
-    /// The a-priori values as [roll, pitch, heading (deg), x, y, z (m)].
-    pub fn apriori_deg_m(&self) -> [f64; 6] {
+    /// The a-priori values.
+    pub fn apriori_deg_m(&self) -> DegM {
         self.apriori.mount().deg_m()
     }
 

@@ -157,7 +157,7 @@ impl Inputs {
 
     /// Georeference with the site's a-priori mounting and window margin, 50 ms INS gap limit.
     pub fn apriori(pcap: PathBuf, ins: InsInput, site: Site) -> Self {
-        let b0 = spherecal::calib::from_deg_m(&site.apriori_deg_m());
+        let b0 = site.apriori_deg_m().params();
         Self {
             pcap,
             ins,

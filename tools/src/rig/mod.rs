@@ -415,7 +415,7 @@ fn run_rig(
             0.0,
         ),
     };
-    let b0 = spherecal::calib::from_deg_m(&b.mount.deg_m());
+    let b0 = b.mount.deg_m().params();
 
     let probes = [data_sock.drop_probe(), pos_sock.drop_probe()];
     let sh = Shared::new(stop, 2 + usize::from(serial.is_some()), ids.len(), probes);

@@ -1,6 +1,7 @@
 //! The rig's solver thread: collects the windowed batches, solves when the windows hold enough, keeps the time offset and the report current.
 
 use super::*;
+use spherecal::calib::Params;
 
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solver(
@@ -8,7 +9,7 @@ pub(super) fn solver(
     pool: crossbeam_channel::Sender<Vec<Observation>>,
     targets: &[Target],
     ids: &[String],
-    b0: &[f64; 6],
+    b0: &Params,
     settings: &Settings,
     report: Option<&Path>,
     sh: &Shared<'_>,
@@ -21,7 +22,7 @@ pub(super) fn solver(
     let mut start = *b0;
     // The time offset the store's observations were aligned at [ns].
     let mut store_offset = 0i64;
-    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut [f64; 6], offset: &mut i64| {
+    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
         let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
         sh.solves.fetch_add(1, Ordering::Relaxed);
         rep.time_offset_s += *offset as f64 * 1e-9;
@@ -37,14 +38,13 @@ pub(super) fn solver(
                 sh.time_offset_ns.store(*offset, Ordering::Relaxed);
             }
             *start = sol.b;
-            let mount = spherecal::georef::Mount::from_params(&sol.b);
+            let mount = sol.b.mount();
             for (v, t) in store.iter_mut().zip(targets) {
                 v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);
             }
-            let d = spherecal::calib::to_deg_m(&sol.b);
-            let s = sol
-                .lm
-                .map_or([f64::NAN; 6], |l| spherecal::calib::to_deg_m(&l.sigma));
+            let d = sol.b.deg_m().0;
+            // The sigmas are in the parameters' units.
+            let s = sol.lm.map_or([f64::NAN; 6], |l| Params(l.sigma).deg_m().0);
             if let Ok(mut c) = sh.calibration.lock() {
                 *c = Some((d, s));
             }
