@@ -750,160 +750,104 @@ pub fn solve(
     let n = targets.len().min(obs.len()).min(MAX_TARGETS);
     let targets = &targets[..n];
     let obs = &mut obs[..n];
-    let st = &s.extract;
-    let dirs = Directions::default();
-    let mut used = [0usize; MAX_TARGETS];
     let mut windowed = [0usize; MAX_TARGETS];
     for j in 0..n {
         windowed[j] = obs[j].len();
     }
-    let mut passes = prepare(targets, obs, b0, st, ws.keys.len());
-    // Each sphere's returns still taking part (the others are far from it).
-    let mut active = windowed;
-    let mut sol = Solution::start(b0, st.tau0);
+    let mut passes = prepare(targets, obs, b0, &s.extract, ws.keys.len());
+    let mut sol = Solution::start(b0, s.extract.tau0);
     if n < 2 {
         sol.refusal = Some(Refusal::TooFewSpheres { have: n });
         return sol;
     }
-
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
-    let mut b = b0.0;
-    let mut dt = 0.0f64;
-    let mut tau = st.tau0;
-    let mut prior: Option<f64> = None;
+    let mut r = Rounds::start(b0, windowed, s.extract.tau0);
+    run_rounds(targets, obs, s, ws, &mut r, &mut sol);
+    sol.shell = r.tau;
+    // 2. The last extraction, around the surveyed spheres.
+    let (used, tallies) = last_extraction(targets, obs, s, ws, &mut r, &mut passes);
+    sol.passes = passes;
+    let found = (0..n).filter(|&j| used[j] > 0).count();
+    // 3. Least squares on the kept returns: the answer and its uncertainty.
+    final_fit(targets, obs, &used[..n], found, s, &mut r, &mut sol);
+    // 4. Per sphere.
+    let per = PerSphere {
+        windowed: &windowed,
+        used: &used,
+        tallies: &tallies,
+        counts: &r.counts,
+    };
+    sphere_reports(targets, obs, &per, b0, r.dt, &mut sol);
+    // 5. Checks.
+    if found < 2 {
+        sol.refusal = Some(Refusal::TooFewSpheres { have: found });
+        return sol;
+    }
+    sol.refusal = checks(targets, obs, &used[..n], s, &mut sol);
+    sol
+}
+
+/// What the rounds carry from one to the next and into the last extraction.
+struct Rounds {
+    /// The parameters [rad, m] (plain numbers for the optimisers).
+    b: [f64; P],
+    /// The time offset [s].
+    dt: f64,
+    /// The shell half-width [m].
+    tau: f64,
+    /// The prior radius (`None`: from afar, the whole window) [m].
+    prior: Option<f64>,
+    /// Each sphere's returns still taking part (the others are far from it).
+    active: [usize; MAX_TARGETS],
+    /// Each sphere's slices and detections in the latest extraction.
+    counts: [(u32, u32); MAX_TARGETS],
+}
+
+impl Rounds {
+    fn start(b0: &Params, windowed: [usize; MAX_TARGETS], tau0: f64) -> Self {
+        Self {
+            b: b0.0,
+            dt: 0.0,
+            tau: tau0,
+            prior: None,
+            active: windowed,
+            counts: [(0, 0); MAX_TARGETS],
+        }
+    }
+}
+
+/// Rounds until the kept sets barely change and the parameters stand still (to a tenth of the
+/// 1e-3 deg / 1e-3 m the method aims for), the kept sets go round a cycle (a few returns at
+/// the shell's edge in, out), fewer than two spheres are found, or `max_rounds`.
+fn run_rounds(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    r: &mut Rounds,
+    sol: &mut Solution,
+) {
     let mut prints: heapless::Vec<u64, 4> = heapless::Vec::new();
     let mut last_kept: Option<usize> = None;
-    let (mut evaluations, mut iterations) = (0, 0);
-    let mut counts = [(0u32, 0u32); MAX_TARGETS];
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
-        let round_tau = tau;
-        let (b_before, dt_before) = (b, dt);
-        let mount = Mount::from_params(&Params(b));
-        let mut kept = [0usize; MAX_TARGETS];
-        for j in 0..n {
-            let v = &mut obs[j][..active[j]];
-            extract::georeference(v, &targets[j], &mount, dt);
-            if let Some(p) = prior {
-                // Returns far from the sphere (a few prior radii beyond its surface, at least
-                // half a metre) cannot become its returns any more: they leave the rounds.
-                active[j] = compact(v, targets[j].radius, (4.0 * p).max(0.5) + tau);
-            }
-            let v = &mut obs[j][..active[j]];
-            let (k, sl, det) = extract_sphere(
-                v,
-                &targets[j],
-                tau,
-                prior,
-                false,
-                ws.grid,
-                ws.keys,
-                &dirs,
-                st,
-                None,
-            );
-            counts[j] = (sl, det);
-            kept[j] = k;
-        }
-        if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
+        let (b_before, dt_before) = (r.b, r.dt);
+        let Some((total, print, next_prior)) = one_round(targets, obs, s, ws, r, sol) else {
             break;
-        }
-        // Spheres not found take no part.
-        for k in kept.iter_mut().take(n) {
-            if *k < s.min_points {
-                *k = 0;
-            }
-        }
-        for (j, v) in obs.iter_mut().enumerate() {
-            if kept[j] == 0 {
-                extract::tag(&mut v[..active[j]], Verdict::Undetected);
-            }
-        }
-        let ranges = gather(obs, &active[..n], &kept[..n], ws.kept);
-        let buf = &mut *ws.kept;
-        let mut print = 0xcbf2_9ce4_8422_2325u64;
-        for r in ranges.iter().take(n) {
-            print = fingerprint(print, &buf[r.clone()]);
-        }
-        let mut part = split_ranges(buf, &ranges[..n]);
-        let lens: [usize; MAX_TARGETS] =
-            core::array::from_fn(|j| part.get(j).map_or(0, |p| p.len()));
-        if prior.is_none() {
-            // From afar: Nelder-Mead on eq. 6 (L1) over at most `nm_points` returns per
-            // sphere, evenly spread, with a restart.
-            let most = lens[..n].iter().copied().max().unwrap_or(1);
-            let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-            let mut nm = with_problem(targets, &part, &lens, stride, dt, |pb| {
-                minimize::<P, 7>(
-                    |x| pb.l1(&DegM(*x).params().0),
-                    &Params(b).deg_m().0,
-                    &s.step,
-                    &s.nm,
-                )
-            });
-            evaluations += nm.evaluations;
-            iterations += nm.iterations;
-            nm.evaluations = evaluations;
-            nm.iterations = iterations;
-            sol.nm = nm;
-            b = DegM(nm.x).params().0;
-        } else {
-            // Close: least squares on the kept returns (time order for its clusters).
-            for p in part.iter_mut().take(n) {
-                p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
-            }
-            let r = with_problem(targets, &part, &lens, 1, dt, |pb| {
-                refine(pb, &b, s.lm_iter, s.cluster_ns, s.estimate_dt)
-            });
-            b = r.b;
-            if r.dt.is_finite() {
-                dt = r.dt;
-            }
-        }
-        // The new shell and prior, from the kept returns against the surveyed spheres.
-        let med = with_problem(targets, &part, &lens, 1, dt, |pb| {
-            let mut h = Histogram::new();
-            pb.residuals(&b, |_, r| h.add(r.abs()));
-            h.median()
-        });
-        let widest = st
-            .tau0
-            .max(0.5 * targets.iter().map(|t| t.radius).fold(0.0, f64::max));
-        tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, widest);
-        let mount = Mount::from_params(&Params(b));
-        let mut offsets = Histogram::new();
-        for j in (0..n).filter(|&j| lens[j] > 0) {
-            part[j].sort_unstable_by_key(|o| o.work.slice);
-            extract::georeference(part[j], &targets[j], &mount, dt);
-            apparent_offsets(part[j], targets[j].radius, &mut offsets);
-        }
-        let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
-        let r_prior = (4.0 * off).max(3.0 * tau).max(0.02);
-        let total: usize = kept[..n].iter().sum();
-        let _ = sol.log.push(Round {
-            tau: round_tau,
-            prior,
-            kept: total,
-            detected: counts[..n].iter().map(|c| c.1).sum(),
-            b: Params(b),
-            dt,
-        });
-        // Settled: the kept sets barely change and the parameters stand still (to a tenth of
-        // the 1e-3 deg / 1e-3 m the method aims for), or the kept sets go round a cycle (a few
-        // returns at the shell's edge in, out).
-        let moved = Params(b)
+        };
+        let moved = Params(r.b)
             .deg_m()
             .0
             .iter()
             .zip(Params(b_before).deg_m().0)
             .map(|(a, c)| (a - c).abs())
             .fold(0.0, f64::max)
-            .max((dt - dt_before).abs() * 20.0);
-        let settled = prior.is_some()
+            .max((r.dt - dt_before).abs() * 20.0);
+        let settled = r.prior.is_some()
             && ((last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total)
                 && moved < 2e-3)
                 || prints.contains(&print));
-        prior = Some(r_prior);
+        r.prior = Some(next_prior);
         last_kept = Some(total);
         if prints.is_full() {
             prints.remove(0);
@@ -913,15 +857,187 @@ pub fn solve(
             break;
         }
     }
-    sol.shell = tau;
+}
 
-    // 2. The last extraction: around the surveyed spheres, in the slices where the sphere is
-    //    detected near them; spheres with too few returns are not found.
-    let mount = Mount::from_params(&Params(b));
-    let mut tallies = [[0u32; 8]; MAX_TARGETS];
+/// One round: extract each sphere's returns, solve on the kept ones, the next shell. Returns
+/// the returns kept, their fingerprint and the next prior radius; `None` when fewer than two
+/// spheres are found.
+fn one_round(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    r: &mut Rounds,
+    sol: &mut Solution,
+) -> Option<(usize, u64, f64)> {
+    let n = targets.len();
+    let round_tau = r.tau;
+    let kept = round_extract(targets, obs, s, ws, r)?;
+    let ranges = gather(obs, &r.active[..n], &kept[..n], ws.kept);
+    let buf = &mut *ws.kept;
+    let mut print = 0xcbf2_9ce4_8422_2325u64;
+    for rg in ranges.iter().take(n) {
+        print = fingerprint(print, &buf[rg.clone()]);
+    }
+    let mut part = split_ranges(buf, &ranges[..n]);
+    let lens: [usize; MAX_TARGETS] = core::array::from_fn(|j| part.get(j).map_or(0, |p| p.len()));
+    round_solve(targets, &mut part, &lens, s, r, sol);
+    let next_prior = next_shell(targets, &mut part, &lens, s, r);
+    let total: usize = kept[..n].iter().sum();
+    let _ = sol.log.push(Round {
+        tau: round_tau,
+        prior: r.prior,
+        kept: total,
+        detected: r.counts[..n].iter().map(|c| c.1).sum(),
+        b: Params(r.b),
+        dt: r.dt,
+    });
+    Some((total, print, next_prior))
+}
+
+/// Each sphere's returns extracted with the current parameters, shell and prior; spheres with
+/// fewer than `min_points` take no part (kept 0, tagged undetected). `None` when fewer than
+/// two are found.
+fn round_extract(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    r: &mut Rounds,
+) -> Option<[usize; MAX_TARGETS]> {
+    let n = targets.len();
+    let dirs = Directions::default();
+    let mount = Mount::from_params(&Params(r.b));
+    let mut kept = [0usize; MAX_TARGETS];
     for j in 0..n {
-        let v = &mut obs[j][..active[j]];
-        extract::georeference(v, &targets[j], &mount, dt);
+        let v = &mut obs[j][..r.active[j]];
+        extract::georeference(v, &targets[j], &mount, r.dt);
+        if let Some(p) = r.prior {
+            // Returns far from the sphere (a few prior radii beyond its surface, at least
+            // half a metre) cannot become its returns any more: they leave the rounds.
+            r.active[j] = compact(v, targets[j].radius, (4.0 * p).max(0.5) + r.tau);
+        }
+        let v = &mut obs[j][..r.active[j]];
+        let (k, sl, det) = extract_sphere(
+            v,
+            &targets[j],
+            r.tau,
+            r.prior,
+            false,
+            ws.grid,
+            ws.keys,
+            &dirs,
+            &s.extract,
+            None,
+        );
+        r.counts[j] = (sl, det);
+        kept[j] = k;
+    }
+    if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
+        return None;
+    }
+    for (j, v) in obs.iter_mut().enumerate() {
+        if kept[j] < s.min_points {
+            kept[j] = 0;
+        }
+        if kept[j] == 0 {
+            extract::tag(&mut v[..r.active[j]], Verdict::Undetected);
+        }
+    }
+    Some(kept)
+}
+
+/// The round's solve on the kept returns `part`: from afar (no prior yet) Nelder-Mead on eq. 6
+/// (L1) over at most `nm_points` returns per sphere, evenly spread, with a restart; close,
+/// least squares (time order for its clusters).
+fn round_solve(
+    targets: &[Target],
+    part: &mut [&mut [Observation]],
+    lens: &[usize; MAX_TARGETS],
+    s: &Settings,
+    r: &mut Rounds,
+    sol: &mut Solution,
+) {
+    let n = targets.len();
+    if r.prior.is_none() {
+        let most = lens[..n].iter().copied().max().unwrap_or(1);
+        let stride = most.div_ceil(s.nm_points.max(1)).max(1);
+        let mut nm = with_problem(targets, part, lens, stride, r.dt, |pb| {
+            minimize::<P, 7>(
+                |x| pb.l1(&DegM(*x).params().0),
+                &Params(r.b).deg_m().0,
+                &s.step,
+                &s.nm,
+            )
+        });
+        nm.evaluations += sol.nm.evaluations;
+        nm.iterations += sol.nm.iterations;
+        sol.nm = nm;
+        r.b = DegM(nm.x).params().0;
+    } else {
+        for p in part.iter_mut().take(n) {
+            p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+        }
+        let lm = with_problem(targets, part, lens, 1, r.dt, |pb| {
+            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
+        });
+        r.b = lm.b;
+        if lm.dt.is_finite() {
+            r.dt = lm.dt;
+        }
+    }
+}
+
+/// The next shell (from the kept returns' median residual against the surveyed spheres, into
+/// `r.tau`) and the next prior radius (from their apparent offsets), returned.
+fn next_shell(
+    targets: &[Target],
+    part: &mut [&mut [Observation]],
+    lens: &[usize; MAX_TARGETS],
+    s: &Settings,
+    r: &mut Rounds,
+) -> f64 {
+    let med = with_problem(targets, part, lens, 1, r.dt, |pb| {
+        let mut h = Histogram::new();
+        pb.residuals(&r.b, |_, e| h.add(e.abs()));
+        h.median()
+    });
+    let widest = s
+        .extract
+        .tau0
+        .max(0.5 * targets.iter().map(|t| t.radius).fold(0.0, f64::max));
+    r.tau = (s.shell_sigmas * 1.4826 * med).clamp(s.shell_floor, widest);
+    let mount = Mount::from_params(&Params(r.b));
+    let mut offsets = Histogram::new();
+    for j in (0..targets.len()).filter(|&j| lens[j] > 0) {
+        part[j].sort_unstable_by_key(|o| o.work.slice);
+        extract::georeference(part[j], &targets[j], &mount, r.dt);
+        apparent_offsets(part[j], targets[j].radius, &mut offsets);
+    }
+    let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
+    (4.0 * off).max(3.0 * r.tau).max(0.02)
+}
+
+/// The last extraction: around the surveyed spheres, in the slices where the sphere is
+/// detected near them, attachments (a stand, a deck) rejected; spheres with too few returns
+/// are not found. Returns each sphere's kept count (the kept ones first in `obs`) and its
+/// verdict tallies; the passes get theirs.
+fn last_extraction(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    r: &mut Rounds,
+    passes: &mut [PassReport],
+) -> ([usize; MAX_TARGETS], [[u32; 8]; MAX_TARGETS]) {
+    let dirs = Directions::default();
+    let tau = r.tau;
+    let mount = Mount::from_params(&Params(r.b));
+    let mut used = [0usize; MAX_TARGETS];
+    let mut tallies = [[0u32; 8]; MAX_TARGETS];
+    for j in 0..targets.len() {
+        let v = &mut obs[j][..r.active[j]];
+        extract::georeference(v, &targets[j], &mount, r.dt);
         let mine = {
             let a = passes.partition_point(|p| usize::from(p.sphere) < j);
             let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
@@ -931,15 +1047,15 @@ pub fn solve(
             v,
             &targets[j],
             tau,
-            Some(prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
+            Some(r.prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
             true,
             ws.grid,
             ws.keys,
             &dirs,
-            st,
+            &s.extract,
             Some(&mut *mine),
         );
-        counts[j] = (sl, det);
+        r.counts[j] = (sl, det);
         // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
         let kept = v
             .iter()
@@ -964,40 +1080,65 @@ pub fn solve(
             }
         }
     }
-    sol.passes = passes;
-    let found = (0..n).filter(|&j| used[j] > 0).count();
+    (used, tallies)
+}
 
-    // 3. Least squares on the kept returns: the answer and its uncertainty.
+/// Least squares on the kept returns (with at least two spheres found); with the offset held,
+/// the same returns with it free test the held value. Sets the answer and eq. 6 at it.
+fn final_fit(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    found: usize,
+    s: &Settings,
+    r: &mut Rounds,
+    sol: &mut Solution,
+) {
     let lm = (found >= 2).then(|| {
-        with_problem(targets, obs, &used, 1, dt, |pb| {
-            refine(pb, &b, s.lm_iter, s.cluster_ns, s.estimate_dt)
+        with_problem(targets, obs, used, 1, r.dt, |pb| {
+            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
         })
     });
-    if let Some(r) = &lm {
-        b = r.b;
-        dt = r.dt;
+    if let Some(l) = &lm {
+        r.b = l.b;
+        r.dt = l.dt;
     }
-    // With the offset held, test it: free it on the same returns.
-    if let (false, Some(r)) = (s.estimate_dt, &lm) {
-        let free = with_problem(targets, obs, &used, 1, dt, |pb| {
-            refine(pb, &r.b, s.lm_iter, s.cluster_ns, true)
+    if let (false, Some(l)) = (s.estimate_dt, &lm) {
+        let free = with_problem(targets, obs, used, 1, r.dt, |pb| {
+            refine(pb, &l.b, s.lm_iter, s.cluster_ns, true)
         });
         if free.converged && free.dt.is_finite() && free.sigma_dt.is_finite() {
             sol.dt_free = Some((free.dt, free.sigma_dt));
         }
     }
-    sol.b = Params(b);
-    sol.dt = dt;
+    sol.b = Params(r.b);
+    sol.dt = r.dt;
     sol.lm = lm;
-    sol.l1 = with_problem(targets, obs, &used, 1, dt, |pb| pb.l1(&b));
+    sol.l1 = with_problem(targets, obs, used, 1, r.dt, |pb| pb.l1(&r.b));
+}
 
-    // 4. Per sphere.
-    let mount = Mount::from_params(&Params(b));
-    let mut c2 = 0.0;
-    let mut nc = 0;
-    for j in 0..n {
-        let t = &targets[j];
-        let kept = &obs[j][..used[j]];
+/// Per-sphere counts gathered on the way to the answer.
+struct PerSphere<'a> {
+    windowed: &'a [usize; MAX_TARGETS],
+    used: &'a [usize; MAX_TARGETS],
+    tallies: &'a [[u32; 8]; MAX_TARGETS],
+    counts: &'a [(u32, u32); MAX_TARGETS],
+}
+
+/// Each sphere's report (residual RMS at the start and at the answer, its centre fitted with
+/// the answer) and the RMS of the centre offsets.
+fn sphere_reports(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    per: &PerSphere<'_>,
+    b0: &Params,
+    dt: f64,
+    sol: &mut Solution,
+) {
+    let mount = sol.b.mount();
+    let (mut c2, mut nc) = (0.0, 0);
+    for (j, t) in targets.iter().enumerate() {
+        let kept = &obs[j][..per.used[j]];
         let rms = |bb: &[f64; P]| {
             let s2: f64 = kept
                 .iter()
@@ -1016,60 +1157,63 @@ pub fn solve(
             nc += 1;
         }
         let _ = sol.spheres.push(SphereReport {
-            windowed: windowed[j],
-            used: used[j],
-            found: used[j] > 0,
-            slices: counts[j].0,
-            detected: counts[j].1,
-            verdicts: tallies[j],
+            windowed: per.windowed[j],
+            used: per.used[j],
+            found: per.used[j] > 0,
+            slices: per.counts[j].0,
+            detected: per.counts[j].1,
+            verdicts: per.tallies[j],
             rms_before: rms(&b0.0),
-            rms_after: rms(&b),
+            rms_after: rms(&sol.b.0),
             center_offset: center,
         });
     }
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
+}
 
-    // 5. Checks.
-    if found < 2 {
-        sol.refusal = Some(Refusal::TooFewSpheres { have: found });
-        return sol;
-    }
-    let Some(lm) = sol.lm else {
-        return sol;
-    };
+/// The quality checks on a least-squares answer: the weak parameters, then the first reason
+/// to refuse it — not converged, ill-conditioned, residuals over-dispersed against the noise
+/// model, a held time offset the data contradict, a pass inconsistent with the others.
+fn checks(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    s: &Settings,
+    sol: &mut Solution,
+) -> Option<Refusal> {
+    let lm = sol.lm?;
     for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
         *w = v.abs() > 0.3;
     }
-    // Consistency: the residuals against the noise model, and each pass's sphere centre.
-    let predicted = predicted_rms(obs, &used, s);
+    let (b, dt) = (sol.b.0, sol.dt);
+    let predicted = predicted_rms(obs, used, s);
     sol.predicted_rms = predicted;
-    let worst = consistency(targets, obs, &used, &b, dt, s, &mut sol.passes);
+    let worst = consistency(targets, obs, used, &b, dt, s, &mut sol.passes);
     let contradicted = sol.dt_free.filter(|&(f, sg)| {
         let d = (f - dt).abs();
         d > s.held_dt_floor && d > s.held_dt_sigmas * sg
     });
     if !lm.converged {
-        sol.refusal = Some(Refusal::NotConverged {
+        Some(Refusal::NotConverged {
             iterations: lm.iterations,
-        });
+        })
     } else if lm.condition.is_nan() || lm.condition > s.max_condition {
-        sol.refusal = Some(Refusal::IllConditioned {
+        Some(Refusal::IllConditioned {
             condition: lm.condition,
             limit: s.max_condition,
-        });
+        })
     } else if lm.rms.is_nan() || lm.rms > s.max_dispersion * predicted {
-        sol.refusal = Some(Refusal::OverDispersed {
+        Some(Refusal::OverDispersed {
             rms: lm.rms,
             predicted,
-        });
+        })
     } else if let Some((found, sigma)) = contradicted {
-        sol.refusal = Some(Refusal::TimeOffsetContradicted {
+        Some(Refusal::TimeOffsetContradicted {
             held: dt,
             found,
             sigma,
-        });
-    } else if let Some(r) = worst {
-        sol.refusal = Some(r);
+        })
+    } else {
+        worst
     }
-    sol
 }
