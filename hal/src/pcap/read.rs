@@ -249,6 +249,154 @@ impl<R: Read> PcapSource<R> {
     }
 }
 
+impl<R: Read> PcapSource<R> {
+    /// The next classic pcap record (16-byte header, then the frame).
+    fn next_classic(&mut self) -> Result<Option<Record<'_>>, PcapError> {
+        let Format::Classic { big, .. } = self.format else {
+            return Ok(None);
+        };
+        let len_of = move |s: &Self| {
+            let b = &s.buf[s.start + 8..s.start + 12];
+            let raw = [b[0], b[1], b[2], b[3]];
+            Ok(16
+                + if big {
+                    u32::from_be_bytes(raw)
+                } else {
+                    u32::from_le_bytes(raw)
+                } as usize)
+        };
+        let Some(len) = self.whole_record(16, len_of)? else {
+            return Ok(self.truncated_tail());
+        };
+        let offset = self.offset();
+        let at = self.start;
+        self.start += len;
+        let Format::Classic {
+            ref parser,
+            link,
+            nanos,
+            ..
+        } = self.format
+        else {
+            return Ok(None);
+        };
+        let (_, raw) = parser
+            .next_raw_packet(&self.buf[at..at + len])
+            .map_err(|e| PcapError::Corrupt {
+                offset,
+                what: format!("pcap record: {e}"),
+            })?;
+        let frac = u64::from(raw.ts_frac) * if nanos { 1 } else { 1000 };
+        // u32 seconds (to 2106) and a fraction below 2^32 us fit an i64 of nanoseconds.
+        let time = HostTime(i64::from(raw.ts_sec) * 1_000_000_000 + frac as i64);
+        let data: &[u8] = match raw.data {
+            std::borrow::Cow::Borrowed(d) => d,
+            std::borrow::Cow::Owned(_) => &self.buf[at + 16..at + len],
+        };
+        Ok(Some(frame_record(
+            link,
+            data,
+            raw.incl_len,
+            raw.orig_len,
+            time,
+            offset,
+        )))
+    }
+
+    /// Walk past pcapng blocks that carry no packet (section and interface headers update the
+    /// parser) to the next packet block: its length, or `None` at a truncated tail.
+    fn ng_next_packet_block(&mut self) -> Result<Option<usize>, PcapError> {
+        loop {
+            let big = match self.format {
+                Format::Ng { big, .. } => big,
+                _ => false,
+            };
+            let Some(len) =
+                self.whole_record(12, move |s: &Self| s.ng_block_len_at(0, Some(big)))?
+            else {
+                return Ok(None);
+            };
+            let ty = &self.buf[self.start..self.start + 4];
+            let raw_ty = if big {
+                u32::from_be_bytes([ty[0], ty[1], ty[2], ty[3]])
+            } else {
+                u32::from_le_bytes([ty[0], ty[1], ty[2], ty[3]])
+            };
+            if matches!(raw_ty, 2 | 3 | 6) {
+                return Ok(Some(len));
+            }
+            let offset = self.offset();
+            let at = self.start;
+            self.start += len;
+            if let Format::Ng {
+                ref mut parser,
+                ref mut big,
+            } = self.format
+            {
+                parser
+                    .next_block(&self.buf[at..at + len])
+                    .map_err(|e| PcapError::Corrupt {
+                        offset,
+                        what: format!("pcapng block: {e}"),
+                    })?;
+                *big = parser.section().endianness == Endianness::Big;
+            }
+        }
+    }
+
+    /// The next pcapng packet (enhanced, simple or obsolete packet block), timed with its
+    /// interface's resolution.
+    fn next_ng(&mut self) -> Result<Option<Record<'_>>, PcapError> {
+        let Some(len) = self.ng_next_packet_block()? else {
+            return Ok(self.truncated_tail());
+        };
+        let offset = self.offset();
+        let at = self.start;
+        self.start += len;
+        let Format::Ng { ref mut parser, .. } = self.format else {
+            return Ok(None);
+        };
+        let corrupt = |what: String| PcapError::Corrupt { offset, what };
+        let (_, block) = parser
+            .next_block(&self.buf[at..at + len])
+            .map_err(|e| corrupt(format!("pcapng block: {e}")))?;
+        let (iface, ts_raw, data, orig) = match block {
+            Block::EnhancedPacket(p) => (
+                p.interface_id,
+                Some(p.timestamp.as_nanos()),
+                p.data,
+                p.original_len,
+            ),
+            Block::SimplePacket(p) => (0, None, p.data, p.original_len),
+            Block::Packet(p) => (
+                u32::from(p.interface_id),
+                Some(u128::from(p.timestamp)),
+                p.data,
+                p.original_len,
+            ),
+            _ => return Err(corrupt("block type changed between peek and parse".into())),
+        };
+        let Some(idb) = parser.interfaces().get(iface as usize) else {
+            return Err(corrupt(format!(
+                "packet names interface {iface}, which no interface block describes"
+            )));
+        };
+        let link = u32::from(idb.linktype);
+        let time = HostTime(ts_raw.map_or(0, |t| ng_time_ns(t, tsresol(idb))));
+        let std::borrow::Cow::Borrowed(data) = data else {
+            return Err(corrupt("unexpected owned packet data".into()));
+        };
+        Ok(Some(frame_record(
+            link,
+            data,
+            data.len() as u32,
+            orig,
+            time,
+            offset,
+        )))
+    }
+}
+
 impl<R: Read> PacketSource for PcapSource<R> {
     type Error = PcapError;
 
@@ -258,154 +406,8 @@ impl<R: Read> PacketSource for PcapSource<R> {
         }
         match self.format {
             Format::Pending => Ok(None),
-            Format::Classic { big, .. } => {
-                let len_of = move |s: &Self| {
-                    let b = &s.buf[s.start + 8..s.start + 12];
-                    let raw = [b[0], b[1], b[2], b[3]];
-                    Ok(16
-                        + if big {
-                            u32::from_be_bytes(raw)
-                        } else {
-                            u32::from_le_bytes(raw)
-                        } as usize)
-                };
-                let Some(len) = self.whole_record(16, len_of)? else {
-                    return Ok(self.truncated_tail());
-                };
-                let offset = self.offset();
-                let at = self.start;
-                self.start += len;
-                let Format::Classic {
-                    ref parser,
-                    link,
-                    nanos,
-                    ..
-                } = self.format
-                else {
-                    return Ok(None);
-                };
-                let (_, raw) = parser
-                    .next_raw_packet(&self.buf[at..at + len])
-                    .map_err(|e| PcapError::Corrupt {
-                        offset,
-                        what: format!("pcap record: {e}"),
-                    })?;
-                let frac = u64::from(raw.ts_frac) * if nanos { 1 } else { 1000 };
-                // u32 seconds (to 2106) and a fraction below 2^32 us fit an i64 of nanoseconds.
-                let time = HostTime(i64::from(raw.ts_sec) * 1_000_000_000 + frac as i64);
-                let data: &[u8] = match raw.data {
-                    std::borrow::Cow::Borrowed(d) => d,
-                    std::borrow::Cow::Owned(_) => &self.buf[at + 16..at + len],
-                };
-                Ok(Some(frame_record(
-                    link,
-                    data,
-                    raw.incl_len,
-                    raw.orig_len,
-                    time,
-                    offset,
-                )))
-            }
-            Format::Ng { .. } => {
-                // Walk past non-packet blocks (section and interface headers update the parser).
-                let len = loop {
-                    let big = match self.format {
-                        Format::Ng { big, .. } => big,
-                        _ => false,
-                    };
-                    let Some(len) =
-                        self.whole_record(12, move |s: &Self| s.ng_block_len_at(0, Some(big)))?
-                    else {
-                        return Ok(self.truncated_tail());
-                    };
-                    let ty = &self.buf[self.start..self.start + 4];
-                    let raw_ty = if big {
-                        u32::from_be_bytes([ty[0], ty[1], ty[2], ty[3]])
-                    } else {
-                        u32::from_le_bytes([ty[0], ty[1], ty[2], ty[3]])
-                    };
-                    if matches!(raw_ty, 2 | 3 | 6) {
-                        break len;
-                    }
-                    let offset = self.offset();
-                    let at = self.start;
-                    self.start += len;
-                    if let Format::Ng {
-                        ref mut parser,
-                        ref mut big,
-                    } = self.format
-                    {
-                        parser.next_block(&self.buf[at..at + len]).map_err(|e| {
-                            PcapError::Corrupt {
-                                offset,
-                                what: format!("pcapng block: {e}"),
-                            }
-                        })?;
-                        *big = parser.section().endianness == Endianness::Big;
-                    }
-                };
-                let offset = self.offset();
-                let at = self.start;
-                self.start += len;
-                let Format::Ng { ref mut parser, .. } = self.format else {
-                    return Ok(None);
-                };
-                let (_, block) =
-                    parser
-                        .next_block(&self.buf[at..at + len])
-                        .map_err(|e| PcapError::Corrupt {
-                            offset,
-                            what: format!("pcapng block: {e}"),
-                        })?;
-                let (iface, ts_raw, data, orig) = match block {
-                    Block::EnhancedPacket(p) => (
-                        p.interface_id,
-                        Some(p.timestamp.as_nanos()),
-                        p.data,
-                        p.original_len,
-                    ),
-                    Block::SimplePacket(p) => (0, None, p.data, p.original_len),
-                    Block::Packet(p) => (
-                        u32::from(p.interface_id),
-                        Some(u128::from(p.timestamp)),
-                        p.data,
-                        p.original_len,
-                    ),
-                    _ => {
-                        return Err(PcapError::Corrupt {
-                            offset,
-                            what: "block type changed between peek and parse".into(),
-                        })
-                    }
-                };
-                let Some(idb) = parser.interfaces().get(iface as usize) else {
-                    return Err(PcapError::Corrupt {
-                        offset,
-                        what: format!(
-                            "packet names interface {iface}, which no interface block describes"
-                        ),
-                    });
-                };
-                let link = u32::from(idb.linktype);
-                let time = HostTime(ts_raw.map_or(0, |t| ng_time_ns(t, tsresol(idb))));
-                let data: &[u8] = match data {
-                    std::borrow::Cow::Borrowed(d) => d,
-                    std::borrow::Cow::Owned(_) => {
-                        return Err(PcapError::Corrupt {
-                            offset,
-                            what: "unexpected owned packet data".into(),
-                        })
-                    }
-                };
-                Ok(Some(frame_record(
-                    link,
-                    data,
-                    data.len() as u32,
-                    orig,
-                    time,
-                    offset,
-                )))
-            }
+            Format::Classic { .. } => self.next_classic(),
+            Format::Ng { .. } => self.next_ng(),
         }
     }
 }
