@@ -34,9 +34,9 @@ use logger::{logger, syncer};
 use readers::{serial_reader, udp_reader};
 use serde::Serialize;
 use solver::solver;
+use spherecal::calib::Params;
 use spherecal::calib::Settings;
 use spherecal::frames::LocalFrame;
-use spherecal::georef::Mount;
 use spherecal::vlp16::PpsStatus;
 use spherecal::vn200::binary::Masks;
 use spherecal::vn200::fields::Group;
@@ -354,104 +354,198 @@ fn run_rig(
     console: &mut Console,
     stop: &AtomicBool,
 ) -> Result<RunSummary, String> {
-    let b = &opts.board;
-    let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
-    // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
-    let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
-        .filter(|a| !a.is_unspecified());
-    let ports = Ports {
-        data: b.lidar.data_port,
-        position: b.lidar.position_port,
-    };
-    let accept = Accept { ports, sensor };
-    let data_sock = UdpSource::bind(bind, ports.data, READ_TIMEOUT)
-        .map_err(|e| format!("UDP {bind}:{}: {e}", ports.data))?;
-    let pos_sock = UdpSource::bind(bind, ports.position, READ_TIMEOUT)
-        .map_err(|e| format!("UDP {bind}:{}: {e}", ports.position))?;
-    let serial = match b.ins.kind.as_str() {
-        "vn200" => {
-            let dev = opts
-                .serial
-                .clone()
-                .filter(|s| !s.is_empty())
-                .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
-                .ok_or("board: ins.serial is empty: give --serial DEV")?;
-            let src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
-                .map_err(|e| format!("serial {dev}: {e}"))?;
-            Some((dev, src))
+    let io = RigIo::open(opts)?;
+    let plan = Plan::new(opts);
+    let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
+    let readers = 2 + usize::from(io.serial.is_some());
+    let sh = Shared::new(stop, readers, plan.ids.len(), probes);
+    let started = Instant::now();
+    let path = io.log_dir.join(format!("{}-run.json", io.stamp));
+    let ended = run_threads(opts, console, io, &plan, &sh, started);
+    let summary = RunSummary::new(ended, &sh, started);
+    let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(summary)
+}
+
+/// The rig's inputs and raw logs, opened from the board (and the command line's overrides).
+struct RigIo {
+    accept: Accept,
+    bind: Ipv4Addr,
+    data_sock: UdpSource,
+    pos_sock: UdpSource,
+    serial: Option<(String, SerialSource)>,
+    log_dir: PathBuf,
+    /// The UTC start stamp that names the run's files.
+    stamp: String,
+    pcap_log: PcapLog,
+    serial_log: Option<SerialLog>,
+}
+
+impl RigIo {
+    fn open(opts: &RunOptions) -> Result<Self, String> {
+        let b = &opts.board;
+        let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
+        // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
+        let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
+            .filter(|a| !a.is_unspecified());
+        let ports = Ports {
+            data: b.lidar.data_port,
+            position: b.lidar.position_port,
+        };
+        let bind_port = |port: u16| {
+            UdpSource::bind(bind, port, READ_TIMEOUT).map_err(|e| format!("UDP {bind}:{port}: {e}"))
+        };
+        let (data_sock, pos_sock) = (bind_port(ports.data)?, bind_port(ports.position)?);
+        let serial = match b.ins.kind.as_str() {
+            "vn200" => {
+                let dev = opts
+                    .serial
+                    .clone()
+                    .filter(|s| !s.is_empty())
+                    .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
+                    .ok_or("board: ins.serial is empty: give --serial DEV")?;
+                let src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
+                    .map_err(|e| format!("serial {dev}: {e}"))?;
+                Some((dev, src))
+            }
+            _ => None,
+        };
+        let log_dir = opts
+            .log_dir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(&b.log.dir));
+        std::fs::create_dir_all(&log_dir).map_err(|e| format!("{}: {e}", log_dir.display()))?;
+        let stamp = stamp_now();
+        let rotate = opts
+            .rotate_bytes
+            .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
+        let pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
+            .map_err(|e| format!("raw log: {e}"))?;
+        let serial_log = match &serial {
+            Some(_) => Some(
+                SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
+                    .map_err(|e| format!("raw log: {e}"))?,
+            ),
+            None => None,
+        };
+        Ok(Self {
+            accept: Accept { ports, sensor },
+            bind,
+            data_sock,
+            pos_sock,
+            serial,
+            log_dir,
+            stamp,
+            pcap_log,
+            serial_log,
+        })
+    }
+}
+
+/// What the aligner and the solver take from the site and the board.
+struct Plan {
+    frame: LocalFrame,
+    targets: Vec<Target>,
+    ids: Vec<String>,
+    margin: f64,
+    /// The board's a-priori mounting.
+    b0: Params,
+    /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
+    expected: Vec<(&'static str, u8)>,
+}
+
+impl Plan {
+    fn new(opts: &RunOptions) -> Self {
+        let b = &opts.board;
+        let (frame, targets, ids, margin) = match &opts.site {
+            Some(site) => {
+                let (frame, t) = targets(site);
+                let ids = site.sphere.iter().map(|s| s.id.clone()).collect();
+                (frame, t, ids, site.apriori.window_margin_m)
+            }
+            None => (
+                LocalFrame::new(spherecal::frames::Geodetic::from_deg(0.0, 0.0, 0.0)),
+                Vec::new(),
+                Vec::new(),
+                0.0,
+            ),
+        };
+        let expected = Group::Common
+            .fields()
+            .iter()
+            .enumerate()
+            .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
+            .filter(|(n, _)| b.ins.fields.iter().any(|f| f == n))
+            .collect();
+        Self {
+            frame,
+            targets,
+            ids,
+            margin,
+            b0: b.mount.deg_m().params(),
+            expected,
         }
-        _ => None,
-    };
-    let log_dir = opts
-        .log_dir
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(&b.log.dir));
-    std::fs::create_dir_all(&log_dir).map_err(|e| format!("{}: {e}", log_dir.display()))?;
-    let stamp = stamp_now();
-    let rotate = opts
-        .rotate_bytes
-        .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
-    let mut pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
-        .map_err(|e| format!("raw log: {e}"))?;
-    let mut serial_log = match &serial {
-        Some(_) => Some(
-            SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
-                .map_err(|e| format!("raw log: {e}"))?,
-        ),
-        None => None,
-    };
+    }
+}
 
-    // The site and the a-priori mounting of the board.
-    let (frame, tg, ids, margin) = match &opts.site {
-        Some(site) => {
-            let (frame, t) = targets(site);
-            let ids: Vec<String> = site.sphere.iter().map(|s| s.id.clone()).collect();
-            (frame, t, ids, site.apriori.window_margin_m)
+/// The rings between the threads (boxed: they are large).
+struct Rings {
+    data: Box<Queue<LidarItem, DATA_RING>>,
+    pos: Box<Queue<LidarItem, POSITION_RING>>,
+    ins: Box<Queue<InsItem, INS_RING>>,
+    data_log: Box<Queue<UdpLogItem, DATA_LOG_RING>>,
+    pos_log: Box<Queue<UdpLogItem, POSITION_RING>>,
+    serial_log: Box<Queue<SerialChunk, SERIAL_LOG_RING>>,
+}
+
+impl Rings {
+    fn new() -> Self {
+        Self {
+            data: Box::new(Queue::new()),
+            pos: Box::new(Queue::new()),
+            ins: Box::new(Queue::new()),
+            data_log: Box::new(Queue::new()),
+            pos_log: Box::new(Queue::new()),
+            serial_log: Box::new(Queue::new()),
         }
-        None => (
-            LocalFrame::new(spherecal::frames::Geodetic::from_deg(0.0, 0.0, 0.0)),
-            Vec::new(),
-            Vec::new(),
-            0.0,
-        ),
-    };
-    let b0 = b.mount.deg_m().params();
+    }
+}
 
-    let probes = [data_sock.drop_probe(), pos_sock.drop_probe()];
-    let sh = Shared::new(stop, 2 + usize::from(serial.is_some()), ids.len(), probes);
-
-    let mut data_q: Box<Queue<LidarItem, DATA_RING>> = Box::new(Queue::new());
-    let mut pos_q: Box<Queue<LidarItem, POSITION_RING>> = Box::new(Queue::new());
-    let mut ins_q: Box<Queue<InsItem, INS_RING>> = Box::new(Queue::new());
-    let mut dlog_q: Box<Queue<UdpLogItem, DATA_LOG_RING>> = Box::new(Queue::new());
-    let mut plog_q: Box<Queue<UdpLogItem, POSITION_RING>> = Box::new(Queue::new());
-    let mut slog_q: Box<Queue<SerialChunk, SERIAL_LOG_RING>> = Box::new(Queue::new());
-    let (data_p, mut data_c) = data_q.split();
-    let (pos_p, mut pos_c) = pos_q.split();
-    let (mut ins_p, mut ins_c) = ins_q.split();
-    let (dlog_p, dlog_c) = dlog_q.split();
-    let (plog_p, plog_c) = plog_q.split();
-    let (slog_p, slog_c) = slog_q.split();
+/// Every thread of the rig until the stop: readers, logger, syncer, solver, status, and the
+/// aligner on this thread; then their results.
+fn run_threads(
+    opts: &RunOptions,
+    console: &mut Console,
+    io: RigIo,
+    plan: &Plan,
+    sh: &Shared<'_>,
+    started: Instant,
+) -> Ended {
+    let mut rings = Rings::new();
+    let (data_p, mut data_c) = rings.data.split();
+    let (pos_p, mut pos_c) = rings.pos.split();
+    let (mut ins_p, mut ins_c) = rings.ins.split();
+    let (dlog_p, dlog_c) = rings.data_log.split();
+    let (plog_p, plog_c) = rings.pos_log.split();
+    let (slog_p, slog_c) = rings.serial_log.split();
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let (pool_tx, pool_rx) = crossbeam_channel::bounded::<Vec<Observation>>(64);
     for _ in 0..16 {
         let _ = pool_tx.try_send(Vec::with_capacity(BATCH));
     }
-    // The board's expected VN-200 outputs as Common-group bits (the core's field table).
-    let expected: Vec<(&'static str, u8)> = Group::Common
-        .fields()
-        .iter()
-        .enumerate()
-        .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
-        .filter(|(n, _)| b.ins.fields.iter().any(|f| f == n))
-        .collect();
-    let expected = &expected[..];
-    let started = Instant::now();
-    let dst_addr = bind;
     let to_sync = Mutex::new(Vec::new());
-
-    let ended = std::thread::scope(|sc| {
-        let sh = &sh;
+    let RigIo {
+        accept,
+        bind,
+        data_sock,
+        pos_sock,
+        serial,
+        mut pcap_log,
+        mut serial_log,
+        ..
+    } = io;
+    std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
             udp_reader(data_sock, data_p, dlog_p, accept, 0, sh, true)
         });
@@ -460,35 +554,19 @@ fn run_rig(
         });
         let ins = match serial {
             Some((dev, src)) => Some(spawn(sc, "serial", move || {
-                serial_reader(
-                    &dev,
-                    expected,
-                    src,
-                    &frame,
-                    opts.keep_untracked_ins,
-                    ins_p,
-                    slog_p,
-                    sh,
-                )
+                let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
+                serial_reader(&dev, &plan.expected, src, frame, keep, ins_p, slog_p, sh)
             })),
             None => {
                 let _ = ins_p.enqueue(InsItem::End);
                 None
             }
         };
-        let to_sync: &Mutex<Vec<std::fs::File>> = &to_sync;
+        let to_sync = &to_sync;
         let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh));
         let logger = spawn(sc, "logger", move || {
-            logger(
-                &mut pcap_log,
-                serial_log.as_mut(),
-                dlog_c,
-                plog_c,
-                slog_c,
-                dst_addr,
-                to_sync,
-                sh,
-            );
+            let sl = serial_log.as_mut();
+            logger(&mut pcap_log, sl, dlog_c, plog_c, slog_c, bind, to_sync, sh);
             let mut files = pcap_log.files().to_vec();
             let mut n = [pcap_log.records, 0];
             if let Some(s) = &serial_log {
@@ -497,33 +575,24 @@ fn run_rig(
             }
             (files, n)
         });
-        let tg_ref = &tg;
-        let ids_ref = &ids;
         let solver = spawn(sc, "solver", move || {
-            solver(
-                rx,
-                pool_tx,
-                tg_ref,
-                ids_ref,
-                &b0,
-                &opts.settings,
-                opts.report.as_deref(),
-                sh,
-            )
+            let (tg, ids) = (&plan.targets, &plan.ids);
+            let report = opts.report.as_deref();
+            solver(rx, pool_tx, tg, ids, &plan.b0, &opts.settings, report, sh)
         });
         let status = spawn(sc, "status", move || {
-            status_loop(console, ids_ref, opts.duration, started, sh)
+            status_loop(console, &plan.ids, opts.duration, started, sh)
         });
 
         // Aligner (this thread). Should it fail, everything winds down.
         let _aligner = AlignerGuard(sh);
-        let mut storage = AlignStorage::new(tg.len(), MAX_INS_GAP_NS);
+        let mut storage = AlignStorage::new(plan.targets.len(), MAX_INS_GAP_NS);
         let mut al = Aligner::new(
             &mut storage,
-            &tg,
-            margin,
-            Mount::from_params(&b0),
-            b.leap_seconds,
+            &plan.targets,
+            plan.margin,
+            plan.b0.mount(),
+            opts.board.leap_seconds,
             InsWait::Latency(INS_LATENCY),
             &spherecal_hal::clock::SystemClock,
         );
@@ -546,37 +615,28 @@ fn run_rig(
         }
         al.drain_until_end(&mut ins_c);
         let skips_data = data.join().unwrap_or_default();
-        let ins_counts = ins
-            .map(|h| h.join().unwrap_or_default())
-            .unwrap_or_default();
+        let ins = ins.map(|h| h.join().unwrap_or_default());
         let logged = logger.join().unwrap_or_default();
         let _ = syncer.join();
-        let solver_out = solver.join().unwrap_or_default();
-        let console = status.join().ok();
+        let ended = Ended {
+            skips: [skips_data, skips_pos],
+            ins: ins.unwrap_or_default(),
+            logged,
+            calibration: solver.join().unwrap_or_default(),
+            align: al.core.stats,
+            clock: al.clock_state(),
+        };
         // The last line, with the final counts and calibration.
         sh.aligned
             .store(al.core.stats.data_packets, Ordering::Relaxed);
-        if let Some(c) = console {
+        if let Ok(c) = status.join() {
             let mut last = u64::MAX;
-            let s = snapshot(sh, &ids, started, &mut last);
-            if let Err(e) = show(c, &s) {
+            if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
                 sh.error(format!("console: {e}"));
             }
         }
-        Ended {
-            skips: [skips_data, skips_pos],
-            ins: ins_counts,
-            logged,
-            calibration: solver_out,
-            align: al.core.stats,
-            clock: al.clock_state(),
-        }
-    });
-    let summary = RunSummary::new(ended, &sh, started);
-    let path = log_dir.join(format!("{stamp}-run.json"));
-    let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-    std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(summary)
+        ended
+    })
 }
 
 /// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
