@@ -168,24 +168,18 @@ impl At<'_, '_> {
     }
 }
 
-/// Refine `b0` by Levenberg-Marquardt, at most `max_iter` iterations; returns within
-/// `cluster_ns` of each other on one sphere count as one cluster for the covariance. With
-/// `estimate_dt`, the time offset is estimated with the six, from the problem's `dt`.
-pub fn refine(
-    pb: &Problem<'_>,
-    b0: &[f64; P],
-    max_iter: usize,
-    cluster_ns: i64,
-    estimate_dt: bool,
-) -> LmResult {
-    let mut z = [0.0; Q];
-    z[..P].copy_from_slice(b0);
-    z[DT] = pb.dt;
-    let mut at = At {
-        pb,
-        z,
-        dt: estimate_dt,
-    };
+/// Where the iterations ended: `J^T J`, the cost and the number of returns.
+struct Normal {
+    jtj: MatQ,
+    cost: f64,
+    n: usize,
+}
+
+/// Levenberg-Marquardt steps from `at` (Marquardt's diagonal scaling, lambda x10 / /10), at
+/// most `max_iter`: the last accepted point, its normal equations, the iterations and whether
+/// it converged (a negligible step or decrease, or no step lowers the cost and a Gauss-Newton
+/// step would not either).
+fn iterate<'p, 'o>(mut at: At<'p, 'o>, max_iter: usize) -> (At<'p, 'o>, Normal, usize, bool) {
     let (mut jtj, mut jtr, mut cost, mut n) = at.normal_equations();
     let mut lambda = 1e-3;
     let mut iterations = 0;
@@ -231,8 +225,69 @@ pub fn refine(
             }
         }
     }
+    (at, Normal { jtj, cost, n }, iterations, converged)
+}
+
+/// The condition number of the normal matrix of the six (and the time offset when estimated)
+/// scaled to unit diagonal, and the eigenvector of its smallest eigenvalue (the weakest
+/// direction).
+fn conditioning(jtj: &MatQ, estimate_dt: bool) -> (f64, [f64; P7]) {
+    // Scale the normal matrix of the six (and the time offset when estimated) to unit
+    // diagonal; its eigenvalues give the conditioning.
+    let k = if estimate_dt { P7 } else { P };
+    let mut scaled = SMatrix::<f64, P7, P7>::identity();
+    for i in 0..k {
+        for j in 0..k {
+            scaled[(i, j)] = jtj[(i, j)] / libm::sqrt(jtj[(i, i)] * jtj[(j, j)]).max(1e-300);
+        }
+    }
+    // Bounded iterations: a non-finite matrix gives no decomposition (and an infinite
+    // condition number: refused). A held time offset is an identity row: it neither weakens
+    // nor conditions anything (its eigenvalue 1 is left out).
+    match SymmetricEigen::try_new(scaled, f64::EPSILON, 200) {
+        Some(eig) if eig.eigenvalues.iter().all(|e| e.is_finite()) => {
+            let (mut lo, mut hi, mut lo_i) = (f64::INFINITY, 0f64, 0);
+            for (i, &e) in eig.eigenvalues.iter().enumerate() {
+                if !estimate_dt && eig.eigenvectors[(DT, i)].abs() > 0.999 {
+                    continue;
+                }
+                if e < lo {
+                    lo = e;
+                    lo_i = i;
+                }
+                hi = hi.max(e);
+            }
+            let mut weakest = [0.0; P7];
+            for (i, w) in weakest.iter_mut().enumerate() {
+                *w = eig.eigenvectors[(i, lo_i)];
+            }
+            (if lo > 0.0 { hi / lo } else { f64::INFINITY }, weakest)
+        }
+        _ => (f64::INFINITY, [0.0; P7]),
+    }
+}
+
+/// Refine `b0` by Levenberg-Marquardt, at most `max_iter` iterations; returns within
+/// `cluster_ns` of each other on one sphere count as one cluster for the covariance. With
+/// `estimate_dt`, the time offset is estimated with the six, from the problem's `dt`.
+pub fn refine(
+    pb: &Problem<'_>,
+    b0: &[f64; P],
+    max_iter: usize,
+    cluster_ns: i64,
+    estimate_dt: bool,
+) -> LmResult {
+    let mut z = [0.0; Q];
+    z[..P].copy_from_slice(b0);
+    z[DT] = pb.dt;
+    let at = At {
+        pb,
+        z,
+        dt: estimate_dt,
+    };
+    let (at, Normal { jtj, cost, n }, iterations, converged) = iterate(at, max_iter);
     let b = at.b();
-    converged &= cost.is_finite() && at.z.iter().all(|x| x.is_finite());
+    let converged = converged && cost.is_finite() && at.z.iter().all(|x| x.is_finite());
     // Degrees of freedom: the held time offset is no parameter.
     let params = if estimate_dt { Q } else { Q - 1 };
     let dof = n.saturating_sub(params).max(1) as f64;
@@ -285,39 +340,7 @@ pub fn refine(
             dt_correlation[i] = cov7[(i, DT)] / (sig7[i] * sig7[DT]);
         }
     }
-    // Scale the normal matrix of the six (and the time offset when estimated) to unit
-    // diagonal; its eigenvalues give the conditioning.
-    let k = if estimate_dt { P7 } else { P };
-    let mut scaled = SMatrix::<f64, P7, P7>::identity();
-    for i in 0..k {
-        for j in 0..k {
-            scaled[(i, j)] = jtj[(i, j)] / libm::sqrt(jtj[(i, i)] * jtj[(j, j)]).max(1e-300);
-        }
-    }
-    // Bounded iterations: a non-finite matrix gives no decomposition (and an infinite
-    // condition number: refused). A held time offset is an identity row: it neither weakens
-    // nor conditions anything (its eigenvalue 1 is left out).
-    let (condition, weakest) = match SymmetricEigen::try_new(scaled, f64::EPSILON, 200) {
-        Some(eig) if eig.eigenvalues.iter().all(|e| e.is_finite()) => {
-            let (mut lo, mut hi, mut lo_i) = (f64::INFINITY, 0f64, 0);
-            for (i, &e) in eig.eigenvalues.iter().enumerate() {
-                if !estimate_dt && eig.eigenvectors[(DT, i)].abs() > 0.999 {
-                    continue;
-                }
-                if e < lo {
-                    lo = e;
-                    lo_i = i;
-                }
-                hi = hi.max(e);
-            }
-            let mut weakest = [0.0; P7];
-            for (i, w) in weakest.iter_mut().enumerate() {
-                *w = eig.eigenvectors[(i, lo_i)];
-            }
-            (if lo > 0.0 { hi / lo } else { f64::INFINITY }, weakest)
-        }
-        _ => (f64::INFINITY, [0.0; P7]),
-    };
+    let (condition, weakest) = conditioning(&jtj, estimate_dt);
     LmResult {
         b,
         dt: at.z[DT],
