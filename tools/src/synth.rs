@@ -13,7 +13,8 @@
 use crate::config::scenario::Scenario;
 use crate::config::site::{Origin, Site, SiteApriori, SiteSphere};
 use serde::{Deserialize, Serialize};
-use spherecal::sim::lidar::Traced;
+use spherecal::sim::ins::InsStats;
+use spherecal::sim::lidar::{LidarStats, Traced};
 use spherecal::sim::{InsSim, LidarSim, SimPacket, World};
 use spherecal::time::gps_to_unix_ns;
 use spherecal_hal::packet::HostTime;
@@ -185,10 +186,29 @@ fn write_files(
     dir: &Path,
     cache: Option<&TraceCache>,
 ) -> Result<Truth, String> {
-    let scene = s.scene();
-    let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
+    let lidar = write_lidar(s, world, dir, cache)?;
+    let ins = write_ins(s, world, dir)?;
+    let site_path = dir.join("site.toml");
+    std::fs::write(&site_path, site_of(s).to_toml()).map_err(|e| io(&site_path, e))?;
+    let truth = truth_of(s, &lidar, &ins);
+    let truth_path = dir.join("truth.json");
+    let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
+    std::fs::write(&truth_path, json + "\n").map_err(|e| io(&truth_path, e))?;
+    Ok(truth)
+}
 
-    // lidar.pcap
+fn io(p: &Path, e: std::io::Error) -> String {
+    format!("{}: {e}", p.display())
+}
+
+/// lidar.pcap (as the sensor sends it, at the host's receive times) and labels.bin (what each
+/// return hit); the simulator's counts.
+fn write_lidar(
+    s: &Scenario,
+    world: &World<'_>,
+    dir: &Path,
+    cache: Option<&TraceCache>,
+) -> Result<LidarStats, String> {
     let pcap_path = dir.join("lidar.pcap");
     let f = std::fs::File::create(&pcap_path).map_err(|e| io(&pcap_path, e))?;
     let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
@@ -253,8 +273,12 @@ fn write_files(
     pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
     labels.flush().map_err(|e| io(&labels_path, e))?;
 
-    // ins.bin, and the same bytes as a serial log with the times a rig would have received
-    // them (sample time + output latency + transmission at the baud rate), for replay.
+    Ok(lidar.stats)
+}
+
+/// ins.bin, and the same bytes as a serial log with the times a rig would have received
+/// them (sample time + output latency + transmission at the baud rate), for replay.
+fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, String> {
     let ins_path = dir.join("ins.bin");
     let log_path = dir.join("ins.vnlog");
     let f = std::fs::File::create(&ins_path).map_err(|e| io(&ins_path, e))?;
@@ -280,9 +304,14 @@ fn write_files(
     w.flush().map_err(|e| io(&ins_path, e))?;
     log.flush().map_err(|e| io(&log_path, e))?;
 
-    // site.toml
+    Ok(ins.stats)
+}
+
+/// The site file a surveyor would write for the scenario: the spheres' surveyed centres and
+/// the a-priori mounting.
+fn site_of(s: &Scenario) -> Site {
     let site_frame = s.site();
-    let site = Site {
+    Site {
         leap_seconds: s.leap_seconds,
         origin: Origin {
             lat_deg: s.site.lat_deg,
@@ -309,13 +338,13 @@ fn write_files(
             window_margin_m: s.mount.apriori.window_margin_m,
         },
         noise: None,
-    };
-    let site_path = dir.join("site.toml");
-    std::fs::write(&site_path, site.to_toml()).map_err(|e| io(&site_path, e))?;
+    }
+}
 
-    // truth.json
-    let st = lidar.stats;
-    let truth = Truth {
+/// What the simulator knows and the files do not say.
+fn truth_of(s: &Scenario, st: &LidarStats, ins: &InsStats) -> Truth {
+    let scene = s.scene();
+    Truth {
         scenario: s.name.clone(),
         boresight_deg: named(["roll", "pitch", "heading"], s.mount.truth.boresight_deg),
         lever_arm_m: named(["x", "y", "z"], s.mount.truth.lever_arm_m),
@@ -326,8 +355,8 @@ fn write_files(
         data_packets: st.data_packets - st.dropped,
         dropped_packets: st.dropped,
         position_packets: st.position_packets,
-        ins_frames: ins.stats.frames,
-        corrupted_bytes: ins.stats.corrupted_bytes,
+        ins_frames: ins.frames,
+        corrupted_bytes: ins.corrupted_bytes,
         mixed_points: st.mixed,
         objects: scene
             .names
@@ -338,9 +367,5 @@ fn write_files(
                 kind: k.to_string(),
             })
             .collect(),
-    };
-    let truth_path = dir.join("truth.json");
-    let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
-    std::fs::write(&truth_path, json + "\n").map_err(|e| io(&truth_path, e))?;
-    Ok(truth)
+    }
 }
