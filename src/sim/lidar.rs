@@ -851,7 +851,13 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             };
             let _ = subs.push(sub);
         }
-        // Nearest first, then merge what lies within the merge distance.
+        self.merge(&mut subs, echoes);
+    }
+
+    /// The footprint's sub-ray hits as echoes: nearest first, those within the merge distance
+    /// one echo at their energy-weighted range, labelled with the object of most energy; an
+    /// echo too weak for the receiver is counted, not reported.
+    fn merge(&mut self, subs: &mut [SubHit], echoes: &mut heapless::Vec<Echo, 5>) {
         subs.sort_unstable_by(|x, y| x.t.total_cmp(&y.t));
         let mut i = 0;
         while i < subs.len() {
