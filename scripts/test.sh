@@ -12,11 +12,12 @@ THUMB=thumbv7em-none-eabihf
 if ! rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
   rustup target add "$THUMB" >/dev/null 2>&1 || echo "warning: target $THUMB cannot be fetched here: the bare-metal build is skipped"
 fi
-# laspy (+ numpy): an independent LAS reader for the georef test.
-if ! python3 -c "import laspy, numpy" >/dev/null 2>&1; then
-  python3 -m pip install --quiet laspy numpy 2>/dev/null \
-    || python3 -m pip install --quiet --break-system-packages laspy numpy \
-    || echo "warning: could not install laspy: the LAS read-back test will fail"
+# laspy (+ numpy): an independent LAS reader for the georef test; pyproj (PROJ 9): an
+# independent coordinate transform for the site import test.
+if ! python3 -c "import laspy, numpy, pyproj" >/dev/null 2>&1; then
+  python3 -m pip install --quiet laspy numpy pyproj 2>/dev/null \
+    || python3 -m pip install --quiet --break-system-packages laspy numpy pyproj \
+    || echo "warning: could not install laspy/pyproj: the LAS and site import tests will fail"
 fi
 RUNNER="cargo test --workspace"
 if cargo nextest --version >/dev/null 2>&1; then

@@ -38,6 +38,8 @@ enum Cmd {
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
     Demo,
+    /// Site files from survey data: `site import SURVEY.csv --crs EPSG:n -o site.toml`.
+    Site(cmd::site::Args),
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins(cmd::ins::Args),
@@ -65,5 +67,6 @@ fn main() -> ExitCode {
         Some(Cmd::Replay(a)) => cmd::replay::run(a),
         Some(Cmd::Run(a)) => cmd::run::run(a),
         Some(Cmd::Ins(a)) => cmd::ins::run(a),
+        Some(Cmd::Site(a)) => cmd::site::run(a),
     }
 }

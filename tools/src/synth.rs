@@ -313,6 +313,7 @@ fn site_of(s: &Scenario) -> Site {
     let site_frame = s.site();
     Site {
         leap_seconds: s.leap_seconds,
+        crs: None,
         origin: Origin {
             lat_deg: s.site.lat_deg,
             lon_deg: s.site.lon_deg,
@@ -323,13 +324,13 @@ fn site_of(s: &Scenario) -> Site {
             .iter()
             .map(|sp| {
                 let g = site_frame.to_geodetic(&nalgebra::Vector3::from(sp.ned_m));
-                SiteSphere {
-                    id: sp.id.clone(),
-                    lat_deg: g.lat.to_degrees(),
-                    lon_deg: g.lon.to_degrees(),
-                    h_m: g.h,
-                    radius_m: sp.radius_m,
-                }
+                SiteSphere::wgs84(
+                    &sp.id,
+                    g.lat.to_degrees(),
+                    g.lon.to_degrees(),
+                    g.h,
+                    sp.radius_m,
+                )
             })
             .collect(),
         apriori: SiteApriori {

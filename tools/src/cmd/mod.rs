@@ -29,6 +29,7 @@ pub mod ins;
 pub mod montecarlo;
 pub mod replay;
 pub mod run;
+pub mod site;
 pub mod synth;
 
 /// Exit 2 with `spherecal CMD: why` on stderr.

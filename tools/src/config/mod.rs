@@ -6,8 +6,10 @@ use serde::{Deserialize, Serialize};
 use spherecal::calib::DegM;
 
 pub mod board;
+pub mod crs;
 pub mod scenario;
 pub mod site;
+pub mod survey;
 
 /// A mounting as the files write it: boresight roll, pitch, heading [deg] (R_li) and lever arm
 /// x, y, z [m] in the INS body frame.

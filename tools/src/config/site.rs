@@ -1,7 +1,9 @@
 //! `site.toml`: the surveyed targets and the a-priori mounting (README "site.toml").
 
+use super::crs::{Crs, SiteCrs};
 use serde::{Deserialize, Serialize};
 use spherecal::calib::DegM;
+use spherecal::frames::{Geodetic, LocalFrame};
 
 /// Site origin.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -15,20 +17,58 @@ pub struct Origin {
     pub h_m: f64,
 }
 
-/// A surveyed sphere.
+/// A surveyed sphere: its centre as WGS84 latitude, longitude, ellipsoidal height, or as
+/// surveyed in the site's `[crs]` (easting, northing, height), from which the WGS84 values are
+/// computed on loading (given both, they must agree to a millimetre).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SiteSphere {
     /// Name.
     pub id: String,
-    /// Centre latitude [deg].
+    /// Centre latitude [deg] (WGS84).
+    #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub lat_deg: f64,
-    /// Centre longitude [deg].
+    /// Centre longitude [deg] (WGS84).
+    #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub lon_deg: f64,
-    /// Centre ellipsoidal height [m].
+    /// Centre ellipsoidal height [m] (WGS84).
+    #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub h_m: f64,
+    /// Easting in the site's CRS (longitude [deg] for a geographic one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub easting: Option<f64>,
+    /// Northing in the site's CRS (latitude [deg] for a geographic one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub northing: Option<f64>,
+    /// Height in the site's height system [m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_m: Option<f64>,
     /// Radius [m].
     pub radius_m: f64,
+}
+
+fn nan() -> f64 {
+    f64::NAN
+}
+
+fn is_nan(v: &f64) -> bool {
+    v.is_nan()
+}
+
+impl SiteSphere {
+    /// A sphere at WGS84 `lat`, `lon` [deg], ellipsoidal height `h` [m].
+    pub fn wgs84(id: &str, lat: f64, lon: f64, h: f64, radius_m: f64) -> Self {
+        Self {
+            id: id.into(),
+            lat_deg: lat,
+            lon_deg: lon,
+            h_m: h,
+            easting: None,
+            northing: None,
+            height_m: None,
+            radius_m,
+        }
+    }
 }
 
 /// A-priori mounting and window margin.
@@ -83,6 +123,9 @@ impl Default for SiteNoise {
 pub struct Site {
     /// GPS - UTC [s].
     pub leap_seconds: i64,
+    /// The CRS and height system of the spheres' surveyed coordinates (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crs: Option<SiteCrs>,
     /// Local NED origin.
     pub origin: Origin,
     /// Spheres.
@@ -98,10 +141,58 @@ impl Site {
     /// Read and check a site file; errors name the file and the key.
     pub fn load(path: &std::path::Path) -> Result<Self, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let s: Site = toml::from_str(&text)
+        let mut s: Site = toml::from_str(&text)
             .map_err(|e| format!("{}: {}", path.display(), e.to_string().trim()))?;
+        s.resolve()
+            .map_err(|e| format!("{}: {e}", path.display()))?;
         s.check().map_err(|e| format!("{}: {e}", path.display()))?;
         Ok(s)
+    }
+
+    /// Compute each sphere's WGS84 centre from its surveyed coordinates in `[crs]` (checking
+    /// any WGS84 values also given against them); without `[crs]`, surveyed coordinates are
+    /// refused.
+    pub fn resolve(&mut self) -> Result<(), String> {
+        let crs = match &self.crs {
+            Some(c) => Some((c, Crs::epsg(c.epsg).map_err(|e| format!("crs.epsg: {e}"))?)),
+            None => None,
+        };
+        if let Some((c, _)) = &crs {
+            if !c.geoid_undulation_m.is_finite() || c.geoid_undulation_m.abs() > 150.0 {
+                return Err("crs.geoid_undulation_m: expected a finite N, |N| <= 150 m".into());
+            }
+        }
+        for (i, sp) in self.sphere.iter_mut().enumerate() {
+            let key = format!("sphere[{i}] ({})", sp.id);
+            let surveyed = (sp.easting, sp.northing, sp.height_m);
+            let (x, y, z) = match (surveyed, &crs) {
+                ((None, None, None), _) => continue,
+                ((Some(x), Some(y), Some(z)), Some(_)) => (x, y, z),
+                (_, None) => {
+                    return Err(format!(
+                        "{key}: easting/northing/height_m need a [crs] section (epsg, height)"
+                    ))
+                }
+                _ => return Err(format!("{key}: give all of easting, northing, height_m")),
+            };
+            let (c, crs) = crs.as_ref().expect("matched Some above");
+            let (lat, lon, h) = c
+                .to_wgs84(crs, x, y, z)
+                .map_err(|e| format!("{key}: {e}"))?;
+            if sp.lat_deg.is_finite() || sp.lon_deg.is_finite() || sp.h_m.is_finite() {
+                let f = LocalFrame::new(Geodetic::from_deg(lat, lon, h));
+                let given = Geodetic::from_deg(sp.lat_deg, sp.lon_deg, sp.h_m);
+                let d = f.to_ned(&given).norm();
+                if d.is_nan() || d > 1e-3 {
+                    return Err(format!(
+                        "{key}: lat_deg/lon_deg/h_m are {d:.3} m from easting/northing/height_m in EPSG:{}; give one or the other",
+                        c.epsg
+                    ));
+                }
+            }
+            (sp.lat_deg, sp.lon_deg, sp.h_m) = (lat, lon, h);
+        }
+        Ok(())
     }
 
     /// Values a calibration can use: every number finite and in its range, named by its key.
@@ -147,7 +238,7 @@ impl Site {
                     && s.lat_deg.abs() <= 90.0
                     && s.lon_deg.abs() <= 180.0,
                 key.clone(),
-                "expected a finite centre (latitude, longitude in range)",
+                "expected a finite centre (lat_deg, lon_deg in range, h_m; or easting, northing, height_m with [crs])",
             )?;
         }
         let a = &self.apriori;
@@ -242,5 +333,39 @@ mod tests {
             let e = s.check().unwrap_err();
             assert!(e.starts_with(&format!("{key}: ")), "{to}: {e}");
         }
+    }
+
+    /// Surveyed coordinates: computed into WGS84, refused without `[crs]`, incomplete, or
+    /// contradicting WGS84 values given beside them.
+    #[test]
+    fn surveyed_centres_resolve_or_are_refused() {
+        let base = GOOD.replace(
+            "lat_deg = 48.38\nlon_deg = -4.49\nh_m = 53.6\n",
+            "easting = 500000.0\nnorthing = 5360000.0\nheight_m = 3.5\n",
+        );
+        let crs = "[crs]\nepsg = 32630\nheight = \"orthometric\"\ngeoid_undulation_m = 50.0\n";
+        let with_crs = base.replacen("[origin]", &format!("{crs}[origin]"), 1);
+        let mut s: Site = toml::from_str(&with_crs).unwrap();
+        s.resolve().unwrap();
+        s.check().unwrap();
+        assert!((s.sphere[0].lon_deg + 3.0).abs() < 1e-12);
+        assert!((s.sphere[0].h_m - 53.5).abs() < 1e-9);
+        // Written out with both: they agree, so it reads back.
+        let mut back: Site = toml::from_str(&s.to_toml()).unwrap();
+        back.resolve().unwrap();
+        assert_eq!(back, s);
+        // A WGS84 height 1 cm off the surveyed one is refused.
+        let mut off = s.clone();
+        off.sphere[0].h_m += 0.01;
+        let e = off.resolve().unwrap_err();
+        assert!(e.contains("sphere[0] (S1)") && e.contains("0.010 m"), "{e}");
+        let mut no_crs: Site = toml::from_str(&base).unwrap();
+        assert!(no_crs.resolve().unwrap_err().contains("need a [crs] section"));
+        let partial = with_crs.replace("height_m = 3.5\n", "");
+        let mut p: Site = toml::from_str(&partial).unwrap();
+        assert!(p.resolve().unwrap_err().contains("give all of"));
+        let bad = with_crs.replace("epsg = 32630", "epsg = 1");
+        let mut b: Site = toml::from_str(&bad).unwrap();
+        assert!(b.resolve().unwrap_err().starts_with("crs.epsg: EPSG:1"));
     }
 }

@@ -1,0 +1,135 @@
+//! `spherecal site import` against an independent transform: pyproj (PROJ 9, installed by
+//! scripts/test.sh) projects known WGS84 points into each CRS; the survey CSV holds those
+//! projected coordinates (and orthometric heights H = h - N); the imported site must give back
+//! the WGS84 points.
+
+mod common;
+
+use spherecal_tools::config::site::Site;
+
+/// Known centres near Brest (WGS84 lat, lon [deg], ellipsoidal h [m]).
+const BREST: [(f64, f64, f64); 3] = [
+    (48.380_512, -4.492_113, 55.214),
+    (48.380_905, -4.491_530, 54.902),
+    (48.381_377, -4.490_802, 56.017),
+];
+/// ... and near San Francisco (for NAD83 / UTM 10N).
+const SF: [(f64, f64, f64); 2] = [(37.808_2, -122.409_9, -28.5), (37.808_6, -122.409_1, -27.9)];
+
+/// Each point projected into EPSG `epsg` by pyproj (x east, y north).
+fn pyproj_forward(epsg: u16, pts: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
+    let list: Vec<String> = pts.iter().map(|p| format!("({}, {})", p.1, p.0)).collect();
+    let script = format!(
+        "from pyproj import Transformer\nt = Transformer.from_crs('EPSG:4326', 'EPSG:{epsg}', always_xy=True)\nfor lon, lat in [{}]:\n    x, y = t.transform(lon, lat)\n    print(repr(x), repr(y))",
+        list.join(", ")
+    );
+    let out = std::process::Command::new("python3")
+        .args(["-c", &script])
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "pyproj must be installed (scripts/test.sh does it): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();
+            (v[0], v[1])
+        })
+        .collect()
+}
+
+fn import(epsg: u16, pts: &[(f64, f64, f64)], n: Option<f64>) -> Site {
+    let xy = pyproj_forward(epsg, pts);
+    let mut csv = String::from("# surveyed centres\nid,easting,northing,height,radius\n");
+    for (i, ((x, y), p)) in xy.iter().zip(pts).enumerate() {
+        let height = p.2 - n.unwrap_or(0.0);
+        csv += &format!("S{},{x:.4},{y:.4},{height:.4},0.1{}\n", i + 1, i);
+    }
+    let dir = common::tmp("site-import", &format!("{epsg}"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv_path = dir.join("survey.csv");
+    std::fs::write(&csv_path, csv).unwrap();
+    let out = dir.join("site.toml");
+    let mut cmd = common::spherecal();
+    cmd.args(["site", "import"])
+        .arg(&csv_path)
+        .args(["--crs", &format!("EPSG:{epsg}"), "--force", "-o"])
+        .arg(&out);
+    if let Some(n) = n {
+        cmd.args(["--height", "orthometric", "--geoid-n", &n.to_string()]);
+    }
+    let text = common::stdout_of(&mut cmd);
+    assert!(text.contains(&format!("{} spheres", pts.len())), "{text}");
+    Site::load(&out).unwrap()
+}
+
+/// Within 1 mm (0.1 mm of rounding in the CSV, the rest the two implementations).
+fn assert_same(site: &Site, pts: &[(f64, f64, f64)], what: &str) {
+    assert_eq!(site.sphere.len(), pts.len());
+    for (s, p) in site.sphere.iter().zip(pts) {
+        let dn = (s.lat_deg - p.0).to_radians() * 6.371e6;
+        let de = (s.lon_deg - p.1).to_radians() * 6.371e6 * p.0.to_radians().cos();
+        let dh = s.h_m - p.2;
+        assert!(
+            dn.hypot(de) < 1e-3 && dh.abs() < 1e-3,
+            "{what} {}: off by {dn:.5} m N, {de:.5} m E, {dh:.5} m up",
+            s.id
+        );
+    }
+}
+
+#[test]
+fn utm_with_orthometric_heights() {
+    let site = import(32630, &BREST, Some(51.37));
+    assert_same(&site, &BREST, "EPSG:32630");
+    assert_eq!(site.sphere[0].radius_m, 0.1);
+    assert!(
+        site.sphere[1].radius_m > 0.1,
+        "the CSV's radius column is used"
+    );
+    // The origin is at the spheres' mean.
+    assert!((site.origin.lat_deg - 48.380_931).abs() < 1e-6);
+}
+
+#[test]
+fn lambert93_ellipsoidal() {
+    let site = import(2154, &BREST, None);
+    assert_same(&site, &BREST, "EPSG:2154");
+}
+
+#[test]
+fn nad83_utm10() {
+    let site = import(26910, &SF, None);
+    assert_same(&site, &SF, "EPSG:26910");
+}
+
+#[test]
+fn refusals_name_the_problem() {
+    let dir = common::tmp("site-import", "bad");
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("bad.csv");
+    std::fs::write(&csv, "S1,389518.4,5359668.2,nope\n").unwrap();
+    let out = common::spherecal()
+        .args(["site", "import"])
+        .arg(&csv)
+        .args(["--crs", "EPSG:32630", "--radius", "0.1", "--force", "-o"])
+        .arg(dir.join("s.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.csv:1: height \"nope\""), "{err}");
+    let out = common::spherecal()
+        .args(["site", "import"])
+        .arg(&csv)
+        .args(["--crs", "EPSG:99999", "-o"])
+        .arg(dir.join("s.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("EPSG:99999"));
+}
