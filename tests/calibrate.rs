@@ -138,6 +138,9 @@ fn table1_quay_from_the_papers_start() {
     ];
     common::assert_within(&got, &truth(&s), 1e-3, "table1");
     assert_eq!(r["converged"], true);
+    // A well-conditioned solution names no weak parameter.
+    assert!(r["condition_number"].as_f64().unwrap() < 100.0);
+    assert_eq!(r["weak_parameters"], serde_json::json!([]), "{}", r["condition_number"]);
     // No clock offset: the estimate is within 1 ms of none.
     assert_eq!(r["time_offset_estimated"], true);
     let dt = r["time_offset_s"].as_f64().unwrap();

@@ -58,6 +58,10 @@ pub struct Settings {
     pub min_points: usize,
     /// Largest acceptable condition number.
     pub max_condition: f64,
+    /// Condition number above which the geometry counts as weak and the parameters with a
+    /// large share of its weakest direction are named (below it every parameter is well
+    /// determined, whatever that direction is).
+    pub weak_condition: f64,
     /// The range noise the sensor is specified for, 1 sigma [m] (VLP-16: 3 cm).
     pub range_noise: f64,
     /// The INS attitude noise, 1 sigma [rad].
@@ -102,6 +106,7 @@ impl Default for Settings {
             lm_iter: 100,
             min_points: 30,
             max_condition: 1e3,
+            weak_condition: 100.0,
             range_noise: 0.03,
             attitude_noise: 0.05f64.to_radians(),
             position_noise: 0.03,
@@ -279,8 +284,10 @@ pub struct Solution {
     pub passes: heapless::Vec<PassReport, MAX_PASSES>,
     /// RMS of fitted minus surveyed centres [m].
     pub center_rms: Option<f64>,
-    /// Parameters the data determine poorly (large share of the weakest direction): the six,
-    /// then the time offset.
+    /// Parameters the data determine poorly: with a condition number above
+    /// [`Settings::weak_condition`], those with a share above 0.3 of the weakest direction
+    /// (the eigenvector of the scaled normal matrix's smallest eigenvalue); the six, then the
+    /// time offset. None on a well-conditioned solution.
     pub weak: [bool; P + 1],
     /// With the time offset held: what the data give when free to estimate it (offset, sigma
     /// [s]), the test of the held value.
@@ -1182,8 +1189,10 @@ fn checks(
     sol: &mut Solution,
 ) -> Option<Refusal> {
     let lm = sol.lm?;
+    // Every unit vector has components above 0.3: the direction only matters when it is weak.
+    let weak_geometry = lm.condition.is_nan() || lm.condition > s.weak_condition;
     for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
-        *w = v.abs() > 0.3;
+        *w = weak_geometry && v.abs() > 0.3;
     }
     let (b, dt) = (sol.b.0, sol.dt);
     let predicted = predicted_rms(obs, used, s);
