@@ -257,10 +257,26 @@ pub struct SearchCandidate {
     pub rms_m: Option<f64>,
 }
 
+/// `v` with `prec` decimals, or `-` when it is not a number (no sigma without least squares).
+fn num(v: f64, prec: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.prec$}")
+    } else {
+        "-".into()
+    }
+}
+
 /// The human summary.
 /// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
 pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     let mut o = String::new();
+    // A refusal comes first: the numbers below it are where the solver stopped, not a result.
+    if let Some(why) = &r.reason {
+        let _ = writeln!(
+            o,
+            "NOT CONVERGED: {why}\n(the values below are where the solver stopped, not a calibration)"
+        );
+    }
     let (b, s) = (r.deg_m(), r.sigma.deg_m());
     let _ = writeln!(
         o,
@@ -279,8 +295,11 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         let unit = if i < 3 { "deg" } else { "m" };
         let _ = write!(
             o,
-            "{:<10}{:>14.4}{:>12.5}{:>10.5} {unit:<3}",
-            NAMES[i], r.start[NAMES[i]], b[i], s[i]
+            "{:<10}{:>14.4}{:>12}{:>10} {unit:<3}",
+            NAMES[i],
+            r.start[NAMES[i]],
+            num(b[i], 5),
+            num(s[i], 5)
         );
         if let Some(t) = truth {
             let _ = write!(o, "{:>14.4}{:>11.2e}", t[i], b[i] - t[i]);
@@ -292,8 +311,12 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     if r.time_offset_estimated {
         let _ = write!(
             o,
-            "{:<10}{:>14.4}{:>12.6}{:>10.6} {:<3}",
-            "dt", start, r.time_offset_s, r.sigma.time_offset_s, "s"
+            "{:<10}{:>14.4}{:>12}{:>10} {:<3}",
+            "dt",
+            start,
+            num(r.time_offset_s, 6),
+            num(r.sigma.time_offset_s, 6),
+            "s"
         );
     } else {
         let _ = write!(
@@ -308,15 +331,21 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     let _ = writeln!(o);
     let _ = writeln!(
         o,
-        "residual RMS {:.2} mm, L1 {:.4} m, condition number {:.3e}, centre RMS {}",
-        r.rms_m * 1e3,
-        r.objective_l1_m,
-        r.condition_number,
+        "residual RMS {} mm, L1 {} m, condition number {}, centre RMS {}",
+        num(r.rms_m * 1e3, 2),
+        num(r.objective_l1_m, 4),
+        if r.condition_number.is_finite() {
+            format!("{:.3e}", r.condition_number)
+        } else {
+            "-".into()
+        },
         r.sphere_centre_rms_m
             .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
     );
     let c = &r.consistency;
-    let _ = writeln!(
+    // Without least squares there is no consistency test to report.
+    if c.dispersion.is_finite() {
+        let _ = writeln!(
         o,
         "consistency: RMS {:.2}x the {:.1} mm the noise model predicts (limit 2); worst pass chi-square {:.1} (limit 25){}",
         c.dispersion,
@@ -326,6 +355,7 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             "; time offset held, the data give {d:+.6} +- {sg:.6} s more"
         ))
     );
+    }
     for p in &r.per_sphere {
         let v = &p.verdicts;
         if !p.found {

@@ -360,7 +360,10 @@ mod tests {
         let e = off.resolve().unwrap_err();
         assert!(e.contains("sphere[0] (S1)") && e.contains("0.010 m"), "{e}");
         let mut no_crs: Site = toml::from_str(&base).unwrap();
-        assert!(no_crs.resolve().unwrap_err().contains("need a [crs] section"));
+        assert!(no_crs
+            .resolve()
+            .unwrap_err()
+            .contains("need a [crs] section"));
         let partial = with_crs.replace("height_m = 3.5\n", "");
         let mut p: Site = toml::from_str(&partial).unwrap();
         assert!(p.resolve().unwrap_err().contains("give all of"));
