@@ -138,6 +138,11 @@ fn table1_quay_from_the_papers_start() {
     ];
     common::assert_within(&got, &truth(&s), 1e-3, "table1");
     assert_eq!(r["converged"], true);
+    assert_eq!(
+        r["correlation_labels"],
+        serde_json::json!(["roll", "pitch", "heading", "x", "y", "z", "time_offset"])
+    );
+    assert!(r["version"].as_str().unwrap().starts_with("spherecal 0."));
     // A well-conditioned solution names no weak parameter.
     assert!(r["condition_number"].as_f64().unwrap() < 100.0);
     assert_eq!(

@@ -225,6 +225,12 @@ pub fn solve_report(
                     .collect()
             })
             .collect(),
+        correlation_labels: NAMES
+            .iter()
+            .chain(&["time_offset"])
+            .map(|n| n.to_string())
+            .collect(),
+        version: format!("spherecal {}", env!("CARGO_PKG_VERSION")),
         condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
         weak_parameters: weak,
         sphere_centre_rms_m: sol.center_rms,

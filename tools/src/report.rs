@@ -205,6 +205,12 @@ pub struct Report {
     /// Correlation matrix, order roll, pitch, heading, x, y, z, time_offset (the last row and
     /// column 0 when the time offset is not estimated).
     pub correlation: Vec<Vec<f64>>,
+    /// The rows' and columns' names of `correlation`, in order.
+    #[serde(default)]
+    pub correlation_labels: Vec<String>,
+    /// The program that wrote the report (`spherecal` and its version).
+    #[serde(default)]
+    pub version: String,
     /// Condition number of the unit-diagonal normal matrix.
     pub condition_number: f64,
     /// Parameters the data determine poorly.
