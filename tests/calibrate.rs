@@ -174,6 +174,38 @@ fn table1_quay_from_the_papers_start() {
         assert!(!r[key].is_null(), "report key {key}");
     }
     assert!(r["sphere_centre_rms_m"].as_f64().unwrap() < 1e-3);
+    // Fed back: a second run starts from the first one's answer (and its time offset).
+    let again = dir.join("again.json");
+    common::stdout_of(
+        common::spherecal()
+            .arg("calibrate")
+            .args(common::survey_args(&dir))
+            .arg("--init-from")
+            .arg(&report)
+            .arg("--report")
+            .arg(&again),
+    );
+    let r2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&again).unwrap()).unwrap();
+    for (k, v) in ["roll", "pitch", "heading"].iter().zip(&got[..3]) {
+        assert!(
+            (r2["start"][k].as_f64().unwrap() - v).abs() < 1e-12,
+            "start {k}"
+        );
+    }
+    assert!((r2["start"]["z"].as_f64().unwrap() - got[5]).abs() < 1e-12);
+    assert_eq!(r2["converged"], true);
+    let bad = dir.join("bad.json");
+    std::fs::write(&bad, "{\"boresight_deg\": 1}").unwrap();
+    let out = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(&dir))
+        .arg("--init-from")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bad.json: not a spherecal report"));
     // Four passes over each sphere, each with detections.
     let passes = r["per_pass"].as_array().unwrap();
     assert_eq!(passes.len(), 8, "{passes:?}");

@@ -37,7 +37,7 @@ enum Cmd {
     Run(cmd::run::Args),
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
-    Demo,
+    Demo(cmd::demo::Args),
     /// Site files from survey data: `site import SURVEY.csv --crs EPSG:n -o site.toml`.
     Site(cmd::site::Args),
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
@@ -58,7 +58,8 @@ fn main() -> ExitCode {
         }
     };
     match cli.cmd {
-        None | Some(Cmd::Demo) => cmd::demo::run(),
+        None => cmd::demo::run(cmd::demo::Args::default()),
+        Some(Cmd::Demo(a)) => cmd::demo::run(a),
         Some(Cmd::Decode(a)) => cmd::decode::run(a),
         Some(Cmd::Synth(a)) => cmd::synth::run(a),
         Some(Cmd::Georef(a)) => cmd::georef::run(a),

@@ -244,6 +244,25 @@ pub struct Report {
 }
 
 impl Report {
+    /// Read a report.json (for `--init-from`); its six and time offset must be finite.
+    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let r: Report = serde_json::from_str(&text)
+            .map_err(|e| format!("{}: not a spherecal report: {e}", path.display()))?;
+        if !r
+            .deg_m()
+            .iter()
+            .chain([&r.time_offset_s])
+            .all(|v| v.is_finite())
+        {
+            return Err(format!(
+                "{}: its boresight, lever arm or time offset is not a number",
+                path.display()
+            ));
+        }
+        Ok(r)
+    }
+
     /// The solution [deg, m] in the solver's order.
     pub fn deg_m(&self) -> [f64; 6] {
         deg_m(&self.boresight_deg, &self.lever_arm_m)

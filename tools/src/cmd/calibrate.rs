@@ -10,8 +10,11 @@ pub struct Args {
     #[command(flatten)]
     pub survey: Survey,
     /// Start: roll,pitch,heading [deg],x,y,z [m] (default: the site's a-priori values).
-    #[arg(long, value_parser = parse6, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse6, allow_hyphen_values = true, conflicts_with = "init_from")]
     pub init: Option<[f64; 6]>,
+    /// Start from the boresight, lever arm and time offset of an earlier report.json.
+    #[arg(long)]
+    pub init_from: Option<PathBuf>,
     /// Write the JSON report here.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -61,20 +64,21 @@ pub fn run(a: Args) -> ExitCode {
         plot: a.plot,
         returns: a.returns,
     };
+    let (init, start) = match &a.init_from {
+        Some(p) => match crate::report::Report::load(p) {
+            Ok(r) => (Some(r.deg_m()), a.time_offset.or(Some(r.time_offset_s))),
+            Err(e) => return fail("calibrate", e),
+        },
+        None => (a.init, a.time_offset),
+    };
     let clock = crate::ClockOptions {
         estimate: !a.hold_time_offset,
-        start: a.time_offset,
+        start,
         allow_unlocked: a.allow_unlocked_clock,
         keep_untracked_ins: a.keep_untracked_ins,
         search: a.search_time_offset,
     };
-    match crate::run_calibrate(
-        survey,
-        a.init.map(spherecal::calib::DegM),
-        clock,
-        &out,
-        None,
-    ) {
+    match crate::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None) {
         Ok((text, ok)) => {
             say!("{text}");
             claimed(ok)

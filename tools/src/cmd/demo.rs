@@ -2,11 +2,30 @@
 //! paper's erroneous start, beside the truth.
 
 use super::{claimed, fail};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
+/// truth.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Where the survey's files and the report go (kept, so the other commands can be tried
+    /// on them).
+    #[arg(long, default_value = "spherecal-demo")]
+    pub out: PathBuf,
+}
+
+impl Default for Args {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("spherecal-demo"),
+        }
+    }
+}
+
 /// Run it.
-pub fn run() -> ExitCode {
-    let dir = std::env::temp_dir().join(format!("spherecal-demo-{}", std::process::id()));
+pub fn run(a: Args) -> ExitCode {
+    let dir = a.out;
     let s = match crate::config::scenario::Scenario::load("table1") {
         Ok(s) => s,
         Err(e) => return fail("demo", e),
@@ -54,12 +73,13 @@ pub fn run() -> ExitCode {
         Ok((text, ok)) => {
             say!("{text}");
             sayln!("report: {}", dir.join("report.json").display());
+            sayln!(
+                "the survey's files are in {d}/ (lidar.pcap, ins.bin, site.toml, truth.json); try\n  spherecal calibrate --pcap {d}/lidar.pcap --ins {d}/ins.bin --site {d}/site.toml",
+                d = dir.display()
+            );
             claimed(ok)
         }
         Err(e) => fail("demo", e),
     };
-    for f in ["lidar.pcap", "ins.bin"] {
-        let _ = std::fs::remove_file(dir.join(f));
-    }
     code
 }
