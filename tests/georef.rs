@@ -227,16 +227,7 @@ fn las_file_reads_back() {
         "import laspy, numpy\nf = laspy.read({:?})\nprint(f.header.point_count, f.header.version, f.header.point_format.id)\nprint(float(f.x[0]), float(f.y[0]), float(f.z[0]), float(f.gps_time[0]), int(numpy.count_nonzero(f.user_data)))",
         las.to_str().unwrap()
     );
-    let out = std::process::Command::new("python3")
-        .args(["-c", &script])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "laspy must be installed (scripts/test.sh does it): {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = common::python(&script, "laspy");
     let mut lines = text.lines();
     assert_eq!(lines.next().unwrap(), format!("{n} 1.4 6"));
     let v: Vec<f64> = lines

@@ -23,17 +23,7 @@ fn pyproj_forward(epsg: u16, pts: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
         "from pyproj import Transformer\nt = Transformer.from_crs('EPSG:4326', 'EPSG:{epsg}', always_xy=True)\nfor lon, lat in [{}]:\n    x, y = t.transform(lon, lat)\n    print(repr(x), repr(y))",
         list.join(", ")
     );
-    let out = std::process::Command::new("python3")
-        .args(["-c", &script])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "pyproj must be installed (scripts/test.sh does it): {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout)
-        .unwrap()
+    common::python(&script, "pyproj")
         .lines()
         .map(|l| {
             let v: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();

@@ -35,6 +35,21 @@ pub fn tmp(group: &str, name: &str) -> PathBuf {
     d.join(name)
 }
 
+/// Run a Python script (an independent reference: laspy, pyproj, installed by
+/// scripts/test.sh); it must succeed. Returns its stdout.
+pub fn python(script: &str, needs: &str) -> String {
+    let out = std::process::Command::new("python3")
+        .args(["-c", script])
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "{needs} must be installed (scripts/test.sh does it): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
 /// Run a command; it must succeed. Returns its stdout.
 pub fn stdout_of(cmd: &mut std::process::Command) -> String {
     let out = cmd.output().unwrap();
