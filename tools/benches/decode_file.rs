@@ -45,6 +45,15 @@ fn bench(c: &mut Criterion) {
                 .points
         })
     });
+    // One CSV row per point, into a 1 MiB buffered sink: rows/s is the throughput.
+    g.bench_function("mrpt_decode_command_csv", |b| {
+        b.iter(|| {
+            let mut w = std::io::BufWriter::with_capacity(1 << 20, std::io::sink());
+            spherecal_tools::decode::decode_file(std::path::Path::new(&path), Some(&mut w))
+                .unwrap()
+                .points
+        })
+    });
     g.finish();
 }
 
