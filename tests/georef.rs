@@ -10,6 +10,7 @@ use spherecal::georef::Mount;
 use spherecal::window::Observation;
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
+use spherecal_tools::georef::LasFrame;
 use spherecal_tools::pipeline::{targets, Inputs, InsInput};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -214,7 +215,8 @@ fn las_file_reads_back() {
         truth_mount(),
         0.01,
     );
-    let (stats, _, _) = spherecal_tools::georef::georef(&inp, Some(&las), None).unwrap();
+    let (stats, _, _) =
+        spherecal_tools::georef::georef(&inp, Some((&las, LasFrame::Local)), None).unwrap();
     // With the las crate.
     let mut r = las::Reader::from_path(&las).unwrap();
     let n = r.header().number_of_points();
@@ -240,4 +242,69 @@ fn las_file_reads_back() {
     assert!((v[0] - p0.x).abs() < 1e-4 && (v[1] - p0.y).abs() < 1e-4 && (v[2] - p0.z).abs() < 1e-4);
     assert!((v[3] - p0.gps_time.unwrap()).abs() < 1e-6);
     assert_eq!(v[4] as u64, stats.align.window.windowed.iter().sum::<u64>());
+}
+
+/// The projected LAS lands on the map: laspy finds its CRS (UTM 30N for a site near Brest
+/// without its own), and each point taken through pyproj to WGS84, ECEF and east-north-up at
+/// the site origin (numpy, by hand) is the local-frame LAS's point to 1 mm; the extra bytes,
+/// date, GUID and software are there.
+#[test]
+fn las_lands_on_the_map() {
+    let (dir, _) = table1();
+    let inp = inputs(
+        dir,
+        InsInput::Vn200(dir.join("ins.bin")),
+        truth_mount(),
+        0.01,
+    );
+    let (map, local) = (dir.join("map.las"), dir.join("local.las"));
+    spherecal_tools::georef::georef(&inp, Some((&map, LasFrame::Projected)), None).unwrap();
+    let (stats, _, _) =
+        spherecal_tools::georef::georef(&inp, Some((&local, LasFrame::Local)), None).unwrap();
+    let o = &inp.site.origin;
+    let script = format!(
+        r#"import laspy, numpy as np
+from pyproj import Transformer
+m = laspy.read({map:?}); l = laspy.read({local:?})
+crs = m.header.parse_crs()
+print(crs.to_epsg(), m.header.creation_date is not None, m.header.uuid.int != 0, m.header.generating_software.startswith("spherecal"))
+k = np.arange(0, len(m.points), 7)
+lon, lat, h = Transformer.from_crs(crs, "EPSG:4979", always_xy=True).transform(np.asarray(m.x)[k], np.asarray(m.y)[k], np.asarray(m.z)[k])
+ecef = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
+X = np.array(ecef.transform(lon, lat, h))
+X0 = np.array(ecef.transform({lon0}, {lat0}, {h0}))
+p, q = np.radians({lat0}), np.radians({lon0})
+R = np.array([[-np.sin(q), np.cos(q), 0], [-np.sin(p)*np.cos(q), -np.sin(p)*np.sin(q), np.cos(p)], [np.cos(p)*np.cos(q), np.cos(p)*np.sin(q), np.sin(p)]])
+enu = R @ (X - X0[:, None])
+d = np.abs(enu - np.array([np.asarray(l.x)[k], np.asarray(l.y)[k], np.asarray(l.z)[k]]))
+print(len(k), float(d.max()))
+w = np.asarray(m.window); r = np.asarray(m.residual)
+print(int(np.count_nonzero(w)), int(np.asarray(m.laser).max()), float(np.nanmax(np.abs(r[w > 0]))), bool(np.all(np.isnan(r[w == 0]))))"#,
+        map = map.to_str().unwrap(),
+        local = local.to_str().unwrap(),
+        lon0 = o.lon_deg,
+        lat0 = o.lat_deg,
+        h0 = o.h_m,
+    );
+    let text = common::python(&script, "laspy and pyproj");
+    let lines: Vec<Vec<&str>> = text
+        .lines()
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    assert_eq!(lines[0], ["32630", "True", "True", "True"], "{text}");
+    let (n, worst): (usize, f64) = (lines[1][0].parse().unwrap(), lines[1][1].parse().unwrap());
+    assert!(n > 400 && worst < 1e-3, "{n} points, worst {worst} m");
+    let windowed: u64 = lines[2][0].parse().unwrap();
+    assert_eq!(windowed, stats.align.window.windowed.iter().sum::<u64>());
+    assert_eq!(lines[2][1], "15", "laser ids 0-15");
+    let r: f64 = lines[2][2].parse().unwrap();
+    let margin_and_radius = 0.01
+        + inp
+            .site
+            .sphere
+            .iter()
+            .map(|s| s.radius_m)
+            .fold(0.0, f64::max);
+    assert!(r <= margin_and_radius + 1e-6, "residual {r}");
+    assert_eq!(lines[2][3], "True", "no residual outside the windows");
 }

@@ -1,5 +1,7 @@
 //! `spherecal georef`: the pipeline over files, a LAS point cloud and the sphere windows as CSV.
 
+use crate::config::crs::Crs;
+use crate::config::site::Site;
 use crate::pipeline::{run, BatchMsg, Inputs, RunStats};
 use spherecal::georef::Mount;
 use spherecal::window::GeoPoint;
@@ -10,10 +12,97 @@ use std::path::Path;
 /// The windows CSV header.
 pub const WINDOWS_HEADER: &str = "sphere,time_gps_s,x_m,y_m,z_m,range_m,laser,packet,block,channel";
 
-/// A LAS 1.4 writer (point format 6: GPS time, intensity, user data = window + 1), local
-/// east-north-up metres from the site origin.
+/// Where a LAS file's coordinates are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum LasFrame {
+    /// In the site's projected CRS (its `[crs]`; else the WGS84 UTM zone of the origin), with
+    /// the WKT CRS record; heights as the site's (ellipsoidal, or orthometric with its N).
+    #[default]
+    Projected,
+    /// East-north-up metres from the site origin (no CRS).
+    Local,
+}
+
+/// Site NED -> the map: the site's CRS (or the origin's UTM zone) and its height system.
+struct ToMap {
+    crs: Crs,
+    frame: spherecal::frames::LocalFrame,
+    /// Subtracted from ellipsoidal heights (the geoid undulation for orthometric heights).
+    undulation: f64,
+}
+
+impl ToMap {
+    fn for_site(site: &Site) -> Result<Self, String> {
+        let (frame, _) = crate::pipeline::targets(site);
+        let own = match &site.crs {
+            Some(c) => Some((Crs::epsg(c.epsg)?, c)).filter(|(crs, _)| !crs.is_geographic()),
+            None => None,
+        };
+        let (crs, undulation) = match own {
+            Some((crs, c)) => (crs, c.ellipsoidal(0.0)),
+            None => {
+                let (lat, lon) = (site.origin.lat_deg, site.origin.lon_deg);
+                let zone = (((lon + 180.0) / 6.0).floor() as i32).clamp(0, 59) as u16 + 1;
+                (
+                    Crs::epsg(if lat >= 0.0 { 32600 } else { 32700 } + zone)?,
+                    0.0,
+                )
+            }
+        };
+        Ok(Self {
+            crs,
+            frame,
+            undulation,
+        })
+    }
+
+    fn xyz(&self, ned: &nalgebra::Vector3<f64>) -> Result<(f64, f64, f64), String> {
+        let g = self.frame.to_geodetic(ned);
+        let (x, y, h) = self
+            .crs
+            .from_wgs84(g.lat.to_degrees(), g.lon.to_degrees(), g.h)?;
+        Ok((x, y, h - self.undulation))
+    }
+}
+
+/// Extra bytes per point: laser (u8), window (u8: sphere index + 1, 0 none), residual to the
+/// window's sphere (f32 metres, NaN outside every window).
+const EXTRA: [(&str, u8, &str); 3] = [
+    ("laser", 1, "VLP-16 laser id 0-15"),
+    ("window", 1, "sphere window + 1 (0: none)"),
+    ("residual", 9, "to the sphere surface [m]"),
+];
+
+/// The Extra Bytes VLR (LAS 1.4 R15 section 2.5: one 192-byte descriptor per field).
+fn extra_bytes_vlr() -> las::Vlr {
+    let mut data = Vec::with_capacity(192 * EXTRA.len());
+    for (name, ty, description) in EXTRA {
+        let mut d = [0u8; 192];
+        d[2] = ty;
+        // Names and descriptions are 32-byte fields, NUL-padded.
+        let (name, description) = (
+            &name.as_bytes()[..name.len().min(31)],
+            description.as_bytes(),
+        );
+        d[4..4 + name.len()].copy_from_slice(name);
+        let description = &description[..description.len().min(31)];
+        d[160..160 + description.len()].copy_from_slice(description);
+        data.extend_from_slice(&d);
+    }
+    las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "spherecal extra bytes".into(),
+        data,
+    }
+}
+
+/// A LAS 1.4 writer (point format 6 + extra bytes: GPS time, intensity, classification 1 in a
+/// window, laser, window, residual), in the site's CRS or local east-north-up metres.
 pub struct LasOut {
     w: las::Writer<std::io::BufWriter<std::fs::File>>,
+    to_map: Option<ToMap>,
+    targets: Vec<spherecal::window::Target>,
     /// Points written.
     pub points: u64,
     /// First write error.
@@ -21,23 +110,60 @@ pub struct LasOut {
 }
 
 impl LasOut {
-    /// Create the file.
-    pub fn create(path: &Path) -> Result<Self, String> {
+    /// Create the file for `site`'s points, in `frame`.
+    pub fn create(path: &Path, site: &Site, frame: LasFrame) -> Result<Self, String> {
+        let to_map = match frame {
+            LasFrame::Projected => Some(ToMap::for_site(site)?),
+            LasFrame::Local => None,
+        };
         let mut b = las::Builder::from((1, 4));
         b.point_format = las::point::Format::new(6).map_err(|e| e.to_string())?;
+        b.point_format.extra_bytes = 6;
         b.gps_time_type = las::GpsTimeType::Standard;
-        b.generating_software = "spherecal".into();
+        b.generating_software = format!("spherecal {}", env!("CARGO_PKG_VERSION"));
         b.system_identifier = "spherecal georef".into();
-        let t = las::Transform {
-            scale: 0.0001,
-            offset: 0.0,
+        let now = spherecal_hal::clock::wall();
+        let t = spherecal::time::UtcDateTime::from_unix_ns(now.0);
+        b.date = chrono::NaiveDate::from_ymd_opt(t.year, u32::from(t.month), u32::from(t.day));
+        // A GUID from the file's name and the time it was written (FNV-1a, 128 bits).
+        let mut h = 0x6c62_272e_07bb_0142_62b8_2175_6295_c58du128;
+        for byte in path
+            .display()
+            .to_string()
+            .bytes()
+            .chain(now.0.to_le_bytes())
+        {
+            h = (h ^ u128::from(byte)).wrapping_mul(0x0000_0000_0100_0000_0000_0000_0000_013b);
+        }
+        b.guid = uuid::Uuid::from_u128(h);
+        b.vlrs.push(extra_bytes_vlr());
+        // Offsets at the origin (to the kilometre): 0.1 mm steps reach 214 km from it.
+        let origin = match &to_map {
+            Some(m) => m.xyz(&nalgebra::Vector3::zeros())?,
+            None => (0.0, 0.0, 0.0),
         };
-        b.transforms = las::Vector { x: t, y: t, z: t };
-        let header = b.into_header().map_err(|e| e.to_string())?;
+        let km = |v: f64| (v / 1000.0).round() * 1000.0;
+        let tr = |offset: f64| las::Transform {
+            scale: 0.0001,
+            offset,
+        };
+        b.transforms = las::Vector {
+            x: tr(km(origin.0)),
+            y: tr(km(origin.1)),
+            z: tr(0.0),
+        };
+        let mut header = b.into_header().map_err(|e| e.to_string())?;
+        if let Some(m) = &to_map {
+            header
+                .set_wkt_crs(m.crs.wkt.as_bytes().to_vec())
+                .map_err(|e| e.to_string())?;
+        }
         let w =
             las::Writer::from_path(path, header).map_err(|e| format!("{}: {e}", path.display()))?;
         Ok(Self {
             w,
+            to_map,
+            targets: crate::pipeline::targets(site).1,
             points: 0,
             error: None,
         })
@@ -48,10 +174,28 @@ impl LasOut {
         if self.error.is_some() {
             return;
         }
+        let (x, y, z) = match &self.to_map {
+            Some(m) => match m.xyz(&p.ned) {
+                Ok(v) => v,
+                Err(e) => {
+                    self.error = Some(e);
+                    return;
+                }
+            },
+            None => (p.ned.y, p.ned.x, -p.ned.z),
+        };
+        let residual = p
+            .window
+            .and_then(|w| self.targets.get(usize::from(w)))
+            .map_or(f32::NAN, |t| ((p.ned - t.center).norm() - t.radius) as f32);
+        let mut extra = Vec::with_capacity(6);
+        extra.push(p.laser);
+        extra.push(p.window.map_or(0, |w| w + 1));
+        extra.extend_from_slice(&residual.to_le_bytes());
         let pt = las::Point {
-            x: p.ned.y,
-            y: p.ned.x,
-            z: -p.ned.z,
+            x,
+            y,
+            z,
             intensity: u16::from(p.intensity),
             gps_time: Some(p.time.as_secs_f64() - 1e9),
             user_data: p.window.map_or(0, |w| w + 1),
@@ -62,6 +206,7 @@ impl LasOut {
             },
             return_number: 1,
             number_of_returns: 1,
+            extra_bytes: extra,
             ..Default::default()
         };
         match self.w.write_point(pt) {
@@ -83,10 +228,12 @@ impl LasOut {
 /// Run georef: returns the counts and the rendered summary.
 pub fn georef(
     inp: &Inputs,
-    las: Option<&Path>,
+    las: Option<(&Path, LasFrame)>,
     windows: Option<&Path>,
 ) -> Result<(RunStats, Vec<u64>, String), String> {
-    let mut las_out = las.map(LasOut::create).transpose()?;
+    let mut las_out = las
+        .map(|(p, f)| LasOut::create(p, &inp.site, f))
+        .transpose()?;
     let mut wfile = match windows {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,

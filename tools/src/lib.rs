@@ -61,6 +61,8 @@ pub struct Outputs {
     pub plot: Option<PathBuf>,
     /// Every windowed return with its verdict (CSV).
     pub returns: Option<PathBuf>,
+    /// Where the LAS coordinates are.
+    pub las_frame: georef::LasFrame,
 }
 
 /// The `--returns` CSV header.
@@ -145,7 +147,7 @@ pub fn run_calibrate(
             time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
             ..inp.clone()
         };
-        let (_, _, t) = georef::georef(&inp2, Some(p), None)?;
+        let (_, _, t) = georef::georef(&inp2, Some((p, out.las_frame)), None)?;
         text.push_str(&t);
     }
     if let Some(p) = &out.plot {

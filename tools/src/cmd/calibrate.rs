@@ -21,6 +21,10 @@ pub struct Args {
     /// Write the calibrated cloud as LAS.
     #[arg(long)]
     pub las: Option<PathBuf>,
+    /// LAS coordinates: `projected` (the site's CRS, or its UTM zone, with the WKT CRS
+    /// record) or `local` (east-north-up metres from the site origin).
+    #[arg(long, value_enum, default_value_t = crate::georef::LasFrame::Projected)]
+    pub las_frame: crate::georef::LasFrame,
     /// Write residual plots (SVG).
     #[arg(long)]
     pub plot: Option<PathBuf>,
@@ -61,6 +65,7 @@ pub fn run(a: Args) -> ExitCode {
     let out = crate::Outputs {
         report: a.report,
         las: a.las,
+        las_frame: a.las_frame,
         plot: a.plot,
         returns: a.returns,
     };

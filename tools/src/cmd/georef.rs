@@ -23,9 +23,13 @@ pub struct Args {
     /// `calibrate` reports as `time_offset_s`).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub time_offset: f64,
-    /// Write the georeferenced cloud as LAS 1.4 (local east-north-up from the origin).
+    /// Write the georeferenced cloud as LAS 1.4 (see --las-frame).
     #[arg(long)]
     pub las: Option<PathBuf>,
+    /// LAS coordinates: `projected` (the site's CRS, or its UTM zone, with the WKT CRS
+    /// record) or `local` (east-north-up metres from the site origin).
+    #[arg(long, value_enum, default_value_t = crate::georef::LasFrame::Projected)]
+    pub las_frame: crate::georef::LasFrame,
     /// Write the window points as CSV.
     #[arg(long)]
     pub windows: Option<PathBuf>,
@@ -64,7 +68,11 @@ pub fn run(a: Args) -> ExitCode {
         keep_untracked_ins: a.keep_untracked_ins,
         site,
     };
-    match crate::georef::georef(&inp, a.las.as_deref(), a.windows.as_deref()) {
+    match crate::georef::georef(
+        &inp,
+        a.las.as_deref().map(|p| (p, a.las_frame)),
+        a.windows.as_deref(),
+    ) {
         Ok((_, _, text)) => {
             say!("{text}");
             ExitCode::SUCCESS
