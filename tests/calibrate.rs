@@ -195,6 +195,43 @@ fn table1_quay_from_the_papers_start() {
     }
     assert!((r2["start"]["z"].as_f64().unwrap() - got[5]).abs() < 1e-12);
     assert_eq!(r2["converged"], true);
+    // Into a board's [mount]: the values read back, the rest of the file is untouched.
+    let board = dir.join("board.toml");
+    let original =
+        std::fs::read_to_string(common::repo_root().join("boards/rig-vn200.toml")).unwrap();
+    std::fs::write(&board, &original).unwrap();
+    common::stdout_of(
+        common::spherecal()
+            .args(["board", "set-mount"])
+            .arg(&board)
+            .arg("--from")
+            .arg(&report),
+    );
+    let b = spherecal_tools::config::board::Board::load(&board).unwrap();
+    let written = b.mount.deg_m().0;
+    common::assert_within(&written, &got, 1e-6, "board [mount]");
+    let after = std::fs::read_to_string(&board).unwrap();
+    let changed = original
+        .lines()
+        .zip(after.lines())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!((changed, original.lines().count()), (2, after.lines().count()));
+    // A refused calibration is not written without --even-if-refused.
+    let mut refused = r.clone();
+    refused["converged"] = serde_json::json!(false);
+    refused["reason"] = serde_json::json!("ill-conditioned");
+    let refused_path = dir.join("refused.json");
+    std::fs::write(&refused_path, refused.to_string()).unwrap();
+    let out = common::spherecal()
+        .args(["board", "set-mount"])
+        .arg(&board)
+        .arg("--from")
+        .arg(&refused_path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("was refused (ill-conditioned)"));
     let bad = dir.join("bad.json");
     std::fs::write(&bad, "{\"boresight_deg\": 1}").unwrap();
     let out = common::spherecal()

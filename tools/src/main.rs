@@ -38,6 +38,9 @@ enum Cmd {
     /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
     /// truth (what a bare `cargo run --release` does).
     Demo(cmd::demo::Args),
+    /// Board files: `board set-mount BOARD --from report.json` writes a calibration into
+    /// `[mount]`, keeping the rest of the file.
+    Board(cmd::board::Args),
     /// Site files from survey data: `site import SURVEY.csv --crs EPSG:n -o site.toml`.
     Site(cmd::site::Args),
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
@@ -69,5 +72,6 @@ fn main() -> ExitCode {
         Some(Cmd::Run(a)) => cmd::run::run(a),
         Some(Cmd::Ins(a)) => cmd::ins::run(a),
         Some(Cmd::Site(a)) => cmd::site::run(a),
+        Some(Cmd::Board(a)) => cmd::board::run(a),
     }
 }

@@ -21,6 +21,7 @@ macro_rules! sayln {
     }};
 }
 
+pub mod board;
 pub mod calibrate;
 pub mod decode;
 pub mod demo;

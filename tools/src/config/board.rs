@@ -116,6 +116,65 @@ impl Board {
         Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 
+    /// `text` (a board file) with its `[mount]` set to `m`: only the values of
+    /// `boresight_deg` and `lever_arm_m` change (added under `[mount]` if missing); every other
+    /// line, comment and the keys' own comments stay. The result is parsed back and must give
+    /// `m`.
+    pub fn with_mount(text: &str, m: &super::MountDegM) -> Result<String, String> {
+        let arr = |v: [f64; 3]| format!("[{:.6}, {:.6}, {:.6}]", v[0], v[1], v[2]);
+        let want = [
+            ("boresight_deg", arr(m.boresight_deg)),
+            ("lever_arm_m", arr(m.lever_arm_m)),
+        ];
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        let header = |l: &str| l.split('#').next().unwrap_or("").trim().to_string();
+        let start = lines
+            .iter()
+            .position(|l| header(l) == "[mount]")
+            .ok_or("no [mount] section")?;
+        let end = lines[start + 1..]
+            .iter()
+            .position(|l| header(l).starts_with('['))
+            .map_or(lines.len(), |k| start + 1 + k);
+        let mut missing = Vec::new();
+        for (key, value) in &want {
+            let at = (start + 1..end).find(|&i| {
+                let code = header(&lines[i]);
+                code.split('=').next().map(str::trim) == Some(key)
+            });
+            match at {
+                Some(i) => {
+                    let line = &lines[i];
+                    let code_len = line.find('#').unwrap_or(line.len());
+                    if !line[..code_len].contains(']') {
+                        return Err(format!(
+                            "[mount] {key}: its array spans lines; write it on one line first"
+                        ));
+                    }
+                    let indent = &line[..line.len() - line.trim_start().len()];
+                    let comment = line[code_len..].to_string();
+                    let gap = if comment.is_empty() { "" } else { "  " };
+                    lines[i] = format!("{indent}{key} = {value}{gap}{comment}");
+                }
+                None => missing.push(format!("{key} = {value}")),
+            }
+        }
+        for (k, l) in missing.into_iter().enumerate() {
+            lines.insert(start + 1 + k, l);
+        }
+        let mut out = lines.join("\n");
+        if text.ends_with('\n') {
+            out.push('\n');
+        }
+        let b = Self::from_toml(&out)?;
+        let back = b.mount.deg_m().0;
+        let want6 = m.deg_m().0;
+        if back.iter().zip(want6).any(|(a, b)| (a - b).abs() > 1e-6) {
+            return Err("[mount] did not read back as written".into());
+        }
+        Ok(out)
+    }
+
     fn check(&self) -> Result<(), String> {
         let bad = |k: &str, why: &str| Err(format!("{k}: {why}"));
         if !(0..=100).contains(&self.leap_seconds) {
@@ -245,5 +304,50 @@ mod tests {
             Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\"")).unwrap_err(),
             "ins.kind: expected vn200 or sbet"
         );
+    }
+
+    /// Only the two values change; comments, other sections and order stay.
+    #[test]
+    fn mount_written_back_keeping_the_file() {
+        let text = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../boards/rig-vn200.toml"),
+        )
+        .unwrap();
+        let text = text.replace(
+            "lever_arm_m = [1.5, -1.2, -1.4]",
+            "lever_arm_m = [1.5, -1.2, -1.4]   # tape-measured 2026-05",
+        );
+        let m = crate::config::MountDegM {
+            boresight_deg: [181.787123, -42.4231, 2.431],
+            lever_arm_m: [1.31234, -1.2051, -1.759],
+        };
+        let out = Board::with_mount(&text, &m).unwrap();
+        let (a, b): (Vec<&str>, Vec<&str>) = (text.lines().collect(), out.lines().collect());
+        assert_eq!(a.len(), b.len());
+        let changed: Vec<(&str, &str)> = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, y)| x != y)
+            .map(|(x, y)| (*x, *y))
+            .collect();
+        assert_eq!(
+            changed,
+            [
+                (
+                    "boresight_deg = [180.0, -45.0, 0.0]",
+                    "boresight_deg = [181.787123, -42.423100, 2.431000]"
+                ),
+                (
+                    "lever_arm_m = [1.5, -1.2, -1.4]   # tape-measured 2026-05",
+                    "lever_arm_m = [1.312340, -1.205100, -1.759000]  # tape-measured 2026-05"
+                ),
+            ]
+        );
+        assert_eq!(Board::from_toml(&out).unwrap().mount, m);
+        // Missing keys are added under [mount]; no [mount] is an error.
+        let bare = text.replace("boresight_deg = [180.0, -45.0, 0.0]\n", "");
+        let out = Board::with_mount(&bare, &m).unwrap();
+        assert_eq!(Board::from_toml(&out).unwrap().mount, m);
+        assert!(Board::with_mount("leap_seconds = 18\n", &m).is_err());
     }
 }
