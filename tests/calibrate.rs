@@ -216,7 +216,10 @@ fn table1_quay_from_the_papers_start() {
         .zip(after.lines())
         .filter(|(a, b)| a != b)
         .count();
-    assert_eq!((changed, original.lines().count()), (2, after.lines().count()));
+    assert_eq!(
+        (changed, original.lines().count()),
+        (2, after.lines().count())
+    );
     // A refused calibration is not written without --even-if-refused.
     let mut refused = r.clone();
     refused["converged"] = serde_json::json!(false);

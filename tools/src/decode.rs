@@ -92,6 +92,7 @@ pub fn decode_source<R: Read>(
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{CSV_HEADER}")?;
     }
+    let bar = crate::progress::counter("data packets decoded");
     let ports = Ports::default();
     loop {
         let rec = match src.next_record() {
@@ -126,6 +127,9 @@ pub fn decode_source<R: Read>(
                         }
                         *s.products.entry(packet.product_raw()).or_default() += 1;
                         s.data_packets += 1;
+                        if s.data_packets.is_multiple_of(4096) {
+                            bar.set_position(s.data_packets);
+                        }
                     }
                 }
             }
@@ -156,6 +160,7 @@ pub fn decode_source<R: Read>(
     if let Some(w) = csv {
         w.flush()?;
     }
+    bar.finish_and_clear();
     Ok(s)
 }
 

@@ -12,6 +12,7 @@ pub mod ins;
 pub mod montecarlo;
 pub mod pipeline;
 pub mod plot;
+pub mod progress;
 pub mod replay;
 pub mod report;
 pub mod rig;

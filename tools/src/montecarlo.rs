@@ -7,7 +7,6 @@ use crate::pipeline::{targets, Inputs, InsInput};
 pub use crate::report::{render_montecarlo as render, McReport, Trial};
 use spherecal::calib::{solve, Settings, P};
 use spherecal::sim::Rng;
-use std::io::IsTerminal;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -51,7 +50,11 @@ pub fn montecarlo(
     let done = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<Trial>>> = Mutex::new(vec![None; trials]);
     let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
-    let tty = progress && std::io::stderr().is_terminal();
+    let bar = if progress {
+        crate::progress::bar(trials as u64, "trials")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     std::thread::scope(|sc| {
         for _ in 0..threads {
             sc.spawn(|| {
@@ -94,18 +97,13 @@ pub fn montecarlo(
                             ms,
                         });
                     }
-                    let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-                    if tty {
-                        let w = 40 * d / trials.max(1);
-                        eprint!("\r[{}{}] {d}/{trials}", "#".repeat(w), " ".repeat(40 - w));
-                    }
+                    done.fetch_add(1, Ordering::Relaxed);
+                    bar.inc(1);
                 }
             });
         }
     });
-    if tty {
-        eprintln!();
-    }
+    bar.finish_and_clear();
     let runs: Vec<Trial> = results
         .into_inner()
         .map_err(|_| "a trial thread panicked".to_string())?

@@ -225,6 +225,7 @@ fn write_lidar(
         }
     }
     let mut data_k = 0usize;
+    let bar = crate::progress::bar(lidar.packet_count(), "simulating data packets");
     let labels_path = dir.join("labels.bin");
     let f = std::fs::File::create(&labels_path).map_err(|e| io(&labels_path, e))?;
     let mut labels = BufWriter::with_capacity(1 << 20, f);
@@ -245,6 +246,9 @@ fn write_lidar(
         let Some(pkt) = next else { break };
         if let SimPacket::Data { .. } = pkt {
             data_k += 1;
+            if data_k.is_multiple_of(1024) {
+                bar.set_position(data_k as u64);
+            }
         }
         let time = match pkt {
             SimPacket::Data { dropped: true, .. } => continue,
@@ -273,6 +277,7 @@ fn write_lidar(
     pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
     labels.flush().map_err(|e| io(&labels_path, e))?;
 
+    bar.finish_and_clear();
     Ok(lidar.stats)
 }
 
