@@ -117,8 +117,8 @@ impl fmt::Display for SkipReason {
 pub enum Record<'a> {
     /// A UDP/IPv4 datagram.
     Udp(Datagram<'a>),
-    /// A live source had nothing within its read timeout (the caller may check for shutdown);
-    /// files never yield it.
+    /// A live source had nothing within its read timeout (the caller may check for shutdown),
+    /// or a chain of files moved to its next file; a single file never yields it.
     Idle,
     /// A skipped frame: its byte offset in the file and the reason.
     Skipped {

@@ -339,6 +339,78 @@ impl FileSource {
     }
 }
 
+/// An error of one file of a [`FileChain`].
+#[derive(Debug)]
+pub struct FileChainError {
+    /// The file.
+    pub path: std::path::PathBuf,
+    /// What went wrong.
+    pub error: LogError,
+}
+
+impl std::fmt::Display for FileChainError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.path.display(), self.error)
+    }
+}
+
+impl std::error::Error for FileChainError {}
+
+/// Several VN-200 byte files (a rig's rotated serial logs, `STAMP-ins-000.vnlog`, `-001` ...)
+/// as one stream, in the order given (the rig's numbering); each file a [`FileSource`].
+pub struct FileChain {
+    files: Vec<std::path::PathBuf>,
+    next: usize,
+    cur: Option<FileSource>,
+}
+
+impl FileChain {
+    /// The files; the first is opened now (to fail early).
+    pub fn open(files: Vec<std::path::PathBuf>) -> Result<Self, FileChainError> {
+        let mut c = Self {
+            files,
+            next: 0,
+            cur: None,
+        };
+        c.open_next()?;
+        Ok(c)
+    }
+
+    fn open_next(&mut self) -> Result<bool, FileChainError> {
+        let Some(path) = self.files.get(self.next) else {
+            return Ok(false);
+        };
+        self.cur = Some(FileSource::open(path).map_err(|error| FileChainError {
+            path: path.clone(),
+            error,
+        })?);
+        self.next += 1;
+        Ok(true)
+    }
+}
+
+impl ByteSource for FileChain {
+    type Error = FileChainError;
+    fn read_chunk(&mut self, buf: &mut [u8]) -> Result<ReadOutcome, FileChainError> {
+        loop {
+            if self.cur.is_none() && !self.open_next()? {
+                return Ok(ReadOutcome::End);
+            }
+            let path = &self.files[self.next - 1];
+            let Some(src) = self.cur.as_mut() else {
+                return Ok(ReadOutcome::End);
+            };
+            match src.read_chunk(buf).map_err(|error| FileChainError {
+                path: path.clone(),
+                error,
+            })? {
+                ReadOutcome::End => self.cur = None,
+                other => return Ok(other),
+            }
+        }
+    }
+}
+
 impl ByteSource for FileSource {
     type Error = LogError;
     fn read_chunk(&mut self, buf: &mut [u8]) -> Result<ReadOutcome, LogError> {

@@ -4,7 +4,6 @@
 //! bytes: at the baud rate's pace), the recorded spacing scaled by the speed.
 
 use spherecal_hal::clock::{Clock, HostTime, SystemClock};
-use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::{PacketSource, Record};
 use std::io::Write;
 use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
@@ -110,12 +109,9 @@ pub fn first_times(
     pcap: &Path,
     ins: Option<&Path>,
 ) -> Result<(Option<HostTime>, Option<HostTime>), String> {
-    let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
+    let mut src = crate::pipeline::open_captures(pcap)?;
     let mut first_udp = None;
-    while let Some(rec) = src
-        .next_record()
-        .map_err(|e| format!("{}: {e}", pcap.display()))?
-    {
+    while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
         if let Record::Udp(d) = rec {
             first_udp = Some(d.time);
             break;
@@ -150,15 +146,12 @@ pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay
 
 /// Send every UDP datagram of a capture to `to`, each when `clock` says its record time is due.
 pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Pacer<'_>) -> Result<UdpReplay, String> {
-    let mut src = PcapSource::open(pcap).map_err(|e| format!("{}: {e}", pcap.display()))?;
+    let mut src = crate::pipeline::open_captures(pcap)?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
     let host = to.host;
     let mut out = UdpReplay::default();
-    while let Some(rec) = src
-        .next_record()
-        .map_err(|e| format!("{}: {e}", pcap.display()))?
-    {
+    while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
         let d = match rec {
             Record::Udp(d) => d,
             Record::Idle => continue,

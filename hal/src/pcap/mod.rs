@@ -7,6 +7,7 @@
 
 //!
 //! - [`read`]: [`PcapSource`], the streaming reader (classic and pcapng);
+//! - [`chain`]: [`PcapChain`], several files (rotated logs) in time order as one source;
 //! - [`slice`]: link layer -> IPv4 -> UDP ([`slice_udp`]) and its inverse for writers
 //!   ([`build_udp_frame`]);
 //! - [`write`]: [`PcapWriter`], classic pcap as tcpdump writes it.
@@ -14,10 +15,12 @@
 use std::fmt;
 use std::io;
 
+pub mod chain;
 pub mod read;
 pub mod slice;
 pub mod write;
 
+pub use chain::{ChainError, PcapChain};
 pub use read::PcapSource;
 pub use slice::{build_udp_frame, slice_udp, UdpEndpoints};
 pub use write::PcapWriter;

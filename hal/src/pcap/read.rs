@@ -197,6 +197,11 @@ impl<R: Read> PcapSource<R> {
         Ok(len)
     }
 
+    /// Nothing more will come (the last call returned `None`, or no header was read).
+    pub fn finished(&self) -> bool {
+        self.done || matches!(self.format, Format::Pending)
+    }
+
     fn offset(&self) -> u64 {
         self.base + self.start as u64
     }

@@ -19,8 +19,8 @@ mod readers;
 
 pub use feed::{AlignStorage, Aligner, InsWait};
 pub use readers::{
-    end_lidar, ins_file_reader, ins_reader, lidar_reader, vn200_pose, week_from_capture, Accept,
-    InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
+    end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, vn200_pose,
+    week_from_capture, Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 
 use crate::config::site::Site;
@@ -34,7 +34,6 @@ use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};
 use spherecal_hal::packet::{Datagram, HostTime, SkipReason};
-use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::sbet::SbetReader;
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
@@ -342,8 +341,7 @@ pub fn run<C: Send>(
     let (mut ip, mut ic) = iq.split();
     let full = [AtomicU64::new(0), AtomicU64::new(0)];
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
-    let mut pcap =
-        PcapSource::open(&inp.pcap).map_err(|e| format!("{}: {e}", inp.pcap.display()))?;
+    let mut pcap = open_captures(&inp.pcap)?;
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
     std::thread::scope(|sc| {

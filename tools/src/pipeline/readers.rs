@@ -4,7 +4,8 @@
 
 use super::*;
 use spherecal::vn200::Framed;
-use spherecal_hal::serial::{ByteSource, FileSource, ReadOutcome, RxStamp};
+use spherecal_hal::pcap::PcapChain;
+use spherecal_hal::serial::{ByteSource, FileChain, ReadOutcome, RxStamp};
 use std::net::Ipv4Addr;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -92,8 +93,9 @@ pub fn end_lidar(ring: &mut heapless::spsc::Producer<'_, LidarItem>, gone: &Atom
 /// A trajectory file, opened: the VN-200 byte stream (a serial log's records joined), or an
 /// SBET reader with the GPS week that dates it.
 pub enum InsFile {
-    /// VN-200 bytes (raw, or a serial log's records with their stamps).
-    Vn200(FileSource),
+    /// VN-200 bytes (raw, or a serial log's records with their stamps), one file or several
+    /// (rotated logs) in name order.
+    Vn200(FileChain),
     /// SBET records, their GPS week, the file.
     Sbet(SbetReader<std::io::BufReader<std::fs::File>>, u16, PathBuf),
 }
@@ -102,9 +104,19 @@ impl InsFile {
     /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
     pub fn open(ins: &InsInput, pcap: &Path, leap: i64) -> Result<Self, String> {
         match ins {
-            InsInput::Vn200(p) => FileSource::open(p)
-                .map(Self::Vn200)
-                .map_err(|e| format!("{}: {e}", p.display())),
+            InsInput::Vn200(p) => {
+                let files = if p.is_dir() {
+                    return Err(format!(
+                        "{}: a folder; give the INS file or a pattern (e.g. DIR/*-ins-*.vnlog)",
+                        p.display()
+                    ));
+                } else {
+                    expand_files(p)?
+                };
+                FileChain::open(files)
+                    .map(Self::Vn200)
+                    .map_err(|e| e.to_string())
+            }
             InsInput::Sbet(p, week) => {
                 let week = match week {
                     Some(w) => *w,
@@ -366,9 +378,63 @@ impl Vn200Feed {
     }
 }
 
+/// The files `path` names: itself; a folder's `.pcap`/`.pcapng` files; or, with `*` or `?` in
+/// its file name, the files of its folder that match (the rig's rotated logs:
+/// `logs/20261122T084638Z-lidar-*.pcap`). Sorted by name; none is an error.
+pub fn expand_files(path: &Path) -> Result<Vec<PathBuf>, String> {
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let (dir, pattern) = if name.contains(['*', '?']) {
+        (path.parent().unwrap_or(Path::new(".")), Some(name))
+    } else if path.is_dir() {
+        (path, None)
+    } else {
+        return Ok(vec![path.to_path_buf()]);
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .filter(|p| {
+            let n = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            match pattern {
+                Some(pat) => glob_match(pat.as_bytes(), n.as_bytes()),
+                None => n.ends_with(".pcap") || n.ends_with(".pcapng"),
+            }
+        })
+        .collect();
+    out.sort();
+    if out.is_empty() {
+        return Err(format!("{}: no file matches", path.display()));
+    }
+    Ok(out)
+}
+
+/// `*` (any run) and `?` (any one byte) against a file name.
+fn glob_match(pat: &[u8], name: &[u8]) -> bool {
+    match (pat.first(), name.first()) {
+        (None, None) => true,
+        (Some(b'*'), _) => {
+            glob_match(&pat[1..], name) || (!name.is_empty() && glob_match(pat, &name[1..]))
+        }
+        (Some(b'?'), Some(_)) => glob_match(&pat[1..], &name[1..]),
+        (Some(a), Some(b)) if a == b => glob_match(&pat[1..], &name[1..]),
+        _ => false,
+    }
+}
+
+/// The capture(s) `path` names (see [`expand_files`]) as one source in time order.
+pub fn open_captures(path: &Path) -> Result<PcapChain, String> {
+    PcapChain::open(&expand_files(path)?).map_err(|e| e.to_string())
+}
+
 /// The GPS week of the first RMC date in a capture (for SBET times).
 pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
-    let mut src = PcapSource::open(pcap).ok()?;
+    let mut src = open_captures(pcap).ok()?;
     while let Ok(Some(rec)) = src.next_record() {
         if let Record::Udp(d) = rec {
             if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {
