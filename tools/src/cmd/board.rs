@@ -1,6 +1,6 @@
 //! `spherecal board set-mount BOARD --from REPORT.json`.
 
-use super::fail;
+use super::print_or_fail;
 use crate::config::board::Board;
 use crate::config::MountDegM;
 use crate::report::Report;
@@ -38,13 +38,7 @@ pub struct SetMountArgs {
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
     match a.what {
-        What::SetMount(a) => match set_mount(&a) {
-            Ok(text) => {
-                say!("{text}");
-                ExitCode::SUCCESS
-            }
-            Err(e) => fail("board set-mount", e),
-        },
+        What::SetMount(a) => print_or_fail("board set-mount", set_mount(&a)),
     }
 }
 

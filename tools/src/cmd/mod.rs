@@ -39,6 +39,17 @@ fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
     ExitCode::from(2)
 }
 
+/// Print the text and exit 0, or fail (exit 2) with the error.
+fn print_or_fail(cmd: &str, r: Result<String, String>) -> ExitCode {
+    match r {
+        Ok(text) => {
+            say!("{text}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(cmd, e),
+    }
+}
+
 /// Exit 0 when the result is claimed, else 1.
 fn claimed(ok: bool) -> ExitCode {
     if ok {

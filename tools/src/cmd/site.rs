@@ -1,6 +1,6 @@
 //! `spherecal site import SURVEY.csv --crs EPSG:n [--height ...] -o site.toml`.
 
-use super::{fail, parse6};
+use super::{parse6, print_or_fail};
 use crate::config::crs::{Crs, HeightSystem, SiteCrs};
 use crate::config::site::SiteApriori;
 use crate::config::survey::{import_csv, ImportOptions};
@@ -59,13 +59,7 @@ pub struct ImportArgs {
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
     match a.what {
-        What::Import(a) => match import(&a) {
-            Ok(text) => {
-                say!("{text}");
-                ExitCode::SUCCESS
-            }
-            Err(e) => fail("site import", e),
-        },
+        What::Import(a) => print_or_fail("site import", import(&a)),
     }
 }
 
