@@ -32,14 +32,13 @@ struct ToMap {
 }
 
 impl ToMap {
-    fn for_site(site: &Site) -> Result<Self, String> {
-        let (frame, _) = crate::pipeline::targets(site);
+    fn for_site(site: &Site, frame: spherecal::frames::LocalFrame) -> Result<Self, String> {
         let own = match &site.crs {
             Some(c) => Some((Crs::epsg(c.epsg)?, c)).filter(|(crs, _)| !crs.is_geographic()),
             None => None,
         };
         let (crs, undulation) = match own {
-            Some((crs, c)) => (crs, c.ellipsoidal(0.0)),
+            Some((crs, c)) => (crs, c.undulation()),
             None => {
                 let (lat, lon) = (site.origin.lat_deg, site.origin.lon_deg);
                 let zone = (((lon + 180.0) / 6.0).floor() as i32).clamp(0, 59) as u16 + 1;
@@ -112,8 +111,9 @@ pub struct LasOut {
 impl LasOut {
     /// Create the file for `site`'s points, in `frame`.
     pub fn create(path: &Path, site: &Site, frame: LasFrame) -> Result<Self, String> {
+        let (local, targets) = crate::pipeline::targets(site);
         let to_map = match frame {
-            LasFrame::Projected => Some(ToMap::for_site(site)?),
+            LasFrame::Projected => Some(ToMap::for_site(site, local)?),
             LasFrame::Local => None,
         };
         let mut b = las::Builder::from((1, 4));
@@ -163,7 +163,7 @@ impl LasOut {
         Ok(Self {
             w,
             to_map,
-            targets: crate::pipeline::targets(site).1,
+            targets,
             points: 0,
             error: None,
         })

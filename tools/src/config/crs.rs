@@ -163,6 +163,12 @@ impl SiteCrs {
         }
     }
 
+    /// What is subtracted from an ellipsoidal height to give this system's height (N for
+    /// orthometric heights, else 0).
+    pub fn undulation(&self) -> f64 {
+        self.ellipsoidal(0.0)
+    }
+
     /// A surveyed point (x, y, height) -> WGS84 latitude, longitude [deg], ellipsoidal
     /// height [m].
     pub fn to_wgs84(

@@ -165,9 +165,9 @@ impl Site {
         for (i, sp) in self.sphere.iter_mut().enumerate() {
             let key = format!("sphere[{i}] ({})", sp.id);
             let surveyed = (sp.easting, sp.northing, sp.height_m);
-            let (x, y, z) = match (surveyed, &crs) {
+            let (x, y, z, c, crs) = match (surveyed, &crs) {
                 ((None, None, None), _) => continue,
-                ((Some(x), Some(y), Some(z)), Some(_)) => (x, y, z),
+                ((Some(x), Some(y), Some(z)), Some((c, crs))) => (x, y, z, c, crs),
                 (_, None) => {
                     return Err(format!(
                         "{key}: easting/northing/height_m need a [crs] section (epsg, height)"
@@ -175,7 +175,6 @@ impl Site {
                 }
                 _ => return Err(format!("{key}: give all of easting, northing, height_m")),
             };
-            let (c, crs) = crs.as_ref().expect("matched Some above");
             let (lat, lon, h) = c
                 .to_wgs84(crs, x, y, z)
                 .map_err(|e| format!("{key}: {e}"))?;
