@@ -60,6 +60,10 @@ pub struct Observation {
     pub channel: u8,
     /// Laser id.
     pub laser: u8,
+    /// The trajectory's own 1-sigma at this return, from its accuracy file (POSPac smrmsg):
+    /// position [m] and attitude [rad]; 0 where none is given (the solver's noise model then
+    /// uses its settings). See [`crate::calib::objective::Noise`].
+    pub ins_sigma: [f32; 2],
     /// The calibration's working state (the return with the current mounting, and its verdict);
     /// callers leave it at its default.
     pub work: Work,
@@ -79,6 +83,7 @@ impl Default for Observation {
             block: 0,
             channel: 0,
             laser: 0,
+            ins_sigma: [0.0; 2],
             work: Work::default(),
         }
     }
@@ -390,6 +395,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                         block: p.block,
                         channel: p.channel,
                         laser: p.laser() as u8,
+                        ins_sigma: [0.0; 2],
                         work: Work::default(),
                     };
                     if b.obs.push(obs).is_err() {

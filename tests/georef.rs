@@ -47,6 +47,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         max_gap_ns: 50_000_000,
         time_offset_ns: 0,
         keep_untracked_ins: false,
+        accuracy: None,
     }
 }
 

@@ -24,6 +24,7 @@
 //! six parameters against the surveyed centres, re-georeferences, re-detects with a tighter
 //! prior and shell, until the kept set stops changing. Returns are tagged with a [`Verdict`].
 
+use super::objective::Noise;
 use crate::georef::Mount;
 use crate::window::{Observation, Target};
 use core::ops::Range;
@@ -707,11 +708,18 @@ pub fn detect(
 
 /// Tag the observations of a slice against a sphere of radius `r` centred at `c` (relative):
 /// `Kept` within `tau` of its surface on the visible side, `Hidden` within `tau` on the far
-/// side, `OutsideShell` otherwise. Returns the number kept.
-pub fn keep(obs: &mut [Observation], c: V3, r: f64, tau: f64) -> usize {
-    let (r, tau) = (r as f32, tau as f32);
+/// side, `OutsideShell` otherwise. Returns the number kept. A return whose trajectory is known
+/// to be noisier than the noise model's (its own INS sigmas, [`Noise::inflation`]) gets a shell
+/// wider by as much.
+pub fn keep(obs: &mut [Observation], c: V3, r: f64, tau: f64, noise: &Noise) -> usize {
+    let (r, tau0) = (r as f32, tau as f32);
     let mut n = 0;
     for o in obs.iter_mut() {
+        let tau = if o.ins_sigma == [0.0; 2] {
+            tau0
+        } else {
+            tau0 * noise.inflation(o) as f32
+        };
         let d = sub(o.work.x, c);
         let dist = norm(d);
         let e = dist - r;
@@ -951,7 +959,13 @@ mod tests {
         assert!(det.inliers as usize >= on_sphere * 9 / 10, "{det:?}");
         assert!(grid.iter().all(|&v| v == 0), "the grid is left clean");
         // Tagging keeps the sphere's returns and (almost) nothing else.
-        let kept = keep(&mut obs, det.center, r, 0.01);
+        let kept = keep(
+            &mut obs,
+            det.center,
+            r,
+            0.01,
+            &crate::calib::Settings::default().noise(),
+        );
         let true_kept = obs
             .iter()
             .filter(|o| o.packet == 1 && o.work.verdict == Verdict::Kept as u8)

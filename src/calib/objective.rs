@@ -18,6 +18,61 @@ pub struct SphereObs<'a> {
     pub obs: &'a [Observation],
 }
 
+/// The noise model of one residual (1 sigma): the sensor's range noise, the INS attitude noise
+/// times the range, the INS position noise and the 2 mm range quantisation, added in variance.
+/// An observation's own INS sigmas ([`Observation::ins_sigma`], from the trajectory's accuracy
+/// file) replace the model's where given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    /// Range noise [m].
+    pub range: f64,
+    /// INS attitude noise [rad].
+    pub attitude: f64,
+    /// INS position noise [m].
+    pub position: f64,
+}
+
+impl Noise {
+    /// The residual variance the model predicts for `o` [m^2].
+    #[inline]
+    pub fn variance(&self, o: &Observation) -> f64 {
+        let [pos, att] = o.ins_sigma;
+        let (pos, att) = (
+            if pos > 0.0 {
+                f64::from(pos)
+            } else {
+                self.position
+            },
+            if att > 0.0 {
+                f64::from(att)
+            } else {
+                self.attitude
+            },
+        );
+        let r = f64::from(o.range);
+        self.range * self.range + (r * att) * (r * att) + pos * pos + 0.002 * 0.002 / 12.0
+    }
+
+    /// How much noisier `o` is than the model alone says: the square root of its variance over
+    /// the model's at its range, at least 1 (1 without its own INS sigmas).
+    #[inline]
+    pub fn inflation(&self, o: &Observation) -> f64 {
+        let own = self.variance(o);
+        let model = self.variance(&Observation {
+            ins_sigma: [0.0; 2],
+            ..*o
+        });
+        libm::sqrt(own / model.max(1e-12)).max(1.0)
+    }
+
+    /// The least-squares weight of `o`: (1 cm)^2 over its variance (the scale cancels in the
+    /// estimate and its covariance; 1 cm keeps the weights near 1).
+    #[inline]
+    pub fn weight(&self, o: &Observation) -> f64 {
+        1e-4 / self.variance(o).max(1e-12)
+    }
+}
+
 /// The problem: spheres with their observations.
 #[derive(Debug, Clone, Copy)]
 pub struct Problem<'a> {
@@ -28,6 +83,17 @@ pub struct Problem<'a> {
     /// The time offset [s] to apply on top of the observations' poses (the INS clock minus the
     /// LiDAR's, beyond what the pipeline applied), to first order ([`Observation::georef_dt`]).
     pub dt: f64,
+    /// Weighted least squares with this noise model (each residual by the inverse of its
+    /// variance), or `None`: every residual alike.
+    pub weights: Option<Noise>,
+}
+
+impl Problem<'_> {
+    /// The least-squares weight of `o` (1 without a noise model).
+    #[inline]
+    pub fn weight(&self, o: &Observation) -> f64 {
+        self.weights.as_ref().map_or(1.0, |n| n.weight(o))
+    }
 }
 
 /// The parameters with the time offset: b and dt.
@@ -223,6 +289,7 @@ mod tests {
             spheres: &spheres,
             stride: 1,
             dt: 0.0,
+            weights: None,
         };
         let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
         let mut rows = std::vec::Vec::new();
@@ -261,6 +328,7 @@ mod tests {
             spheres: &spheres_m,
             stride: 1,
             dt,
+            weights: None,
         };
         let dt = 0.05;
         let mut rows7 = std::vec::Vec::new();

@@ -33,7 +33,7 @@
 use super::extract::{self, Directions, ExtractSettings, Verdict};
 use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
-use super::objective::{Problem, SphereObs};
+use super::objective::{Noise, Problem, SphereObs};
 use super::sphere_fit::fit_center;
 use super::{DegM, Params, P};
 use crate::georef::Mount;
@@ -96,6 +96,17 @@ pub struct Settings {
     pub extract: ExtractSettings,
     /// Estimate the time offset between the clocks with the six.
     pub estimate_dt: bool,
+}
+
+impl Settings {
+    /// The noise model of the residuals.
+    pub fn noise(&self) -> Noise {
+        Noise {
+            range: self.range_noise,
+            attitude: self.attitude_noise,
+            position: self.position_noise,
+        }
+    }
 }
 
 impl Default for Settings {
@@ -304,6 +315,7 @@ fn with_problem<R>(
     used: &[usize],
     stride: usize,
     dt: f64,
+    weights: Option<Noise>,
     f: impl FnOnce(&Problem<'_>) -> R,
 ) -> R {
     let mut spheres: heapless::Vec<SphereObs<'_>, MAX_TARGETS> = heapless::Vec::new();
@@ -317,6 +329,7 @@ fn with_problem<R>(
         spheres: &spheres,
         stride,
         dt,
+        weights,
     })
 }
 
@@ -363,21 +376,29 @@ fn residual(o: &Observation, t: &Target, b: &[f64; P], dt: f64) -> f64 {
     (o.georef_dt(&m, dt) - t.center).norm() - t.radius
 }
 
-/// The residual RMS the noise model predicts over the kept returns: range noise, the INS
-/// attitude noise times the range, the INS position noise, and the 2 mm range quantisation.
+/// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range
+/// noise, INS attitude noise times the range, INS position noise, the 2 mm range quantisation;
+/// each return's own INS sigmas where the trajectory's accuracy file gives them).
 fn predicted_rms(obs: &[&mut [Observation]], used: &[usize], s: &Settings) -> f64 {
+    let noise = s.noise();
     let (mut s2, mut n) = (0.0, 0usize);
     for (v, &u) in obs.iter().zip(used) {
         for o in &v[..u] {
-            let r = f64::from(o.range);
-            s2 += s.range_noise * s.range_noise
-                + (r * s.attitude_noise) * (r * s.attitude_noise)
-                + s.position_noise * s.position_noise
-                + 0.002 * 0.002 / 12.0;
+            s2 += noise.variance(o);
             n += 1;
         }
     }
     libm::sqrt(s2 / n.max(1) as f64)
+}
+
+/// The least squares are weighted by the noise model when the trajectory's accuracy file gave
+/// any kept return its own INS sigmas (the returns' variances then differ along the survey);
+/// otherwise every residual counts alike, as in the paper.
+fn weights(obs: &[&mut [Observation]], used: &[usize], s: &Settings) -> Option<Noise> {
+    obs.iter()
+        .zip(used)
+        .any(|(v, &u)| v[..u.min(v.len())].iter().any(|o| o.ins_sigma != [0.0; 2]))
+        .then(|| s.noise())
 }
 
 /// Each pass's sphere centre (fitted, radius fixed, to its kept returns with the solution)
@@ -554,6 +575,7 @@ fn extract_sphere(
     keys: &mut [(f32, u32)],
     dirs: &Directions,
     st: &ExtractSettings,
+    noise: &Noise,
     mut passes: Option<&mut [PassReport]>,
 ) -> (usize, u32, u32) {
     let (mut kept, mut slices, mut detected) = (0, 0, 0);
@@ -575,7 +597,7 @@ fn extract_sphere(
             Some(d) => {
                 detected += 1;
                 let c = if surveyed { [0.0; 3] } else { d.center };
-                kept += extract::keep(&mut v[sl.clone()], c, t.radius, tau);
+                kept += extract::keep(&mut v[sl.clone()], c, t.radius, tau, noise);
             }
             None => extract::tag(&mut v[sl.clone()], Verdict::Undetected),
         }
@@ -935,6 +957,7 @@ fn round_extract(
             ws.keys,
             &dirs,
             &s.extract,
+            &s.noise(),
             None,
         );
         r.counts[j] = (sl, det);
@@ -969,7 +992,7 @@ fn round_solve(
     if r.prior.is_none() {
         let most = lens[..n].iter().copied().max().unwrap_or(1);
         let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-        let mut nm = with_problem(targets, part, lens, stride, r.dt, |pb| {
+        let mut nm = with_problem(targets, part, lens, stride, r.dt, None, |pb| {
             minimize::<P, 7>(
                 |x| pb.l1(&DegM(*x).params().0),
                 &Params(r.b).deg_m().0,
@@ -985,7 +1008,8 @@ fn round_solve(
         for p in part.iter_mut().take(n) {
             p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
         }
-        let lm = with_problem(targets, part, lens, 1, r.dt, |pb| {
+        let w = weights(part, &lens[..n], s);
+        let lm = with_problem(targets, part, lens, 1, r.dt, w, |pb| {
             refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
         });
         r.b = lm.b;
@@ -1004,7 +1028,7 @@ fn next_shell(
     s: &Settings,
     r: &mut Rounds,
 ) -> f64 {
-    let med = with_problem(targets, part, lens, 1, r.dt, |pb| {
+    let med = with_problem(targets, part, lens, 1, r.dt, None, |pb| {
         let mut h = Histogram::new();
         pb.residuals(&r.b, |_, e| h.add(e.abs()));
         h.median()
@@ -1060,6 +1084,7 @@ fn last_extraction(
             ws.keys,
             &dirs,
             &s.extract,
+            &s.noise(),
             Some(&mut *mine),
         );
         r.counts[j] = (sl, det);
@@ -1101,8 +1126,9 @@ fn final_fit(
     r: &mut Rounds,
     sol: &mut Solution,
 ) {
+    let w = weights(obs, used, s);
     let lm = (found >= 2).then(|| {
-        with_problem(targets, obs, used, 1, r.dt, |pb| {
+        with_problem(targets, obs, used, 1, r.dt, w, |pb| {
             refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
         })
     });
@@ -1111,7 +1137,7 @@ fn final_fit(
         r.dt = l.dt;
     }
     if let (false, Some(l)) = (s.estimate_dt, &lm) {
-        let free = with_problem(targets, obs, used, 1, r.dt, |pb| {
+        let free = with_problem(targets, obs, used, 1, r.dt, w, |pb| {
             refine(pb, &l.b, s.lm_iter, s.cluster_ns, true)
         });
         if free.converged && free.dt.is_finite() && free.sigma_dt.is_finite() {
@@ -1121,7 +1147,7 @@ fn final_fit(
     sol.b = Params(r.b);
     sol.dt = r.dt;
     sol.lm = lm;
-    sol.l1 = with_problem(targets, obs, used, 1, r.dt, |pb| pb.l1(&r.b));
+    sol.l1 = with_problem(targets, obs, used, 1, r.dt, None, |pb| pb.l1(&r.b));
 }
 
 /// Per-sphere counts gathered on the way to the answer.

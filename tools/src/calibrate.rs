@@ -1,6 +1,7 @@
 //! `spherecal calibrate`: the pipeline, then the solver, then the report (JSON, a human
 //! summary, optionally the calibrated cloud as LAS and the residual plots as SVG).
 
+use crate::pipeline::accuracy::Accuracy;
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
 pub use crate::report::{
     render, Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
@@ -363,9 +364,26 @@ pub fn calibrate(
         position_noise: noise.position_m,
         ..Default::default()
     };
+    let accuracy = match (&inp.accuracy, &inp.ins) {
+        (Some(p), crate::pipeline::InsInput::Sbet(_, week)) => Some(Accuracy::load(
+            p,
+            crate::pipeline::sbet_week(*week, &inp.pcap, inp.site.leap_seconds)?,
+        )?),
+        (Some(p), _) => {
+            return Err(format!(
+                "{}: an accuracy file goes with an SBET trajectory",
+                p.display()
+            ))
+        }
+        (None, _) => None,
+    };
+    let mut used_accuracy = None;
     let mut attempt = |applied: f64| -> Result<_, String> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let (stats, mut obs) = collect(inp)?;
+        if let Some(a) = &accuracy {
+            used_accuracy = Some(a.apply(&mut obs));
+        }
         let (sol, rep) = solve_report(targets, ids, &mut obs, b0, &settings);
         Ok((stats, obs, sol, rep))
     };
@@ -417,7 +435,9 @@ pub fn calibrate(
     rep.time_offset_s += applied;
     rep.start.insert("time_offset".to_string(), start);
     rep.batch_overflow = stats.align.batch_overflow;
-    rep.inputs = Some(InputsReport::of(inp, &stats));
+    let mut inputs = InputsReport::of(inp, &stats);
+    inputs.accuracy = used_accuracy;
+    rep.inputs = Some(inputs);
     // The LiDAR clock.
     if rep.converged && !stats.clock.trusted() {
         let explained = stats

@@ -34,6 +34,9 @@ pub struct Survey {
     pub sbet: Option<PathBuf>,
     /// The SBET's GPS week.
     pub gps_week: Option<u16>,
+    /// The SBET's accuracy file (POSPac smrmsg; None: `smrmsg_NAME` beside `sbet_NAME` if
+    /// there).
+    pub smrmsg: Option<PathBuf>,
     /// site.toml.
     pub site: PathBuf,
 }
@@ -46,6 +49,7 @@ impl Survey {
             ins: Some(dir.join("ins.bin")),
             sbet: None,
             gps_week: None,
+            smrmsg: None,
             site: dir.join("site.toml"),
         }
     }
@@ -118,12 +122,18 @@ pub fn run_calibrate(
     let site = config::site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = start.params();
-    let ins = match (survey.ins, survey.sbet) {
-        (Some(i), _) => InsInput::Vn200(i),
-        (None, Some(s)) => InsInput::Sbet(s, survey.gps_week),
+    let (ins, accuracy) = match (survey.ins, survey.sbet) {
+        (Some(i), _) => (InsInput::Vn200(i), None),
+        (None, Some(s)) => {
+            let acc = survey
+                .smrmsg
+                .or_else(|| pipeline::accuracy::beside_sbet(&s));
+            (InsInput::Sbet(s, survey.gps_week), acc)
+        }
         (None, None) => return Err("give --ins or --sbet".into()),
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
+    inp.accuracy = accuracy;
     inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     let (targets, ids) = calibrate::site_targets(&inp);

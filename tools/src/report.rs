@@ -381,6 +381,23 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         ))
     );
     }
+    if let Some(a) = r.inputs.as_ref().and_then(|i| i.accuracy.as_ref()) {
+        let _ = writeln!(
+            o,
+            "trajectory accuracy {}: {} returns weighted by their own INS sigma (position {:.1}-{:.1} mm, attitude {:.4}-{:.4} deg){}",
+            a.file,
+            a.returns_given,
+            a.position_sigma_m[0] * 1e3,
+            a.position_sigma_m[1] * 1e3,
+            a.attitude_sigma_deg[0],
+            a.attitude_sigma_deg[1],
+            if a.returns_outside > 0 {
+                format!("; {} outside its records use the site's noise", a.returns_outside)
+            } else {
+                String::new()
+            }
+        );
+    }
     for p in &r.per_sphere {
         let v = &p.verdicts;
         if !p.found {
@@ -467,6 +484,10 @@ pub struct InputsReport {
     pub packets_without_time: u64,
     /// The time offset the windows were collected at [s].
     pub time_offset_applied_s: f64,
+    /// The trajectory's accuracy file and what it gave the returns (the noise model's INS
+    /// sigmas), when one was read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<crate::pipeline::accuracy::AccuracyReport>,
 }
 
 impl InputsReport {
@@ -490,6 +511,7 @@ impl InputsReport {
             not_georeferenced: [w.before_history, w.after_history, w.in_gap],
             packets_without_time: stats.align.packets_without_time,
             time_offset_applied_s: inp.time_offset_ns as f64 * 1e-9,
+            accuracy: None,
         }
     }
 }

@@ -125,6 +125,9 @@ pub const EXCLUDED_NAMES: [&str; 4] = ["not tracking", "aligning", "GNSS lost", 
 pub struct InsState {
     /// Bytes read.
     pub bytes: u64,
+    /// SBET records read (0 for a VN-200 stream).
+    #[serde(default)]
+    pub sbet_records: u64,
     /// Binary frames accepted (VN-200).
     pub frames: u64,
     /// Binary candidates whose CRC failed.
@@ -201,10 +204,17 @@ impl InsState {
 
     /// Lines for people.
     pub fn describe(&self) -> String {
-        let mut o = format!(
-            "INS: {} bytes, {} binary frames, {} CRC failures, {} bytes skipped, {} $VN, {} NMEA; {} poses used",
-            self.bytes, self.frames, self.crc_failures, self.skipped_bytes, self.ascii, self.nmea, self.poses
-        );
+        let mut o = if self.sbet_records > 0 {
+            format!(
+                "SBET: {} bytes, {} records; {} poses used",
+                self.bytes, self.sbet_records, self.poses
+            )
+        } else {
+            format!(
+                "INS: {} bytes, {} binary frames, {} CRC failures, {} bytes skipped, {} $VN, {} NMEA; {} poses used",
+                self.bytes, self.frames, self.crc_failures, self.skipped_bytes, self.ascii, self.nmea, self.poses
+            )
+        };
         if let Some((a, b)) = self.span {
             let _ = write!(o, " ({:.1} s)", b - a);
         }

@@ -60,6 +60,7 @@ pub fn run(a: Args) -> ExitCode {
         ins: s.ins,
         sbet: s.sbet,
         gps_week: s.gps_week,
+        smrmsg: s.smrmsg,
         site: s.site,
     };
     let out = crate::Outputs {

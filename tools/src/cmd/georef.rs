@@ -46,6 +46,7 @@ pub fn run(a: Args) -> ExitCode {
         sbet,
         gps_week,
         site,
+        ..
     } = a.survey;
     let site = match crate::config::site::Site::load(&site) {
         Ok(s) => s,
@@ -66,6 +67,7 @@ pub fn run(a: Args) -> ExitCode {
         max_gap_ns: (a.max_gap_ms * 1e6) as i64,
         time_offset_ns: (a.time_offset * 1e9).round() as i64,
         keep_untracked_ins: a.keep_untracked_ins,
+        accuracy: None,
         site,
     };
     match crate::georef::georef(

@@ -74,6 +74,11 @@ pub struct Survey {
     /// GPS week of the SBET (default: from the capture's RMC date).
     #[arg(long)]
     pub gps_week: Option<u16>,
+    /// The SBET's accuracy file (POSPac smrmsg): the calibration weighs each return by the
+    /// trajectory's own position and attitude sigma at its time (default: `smrmsg_NAME.out`
+    /// beside `sbet_NAME.out`, when there).
+    #[arg(long, requires = "sbet")]
+    pub smrmsg: Option<PathBuf>,
     /// site.toml: spheres, origin, a-priori values.
     #[arg(long)]
     pub site: PathBuf,

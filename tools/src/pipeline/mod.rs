@@ -14,13 +14,15 @@
 //!   feed and SBET records into poses), shared with the rig;
 //! - [`feed`]: the core aligner fed from the rings, with the file or live waiting policy.
 
+pub mod accuracy;
 mod feed;
 mod readers;
 
 pub use feed::{AlignStorage, Aligner, InsWait};
 pub use readers::{
-    end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, vn200_pose,
-    week_from_capture, Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
+    end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, sbet_week,
+    vn200_pose, week_from_capture, Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
+    Vn200Feed,
 };
 
 use crate::config::site::Site;
@@ -144,6 +146,9 @@ pub struct Inputs {
     pub time_offset_ns: i64,
     /// Use VN-200 poses whose InsStatus says not tracking (aligning, GNSS lost, no fix) too.
     pub keep_untracked_ins: bool,
+    /// The trajectory's accuracy file (POSPac smrmsg), if any: the calibration's noise model
+    /// takes each return's INS sigmas from it ([`accuracy`]).
+    pub accuracy: Option<PathBuf>,
 }
 
 impl Inputs {
@@ -165,6 +170,7 @@ impl Inputs {
             max_gap_ns: 50_000_000,
             time_offset_ns: 0,
             keep_untracked_ins: false,
+            accuracy: None,
             site,
         }
     }

@@ -118,15 +118,7 @@ impl InsFile {
                     .map_err(|e| e.to_string())
             }
             InsInput::Sbet(p, week) => {
-                let week = match week {
-                    Some(w) => *w,
-                    None => week_from_capture(pcap, leap).ok_or_else(|| {
-                        format!(
-                            "{}: no RMC date in the capture to date the SBET; give --gps-week",
-                            pcap.display()
-                        )
-                    })?,
-                };
+                let week = sbet_week(*week, pcap, leap)?;
                 let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
                 Ok(Self::Sbet(
                     SbetReader::new(std::io::BufReader::new(f)),
@@ -135,6 +127,20 @@ impl InsFile {
                 ))
             }
         }
+    }
+}
+
+/// The GPS week of a POSPac file (SBET, smrmsg: their times are seconds of week): `week` if
+/// given, else the capture's RMC date.
+pub fn sbet_week(week: Option<u16>, pcap: &Path, leap: i64) -> Result<u16, String> {
+    match week {
+        Some(w) => Ok(w),
+        None => week_from_capture(pcap, leap).ok_or_else(|| {
+            format!(
+                "{}: no RMC date in the capture to date the SBET; give --gps-week",
+                pcap.display()
+            )
+        }),
     }
 }
 
@@ -227,6 +233,7 @@ pub fn ins_file_reader(
                 enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
             }
             st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
+            st.sbet_records = rd.records;
             st.without_pose += rd.invalid;
             Ok((st, Vec::new()))
         }
