@@ -8,6 +8,7 @@ pub mod config;
 pub mod decode;
 pub mod fixtures;
 pub mod georef;
+pub mod html;
 pub mod ins;
 pub mod montecarlo;
 pub mod pipeline;
@@ -64,6 +65,8 @@ pub struct Outputs {
     pub las: Option<PathBuf>,
     /// Residual plots (SVG).
     pub plot: Option<PathBuf>,
+    /// The report as one self-contained HTML page.
+    pub html: Option<PathBuf>,
     /// Every windowed return with its verdict (CSV).
     pub returns: Option<PathBuf>,
     /// Where the LAS coordinates are.
@@ -161,9 +164,17 @@ pub fn run_calibrate(
         let (_, _, t) = georef::georef(&inp2, Some((p, out.las_frame)), None)?;
         text.push_str(&t);
     }
-    if let Some(p) = &out.plot {
-        plot::plot(p, &targets, &ids, &obs, &sol, &b0)?;
-        text.push_str(&format!("plot: {}\n", p.display()));
+    if out.plot.is_some() || out.html.is_some() {
+        let figs = plot::Figures::new(&targets, &ids, &obs, &sol, &b0, &rep);
+        if let Some(p) = &out.plot {
+            plot::plot(p, &figs)?;
+            text.push_str(&format!("plot: {}\n", p.display()));
+        }
+        if let Some(p) = &out.html {
+            let page = html::render(&rep, &figs, inp.site.leap_seconds)?;
+            std::fs::write(p, page).map_err(|e| format!("{}: {e}", p.display()))?;
+            text.push_str(&format!("report (HTML): {}\n", p.display()));
+        }
     }
     Ok((text, rep.converged))
 }

@@ -25,9 +25,13 @@ pub struct Args {
     /// record) or `local` (east-north-up metres from the site origin).
     #[arg(long, value_enum, default_value_t = crate::georef::LasFrame::Projected)]
     pub las_frame: crate::georef::LasFrame,
-    /// Write residual plots (SVG).
+    /// Write the figures (residual histograms, residuals against time, 1:1 cross-sections per
+    /// sphere) as one SVG.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Write the report as one self-contained HTML page (inline figures, no network).
+    #[arg(long)]
+    pub html: Option<PathBuf>,
     /// Write every windowed return with its verdict (kept, or why not) as CSV.
     #[arg(long)]
     pub returns: Option<PathBuf>,
@@ -68,6 +72,7 @@ pub fn run(a: Args) -> ExitCode {
         las: a.las,
         las_frame: a.las_frame,
         plot: a.plot,
+        html: a.html,
         returns: a.returns,
     };
     let (init, start) = match &a.init_from {

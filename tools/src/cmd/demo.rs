@@ -60,6 +60,7 @@ pub fn run(a: Args) -> ExitCode {
     ];
     let out = crate::Outputs {
         report: Some(dir.join("report.json")),
+        html: Some(dir.join("report.html")),
         ..Default::default()
     };
     let res = crate::run_calibrate(
@@ -72,7 +73,11 @@ pub fn run(a: Args) -> ExitCode {
     let code = match res {
         Ok((text, ok)) => {
             say!("{text}");
-            sayln!("report: {}", dir.join("report.json").display());
+            sayln!(
+                "report: {} (open {} in a browser)",
+                dir.join("report.json").display(),
+                dir.join("report.html").display()
+            );
             sayln!(
                 "the survey's files are in {d}/ (lidar.pcap, ins.bin, site.toml, truth.json); try\n  spherecal calibrate --pcap {d}/lidar.pcap --ins {d}/ins.bin --site {d}/site.toml",
                 d = dir.display()

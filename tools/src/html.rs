@@ -1,0 +1,463 @@
+//! The calibration as one self-contained HTML page (`calibrate --html`): no script, no
+//! network, the figures inline SVG ([`crate::plot`]). In the order a surveyor reads it: the
+//! verdict (and the refusal's reason), the parameters with their sigma and change from the
+//! start, the checks, the inputs and their state, each sphere and pass, the correlations, and
+//! the figures.
+
+use crate::plot::{sphere_figures, strip_xml_header, Figures};
+use crate::report::Report;
+use spherecal::calib::{NAMES, P};
+use std::fmt::Write as _;
+
+/// `s` with `&`, `<`, `>` and `"` escaped.
+pub fn escape(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            _ => o.push(c),
+        }
+    }
+    o
+}
+
+/// `v` with `prec` decimals, or a dash when it is not a number.
+fn num(v: f64, prec: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.prec$}")
+    } else {
+        "&ndash;".into()
+    }
+}
+
+/// GPS seconds as UTC (`leap`: GPS - UTC [s]).
+fn utc(gps_s: f64, leap: i64) -> String {
+    let unix = spherecal::time::gps_to_unix_ns(
+        spherecal::time::GpsTime((gps_s * 1e9).round() as i64),
+        leap,
+    );
+    let t = spherecal::time::UtcDateTime::from_unix_ns(unix);
+    format!(
+        "{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC",
+        t.year, t.month, t.day, t.hour, t.minute, t.second
+    )
+}
+
+const STYLE: &str = "body{font-family:sans-serif;margin:24px;color:#222;max-width:1500px}
+h1{font-size:22px}h2{font-size:18px;margin-top:28px;border-bottom:1px solid #ccc}
+table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
+th{background:#f2f2f2}td.l,th.l{text-align:left}
+.ok{background:#e3f4e3;border:2px solid #3a3;padding:10px 14px;font-size:17px}
+.no{background:#fbe4e4;border:2px solid #c33;padding:10px 14px;font-size:17px}
+.figs{display:flex;flex-wrap:wrap;gap:6px}.figs svg{border:1px solid #ddd}
+.note{color:#555;font-size:13px}";
+
+/// The page.
+pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, String> {
+    let mut o = String::new();
+    let title = r
+        .inputs
+        .as_ref()
+        .map_or("calibration".to_string(), |i| i.pcap.clone());
+    let _ = write!(
+        o,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>spherecal: {}</title><style>{STYLE}</style></head><body>\n",
+        escape(&title)
+    );
+    let _ = writeln!(
+        o,
+        "<h1>LiDAR boresight and lever-arm calibration</h1><p class=\"note\">{} &middot; written {}</p>",
+        escape(&r.version),
+        utc(
+            spherecal::time::unix_ns_to_gps(spherecal_hal::clock::wall().0, leap).as_secs_f64(),
+            leap
+        )
+    );
+    verdict(&mut o, r);
+    parameters(&mut o, r);
+    checks(&mut o, r);
+    inputs(&mut o, r, leap);
+    spheres(&mut o, r);
+    correlation(&mut o, r);
+    search(&mut o, r);
+    figures(&mut o, figs)?;
+    o.push_str("</body></html>\n");
+    Ok(o)
+}
+
+fn verdict(o: &mut String, r: &Report) {
+    match &r.reason {
+        None => {
+            let _ = writeln!(
+                o,
+                "<p class=\"ok\"><b>Converged.</b> The solution passed the consistency tests (residuals as the noise model predicts, every pass agreeing, the geometry well conditioned).</p>"
+            );
+        }
+        Some(why) => {
+            let _ = writeln!(
+                o,
+                "<p class=\"no\"><b>Refused: no calibration is claimed.</b> {}<br>The values below are where the solver stopped.</p>",
+                escape(why)
+            );
+        }
+    }
+}
+
+fn parameters(o: &mut String, r: &Report) {
+    o.push_str("<h2>Mounting</h2><table><tr><th class=\"l\">parameter</th><th>start</th><th>solution</th><th>1-sigma</th><th>change</th><th class=\"l\">unit</th></tr>\n");
+    let (b, s) = (r.deg_m(), r.sigma.deg_m());
+    let label = [
+        "boresight roll",
+        "boresight pitch",
+        "boresight heading",
+        "lever arm x",
+        "lever arm y",
+        "lever arm z",
+    ];
+    for i in 0..P {
+        let start = r.start.get(NAMES[i]).copied().unwrap_or(f64::NAN);
+        let (unit, prec) = if i < 3 { ("deg", 5) } else { ("m", 5) };
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td><b>{}</b></td><td>{}</td><td>{}</td><td class=\"l\">{unit}</td></tr>",
+            label[i],
+            num(start, 4),
+            num(b[i], prec),
+            num(s[i], prec),
+            num(b[i] - start, prec)
+        );
+    }
+    let start = r.start.get("time_offset").copied().unwrap_or(0.0);
+    let _ = writeln!(
+        o,
+        "<tr><td class=\"l\">time offset (INS - LiDAR)</td><td>{}</td><td><b>{}</b></td><td>{}</td><td>{}</td><td class=\"l\">s</td></tr></table>",
+        num(start, 4),
+        num(r.time_offset_s, 6),
+        if r.time_offset_estimated {
+            num(r.sigma.time_offset_s, 6)
+        } else {
+            "held".into()
+        },
+        num(r.time_offset_s - start, 6)
+    );
+    o.push_str("<p class=\"note\">Roll, pitch, heading rotate the LiDAR frame into the INS body frame (z-y-x, DESIGN.md); the lever arm is the LiDAR origin in the INS body frame.</p>\n");
+}
+
+fn checks(o: &mut String, r: &Report) {
+    let c = &r.consistency;
+    o.push_str("<h2>Checks</h2><table>");
+    let mut row = |k: &str, v: String, limit: &str| {
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{k}</td><td>{v}</td><td class=\"l\">{limit}</td></tr>"
+        );
+    };
+    row(
+        "residual RMS",
+        format!("{} mm", num(r.rms_m * 1e3, 2)),
+        &format!(
+            "the noise model predicts {} mm",
+            num(c.predicted_rms_m * 1e3, 2)
+        ),
+    );
+    row(
+        "dispersion (RMS / predicted)",
+        num(c.dispersion, 2),
+        "refused above 2",
+    );
+    row(
+        "worst pass chi-square",
+        num(c.worst_pass_chi2, 1),
+        "refused above 25 (3 degrees of freedom) with more than 3 mm",
+    );
+    row(
+        "condition number",
+        if r.condition_number.is_finite() {
+            format!("{:.3e}", r.condition_number)
+        } else {
+            "&ndash;".into()
+        },
+        "refused above 1000; parameters named weak above 100",
+    );
+    row(
+        "weak parameters",
+        if r.weak_parameters.is_empty() {
+            "none".into()
+        } else {
+            escape(&r.weak_parameters.join(", "))
+        },
+        "",
+    );
+    row(
+        "fitted minus surveyed centres, RMS",
+        r.sphere_centre_rms_m
+            .map_or("&ndash;".into(), |v| format!("{:.2} mm", v * 1e3)),
+        "",
+    );
+    if let Some([d, s]) = c.free_time_offset_s {
+        row(
+            "time offset held; the data give",
+            format!("{d:+.6} &plusmn; {s:.6} s more"),
+            "refused beyond 5 sigma and 1 ms",
+        );
+    }
+    row(
+        "clutter rejected",
+        format!(
+            "{} of {} windowed returns",
+            r.clutter_rejected,
+            r.per_sphere.iter().map(|p| p.windowed).sum::<usize>()
+        ),
+        &format!("kept: within {:.1} mm of a sphere", r.shell_m * 1e3),
+    );
+    row(
+        "solver",
+        format!(
+            "{} rounds, {} Nelder-Mead evaluations, {} LM iterations, {:.1} ms",
+            r.rounds, r.evaluations, r.lm_iterations, r.solve_ms
+        ),
+        "",
+    );
+    if r.batch_overflow > 0 {
+        row(
+            "<b>returns lost to full batches</b>",
+            r.batch_overflow.to_string(),
+            "never expected",
+        );
+    }
+    o.push_str("</table>\n");
+}
+
+fn inputs(o: &mut String, r: &Report, leap: i64) {
+    let Some(i) = &r.inputs else { return };
+    o.push_str("<h2>Inputs</h2><table>");
+    let mut row = |k: &str, v: String| {
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{k}</td><td class=\"l\">{v}</td></tr>"
+        );
+    };
+    row("LiDAR capture", escape(&i.pcap));
+    row(
+        "data packets",
+        format!(
+            "{}{}",
+            i.data_packets,
+            i.lidar_span_gps_s.map_or(String::new(), |(a, b)| format!(
+                " from {} to {} ({:.1} s)",
+                utc(a, leap),
+                utc(b, leap),
+                b - a
+            ))
+        ),
+    );
+    let skipped: u64 = i.skipped.values().sum();
+    row(
+        "skipped",
+        if skipped == 0 {
+            "none".into()
+        } else {
+            escape(
+                &i.skipped
+                    .iter()
+                    .map(|(k, v)| format!("{k}: {v}"))
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            )
+        },
+    );
+    row(
+        "LiDAR clock",
+        format!(
+            "{}{}",
+            escape(&i.clock.describe()),
+            if i.clock_trusted {
+                ""
+            } else {
+                " &mdash; <b>not trusted</b>"
+            }
+        ),
+    );
+    row("trajectory", escape(&i.ins));
+    row("trajectory state", escape(&i.ins_state.describe()));
+    if let Some(a) = &i.accuracy {
+        row(
+            "trajectory accuracy",
+            format!(
+                "{}: {} returns weighted by their own sigma (position {:.1}&ndash;{:.1} mm, attitude {:.4}&ndash;{:.4} deg); {} outside its records",
+                escape(&a.file),
+                a.returns_given,
+                a.position_sigma_m[0] * 1e3,
+                a.position_sigma_m[1] * 1e3,
+                a.attitude_sigma_deg[0],
+                a.attitude_sigma_deg[1],
+                a.returns_outside
+            ),
+        );
+    }
+    let [b, a, g] = i.not_georeferenced;
+    row(
+        "returns not georeferenced",
+        format!("{b} before the trajectory, {a} after it, {g} in its gaps"),
+    );
+    row(
+        "time offset applied to the windows",
+        format!("{:.6} s", i.time_offset_applied_s),
+    );
+    o.push_str("</table>\n");
+}
+
+fn spheres(o: &mut String, r: &Report) {
+    o.push_str("<h2>Spheres</h2><table><tr><th class=\"l\">sphere</th><th>windowed</th><th>kept</th><th>seen in slices</th><th>RMS before [mm]</th><th>RMS after [mm]</th><th>fitted - surveyed N, E, D [mm]</th><th class=\"l\">rejected</th></tr>\n");
+    for p in &r.per_sphere {
+        let v = &p.verdicts;
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{} of {}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+            escape(&p.id),
+            p.windowed,
+            if p.found { p.points.to_string() } else { "<b>not found</b>".into() },
+            p.detected,
+            p.slices,
+            num(p.rms_before_m * 1e3, 1),
+            num(p.rms_after_m * 1e3, 2),
+            p.centre_offset_m.map_or("&ndash;".into(), |c| format!(
+                "{:+.1}, {:+.1}, {:+.1}",
+                c[0] * 1e3,
+                c[1] * 1e3,
+                c[2] * 1e3
+            )),
+            format_args!(
+                "{} off the sphere, {} in slices without it, {} on a plane, {} on a pole, {} behind it",
+                v.outside_shell, v.undetected, v.plane, v.pole, v.hidden_side
+            )
+        );
+    }
+    o.push_str("</table>\n<h3>Passes</h3><table><tr><th class=\"l\">sphere</th><th>pass</th><th>start [s]</th><th>duration [s]</th><th>windowed</th><th>kept</th><th>detected slices</th><th>centre offset [mm]</th><th>along track [mm]</th><th>chi-square</th></tr>\n");
+    let t0 = r
+        .per_pass
+        .iter()
+        .map(|p| p.start_gps_s)
+        .fold(f64::INFINITY, f64::min);
+    let mut count: std::collections::BTreeMap<&str, usize> = Default::default();
+    for p in &r.per_pass {
+        let k = count.entry(p.sphere.as_str()).or_default();
+        *k += 1;
+        let c = p.centre_offset_m;
+        let d = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{k}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{} of {}</td><td>{:.1}</td><td>{:+.1}</td><td>{:.1}</td></tr>",
+            escape(&p.sphere),
+            p.start_gps_s - t0,
+            p.end_gps_s - p.start_gps_s,
+            p.windowed,
+            p.verdicts.kept,
+            p.detected,
+            p.slices,
+            d * 1e3,
+            p.along_track_m * 1e3,
+            p.chi2
+        );
+    }
+    o.push_str("</table><p class=\"note\">Pass: numbered per sphere in time order, as in the figures. Start: seconds after the first pass. Centre offset: the sphere fitted to the pass's own returns with the solution, minus the surveyed centre (zero under 10 returns).</p>\n");
+}
+
+fn correlation(o: &mut String, r: &Report) {
+    if r.correlation.is_empty() {
+        return;
+    }
+    let n = if r.time_offset_estimated { P + 1 } else { P };
+    let labels: Vec<String> = (0..n)
+        .map(|i| {
+            r.correlation_labels
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| i.to_string())
+        })
+        .collect();
+    o.push_str("<h2>Correlations</h2><table><tr><th></th>");
+    for l in &labels {
+        let _ = write!(o, "<th>{}</th>", escape(l));
+    }
+    o.push_str("</tr>\n");
+    for (i, l) in labels.iter().enumerate() {
+        let _ = write!(o, "<tr><th class=\"l\">{}</th>", escape(l));
+        for j in 0..n {
+            let v = r
+                .correlation
+                .get(i)
+                .and_then(|row| row.get(j))
+                .copied()
+                .unwrap_or(f64::NAN);
+            // Shade by |r|: white at 0, red at 1.
+            let a = if v.is_finite() { v.abs().min(1.0) } else { 0.0 };
+            let g = (255.0 - 150.0 * a) as u8;
+            let _ = write!(
+                o,
+                "<td style=\"background:rgb(255,{g},{g})\">{}</td>",
+                num(v, 2)
+            );
+        }
+        o.push_str("</tr>\n");
+    }
+    o.push_str("</table>\n");
+}
+
+fn search(o: &mut String, r: &Report) {
+    if r.time_offset_search.is_empty() {
+        return;
+    }
+    o.push_str("<h2>Time offset search</h2><table><tr><th>start [s]</th><th>found [s]</th><th>returns kept</th><th>RMS [mm]</th></tr>\n");
+    for c in &r.time_offset_search {
+        let _ = writeln!(
+            o,
+            "<tr><td>{:+.2}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            c.start_s,
+            c.found_s.map_or("&ndash;".into(), |f| format!("{f:+.4}")),
+            c.kept,
+            c.rms_m.map_or("&ndash;".into(), |v| num(v * 1e3, 2))
+        );
+    }
+    o.push_str("</table>\n");
+}
+
+fn figures(o: &mut String, f: &Figures) -> Result<(), String> {
+    o.push_str("<h2>Figures</h2><p class=\"note\">Per sphere: the kept returns' distance from the surveyed sphere's surface with the starting mounting and with the solution (each histogram on its own axis), the residuals after against time coloured by pass, and cross-sections at 1:1 (horizontal distance from the surveyed centre against height above it; the line is the sphere).</p>\n");
+    if f.spheres.is_empty() {
+        o.push_str("<p>No sphere returns were kept: nothing to draw.</p>\n");
+    }
+    for d in &f.spheres {
+        let _ = writeln!(o, "<h3>{}</h3><div class=\"figs\">", escape(&d.id));
+        for svg in sphere_figures(d)? {
+            o.push_str(strip_xml_header(&svg));
+            o.push('\n');
+        }
+        o.push_str("</div>\n");
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escapes_markup() {
+        assert_eq!(
+            escape("<a href=\"x\">&</a>"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;"
+        );
+    }
+
+    /// By hand: 2024-06-12 11:00:00 UTC is Unix 1718190000 (19886 days x 86400 + 39600); the
+    /// GPS epoch is Unix 315964800, and GPS ran 18 s ahead of UTC then.
+    #[test]
+    fn gps_seconds_as_utc() {
+        let gps = 1_718_190_000.0 - 315_964_800.0 + 18.0;
+        assert_eq!(utc(gps, 18), "2024-06-12 11:00:00 UTC");
+    }
+}
