@@ -1,10 +1,12 @@
-//! Any bytes as an SBET file: the reader ends (end, or why it is not an SBET) without a panic;
-//! every record it returns is finite, in range and later than the one before (a week rollover
-//! aside); its counts add up to the bytes given.
+//! Any bytes as an SBET file, and as an smrmsg file: the reader ends (end, or why it is not
+//! one) without a panic; every record it returns is finite, in range and later than the one
+//! before (a week rollover aside); its counts add up to the bytes given.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal_hal::sbet::{SbetError, SbetReader, RECORD};
+use spherecal_hal::sbet::{
+    PospacRecord, SbetError, SbetReader, SmrmsgReader, RECORD, SMRMSG_RECORD,
+};
 
 fuzz_target!(|data: &[u8]| {
     let mut rd = SbetReader::new(data);
@@ -37,5 +39,37 @@ fuzz_target!(|data: &[u8]| {
     if finished {
         assert_eq!(rd.records as usize * RECORD + rd.trailing, data.len());
         assert!(rd.invalid * 10 <= rd.records);
+    }
+
+    // The same bytes as an smrmsg file.
+    let mut rd = SmrmsgReader::new(data);
+    let mut last: Option<f64> = None;
+    let mut returned = 0u64;
+    let finished = loop {
+        match rd.next_record() {
+            Ok(Some(r)) => {
+                assert!(r.is_valid());
+                if let Some(l) = last {
+                    assert!(r.tow_s > l || (l > 600_000.0 && r.tow_s < 4_800.0));
+                }
+                last = Some(r.tow_s);
+                assert!(r.position_sigma_m().is_finite() && r.position_sigma_m() >= 0.0);
+                assert!(r.attitude_sigma_rad().is_finite() && r.attitude_sigma_rad() >= 0.0);
+                returned += 1;
+            }
+            Ok(None) => break None,
+            Err(e) => {
+                let _ = e.to_string();
+                break Some(e);
+            }
+        }
+    };
+    let out_of_order = u64::from(matches!(finished, Some(SbetError::TimeOrder { .. })));
+    assert_eq!(returned + rd.invalid + out_of_order, rd.records);
+    if finished.is_none() {
+        assert_eq!(
+            rd.records as usize * SMRMSG_RECORD + rd.trailing,
+            data.len()
+        );
     }
 });
