@@ -204,4 +204,33 @@ fn smrmsg_sigmas_weigh_the_returns() {
     // mix the smrmsg gives, which its residuals follow.
     let predicted = |v: &serde_json::Value| v["consistency"]["predicted_rms_m"].as_f64().unwrap();
     assert!(predicted(&weighted) > 1.3 * predicted(&plain));
+
+    // The SBET in two files named against their time order, given one by one with the
+    // smrmsg: the same calibration.
+    let sbet = std::fs::read(dir.join("sbet_t.out")).unwrap();
+    let half = sbet.len() / 136 / 2 * 136;
+    std::fs::write(dir.join("part-b.out"), &sbet[..half]).unwrap();
+    std::fs::write(dir.join("part-a.out"), &sbet[half..]).unwrap();
+    let r = dir.join("parts.json");
+    common::stdout_of(
+        spherecal()
+            .arg("calibrate")
+            .arg("--pcap")
+            .arg(dir.join("lidar.pcap"))
+            .arg("--sbet")
+            .arg(dir.join("part-a.out"))
+            .arg(dir.join("part-b.out"))
+            .arg("--smrmsg")
+            .arg(dir.join("smrmsg_t.out"))
+            .arg("--site")
+            .arg(&good)
+            .arg("--hold-time-offset")
+            .arg("--report")
+            .arg(&r),
+    );
+    let parts: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&r).unwrap()).unwrap();
+    for key in ["boresight_deg", "lever_arm_m", "sigma", "points_per_sphere"] {
+        assert_eq!(parts[key], weighted[key], "{key}");
+    }
 }

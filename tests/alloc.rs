@@ -169,9 +169,9 @@ fn rig_steady_state_allocates_nothing_per_packet() {
             ports: [(2368, 23760), (8308, 23761)],
         };
         replay_both(
-            &d2.join("lidar.pcap"),
+            d2.join("lidar.pcap"),
             to,
-            Some((&d2.join("ins.vnlog"), &mut master, 921_600)),
+            Some((&d2.join("ins.vnlog").into(), &mut master, 921_600)),
             Speed::Factor(2.0),
         )
         .unwrap()

@@ -24,8 +24,8 @@ fn tmp(name: &str) -> PathBuf {
 
 fn inputs(dir: &Path) -> Inputs {
     Inputs::apriori(
-        dir.join("lidar.pcap"),
-        InsInput::Vn200(dir.join("ins.bin")),
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         Site::load(&dir.join("site.toml")).unwrap(),
     )
 }

@@ -39,7 +39,7 @@ fn truth_mount() -> Mount {
 
 fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
     Inputs {
-        pcap: dir.join("lidar.pcap"),
+        pcap: dir.join("lidar.pcap").into(),
         ins,
         site: Site::load(&dir.join("site.toml")).unwrap(),
         mount,
@@ -73,7 +73,7 @@ fn truth_windows_hold_exactly_the_sphere_returns_within_a_millimetre() {
     let (dir, truth) = table1();
     let inp = inputs(
         dir,
-        InsInput::Vn200(dir.join("ins.bin")),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         truth_mount(),
         0.01,
     );
@@ -112,7 +112,7 @@ fn apriori_windows_still_catch_every_sphere_return() {
     );
     let inp = inputs(
         dir,
-        InsInput::Vn200(dir.join("ins.bin")),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         a,
         site.apriori.window_margin_m,
     );
@@ -166,10 +166,10 @@ fn sbet_trajectory_gives_the_same_windows() {
     std::fs::write(&sbet, bytes).unwrap();
     // The week comes from the capture's RMC date.
     assert_eq!(
-        spherecal_tools::pipeline::week_from_capture(&dir.join("lidar.pcap"), 18),
+        spherecal_tools::pipeline::week_from_capture(&dir.join("lidar.pcap").into(), 18),
         Some(week as u16)
     );
-    let inp = inputs(dir, InsInput::Sbet(sbet, None), truth_mount(), 0.01);
+    let inp = inputs(dir, InsInput::Sbet(sbet.into(), None), truth_mount(), 0.01);
     let (_, obs) = observations(&inp);
     let counts: Vec<u64> = obs.iter().map(|v| v.len() as u64).collect();
     assert_eq!(&counts, truth);
@@ -191,7 +191,7 @@ fn ins_gap_is_counted_not_bridged() {
     cut.extend_from_slice(&bytes[b..]);
     let ins = dir.join("ins_gap.bin");
     std::fs::write(&ins, cut).unwrap();
-    let inp = inputs(dir, InsInput::Vn200(ins), truth_mount(), 0.01);
+    let inp = inputs(dir, InsInput::Vn200(ins.into()), truth_mount(), 0.01);
     let (stats, obs) = observations(&inp);
     // 0.4 s of returns are refused (the gap exceeds 50 ms), nothing else.
     assert!(stats.align.window.in_gap > 0, "{:?}", stats.align.window);
@@ -212,7 +212,7 @@ fn las_file_reads_back() {
     let las = dir.join("cloud.las");
     let inp = inputs(
         dir,
-        InsInput::Vn200(dir.join("ins.bin")),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         truth_mount(),
         0.01,
     );
@@ -254,7 +254,7 @@ fn las_lands_on_the_map() {
     let (dir, _) = table1();
     let inp = inputs(
         dir,
-        InsInput::Vn200(dir.join("ins.bin")),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         truth_mount(),
         0.01,
     );

@@ -1,7 +1,8 @@
 //! Several input files as one survey (a rig's rotated logs): the capture and the serial log of a
 //! synthetic survey cut into parts at record boundaries (by hand, from the formats' record
-//! headers), given as glob patterns, the capture's parts named out of time order; the
-//! calibration equals the one from the single files.
+//! headers), given as glob patterns or one by one, the capture's parts named out of time
+//! order; the calibration equals the one from the single files, and `replay` of the parts'
+//! folder sends every datagram and the serial bytes exactly.
 
 mod common;
 
@@ -37,14 +38,14 @@ fn cut(src: &Path, head: usize, rec_head: usize, len_at: usize, names: &[&Path])
     }
 }
 
-fn calibrate(dir: &Path, pcap: &Path, ins: &Path, report: &Path) -> serde_json::Value {
+fn calibrate(dir: &Path, pcap: &[&Path], ins: &[&Path], report: &Path) -> serde_json::Value {
     common::stdout_of(
         common::spherecal()
             .arg("calibrate")
             .arg("--pcap")
-            .arg(pcap)
+            .args(pcap)
             .arg("--ins")
-            .arg(ins)
+            .args(ins)
             .arg("--site")
             .arg(dir.join("site.toml"))
             .arg("--report")
@@ -73,15 +74,23 @@ fn rotated_logs_give_the_single_files_result() {
 
     let one = calibrate(
         &dir,
-        &dir.join("lidar.pcap"),
-        &dir.join("ins.vnlog"),
+        &[&dir.join("lidar.pcap")],
+        &[&dir.join("ins.vnlog")],
         &dir.join("one.json"),
     );
     let many = calibrate(
         &dir,
-        &parts.join("lidar-*.pcap"),
-        &parts.join("ins-*.vnlog"),
+        &[&parts.join("lidar-*.pcap")],
+        &[&parts.join("ins-*.vnlog")],
         &dir.join("many.json"),
+    );
+    // The same parts named one by one, as an unquoted pattern reaches the command (the shell
+    // expands it), in no particular order.
+    let listed = calibrate(
+        &dir,
+        &[&c, &a, &b],
+        &[&logs[0], &logs[1]],
+        &dir.join("listed.json"),
     );
     assert_eq!(one["converged"], true);
     for key in [
@@ -91,6 +100,7 @@ fn rotated_logs_give_the_single_files_result() {
         "points_per_sphere",
     ] {
         assert_eq!(one[key], many[key], "{key}");
+        assert_eq!(one[key], listed[key], "{key}");
     }
     assert_eq!(
         one["inputs"]["data_packets"], many["inputs"]["data_packets"],
@@ -109,4 +119,36 @@ fn rotated_logs_give_the_single_files_result() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("nothing-*.pcap: no file matches"));
+
+    // The parts folder replayed as a rig's log folder: its captures in time order, its serial
+    // logs in name order; every datagram sent, the serial bytes exactly the single log's.
+    use spherecal_tools::pipeline::Files;
+    use spherecal_tools::replay::{replay_both, Speed, Target};
+    let sink = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let port = sink.local_addr().unwrap().port();
+    let mut to = Target::host(std::net::Ipv4Addr::LOCALHOST);
+    to.ports = [(2368, port), (8308, port)];
+    let mut serial: Vec<u8> = Vec::new();
+    let logs_pattern = Files::from(parts.join("*.vnlog"));
+    let (udp, wrote) = replay_both(
+        parts.clone(),
+        to,
+        Some((&logs_pattern, &mut serial, 921_600)),
+        Speed::Max,
+    )
+    .unwrap();
+    let (single, _) = spherecal_hal::serial::read_byte_file(&dir.join("ins.vnlog")).unwrap();
+    assert_eq!(wrote, Some(single.len() as u64));
+    assert!(serial == single, "the serial bytes in their order");
+    let records = {
+        let b = std::fs::read(dir.join("lidar.pcap")).unwrap();
+        let (mut at, mut n) = (24, 0u64);
+        while at + 16 <= b.len() {
+            at += 16 + u32::from_le_bytes(b[at + 8..at + 12].try_into().unwrap()) as usize;
+            n += 1;
+        }
+        n
+    };
+    assert_eq!(udp.sent + udp.skipped, records);
+    assert_eq!(udp.sent, records);
 }

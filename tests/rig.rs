@@ -170,7 +170,7 @@ fn replay_in_background(dir: &Path, to: Target, mut master: TTYPort, speed: Spee
         let _ = replay_both(
             &pcap,
             to,
-            Some((&dir_ins(&pcap), &mut master, 921_600)),
+            Some((&dir_ins(&pcap).into(), &mut master, 921_600)),
             speed,
         );
     });
@@ -251,9 +251,9 @@ fn table1_through_the_rig() {
         "600".as_ref(),
     ]);
     let (sent, wrote) = replay_both(
-        &dir.join("lidar.pcap"),
+        dir.join("lidar.pcap"),
         to,
-        Some((&dir.join("ins.vnlog"), &mut master, 921_600)),
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
         Speed::Factor(1.0),
     )
     .unwrap();
@@ -455,7 +455,7 @@ fn overload_every_drop_is_counted() {
     let clock = Pacer::new(&spherecal_hal::clock::SystemClock, HostTime(0), Speed::Max);
     let serial = std::thread::spawn(move || {
         replay_serial_on(
-            &dir_ins(&pcap),
+            dir_ins(&pcap),
             &mut master,
             921_600,
             &Pacer::new(&spherecal_hal::clock::SystemClock, HostTime(0), Speed::Max),
@@ -465,7 +465,7 @@ fn overload_every_drop_is_counted() {
     let mut sent = 0;
     let mut rss = Vec::new();
     for _ in 0..10 {
-        sent += replay_udp_on(&dir.join("lidar.pcap"), to, &clock)
+        sent += replay_udp_on(dir.join("lidar.pcap"), to, &clock)
             .unwrap()
             .sent;
         rss.push(kib(rig.child.id(), "VmRSS"));
@@ -687,9 +687,9 @@ fn ten_minute_survey_at_max_speed_rss() {
     });
     let t = Instant::now();
     let (sent, _) = replay_both(
-        &dir.join("lidar.pcap"),
+        dir.join("lidar.pcap"),
         to,
-        Some((&dir.join("ins.vnlog"), &mut master, 921_600)),
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
         Speed::Max,
     )
     .unwrap();

@@ -20,8 +20,8 @@ fn bench(c: &mut Criterion) {
     spherecal_tools::synth::synth(&Scenario::load("table1").unwrap(), &dir).unwrap();
     let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
     let inp = Inputs::apriori(
-        dir.join("lidar.pcap"),
-        InsInput::Vn200(dir.join("ins.bin")),
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         site,
     );
     let b0 = inp.mount.params();

@@ -304,7 +304,7 @@ pub fn georef(
         "data packets: {} (position packets: {}, hour rollovers: {})",
         stats.align.data_packets, stats.align.position_packets, stats.align.rollovers
     );
-    o.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_path()));
+    o.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_files()));
     let _ = writeln!(o, "points: {} georeferenced: {}", w.points, w.georeferenced);
     for (i, id) in ids.iter().enumerate() {
         let _ = writeln!(o, "window {id}: {} points", counts[i]);

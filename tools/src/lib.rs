@@ -27,12 +27,12 @@ use std::path::PathBuf;
 /// What `spherecal calibrate` reads.
 #[derive(Debug, Clone)]
 pub struct Survey {
-    /// The VLP-16 capture.
-    pub pcap: PathBuf,
-    /// VN-200 serial bytes (raw or a serial log) ...
-    pub ins: Option<PathBuf>,
-    /// ... or an Applanix SBET and its GPS week (None: from the capture's RMC date).
-    pub sbet: Option<PathBuf>,
+    /// The VLP-16 capture(s).
+    pub pcap: pipeline::Files,
+    /// VN-200 serial bytes (raw or serial logs) ...
+    pub ins: Option<pipeline::Files>,
+    /// ... or Applanix SBET files and their GPS week (None: from the capture's RMC date).
+    pub sbet: Option<pipeline::Files>,
     /// The SBET's GPS week.
     pub gps_week: Option<u16>,
     /// The SBET's accuracy file (POSPac smrmsg; None: `smrmsg_NAME` beside `sbet_NAME` if
@@ -46,8 +46,8 @@ impl Survey {
     /// A `synth` folder: `lidar.pcap`, `ins.bin`, `site.toml`.
     pub fn synth_dir(dir: &std::path::Path) -> Self {
         Self {
-            pcap: dir.join("lidar.pcap"),
-            ins: Some(dir.join("ins.bin")),
+            pcap: dir.join("lidar.pcap").into(),
+            ins: Some(dir.join("ins.bin").into()),
             sbet: None,
             gps_week: None,
             smrmsg: None,
@@ -128,9 +128,11 @@ pub fn run_calibrate(
     let (ins, accuracy) = match (survey.ins, survey.sbet) {
         (Some(i), _) => (InsInput::Vn200(i), None),
         (None, Some(s)) => {
-            let acc = survey
-                .smrmsg
-                .or_else(|| pipeline::accuracy::beside_sbet(&s));
+            // Beside a single SBET file, its smrmsg.
+            let acc = survey.smrmsg.or_else(|| match s.0.as_slice() {
+                [one] => pipeline::accuracy::beside_sbet(one),
+                _ => None,
+            });
             (InsInput::Sbet(s, survey.gps_week), acc)
         }
         (None, None) => return Err("give --ins or --sbet".into()),
@@ -141,7 +143,7 @@ pub fn run_calibrate(
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     let (targets, ids) = calibrate::site_targets(&inp);
     let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
-    let mut text = stats.describe_inputs(&inp.pcap, inp.ins_path());
+    let mut text = stats.describe_inputs(&inp.pcap, inp.ins_files());
     text.push_str(&format!(
         "{} returns, windows {:?}\n",
         stats.align.window.points,

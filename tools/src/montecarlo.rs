@@ -23,8 +23,8 @@ pub fn montecarlo(
     crate::synth::synth(scenario, &dir)?;
     let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
     let inp = Inputs::apriori(
-        dir.join("lidar.pcap"),
-        InsInput::Vn200(dir.join("ins.bin")),
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
         site.clone(),
     );
     let (_, obs) = collect(&inp)?;

@@ -3,6 +3,7 @@
 //! their record times, the serial bytes to a device at a serial log's receive times (raw
 //! bytes: at the baud rate's pace), the recorded spacing scaled by the speed.
 
+use crate::pipeline::Files;
 use spherecal_hal::clock::{Clock, HostTime, SystemClock};
 use spherecal_hal::{PacketSource, Record};
 use std::io::Write;
@@ -106,10 +107,10 @@ impl Target {
 
 /// The first record time of a capture and of a serial log (host wall clock), for a [`Pacer`].
 pub fn first_times(
-    pcap: &Path,
-    ins: Option<&Path>,
+    pcap: impl Into<Files>,
+    ins: Option<&Files>,
 ) -> Result<(Option<HostTime>, Option<HostTime>), String> {
-    let mut src = crate::pipeline::open_captures(pcap)?;
+    let mut src = crate::pipeline::open_captures(&pcap.into())?;
     let mut first_udp = None;
     while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
         if let Record::Udp(d) = rec {
@@ -118,7 +119,7 @@ pub fn first_times(
         }
     }
     let first_log = match ins {
-        Some(p) => first_log_time(p)?,
+        Some(p) => first_log_time(&p.expand()?[0])?,
         None => None,
     };
     Ok((first_udp, first_log))
@@ -135,8 +136,13 @@ pub struct UdpReplay {
 
 /// Send every UDP datagram of a capture to `host` at its destination port, paced from its
 /// first record.
-pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay, String> {
-    let (first, _) = first_times(pcap, None)?;
+pub fn replay_udp(
+    pcap: impl Into<Files>,
+    host: Ipv4Addr,
+    speed: Speed,
+) -> Result<UdpReplay, String> {
+    let pcap = pcap.into();
+    let (first, _) = first_times(&pcap, None)?;
     replay_udp_on(
         pcap,
         Target::host(host),
@@ -145,8 +151,12 @@ pub fn replay_udp(pcap: &Path, host: Ipv4Addr, speed: Speed) -> Result<UdpReplay
 }
 
 /// Send every UDP datagram of a capture to `to`, each when `clock` says its record time is due.
-pub fn replay_udp_on(pcap: &Path, to: Target, clock: &Pacer<'_>) -> Result<UdpReplay, String> {
-    let mut src = crate::pipeline::open_captures(pcap)?;
+pub fn replay_udp_on(
+    pcap: impl Into<Files>,
+    to: Target,
+    clock: &Pacer<'_>,
+) -> Result<UdpReplay, String> {
+    let mut src = crate::pipeline::open_captures(&pcap.into())?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
     let host = to.host;
@@ -179,7 +189,7 @@ pub fn replay_serial(
 ) -> Result<u64, String> {
     let first = first_log_time(file)?;
     replay_serial_on(
-        file,
+        Files::from(file),
         out,
         baud,
         &Pacer::new(&SystemClock, first.unwrap_or_default(), speed),
@@ -198,14 +208,30 @@ fn first_log_time(file: &Path) -> Result<Option<HostTime>, String> {
     }
 }
 
-/// Write a VN-200 byte file to `out`: a serial log's reads each when `clock` says their
-/// receive time is due; raw bytes at `baud`'s pace (10 bits a byte) from the clock's start,
-/// scaled by its speed.
+/// Write VN-200 byte files (one, or a rig's rotated logs in name order, one at a time in
+/// memory) to `out`: a serial log's reads each when `clock` says their receive time is due; raw
+/// bytes at `baud`'s pace (10 bits a byte) from the clock's start, scaled by its speed.
 pub fn replay_serial_on(
+    files: impl Into<Files>,
+    out: &mut impl Write,
+    baud: u32,
+    clock: &Pacer<'_>,
+) -> Result<u64, String> {
+    let mut written = 0u64;
+    for f in files.into().expand()? {
+        written += replay_one_serial(&f, out, baud, clock, written)?;
+    }
+    Ok(written)
+}
+
+/// One file of [`replay_serial_on`]; `before`: bytes already written (raw bytes keep the
+/// baud rate's pace across files).
+fn replay_one_serial(
     file: &Path,
     out: &mut impl Write,
     baud: u32,
     clock: &Pacer<'_>,
+    before: u64,
 ) -> Result<u64, String> {
     let (bytes, stamps) = spherecal_hal::serial::read_byte_file(file)
         .map_err(|e| format!("{}: {e}", file.display()))?;
@@ -228,7 +254,7 @@ pub fn replay_serial_on(
             };
             for c in bytes.chunks(64) {
                 if let Some(r) = rate {
-                    clock.wait_until(Duration::from_secs_f64(written as f64 / r));
+                    clock.wait_until(Duration::from_secs_f64((before + written) as f64 / r));
                 }
                 write(out, c)?;
                 written += c.len() as u64;
@@ -239,15 +265,16 @@ pub fn replay_serial_on(
     Ok(written)
 }
 
-/// Replay a capture and (optionally) a VN-200 file together on one clock: the datagrams to
+/// Replay captures and (optionally) VN-200 files together on one clock: the datagrams to
 /// `to`, the serial bytes to `serial`. Their recorded times keep their order and spacing.
 pub fn replay_both(
-    pcap: &Path,
+    pcap: impl Into<Files>,
     to: Target,
-    ins: Option<(&Path, &mut (dyn Write + Send), u32)>,
+    ins: Option<(&Files, &mut (dyn Write + Send), u32)>,
     speed: Speed,
 ) -> Result<(UdpReplay, Option<u64>), String> {
-    let (fu, fl) = first_times(pcap, ins.as_ref().map(|i| i.0))?;
+    let pcap = pcap.into();
+    let (fu, fl) = first_times(&pcap, ins.as_ref().map(|i| i.0))?;
     let t0 = match (fu, fl) {
         (Some(a), Some(b)) => a.min(b),
         (a, b) => a.or(b).unwrap_or_default(),
@@ -260,7 +287,7 @@ pub fn replay_both(
                 replay_serial_on(file, &mut out, baud, &clock)
             })
         });
-        let udp = replay_udp_on(pcap, to, &clock);
+        let udp = replay_udp_on(&pcap, to, &clock);
         let ser = serial
             .map(|h| {
                 h.join()

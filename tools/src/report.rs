@@ -495,8 +495,8 @@ impl InputsReport {
     pub fn of(inp: &Inputs, stats: &RunStats) -> Self {
         let w = &stats.align.window;
         Self {
-            pcap: inp.pcap.display().to_string(),
-            ins: inp.ins_path().display().to_string(),
+            pcap: inp.pcap.display(),
+            ins: inp.ins_files().display(),
             data_packets: stats.align.data_packets,
             skipped: stats
                 .skips

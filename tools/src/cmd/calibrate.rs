@@ -60,9 +60,9 @@ pub struct Args {
 pub fn run(a: Args) -> ExitCode {
     let s = a.survey;
     let survey = crate::Survey {
-        pcap: s.pcap,
-        ins: s.ins,
-        sbet: s.sbet,
+        pcap: s.pcap.into(),
+        ins: (!s.ins.is_empty()).then(|| s.ins.into()),
+        sbet: (!s.sbet.is_empty()).then(|| s.sbet.into()),
         gps_week: s.gps_week,
         smrmsg: s.smrmsg,
         site: s.site,

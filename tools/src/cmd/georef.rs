@@ -54,13 +54,13 @@ pub fn run(a: Args) -> ExitCode {
     };
     let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
     let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
-    let ins = match (ins, sbet) {
-        (Some(i), _) => InsInput::Vn200(i),
-        (None, Some(s)) => InsInput::Sbet(s, gps_week),
-        (None, None) => return fail("georef", "give --ins or --sbet"),
+    let ins = match (ins.is_empty(), sbet.is_empty()) {
+        (false, _) => InsInput::Vn200(ins.into()),
+        (true, false) => InsInput::Sbet(sbet.into(), gps_week),
+        (true, true) => return fail("georef", "give --ins or --sbet"),
     };
     let inp = Inputs {
-        pcap,
+        pcap: pcap.into(),
         ins,
         mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),
         margin: site.apriori.window_margin_m,

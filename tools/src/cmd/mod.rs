@@ -62,15 +62,16 @@ fn claimed(ok: bool) -> ExitCode {
 /// The recorded survey: capture, trajectory and site.
 #[derive(clap::Args, Debug, Clone)]
 pub struct Survey {
-    /// The VLP-16 capture.
-    #[arg(long)]
-    pub pcap: PathBuf,
-    /// VN-200 serial bytes (raw or a serial log).
-    #[arg(long, required_unless_present = "sbet", conflicts_with = "sbet")]
-    pub ins: Option<PathBuf>,
-    /// An Applanix SBET trajectory instead of the VN-200.
-    #[arg(long)]
-    pub sbet: Option<PathBuf>,
+    /// The VLP-16 capture: files, folders of captures or patterns (`'logs/*-lidar-*.pcap'`),
+    /// one or several, taken in the order of their first datagram.
+    #[arg(long, num_args = 1.., required = true)]
+    pub pcap: Vec<PathBuf>,
+    /// VN-200 serial bytes (raw or serial logs): files or patterns, in name order.
+    #[arg(long, num_args = 1.., required_unless_present = "sbet", conflicts_with = "sbet")]
+    pub ins: Vec<PathBuf>,
+    /// An Applanix SBET trajectory instead of the VN-200: files or patterns, in time order.
+    #[arg(long, num_args = 1..)]
+    pub sbet: Vec<PathBuf>,
     /// GPS week of the SBET (default: from the capture's RMC date).
     #[arg(long)]
     pub gps_week: Option<u16>,

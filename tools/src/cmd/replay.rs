@@ -1,6 +1,7 @@
 //! `spherecal replay DIR | --pcap P --ins I ...`.
 
 use super::{fail, parse_ports};
+use crate::pipeline::Files;
 use crate::replay::{replay_both, Speed, Target};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -8,14 +9,15 @@ use std::process::ExitCode;
 /// Play recorded files back: UDP datagrams to their ports, serial bytes to a device.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A folder with lidar.pcap and ins.vnlog or ins.bin (as `synth` writes).
+    /// A folder: as `synth` writes it (lidar.pcap and ins.vnlog or ins.bin), or a rig's log
+    /// folder (its `*.pcap` in time order and its `*.vnlog` in name order: the rotated pieces).
     pub dir: Option<PathBuf>,
-    /// The capture (instead of DIR).
-    #[arg(long)]
-    pub pcap: Option<PathBuf>,
-    /// The serial bytes or log (instead of DIR).
-    #[arg(long)]
-    pub ins: Option<PathBuf>,
+    /// The capture(s) (instead of DIR): files, folders or patterns.
+    #[arg(long, num_args = 1..)]
+    pub pcap: Vec<PathBuf>,
+    /// The serial bytes or logs (instead of DIR): files or patterns.
+    #[arg(long, num_args = 1..)]
+    pub ins: Vec<PathBuf>,
     /// Host to send the datagrams to.
     #[arg(long, default_value = "127.0.0.1")]
     pub udp: std::net::Ipv4Addr,
@@ -33,25 +35,42 @@ pub struct Args {
     pub speed: Speed,
 }
 
+/// What a folder holds to replay: `synth`'s names, else a rig's logs.
+fn folder(d: &std::path::Path) -> (Files, Option<Files>) {
+    if d.join("lidar.pcap").exists() {
+        // A serial log (with receive times) keeps the two streams in step; raw bytes go at the
+        // baud rate's pace.
+        let log = d.join("ins.vnlog");
+        let ins = if log.exists() { log } else { d.join("ins.bin") };
+        (d.join("lidar.pcap").into(), Some(ins.into()))
+    } else {
+        let logs = d.join("*.vnlog");
+        let ins = crate::pipeline::expand_files(&logs)
+            .ok()
+            .map(|_| logs.into());
+        (d.to_path_buf().into(), ins)
+    }
+}
+
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
-    let pcap = a
-        .pcap
-        .or_else(|| a.dir.as_ref().map(|d| d.join("lidar.pcap")));
-    // A serial log (with receive times) keeps the two streams in step; raw bytes go at the
-    // baud rate's pace.
-    let ins = a.ins.or_else(|| {
-        a.dir.as_ref().map(|d| {
-            let log = d.join("ins.vnlog");
-            if log.exists() {
-                log
-            } else {
-                d.join("ins.bin")
-            }
-        })
-    });
-    let Some(pcap) = pcap else {
-        return fail("replay", "give DIR or --pcap");
+    let (pcap, ins) = match (&a.dir, a.pcap.is_empty()) {
+        (_, false) => (
+            Files::from(a.pcap),
+            (!a.ins.is_empty()).then(|| Files::from(a.ins)),
+        ),
+        (Some(d), true) => {
+            let (p, i) = folder(d);
+            (
+                p,
+                if a.ins.is_empty() {
+                    i
+                } else {
+                    Some(Files::from(a.ins))
+                },
+            )
+        }
+        (None, true) => return fail("replay", "give DIR or --pcap"),
     };
     let mut to = Target::host(a.udp);
     if let Some([d, p]) = a.ports {
@@ -65,7 +84,7 @@ pub fn run(a: Args) -> ExitCode {
         None => None,
     };
     let serial_job = match (&mut port, &ins) {
-        (Some(p), Some(i)) => Some((i.as_path(), p as &mut (dyn std::io::Write + Send), a.baud)),
+        (Some(p), Some(i)) => Some((i, p as &mut (dyn std::io::Write + Send), a.baud)),
         _ => None,
     };
     match replay_both(&pcap, to, serial_job, a.speed) {

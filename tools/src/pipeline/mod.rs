@@ -21,7 +21,7 @@ mod readers;
 pub use feed::{AlignStorage, Aligner, InsWait};
 pub use readers::{
     end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, sbet_week,
-    vn200_pose, week_from_capture, Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
+    vn200_pose, week_from_capture, Accept, Files, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
     Vn200Feed,
 };
 
@@ -120,17 +120,17 @@ pub enum InsItem {
 /// Where the trajectory comes from.
 #[derive(Debug, Clone)]
 pub enum InsInput {
-    /// VN-200 serial bytes (raw or a serial log).
-    Vn200(PathBuf),
-    /// An SBET file and its GPS week (None: taken from the capture's RMC date).
-    Sbet(PathBuf, Option<u16>),
+    /// VN-200 serial bytes (raw or serial logs), in name order.
+    Vn200(Files),
+    /// SBET files and their GPS week (None: taken from the capture's RMC date).
+    Sbet(Files, Option<u16>),
 }
 
 /// Inputs of a georeferencing run.
 #[derive(Debug, Clone)]
 pub struct Inputs {
-    /// The VLP-16 capture.
-    pub pcap: PathBuf,
+    /// The VLP-16 capture(s).
+    pub pcap: Files,
     /// The trajectory.
     pub ins: InsInput,
     /// The site.
@@ -152,15 +152,15 @@ pub struct Inputs {
 }
 
 impl Inputs {
-    /// The trajectory's file.
-    pub fn ins_path(&self) -> &std::path::Path {
+    /// The trajectory's files.
+    pub fn ins_files(&self) -> &Files {
         match &self.ins {
             InsInput::Vn200(p) | InsInput::Sbet(p, _) => p,
         }
     }
 
     /// Georeference with the site's a-priori mounting and window margin, 50 ms INS gap limit.
-    pub fn apriori(pcap: PathBuf, ins: InsInput, site: Site) -> Self {
+    pub fn apriori(pcap: Files, ins: InsInput, site: Site) -> Self {
         let b0 = site.apriori_deg_m().params();
         Self {
             pcap,
@@ -205,7 +205,7 @@ pub struct RunStats {
 impl RunStats {
     /// What the inputs held, for people: the capture, the LiDAR clock, the INS stream, their
     /// overlap and the returns that could not be georeferenced.
-    pub fn describe_inputs(&self, pcap: &std::path::Path, ins: &std::path::Path) -> String {
+    pub fn describe_inputs(&self, pcap: &Files, ins: &Files) -> String {
         use std::fmt::Write as _;
         let mut o = String::new();
         let _ = write!(
@@ -241,12 +241,7 @@ impl RunStats {
 
     /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
     /// file and what was found instead.
-    pub fn unusable(
-        &self,
-        pcap: &std::path::Path,
-        ins: &std::path::Path,
-        ins_head: &[u8],
-    ) -> Option<String> {
+    pub fn unusable(&self, pcap: &Files, ins: &Files, ins_head: &[u8]) -> Option<String> {
         if self.align.data_packets == 0 {
             return Some(format!(
                 "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
@@ -429,7 +424,7 @@ pub fn run<C: Send>(
         let c = consumer
             .join()
             .map_err(|_| "consumer panicked".to_string())?;
-        if let Some(why) = stats.unusable(&inp.pcap, inp.ins_path(), &ins_head) {
+        if let Some(why) = stats.unusable(&inp.pcap, inp.ins_files(), &ins_head) {
             return Err(why);
         }
         Ok((stats, c))

@@ -96,43 +96,53 @@ pub enum InsFile {
     /// VN-200 bytes (raw, or a serial log's records with their stamps), one file or several
     /// (rotated logs) in name order.
     Vn200(FileChain),
-    /// SBET records, their GPS week, the file.
-    Sbet(SbetReader<std::io::BufReader<std::fs::File>>, u16, PathBuf),
+    /// SBET files in the order of their first record's time, and their GPS week.
+    Sbet(Vec<PathBuf>, u16),
 }
 
 impl InsFile {
     /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
-    pub fn open(ins: &InsInput, pcap: &Path, leap: i64) -> Result<Self, String> {
+    pub fn open(ins: &InsInput, pcap: &Files, leap: i64) -> Result<Self, String> {
         match ins {
             InsInput::Vn200(p) => {
-                let files = if p.is_dir() {
+                if let Some(d) = p.0.iter().find(|p| p.is_dir()) {
                     return Err(format!(
                         "{}: a folder; give the INS file or a pattern (e.g. DIR/*-ins-*.vnlog)",
-                        p.display()
+                        d.display()
                     ));
-                } else {
-                    expand_files(p)?
-                };
-                FileChain::open(files)
+                }
+                FileChain::open(p.expand()?)
                     .map(Self::Vn200)
                     .map_err(|e| e.to_string())
             }
             InsInput::Sbet(p, week) => {
                 let week = sbet_week(*week, pcap, leap)?;
-                let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
-                Ok(Self::Sbet(
-                    SbetReader::new(std::io::BufReader::new(f)),
-                    week,
-                    p.clone(),
-                ))
+                let mut files = Vec::new();
+                for f in p.expand()? {
+                    files.push((first_tow(&f)?, f));
+                }
+                // Time order (the week's rollover aside: a file starting late in the week
+                // goes first).
+                files.sort_by(|a, b| a.0.total_cmp(&b.0));
+                Ok(Self::Sbet(files.into_iter().map(|f| f.1).collect(), week))
             }
         }
     }
 }
 
+/// The first valid record's time of week of an SBET file (+inf when it has none).
+fn first_tow(p: &Path) -> Result<f64, String> {
+    let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    let mut rd = SbetReader::new(std::io::BufReader::new(f));
+    Ok(rd
+        .next_record()
+        .map_err(|e| format!("{}: {e}", p.display()))?
+        .map_or(f64::INFINITY, |r| r.tow_s))
+}
+
 /// The GPS week of a POSPac file (SBET, smrmsg: their times are seconds of week): `week` if
 /// given, else the capture's RMC date.
-pub fn sbet_week(week: Option<u16>, pcap: &Path, leap: i64) -> Result<u16, String> {
+pub fn sbet_week(week: Option<u16>, pcap: &Files, leap: i64) -> Result<u16, String> {
     match week {
         Some(w) => Ok(w),
         None => week_from_capture(pcap, leap).ok_or_else(|| {
@@ -212,29 +222,34 @@ pub fn ins_file_reader(
             .map_err(|e| e.to_string())?;
             Ok((feed.state(), head))
         }
-        InsFile::Sbet(mut rd, week, path) => {
+        InsFile::Sbet(files, week) => {
             let mut st = InsState::default();
-            while let Some(r) = rd
-                .next_record()
-                .map_err(|e| format!("{}: {e}", path.display()))?
-            {
-                let Some(t) = r.time(week) else {
-                    st.without_pose += 1;
-                    continue;
-                };
-                let g = Geodetic {
-                    lat: r.lat,
-                    lon: r.lon,
-                    h: r.h,
-                };
-                let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
-                st.used(t, max_gap_ns);
-                let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
-                enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
+            for path in files {
+                let f =
+                    std::fs::File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+                let mut rd = SbetReader::new(std::io::BufReader::new(f));
+                while let Some(r) = rd
+                    .next_record()
+                    .map_err(|e| format!("{}: {e}", path.display()))?
+                {
+                    let Some(t) = r.time(week) else {
+                        st.without_pose += 1;
+                        continue;
+                    };
+                    let g = Geodetic {
+                        lat: r.lat,
+                        lon: r.lon,
+                        h: r.h,
+                    };
+                    let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                    st.used(t, max_gap_ns);
+                    let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
+                    enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
+                }
+                st.bytes += rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
+                st.sbet_records += rd.records;
+                st.without_pose += rd.invalid;
             }
-            st.bytes = rd.records * spherecal_hal::sbet::RECORD as u64 + rd.trailing as u64;
-            st.sbet_records = rd.records;
-            st.without_pose += rd.invalid;
             Ok((st, Vec::new()))
         }
     }
@@ -385,6 +400,69 @@ impl Vn200Feed {
     }
 }
 
+/// Input files as the user named them: files, folders, patterns, several of each (the shell
+/// expands an unquoted `logs/*.pcap` into several).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Files(pub Vec<PathBuf>);
+
+impl Files {
+    /// Every file named: each entry through [`expand_files`], in the order given, each file
+    /// once.
+    pub fn expand(&self) -> Result<Vec<PathBuf>, String> {
+        let mut out: Vec<PathBuf> = Vec::new();
+        for p in &self.0 {
+            for f in expand_files(p)? {
+                if !out.contains(&f) {
+                    out.push(f);
+                }
+            }
+        }
+        if out.is_empty() {
+            return Err("no input file given".into());
+        }
+        Ok(out)
+    }
+
+    /// The names as given, for messages.
+    pub fn display(&self) -> String {
+        self.0
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+impl From<PathBuf> for Files {
+    fn from(p: PathBuf) -> Self {
+        Self(vec![p])
+    }
+}
+
+impl From<&Path> for Files {
+    fn from(p: &Path) -> Self {
+        Self(vec![p.to_path_buf()])
+    }
+}
+
+impl From<&PathBuf> for Files {
+    fn from(p: &PathBuf) -> Self {
+        Self(vec![p.clone()])
+    }
+}
+
+impl From<&Files> for Files {
+    fn from(f: &Files) -> Self {
+        f.clone()
+    }
+}
+
+impl From<Vec<PathBuf>> for Files {
+    fn from(v: Vec<PathBuf>) -> Self {
+        Self(v)
+    }
+}
+
 /// The files `path` names: itself; a folder's `.pcap`/`.pcapng` files; or, with `*` or `?` in
 /// its file name, the files of its folder that match (the rig's rotated logs:
 /// `logs/20261122T084638Z-lidar-*.pcap`). Sorted by name; none is an error.
@@ -435,12 +513,12 @@ fn glob_match(pat: &[u8], name: &[u8]) -> bool {
 }
 
 /// The capture(s) `path` names (see [`expand_files`]) as one source in time order.
-pub fn open_captures(path: &Path) -> Result<PcapChain, String> {
-    PcapChain::open(&expand_files(path)?).map_err(|e| e.to_string())
+pub fn open_captures(files: &Files) -> Result<PcapChain, String> {
+    PcapChain::open(&files.expand()?).map_err(|e| e.to_string())
 }
 
 /// The GPS week of the first RMC date in a capture (for SBET times).
-pub fn week_from_capture(pcap: &std::path::Path, leap: i64) -> Option<u16> {
+pub fn week_from_capture(pcap: &Files, leap: i64) -> Option<u16> {
     let mut src = open_captures(pcap).ok()?;
     while let Ok(Some(rec)) = src.next_record() {
         if let Record::Udp(d) = rec {
