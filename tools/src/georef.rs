@@ -100,6 +100,7 @@ fn extra_bytes_vlr() -> las::Vlr {
 /// window, laser, window, residual), in the site's CRS or local east-north-up metres.
 pub struct LasOut {
     w: las::Writer<std::io::BufWriter<std::fs::File>>,
+    path: std::path::PathBuf,
     to_map: Option<ToMap>,
     targets: Vec<spherecal::window::Target>,
     /// Points written.
@@ -162,6 +163,7 @@ impl LasOut {
             las::Writer::from_path(path, header).map_err(|e| format!("{}: {e}", path.display()))?;
         Ok(Self {
             w,
+            path: path.to_path_buf(),
             to_map,
             targets,
             points: 0,
@@ -220,7 +222,9 @@ impl LasOut {
         if let Some(e) = self.error {
             return Err(e);
         }
-        self.w.close().map_err(|e| e.to_string())?;
+        self.w
+            .close()
+            .map_err(|e| format!("{}: {e}", self.path.display()))?;
         Ok(self.points)
     }
 }

@@ -73,6 +73,42 @@ pub struct Outputs {
     pub las_frame: georef::LasFrame,
 }
 
+/// An output file can be created where it is asked for: its folder exists (checked before a
+/// long run, so that it does not fail at the end). `flag` names the option in the message.
+pub fn check_output(flag: &str, p: &std::path::Path) -> Result<(), String> {
+    let dir = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => return Ok(()),
+    };
+    if dir.is_dir() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{flag} {}: the folder {} does not exist",
+            p.display(),
+            dir.display()
+        ))
+    }
+}
+
+impl Outputs {
+    /// Every output's folder exists ([`check_output`]).
+    pub fn check(&self) -> Result<(), String> {
+        for (flag, p) in [
+            ("--report", &self.report),
+            ("--las", &self.las),
+            ("--plot", &self.plot),
+            ("--html", &self.html),
+            ("--returns", &self.returns),
+        ] {
+            if let Some(p) = p {
+                check_output(flag, p)?;
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The `--returns` CSV header.
 pub const RETURNS_HEADER: &str =
     "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
@@ -122,6 +158,7 @@ pub fn run_calibrate(
     truth: Option<[f64; 7]>,
 ) -> Result<(String, bool), String> {
     use pipeline::{Inputs, InsInput};
+    out.check()?;
     let site = config::site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = start.params();

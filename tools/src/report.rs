@@ -585,6 +585,12 @@ pub fn render_montecarlo(r: &McReport) -> String {
 pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), String> {
     let json = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
     let tmp = p.with_extension("json.tmp");
-    std::fs::write(&tmp, json + "\n").map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, p).map_err(|e| format!("{}: {e}", p.display()))
+    std::fs::write(&tmp, json + "\n").map_err(|e| {
+        format!(
+            "{}: cannot write the report (through {}): {e}",
+            p.display(),
+            tmp.display()
+        )
+    })?;
+    std::fs::rename(&tmp, p).map_err(|e| format!("{}: cannot write the report: {e}", p.display()))
 }

@@ -48,6 +48,13 @@ pub fn run(a: Args) -> ExitCode {
         site,
         ..
     } = a.survey;
+    for (flag, p) in [("--las", &a.las), ("--windows", &a.windows)] {
+        if let Some(p) = p {
+            if let Err(e) = crate::check_output(flag, p) {
+                return fail("georef", e);
+            }
+        }
+    }
     let site = match crate::config::site::Site::load(&site) {
         Ok(s) => s,
         Err(e) => return fail("georef", e),

@@ -29,6 +29,20 @@ pub fn run(a: Args) -> ExitCode {
     match crate::ins::frame_bytes(&bytes, w) {
         Ok(s) => {
             say!("{}", s.render(&a.file.display().to_string()));
+            let st = &s.stats;
+            if st.frames + st.ascii + st.nmea == 0 {
+                // Nothing a VN-200 sends: say what the file looks like instead.
+                let head = &bytes[..bytes.len().min(64)];
+                return fail(
+                    "ins",
+                    format!(
+                        "{}: no VN-200 binary frame or sentence in {} bytes: it looks like {}",
+                        a.file.display(),
+                        bytes.len(),
+                        crate::state::looks_like(head)
+                    ),
+                );
+            }
             ExitCode::SUCCESS
         }
         Err(e) => fail("ins", format!("{}: writing CSV: {e}", a.file.display())),

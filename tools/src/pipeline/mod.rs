@@ -241,7 +241,11 @@ impl RunStats {
 
     /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
     /// file and what was found instead.
-    pub fn unusable(&self, pcap: &Files, ins: &Files, ins_head: &[u8]) -> Option<String> {
+    pub fn unusable(&self, pcap: &Files, ins: &InsInput, ins_head: &[u8]) -> Option<String> {
+        let (sbet, ins) = match ins {
+            InsInput::Vn200(f) => (false, f),
+            InsInput::Sbet(f, _) => (true, f),
+        };
         if self.align.data_packets == 0 {
             return Some(format!(
                 "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
@@ -260,8 +264,18 @@ impl RunStats {
                     st.describe()
                 ));
             }
+            if sbet {
+                return Some(format!(
+                    "{}: no valid SBET record in {} bytes ({} records of 136 bytes, {} of them out of range or not finite): it looks like {}",
+                    ins.display(),
+                    st.bytes,
+                    st.sbet_records,
+                    st.without_pose,
+                    crate::state::looks_like(ins_head)
+                ));
+            }
             return Some(format!(
-                "{}: no VN-200 or SBET pose in {} bytes ({} binary frames, {} CRC failures, {} $VN sentences, {} NMEA sentences): it looks like {}",
+                "{}: no VN-200 pose in {} bytes ({} binary frames, {} CRC failures, {} $VN sentences, {} NMEA sentences): it looks like {}",
                 ins.display(),
                 st.bytes,
                 st.frames,
@@ -424,7 +438,7 @@ pub fn run<C: Send>(
         let c = consumer
             .join()
             .map_err(|_| "consumer panicked".to_string())?;
-        if let Some(why) = stats.unusable(&inp.pcap, inp.ins_files(), &ins_head) {
+        if let Some(why) = stats.unusable(&inp.pcap, &inp.ins, &ins_head) {
             return Err(why);
         }
         Ok((stats, c))

@@ -224,14 +224,31 @@ pub fn ins_file_reader(
         }
         InsFile::Sbet(files, week) => {
             let mut st = InsState::default();
+            // Each file's first bytes, to say what a file that is not an SBET looks like.
+            let head_of = |p: &Path| {
+                use std::io::Read as _;
+                let mut head = Vec::new();
+                if let Ok(f) = std::fs::File::open(p) {
+                    let _ = f.take(64).read_to_end(&mut head);
+                }
+                head
+            };
+            let first_head = files.first().map(|p| head_of(p)).unwrap_or_default();
             for path in files {
+                let head = head_of(&path);
                 let f =
                     std::fs::File::open(&path).map_err(|e| format!("{}: {e}", path.display()))?;
                 let mut rd = SbetReader::new(std::io::BufReader::new(f));
-                while let Some(r) = rd
-                    .next_record()
-                    .map_err(|e| format!("{}: {e}", path.display()))?
-                {
+                while let Some(r) = rd.next_record().map_err(|e| match e {
+                    spherecal_hal::sbet::PospacError::Io(_) => {
+                        format!("{}: {e}", path.display())
+                    }
+                    _ => format!(
+                        "{}: {e}; it looks like {}",
+                        path.display(),
+                        crate::state::looks_like(&head)
+                    ),
+                })? {
                     let Some(t) = r.time(week) else {
                         st.without_pose += 1;
                         continue;
@@ -250,7 +267,7 @@ pub fn ins_file_reader(
                 st.sbet_records += rd.records;
                 st.without_pose += rd.invalid;
             }
-            Ok((st, Vec::new()))
+            Ok((st, first_head))
         }
     }
 }
