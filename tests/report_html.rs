@@ -79,6 +79,9 @@ fn html_report_converged_and_refused() {
     // The inputs and the time span in UTC (the scenario starts at 10:59:25 UTC).
     assert!(page.contains("lidar.pcap"));
     assert!(page.contains("2024-06-12 10:59:2"), "the span in UTC");
+    let span = rep.inputs.as_ref().unwrap().lidar_span_utc.clone().unwrap();
+    assert!(span.0.starts_with("2024-06-12 10:59:2"), "{span:?}");
+    assert!(span.1.starts_with("2024-06-12 11:00:"), "{span:?}");
     // Five figures per sphere found, each histogram captioned with its own RMS.
     let found = rep.per_sphere.iter().filter(|p| p.found).count();
     assert_eq!(found, 2);

@@ -5,7 +5,7 @@
 //! the figures.
 
 use crate::plot::{sphere_figures, strip_xml_header, Figures};
-use crate::report::Report;
+use crate::report::{utc, Report};
 use spherecal::calib::{NAMES, P};
 use std::fmt::Write as _;
 
@@ -31,19 +31,6 @@ fn num(v: f64, prec: usize) -> String {
     } else {
         "&ndash;".into()
     }
-}
-
-/// GPS seconds as UTC (`leap`: GPS - UTC [s]).
-fn utc(gps_s: f64, leap: i64) -> String {
-    let unix = spherecal::time::gps_to_unix_ns(
-        spherecal::time::GpsTime((gps_s * 1e9).round() as i64),
-        leap,
-    );
-    let t = spherecal::time::UtcDateTime::from_unix_ns(unix);
-    format!(
-        "{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC",
-        t.year, t.month, t.day, t.hour, t.minute, t.second
-    )
 }
 
 const STYLE: &str = "body{font-family:sans-serif;margin:24px;color:#222;max-width:1500px}

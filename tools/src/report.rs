@@ -282,6 +282,19 @@ pub struct SearchCandidate {
     pub rms_m: Option<f64>,
 }
 
+/// GPS seconds as UTC, `YYYY-MM-DD hh:mm:ss UTC` (`leap`: GPS - UTC [s]).
+pub fn utc(gps_s: f64, leap: i64) -> String {
+    let unix = spherecal::time::gps_to_unix_ns(
+        spherecal::time::GpsTime((gps_s * 1e9).round() as i64),
+        leap,
+    );
+    let t = spherecal::time::UtcDateTime::from_unix_ns(unix);
+    format!(
+        "{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC",
+        t.year, t.month, t.day, t.hour, t.minute, t.second
+    )
+}
+
 /// `v` with `prec` decimals, or `-` when it is not a number (no sigma without least squares).
 fn num(v: f64, prec: usize) -> String {
     if v.is_finite() {
@@ -472,6 +485,9 @@ pub struct InputsReport {
     pub skipped: BTreeMap<String, u64>,
     /// GPS seconds of the first and last data packet (LiDAR clock).
     pub lidar_span_gps_s: Option<(f64, f64)>,
+    /// The same in UTC (`YYYY-MM-DD hh:mm:ss UTC`, the site's leap seconds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lidar_span_utc: Option<(String, String)>,
     /// The LiDAR clock as its position packets tell it.
     pub clock: crate::state::ClockState,
     /// The LiDAR clock is PPS-locked with valid RMCs that agree with its stamps.
@@ -505,6 +521,10 @@ impl InputsReport {
                 .map(|l| (l.reason.to_string(), l.count))
                 .collect(),
             lidar_span_gps_s: stats.align.lidar_span,
+            lidar_span_utc: stats.align.lidar_span.map(|(a, b)| {
+                let leap = inp.site.leap_seconds;
+                (utc(a, leap), utc(b, leap))
+            }),
             clock: stats.clock.clone(),
             clock_trusted: stats.clock.trusted(),
             ins_state: stats.ins.clone(),
