@@ -5,11 +5,12 @@
 mod common;
 
 use spherecal_tools::config::scenario::Scenario;
+use std::ffi::OsString;
 use std::path::Path;
 
 /// Run `spherecal args`: it must exit 2 with every one of `want` in its standard error (and
 /// nothing on standard output when `silent`: refused before any work).
-fn refused(args: &[&std::ffi::OsStr], want: &[&str], silent: bool) {
+fn refused(args: &[OsString], want: &[&str], silent: bool) {
     let out = common::spherecal().args(args).output().unwrap();
     let (so, se) = (
         String::from_utf8_lossy(&out.stdout),
@@ -24,67 +25,44 @@ fn refused(args: &[&std::ffi::OsStr], want: &[&str], silent: bool) {
     }
 }
 
+/// `calibrate --pcap PCAP TRAJ FILE --site SITE EXTRA...`.
+fn calibrate(pcap: &Path, traj: &str, file: &Path, site: &Path, extra: &[&str]) -> Vec<OsString> {
+    let mut v: Vec<OsString> = vec!["calibrate".into(), "--pcap".into(), pcap.into()];
+    v.extend([traj.into(), file.into(), "--site".into(), site.into()]);
+    v.extend(extra.iter().map(OsString::from));
+    v
+}
+
 #[test]
 fn errors_name_the_file_and_the_reason() {
     let dir = common::tmp("errors", "survey");
     spherecal_tools::synth::synth(&Scenario::load("table1-bare").unwrap(), &dir).unwrap();
     let text = dir.join("notes.txt");
     std::fs::write(&text, "these are not sensor data\n").unwrap();
-    let p = |x: &Path| x.as_os_str().to_owned();
     let (pcap, ins, site) = (
-        p(&dir.join("lidar.pcap")),
-        p(&dir.join("ins.bin")),
-        p(&dir.join("site.toml")),
+        dir.join("lidar.pcap"),
+        dir.join("ins.bin"),
+        dir.join("site.toml"),
     );
-    let nodir = p(Path::new("/nonexistent-spherecal-dir/out.html"));
-    let s = |x: &str| std::ffi::OsString::from(x);
+    let nodir = "/nonexistent-spherecal-dir/out.html";
 
     // An output whose folder does not exist: refused at once, naming the option and folder.
     for flag in ["--html", "--report", "--plot", "--las", "--returns"] {
         refused(
-            &[
-                &s("calibrate"),
-                &s("--pcap"),
-                &pcap,
-                &s("--ins"),
-                &ins,
-                &s("--site"),
-                &site,
-                &s(flag),
-                &nodir,
-            ],
+            &calibrate(&pcap, "--ins", &ins, &site, &[flag, nodir]),
             &[flag, "/nonexistent-spherecal-dir", "does not exist"],
             true,
         );
     }
     // Text given as an SBET, a capture given as an SBET: what was read and what it looks like.
+    let week = ["--gps-week", "2300"];
     refused(
-        &[
-            &s("calibrate"),
-            &s("--pcap"),
-            &pcap,
-            &s("--sbet"),
-            &p(&text),
-            &s("--gps-week"),
-            &s("2300"),
-            &s("--site"),
-            &site,
-        ],
+        &calibrate(&pcap, "--sbet", &text, &site, &week),
         &["notes.txt", "no valid SBET record", "looks like text"],
         false,
     );
     refused(
-        &[
-            &s("calibrate"),
-            &s("--pcap"),
-            &pcap,
-            &s("--sbet"),
-            &pcap,
-            &s("--gps-week"),
-            &s("2300"),
-            &s("--site"),
-            &site,
-        ],
+        &calibrate(&pcap, "--sbet", &pcap, &site, &week),
         &[
             "lidar.pcap",
             "not an SBET file",
@@ -95,7 +73,7 @@ fn errors_name_the_file_and_the_reason() {
     );
     // Text given as the VN-200 stream, to `ins` and to `calibrate`.
     refused(
-        &[&s("ins"), &p(&text)],
+        &["ins".into(), text.clone().into()],
         &[
             "notes.txt",
             "no VN-200 binary frame or sentence",
@@ -104,29 +82,13 @@ fn errors_name_the_file_and_the_reason() {
         false,
     );
     refused(
-        &[
-            &s("calibrate"),
-            &s("--pcap"),
-            &pcap,
-            &s("--ins"),
-            &p(&text),
-            &s("--site"),
-            &site,
-        ],
+        &calibrate(&pcap, "--ins", &text, &site, &[]),
         &["notes.txt", "no VN-200 pose", "looks like text"],
         false,
     );
     // A site file that is not TOML: the file and the line.
     refused(
-        &[
-            &s("calibrate"),
-            &s("--pcap"),
-            &pcap,
-            &s("--ins"),
-            &ins,
-            &s("--site"),
-            &p(&text),
-        ],
+        &calibrate(&pcap, "--ins", &ins, &text, &[]),
         &["notes.txt", "line 1"],
         true,
     );

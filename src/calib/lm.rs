@@ -417,45 +417,50 @@ mod tests {
         out
     }
 
-    #[test]
-    fn converges_on_exact_data_and_not_on_nan() {
-        let t = [
-            Target {
-                center: Vector3::new(0.0, 0.0, -1.6),
-                radius: 0.19,
+    /// Two spheres 20 m apart and a mounting (rad, m).
+    const TARGETS: [Target; 2] = [
+        Target {
+            center: Vector3::new(0.0, 0.0, -1.6),
+            radius: 0.19,
+        },
+        Target {
+            center: Vector3::new(20.0, 0.0, -1.5),
+            radius: 0.19,
+        },
+    ];
+    const TRUTH: [f64; P] = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
+
+    /// Refine from `start` on the two spheres' returns `o`, with `weights`.
+    fn solve(
+        o: &[std::vec::Vec<Observation>],
+        start: &[f64; P],
+        weights: Option<Noise>,
+    ) -> LmResult {
+        let s = [
+            SphereObs {
+                target: TARGETS[0],
+                obs: &o[0],
             },
-            Target {
-                center: Vector3::new(20.0, 0.0, -1.5),
-                radius: 0.19,
+            SphereObs {
+                target: TARGETS[1],
+                obs: &o[1],
             },
         ];
-        let truth = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
+        let pb = Problem {
+            spheres: &s,
+            stride: 1,
+            dt: 0.0,
+            weights,
+        };
+        refine(&pb, start, 100, 20_000_000, false)
+    }
+
+    #[test]
+    fn converges_on_exact_data_and_not_on_nan() {
+        let (t, truth) = (TARGETS, TRUTH);
         let mut obs = exact(&truth, &t);
         let start = [3.12, -0.77, 0.03, 1.45, -1.2, -1.3];
-        let pb = |o: &[std::vec::Vec<Observation>]| {
-            let s = [
-                SphereObs {
-                    target: t[0],
-                    obs: &o[0],
-                },
-                SphereObs {
-                    target: t[1],
-                    obs: &o[1],
-                },
-            ];
-            refine(
-                &Problem {
-                    spheres: &s,
-                    stride: 1,
-                    dt: 0.0,
-                    weights: None,
-                },
-                &start,
-                100,
-                20_000_000,
-                false,
-            )
-        };
+        let pb = |o: &[std::vec::Vec<Observation>]| solve(o, &start, None);
         let r = pb(&obs);
         assert!(r.converged, "{r:?}");
         for (i, (got, want)) in r.b.iter().zip(truth).enumerate() {
@@ -471,17 +476,7 @@ mod tests {
     /// own INS sigma (1 m): weighted, the solution ignores them; unweighted, they pull it.
     #[test]
     fn weights_follow_the_returns_own_sigmas() {
-        let t = [
-            Target {
-                center: Vector3::new(0.0, 0.0, -1.6),
-                radius: 0.19,
-            },
-            Target {
-                center: Vector3::new(20.0, 0.0, -1.5),
-                radius: 0.19,
-            },
-        ];
-        let truth = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
+        let (t, truth) = (TARGETS, TRUTH);
         let mut obs = exact(&truth, &t);
         for o in obs[0].iter_mut().take(100) {
             o.position.x += 0.1;
@@ -501,23 +496,7 @@ mod tests {
         let want = 0.03f64.powi(2) + 0.005f64.powi(2) + 1.0 + 0.002f64.powi(2) / 12.0;
         assert!((noise.variance(&probe) - want).abs() < 1e-12);
         let err = |weights: Option<Noise>| {
-            let s = [
-                SphereObs {
-                    target: t[0],
-                    obs: &obs[0],
-                },
-                SphereObs {
-                    target: t[1],
-                    obs: &obs[1],
-                },
-            ];
-            let pb = Problem {
-                spheres: &s,
-                stride: 1,
-                dt: 0.0,
-                weights,
-            };
-            let r = refine(&pb, &truth, 100, 20_000_000, false);
+            let r = solve(&obs, &truth, weights);
             assert!(r.converged, "{r:?}");
             // The worst error as a displacement at 20 m: angles x 20 m, lever arm as is.
             (0..P)
