@@ -348,8 +348,27 @@ fn table1_through_the_rig() {
     );
 
     // Status lines: one a second, all in the documented format; the calibration shows up.
+    // What the ports heard, said once at 3 s: the sensor, its product, mode and rate; PPS.
+    let heard: Vec<&String> = lines.iter().filter(|l| l.starts_with("heard: ")).collect();
+    assert_eq!(heard.len(), 2, "{heard:?}");
+    assert!(
+        heard[0].contains(&format!("data port {dp}"))
+            && heard[0].contains("from 127.0.0.1")
+            && heard[0].contains("VLP-16")
+            && heard[0].contains("strongest return")
+            && heard[0].contains("600 rpm"),
+        "{}",
+        heard[0]
+    );
+    assert!(
+        heard[1].contains("PPS locked") && heard[1].contains("NMEA valid"),
+        "{}",
+        heard[1]
+    );
+    assert!(!lines.iter().any(|l| l.starts_with("WARNING")), "{lines:?}");
     let st: Vec<Status> = lines
         .iter()
+        .filter(|l| !l.starts_with("heard: "))
         .map(|l| Status::parse(l).unwrap_or_else(|| panic!("bad status line {l:?}")))
         .collect();
     assert!(st.len() >= 60, "{lines:?}");
@@ -360,8 +379,8 @@ fn table1_through_the_rig() {
     };
     let rate = median(
         st.iter()
-            .filter(|s| s.packets_per_s > 0)
-            .map(|s| s.packets_per_s as f64)
+            .filter(|s| s.aligned_per_s > 0)
+            .map(|s| s.aligned_per_s as f64)
             .collect(),
     );
     assert!(
@@ -791,4 +810,71 @@ fn other_senders_are_logged_not_aligned() {
         "{sm}"
     );
     assert!(err.contains("skipped"), "{err}");
+}
+
+/// A factory VLP-16 broadcasts to 255.255.255.255: the default board (bound to 0.0.0.0)
+/// receives broadcast and unicast datagrams alike, the status line counts them received while
+/// no INS sends (`al/s` stays 0), and the rig says in words that the position port is silent.
+#[test]
+fn factory_broadcast_received_and_a_silent_port_named() {
+    let dir = common::tmp("rig-broadcast", "x");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    let (dp, pp) = (23_790, 23_791);
+    // The board's default bind address (the line removed).
+    let mut rig = start_rig_with(
+        &dir,
+        dp,
+        pp,
+        &slave.name().unwrap(),
+        false,
+        &[("bind_addr = \"127.0.0.1\"\n", "")],
+    );
+    let (all, _) = datagrams(&[common::test_data("vlp16/mrpt_vlp16_gps.pcap")]);
+    let data: Vec<&Vec<u8>> = all.iter().filter(|d| d.0 == 2368).map(|d| &d.1).collect();
+    assert!(data.len() >= 100);
+    let tx = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
+    tx.set_broadcast(true).unwrap();
+    let mut sent = [0u64; 2];
+    for (k, p) in data.iter().cycle().take(300).enumerate() {
+        // 255.255.255.255 as a factory VLP-16 sends; where no route takes it (a machine
+        // without a network), the loopback network's broadcast address.
+        if tx.send_to(p, (Ipv4Addr::BROADCAST, dp)).is_err() {
+            tx.send_to(p, (Ipv4Addr::new(127, 255, 255, 255), dp))
+                .unwrap();
+        }
+        tx.send_to(p, (Ipv4Addr::LOCALHOST, dp)).unwrap();
+        sent[0] += 1;
+        sent[1] += 1;
+        if k % 20 == 19 {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    // Past the 3 s report, with a status line or two.
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(5) {
+        rig.next_line(Duration::from_millis(200));
+    }
+    rig.signal(nix::sys::signal::Signal::SIGTERM);
+    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    assert_eq!(code, Some(0), "{err}");
+    let sm = summary(&dir.join("logs"));
+    assert_eq!(u(&sm["received"][0]), sent[0] + sent[1], "{sm}");
+    assert_eq!(u(&sm["heard"][0]["datagrams"]), 600, "{sm}");
+    assert_eq!(u(&sm["heard"][0]["packets"]), 600, "{sm}");
+    assert_eq!(u(&sm["heard"][1]["datagrams"]), 0, "{sm}");
+    let said = lines.join("\n");
+    assert!(
+        said.contains(&format!("heard: data port {dp}: 600 datagrams")),
+        "{said}"
+    );
+    assert!(
+        said.contains(&format!("WARNING: position port {pp}: silent for 3 s")),
+        "{said}"
+    );
+    // Received, not aligned: no INS.
+    let st: Vec<Status> = lines.iter().filter_map(|l| Status::parse(l)).collect();
+    assert!(st.iter().any(|s| s.received_per_s > 0), "{said}");
+    assert!(st.iter().all(|s| s.aligned_per_s == 0), "{said}");
 }

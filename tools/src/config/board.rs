@@ -8,7 +8,10 @@ use std::net::Ipv4Addr;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LidarNet {
-    /// Address to bind on this computer.
+    /// Address to bind on this computer: `0.0.0.0` (the default) receives the LiDAR's
+    /// broadcast (a factory VLP-16 sends to 255.255.255.255) and unicast datagrams alike; one
+    /// unicast address receives only datagrams sent to it.
+    #[serde(default = "any_address")]
     pub bind_addr: String,
     /// The sensor's address.
     pub sensor_addr: String,
@@ -16,6 +19,10 @@ pub struct LidarNet {
     pub data_port: u16,
     /// Position packets' UDP port.
     pub position_port: u16,
+}
+
+fn any_address() -> String {
+    "0.0.0.0".into()
 }
 
 /// The INS link.

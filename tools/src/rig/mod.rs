@@ -23,6 +23,7 @@ use crate::pipeline::{
 };
 use crate::state::{ClockState, InsState};
 
+pub mod hearing;
 mod logger;
 mod readers;
 mod solver;
@@ -202,6 +203,8 @@ struct Shared<'a> {
     /// The latest estimate of the time offset and its sigma [s].
     time_offset: Mutex<Option<(f64, f64)>>,
     errors: Mutex<Vec<String>>,
+    /// What each port hears: data, position.
+    heard: [Mutex<hearing::Heard>; 2],
 }
 
 /// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
@@ -248,6 +251,7 @@ impl<'a> Shared<'a> {
         readers: usize,
         spheres: usize,
         drop_probes: [DropProbe; 2],
+        ports: Ports,
     ) -> Self {
         Self {
             stop,
@@ -271,6 +275,7 @@ impl<'a> Shared<'a> {
             time_offset_ns: AtomicI64::new(0),
             time_offset: Mutex::new(None),
             errors: Mutex::new(Vec::new()),
+            heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
         }
     }
 
@@ -358,7 +363,7 @@ fn run_rig(
     let plan = Plan::new(opts);
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some());
-    let sh = Shared::new(stop, readers, plan.ids.len(), probes);
+    let sh = Shared::new(stop, readers, plan.ids.len(), probes, io.accept.ports);
     let started = Instant::now();
     let path = io.log_dir.join(format!("{}-run.json", io.stamp));
     let ended = run_threads(opts, console, io, &plan, &sh, started);
@@ -581,7 +586,14 @@ fn run_threads(
             solver(rx, pool_tx, tg, ids, &plan.b0, &opts.settings, report, sh)
         });
         let status = spawn(sc, "status", move || {
-            status_loop(console, &plan.ids, opts.duration, started, sh)
+            status_loop(
+                console,
+                &plan.ids,
+                opts.duration,
+                started,
+                sh,
+                (bind, accept.sensor),
+            )
         });
 
         // Aligner (this thread). Should it fail, everything winds down.
@@ -630,7 +642,7 @@ fn run_threads(
         sh.aligned
             .store(al.core.stats.data_packets, Ordering::Relaxed);
         if let Ok(c) = status.join() {
-            let mut last = u64::MAX;
+            let mut last = [u64::MAX; 2];
             if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
                 sh.error(format!("console: {e}"));
             }

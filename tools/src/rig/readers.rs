@@ -21,6 +21,9 @@ pub(super) fn udp_reader(
     let port = sock.port();
     let log_datagram = |d: &Datagram<'_>| {
         sh.received[which].fetch_add(1, Ordering::Relaxed);
+        if let Ok(mut h) = sh.heard[which].lock() {
+            h.see(d, accept.ports);
+        }
         enqueue(
             &mut log,
             UdpLogItem::new(d),

@@ -1,10 +1,11 @@
 //! The rig's status line, one a second on the console (a serial port or stdout).
 //!
 //! ```text
-//! t=12s pkt/s=754 drop=0/0/0 kdrop=0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
+//! t=12s rx/s=754 al/s=754 drop=0/0/0 kdrop=0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
 //! ```
-//! Fields, space separated, `key=value`: `t` seconds since start; `pkt/s` LiDAR data packets in
-//! the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
+//! Fields, space separated, `key=value`: `t` seconds since start; `rx/s` datagrams received on
+//! the data port in the last second (any sender: a working LiDAR shows here even while the INS
+//! is silent); `al/s` data packets aligned with the INS in the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
 //! dropped (socket buffer full) so far; `pps` the position packets' PPS state;
 //! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time, each against the host receive
 //! clock, at the last aligned packet [ms];
@@ -23,8 +24,10 @@ use std::fmt::Write as _;
 pub struct Status {
     /// Seconds since start.
     pub t_s: u64,
-    /// Data packets in the last second.
-    pub packets_per_s: u64,
+    /// Datagrams received on the data port in the last second (any sender).
+    pub received_per_s: u64,
+    /// Data packets aligned with the INS in the last second.
+    pub aligned_per_s: u64,
     /// Ring drops: LiDAR, INS, raw log.
     pub drops: [u64; 3],
     /// Datagrams the kernel dropped.
@@ -50,9 +53,10 @@ impl Status {
         let mut o = String::with_capacity(160);
         let _ = write!(
             o,
-            "t={}s pkt/s={} drop={}/{}/{} kdrop={} pps={} ins={}",
+            "t={}s rx/s={} al/s={} drop={}/{}/{} kdrop={} pps={} ins={}",
             self.t_s,
-            self.packets_per_s,
+            self.received_per_s,
+            self.aligned_per_s,
             self.drops[0],
             self.drops[1],
             self.drops[2],
@@ -104,7 +108,8 @@ impl Status {
             let (k, v) = kv.split_once('=')?;
             match k {
                 "t" => s.t_s = v.strip_suffix('s')?.parse().ok()?,
-                "pkt/s" => s.packets_per_s = v.parse().ok()?,
+                "rx/s" => s.received_per_s = v.parse().ok()?,
+                "al/s" => s.aligned_per_s = v.parse().ok()?,
                 "drop" => {
                     let d: Vec<u64> = v
                         .split('/')
@@ -155,19 +160,21 @@ impl Status {
     }
 }
 
-/// The status line from the shared counters; `last_aligned` is the count at the previous line
-/// (`u64::MAX`: none, the line shows 0 packets/s).
+/// The status line from the shared counters; `last` holds the received and aligned counts at
+/// the previous line.
 pub(super) fn snapshot(
     sh: &Shared<'_>,
     ids: &[String],
     started: Instant,
-    last_aligned: &mut u64,
+    last: &mut [u64; 2],
 ) -> Status {
     let aligned = sh.aligned.load(Ordering::Relaxed);
+    let received = sh.received[0].load(Ordering::Relaxed);
     let lag = sh.lag_ns.load(Ordering::Relaxed);
     let s = Status {
         t_s: started.elapsed().as_secs(),
-        packets_per_s: aligned.saturating_sub(*last_aligned),
+        received_per_s: received.saturating_sub(last[0]),
+        aligned_per_s: aligned.saturating_sub(last[1]),
         drops: [
             sh.ring_drops.data.load(Ordering::Relaxed)
                 + sh.ring_drops.position.load(Ordering::Relaxed),
@@ -193,8 +200,64 @@ pub(super) fn snapshot(
             .and_then(|c| *c)
             .map(|(d, s)| (d * 1e3, s * 1e3)),
     };
-    *last_aligned = aligned;
+    *last = [received, aligned];
     s
+}
+
+/// Seconds after the start when the rig says what each port hears.
+pub const HEAR_S: u64 = 3;
+/// A port still silent is named again this often [s].
+pub const SILENT_AGAIN_S: u64 = 30;
+
+/// What the ports heard, on the console: at [`HEAR_S`], then for a port that was silent, when
+/// it starts to hear (or every [`SILENT_AGAIN_S`] while it does not). `(bind, sensor)`: the
+/// board's addresses.
+struct Hearing {
+    bind: Ipv4Addr,
+    sensor: Option<Ipv4Addr>,
+    /// Per port: was silent at its last report (None: not reported yet).
+    silent: [Option<bool>; 2],
+}
+
+impl Hearing {
+    fn lines(&mut self, sh: &Shared<'_>, t: u64) -> Vec<String> {
+        let mut out = Vec::new();
+        if t < HEAR_S {
+            return out;
+        }
+        for (k, what) in ["data", "position"].into_iter().enumerate() {
+            let Ok(h) = sh.heard[k].lock().map(|h| h.clone()) else {
+                continue;
+            };
+            let due = match self.silent[k] {
+                None => true,
+                Some(true) => h.datagrams > 0 || (t - HEAR_S) % SILENT_AGAIN_S == 0,
+                Some(false) => false,
+            };
+            if !due {
+                continue;
+            }
+            self.silent[k] = Some(h.datagrams == 0);
+            let (text, mut warnings) = h.describe(what, self.sensor, t as f64);
+            let data_heard = sh.received[0].load(Ordering::Relaxed) > 0;
+            if k == 1 && h.datagrams == 0 && data_heard {
+                // The LiDAR is there: its position packets go to another port.
+                warnings = vec![format!(
+                    "position port {}: silent for {t} s while the data port hears the LiDAR: check the board's position_port (a VLP-16 sends them to 8308 unless its web page says otherwise) and the firewall",
+                    h.port
+                )];
+            }
+            out.push(format!("heard: {text}"));
+            out.extend(warnings.into_iter().map(|w| format!("WARNING: {w}")));
+            if h.datagrams == 0 && !self.bind.is_unspecified() {
+                out.push(format!(
+                    "WARNING: lidar.bind_addr is {}: datagrams broadcast to 255.255.255.255 (a factory VLP-16's destination) are not delivered to a socket bound to one address; bind 0.0.0.0 (the default)",
+                    self.bind
+                ));
+            }
+        }
+        out
+    }
 }
 
 /// One status line a second until the stop; sets the stop when the duration has passed.
@@ -205,8 +268,14 @@ pub(super) fn status_loop<'c>(
     duration: Option<Duration>,
     started: Instant,
     sh: &Shared<'_>,
+    (bind, sensor): (Ipv4Addr, Option<Ipv4Addr>),
 ) -> &'c mut Console {
-    let mut last_aligned = 0u64;
+    let mut last = [0u64; 2];
+    let mut hearing = Hearing {
+        bind,
+        sensor,
+        silent: [None; 2],
+    };
     let mut tick = 1u64;
     let over = || duration.is_some_and(|d| started.elapsed() >= d);
     loop {
@@ -225,7 +294,12 @@ pub(super) fn status_loop<'c>(
         }
         tick += 1;
         sh.poll_kernel_drops();
-        let s = snapshot(sh, ids, started, &mut last_aligned);
+        let s = snapshot(sh, ids, started, &mut last);
+        for l in hearing.lines(sh, s.t_s) {
+            if let Err(e) = console.write_line(&l) {
+                sh.error(format!("console: {e}"));
+            }
+        }
         if let Err(e) = show(console, &s) {
             sh.error(format!("console: {e}"));
         }
@@ -240,7 +314,8 @@ mod tests {
     fn line_format_and_round_trip() {
         let s = Status {
             t_s: 12,
-            packets_per_s: 754,
+            received_per_s: 760,
+            aligned_per_s: 754,
             drops: [0, 3, 1],
             kernel_drops: 7,
             pps: "locked".into(),
@@ -255,7 +330,7 @@ mod tests {
         };
         assert_eq!(
             s.line(),
-            "t=12s pkt/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004"
+            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -265,7 +340,7 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s pkt/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=-"
+            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);
@@ -295,7 +370,8 @@ mod console_tests {
         let lines: Vec<Status> = (0..5)
             .map(|i| Status {
                 t_s: i,
-                packets_per_s: 754,
+                received_per_s: 754,
+                aligned_per_s: 754,
                 pps: "locked".into(),
                 ins: "tracking".into(),
                 ..Status::default()

@@ -9,6 +9,8 @@ pub struct RunSummary {
     pub seconds: f64,
     /// Datagrams received: data port, position port.
     pub received: [u64; 2],
+    /// What each port heard (senders, product, return mode, rpm, PPS, NMEA): data, position.
+    pub heard: [super::hearing::Heard; 2],
     /// Datagrams the kernel dropped (socket buffer full): data, position.
     pub kernel_drops: [u64; 2],
     /// Datagrams with a kernel receive time.
@@ -90,6 +92,10 @@ impl RunSummary {
         Self {
             seconds: started.elapsed().as_secs_f64(),
             received: ld(&sh.received),
+            heard: sh
+                .heard
+                .each_ref()
+                .map(|h| h.lock().map(|h| h.clone()).unwrap_or_default()),
             kernel_drops: ld(&sh.kernel_drops),
             kernel_stamped: e.skips[0].1 + e.skips[1].1,
             enqueued: ld(&sh.enqueued),

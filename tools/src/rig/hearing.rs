@@ -1,0 +1,301 @@
+//! What each LiDAR port hears, before any filtering: who sends, and what the packets say of the
+//! sensor (product, return mode, rotation rate from the azimuth advance; PPS and RMC from the
+//! position packets). The rig says it in words a few seconds after the start, and warns when a
+//! port is silent or another sender is talking: a factory VLP-16 broadcasts to
+//! 255.255.255.255, which a socket bound to one unicast address never receives.
+
+use serde::Serialize;
+use spherecal::vlp16::{PositionPacket, PpsStatus, Product, ReturnMode};
+use spherecal_hal::packet::{Datagram, HostTime};
+use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
+use std::net::Ipv4Addr;
+
+/// Senders told apart per port (more are counted together).
+const MAX_SENDERS: usize = 8;
+
+/// One port's hearing.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct Heard {
+    /// The port.
+    pub port: u16,
+    /// Datagrams received (any sender, any content).
+    pub datagrams: u64,
+    /// Datagrams per sender address.
+    pub senders: Vec<(Ipv4Addr, u64)>,
+    /// Datagrams from further senders.
+    pub other_senders: u64,
+    /// Of them, VLP-16 packets of this port's kind (length and flags checked).
+    pub packets: u64,
+    /// The data packets' product byte, last seen.
+    pub product: Option<u8>,
+    /// Their return-mode byte, last seen.
+    pub return_mode: Option<u8>,
+    /// The position packets' PPS state, last seen.
+    pub pps: Option<u8>,
+    /// Their NMEA sentence: RMC (or GGA) valid, last seen (None: no sentence parsed).
+    pub nmea_valid: Option<bool>,
+    /// Rotation rate from the data packets' azimuth advance over their receive times [rpm].
+    pub rpm: Option<f64>,
+    #[serde(skip)]
+    spin: Spin,
+}
+
+/// The azimuth advance of consecutive data packets (first block), over host time.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Spin {
+    first: Option<HostTime>,
+    last: Option<(HostTime, u16)>,
+    /// Total advance [0.01 deg].
+    advance: u64,
+}
+
+impl Heard {
+    /// A port's hearing, empty.
+    pub fn new(port: u16) -> Self {
+        Self {
+            port,
+            ..Self::default()
+        }
+    }
+
+    /// One datagram received on this port (`ports`: which is data, which is position).
+    pub fn see(&mut self, d: &Datagram<'_>, ports: Ports) {
+        self.datagrams += 1;
+        let full = self.senders.len() >= MAX_SENDERS;
+        match self.senders.iter_mut().find(|s| s.0 == d.src_addr) {
+            Some(s) => s.1 += 1,
+            None if !full => self.senders.push((d.src_addr, 1)),
+            None => self.other_senders += 1,
+        }
+        match classify(d, ports) {
+            Ok(Vlp16Packet::Data { packet, .. }) => {
+                self.packets += 1;
+                self.product = Some(packet.product_raw());
+                self.return_mode = Some(packet.return_mode_raw());
+                self.turn(d.time, packet.azimuth_raw(0));
+            }
+            Ok(Vlp16Packet::Position { packet, .. }) => {
+                self.packets += 1;
+                self.position(&packet);
+            }
+            Err(_) => {}
+        }
+    }
+
+    fn position(&mut self, p: &PositionPacket<&[u8]>) {
+        self.pps = Some(match p.pps() {
+            PpsStatus::Absent => 0,
+            PpsStatus::Synchronizing => 1,
+            PpsStatus::Locked => 2,
+            PpsStatus::Error => 3,
+            PpsStatus::Unknown(b) => b,
+        });
+        self.nmea_valid = p.nmea_time().ok().map(|t| t.valid);
+    }
+
+    /// The azimuth of a data packet's first block at `t`: the rate from the advance.
+    fn turn(&mut self, t: HostTime, azimuth: u16) {
+        let s = &mut self.spin;
+        if azimuth >= 36_000 {
+            return;
+        }
+        if let Some((_, a)) = s.last {
+            // Forward, modulo a turn (a dropped packet or two still counts right).
+            s.advance += u64::from((u32::from(azimuth) + 36_000 - u32::from(a)) % 36_000);
+        } else {
+            s.first = Some(t);
+        }
+        s.last = Some((t, azimuth));
+        if let (Some(t0), Some((t1, _))) = (s.first, s.last) {
+            let secs = t1.since(t0) as f64 * 1e-9;
+            if secs > 0.5 {
+                self.rpm = Some(s.advance as f64 / 36_000.0 / secs * 60.0);
+            }
+        }
+    }
+
+    /// The datagrams from `a`.
+    pub fn from(&self, a: Ipv4Addr) -> u64 {
+        self.senders.iter().find(|s| s.0 == a).map_or(0, |s| s.1)
+    }
+
+    /// What the port heard, in words, and the warnings: `what` names the port ("data",
+    /// "position"), `sensor` the board's sensor address (None: any), `secs` since the start.
+    pub fn describe(
+        &self,
+        what: &str,
+        sensor: Option<Ipv4Addr>,
+        secs: f64,
+    ) -> (String, Vec<String>) {
+        let mut warn = Vec::new();
+        let head = format!("{what} port {}", self.port);
+        if self.datagrams == 0 {
+            warn.push(format!(
+                "{head}: silent for {secs:.0} s: no datagram arrives (check the cable and link, that the LiDAR's destination (web page: Host IP; factory 255.255.255.255) reaches this computer, and that nothing else holds the port)"
+            ));
+            return (format!("{head}: silent"), warn);
+        }
+        let senders: Vec<String> = self
+            .senders
+            .iter()
+            .map(|(a, n)| format!("{n} from {a}"))
+            .chain((self.other_senders > 0).then(|| format!("{} from others", self.other_senders)))
+            .collect();
+        let mut o = format!(
+            "{head}: {} datagrams in {secs:.0} s ({})",
+            self.datagrams,
+            senders.join(", ")
+        );
+        if let Some(p) = self.product {
+            let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {}", product_name(p)));
+        }
+        if let Some(m) = self.return_mode {
+            let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {}", return_name(m)));
+        }
+        if let Some(r) = self.rpm {
+            let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {r:.0} rpm"));
+        }
+        if let Some(p) = self.pps {
+            let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", PPS {}", pps_name(p)));
+        }
+        match self.nmea_valid {
+            Some(true) => o.push_str(", NMEA valid"),
+            Some(false) => o.push_str(", NMEA void (no GNSS fix at the LiDAR)"),
+            None if what == "position" && self.packets > 0 => o.push_str(", no NMEA sentence"),
+            None => {}
+        }
+        if self.packets == 0 {
+            warn.push(format!(
+                "{head}: {} datagrams but none is a VLP-16 {what} packet (wrong port? another device?)",
+                self.datagrams
+            ));
+        }
+        if let Some(s) = sensor {
+            let mine = self.from(s);
+            if mine == 0 {
+                warn.push(format!(
+                    "{head}: nothing from the board's sensor_addr {s}; {}: they are logged, not aligned (set lidar.sensor_addr, or 0.0.0.0 for any sender)",
+                    senders.join(", ")
+                ));
+            } else if mine < self.datagrams {
+                warn.push(format!(
+                    "{head}: another sender is talking: {} of {} datagrams are not from {s} (logged, not aligned)",
+                    self.datagrams - mine,
+                    self.datagrams
+                ));
+            }
+        }
+        if let Some(p) = self.product.filter(|&p| p != 0x22 && p != 0x24) {
+            warn.push(format!(
+                "{head}: the product byte is 0x{p:02X} ({}): decoded as a VLP-16",
+                product_name(p)
+            ));
+        }
+        if let Some(0 | 3) = self.pps {
+            warn.push(format!(
+                "{head}: PPS {}: the LiDAR clock is not disciplined (check the GNSS receiver's PPS and NMEA wiring to the interface box)",
+                pps_name(self.pps.unwrap_or(0))
+            ));
+        }
+        if self.nmea_valid == Some(false) {
+            warn.push(format!(
+                "{head}: the NMEA sentence is void: the GNSS receiver feeding the LiDAR has no fix"
+            ));
+        }
+        (o, warn)
+    }
+}
+
+/// The product byte in words (VLP-16 manual, 9.3.2.3).
+pub fn product_name(b: u8) -> String {
+    match Product::from(b) {
+        Product::Vlp16 => "VLP-16 / Puck LITE (0x22)".into(),
+        Product::PuckHiRes => "Puck Hi-Res (0x24)".into(),
+        Product::Hdl32eOrEarlyVlp16 => "HDL-32E or an early VLP-16 (0x21)".into(),
+        Product::Other(0x28) => "VLP-32C (0x28)".into(),
+        Product::Other(x) => format!("unknown product 0x{x:02X}"),
+    }
+}
+
+/// The return-mode byte in words.
+pub fn return_name(b: u8) -> String {
+    match ReturnMode::from_byte(b).ok() {
+        Some(ReturnMode::Strongest) => "strongest return".into(),
+        Some(ReturnMode::Last) => "last return".into(),
+        Some(ReturnMode::Dual) => "dual return".into(),
+        None => format!("return mode 0x{b:02X}"),
+    }
+}
+
+fn pps_name(b: u8) -> &'static str {
+    match b {
+        0 => "absent",
+        1 => "synchronizing",
+        2 => "locked",
+        3 => "error",
+        _ => "unknown",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spherecal::vlp16::DataPacket;
+
+    fn data(az: u16, product: u8) -> Vec<u8> {
+        let mut b = vec![0u8; 1206];
+        for k in 0..12 {
+            b[k * 100] = 0xFF;
+            b[k * 100 + 1] = 0xEE;
+        }
+        let mut p = DataPacket::new_unchecked(&mut b[..]);
+        for k in 0..12 {
+            p.set_azimuth_raw(k, az);
+        }
+        p.set_return_mode(ReturnMode::Strongest);
+        p.set_product_raw(product);
+        b
+    }
+
+    /// By hand: at 600 rpm (3600 deg/s) a packet every 1.327 ms advances 4.777 deg; 478
+    /// hundredths a packet is 600.4 rpm.
+    #[test]
+    fn rate_sender_and_product() {
+        let mut h = Heard::new(2368);
+        let ports = Ports::default();
+        let sensor: Ipv4Addr = "192.168.1.201".parse().unwrap();
+        let mut az = 35_000u16;
+        for k in 0..1000i64 {
+            let payload = data(az, 0x22);
+            let d = Datagram {
+                time: HostTime(k * 1_327_000),
+                src_addr: sensor,
+                src_port: 2368,
+                dst_port: 2368,
+                payload: &payload,
+                offset: 0,
+            };
+            h.see(&d, ports);
+            az = (az + 478) % 36_000;
+        }
+        let rpm = h.rpm.unwrap();
+        // 478 / 36000 turns per 1.327 ms = 600.4 rpm.
+        assert!((rpm - 600.4).abs() < 0.5, "{rpm}");
+        let (text, warn) = h.describe("data", Some(sensor), 3.0);
+        assert!(text.contains("1000 from 192.168.1.201"), "{text}");
+        assert!(text.contains("VLP-16") && text.contains("strongest") && text.contains("600 rpm"));
+        assert!(warn.is_empty(), "{warn:?}");
+        // Another sender, and the board's sensor silent.
+        let (_, warn) = h.describe("data", Some("192.168.1.55".parse().unwrap()), 3.0);
+        assert!(
+            warn[0].contains("nothing from the board's sensor_addr 192.168.1.55"),
+            "{warn:?}"
+        );
+        // A silent port.
+        let (_, warn) = Heard::new(8308).describe("position", None, 3.0);
+        assert!(
+            warn[0].contains("position port 8308: silent for 3 s"),
+            "{warn:?}"
+        );
+    }
+}
