@@ -231,7 +231,7 @@ impl Hearing {
             };
             let due = match self.silent[k] {
                 None => true,
-                Some(true) => h.datagrams > 0 || (t - HEAR_S) % SILENT_AGAIN_S == 0,
+                Some(true) => h.datagrams > 0 || (t - HEAR_S).is_multiple_of(SILENT_AGAIN_S),
                 Some(false) => false,
             };
             if !due {
