@@ -878,3 +878,55 @@ fn factory_broadcast_received_and_a_silent_port_named() {
     assert!(st.iter().any(|s| s.received_per_s > 0), "{said}");
     assert!(st.iter().all(|s| s.aligned_per_s == 0), "{said}");
 }
+
+/// The rig configures the VN-200 at the start (an emulated factory unit on the pseudo-terminal:
+/// ASCII output on, no binary output): each write checked, then the unit's binary frames are
+/// the rig's poses and the status line says the INS is tracking.
+#[test]
+fn rig_configures_a_factory_vn200() {
+    use spherecal_tools::vn200::emulator::{run, Unit};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, Mutex};
+    let dir = common::tmp("rig-vn200", "x");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    master.set_timeout(Duration::from_millis(2)).unwrap();
+    let unit = Arc::new(Mutex::new(Unit::factory(921_600)));
+    let stop = Arc::new(AtomicBool::new(false));
+    let (u2, s2) = (Arc::clone(&unit), Arc::clone(&stop));
+    let emu = std::thread::spawn(move || run(&u2, &mut master, &mut |_| {}, &s2));
+    let (dp, pp) = (23_795, 23_796);
+    let mut rig = start_rig_with(
+        &dir,
+        dp,
+        pp,
+        &slave.name().unwrap(),
+        false,
+        &[("configure = false", "configure = true")],
+    );
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(3) {
+        rig.next_line(Duration::from_millis(200));
+    }
+    rig.signal(nix::sys::signal::Signal::SIGTERM);
+    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    stop.store(true, Ordering::Relaxed);
+    emu.join().unwrap();
+    assert_eq!(code, Some(0), "{err}");
+    let said = lines.join("\n");
+    assert!(said.contains("vn200: ASCII async output off"), "{said}");
+    assert!(
+        said.contains("vn200: binary output (register 75): TimeGps, YawPitchRoll, Position, InsStatus at 200 Hz"),
+        "{said}"
+    );
+    assert!(
+        said.contains("vn200: first binary frames match the board"),
+        "{said}"
+    );
+    assert_eq!(unit.lock().unwrap().async_type, 0);
+    let st: Vec<Status> = lines.iter().filter_map(|l| Status::parse(l)).collect();
+    assert!(st.iter().any(|s| s.ins == "tracking"), "{said}");
+    let sm = summary(&dir.join("logs"));
+    assert!(u(&sm["ins"]["poses"]) > 100, "{sm}");
+}

@@ -83,6 +83,11 @@ impl SerialSource {
     pub fn from_port(port: Box<dyn serialport::SerialPort>) -> Self {
         Self { port }
     }
+
+    /// The port, to write to the device (its configuration) before reading.
+    pub fn port_mut(&mut self) -> &mut Box<dyn serialport::SerialPort> {
+        &mut self.port
+    }
 }
 
 impl ByteSource for SerialSource {

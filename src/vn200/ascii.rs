@@ -163,7 +163,8 @@ impl<'a> Sentence<'a> {
                     values,
                 }
             }
-            "VNERR" => Vn::Error(f.num()?),
+            // The code is hex (`$VNERR,0C`: insufficient baud rate).
+            "VNERR" => Vn::Error(u8::try_from(f.hex()?).map_err(|_| Error::BadField { index: 1 })?),
             _ => Vn::Other,
         };
         if f.it.next().is_some() && !matches!(out, Vn::Register { .. } | Vn::Other) {
@@ -299,7 +300,7 @@ pub enum Vn<'a> {
         /// The register's values, comma separated, as sent.
         values: &'a str,
     },
-    /// `$VNERR`: error code.
+    /// `$VNERR`: error code (sent in hex; [`super::command::error_name`]).
     Error(u8),
     /// Any other `$VN` sentence (checksum verified, fields not decoded).
     Other,
@@ -316,10 +317,12 @@ mod tests {
 
     #[test]
     fn xor_checksum_by_hand() {
-        // $VNERR,12*72: 'V'^'N'^'E'^'R'^'R'^','^'1'^'2' = 0x72.
+        // $VNERR,12*72: 'V'^'N'^'E'^'R'^'R'^','^'1'^'2' = 0x72; the code is hex: 0x12.
         let s = parse(b"$VNERR,12*72").unwrap();
         assert_eq!(s.checksum, Checksum::Xor8(0x72));
-        assert_eq!(s.decode(), Ok(Vn::Error(12)));
+        assert_eq!(s.decode(), Ok(Vn::Error(0x12)));
+        // $VNERR,0C*02: insufficient baud rate (12).
+        assert_eq!(parse(b"$VNERR,0C*02").unwrap().decode(), Ok(Vn::Error(12)));
         assert_eq!(
             parse(b"$VNERR,12*73"),
             Err(Error::AsciiChecksum {

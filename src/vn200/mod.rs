@@ -8,9 +8,12 @@
 //! - [`framer`]: the streaming framer: any chunking in, frames and sentences out, resync on
 //!   0xFA / `$`, fixed buffer, no heap.
 //! - [`pose`]: the timestamped pose a frame or `$VNINS` carries.
+//! - [`command`]: the emit side of the ASCII commands that configure a unit (registers 5, 6,
+//!   75-77) and the echoed register values read back.
 
 pub mod ascii;
 pub mod binary;
+pub mod command;
 pub mod fields;
 pub mod framer;
 pub mod pose;

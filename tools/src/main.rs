@@ -46,6 +46,9 @@ enum Cmd {
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins(cmd::ins::Args),
+    /// The VN-200 on a serial port: `vn200 configure --board FILE` sets it up for the board
+    /// (and checks every write); `vn200 emulate --serial DEV` is one, to try the rig.
+    Vn200(cmd::vn200::Args),
 }
 
 fn main() -> ExitCode {
@@ -73,5 +76,6 @@ fn main() -> ExitCode {
         Some(Cmd::Ins(a)) => cmd::ins::run(a),
         Some(Cmd::Site(a)) => cmd::site::run(a),
         Some(Cmd::Board(a)) => cmd::board::run(a),
+        Some(Cmd::Vn200(a)) => cmd::vn200::run(a),
     }
 }

@@ -32,6 +32,7 @@ pub mod replay;
 pub mod run;
 pub mod site;
 pub mod synth;
+pub mod vn200;
 
 /// Exit 2 with `spherecal CMD: why` on stderr.
 fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {

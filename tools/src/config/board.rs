@@ -42,6 +42,22 @@ pub struct InsLink {
     /// Binary output fields expected (Common group names).
     #[serde(default)]
     pub fields: Vec<String>,
+    /// The rig configures the VN-200 at the start (binary output register 75 from `fields`
+    /// and `rate_hz` on `port`, ASCII async output off); `false` leaves it as it is (a replay,
+    /// or a unit configured by hand).
+    #[serde(default = "yes")]
+    pub configure: bool,
+    /// The VN-200 serial port the rig is wired to (1 or 2).
+    #[serde(default = "port_one")]
+    pub port: u8,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn port_one() -> u8 {
+    1
 }
 
 /// Status console.
@@ -221,6 +237,16 @@ impl Board {
                 }
                 if !self.ins.fields.iter().any(|f| f == "TimeGps") {
                     return bad("ins.fields", "TimeGps is needed to time the poses");
+                }
+                if !(1..=2).contains(&self.ins.port) {
+                    return bad("ins.port", "expected the VN-200's serial port 1 or 2");
+                }
+                if spherecal::vn200::command::BinaryOutput::divisor_for(self.ins.rate_hz).is_none()
+                {
+                    return bad(
+                        "ins.rate_hz",
+                        "the VN-200 divides its 800 Hz: expected 800 / an integer (400, 200, 100, 50, 40 ...)",
+                    );
                 }
             }
             "sbet" => {}

@@ -359,7 +359,26 @@ fn run_rig(
     console: &mut Console,
     stop: &AtomicBool,
 ) -> Result<RunSummary, String> {
-    let io = RigIo::open(opts)?;
+    let mut io = RigIo::open(opts)?;
+    // The VN-200 set up as the board says, before anything reads the port.
+    if let (true, Some((dev, src))) = (opts.board.ins.configure, io.serial.as_mut()) {
+        let lines = match crate::vn200::configure::configure(
+            src.port_mut(),
+            dev,
+            &opts.board.ins,
+            crate::vn200::configure::Options::default(),
+        ) {
+            Ok(c) => c.steps.iter().map(|s| format!("vn200: {s}")).collect(),
+            Err(e) => vec![format!(
+                "WARNING: VN-200 configuration failed: {e}; the rig goes on with what the unit sends (spherecal vn200 configure --board ... tries again)"
+            )],
+        };
+        for l in lines {
+            console
+                .write_line(&l)
+                .map_err(|e| format!("console: {e}"))?;
+        }
+    }
     let plan = Plan::new(opts);
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some());
