@@ -330,8 +330,20 @@ mod tests {
             "ins.fields: Position is needed for a pose"
         );
         assert_eq!(
-            Board::from_toml(&t.replace("192.168.1.77", "lidar-host")).unwrap_err(),
+            Board::from_toml(&t.replace("bind_addr = \"0.0.0.0\"", "bind_addr = \"lidar-host\""))
+                .unwrap_err(),
             "lidar.bind_addr: expected an IPv4 address"
+        );
+        // Without a bind address: any (broadcast and unicast).
+        let b = Board::from_toml(&t.replace("bind_addr = \"0.0.0.0\"", "")).unwrap();
+        assert_eq!(b.lidar.bind_addr, "0.0.0.0");
+        assert_eq!(
+            Board::from_toml(&t.replace("rate_hz = 200", "rate_hz = 300")).unwrap_err(),
+            "ins.rate_hz: the VN-200 divides its 800 Hz: expected 800 / an integer (400, 200, 100, 50, 40 ...)"
+        );
+        assert_eq!(
+            Board::from_toml(&t.replace("port = 1 ", "port = 3 ")).unwrap_err(),
+            "ins.port: expected the VN-200's serial port 1 or 2"
         );
         assert_eq!(
             Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\"")).unwrap_err(),

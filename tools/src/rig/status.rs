@@ -204,7 +204,8 @@ pub(super) fn snapshot(
     s
 }
 
-/// Seconds after the start when the rig says what each port hears.
+/// Seconds after the first datagram (on either port; after the start if none comes) when the
+/// rig says what each port hears.
 pub const HEAR_S: u64 = 3;
 /// A port still silent is named again this often [s].
 pub const SILENT_AGAIN_S: u64 = 30;
@@ -217,12 +218,19 @@ struct Hearing {
     sensor: Option<Ipv4Addr>,
     /// Per port: was silent at its last report (None: not reported yet).
     silent: [Option<bool>; 2],
+    /// When the first datagram arrived (either port) [s since the start].
+    first: Option<u64>,
 }
 
 impl Hearing {
     fn lines(&mut self, sh: &Shared<'_>, t: u64) -> Vec<String> {
         let mut out = Vec::new();
-        if t < HEAR_S {
+        if self.first.is_none() && sh.received.iter().any(|r| r.load(Ordering::Relaxed) > 0) {
+            self.first = Some(t);
+        }
+        // A few seconds of what arrives (or of silence).
+        let due_at = self.first.unwrap_or(0) + HEAR_S;
+        if t < due_at {
             return out;
         }
         for (k, what) in ["data", "position"].into_iter().enumerate() {
@@ -231,19 +239,20 @@ impl Hearing {
             };
             let due = match self.silent[k] {
                 None => true,
-                Some(true) => h.datagrams > 0 || (t - HEAR_S).is_multiple_of(SILENT_AGAIN_S),
+                Some(true) => h.datagrams > 0 || (t - due_at).is_multiple_of(SILENT_AGAIN_S),
                 Some(false) => false,
             };
             if !due {
                 continue;
             }
             self.silent[k] = Some(h.datagrams == 0);
-            let (text, mut warnings) = h.describe(what, self.sensor, t as f64);
+            let secs = (t - self.first.unwrap_or(0).min(t)) as f64;
+            let (text, mut warnings) = h.describe(what, self.sensor, secs);
             let data_heard = sh.received[0].load(Ordering::Relaxed) > 0;
             if k == 1 && h.datagrams == 0 && data_heard {
                 // The LiDAR is there: its position packets go to another port.
                 warnings = vec![format!(
-                    "position port {}: silent for {t} s while the data port hears the LiDAR: check the board's position_port (a VLP-16 sends them to 8308 unless its web page says otherwise) and the firewall",
+                    "position port {}: silent for {secs} s while the data port hears the LiDAR: check the board's position_port (a VLP-16 sends them to 8308 unless its web page says otherwise) and the firewall",
                     h.port
                 )];
             }
@@ -275,6 +284,7 @@ pub(super) fn status_loop<'c>(
         bind,
         sensor,
         silent: [None; 2],
+        first: None,
     };
     let mut tick = 1u64;
     let over = || duration.is_some_and(|d| started.elapsed() >= d);
