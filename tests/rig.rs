@@ -942,3 +942,93 @@ fn rig_configures_a_factory_vn200() {
     let sm = summary(&dir.join("logs"));
     assert!(u(&sm["ins"]["poses"]) > 100, "{sm}");
 }
+
+/// `run --check` for installation: every check in words; a port another program holds, a
+/// missing serial device and a log folder that cannot be written are each named, exit 2.
+#[test]
+fn run_check_names_each_problem() {
+    let dir = common::tmp("rig-check", "x");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (dp, pp) = (23_800, 23_801);
+    let b = board(&dir, dp, pp);
+    let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = common::spherecal()
+            .arg("run")
+            .arg("--check")
+            .arg("--board")
+            .arg(&b)
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).to_string()
+                + &String::from_utf8_lossy(&out.stderr),
+        )
+    };
+    let logs = dir.join("logs");
+    let (code, text) = run(&[
+        "--serial".as_ref(),
+        slave.name().unwrap().as_ref(),
+        "--log-dir".as_ref(),
+        logs.as_os_str(),
+    ]);
+    assert_eq!(code, Some(0), "{text}");
+    for want in [
+        "check: ok: board sim: valid",
+        &format!("check: ok: UDP data port {dp} on 127.0.0.1: free, bound"),
+        &format!("check: ok: UDP position port {pp}"),
+        "opens at 921600 baud",
+        "log folder",
+    ] {
+        assert!(text.contains(want), "{want:?} in {text}");
+    }
+    // Another program on the data port, no serial device, a log folder under a file.
+    let _holder = std::net::UdpSocket::bind(("127.0.0.1", dp)).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, b"x").unwrap();
+    let (code, text) = run(&[
+        "--serial".as_ref(),
+        "/dev/nonexistent-vn200".as_ref(),
+        "--log-dir".as_ref(),
+        file.join("logs").as_os_str(),
+    ]);
+    assert_eq!(code, Some(2), "{text}");
+    assert_eq!(text.matches("check: PROBLEM").count(), 3, "{text}");
+    assert!(
+        text.contains(&format!(
+            "UDP data port {dp}: already bound by another program"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("serial /dev/nonexistent-vn200: no such device"),
+        "{text}"
+    );
+    assert!(text.contains("not writable"), "{text}");
+    assert!(text.contains("3 problem(s)"), "{text}");
+}
+
+/// The systemd unit in deploy/ runs `spherecal run` with options that exist.
+#[test]
+fn service_unit_uses_real_options() {
+    let unit =
+        std::fs::read_to_string(common::repo_root().join("deploy/spherecal.service")).unwrap();
+    let help = common::stdout_of(common::spherecal().args(["run", "--help"]));
+    let mut n = 0;
+    for line in unit.lines().filter(|l| l.starts_with("ExecStart")) {
+        let (_, cmd) = line.split_once('=').unwrap();
+        let words: Vec<&str> = cmd.split_whitespace().collect();
+        assert!(
+            words[0].ends_with("/spherecal") && words[1] == "run",
+            "{line}"
+        );
+        for flag in words.iter().filter(|w| w.starts_with("--")) {
+            assert!(help.contains(flag), "{flag} is not a `run` option");
+            n += 1;
+        }
+    }
+    assert!(n >= 5, "{unit}");
+}

@@ -239,6 +239,23 @@ pub fn parse_proc_udp_drops(table: &str, inode: &str) -> Option<u64> {
     })
 }
 
+/// Sockets bound to local UDP `port` in a /proc/net/udp table (column 2 `ADDR:PORT`, hex).
+pub fn proc_udp_bound(table: &str, port: u16) -> usize {
+    table
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split_whitespace().nth(1))
+        .filter_map(|a| a.rsplit_once(':'))
+        .filter(|(_, p)| u16::from_str_radix(p, 16) == Ok(port))
+        .count()
+}
+
+/// Sockets of any program bound to local UDP `port` now (Linux; `None` elsewhere).
+pub fn bound_sockets(port: u16) -> Option<usize> {
+    let table = std::fs::read_to_string("/proc/net/udp").ok()?;
+    Some(proc_udp_bound(&table, port))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -250,6 +267,9 @@ mod tests {
                  \x20 1: 0100007F:0940 00000000:0000 07 00000000:00000000 00:00000000 00000000  1000        0 81234 2 0000000000000000 17\n";
         assert_eq!(parse_proc_udp_drops(t, "81234"), Some(17));
         assert_eq!(parse_proc_udp_drops(t, "1"), None);
+        // 0x0940 = 2368.
+        assert_eq!(proc_udp_bound(t, 2368), 1);
+        assert_eq!(proc_udp_bound(t, 8308), 0);
     }
 
     /// A datagram sent to ourselves carries a kernel receive time close to the wall clock.

@@ -36,6 +36,10 @@ pub struct Args {
     /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
     #[arg(long)]
     pub keep_untracked_ins: bool,
+    /// Check that the rig can start (board, UDP ports free, serial device, log folder,
+    /// console) and exit: 0 when every check passes, 2 otherwise.
+    #[arg(long)]
+    pub check: bool,
 }
 
 /// Run it.
@@ -60,6 +64,35 @@ pub fn run(a: Args) -> ExitCode {
     }
     if let Some(r) = a.rotate_mb.filter(|r| !(r.is_finite() && *r > 0.0)) {
         return fail("run", format!("--rotate-mb {r}: expected a positive size"));
+    }
+    if a.check {
+        let opts = RunOptions {
+            board,
+            serial: a.serial,
+            site,
+            log_dir: a.log_dir,
+            rotate_bytes: None,
+            duration: None,
+            report: None,
+            settings: spherecal::calib::Settings::default(),
+            keep_untracked_ins: false,
+        };
+        let results = crate::rig::check::check(&opts);
+        for r in &results {
+            match r {
+                Ok(l) => sayln!("check: ok: {l}"),
+                Err(l) => sayln!("check: PROBLEM: {l}"),
+            }
+        }
+        let bad = results.iter().filter(|r| r.is_err()).count();
+        return if bad == 0 {
+            ExitCode::SUCCESS
+        } else {
+            fail(
+                "run --check",
+                format!("{bad} problem(s): the rig cannot start as it is"),
+            )
+        };
     }
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {

@@ -23,6 +23,7 @@ use crate::pipeline::{
 };
 use crate::state::{ClockState, InsState};
 
+pub mod check;
 pub mod hearing;
 mod logger;
 mod readers;
