@@ -279,8 +279,16 @@ fn table1_through_the_rig() {
     }
     let dt = rep["time_offset_s"].as_f64().unwrap();
     assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
-    // The status line showed it.
+    // The status line showed it, and the verdict: ready (noise-free table1 against the board's
+    // 0.01 deg / 5 mm), said in words too.
     let last = spherecal_tools::rig::status::Status::parse(lines.last().unwrap()).unwrap();
+    assert_eq!(last.verdict.as_deref(), Some("ready"), "{lines:?}");
+    let cov = last.coverage.clone().unwrap();
+    assert!(cov.starts_with("S1:") && cov.contains(",S2:"), "{cov}");
+    assert!(
+        lines.iter().any(|l| l.starts_with("verdict: ready")),
+        "{lines:?}"
+    );
     let (dt_ms, sig_ms) = last.time_offset_ms.expect("dt on the status line");
     assert!(
         (dt_ms - 20.0).abs() < 1.0 && sig_ms > 0.0,
@@ -380,7 +388,9 @@ fn table1_through_the_rig() {
     );
     let st: Vec<Status> = lines
         .iter()
-        .filter(|l| !l.starts_with("heard: ") && !l.starts_with("WARNING"))
+        .filter(|l| {
+            !l.starts_with("heard: ") && !l.starts_with("WARNING") && !l.starts_with("verdict: ")
+        })
         .map(|l| Status::parse(l).unwrap_or_else(|| panic!("bad status line {l:?}")))
         .collect();
     assert!(st.len() >= 60, "{lines:?}");

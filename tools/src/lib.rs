@@ -20,6 +20,7 @@ pub mod rig;
 pub mod scene;
 pub mod state;
 pub mod synth;
+pub mod verdict;
 pub mod vn200;
 
 use spherecal::calib::DegM;

@@ -99,6 +99,10 @@ pub struct Board {
     pub log: Log,
     /// A-priori mounting.
     pub mount: super::MountDegM,
+    /// The accuracy wanted: the live verdict says `ready` when every sigma is within it
+    /// (`target_sigma_deg`, `target_sigma_m`; defaults 0.01 deg, 5 mm).
+    #[serde(default)]
+    pub calibration: crate::verdict::Targets,
 }
 
 /// Standard serial rates (VN-200 register 5 allows these).

@@ -206,6 +206,8 @@ struct Shared<'a> {
     errors: Mutex<Vec<String>>,
     /// What each port hears: data, position.
     heard: [Mutex<hearing::Heard>; 2],
+    /// The verdict after the latest solve.
+    verdict: Mutex<Option<crate::verdict::Verdict>>,
 }
 
 /// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
@@ -277,6 +279,7 @@ impl<'a> Shared<'a> {
             time_offset: Mutex::new(None),
             errors: Mutex::new(Vec::new()),
             heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
+            verdict: Mutex::new(None),
         }
     }
 
@@ -603,7 +606,17 @@ fn run_threads(
         let solver = spawn(sc, "solver", move || {
             let (tg, ids) = (&plan.targets, &plan.ids);
             let report = opts.report.as_deref();
-            solver(rx, pool_tx, tg, ids, &plan.b0, &opts.settings, report, sh)
+            solver(
+                rx,
+                pool_tx,
+                tg,
+                ids,
+                &plan.b0,
+                &opts.settings,
+                &opts.board.calibration,
+                report,
+                sh,
+            )
         });
         let status = spawn(sc, "status", move || {
             status_loop(

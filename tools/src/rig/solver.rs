@@ -11,6 +11,7 @@ pub(super) fn solver(
     ids: &[String],
     b0: &Params,
     settings: &Settings,
+    goal: &crate::verdict::Targets,
     report: Option<&Path>,
     sh: &Shared<'_>,
 ) -> Option<Report> {
@@ -25,6 +26,11 @@ pub(super) fn solver(
     let solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
         let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
         sh.solves.fetch_add(1, Ordering::Relaxed);
+        // Enough yet? (From the kept returns, before the store is pruned.)
+        let cov = crate::verdict::coverage(ids, store, &sol);
+        if let Ok(mut v) = sh.verdict.lock() {
+            *v = Some(crate::verdict::assess(&rep, &cov, goal));
+        }
         rep.time_offset_s += *offset as f64 * 1e-9;
         if rep.converged {
             if let Ok(mut t) = sh.time_offset.lock() {

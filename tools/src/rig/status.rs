@@ -11,7 +11,10 @@
 //! clock, at the last aligned packet [ms];
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`; `dt_ms` the time offset
-//! between the clocks and its 1-sigma [ms] or `-`.
+//! between the clocks and its 1-sigma [ms] or `-`; `verdict` `collecting` or `ready` after the
+//! first solve (`-` before); `cov` per sphere `id:returns/passes/directions/min-max range [m]`
+//! of the kept returns at the last solve. When the verdict's missing items change, a line
+//! `verdict: collecting: ...` (or `verdict: ready`) says them in words.
 //!
 //! [`status_loop`] writes it once a second from a snapshot of the rig's shared counters.
 
@@ -45,6 +48,10 @@ pub struct Status {
     /// Latest time offset between the clocks and its 1-sigma [ms] (INS time = LiDAR time +
     /// this).
     pub time_offset_ms: Option<(f64, f64)>,
+    /// `collecting` or `ready` after the first solve.
+    pub verdict: Option<String>,
+    /// Coverage per sphere ([`crate::verdict::status_field`]).
+    pub coverage: Option<String>,
 }
 
 impl Status {
@@ -98,6 +105,15 @@ impl Status {
             }
             None => o.push_str(" dt_ms=-"),
         }
+        let _ = write!(
+            o,
+            " verdict={} cov={}",
+            self.verdict.as_deref().unwrap_or("-"),
+            self.coverage
+                .as_deref()
+                .filter(|c| !c.is_empty())
+                .unwrap_or("-")
+        );
         o
     }
 
@@ -139,6 +155,8 @@ impl Status {
                     let (d, sg) = v.split_once(',')?;
                     s.time_offset_ms = Some((d.parse().ok()?, sg.parse().ok()?));
                 }
+                "verdict" => s.verdict = (v != "-").then(|| v.to_string()),
+                "cov" => s.coverage = (v != "-").then(|| v.to_string()),
                 "cal" | "sig" if v == "-" => {}
                 "cal" | "sig" => {
                     let vals: Vec<f64> = v
@@ -199,6 +217,25 @@ pub(super) fn snapshot(
             .ok()
             .and_then(|c| *c)
             .map(|(d, s)| (d * 1e3, s * 1e3)),
+        verdict: None,
+        coverage: None,
+    };
+    let (verdict, coverage) = sh
+        .verdict
+        .lock()
+        .ok()
+        .and_then(|v| v.clone())
+        .map(|v| {
+            (
+                Some(if v.ready { "ready" } else { "collecting" }.to_string()),
+                Some(crate::verdict::status_field(&v.coverage)),
+            )
+        })
+        .unwrap_or_default();
+    let s = Status {
+        verdict,
+        coverage,
+        ..s
     };
     *last = [received, aligned];
     s
@@ -280,6 +317,7 @@ pub(super) fn status_loop<'c>(
     (bind, sensor): (Ipv4Addr, Option<Ipv4Addr>),
 ) -> &'c mut Console {
     let mut last = [0u64; 2];
+    let mut said_verdict: Option<Vec<String>> = None;
     let mut hearing = Hearing {
         bind,
         sensor,
@@ -310,6 +348,20 @@ pub(super) fn status_loop<'c>(
                 sh.error(format!("console: {e}"));
             }
         }
+        // The verdict in words, when what is missing changes.
+        if let Some(v) = sh.verdict.lock().ok().and_then(|v| v.clone()) {
+            if said_verdict.as_ref() != Some(&v.missing) {
+                let line = if v.ready {
+                    "verdict: ready: every sphere seen both ways, every sigma within the board's targets".to_string()
+                } else {
+                    format!("verdict: collecting: {}", v.missing.join("; "))
+                };
+                if let Err(e) = console.write_line(&line) {
+                    sh.error(format!("console: {e}"));
+                }
+                said_verdict = Some(v.missing);
+            }
+        }
         if let Err(e) = show(console, &s) {
             sh.error(format!("console: {e}"));
         }
@@ -337,10 +389,12 @@ mod tests {
                 [0.0003, 0.0004, 0.0002, 0.0001, 0.0001, 0.0001],
             )),
             time_offset_ms: Some((100.125, 0.004)),
+            verdict: Some("collecting".into()),
+            coverage: Some("S1:1185/3/2/9-30,S2:1271/2/1/9-21".into()),
         };
         assert_eq!(
             s.line(),
-            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004"
+            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004 verdict=collecting cov=S1:1185/3/2/9-30,S2:1271/2/1/9-21"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -350,7 +404,7 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=-"
+            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=- verdict=- cov=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);

@@ -1,0 +1,90 @@
+//! The live verdict on synthetic table1-noisy (the quay, 3 cm range noise, VN-200-like INS
+//! noise), calibrating the data as they would have arrived, with targets of 0.045 deg and
+//! 5 mm: after the first (northbound) pass the verdict is `collecting` (ill-conditioned, no
+//! southbound pass); after the second, one parameter short; it turns `ready` only once the
+//! third pass adds the longer ranges that pin pitch down.
+
+mod common;
+
+use spherecal::calib::Settings;
+use spherecal_tools::calibrate::{collect, site_targets, solve_report};
+use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::pipeline::{Inputs, InsInput};
+use spherecal_tools::verdict::{assess, coverage, Targets};
+
+#[test]
+fn verdict_turns_ready_with_the_passes_that_make_it() {
+    let dir = common::tmp("verdict", "table1-noisy");
+    let s = Scenario::load("table1-noisy").unwrap();
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
+    let inp = Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
+        site,
+    );
+    let (targets, ids) = site_targets(&inp);
+    let (_, all) = collect(&inp).unwrap();
+    let t0 = s.start().0;
+    let b0 = inp.site.apriori_deg_m().params();
+    let noise = inp.site.noise.unwrap_or_default();
+    let settings = Settings {
+        range_noise: noise.range_m,
+        attitude_noise: noise.attitude_deg.to_radians(),
+        position_noise: noise.position_m,
+        ..Default::default()
+    };
+    let goal = Targets {
+        target_sigma_deg: 0.045,
+        target_sigma_m: 0.005,
+    };
+    // The data so far after pass 1 (0-20 s), pass 2 (to 38 s), pass 3 (to 50.5 s), all.
+    let mut verdicts = Vec::new();
+    for until in [21.0, 39.0, 51.5, 70.0] {
+        let mut obs: Vec<Vec<_>> = all
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .filter(|o| ((o.time.0 - t0) as f64) * 1e-9 < until)
+                    .copied()
+                    .collect()
+            })
+            .collect();
+        let (sol, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
+        let cov = coverage(&ids, &obs, &sol);
+        let v = assess(&rep, &cov, &goal);
+        eprintln!(
+            "until {until} s: ready {} sigma {:?}: {:?}",
+            v.ready,
+            rep.sigma.deg_m(),
+            v.missing
+        );
+        verdicts.push(v);
+    }
+    let has = |k: usize, what: &str| verdicts[k].missing.iter().any(|m| m.contains(what));
+    // Pass 1 (northbound): ill-conditioned, and each sphere lacks a southbound pass.
+    assert!(!verdicts[0].ready);
+    assert!(
+        has(0, "no calibration claimed yet (ill-conditioned"),
+        "{:?}",
+        verdicts[0]
+    );
+    assert!(has(0, "S1: no southbound pass") && has(0, "S2: no southbound pass"));
+    // After pass 2 (southbound) every sphere is seen both ways, but pitch, with ranges of
+    // 7-25 m only, is not yet as good as asked (0.053 deg measured): collecting, and it says
+    // which parameter and what pass would help.
+    assert!(!verdicts[1].ready, "{:?}", verdicts[1]);
+    assert!(verdicts[1].coverage.iter().all(|c| c.both_directions));
+    assert_eq!(verdicts[1].missing.len(), 1, "{:?}", verdicts[1]);
+    assert!(
+        has(1, "pitch sigma") && has(1, "another range"),
+        "{:?}",
+        verdicts[1]
+    );
+    // Pass 3 (northbound at 20 m, ranges to 33 m) brings pitch to 0.041 deg: ready, and stays.
+    for k in [2, 3] {
+        assert!(verdicts[k].ready, "{:?}", verdicts[k]);
+        assert!(verdicts[k].missing.is_empty());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

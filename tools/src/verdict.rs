@@ -1,0 +1,284 @@
+//! Whether the data so far are enough: each sphere's coverage (returns kept, passes, both
+//! directions, the range span) and each parameter's sigma from the solution on the data so far
+//! against the board's targets; `ready`, or `collecting` with what is missing in words
+//! ("S2: no southbound pass", "heading sigma 0.031 > 0.010 deg: add a pass at 8-15 m").
+
+use crate::report::Report;
+use serde::{Deserialize, Serialize};
+use spherecal::calib::solve::Solution;
+use spherecal::calib::NAMES;
+use spherecal::window::Observation;
+
+/// The accuracy wanted (board `[calibration]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Targets {
+    /// Each boresight angle's 1-sigma at most [deg].
+    #[serde(default = "default_deg")]
+    pub target_sigma_deg: f64,
+    /// Each lever-arm component's 1-sigma at most [m].
+    #[serde(default = "default_m")]
+    pub target_sigma_m: f64,
+}
+
+fn default_deg() -> f64 {
+    0.01
+}
+
+fn default_m() -> f64 {
+    0.005
+}
+
+impl Default for Targets {
+    fn default() -> Self {
+        Self {
+            target_sigma_deg: default_deg(),
+            target_sigma_m: default_m(),
+        }
+    }
+}
+
+/// A pass counts when it holds this many kept returns.
+pub const MIN_PASS_RETURNS: usize = 10;
+/// Kept returns further apart in time than this are two passes (as is a turn of more than
+/// 90 deg) [s].
+pub const PASS_GAP_S: f64 = 2.0;
+
+/// One sphere's coverage by the kept returns.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Coverage {
+    /// Sphere id.
+    pub id: String,
+    /// Returns kept.
+    pub returns: usize,
+    /// Passes (runs of kept returns; at least [`MIN_PASS_RETURNS`] each).
+    pub passes: usize,
+    /// The compass headings of the passes' mean velocities [deg].
+    pub headings_deg: Vec<f64>,
+    /// Some two passes go opposite ways (mean velocities more than 120 deg apart).
+    pub both_directions: bool,
+    /// Shortest and longest range of a kept return [m].
+    pub range_m: [f64; 2],
+}
+
+/// The verdict on the data so far.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Verdict {
+    /// Enough: every sphere seen both ways, every sigma within its target, the solution claimed.
+    pub ready: bool,
+    /// What is missing, in words.
+    pub missing: Vec<String>,
+    /// Per sphere.
+    pub coverage: Vec<Coverage>,
+}
+
+/// Each sphere's coverage by its kept returns (the first `used` of its observations after the
+/// solve).
+pub fn coverage(ids: &[String], obs: &[Vec<Observation>], sol: &Solution) -> Vec<Coverage> {
+    ids.iter()
+        .enumerate()
+        .map(|(j, id)| {
+            let used = sol.spheres.get(j).map_or(0, |s| s.used);
+            let mut kept: Vec<&Observation> = obs
+                .get(j)
+                .map_or(&[][..], |v| &v[..used.min(v.len())])
+                .iter()
+                .collect();
+            kept.sort_by_key(|o| o.time);
+            one(id, &kept)
+        })
+        .collect()
+}
+
+fn one(id: &str, kept: &[&Observation]) -> Coverage {
+    let mut c = Coverage {
+        id: id.to_string(),
+        returns: kept.len(),
+        range_m: [f64::INFINITY, 0.0],
+        ..Coverage::default()
+    };
+    let mut dirs: Vec<[f64; 2]> = Vec::new();
+    let mut run: Vec<&Observation> = Vec::new();
+    let mut close = |run: &mut Vec<&Observation>| {
+        if run.len() >= MIN_PASS_RETURNS {
+            let (n, e) = run.iter().fold((0.0, 0.0), |(n, e), o| {
+                (n + f64::from(o.velocity.x), e + f64::from(o.velocity.y))
+            });
+            let norm = n.hypot(e);
+            if norm > 0.0 {
+                dirs.push([n / norm, e / norm]);
+            }
+        }
+        run.clear();
+    };
+    for o in kept {
+        // A new pass after a gap in time, or once the platform heads more than 90 deg away
+        // from where the pass started (a turn seen through: the sphere in view across it).
+        let turned = |a: &Observation| {
+            f64::from(a.velocity.x) * f64::from(o.velocity.x)
+                + f64::from(a.velocity.y) * f64::from(o.velocity.y)
+                < 0.0
+        };
+        if let (Some(first), Some(last)) = (run.first(), run.last()) {
+            if (o.time.0 - last.time.0) as f64 * 1e-9 > PASS_GAP_S || turned(first) {
+                close(&mut run);
+            }
+        }
+        run.push(o);
+        let r = f64::from(o.range);
+        c.range_m = [c.range_m[0].min(r), c.range_m[1].max(r)];
+    }
+    close(&mut run);
+    c.passes = dirs.len();
+    c.headings_deg = dirs
+        .iter()
+        .map(|d| d[1].atan2(d[0]).to_degrees().rem_euclid(360.0))
+        .collect();
+    c.both_directions = dirs
+        .iter()
+        .any(|a| dirs.iter().any(|b| a[0] * b[0] + a[1] * b[1] < -0.5));
+    if c.returns == 0 {
+        c.range_m = [0.0; 2];
+    }
+    c
+}
+
+/// The compass point of a heading ("northbound" ...).
+fn bound(h: f64) -> &'static str {
+    const P: [&str; 8] = [
+        "northbound",
+        "north-eastbound",
+        "eastbound",
+        "south-eastbound",
+        "southbound",
+        "south-westbound",
+        "westbound",
+        "north-westbound",
+    ];
+    P[(((h.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
+}
+
+/// The verdict from the solution's report on the data so far and the coverage.
+pub fn assess(rep: &Report, cov: &[Coverage], t: &Targets) -> Verdict {
+    let mut missing = Vec::new();
+    if !rep.converged {
+        let why = rep.reason.as_deref().unwrap_or("not converged");
+        let short: String = why.chars().take(120).collect();
+        missing.push(format!("no calibration claimed yet ({short})"));
+    }
+    for c in cov {
+        if c.passes == 0 {
+            missing.push(format!("{}: not seen in a pass yet", c.id));
+        } else if !c.both_directions {
+            let h = c.headings_deg[0];
+            missing.push(format!(
+                "{}: no {} pass (all {} so far)",
+                c.id,
+                bound(h + 180.0),
+                bound(h)
+            ));
+        }
+    }
+    let (lo, hi) = cov.iter().fold((f64::INFINITY, 0.0f64), |(a, b), c| {
+        if c.returns > 0 {
+            (a.min(c.range_m[0]), b.max(c.range_m[1]))
+        } else {
+            (a, b)
+        }
+    });
+    let band = if lo > 15.0 {
+        "at 8-15 m"
+    } else if hi < 20.0 {
+        "at 20-30 m"
+    } else {
+        "crossing the spheres at another range"
+    };
+    let sig = rep.sigma.deg_m();
+    for (i, name) in NAMES.iter().enumerate() {
+        let (target, unit) = if i < 3 {
+            (t.target_sigma_deg, "deg")
+        } else {
+            (t.target_sigma_m, "m")
+        };
+        let s = sig[i];
+        if !(s.is_finite() && s <= target) {
+            let advice = if i < 3 {
+                format!("add a pass {band} (ranges so far {lo:.0}-{hi:.0} m)")
+            } else if cov.iter().any(|c| !c.both_directions) {
+                "add a pass in the other direction".to_string()
+            } else {
+                "add a pass closer to the spheres".to_string()
+            };
+            missing.push(format!(
+                "{name} sigma {} > {target} {unit}: {advice}",
+                if s.is_finite() {
+                    format!("{s:.4}")
+                } else {
+                    "-".into()
+                }
+            ));
+        }
+    }
+    Verdict {
+        ready: missing.is_empty(),
+        missing,
+        coverage: cov.to_vec(),
+    }
+}
+
+/// The coverage on the status line: `id:returns/passes/directions/min-max` per sphere.
+pub fn status_field(cov: &[Coverage]) -> String {
+    cov.iter()
+        .map(|c| {
+            format!(
+                "{}:{}/{}/{}/{:.0}-{:.0}",
+                c.id,
+                c.returns,
+                c.passes,
+                if c.both_directions {
+                    2
+                } else {
+                    u8::from(c.passes > 0)
+                },
+                c.range_m[0],
+                c.range_m[1]
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use spherecal::time::GpsTime;
+
+    fn obs(t_s: f64, v: [f32; 2], range: f32) -> Observation {
+        Observation {
+            time: GpsTime((t_s * 1e9) as i64),
+            velocity: Vector3::new(v[0], v[1], 0.0),
+            range,
+            ..Observation::default()
+        }
+    }
+
+    /// Hand case: 30 returns northbound at 9-12 m, then (5 s later) 30 southbound at 21 m.
+    #[test]
+    fn passes_directions_and_span() {
+        let mut v: Vec<Observation> = (0..30)
+            .map(|k| obs(k as f64 * 0.05, [1.3, 0.0], 9.0 + k as f32 * 0.1))
+            .collect();
+        let north_only: Vec<&Observation> = v.iter().collect();
+        let c = one("S1", &north_only);
+        assert_eq!((c.passes, c.both_directions), (1, false));
+        assert!((c.headings_deg[0] - 0.0).abs() < 1e-9);
+        assert_eq!(bound(c.headings_deg[0] + 180.0), "southbound");
+        v.extend((0..30).map(|k| obs(6.5 + k as f64 * 0.05, [-1.8, 0.1], 21.0)));
+        let both: Vec<&Observation> = v.iter().collect();
+        let c = one("S1", &both);
+        assert_eq!((c.passes, c.both_directions), (2, true));
+        assert_eq!(c.range_m, [9.0, 21.0]);
+        assert_eq!(status_field(&[c]), "S1:60/2/2/9-21");
+    }
+}
