@@ -235,6 +235,19 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         }
     }
 
+    /// Window around the spheres with another mounting and margin from now on (the live rig,
+    /// once calibrated: tighter windows, less clutter). Call [`Self::finish`] first, so a batch
+    /// holds returns of one windowing.
+    pub fn set_windows(&mut self, mount: Mount, margin: f64) {
+        self.mount = mount;
+        self.margin = margin;
+    }
+
+    /// The window margin in use [m].
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
     /// Hand on what the batches still hold.
     pub fn finish(&mut self, emit: &mut dyn FnMut(usize, &[Observation])) {
         for (i, b) in self.batches.iter_mut().enumerate() {

@@ -79,6 +79,11 @@ pub const MAX_OBS_PER_SPHERE: usize = 200_000;
 /// sphere's surface (with that solution) [m]: the clutter farther out cannot matter any more,
 /// and a long survey's store stays small.
 pub const KEEP_NEAR_M: f64 = 1.0;
+/// Once calibrated, the windows reach this many residual RMS beyond the spheres ...
+pub const LIVE_MARGIN_RMS: f64 = 8.0;
+/// ... but at least this [m] (and at most [`KEEP_NEAR_M`] and the site's margin).
+pub const LIVE_MARGIN_FLOOR_M: f64 = 0.3;
+
 /// Read timeout of every reader: how fast a stop is noticed.
 pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
 /// How long after a packet's arrival the aligner waits for the INS to cover it (the data ring
@@ -208,6 +213,9 @@ struct Shared<'a> {
     heard: [Mutex<hearing::Heard>; 2],
     /// The verdict after the latest solve.
     verdict: Mutex<Option<crate::verdict::Verdict>>,
+    /// The windows the aligner is to use after a converged solve: the solution and a margin
+    /// [rad, m; m], with a count of the changes.
+    windows: Mutex<(u64, Option<(Params, f64)>)>,
 }
 
 /// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
@@ -280,6 +288,7 @@ impl<'a> Shared<'a> {
             errors: Mutex::new(Vec::new()),
             heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
             verdict: Mutex::new(None),
+            windows: Mutex::new((0, None)),
         }
     }
 
@@ -614,6 +623,7 @@ fn run_threads(
                 &plan.b0,
                 &opts.settings,
                 &opts.board.calibration,
+                plan.margin,
                 report,
                 sh,
             )
@@ -725,6 +735,7 @@ fn align_until_end(
     sh: &Shared<'_>,
 ) {
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
+    let mut windows_seen = 0u64;
     loop {
         while let Some(p) = pos_c.dequeue() {
             al.position(&p.bytes[..512]);
@@ -740,6 +751,18 @@ fn align_until_end(
             al.finish(&mut emit);
             al.core.time_offset_ns = want;
             out.applied.set(want);
+        }
+        // New windows (around a converged solution): likewise between batches.
+        if let Some((k, (b, margin))) = sh
+            .windows
+            .lock()
+            .ok()
+            .and_then(|w| w.1.map(|x| (w.0, x)))
+            .filter(|(k, _)| *k != windows_seen)
+        {
+            al.finish(&mut emit);
+            al.core.set_windows(b.mount(), margin);
+            windows_seen = k;
         }
         match item.kind {
             LidarKind::End => break,

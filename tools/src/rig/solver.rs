@@ -12,6 +12,7 @@ pub(super) fn solver(
     b0: &Params,
     settings: &Settings,
     goal: &crate::verdict::Targets,
+    apriori_margin: f64,
     report: Option<&Path>,
     sh: &Shared<'_>,
 ) -> Option<Report> {
@@ -44,6 +45,25 @@ pub(super) fn solver(
                 sh.time_offset_ns.store(*offset, Ordering::Relaxed);
             }
             *start = sol.b;
+            // The aligner's windows around the solution from now on, as tight as its residuals
+            // allow.
+            let rms = if rep.rms_m.is_finite() {
+                rep.rms_m
+            } else {
+                0.0
+            };
+            let margin = (LIVE_MARGIN_RMS * rms)
+                .clamp(LIVE_MARGIN_FLOOR_M, KEEP_NEAR_M)
+                .min(apriori_margin);
+            if let Ok(mut w) = sh.windows.lock() {
+                let moved = w.1.is_none_or(|(b, m)| {
+                    (m - margin).abs() > 0.05
+                        || b.0.iter().zip(sol.b.0).any(|(a, c)| (a - c).abs() > 1e-4)
+                });
+                if moved {
+                    *w = (w.0 + 1, Some((sol.b, margin)));
+                }
+            }
             let mount = sol.b.mount();
             for (v, t) in store.iter_mut().zip(targets) {
                 v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);

@@ -318,6 +318,7 @@ pub(super) fn status_loop<'c>(
 ) -> &'c mut Console {
     let mut last = [0u64; 2];
     let mut said_verdict: Option<Vec<String>> = None;
+    let mut said_margin: Option<f64> = None;
     let mut hearing = Hearing {
         bind,
         sensor,
@@ -346,6 +347,18 @@ pub(super) fn status_loop<'c>(
         for l in hearing.lines(sh, s.t_s) {
             if let Err(e) = console.write_line(&l) {
                 sh.error(format!("console: {e}"));
+            }
+        }
+        // The windows moved around the calibration: said when their margin changes.
+        if let Some((_, m)) = sh.windows.lock().ok().and_then(|w| w.1) {
+            if said_margin.is_none_or(|s| (s - m).abs() > 0.05) {
+                let line = format!(
+                    "windows: around the calibration now, {m:.2} m beyond the spheres (less clutter in them)"
+                );
+                if let Err(e) = console.write_line(&line) {
+                    sh.error(format!("console: {e}"));
+                }
+                said_margin = Some(m);
             }
         }
         // The verdict in words, when what is missing changes.

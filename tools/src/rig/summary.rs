@@ -11,6 +11,11 @@ pub struct RunSummary {
     pub received: [u64; 2],
     /// What each port heard (senders, product, return mode, rpm, PPS, NMEA): data, position.
     pub heard: [super::hearing::Heard; 2],
+    /// Times the aligner's windows moved around a converged calibration, and their last
+    /// margin beyond the spheres [m] (None: never; the site's a-priori margin throughout).
+    pub windows_moved: u64,
+    /// ...
+    pub live_margin_m: Option<f64>,
     /// Datagrams the kernel dropped (socket buffer full): data, position.
     pub kernel_drops: [u64; 2],
     /// Datagrams with a kernel receive time.
@@ -92,6 +97,8 @@ impl RunSummary {
         Self {
             seconds: started.elapsed().as_secs_f64(),
             received: ld(&sh.received),
+            windows_moved: sh.windows.lock().map_or(0, |w| w.0),
+            live_margin_m: sh.windows.lock().ok().and_then(|w| w.1.map(|x| x.1)),
             heard: sh
                 .heard
                 .each_ref()
