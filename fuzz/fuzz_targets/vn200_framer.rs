@@ -1,10 +1,12 @@
 //! Any bytes through the VN-200 framer (whole and split at a fuzzer-chosen point must agree),
-//! the frame view, the ASCII parser and pose extraction.
+//! the frame view, the ASCII parser and pose extraction; register echoes read back and written
+//! again (the VN-200 configuration's round trip).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use spherecal::vn200::ascii;
 use spherecal::vn200::binary::Frame;
+use spherecal::vn200::command::{self, BinaryOutput};
 use spherecal::vn200::{Framer, Item, Pose};
 
 fn run(parts: &[&[u8]]) -> (Vec<(u64, Vec<u8>)>, spherecal::vn200::Stats) {
@@ -24,7 +26,23 @@ fn run(parts: &[&[u8]]) -> (Vec<(u64, Vec<u8>)>, spherecal::vn200::Stats) {
                 out.push((it.offset, fr.bytes().to_vec()));
             }
             Item::Ascii(s) | Item::Nmea(s) => {
-                let _ = s.decode();
+                // A unit's register echo read back as the configuration does; written again,
+                // it reads back the same.
+                if let Ok(ascii::Vn::Register { values, .. }) = s.decode() {
+                    if let Ok(b) = BinaryOutput::parse(values) {
+                        let mut cmd = [0u8; 128];
+                        if let Ok(n) = command::write_binary_output(&mut cmd, 75, &b) {
+                            let line = &cmd[..n - 2];
+                            if let Ok(ascii::Vn::Register { values, .. }) =
+                                ascii::parse(line).and_then(|x| x.decode())
+                            {
+                                assert_eq!(BinaryOutput::parse(values), Ok(b));
+                            } else {
+                                panic!("our own command does not parse");
+                            }
+                        }
+                    }
+                }
                 out.push((it.offset, s.line().as_bytes().to_vec()));
             }
             Item::Error(_) => {}
