@@ -475,6 +475,24 @@ fn dir_ins(pcap: &Path) -> PathBuf {
     pcap.with_file_name("ins.vnlog")
 }
 
+/// Read the rig's lines for `secs`, then SIGTERM it and wait: exit code, lines, stderr.
+fn stop_after(mut rig: Rig, secs: u64) -> (Option<i32>, Vec<String>, String) {
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(secs) {
+        rig.next_line(Duration::from_millis(200));
+    }
+    rig.signal(nix::sys::signal::Signal::SIGTERM);
+    rig.wait(Duration::from_secs(30))
+}
+
+/// An empty scratch folder for test `group`.
+fn fresh_dir(group: &str) -> PathBuf {
+    let dir = common::tmp(group, "x");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// Start `run` on the sim board with its own ports, a pseudo-terminal and a log folder.
 fn start_rig(dir: &Path, dp: u16, pp: u16, slave: &str, site: bool) -> Rig {
     start_rig_with(dir, dp, pp, slave, site, &[])
@@ -831,9 +849,7 @@ fn run_refuses_bad_boards_and_arguments() {
 /// and counted as skipped with the reason.
 #[test]
 fn other_senders_are_logged_not_aligned() {
-    let dir = common::tmp("rig-sender", "x");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("rig-sender");
     let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
     let (dp, pp) = (23_780, 23_781);
     let rig = start_rig_with(
@@ -874,13 +890,11 @@ fn other_senders_are_logged_not_aligned() {
 /// no INS sends (`al/s` stays 0), and the rig says in words that the position port is silent.
 #[test]
 fn factory_broadcast_received_and_a_silent_port_named() {
-    let dir = common::tmp("rig-broadcast", "x");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("rig-broadcast");
     let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
     let (dp, pp) = (23_790, 23_791);
     // The board's default bind address (the line removed).
-    let mut rig = start_rig_with(
+    let rig = start_rig_with(
         &dir,
         dp,
         pp,
@@ -909,12 +923,7 @@ fn factory_broadcast_received_and_a_silent_port_named() {
         }
     }
     // Past the 3 s report, with a status line or two.
-    let t = Instant::now();
-    while t.elapsed() < Duration::from_secs(5) {
-        rig.next_line(Duration::from_millis(200));
-    }
-    rig.signal(nix::sys::signal::Signal::SIGTERM);
-    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    let (code, lines, err) = stop_after(rig, 5);
     assert_eq!(code, Some(0), "{err}");
     let sm = summary(&dir.join("logs"));
     assert_eq!(u(&sm["received"][0]), sent[0] + sent[1], "{sm}");
@@ -944,9 +953,7 @@ fn rig_configures_a_factory_vn200() {
     use spherecal_tools::vn200::emulator::{run, Unit};
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::{Arc, Mutex};
-    let dir = common::tmp("rig-vn200", "x");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("rig-vn200");
     let (mut master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
     master.set_timeout(Duration::from_millis(2)).unwrap();
     let unit = Arc::new(Mutex::new(Unit::factory(921_600)));
@@ -954,7 +961,7 @@ fn rig_configures_a_factory_vn200() {
     let (u2, s2) = (Arc::clone(&unit), Arc::clone(&stop));
     let emu = std::thread::spawn(move || run(&u2, &mut master, &mut |_| {}, &s2));
     let (dp, pp) = (23_795, 23_796);
-    let mut rig = start_rig_with(
+    let rig = start_rig_with(
         &dir,
         dp,
         pp,
@@ -962,12 +969,7 @@ fn rig_configures_a_factory_vn200() {
         false,
         &[("configure = false", "configure = true")],
     );
-    let t = Instant::now();
-    while t.elapsed() < Duration::from_secs(3) {
-        rig.next_line(Duration::from_millis(200));
-    }
-    rig.signal(nix::sys::signal::Signal::SIGTERM);
-    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    let (code, lines, err) = stop_after(rig, 3);
     stop.store(true, Ordering::Relaxed);
     emu.join().unwrap();
     assert_eq!(code, Some(0), "{err}");
@@ -992,9 +994,7 @@ fn rig_configures_a_factory_vn200() {
 /// missing serial device and a log folder that cannot be written are each named, exit 2.
 #[test]
 fn run_check_names_each_problem() {
-    let dir = common::tmp("rig-check", "x");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("rig-check");
     let (dp, pp) = (23_800, 23_801);
     let b = board(&dir, dp, pp);
     let (_master, slave) = TTYPort::pair().expect("a pseudo-terminal pair");
