@@ -37,19 +37,17 @@ impl Noise {
     #[inline]
     pub fn variance(&self, o: &Observation) -> f64 {
         let [pos, att] = o.ins_sigma;
-        let (pos, att) = (
-            if pos > 0.0 {
-                f64::from(pos)
-            } else {
-                self.position
-            },
-            if att > 0.0 {
-                f64::from(att)
-            } else {
-                self.attitude
-            },
-        );
-        let r = f64::from(o.range);
+        let own = |s: f32, model: f64| if s > 0.0 { f64::from(s) } else { model };
+        self.at(
+            f64::from(o.range),
+            own(pos, self.position),
+            own(att, self.attitude),
+        )
+    }
+
+    /// The variance at range `r` with INS sigmas `pos` [m] and `att` [rad].
+    #[inline]
+    fn at(&self, r: f64, pos: f64, att: f64) -> f64 {
         self.range * self.range + (r * att) * (r * att) + pos * pos + 0.002 * 0.002 / 12.0
     }
 
@@ -58,10 +56,7 @@ impl Noise {
     #[inline]
     pub fn inflation(&self, o: &Observation) -> f64 {
         let own = self.variance(o);
-        let model = self.variance(&Observation {
-            ins_sigma: [0.0; 2],
-            ..*o
-        });
+        let model = self.at(f64::from(o.range), self.position, self.attitude);
         libm::sqrt(own / model.max(1e-12)).max(1.0)
     }
 

@@ -148,6 +148,12 @@ fn finish(
     Ok(o.n)
 }
 
+/// Any sentence: `$` + `body` + `*` + its XOR checksum + CR LF (a unit's replies, in the
+/// emulator and tests).
+pub fn sentence(out: &mut [u8], body: &[u8]) -> Result<usize, Error> {
+    finish(out, |o| o.push(body))
+}
+
 /// `$VNRRG,id`: read register `id`.
 pub fn read_register(out: &mut [u8], id: u8) -> Result<usize, Error> {
     finish(out, |o| {

@@ -52,6 +52,21 @@ pub struct InsLink {
     pub port: u8,
 }
 
+impl InsLink {
+    /// The board's `fields` as Common-group bits of the core's field table (unknown names are
+    /// left out: the board's validation refuses them).
+    pub fn common_bits(&self) -> Vec<(&'static str, u8)> {
+        use spherecal::vn200::Group;
+        Group::Common
+            .fields()
+            .iter()
+            .enumerate()
+            .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
+            .filter(|(n, _)| self.fields.iter().any(|f| f == n))
+            .collect()
+    }
+}
+
 fn yes() -> bool {
     true
 }

@@ -4,6 +4,7 @@
 //! port is silent or another sender is talking: a factory VLP-16 broadcasts to
 //! 255.255.255.255, which a socket bound to one unicast address never receives.
 
+use super::pps_name;
 use serde::Serialize;
 use spherecal::vlp16::{PositionPacket, PpsStatus, Product, ReturnMode};
 use spherecal_hal::packet::{Datagram, HostTime};
@@ -83,13 +84,7 @@ impl Heard {
     }
 
     fn position(&mut self, p: &PositionPacket<&[u8]>) {
-        self.pps = Some(match p.pps() {
-            PpsStatus::Absent => 0,
-            PpsStatus::Synchronizing => 1,
-            PpsStatus::Locked => 2,
-            PpsStatus::Error => 3,
-            PpsStatus::Unknown(b) => b,
-        });
+        self.pps = Some(p.pps().to_byte());
         self.nmea_valid = p.nmea_time().ok().map(|t| t.valid);
     }
 
@@ -120,15 +115,24 @@ impl Heard {
     }
 
     /// What the port heard, in words, and the warnings: `what` names the port ("data",
-    /// "position"), `sensor` the board's sensor address (None: any), `secs` since the start.
+    /// "position"), `sensor` the board's sensor address (None: any), `secs` since the first
+    /// datagram, `data_heard` whether the data port hears the LiDAR.
     pub fn describe(
         &self,
         what: &str,
         sensor: Option<Ipv4Addr>,
         secs: f64,
+        data_heard: bool,
     ) -> (String, Vec<String>) {
         let mut warn = Vec::new();
         let head = format!("{what} port {}", self.port);
+        if self.datagrams == 0 && what == "position" && data_heard {
+            // The LiDAR is there: its position packets go to another port.
+            warn.push(format!(
+                "{head}: silent for {secs:.0} s while the data port hears the LiDAR: check the board's position_port (a VLP-16 sends them to 8308 unless its web page says otherwise) and the firewall"
+            ));
+            return (format!("{head}: silent"), warn);
+        }
         if self.datagrams == 0 {
             warn.push(format!(
                 "{head}: silent for {secs:.0} s: no datagram arrives (check the cable and link, that the LiDAR's destination (web page: Host IP; factory 255.255.255.255) reaches this computer, and that nothing else holds the port)"
@@ -191,7 +195,7 @@ impl Heard {
                 product_name(p)
             ));
         }
-        if let Some(0 | 3) = self.pps {
+        if let Some(PpsStatus::Absent | PpsStatus::Error) = self.pps.map(PpsStatus::from) {
             warn.push(format!(
                 "{head}: PPS {}: the LiDAR clock is not disciplined (check the GNSS receiver's PPS and NMEA wiring to the interface box)",
                 pps_name(self.pps.unwrap_or(0))
@@ -224,16 +228,6 @@ pub fn return_name(b: u8) -> String {
         Some(ReturnMode::Last) => "last return".into(),
         Some(ReturnMode::Dual) => "dual return".into(),
         None => format!("return mode 0x{b:02X}"),
-    }
-}
-
-fn pps_name(b: u8) -> &'static str {
-    match b {
-        0 => "absent",
-        1 => "synchronizing",
-        2 => "locked",
-        3 => "error",
-        _ => "unknown",
     }
 }
 
@@ -281,18 +275,18 @@ mod tests {
         let rpm = h.rpm.unwrap();
         // 478 / 36000 turns per 1.327 ms = 600.4 rpm.
         assert!((rpm - 600.4).abs() < 0.5, "{rpm}");
-        let (text, warn) = h.describe("data", Some(sensor), 3.0);
+        let (text, warn) = h.describe("data", Some(sensor), 3.0, true);
         assert!(text.contains("1000 from 192.168.1.201"), "{text}");
         assert!(text.contains("VLP-16") && text.contains("strongest") && text.contains("600 rpm"));
         assert!(warn.is_empty(), "{warn:?}");
         // Another sender, and the board's sensor silent.
-        let (_, warn) = h.describe("data", Some("192.168.1.55".parse().unwrap()), 3.0);
+        let (_, warn) = h.describe("data", Some("192.168.1.55".parse().unwrap()), 3.0, true);
         assert!(
             warn[0].contains("nothing from the board's sensor_addr 192.168.1.55"),
             "{warn:?}"
         );
         // A silent port.
-        let (_, warn) = Heard::new(8308).describe("position", None, 3.0);
+        let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
         assert!(
             warn[0].contains("position port 8308: silent for 3 s"),
             "{warn:?}"

@@ -308,7 +308,7 @@ impl<'a> Shared<'a> {
     }
 }
 
-fn pps_name(b: u8) -> &'static str {
+pub(super) fn pps_name(b: u8) -> &'static str {
     match b {
         NONE_U8 => "none",
         b => match PpsStatus::from(b) {
@@ -508,13 +508,7 @@ impl Plan {
                 0.0,
             ),
         };
-        let expected = Group::Common
-            .fields()
-            .iter()
-            .enumerate()
-            .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
-            .filter(|(n, _)| b.ins.fields.iter().any(|f| f == n))
-            .collect();
+        let expected = b.ins.common_bits();
         Self {
             frame,
             targets,

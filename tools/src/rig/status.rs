@@ -189,6 +189,18 @@ pub(super) fn snapshot(
     let aligned = sh.aligned.load(Ordering::Relaxed);
     let received = sh.received[0].load(Ordering::Relaxed);
     let lag = sh.lag_ns.load(Ordering::Relaxed);
+    let (verdict, coverage) = sh
+        .verdict
+        .lock()
+        .ok()
+        .and_then(|v| v.clone())
+        .map(|v| {
+            (
+                Some(if v.ready { "ready" } else { "collecting" }.to_string()),
+                Some(crate::verdict::status_field(&v.coverage)),
+            )
+        })
+        .unwrap_or_default();
     let s = Status {
         t_s: started.elapsed().as_secs(),
         received_per_s: received.saturating_sub(last[0]),
@@ -217,25 +229,8 @@ pub(super) fn snapshot(
             .ok()
             .and_then(|c| *c)
             .map(|(d, s)| (d * 1e3, s * 1e3)),
-        verdict: None,
-        coverage: None,
-    };
-    let (verdict, coverage) = sh
-        .verdict
-        .lock()
-        .ok()
-        .and_then(|v| v.clone())
-        .map(|v| {
-            (
-                Some(if v.ready { "ready" } else { "collecting" }.to_string()),
-                Some(crate::verdict::status_field(&v.coverage)),
-            )
-        })
-        .unwrap_or_default();
-    let s = Status {
         verdict,
         coverage,
-        ..s
     };
     *last = [received, aligned];
     s
@@ -284,15 +279,8 @@ impl Hearing {
             }
             self.silent[k] = Some(h.datagrams == 0);
             let secs = (t - self.first.unwrap_or(0).min(t)) as f64;
-            let (text, mut warnings) = h.describe(what, self.sensor, secs);
             let data_heard = sh.received[0].load(Ordering::Relaxed) > 0;
-            if k == 1 && h.datagrams == 0 && data_heard {
-                // The LiDAR is there: its position packets go to another port.
-                warnings = vec![format!(
-                    "position port {}: silent for {secs} s while the data port hears the LiDAR: check the board's position_port (a VLP-16 sends them to 8308 unless its web page says otherwise) and the firewall",
-                    h.port
-                )];
-            }
+            let (text, warnings) = h.describe(what, self.sensor, secs, data_heard);
             out.push(format!("heard: {text}"));
             out.extend(warnings.into_iter().map(|w| format!("WARNING: {w}")));
             if h.datagrams == 0 && !self.bind.is_unspecified() {

@@ -52,15 +52,16 @@ pub struct Configured {
 
 /// The binary output register 75 the board asks for.
 pub fn binary_output(ins: &InsLink) -> Result<BinaryOutput, String> {
-    let mut masks = Masks::default();
-    for f in &ins.fields {
-        let bit = Group::Common
-            .fields()
-            .iter()
-            .position(|d| d.as_ref().is_some_and(|d| d.name == f))
-            .ok_or_else(|| format!("ins.fields: unknown Common-group field {f:?}"))?;
-        masks = masks.with(Group::Common, bit as u8);
+    let bits = ins.common_bits();
+    if bits.len() != ins.fields.len() {
+        return Err(format!(
+            "ins.fields {:?}: not all are Common-group fields",
+            ins.fields
+        ));
     }
+    let masks = bits
+        .iter()
+        .fold(Masks::default(), |m, &(_, bit)| m.with(Group::Common, bit));
     let rate_divisor = BinaryOutput::divisor_for(ins.rate_hz)
         .ok_or_else(|| format!("ins.rate_hz {}: not 800 Hz / an integer", ins.rate_hz))?;
     Ok(BinaryOutput {

@@ -20,10 +20,8 @@ use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// Bauds the unit takes (register 5).
-pub const BAUDS: [u32; 9] = [
-    9600, 19_200, 38_400, 57_600, 115_200, 128_000, 230_400, 460_800, 921_600,
-];
+/// Bauds the unit takes (register 5): the boards' list.
+use crate::config::board::BAUDS;
 
 /// The emulated unit's registers and faults to inject.
 #[derive(Debug, Clone)]
@@ -67,10 +65,13 @@ impl Unit {
     }
 }
 
-/// A sentence `$body*XX\r\n` with its checksum.
+/// A sentence `$body*XX\r\n` with its checksum (the core's emit side; a body too long for
+/// a sentence gives nothing).
 fn sentence(body: &str) -> Vec<u8> {
-    let sum = spherecal::vn200::binary::xor8(body.as_bytes());
-    format!("${body}*{sum:02X}\r\n").into_bytes()
+    let mut out = vec![0u8; body.len() + 8];
+    let n = spherecal::vn200::command::sentence(&mut out, body.as_bytes()).unwrap_or(0);
+    out.truncate(n);
+    out
 }
 
 /// Register 75..77's values as the unit formats them.
