@@ -2,7 +2,7 @@
 //! `cargo bench -p spherecal --bench vlp16_decode`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use spherecal::vlp16::{decode, DataPacket, PointBuf};
+use spherecal::velodyne::{decode, DataPacket, PointBuf};
 use std::hint::black_box;
 
 /// The UDP payloads of the data packets of a classic Ethernet pcap (fixed 42-byte headers).

@@ -8,7 +8,7 @@
 //! g = the site's local NED frame. `R_li` is the boresight rotation and `a_i` the lever arm.
 
 use crate::frames::{rotation, Geodetic, LocalFrame};
-use crate::vlp16::{COS_ELEVATION_F64, LASERS, SIN_ELEVATION_F64, VERTICAL_OFFSET_M};
+use crate::velodyne::Beam;
 use nalgebra::{Matrix3, Vector3};
 
 /// The LiDAR's mounting: boresight angles and lever arm.
@@ -118,31 +118,31 @@ impl PlatformPose {
     }
 }
 
-/// Eq. 1: the unit beam direction in the LiDAR frame for a laser and the azimuth's sin, cos.
+/// Eq. 1: the unit beam direction in the LiDAR frame for a laser and the azimuth's sin, cos
+/// (the azimuth the laser points at, its offset included).
 #[inline]
-pub fn beam_unit(laser: usize, sin_t: f64, cos_t: f64) -> Vector3<f64> {
-    let l = laser % LASERS;
-    let cw = COS_ELEVATION_F64[l];
-    Vector3::new(cw * sin_t, cw * cos_t, SIN_ELEVATION_F64[l])
+pub fn beam_unit(beam: &Beam, sin_t: f64, cos_t: f64) -> Vector3<f64> {
+    let cw = beam.cos_el;
+    Vector3::new(cw * sin_t, cw * cos_t, beam.sin_el)
 }
 
 /// The beam origin in the LiDAR frame: the laser's vertical offset along z.
 #[inline]
-pub fn beam_origin_l(laser: usize) -> Vector3<f64> {
-    Vector3::new(0.0, 0.0, VERTICAL_OFFSET_M[laser % LASERS])
+pub fn beam_origin_l(beam: &Beam) -> Vector3<f64> {
+    Vector3::new(0.0, 0.0, beam.vertical_offset_m)
 }
 
-/// Eqs. 2-3: the return of `laser` at range `d` [m] and azimuth (sin, cos) in the site frame.
+/// Eqs. 2-3: the return of `beam` at range `d` [m] and azimuth (sin, cos) in the site frame.
 #[inline]
 pub fn point(
     pose: &PlatformPose,
     mount: &Mount,
     d: f64,
-    laser: usize,
+    beam: &Beam,
     sin_t: f64,
     cos_t: f64,
 ) -> Vector3<f64> {
-    let in_l = beam_unit(laser, sin_t, cos_t) * d + beam_origin_l(laser);
+    let in_l = beam_unit(beam, sin_t, cos_t) * d + beam_origin_l(beam);
     pose.position + pose.r_ig * (mount.lever + mount.r_li * in_l)
 }
 
@@ -151,14 +151,14 @@ pub fn point(
 pub fn ray(
     pose: &PlatformPose,
     mount: &Mount,
-    laser: usize,
+    beam: &Beam,
     sin_t: f64,
     cos_t: f64,
 ) -> (Vector3<f64>, Vector3<f64>) {
     let r = pose.r_ig * mount.r_li;
     (
-        pose.position + pose.r_ig * mount.lever + r * beam_origin_l(laser),
-        r * beam_unit(laser, sin_t, cos_t),
+        pose.position + pose.r_ig * mount.lever + r * beam_origin_l(beam),
+        r * beam_unit(beam, sin_t, cos_t),
     )
 }
 
@@ -178,7 +178,8 @@ mod tests {
         };
         let mount = Mount::new([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]);
         let d = 10.0;
-        let p = point(&pose, &mount, d, 7, 0.0, 1.0);
+        let beam = crate::velodyne::Model::Vlp16.beam(7);
+        let p = point(&pose, &mount, d, beam, 0.0, 1.0);
         let w = 7f64.to_radians();
         // In l = body: (0, d cos w, d sin w - 5.1 mm); body -> NED with heading 90:
         // x_b -> east, y_b -> south (-north), z_b -> down.
@@ -186,7 +187,7 @@ mod tests {
         let want = Vector3::new(10.0 - body.y, 20.0 + body.x, body.z);
         assert!((p - want).norm() < 1e-12, "{p} vs {want}");
         // The ray meets the point at distance d.
-        let (o, dir) = ray(&pose, &mount, 7, 0.0, 1.0);
+        let (o, dir) = ray(&pose, &mount, beam, 0.0, 1.0);
         assert!((o + dir * d - p).norm() < 1e-12);
         assert!((dir.norm() - 1.0).abs() < 1e-15);
     }

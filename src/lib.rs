@@ -18,6 +18,7 @@ pub mod georef;
 #[cfg(any(test, feature = "sim"))]
 pub mod sim;
 pub mod time;
-pub mod vlp16;
+pub mod velodyne;
+
 pub mod vn200;
 pub mod window;

@@ -17,7 +17,7 @@
 use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
 use crate::time::GpsTime;
-use crate::vlp16::PointBuf;
+use crate::velodyne::PointBuf;
 use nalgebra::{Matrix3, Vector3};
 
 /// Most targets the core handles.

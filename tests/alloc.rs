@@ -4,7 +4,7 @@
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::sim::{InsSim, LidarSim, SimPacket};
 use spherecal::time::LidarClock;
-use spherecal::vlp16::{decode, DataPacket, PointBuf, PositionPacket};
+use spherecal::velodyne::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, Target, WindowStats, Windowing};
 use spherecal_tools::config::scenario::Scenario;

@@ -9,7 +9,7 @@ use spherecal::frames::rotation;
 use spherecal::georef::{point, PlatformPose};
 use spherecal::sim::{Frame, LidarSim, Shape, SimPacket, World};
 use spherecal::time::{gps_to_unix_ns, GpsTime};
-use spherecal::vlp16::{decode, DataPacket, PointBuf};
+use spherecal::velodyne::{decode, DataPacket, PointBuf};
 use spherecal_tools::config::scenario::Scenario;
 
 fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
@@ -93,7 +93,7 @@ fn traced_points_lie_on_what_they_hit() {
                 &pose,
                 &w.mount,
                 h.range,
-                laser,
+                spherecal::velodyne::Model::Vlp16.beam(laser),
                 h.azimuth.sin(),
                 h.azimuth.cos(),
             );
@@ -161,7 +161,7 @@ fn the_beam_footprint_blooms_and_mixes() {
                 &pose,
                 &w.mount,
                 h.range,
-                laser,
+                spherecal::velodyne::Model::Vlp16.beam(laser),
                 h.azimuth.sin(),
                 h.azimuth.cos(),
             );
@@ -286,7 +286,7 @@ fn decoded_points_lie_on_their_spheres() {
                 &pose,
                 &w.mount,
                 f64::from(q.distance_raw) * 0.002,
-                q.laser(),
+                spherecal::velodyne::Model::Vlp16.beam(q.laser()),
                 az.sin(),
                 az.cos(),
             );

@@ -3,7 +3,7 @@
 
 mod common;
 
-use spherecal::vlp16::{self, PointBuf, PpsStatus};
+use spherecal::velodyne::{self, PointBuf, PpsStatus};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
@@ -80,7 +80,7 @@ fn sensor_point_ros(distance_raw: u16, laser: usize, azimuth_deg: f64) -> [f64; 
 
 /// Decode a capture and compare every point with the reference; returns the position packets'
 /// (pps, stamp_us, nmea time) for further checks.
-fn compare(pcap: &str, reference: &str) -> Vec<(PpsStatus, u32, Option<vlp16::NmeaTime>)> {
+fn compare(pcap: &str, reference: &str) -> Vec<(PpsStatus, u32, Option<velodyne::NmeaTime>)> {
     let reference = load_reference(reference);
     let mut src = PcapSource::open(common::test_data(pcap)).unwrap();
     let mut buf = PointBuf::new();
@@ -97,7 +97,7 @@ fn compare(pcap: &str, reference: &str) -> Vec<(PpsStatus, u32, Option<vlp16::Nm
                 positions.push((packet.pps(), packet.timestamp_us(), packet.nmea_time().ok()))
             }
             Vlp16Packet::Data { packet, .. } => {
-                vlp16::decode(&packet, &mut buf).unwrap();
+                velodyne::decode(&packet, &mut buf).unwrap();
                 for p in buf.as_slice() {
                     let key = (packet_index, p.block, p.sequence() as u8, p.laser() as u8);
                     let r = reference

@@ -2,7 +2,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal::vlp16::{decode, PointBuf};
+use spherecal::velodyne::{decode, PointBuf};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};

@@ -2,7 +2,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal::vlp16::{decode, DataPacket, DataRepr, PointBuf, PositionPacket, PositionRepr};
+use spherecal::velodyne::{decode, DataPacket, DataRepr, PointBuf, PositionPacket, PositionRepr};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(p) = DataPacket::new_checked(data) {

@@ -59,7 +59,7 @@ pub enum SkipReason {
         got: usize,
     },
     /// The bytes have the right length but are not a valid VLP-16 packet.
-    Vlp16(spherecal::vlp16::Error),
+    Vlp16(spherecal::velodyne::Error),
 }
 
 impl SkipReason {

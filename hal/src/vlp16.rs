@@ -2,9 +2,9 @@
 //! length, and the count of everything skipped, by reason, with the first place it happened.
 
 use crate::packet::{Datagram, HostTime, SkipReason};
-use spherecal::vlp16::data::DATA_PACKET_LEN;
-use spherecal::vlp16::position::POSITION_PACKET_LEN;
-use spherecal::vlp16::{DataPacket, PositionPacket, DATA_PORT, POSITION_PORT};
+use spherecal::velodyne::data::DATA_PACKET_LEN;
+use spherecal::velodyne::position::POSITION_PACKET_LEN;
+use spherecal::velodyne::{DataPacket, PositionPacket, DATA_PORT, POSITION_PORT};
 
 /// The UDP ports a VLP-16 sends to (configurable on the sensor's web page).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

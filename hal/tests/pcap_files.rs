@@ -8,7 +8,7 @@ use pcap_file::pcapng::blocks::interface_description::{
 use pcap_file::pcapng::PcapNgWriter;
 use pcap_file::DataLink;
 use proptest::prelude::*;
-use spherecal::vlp16::{DataPacket, PositionPacket, PpsStatus, ReturnMode};
+use spherecal::velodyne::{DataPacket, PositionPacket, PpsStatus, ReturnMode};
 use spherecal_hal::packet::HostTime;
 use spherecal_hal::pcap::{build_udp_frame, PcapError, PcapSource, PcapWriter, UdpEndpoints};
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};

@@ -9,7 +9,7 @@
 use super::history::{PoseHistory, PoseSample};
 use crate::georef::Mount;
 use crate::time::{GpsTime, HostTime, LidarClock};
-use crate::vlp16::{self, DataPacket, PointBuf, PositionPacket, PpsStatus};
+use crate::velodyne::{self, DataPacket, Identity, Model, PointBuf, PositionPacket, PpsStatus};
 use crate::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS};
 
 /// A packet's 24 firing sequences span 1.33 ms: the history must reach this far past its
@@ -44,6 +44,12 @@ pub struct AlignStats {
     pub batch_overflow: u64,
     /// Where the hour came from (None: not yet).
     pub hour_from: Option<HourFrom>,
+    /// What the data packets say of the LiDAR model (None: no packet yet, or the model was
+    /// given).
+    pub identity: Option<Identity>,
+    /// Data packets not decoded because their model is unknown or their product byte
+    /// disagrees with their period ([`Identity`]); a run with any is not to be trusted.
+    pub model_refused: u64,
 }
 
 /// The align stage over a history of `H` poses and batches of `B` observations.
@@ -59,6 +65,8 @@ pub struct Aligner<'a, const H: usize, const B: usize> {
     /// Newest pose's GPS time minus its host receive time [ns], if that time is known.
     ins_offset_ns: Option<i64>,
     data_seen: u32,
+    model: Option<Model>,
+    detector: velodyne::Detector,
     /// Counts.
     pub stats: AlignStats,
     /// PPS state of the last position packet.
@@ -99,12 +107,29 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             lookahead_ns,
             ins_offset_ns: None,
             data_seen: 0,
+            model: None,
+            detector: velodyne::Detector::new(),
             stats: AlignStats::default(),
             pps: None,
             lag_ns: None,
             windowed: [0; MAX_TARGETS],
             time_offset_ns: 0,
         }
+    }
+
+    /// Decode every data packet as `model` (the user's `--model`), or (None, the default) as
+    /// the model the packets' product byte names, checked against their period.
+    pub fn with_model(mut self, model: Option<Model>) -> Self {
+        self.model = model;
+        self
+    }
+
+    /// The model packets are decoded as, once known.
+    pub fn model(&self) -> Option<Model> {
+        self.model.or(match self.detector.identity() {
+            Identity::Agreed(m) | Identity::Pending(Some(m)) => Some(m),
+            _ => None,
+        })
     }
 
     /// The spheres windowed.
@@ -209,7 +234,23 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
         // On the INS clock (the poses' times).
         let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
-        if vlp16::decode(&p, &mut self.points).is_err() {
+        let model = match self.model {
+            Some(m) => m,
+            None => {
+                let id = self
+                    .detector
+                    .push(p.timestamp_us(), p.return_mode_raw(), p.product_raw());
+                self.stats.identity = Some(id);
+                match id {
+                    Identity::Agreed(m) | Identity::Pending(Some(m)) => m,
+                    _ => {
+                        self.stats.model_refused += 1;
+                        return;
+                    }
+                }
+            }
+        };
+        if velodyne::decode_as(&p, model, &mut self.points).is_err() {
             return;
         }
         self.stats.data_packets += 1;
@@ -266,8 +307,8 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
 mod tests {
     use super::*;
     use crate::time::{unix_ns_to_gps, UtcDateTime};
-    use crate::vlp16::position::write_gprmc;
-    use crate::vlp16::{BlockRepr, DataRepr, PositionRepr, ReturnMode, VERTICAL_OFFSET_M};
+    use crate::velodyne::position::write_gprmc;
+    use crate::velodyne::{BlockRepr, DataRepr, Model, PositionRepr, ReturnMode};
     use nalgebra::{Matrix3, Vector3};
     use std::vec::Vec;
 
@@ -316,7 +357,11 @@ mod tests {
     /// + v_1) (x right, y forward, z up; R_li = R_ig = I).
     fn expected() -> Vector3<f64> {
         let e = 1f64.to_radians();
-        Vector3::new(10.0, 10.0 * e.cos(), 10.0 * e.sin() + VERTICAL_OFFSET_M[1])
+        Vector3::new(
+            10.0,
+            10.0 * e.cos(),
+            10.0 * e.sin() + Model::Vlp16.beam(1).vertical_offset_m,
+        )
     }
 
     /// An aligner with the zero mounting, a 0.5 m margin and no look-ahead.

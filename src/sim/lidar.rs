@@ -1,4 +1,5 @@
-//! The VLP-16 side of the simulator: the firing schedule (manual appendix B, PROTOCOLS.md),
+//! The LiDAR side of the simulator, for any [`Model`]: the firing schedule (the model's
+//! timing, manual appendix B, PROTOCOLS.md),
 //! ray tracing of every firing at the time and along the azimuth a decoder reconstructs from
 //! the packet (integer-microsecond stamps, block azimuths quantized to 0.01 deg, per-block
 //! interpolation), and the packets written through the data/position emit sides.
@@ -37,11 +38,11 @@ use super::scene::{Frame, Water};
 use super::World;
 use crate::georef::{beam_origin_l, beam_unit, PlatformPose};
 use crate::time::{gps_to_unix_ns, micros_past_hour, unix_ns_to_gps, GpsTime, UtcDateTime};
-use crate::vlp16::data::{field, DATA_PACKET_LEN};
-use crate::vlp16::firing::{firing_offset_ns, BLOCK_NS};
-use crate::vlp16::position::{write_gprmc, POSITION_PACKET_LEN};
-use crate::vlp16::{
-    DataPacket, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, LASERS, POSITION_PORT,
+use crate::velodyne::data::{field, DATA_PACKET_LEN};
+use crate::velodyne::firing::firing_offset_ns;
+use crate::velodyne::position::{write_gprmc, POSITION_PACKET_LEN};
+use crate::velodyne::{
+    DataPacket, Model, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, MAX_LASERS, POSITION_PORT,
 };
 use core::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, Vector3};
@@ -62,11 +63,13 @@ const BODY_BINS: usize = 1440;
 const BODY_WORDS: usize = BODY_BINS.div_ceil(64);
 
 /// Which (laser, azimuth bin) firings can hit one vessel part, as bits.
-type BodyTable = [[u64; BODY_WORDS]; LASERS];
+type BodyTable = [[u64; BODY_WORDS]; MAX_LASERS];
 
 /// LiDAR settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LidarConfig {
+    /// The sensor model: its lasers, timing, range unit and product byte.
+    pub model: Model,
     /// Rotation rate, 300..=1200 rpm.
     pub rpm: f64,
     /// Return mode.
@@ -111,6 +114,7 @@ pub struct LidarConfig {
 impl Default for LidarConfig {
     fn default() -> Self {
         Self {
+            model: Model::Vlp16,
             rpm: 600.0,
             mode: ReturnMode::Strongest,
             start_azimuth: 0.0,
@@ -293,7 +297,7 @@ pub struct LidarSim<'w, 'a> {
     /// Vessel parts: object index and the firings that can hit it.
     body: heapless::Vec<(u16, BodyTable), MAX_BODY_TABLES>,
     /// Each laser's beam origin in the body frame: `a + R_li v_k e_z`.
-    origins: [Vector3<f64>; LASERS],
+    origins: [Vector3<f64>; MAX_LASERS],
     /// Counts so far.
     pub stats: LidarStats,
     /// The returns of the last data packet (for labels, tests and truth checks).
@@ -303,12 +307,9 @@ pub struct LidarSim<'w, 'a> {
     trace_rng: Rng,
 }
 
-/// Packet period [ns]: 12 blocks (single) or 6 pairs (dual) of 110.592 us.
-pub fn packet_period_ns(mode: ReturnMode) -> i64 {
-    match mode {
-        ReturnMode::Dual => 6 * i64::from(BLOCK_NS),
-        _ => 12 * i64::from(BLOCK_NS),
-    }
+/// Packet period [ns]: 12 firing cycles (single) or 6 pairs (dual) of the model's.
+pub fn packet_period_ns(model: Model, mode: ReturnMode) -> i64 {
+    i64::from(model.packet_period_ns(mode == ReturnMode::Dual))
 }
 
 /// An angle wrapped into [-pi, pi).
@@ -363,7 +364,7 @@ impl Beam {
 impl<'w, 'a> LidarSim<'w, 'a> {
     /// A simulator over the whole trajectory.
     pub fn new(world: &'w World<'a>, cfg: LidarConfig) -> Self {
-        let period_ns = packet_period_ns(cfg.mode);
+        let period_ns = packet_period_ns(cfg.model, cfg.mode);
         let packets = (world.trajectory.duration() * 1e9 / period_ns as f64) as u64;
         let start_unix = gps_to_unix_ns(world.start, world.leap_seconds);
         Self {
@@ -386,7 +387,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             glint_cos: world.water.map_or(2.0, |w| libm::cos(w.specular)),
             body: heapless::Vec::new(),
             origins: core::array::from_fn(|k| {
-                world.mount.lever + world.mount.r_li * beam_origin_l(k)
+                world.mount.lever + world.mount.r_li * beam_origin_l(cfg.model.beam(k))
             }),
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
@@ -413,12 +414,15 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let Some(grown) = obj.shape.offset(grow) else {
                 continue;
             };
-            let mut table = [[0u64; BODY_WORDS]; LASERS];
-            for (laser, row) in table.iter_mut().enumerate() {
-                let o = mount.lever + mount.r_li * beam_origin_l(laser);
+            let mut table = [[0u64; BODY_WORDS]; MAX_LASERS];
+            let model = self.cfg.model;
+            for (laser, row) in table.iter_mut().enumerate().take(model.lasers()) {
+                let beam = model.beam(laser);
+                let o = mount.lever + mount.r_li * beam_origin_l(beam);
                 for k in 0..BODY_BINS {
+                    // The bin is in the laser's own azimuth (its offset included).
                     let (sa, ca) = libm::sincos((k as f64 + 0.5) * bin);
-                    let d = mount.r_li * beam_unit(laser, sa, ca);
+                    let d = mount.r_li * beam_unit(beam, sa, ca);
                     if grown.intersect(&o, &d).is_some() {
                         row[k / 64] |= 1 << (k % 64);
                     }
@@ -440,7 +444,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
     fn body_misses(&self, table: u8, laser: usize, k: usize) -> bool {
         self.body
             .get(usize::from(table))
-            .is_some_and(|(_, t)| t[laser % LASERS][k / 64] & (1 << (k % 64)) == 0)
+            .is_some_and(|(_, t)| t[laser % MAX_LASERS][k / 64] & (1 << (k % 64)) == 0)
     }
 
     /// Data packets the run will make.
@@ -540,7 +544,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
     /// (and the object moves) in half the span.
     fn cache_windows(&mut self, t: GpsTime) {
         self.windows.clear();
-        let span = self.period_ns * CACHE_PACKETS as i64 + 2 * i64::from(BLOCK_NS);
+        let span = self.period_ns * CACHE_PACKETS as i64 + 2 * i64::from(self.cfg.model.block_ns());
         let (p0, p1) = (self.pose(t), self.pose(GpsTime(t.0 + span)));
         let mid = GpsTime(t.0 + span / 2);
         let pose = self.pose(mid);
@@ -551,7 +555,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let origin = pose.position + pose.r_ig * mount.lever;
         let to_l = (pose.r_ig * mount.r_li).transpose();
         let t_mid = self.world.t_of(mid);
-        let lim = 16f64.to_radians();
+        let (lo, hi) = self.cfg.model.elevation_span_deg();
+        let (lo, hi) = ((lo - 1.0).to_radians(), (hi + 1.0).to_radians());
         let all = !self.cfg.cull;
         for (i, obj) in self.world.objects.iter().enumerate().take(MAX_OBJECTS) {
             let (c, r) = obj.bound();
@@ -576,7 +581,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             } else {
                 let alpha = libm::asin(rr / dist) + turn * 0.75 + 0.01;
                 let elev = libm::asin((v.z / dist).clamp(-1.0, 1.0));
-                if elev - alpha > lim || elev + alpha < -lim {
+                if elev - alpha > hi || elev + alpha < lo {
                     continue;
                 }
                 let ce = libm::cos(elev.abs() + alpha);
@@ -599,8 +604,14 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// The azimuth [rad] the decoder reconstructs for channel `ch` of block `b` (PROTOCOLS.md:
     /// interpolated per block; the step to the next block or pair, the last reuses the
-    /// previous), and the step from the first block's [rad].
-    fn firing_azimuth(az: &[u16; field::BLOCKS], b: usize, stride: usize, ch: usize) -> (f64, f64) {
+    /// previous; plus the laser's azimuth offset), and the step from the first block's [rad].
+    fn firing_azimuth(
+        model: Model,
+        az: &[u16; field::BLOCKS],
+        b: usize,
+        stride: usize,
+        ch: usize,
+    ) -> (f64, f64) {
         let next = b + stride;
         let gap = |i: usize, j: usize| {
             f64::from(((36_000 + u32::from(az[j]) - u32::from(az[i])) % 36_000) as u16)
@@ -610,22 +621,23 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         } else {
             gap(b - stride, b)
         };
-        let (seq, laser) = (ch / LASERS, ch % LASERS);
-        let n = (seq * 24 + laser) as f64;
-        let a = (f64::from(az[b]) + step * n / 48.0).to_radians() / 100.0;
-        let rel = (gap(0, b) + step * n / 48.0).to_radians() / 100.0;
+        let c = model.channels()[ch % field::CHANNELS];
+        let f = f64::from(c.offset_ns) / f64::from(model.block_ns());
+        let off = model.beam(usize::from(c.laser)).azimuth_offset_deg * 100.0;
+        let a = (f64::from(az[b]) + step * f + off).to_radians() / 100.0;
+        let rel = (gap(0, b) + step * f + off).to_radians() / 100.0;
         (a, rel)
     }
 
     fn write_data(&mut self, t: GpsTime, dropped: bool, replay: Option<&[Traced]>, buf: &mut [u8]) {
-        let mode = self.cfg.mode;
+        let (model, mode) = (self.cfg.model, self.cfg.mode);
         self.hits.clear();
         self.traced.clear();
         buf.fill(0);
         let mut p = DataPacket::new_unchecked(buf);
         let mut az = [0u16; field::BLOCKS];
         for (b, a) in az.iter_mut().enumerate() {
-            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, 0, 0)));
+            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, 0)));
             let cdeg = libm::round(self.azimuth_at(tb).to_degrees() * 100.0) as i64;
             *a = cdeg.rem_euclid(36_000) as u16;
             p.set_flag(b);
@@ -633,7 +645,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         }
         p.set_timestamp_us(self.stamp(t));
         p.set_return_mode(mode);
-        p.set_product_raw(0x22);
+        p.set_product_raw(model.product());
         let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
         self.stats.rays += (field::BLOCKS / stride * field::CHANNELS) as u64;
         // What the firings return: traced now (also for a lost packet, so that a trace does
@@ -652,7 +664,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// Trace every firing of the packet at `t` (block azimuths `az`) into `self.traced`.
     fn trace_packet(&mut self, t: GpsTime, az: &[u16; field::BLOCKS], stride: usize) {
-        let mode = self.cfg.mode;
+        let (model, mode) = (self.cfg.model, self.cfg.mode);
 
         // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm), their
         // centres made relative to the first block's azimuth (no wrapping per firing).
@@ -677,18 +689,18 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             return;
         }
 
-        // Poses at the block boundaries, interpolated to each firing (within 110.6 us the
+        // Poses at the block boundaries, interpolated to each firing (within a block the
         // attitude turns by at most a few 1e-4 rad: the linear blend errs by < 1e-8 rad).
         let mut pose_a: Option<(GpsTime, PlatformPose, PlatformPose)> = None;
         let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
         let mut b = 0;
         while b < field::BLOCKS {
-            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, 0, 0)));
+            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, 0)));
             let (ta, pa, pe) = match pose_a {
                 Some((ta, pa, pe)) if ta == tb => (ta, pa, pe),
                 _ => {
                     let pa = self.pose(tb);
-                    let pe = self.pose(GpsTime(tb.0 + i64::from(BLOCK_NS)));
+                    let pe = self.pose(GpsTime(tb.0 + i64::from(model.block_ns())));
                     pose_a = Some((tb, pa, pe));
                     (tb, pa, pe)
                 }
@@ -696,8 +708,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             // Nadir in the LiDAR frame (for the water's glints).
             let nadir_l = (pa.r_ig * self.world.mount.r_li).tr_mul(&Vector3::z());
             for ch in 0..field::CHANNELS {
-                let (seq, laser) = (ch / LASERS, ch % LASERS);
-                let (a, rel) = Self::firing_azimuth(az, b, stride, ch);
+                let laser = usize::from(model.channels()[ch].laser);
+                let (a, rel) = Self::firing_azimuth(model, az, b, stride, ch);
                 // The objects whose windows hold this firing (vessel parts by their tables).
                 near.clear();
                 let bin = Self::body_bin(a);
@@ -711,14 +723,14 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                     let _ = near.push(k as u16);
                 }
                 let (sa, ca) = libm::sincos(a);
-                let u = beam_unit(laser, sa, ca);
+                let u = beam_unit(model.beam(laser), sa, ca);
                 let glint = glints && u.dot(&nadir_l) >= self.glint_cos;
                 if near.is_empty() && !glint {
                     continue;
                 }
                 self.stats.candidates += 1;
-                let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, b, seq, laser)));
-                let f = (tf.0 - ta.0) as f64 / f64::from(BLOCK_NS);
+                let tf = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, ch)));
+                let f = (tf.0 - ta.0) as f64 / f64::from(model.block_ns());
                 let pf = PlatformPose {
                     position: pa.position + (pe.position - pa.position) * f,
                     r_ig: pa.r_ig + (pe.r_ig - pa.r_ig) * f,
@@ -747,15 +759,16 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         echoes: &mut heapless::Vec<Echo, 5>,
     ) {
         let mount = &self.world.mount;
-        let u = beam_unit(laser, s, c);
+        let beam = self.cfg.model.beam(laser);
+        let u = beam_unit(beam, s, c);
         let sig = [self.cfg.divergence[0] / 4.0, self.cfg.divergence[1] / 4.0];
         let in_l = Beam {
-            o: beam_origin_l(laser),
+            o: beam_origin_l(beam),
             d: u,
             along: Vector3::zeros(),
             across: Vector3::zeros(),
         };
-        let o_body = self.origins[laser % LASERS];
+        let o_body = self.origins[laser % MAX_LASERS];
         let d_body = mount.r_li * u;
         let mut body = Beam::centre(o_body, d_body);
         // (The interpolated attitude is orthonormal to 1e-8: the direction is renormalised.)
@@ -953,7 +966,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         az: &[u16; field::BLOCKS],
         stride: usize,
     ) {
-        let mode = self.cfg.mode;
+        let (model, mode) = (self.cfg.model, self.cfg.mode);
+        let unit = model.distance_unit_m();
         for k in 0..self.traced.len() {
             let e = self.traced[k];
             let target = self
@@ -970,8 +984,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             let (block, ch) = (usize::from(e.block), usize::from(e.channel));
             // The firing's block: in dual mode the pair's even one.
             let fb = block - block % stride;
-            let (a, _) = Self::firing_azimuth(az, fb, stride, ch);
-            let tf = GpsTime(t.0 + i64::from(firing_offset_ns(mode, fb, ch / LASERS, ch % LASERS)));
+            let (a, _) = Self::firing_azimuth(model, az, fb, stride, ch);
+            let tf = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, fb, ch)));
             let energy = f64::from(e.energy);
             let cos = f64::from(e.cos);
             let intensity = (100.0 * energy).clamp(0.0, 100.0);
@@ -983,7 +997,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             }
             let walk = self.cfg.range_walk * (1.0 - intensity / 100.0);
             let d = e.range + walk + self.rng.gauss(sigma);
-            let raw = libm::round(d / 0.002).clamp(1.0, 65_535.0) as u16;
+            let raw = libm::round(d / unit).clamp(1.0, 65_535.0) as u16;
             p.set_channel(block, ch, raw, libm::round(intensity) as u8);
             let _ = self.hits.push(Hit {
                 block: e.block,

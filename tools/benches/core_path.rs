@@ -3,7 +3,7 @@
 //! `cargo bench -p spherecal-tools --bench core_path`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use spherecal::vlp16::PointBuf;
+use spherecal::velodyne::PointBuf;
 use spherecal::window::Batch;
 use spherecal_tools::fixtures::CorePath;
 

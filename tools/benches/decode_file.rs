@@ -2,7 +2,7 @@
 //! points, from memory and from the file. `cargo bench -p spherecal-tools --bench decode_file`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use spherecal::vlp16::{decode, PointBuf};
+use spherecal::velodyne::{decode, PointBuf};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
@@ -40,7 +40,7 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("mrpt_decode_command_no_csv", |b| {
         b.iter(|| {
-            spherecal_tools::decode::decode_file(std::path::Path::new(&path), None)
+            spherecal_tools::decode::decode_file(std::path::Path::new(&path), None, None)
                 .unwrap()
                 .points
         })
@@ -49,7 +49,7 @@ fn bench(c: &mut Criterion) {
     g.bench_function("mrpt_decode_command_csv", |b| {
         b.iter(|| {
             let mut w = std::io::BufWriter::with_capacity(1 << 20, std::io::sink());
-            spherecal_tools::decode::decode_file(std::path::Path::new(&path), Some(&mut w))
+            spherecal_tools::decode::decode_file(std::path::Path::new(&path), Some(&mut w), None)
                 .unwrap()
                 .points
         })

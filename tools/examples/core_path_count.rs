@@ -2,7 +2,7 @@
 //! 20 times) for deterministic instruction counts: `valgrind --tool=callgrind
 //! target/release/examples/core_path_count` (criterion timings on a shared machine swing).
 
-use spherecal::vlp16::PointBuf;
+use spherecal::velodyne::PointBuf;
 use spherecal::window::Batch;
 use spherecal_tools::fixtures::CorePath;
 

@@ -1,7 +1,11 @@
-//! `spherecal decode FILE [--csv OUT]`: VLP-16 packets from a capture, counted and listed.
+//! `spherecal decode FILE [--csv OUT] [--model NAME]`: Velodyne packets from a capture,
+//! counted and listed, decoded as the model the capture's product byte names (checked against
+//! its packet period: [`identify_file`]) or as the one given.
 
 use spherecal::time::UtcDateTime;
-use spherecal::vlp16::{self, DataPacket, PointBuf, PpsStatus, ReturnMode, ELEVATION_DEG};
+use spherecal::velodyne::{
+    self, DataPacket, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode,
+};
 use spherecal_hal::pcap::{PcapError, PcapSource};
 use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
@@ -27,6 +31,8 @@ pub struct DecodeSummary {
     pub return_modes: BTreeMap<&'static str, u64>,
     /// Data packets by product id byte.
     pub products: BTreeMap<u8, u64>,
+    /// The model the packets were decoded as, and how it was chosen.
+    pub model: Option<(Model, String)>,
     /// Position packets by PPS status.
     pub pps: BTreeMap<String, u64>,
     /// RMC sentences parsed.
@@ -49,12 +55,149 @@ pub struct DecodeError {
     /// The file.
     pub path: String,
     /// What went wrong.
-    pub error: PcapError,
+    pub error: DecodeFailure,
+}
+
+/// What stopped a decode before it began.
+#[derive(Debug)]
+pub enum DecodeFailure {
+    /// The capture could not be read.
+    Pcap(PcapError),
+    /// The LiDAR model is unknown or its product byte disagrees with the packet period.
+    Model(ModelError),
 }
 
 impl std::fmt::Display for DecodeError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: {}", self.path, self.error)
+        match &self.error {
+            DecodeFailure::Pcap(e) => write!(f, "{}: {e}", self.path),
+            DecodeFailure::Model(e) => write!(f, "{}: {e}", self.path),
+        }
+    }
+}
+
+/// The model of a capture could not be trusted: the product byte of the first data packet
+/// (at `offset` in the file) is unknown, or it disagrees with the packet period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelError {
+    /// What the packets said.
+    pub identity: Identity,
+    /// Byte offset of the first data packet's record.
+    pub offset: u64,
+}
+
+impl std::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let at = self.offset;
+        match self.identity {
+            Identity::Unknown { product } => write!(
+                f,
+                "data packet at byte {at}: product byte 0x{product:02X} is no model this tool \
+                 knows (VLP-16 0x22, Puck Hi-Res 0x24, HDL-32E 0x21, VLP-32C 0x28); refused \
+                 rather than decoded as another model's; if the sensor is one of these, say \
+                 which with --model {}",
+                model_keys()
+            ),
+            Identity::Disagrees {
+                product,
+                period_us,
+                fits,
+            } => {
+                let named = Model::from_product(product).map_or("?", Model::name);
+                let expect = Model::from_product(product)
+                    .map_or(0.0, |m| f64::from(m.packet_period_ns(false)) / 1000.0);
+                write!(
+                    f,
+                    "data packets from byte {at}: product byte 0x{product:02X} says {named} \
+                     ({expect:.1} us between single-return packets) but they come every \
+                     {period_us} us"
+                )?;
+                match fits {
+                    Some(m) => {
+                        let same: Vec<&str> = Model::ALL
+                            .iter()
+                            .filter(|o| o.same_timing(m))
+                            .map(|o| o.key())
+                            .collect();
+                        write!(
+                            f,
+                            ", the period of a {} (early VLP-16 firmware writes 0x21); say \
+                             which with --model {}",
+                            m.name(),
+                            same.join(" or --model ")
+                        )
+                    }
+                    None => write!(f, ", the period of no known model; refused"),
+                }
+            }
+            _ => write!(f, "model not known"),
+        }
+    }
+}
+
+/// The `--model` names, for messages.
+pub fn model_keys() -> String {
+    Model::ALL.map(Model::key).join("|")
+}
+
+/// What the first data packets of a capture say of its model ([`Detector`]): their product
+/// byte checked against their period (a file with too few packets to check keeps the byte's
+/// model). Err when the byte is unknown or disagrees.
+pub fn identify_file(path: &Path, ports: Ports) -> Result<Option<(Model, String)>, DecodeError> {
+    let err = |error| DecodeError {
+        path: path.display().to_string(),
+        error,
+    };
+    let mut src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
+    let mut det = Detector::new();
+    let mut first: Option<u64> = None;
+    let mut id = det.identity();
+    loop {
+        let rec = match src.next_record() {
+            Ok(Some(Record::Udp(d))) => d,
+            Ok(Some(_)) => continue,
+            Ok(None) | Err(_) => break,
+        };
+        if let Ok(Vlp16Packet::Data { packet, offset, .. }) = classify(&rec, ports) {
+            first.get_or_insert(offset);
+            id = det.push(
+                packet.timestamp_us(),
+                packet.return_mode_raw(),
+                packet.product_raw(),
+            );
+            if !matches!(id, Identity::Pending(_)) {
+                break;
+            }
+        }
+    }
+    let offset = first.unwrap_or(0);
+    match id {
+        Identity::Agreed(m) => Ok(Some((
+            m,
+            format!("product byte 0x{:02X}, packet period agrees", m.product()),
+        ))),
+        Identity::Pending(Some(m)) => Ok(Some((
+            m,
+            format!(
+                "product byte 0x{:02X} (too few packets to check the period)",
+                m.product()
+            ),
+        ))),
+        Identity::Pending(None) => Ok(None),
+        identity => Err(err(DecodeFailure::Model(ModelError { identity, offset }))),
+    }
+}
+
+/// The model to decode a capture as: `given` (the user's `--model`, said so), else what its
+/// packets say ([`identify_file`]).
+pub fn choose_model(
+    path: &Path,
+    ports: Ports,
+    given: Option<Model>,
+) -> Result<Option<(Model, String)>, DecodeError> {
+    match given {
+        Some(m) => Ok(Some((m, "given with --model".into()))),
+        None => identify_file(path, ports),
     }
 }
 
@@ -68,25 +211,35 @@ fn mode_name(m: ReturnMode) -> &'static str {
     }
 }
 
-/// Decode a capture file; with `csv`, write one row per point.
-pub fn decode_file(path: &Path, csv: Option<&mut dyn Write>) -> Result<DecodeSummary, DecodeError> {
+/// Decode a capture file as `model` (None: as its packets say, [`choose_model`]); with `csv`,
+/// write one row per point.
+pub fn decode_file(
+    path: &Path,
+    csv: Option<&mut dyn Write>,
+    model: Option<Model>,
+) -> Result<DecodeSummary, DecodeError> {
     let err = |error| DecodeError {
         path: path.display().to_string(),
         error,
     };
-    let src = PcapSource::open(path).map_err(err)?;
-    decode_source(src, csv).map_err(|e| DecodeError {
-        path: path.display().to_string(),
-        error: e,
-    })
+    let chosen = choose_model(path, Ports::default(), model)?;
+    let src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
+    decode_source(src, csv, chosen).map_err(|e| err(DecodeFailure::Pcap(e)))
 }
 
-/// Decode from any reader holding a capture.
+/// Decode from any reader holding a capture, as `model` (with how it was chosen; None: no
+/// data packet to judge by, so each is decoded as its product byte names, unknown ones
+/// skipped and counted).
 pub fn decode_source<R: Read>(
     mut src: PcapSource<R>,
     mut csv: Option<&mut dyn Write>,
+    model: Option<(Model, String)>,
 ) -> Result<DecodeSummary, PcapError> {
-    let mut s = DecodeSummary::default();
+    let mut s = DecodeSummary {
+        model: model.clone(),
+        ..Default::default()
+    };
+    let model = model.map(|m| m.0);
     let mut points = PointBuf::new();
     let mut line: Vec<u8> = Vec::with_capacity(384 * 96);
     if let Some(w) = csv.as_deref_mut() {
@@ -115,11 +268,16 @@ pub fn decode_source<R: Read>(
         match classify(&d, ports) {
             Err(reason) => s.skips.count(d.offset, &reason),
             Ok(Vlp16Packet::Data { packet, offset, .. }) => {
-                match vlp16::decode(&packet, &mut points) {
+                let decoded = match model {
+                    Some(m) => velodyne::decode_as(&packet, m, &mut points),
+                    None => velodyne::decode(&packet, &mut points),
+                };
+                match decoded {
                     Err(e) => s.skips.count(offset, &spherecal_hal::SkipReason::Vlp16(e)),
                     Ok(n) => {
                         if let Some(w) = csv.as_deref_mut() {
-                            write_rows(w, &mut line, s.data_packets, &packet, &points)?;
+                            let m = model.unwrap_or_default();
+                            write_rows(w, &mut line, s.data_packets, &packet, m, &points)?;
                         }
                         s.points += n as u64;
                         if let Ok(m) = packet.return_mode() {
@@ -172,13 +330,14 @@ fn write_rows(
     line: &mut Vec<u8>,
     index: u64,
     packet: &DataPacket<&[u8]>,
+    model: Model,
     points: &PointBuf,
 ) -> io::Result<()> {
     let ts_ns = u64::from(packet.timestamp_us()) * 1000;
     line.clear();
     for p in points.as_slice() {
         let t = ts_ns + u64::from(p.offset_ns);
-        let mm = u64::from(p.distance_raw) * 2;
+        let mm = u64::from(p.distance_raw) * (model.distance_unit_m() * 1000.0) as u64;
         for v in [
             index,
             u64::from(p.block),
@@ -196,11 +355,7 @@ fn write_rows(
         line.push(b',');
         push_fixed(line, f64::from(p.azimuth).to_degrees(), 4);
         line.push(b',');
-        let el = ELEVATION_DEG[p.laser()];
-        if el < 0 {
-            line.push(b'-');
-        }
-        push_u64(line, u64::from(el.unsigned_abs()));
+        push_fixed(line, model.beam(p.laser()).elevation_deg, 3);
         line.push(b',');
         push_u64(line, mm / 1000);
         line.push(b'.');
@@ -288,6 +443,9 @@ impl DecodeSummary {
             let _ = write!(o, " [product 0x{p:02X}: {n}]");
         }
         let _ = writeln!(o);
+        if let Some((m, how)) = &self.model {
+            let _ = writeln!(o, "model: {} ({how})", m.name());
+        }
         let _ = write!(o, "position packets: {}", self.position_packets);
         for (k, n) in &self.pps {
             let _ = write!(o, " (PPS {k}: {n})");

@@ -7,7 +7,7 @@ use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::frames::rotation;
 use spherecal::georef::Mount;
 use spherecal::time::{GpsTime, LidarClock};
-use spherecal::vlp16::{decode, DataPacket, PointBuf, PositionPacket};
+use spherecal::velodyne::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::window::{Batch, Target, WindowStats, Windowing};
 use std::hint::black_box;
 

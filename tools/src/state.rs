@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 use spherecal::time::GpsTime;
-use spherecal::vlp16::{PositionPacket, PpsStatus};
+use spherecal::velodyne::{PositionPacket, PpsStatus};
 use std::fmt::Write as _;
 
 /// Seconds of a GPS time (for reports).

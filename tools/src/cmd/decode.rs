@@ -4,7 +4,8 @@ use super::{create_csv, fail};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// Decode VLP-16 packets from a pcap/pcapng capture; print counts, optionally list points.
+/// Decode Velodyne packets (VLP-16, Puck Hi-Res, HDL-32E, VLP-32C) from a pcap/pcapng
+/// capture; print counts, optionally list points.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Capture file (classic pcap or pcapng).
@@ -12,6 +13,10 @@ pub struct Args {
     /// Write one row per returned point to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
+    /// The LiDAR model (vlp16, puck-hires, hdl32e, vlp32c); by default the packets' product
+    /// byte, checked against their period.
+    #[arg(long, value_parser = super::parse_model)]
+    pub model: Option<spherecal::velodyne::Model>,
 }
 
 /// Run it.
@@ -21,7 +26,7 @@ pub fn run(a: Args) -> ExitCode {
         Err(code) => return code,
     };
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
-    match crate::decode::decode_file(&a.file, w) {
+    match crate::decode::decode_file(&a.file, w, a.model) {
         Ok(s) => {
             say!("{}", s.render(&a.file.display().to_string()));
             match &s.stopped {

@@ -110,6 +110,16 @@ fn parse3(s: &str) -> Result<[f64; 3], String> {
 }
 
 /// Two comma-separated ports.
+/// A LiDAR model by name (`--model`).
+fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String> {
+    spherecal::velodyne::Model::parse(s).ok_or_else(|| {
+        format!(
+            "unknown LiDAR model {s:?}: expected {}",
+            crate::decode::model_keys()
+        )
+    })
+}
+
 fn parse_ports(s: &str) -> Result<[u16; 2], String> {
     match s.split_once(',') {
         Some((a, b)) => match (a.trim().parse::<u16>(), b.trim().parse::<u16>()) {

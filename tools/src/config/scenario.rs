@@ -11,7 +11,7 @@ use spherecal::georef::Mount;
 use spherecal::sim::trajectory::Sample;
 use spherecal::sim::{InsConfig, LidarConfig, Motion, Object, Pass, Shape};
 use spherecal::time::{days_from_civil, unix_ns_to_gps, GpsTime};
-use spherecal::vlp16::ReturnMode;
+use spherecal::velodyne::ReturnMode;
 
 /// The built-in scenarios: name and TOML text.
 pub const BUILTIN: &[(&str, &str)] = &[
@@ -622,8 +622,8 @@ impl Scenario {
     }
 
     /// The PPS state of the position packets.
-    pub fn pps(&self) -> Option<spherecal::vlp16::PpsStatus> {
-        use spherecal::vlp16::PpsStatus;
+    pub fn pps(&self) -> Option<spherecal::velodyne::PpsStatus> {
+        use spherecal::velodyne::PpsStatus;
         match self.lidar.pps.as_str() {
             "absent" => Some(PpsStatus::Absent),
             "syncing" => Some(PpsStatus::Synchronizing),
@@ -811,7 +811,7 @@ impl Scenario {
             range_walk: self.lidar.range_walk_m,
             clutter_keep: self.lidar.clutter_keep,
             clock_offset_ns: (self.lidar.clock_offset_s * 1e9).round() as i64,
-            pps: self.pps().unwrap_or(spherecal::vlp16::PpsStatus::Locked),
+            pps: self.pps().unwrap_or(spherecal::velodyne::PpsStatus::Locked),
             rmc_valid: self.lidar.rmc_valid,
             seed: self.seed.wrapping_mul(2).wrapping_add(1),
             ..LidarConfig::default()

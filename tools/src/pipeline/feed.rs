@@ -176,7 +176,7 @@ impl<'a> Aligner<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use spherecal::vlp16::{BlockRepr, DataPacket, DataRepr, ReturnMode};
+    use spherecal::velodyne::{BlockRepr, DataPacket, DataRepr, ReturnMode};
     use spherecal_hal::clock::MockClock;
     use std::time::Duration;
 

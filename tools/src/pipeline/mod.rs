@@ -31,7 +31,7 @@ use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
-use spherecal::vlp16::PositionPacket;
+use spherecal::velodyne::PositionPacket;
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};

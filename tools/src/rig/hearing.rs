@@ -6,7 +6,7 @@
 
 use super::pps_name;
 use serde::Serialize;
-use spherecal::vlp16::{PositionPacket, PpsStatus, Product, ReturnMode};
+use spherecal::velodyne::{Model, PositionPacket, PpsStatus, ReturnMode};
 use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
 use std::net::Ipv4Addr;
@@ -212,12 +212,11 @@ impl Heard {
 
 /// The product byte in words (VLP-16 manual, 9.3.2.3).
 pub fn product_name(b: u8) -> String {
-    match Product::from(b) {
-        Product::Vlp16 => "VLP-16 / Puck LITE (0x22)".into(),
-        Product::PuckHiRes => "Puck Hi-Res (0x24)".into(),
-        Product::Hdl32eOrEarlyVlp16 => "HDL-32E or an early VLP-16 (0x21)".into(),
-        Product::Other(0x28) => "VLP-32C (0x28)".into(),
-        Product::Other(x) => format!("unknown product 0x{x:02X}"),
+    match Model::from_product(b) {
+        Some(Model::Vlp16) => "VLP-16 / Puck LITE (0x22)".into(),
+        Some(Model::Hdl32e) => "HDL-32E or an early VLP-16 (0x21)".into(),
+        Some(m) => format!("{} (0x{b:02X})", m.name()),
+        None => format!("unknown product 0x{b:02X}"),
     }
 }
 
@@ -234,7 +233,7 @@ pub fn return_name(b: u8) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use spherecal::vlp16::DataPacket;
+    use spherecal::velodyne::DataPacket;
 
     fn data(az: u16, product: u8) -> Vec<u8> {
         let mut b = vec![0u8; 1206];

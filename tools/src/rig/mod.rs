@@ -39,7 +39,7 @@ use solver::solver;
 use spherecal::calib::Params;
 use spherecal::calib::Settings;
 use spherecal::frames::LocalFrame;
-use spherecal::vlp16::PpsStatus;
+use spherecal::velodyne::PpsStatus;
 use spherecal::vn200::binary::Masks;
 use spherecal::vn200::fields::Group;
 use spherecal::vn200::pose::{ins_mode, InsMode};

@@ -1,32 +1,32 @@
-//! Firing times, azimuth interpolation and the point in the sensor frame.
+//! Firing times, azimuth interpolation and the point in the sensor frame, for every
+//! [`Model`].
 //!
 //! Manual appendix B (timing) and section 9.5 (azimuth interpolation), in the corrected form of
-//! `docs/PROTOCOLS.md`:
-//! - a firing takes 2.304 us, a 16-laser sequence 55.296 us, a block two sequences (110.592 us);
-//! - single return: offset(b, s, l) = 110.592 b + 55.296 s + 2.304 l us;
-//!   dual return: offset = 110.592 floor(b/2) + 55.296 s + 2.304 l (blocks in pairs);
-//! - azimuth of a firing: A_b + gap_b (55.296 s + 2.304 l) / 110.592 with
-//!   gap_b = (A_{b+1} - A_b) mod 36000 (next pair in dual mode; the last reuses the previous);
+//! `docs/PROTOCOLS.md`, generalised over the models' tables ([`super::model`]):
+//! - single return: offset(b, c) = T_block b + t_c; dual return: T_block floor(b/2) + t_c
+//!   (blocks in pairs), with t_c the channel's firing time within its block;
+//! - azimuth of a firing: A_b + gap_b t_c / T_block + o_l with
+//!   gap_b = (A_{b+1} - A_b) mod 36000 (next pair in dual mode; the last reuses the previous)
+//!   and o_l the laser's azimuth offset (VLP-32C);
 //! - point (DESIGN.md, eq. 1 plus the beam-origin offset): x = d cos w sin t, y = d cos w cos t,
 //!   z = d sin w + v_l, x right, y forward, z up, t clockwise from +y.
 //!
-//! No trig per point: cos w and sin w come from a table, sin t and cos t from one `sincosf` per
-//! block rotated by the small in-block increment (a 5th-order series, exact to 1e-11 rad for
-//! any real rotation rate).
+//! No trig per point: cos w and sin w come from the model's table, sin t and cos t from one
+//! `sincosf` per block rotated by the small in-block increment (a 5th-order series, exact to
+//! 1e-9 rad for any real rotation rate and the VLP-32C's 4.2 deg offsets).
 
 use super::data::field::{BLOCKS, CHANNELS};
-use super::{
-    DataPacket, Error, ReturnMode, COS_ELEVATION, LASERS, SIN_ELEVATION, VERTICAL_OFFSET_M,
-};
+use super::model::Model;
+use super::{DataPacket, Error, ReturnMode};
 
 /// Points a data packet can hold (12 blocks x 32 channels).
 pub const POINTS_PER_PACKET: usize = BLOCKS * CHANNELS;
 
-/// Duration of one laser firing, nanoseconds (manual appendix B).
+/// Duration of one VLP-16 laser firing, nanoseconds (manual appendix B).
 pub const FIRING_NS: u32 = 2_304;
-/// Duration of one 16-laser firing sequence, nanoseconds.
+/// Duration of one VLP-16 16-laser firing sequence, nanoseconds.
 pub const SEQUENCE_NS: u32 = 55_296;
-/// Duration of one block (two sequences), nanoseconds.
+/// Duration of one VLP-16 block (two sequences), nanoseconds.
 pub const BLOCK_NS: u32 = 110_592;
 
 /// Which return a point is.
@@ -66,21 +66,14 @@ impl Return {
     }
 }
 
-/// Firing time of (block, sequence, laser) after the packet timestamp, in nanoseconds.
+/// Firing time of `channel` in `block` after the packet timestamp, in nanoseconds.
 #[inline]
-pub const fn firing_offset_ns(
-    mode: ReturnMode,
-    block: usize,
-    sequence: usize,
-    laser: usize,
-) -> u32 {
+pub fn firing_offset_ns(model: Model, mode: ReturnMode, block: usize, channel: usize) -> u32 {
     let slot = match mode {
         ReturnMode::Dual => (block % BLOCKS) / 2,
         _ => block % BLOCKS,
     };
-    slot as u32 * BLOCK_NS
-        + (sequence % 2) as u32 * SEQUENCE_NS
-        + (laser % LASERS) as u32 * FIRING_NS
+    slot as u32 * model.block_ns() + model.channels()[channel % CHANNELS].offset_ns
 }
 
 /// One laser return, decoded.
@@ -96,33 +89,37 @@ pub struct Point {
     pub azimuth: f32,
     /// Firing time after the packet timestamp, nanoseconds.
     pub offset_ns: u32,
-    /// Raw distance in 2 mm units (never 0 here).
+    /// Raw distance in the model's units (2 mm; VLP-32C 4 mm; never 0 here).
     pub distance_raw: u16,
+    /// Range [m].
+    pub range: f32,
     /// Calibrated reflectivity.
     pub intensity: u8,
     /// Block 0..11.
     pub block: u8,
-    /// Channel 0..31: firing sequence = channel / 16, laser id = channel % 16.
+    /// Channel 0..31 of the block.
     pub channel: u8,
+    /// Laser id (VLP-16: channel % 16; 32-laser models: the channel).
+    pub laser: u8,
     /// Which return.
     pub ret: Return,
 }
 
 impl Point {
-    /// Firing sequence 0 or 1 within the block.
+    /// Firing sequence 0 or 1 within the block (16-laser models; 0 on 32-laser ones).
     #[inline]
     pub fn sequence(&self) -> usize {
-        usize::from(self.channel) / LASERS
+        usize::from(self.channel != self.laser)
     }
-    /// Laser id 0..15 (firing order).
+    /// Laser id (firing order).
     #[inline]
     pub fn laser(&self) -> usize {
-        usize::from(self.channel) % LASERS
+        usize::from(self.laser)
     }
     /// Range in metres.
     #[inline]
     pub fn distance_m(&self) -> f32 {
-        f32::from(self.distance_raw) * 0.002
+        self.range
     }
 }
 
@@ -149,9 +146,11 @@ impl PointBuf {
             azimuth: 0.0,
             offset_ns: 0,
             distance_raw: 0,
+            range: 0.0,
             intensity: 0,
             block: 0,
             channel: 0,
+            laser: 0,
             ret: Return::Strongest,
         };
         Self {
@@ -178,24 +177,8 @@ impl PointBuf {
 
 const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;
 
-/// Per channel (0..31): the firing's index n = 24 s + l within its block (as f32), its time
-/// after the block's first firing [ns], and the laser's vertical offset as f32.
-const CHANNEL_TABLE: ([f32; CHANNELS], [u32; CHANNELS], [f32; CHANNELS]) = {
-    let mut k = [0f32; CHANNELS];
-    let mut off = [0u32; CHANNELS];
-    let mut v = [0f32; CHANNELS];
-    let mut ch = 0;
-    while ch < CHANNELS {
-        let (seq, laser) = (ch / LASERS, ch % LASERS);
-        k[ch] = (seq * 24 + laser) as f32;
-        off[ch] = seq as u32 * SEQUENCE_NS + laser as u32 * FIRING_NS;
-        v[ch] = VERTICAL_OFFSET_M[laser] as f32;
-        ch += 1;
-    }
-    (k, off, v)
-};
 const TWO_PI: f32 = core::f32::consts::TAU;
-/// Above this block-to-block azimuth step (about 5.7 deg; a VLP-16 at 1200 rpm turns 0.4 deg per
+/// Above this block-to-block azimuth step (about 5.7 deg; a VLP-16 at 1200 rpm turns 0.8 deg per
 /// block) the small-angle series is not used and each point gets an exact sincos.
 const SERIES_MAX_GAP_RAD: f32 = 0.1;
 
@@ -211,11 +194,25 @@ fn azimuth_cdeg<T: AsRef<[u8]>>(p: &DataPacket<T>, b: usize) -> u16 {
     }
 }
 
+/// Fastest rotation any model is specified for (1200 rpm = 7200 deg/s) with a 50 % margin, in
+/// 0.01 deg per ns of block duration.
+const MAX_RATE_CDEG_PER_NS: f64 = 1.5 * 720_000.0 * 1e-9;
+
 /// Azimuth step (0.01 deg) for each block, per PROTOCOLS.md: to the next block (single) or
-/// next pair (dual); the last block or pair reuses the previous step.
-fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BLOCKS] {
+/// next pair (dual); the last block or pair reuses the previous step. A step no rotation rate
+/// can make in a block of `block_ns` (a block azimuth out of line with its neighbours, as a
+/// stray 36000 is) is replaced by the median of the packet's plausible steps, so one bad
+/// azimuth does not smear its neighbour's firings round the circle.
+fn azimuth_gaps<T: AsRef<[u8]>>(
+    p: &DataPacket<T>,
+    mode: ReturnMode,
+    block_ns: u32,
+) -> [u16; BLOCKS] {
     let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
+    let max_gap = (MAX_RATE_CDEG_PER_NS * f64::from(block_ns)) as u16;
     let mut gaps = [0u16; BLOCKS];
+    let mut plausible = [0u16; BLOCKS];
+    let mut n_ok = 0;
     let mut last = 0u16;
     let mut b = 0;
     while b < BLOCKS {
@@ -224,6 +221,10 @@ fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BL
             let g = (36_000 + u32::from(azimuth_cdeg(p, next)) - u32::from(azimuth_cdeg(p, b)))
                 % 36_000;
             last = g as u16;
+            if last <= max_gap {
+                plausible[n_ok] = last;
+                n_ok += 1;
+            }
             last
         } else {
             last
@@ -232,6 +233,18 @@ fn azimuth_gaps<T: AsRef<[u8]>>(p: &DataPacket<T>, mode: ReturnMode) -> [u16; BL
             *g = gap;
         }
         b = next;
+    }
+    let fallback = if n_ok == 0 {
+        0
+    } else {
+        let v = &mut plausible[..n_ok];
+        v.sort_unstable();
+        v[n_ok / 2]
+    };
+    for g in gaps.iter_mut() {
+        if *g > max_gap {
+            *g = fallback;
+        }
     }
     gaps
 }
@@ -244,11 +257,27 @@ fn small_sincos(d: f32) -> (f32, f32) {
     (s, c)
 }
 
-/// Decode every non-zero return of a data packet into `out` (cleared first); returns the count.
+/// Decode every non-zero return of a data packet into `out` (cleared first) as the model its
+/// product byte names; returns the count. An unknown product byte is refused
+/// ([`Error::UnknownProduct`]), never decoded as some other model; to choose the model (early
+/// VLP-16 firmware writes the HDL-32E's 0x21) use [`decode_as`].
+pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Result<usize, Error> {
+    out.len = 0;
+    let found = packet.product_raw();
+    let model = Model::from_product(found).ok_or(Error::UnknownProduct { found })?;
+    decode_as(packet, model, out)
+}
+
+/// Decode every non-zero return of a data packet as `model` into `out` (cleared first); returns
+/// the count.
 ///
 /// Fails, leaving `out` empty, on an unknown return mode or a block azimuth above 36000 (36000
 /// is 0). Block flags are checked by [`DataPacket::new_checked`].
-pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Result<usize, Error> {
+pub fn decode_as<T: AsRef<[u8]>>(
+    packet: &DataPacket<T>,
+    model: Model,
+    out: &mut PointBuf,
+) -> Result<usize, Error> {
     out.len = 0;
     let mode = packet.return_mode()?;
     for b in 0..BLOCKS {
@@ -260,45 +289,59 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
             });
         }
     }
-    let gaps = azimuth_gaps(packet, mode);
+    let gaps = azimuth_gaps(packet, mode, model.block_ns());
+    let channels = model.channels();
+    let beams = model.beams();
+    let unit = model.distance_unit_m() as f32;
+    let block_ns = model.block_ns();
     let mut n = 0;
     for (b, &gap_cdeg) in gaps.iter().enumerate() {
         let a0 = f32::from(azimuth_cdeg(packet, b)) * CDEG_TO_RAD;
         let (sa, ca) = libm::sincosf(a0);
         let gap = f32::from(gap_cdeg) * CDEG_TO_RAD;
-        // Firing n = 24 s + l sits n * 2.304 / 110.592 = n / 48 of the way to the next block.
-        let step = gap * (1.0 / 48.0);
         let exact = gap > SERIES_MAX_GAP_RAD;
         let ret = Return::of_block(mode, b);
-        let block_base = firing_offset_ns(mode, b, 0, 0);
-        for ch in 0..CHANNELS {
+        let slot = if mode == ReturnMode::Dual { b / 2 } else { b };
+        let block_base = slot as u32 * block_ns;
+        for (ch, c) in channels.iter().enumerate() {
             let d = packet.distance_raw(b, ch);
             if d == 0 {
                 continue;
             }
-            let laser = ch % LASERS;
-            let delta = step * CHANNEL_TABLE.0[ch];
+            let Some(beam) = beams.get(usize::from(c.laser)) else {
+                continue;
+            };
+            // The firing sits `fraction` of the way to the next block; plus the laser's offset.
+            let delta = gap * c.fraction + beam.azimuth_offset_deg as f32 * (CDEG_TO_RAD * 100.0);
             let (st, ct) = if exact {
                 libm::sincosf(a0 + delta)
             } else {
                 let (sd, cd) = small_sincos(delta);
                 (sa * cd + ca * sd, ca * cd - sa * sd)
             };
-            let r = f32::from(d) * 0.002;
-            let rxy = r * COS_ELEVATION[laser];
+            let r = f32::from(d) * unit;
+            let rxy = r * beam.cos_el as f32;
             let az = a0 + delta;
-            let az = az - if az >= TWO_PI { TWO_PI } else { 0.0 };
+            let az = if az >= TWO_PI {
+                az - TWO_PI
+            } else if az < 0.0 {
+                az + TWO_PI
+            } else {
+                az
+            };
             if let Some(slot) = out.points.get_mut(n) {
                 *slot = Point {
                     x: rxy * st,
                     y: rxy * ct,
-                    z: r * SIN_ELEVATION[laser] + CHANNEL_TABLE.2[ch],
+                    z: r * beam.sin_el as f32 + beam.vertical_offset_m as f32,
                     azimuth: az,
-                    offset_ns: block_base + CHANNEL_TABLE.1[ch],
+                    offset_ns: block_base + c.offset_ns,
                     distance_raw: d,
+                    range: r,
                     intensity: packet.reflectivity(b, ch),
                     block: b as u8,
                     channel: ch as u8,
+                    laser: c.laser,
                     ret,
                 };
                 n += 1;
@@ -312,18 +355,29 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vlp16::data::DATA_PACKET_LEN;
+    use crate::velodyne::data::DATA_PACKET_LEN;
 
     #[test]
     fn offsets_follow_the_timing_table() {
         // Manual appendix B, single return: block 1 sequence 1 laser 15 fires at
         // 110.592 + 55.296 + 15 * 2.304 = 200.448 us.
-        assert_eq!(firing_offset_ns(ReturnMode::Strongest, 1, 1, 15), 200_448);
+        let m = Model::Vlp16;
+        assert_eq!(firing_offset_ns(m, ReturnMode::Strongest, 1, 31), 200_448);
         // Last firing of the packet: 11 * 110.592 + 55.296 + 34.56 = 1306.368 us.
-        assert_eq!(firing_offset_ns(ReturnMode::Last, 11, 1, 15), 1_306_368);
+        assert_eq!(firing_offset_ns(m, ReturnMode::Last, 11, 31), 1_306_368);
         // Dual: blocks 10 and 11 fire together, at pair 5.
-        assert_eq!(firing_offset_ns(ReturnMode::Dual, 11, 0, 0), 552_960);
-        assert_eq!(firing_offset_ns(ReturnMode::Dual, 10, 0, 0), 552_960);
+        assert_eq!(firing_offset_ns(m, ReturnMode::Dual, 11, 0), 552_960);
+        assert_eq!(firing_offset_ns(m, ReturnMode::Dual, 10, 0), 552_960);
+        // HDL-32E: block 11, laser 31: 11 * 46.08 + 31 * 1.152 = 542.592 us.
+        assert_eq!(
+            firing_offset_ns(Model::Hdl32e, ReturnMode::Strongest, 11, 31),
+            542_592
+        );
+        // VLP-32C: block 11, lasers 30/31: 11 * 55.296 + 15 * 2.304 = 642.816 us.
+        assert_eq!(
+            firing_offset_ns(Model::Vlp32c, ReturnMode::Strongest, 11, 30),
+            642_816
+        );
     }
 
     #[test]

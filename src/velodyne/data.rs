@@ -11,7 +11,7 @@
 //!   1205     1  product id
 //! ```
 
-use super::{Error, Product, ReturnMode};
+use super::{Error, Model, ReturnMode};
 
 /// Byte layout of a data packet (manual figure 9-3).
 pub mod field {
@@ -164,10 +164,11 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
         self.buffer.as_ref()[field::PRODUCT]
     }
 
-    /// The product id.
+    /// The model the product-id byte names, if any (see [`super::Detector`] on why it is not
+    /// to be trusted alone).
     #[inline]
-    pub fn product(&self) -> Product {
-        Product::from(self.product_raw())
+    pub fn model(&self) -> Option<Model> {
+        Model::from_product(self.product_raw())
     }
 
     /// The underlying buffer.

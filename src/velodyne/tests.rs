@@ -110,6 +110,7 @@ fn azimuth_wraps_through_north() {
         p.set_channel(usize::from(b), 31, 500, 1);
     }
     p.set_return_mode(ReturnMode::Strongest);
+    p.set_product_raw(0x22);
     let p = DataPacket::new_checked(&buf[..]).unwrap();
     let mut out = PointBuf::new();
     decode(&p, &mut out).unwrap();
@@ -137,6 +138,7 @@ fn azimuth_36000_is_north() {
             p.set_channel(usize::from(b), 7, 700, 9);
         }
         p.set_return_mode(ReturnMode::Strongest);
+        p.set_product_raw(0x22);
         buf
     };
     let (a, b) = (packet(0), packet(36_000));
@@ -178,7 +180,13 @@ fn repr_strategy() -> impl Strategy<Value = DataRepr> {
         prop::array::uniform12(block_strategy()),
         any::<u32>(),
         mode_strategy(),
-        any::<u8>(),
+        prop_oneof![
+            Just(0x22u8),
+            Just(0x24),
+            Just(0x21),
+            Just(0x28),
+            any::<u8>()
+        ],
     )
         .prop_map(|(blocks, timestamp_us, return_mode, product)| DataRepr {
             blocks,
@@ -199,6 +207,11 @@ proptest! {
         prop_assert_eq!(DataRepr::parse(&p).unwrap(), repr);
 
         let mut out = PointBuf::new();
+        let Some(model) = Model::from_product(repr.product) else {
+            prop_assert_eq!(decode(&p, &mut out), Err(Error::UnknownProduct { found: repr.product }));
+            prop_assert!(out.is_empty());
+            return Ok(());
+        };
         let n = decode(&p, &mut out).unwrap();
         let nonzero = repr.blocks.iter().flat_map(|b| b.channels.iter()).filter(|c| c.0 != 0).count();
         prop_assert_eq!(n, nonzero);
@@ -207,9 +220,15 @@ proptest! {
             let (d, r) = repr.blocks[b].channels[usize::from(pt.channel)];
             prop_assert_eq!((pt.distance_raw, pt.intensity), (d, r));
             prop_assert_eq!(pt.ret, Return::of_block(repr.return_mode, b));
-            prop_assert_eq!(pt.offset_ns, firing::firing_offset_ns(repr.return_mode, b, pt.sequence(), pt.laser()));
-            let range = f64::from(pt.x).hypot(f64::from(pt.y)).hypot(f64::from(pt.z) - VERTICAL_OFFSET_M[pt.laser()]);
-            prop_assert!((range - f64::from(d) * 0.002).abs() < 1e-5 * (1.0 + range));
+            prop_assert_eq!(pt.laser, model.channels()[usize::from(pt.channel)].laser);
+            prop_assert_eq!(pt.offset_ns, firing::firing_offset_ns(model, repr.return_mode, b, usize::from(pt.channel)));
+            let beam = model.beam(pt.laser());
+            let range = f64::from(pt.x).hypot(f64::from(pt.y)).hypot(f64::from(pt.z) - beam.vertical_offset_m);
+            let expect = f64::from(d) * model.distance_unit_m();
+            prop_assert!((range - expect).abs() < 1e-5 * (1.0 + range));
+            // The elevation is the laser's.
+            let el = (f64::from(pt.z) - beam.vertical_offset_m).atan2(f64::from(pt.x).hypot(f64::from(pt.y)));
+            prop_assert!(range < 1.0 || (el.to_degrees() - beam.elevation_deg).abs() < 1e-3);
             prop_assert!((0.0..core::f32::consts::TAU).contains(&pt.azimuth));
         }
     }
