@@ -40,6 +40,7 @@ fn truth_mount() -> Mount {
 fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
     Inputs {
         pcap: dir.join("lidar.pcap").into(),
+        model: None,
         ins,
         site: Site::load(&dir.join("site.toml")).unwrap(),
         mount,

@@ -117,11 +117,12 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         }
     }
 
-    /// Decode every data packet as `model` (the user's `--model`), or (None, the default) as
-    /// the model the packets' product byte names, checked against their period.
-    pub fn with_model(mut self, model: Option<Model>) -> Self {
+    /// Decode every data packet as `model` (the user's `--model`, or what a file's first
+    /// packets showed), or (None, the default) as the model the packets' product byte names,
+    /// checked against their period ([`velodyne::Detector`]; until it has seen enough packets
+    /// the byte's model is used, and a disagreement stops the decoding: [`AlignStats`]).
+    pub fn set_model(&mut self, model: Option<Model>) {
         self.model = model;
-        self
     }
 
     /// The model packets are decoded as, once known.

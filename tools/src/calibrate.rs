@@ -357,13 +357,19 @@ pub fn calibrate(
     clock: crate::ClockOptions,
 ) -> Result<Calibrated, String> {
     let noise = inp.site.noise.unwrap_or_default();
-    let settings = Settings {
+    let mut settings = Settings {
         estimate_dt: clock.estimate,
         range_noise: noise.range_m,
         attitude_noise: noise.attitude_deg.to_radians(),
         position_noise: noise.position_m,
         ..Default::default()
     };
+    // The model, once: every collection decodes as it, and the extraction's scan lines follow
+    // its laser period.
+    if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
+        inp.model = Some(m);
+        settings.extract.firing_ns = i64::from(m.laser_period_ns());
+    }
     let accuracy = match (&inp.accuracy, &inp.ins) {
         (Some(p), crate::pipeline::InsInput::Sbet(_, week)) => Some(Accuracy::load(
             p,

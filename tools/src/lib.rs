@@ -29,8 +29,10 @@ use std::path::PathBuf;
 /// What `spherecal calibrate` reads.
 #[derive(Debug, Clone)]
 pub struct Survey {
-    /// The VLP-16 capture(s).
+    /// The Velodyne capture(s).
     pub pcap: pipeline::Files,
+    /// The LiDAR model (None: as the packets say, checked against their period).
+    pub model: Option<spherecal::velodyne::Model>,
     /// VN-200 serial bytes (raw or serial logs) ...
     pub ins: Option<pipeline::Files>,
     /// ... or Applanix SBET files and their GPS week (None: from the capture's RMC date).
@@ -49,6 +51,7 @@ impl Survey {
     pub fn synth_dir(dir: &std::path::Path) -> Self {
         Self {
             pcap: dir.join("lidar.pcap").into(),
+            model: None,
             ins: Some(dir.join("ins.bin").into()),
             sbet: None,
             gps_week: None,
@@ -177,6 +180,7 @@ pub fn run_calibrate(
         (None, None) => return Err("give --ins or --sbet".into()),
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
+    inp.model = survey.model;
     inp.accuracy = accuracy;
     inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;

@@ -477,6 +477,9 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
 pub struct InputsReport {
     /// The capture.
     pub pcap: String,
+    /// The LiDAR model its packets were decoded as.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lidar_model: Option<String>,
     /// The trajectory's file.
     pub ins: String,
     /// Data packets timed.
@@ -512,6 +515,7 @@ impl InputsReport {
         let w = &stats.align.window;
         Self {
             pcap: inp.pcap.display(),
+            lidar_model: stats.model.map(|m| m.name().to_string()),
             ins: inp.ins_files().display(),
             data_packets: stats.align.data_packets,
             skipped: stats

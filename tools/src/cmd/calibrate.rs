@@ -61,6 +61,7 @@ pub fn run(a: Args) -> ExitCode {
     let s = a.survey;
     let survey = crate::Survey {
         pcap: s.pcap.into(),
+        model: s.model,
         ins: (!s.ins.is_empty()).then(|| s.ins.into()),
         sbet: (!s.sbet.is_empty()).then(|| s.sbet.into()),
         gps_week: s.gps_week,

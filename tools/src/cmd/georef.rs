@@ -42,6 +42,7 @@ pub struct Args {
 pub fn run(a: Args) -> ExitCode {
     let Survey {
         pcap,
+        model,
         ins,
         sbet,
         gps_week,
@@ -68,6 +69,7 @@ pub fn run(a: Args) -> ExitCode {
     };
     let inp = Inputs {
         pcap: pcap.into(),
+        model,
         ins,
         mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),
         margin: site.apriori.window_margin_m,

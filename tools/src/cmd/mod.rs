@@ -63,10 +63,14 @@ fn claimed(ok: bool) -> ExitCode {
 /// The recorded survey: capture, trajectory and site.
 #[derive(clap::Args, Debug, Clone)]
 pub struct Survey {
-    /// The VLP-16 capture: files, folders of captures or patterns (`'logs/*-lidar-*.pcap'`),
-    /// one or several, taken in the order of their first datagram.
+    /// The Velodyne capture: files, folders of captures or patterns
+    /// (`'logs/*-lidar-*.pcap'`), one or several, taken in the order of their first datagram.
     #[arg(long, num_args = 1.., required = true)]
     pub pcap: Vec<PathBuf>,
+    /// The LiDAR model (vlp16, puck-hires, hdl32e, vlp32c); by default the packets' product
+    /// byte, checked against their period.
+    #[arg(long, value_parser = parse_model)]
+    pub model: Option<spherecal::velodyne::Model>,
     /// VN-200 serial bytes (raw or serial logs): files or patterns, in name order.
     #[arg(long, num_args = 1.., required_unless_present = "sbet", conflicts_with = "sbet")]
     pub ins: Vec<PathBuf>,

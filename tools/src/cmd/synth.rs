@@ -14,6 +14,10 @@ pub struct Args {
     /// Output folder.
     #[arg(long, required_unless_present = "print_scenario")]
     pub out: Option<PathBuf>,
+    /// The LiDAR model to simulate (vlp16, puck-hires, hdl32e, vlp32c), instead of the
+    /// scenario's `[lidar] model`.
+    #[arg(long, value_parser = super::parse_model)]
+    pub model: Option<spherecal::velodyne::Model>,
     /// Print a built-in scenario as TOML (to edit) and exit.
     #[arg(long, value_name = "NAME", conflicts_with_all = ["scenario", "out"])]
     pub print_scenario: Option<String>,
@@ -39,16 +43,20 @@ pub fn run(a: Args) -> ExitCode {
     let (Some(scenario), Some(out)) = (a.scenario, a.out) else {
         return fail("synth", "--scenario and --out are required");
     };
-    let s = match Scenario::load(&scenario) {
+    let mut s = match Scenario::load(&scenario) {
         Ok(s) => s,
         Err(e) => return fail("synth", e),
     };
+    if let Some(m) = a.model {
+        s.lidar.model = m.key().into();
+    }
     let t0 = std::time::Instant::now();
     match crate::synth::synth(&s, &out) {
         Ok(t) => {
             sayln!(
-                "{}: {:.1} s of scanning, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
+                "{} ({}): {:.1} s of scanning, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
                 s.name,
+                s.model().unwrap_or_default(),
                 s.duration_s(),
                 t.data_packets,
                 t.position_packets,

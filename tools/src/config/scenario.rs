@@ -143,6 +143,9 @@ pub struct MountSpec {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LidarSpec {
+    /// The model: `vlp16` (default), `puck-hires`, `hdl32e`, `vlp32c`.
+    #[serde(default = "default_model")]
+    pub model: String,
     /// 300..=1200.
     pub rpm: f64,
     /// `strongest`, `last` or `dual`.
@@ -178,6 +181,10 @@ pub struct LidarSpec {
     /// Its GPS has a fix: `$GPRMC` status A (default), else V.
     #[serde(default = "default_true")]
     pub rmc_valid: bool,
+}
+
+fn default_model() -> String {
+    "vlp16".into()
 }
 
 fn default_pps() -> String {
@@ -432,6 +439,11 @@ impl Scenario {
     /// The LiDAR model.
     fn validate_lidar(&self) -> Result<(), ScenarioError> {
         check(
+            self.model().is_some(),
+            "lidar.model",
+            "expected vlp16, puck-hires, hdl32e or vlp32c",
+        )?;
+        check(
             (300.0..=1200.0).contains(&self.lidar.rpm),
             "lidar.rpm",
             "expected 300..=1200",
@@ -589,6 +601,11 @@ impl Scenario {
         let tr = &self.trajectory;
         tr.pass.iter().map(|p| p.duration_s).sum::<f64>()
             + tr.turn_s * tr.pass.len().saturating_sub(1) as f64
+    }
+
+    /// The LiDAR model.
+    pub fn model(&self) -> Option<spherecal::velodyne::Model> {
+        spherecal::velodyne::Model::parse(&self.lidar.model)
     }
 
     /// The return mode.
@@ -800,7 +817,10 @@ impl Scenario {
 
     /// LiDAR configuration.
     pub fn lidar_config(&self) -> LidarConfig {
+        let model = self.model().unwrap_or_default();
         LidarConfig {
+            model,
+            max_range: model.max_range_m(),
             rpm: self.lidar.rpm,
             mode: self.return_mode().unwrap_or(ReturnMode::Strongest),
             range_sigma: self.lidar.range_sigma_m,

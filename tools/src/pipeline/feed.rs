@@ -169,6 +169,7 @@ impl<'a> Aligner<'a> {
             clock: self.clock_state(),
             ins,
             ring_full,
+            model: self.core.model(),
         }
     }
 }

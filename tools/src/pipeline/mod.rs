@@ -31,7 +31,7 @@ use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
-use spherecal::velodyne::PositionPacket;
+use spherecal::velodyne::{Identity, Model, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};
@@ -129,8 +129,11 @@ pub enum InsInput {
 /// Inputs of a georeferencing run.
 #[derive(Debug, Clone)]
 pub struct Inputs {
-    /// The VLP-16 capture(s).
+    /// The Velodyne capture(s).
     pub pcap: Files,
+    /// The LiDAR model (`--model`); None: as the first capture's packets say
+    /// ([`resolve_model`]).
+    pub model: Option<Model>,
     /// The trajectory.
     pub ins: InsInput,
     /// The site.
@@ -171,9 +174,24 @@ impl Inputs {
             time_offset_ns: 0,
             keep_untracked_ins: false,
             accuracy: None,
+            model: None,
             site,
         }
     }
+}
+
+/// The model to decode the captures of `inp` as: the one given, else what the first capture's
+/// data packets say (product byte checked against period: [`crate::decode::identify_file`]);
+/// Err, naming the file, byte and `--model`, when they cannot be trusted. None: no data packet.
+pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, String> {
+    if let Some(m) = inp.model {
+        return Ok(Some((m, "given with --model".into())));
+    }
+    let files = inp.pcap.expand()?;
+    let Some(first) = files.first() else {
+        return Ok(None);
+    };
+    crate::decode::identify_file(first, Ports::default()).map_err(|e| e.to_string())
 }
 
 /// A batch of one sphere's observations.
@@ -200,6 +218,8 @@ pub struct RunStats {
     pub ins: crate::state::InsState,
     /// Ring drops (live) or waits (files): lidar, ins.
     pub ring_full: [u64; 2],
+    /// The model the data packets were decoded as.
+    pub model: Option<Model>,
 }
 
 impl RunStats {
@@ -214,6 +234,9 @@ impl RunStats {
             pcap.display(),
             self.align.data_packets
         );
+        if let Some(m) = self.model {
+            let _ = write!(o, " ({m})");
+        }
         if let Some((a, b)) = self.align.lidar_span {
             let _ = write!(o, " over {:.1} s", b - a);
         }
@@ -239,6 +262,28 @@ impl RunStats {
         o
     }
 
+    /// Data packets were refused because the LiDAR model is unknown or its product byte
+    /// disagrees with the packet period: why, in words.
+    pub fn model_problem(&self) -> Option<String> {
+        if self.align.model_refused == 0 {
+            return None;
+        }
+        let n = self.align.model_refused;
+        Some(match self.align.identity {
+            Some(identity @ (Identity::Unknown { .. } | Identity::Disagrees { .. })) => format!(
+                "{n} data packets refused: {}",
+                crate::decode::ModelError {
+                    identity,
+                    offset: 0
+                }
+                .to_string()
+                .trim_start_matches("data packet at byte 0: ")
+                .trim_start_matches("data packets from byte 0: ")
+            ),
+            _ => format!("{n} data packets refused: their LiDAR model is not known"),
+        })
+    }
+
     /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
     /// file and what was found instead.
     pub fn unusable(&self, pcap: &Files, ins: &InsInput, ins_head: &[u8]) -> Option<String> {
@@ -246,9 +291,12 @@ impl RunStats {
             InsInput::Vn200(f) => (false, f),
             InsInput::Sbet(f, _) => (true, f),
         };
+        if let Some(why) = self.model_problem() {
+            return Some(format!("{}: {why}", pcap.display()));
+        }
         if self.align.data_packets == 0 {
             return Some(format!(
-                "{}: no VLP-16 data packet could be timed ({} skipped; {} without a time)",
+                "{}: no Velodyne data packet could be timed ({} skipped; {} without a time)",
                 pcap.display(),
                 self.skips.total(),
                 self.align.packets_without_time
@@ -356,6 +404,7 @@ pub fn run<C: Send>(
     let (mut ip, mut ic) = iq.split();
     let full = [AtomicU64::new(0), AtomicU64::new(0)];
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
+    let model = resolve_model(inp)?.map(|m| m.0);
     let mut pcap = open_captures(&inp.pcap)?;
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
@@ -401,6 +450,7 @@ pub fn run<C: Send>(
             &SystemClock,
         );
         al.core.time_offset_ns = inp.time_offset_ns;
+        al.core.set_model(model);
         let offset_ns = inp.time_offset_ns;
         let mut emit = |sphere: usize, obs: &[Observation]| {
             let _ = tx.send(BatchMsg {
