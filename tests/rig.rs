@@ -530,6 +530,69 @@ fn start_rig_with(
 /// Overload: the capture replayed ten times as fast as loopback takes it. Whatever is lost is
 /// counted where it is lost: sent = received + kernel drops on each socket, received =
 /// enqueued + ring drops + skipped, and the aligner and the logger account for every item.
+/// An HDL-32E (table1's quay, 1808 packets/s) through the rig with no model on its board: the
+/// rig hears "HDL-32E (0x21)", decodes it as one (product byte and period agree) and
+/// calibrates to the truth; replayed at twice real time.
+#[test]
+fn hdl32e_through_the_rig() {
+    let mut s = table1();
+    s.lidar.model = "hdl32e".into();
+    s.name = "table1-hdl32e".into();
+    let (dp, pp) = (23_790, 23_791);
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        to,
+        ..
+    } = setup("rig-hdl32e", &s, dp, pp);
+    let slave_name = slave.name().unwrap();
+    let board = board(&dir, dp, pp);
+    let report = dir.join("run-report.json");
+    let rig = Rig::start(&[
+        "--board".as_ref(),
+        board.as_os_str(),
+        "--serial".as_ref(),
+        slave_name.as_ref(),
+        "--site".as_ref(),
+        dir.join("site.toml").as_os_str(),
+        "--log-dir".as_ref(),
+        dir.join("logs").as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--duration".as_ref(),
+        "600".as_ref(),
+    ]);
+    replay_both(
+        dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
+        Speed::Factor(2.0),
+    )
+    .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(60));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    drop(slave);
+    let all = format!("{}\n{err}", lines.join("\n"));
+    assert!(all.contains("HDL-32E or an early VLP-16 (0x21)"), "{all}");
+    assert!(!all.contains("not aligned unless"), "{all}");
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["converged"], true, "{rep}");
+    let t = &s.mount.truth;
+    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
+        let got = rep["boresight_deg"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
+        let got = rep["lever_arm_m"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+}
+
 #[test]
 fn overload_every_drop_is_counted() {
     let (dp, pp) = (23_720, 23_721);

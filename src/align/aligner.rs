@@ -506,4 +506,47 @@ mod tests {
         assert_eq!(al.stats.data_packets, 0);
         assert_eq!(al.stats.hour_from, None);
     }
+
+    /// The product byte decides the model: an unknown one (or one the period contradicts) is
+    /// never decoded as a VLP-16, and every refused packet is counted; a given model decodes
+    /// them. Packets 1327 us apart with the HDL-32E's byte: the VLP-16's period.
+    #[test]
+    fn refused_models_are_counted_and_a_given_model_decodes() {
+        let targets = [Target {
+            center: expected(),
+            radius: 0.5,
+        }];
+        for (product, given, refused, identity) in [
+            (0x99, None, 40, Some(Identity::Unknown { product: 0x99 })),
+            (0x99, Some(Model::Vlp16), 0, None),
+            (
+                0x21,
+                None,
+                40 - 16,
+                Some(Identity::Disagrees {
+                    product: 0x21,
+                    period_us: 1327,
+                    fits: Some(Model::Vlp16),
+                }),
+            ),
+            (0x22, None, 0, Some(Identity::Agreed(Model::Vlp16))),
+        ] {
+            let mut batches = [Batch::<64>::default()];
+            let mut history = PoseHistory::<1024>::new(50_000_000);
+            let mut al = level_aligner(&targets, &mut batches, &mut history);
+            al.set_model(given);
+            for s in poses(-0.1, 0.2) {
+                al.push_pose(s, None);
+            }
+            for k in 0..40u32 {
+                let mut p = data_packet();
+                p[1205] = product;
+                p[1200..1204].copy_from_slice(&(STAMP_US + 1327 * k).to_le_bytes());
+                al.data(&p, None, None, &mut |_, _| {});
+            }
+            assert_eq!(al.stats.model_refused, refused, "0x{product:02X}");
+            assert_eq!(al.stats.identity, identity, "0x{product:02X}");
+            assert_eq!(al.stats.data_packets, 40 - refused, "0x{product:02X}");
+        }
+    }
 }

@@ -295,7 +295,7 @@ pub const DETECT_INTERVALS: usize = 16;
 /// the timing fixes (`Model::packet_period_ns`): early VLP-16 firmware writes 0x21, the
 /// HDL-32E's byte, and its 1327 us period then shows it (PROTOCOLS.md). Streaming: push each
 /// data packet's timestamp, return-mode and product bytes.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Detector {
     product: Option<u8>,
     dual: bool,

@@ -40,14 +40,21 @@ pub struct Args {
     /// console) and exit: 0 when every check passes, 2 otherwise.
     #[arg(long)]
     pub check: bool,
+    /// The LiDAR model (vlp16, puck-hires, hdl32e, vlp32c), instead of the board's
+    /// `[lidar] model` (default: from the packets' product byte, checked against their period).
+    #[arg(long, value_parser = super::parse_model)]
+    pub model: Option<spherecal::velodyne::Model>,
 }
 
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
-    let board = match crate::config::board::Board::load(&a.board) {
+    let mut board = match crate::config::board::Board::load(&a.board) {
         Ok(b) => b,
         Err(e) => return fail("run", e),
     };
+    if let Some(m) = a.model {
+        board.lidar.model = Some(m.key().into());
+    }
     let site = match a
         .site
         .map(|s| crate::config::site::Site::load(&s))

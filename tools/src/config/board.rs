@@ -19,6 +19,10 @@ pub struct LidarNet {
     pub data_port: u16,
     /// Position packets' UDP port.
     pub position_port: u16,
+    /// The sensor model (`vlp16`, `puck-hires`, `hdl32e`, `vlp32c`); absent: as its data
+    /// packets' product byte says, checked against their period.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
 }
 
 fn any_address() -> String {
@@ -145,6 +149,14 @@ pub const COMMON_FIELDS: [&str; 15] = [
 ];
 
 impl Board {
+    /// The LiDAR model the board names (None: from the packets).
+    pub fn lidar_model(&self) -> Option<spherecal::velodyne::Model> {
+        self.lidar
+            .model
+            .as_deref()
+            .and_then(spherecal::velodyne::Model::parse)
+    }
+
     /// Parse and check; errors name the key.
     pub fn from_toml(text: &str) -> Result<Self, String> {
         let b: Board = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
@@ -228,6 +240,14 @@ impl Board {
         ] {
             if v.parse::<Ipv4Addr>().is_err() {
                 return bad(k, "expected an IPv4 address");
+            }
+        }
+        if let Some(m) = &self.lidar.model {
+            if spherecal::velodyne::Model::parse(m).is_none() {
+                return bad(
+                    "lidar.model",
+                    "expected vlp16, puck-hires, hdl32e or vlp32c (or no key: from the packets)",
+                );
             }
         }
         if self.lidar.data_port == 0

@@ -6,7 +6,7 @@
 
 use super::pps_name;
 use serde::Serialize;
-use spherecal::velodyne::{Model, PositionPacket, PpsStatus, ReturnMode};
+use spherecal::velodyne::{Detector, Identity, Model, PositionPacket, PpsStatus, ReturnMode};
 use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
 use std::net::Ipv4Addr;
@@ -37,8 +37,13 @@ pub struct Heard {
     pub nmea_valid: Option<bool>,
     /// Rotation rate from the data packets' azimuth advance over their receive times [rpm].
     pub rpm: Option<f64>,
+    /// What the data packets say of the model: product byte checked against their period.
+    #[serde(skip)]
+    pub identity: Option<Identity>,
     #[serde(skip)]
     spin: Spin,
+    #[serde(skip)]
+    detector: Detector,
 }
 
 /// The azimuth advance of consecutive data packets (first block), over host time.
@@ -74,6 +79,11 @@ impl Heard {
                 self.product = Some(packet.product_raw());
                 self.return_mode = Some(packet.return_mode_raw());
                 self.turn(d.time, packet.azimuth_raw(0));
+                self.identity = Some(self.detector.push(
+                    packet.timestamp_us(),
+                    packet.return_mode_raw(),
+                    packet.product_raw(),
+                ));
             }
             Ok(Vlp16Packet::Position { packet, .. }) => {
                 self.packets += 1;
@@ -189,10 +199,18 @@ impl Heard {
                 ));
             }
         }
-        if let Some(p) = self.product.filter(|&p| p != 0x22 && p != 0x24) {
+        if let Some(identity @ (Identity::Unknown { .. } | Identity::Disagrees { .. })) =
+            self.identity
+        {
+            let why = crate::decode::ModelError {
+                identity,
+                offset: 0,
+            }
+            .to_string()
+            .replace("data packet at byte 0: ", "")
+            .replace("data packets from byte 0: ", "");
             warn.push(format!(
-                "{head}: the product byte is 0x{p:02X} ({}): decoded as a VLP-16",
-                product_name(p)
+                "{head}: {why}: its packets are not aligned unless the board's [lidar] model (or run --model) names the sensor"
             ));
         }
         if let Some(PpsStatus::Absent | PpsStatus::Error) = self.pps.map(PpsStatus::from) {

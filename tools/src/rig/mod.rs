@@ -645,6 +645,7 @@ fn run_threads(
             InsWait::Latency(INS_LATENCY),
             &spherecal_hal::clock::SystemClock,
         );
+        al.core.set_model(opts.board.lidar_model());
         let out = Batches {
             tx,
             pool: &pool_rx,

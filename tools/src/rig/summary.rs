@@ -28,6 +28,10 @@ pub struct RunSummary {
     pub skipped: Vec<(String, u64)>,
     /// Data packets aligned and windowed.
     pub data_packets: u64,
+    /// Data packets refused because the LiDAR model is unknown or its product byte
+    /// disagrees with the packet period (the board's `[lidar] model` or `--model` names it).
+    #[serde(default)]
+    pub model_refused: u64,
     /// Position packets seen by the aligner.
     pub position_packets: u64,
     /// Data packets the aligner could not time (no RMC and no INS yet).
@@ -109,6 +113,7 @@ impl RunSummary {
             ring_drops: sh.ring_drops.snapshot(),
             skipped,
             data_packets: e.align.data_packets,
+            model_refused: e.align.model_refused,
             position_packets: e.align.position_packets,
             packets_without_time: e.align.packets_without_time,
             returns: w.points,
@@ -161,6 +166,13 @@ pub fn render(s: &RunSummary) -> String {
     );
     for (reason, n) in &s.skipped {
         let _ = writeln!(o, "  skipped {n}: {reason}");
+    }
+    if s.model_refused > 0 {
+        let _ = writeln!(
+            o,
+            "  NOT aligned {}: data packets of an unknown LiDAR model or whose product byte disagrees with their period (see heard:; set the board's [lidar] model or run --model)",
+            s.model_refused
+        );
     }
     let _ = writeln!(
         o,
