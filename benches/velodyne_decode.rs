@@ -25,9 +25,15 @@ fn bench(c: &mut Criterion) {
     let root = env!("CARGO_MANIFEST_DIR");
     for (name, file) in [
         ("vlp16_mrpt", "vlp16/mrpt_vlp16_gps.pcap"),
-        ("hdl32e_lidarutils", "velodyne_models/lidarutils_hdl32e_small.pcap"),
+        (
+            "hdl32e_lidarutils",
+            "velodyne_models/lidarutils_hdl32e_small.pcap",
+        ),
         ("vlp32c_crafted", "velodyne_models/vlp32c_crafted.pcap"),
-        ("puck_hires_crafted", "velodyne_models/puck_hires_crafted.pcap"),
+        (
+            "puck_hires_crafted",
+            "velodyne_models/puck_hires_crafted.pcap",
+        ),
     ] {
         let packets = payloads(&format!("{root}/tests/data/{file}"));
         let mut out = PointBuf::new();

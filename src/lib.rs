@@ -15,6 +15,7 @@ pub mod align;
 pub mod calib;
 pub mod frames;
 pub mod georef;
+pub mod posmv;
 #[cfg(any(test, feature = "sim"))]
 pub mod sim;
 pub mod time;
