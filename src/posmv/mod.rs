@@ -22,7 +22,7 @@ pub mod pose;
 
 pub use framer::{Framed, Framer, Item, Stats};
 pub use group::{emit_group, Group, TimeFields, TimeType};
-pub use nav::{Alignment, Metrics, Navigation, PpsTime, SensorNavigation, TimeSync};
+pub use nav::{Alignment, GnssStatus, Metrics, Navigation, PpsTime, SensorNavigation, TimeSync};
 pub use pose::{Pose, PoseError};
 
 use core::fmt;

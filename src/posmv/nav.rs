@@ -382,3 +382,76 @@ impl PpsTime {
         emit_group(Self::ID, &self.time, &d, out)
     }
 }
+
+/// Group 3: the primary GNSS receiver's status; the calibration takes the GPS week and the
+/// GPS - UTC offset from it (Table 7: variable length, 20 bytes per channel; Table 9).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnssStatus {
+    /// Time/distance fields.
+    pub time: TimeFields,
+    /// Navigation solution status (Table 9: -1 unknown, 0 no data, 1-2 C/A, 3-4 DGPS, 5-7 RTK,
+    /// ...).
+    pub solution: i8,
+    /// Satellites tracked.
+    pub satellites: u8,
+    /// Channels in the group (their status blocks are not kept).
+    pub channels: u16,
+    /// HDOP, VDOP.
+    pub dop: [f32; 2],
+    /// GPS/UTC week number (0: not available).
+    pub week: u32,
+    /// GPS time - UTC time [s].
+    pub utc_offset: f64,
+    /// GNSS receiver type (Table 12).
+    pub receiver: u16,
+}
+
+impl GnssStatus {
+    /// Group ID.
+    pub const ID: u16 = 3;
+
+    /// Parse a checked Group 3 (byte count 76 + 20 per channel).
+    pub fn parse<T: AsRef<[u8]>>(g: &Group<T>) -> Result<Self, Error> {
+        if g.is_message() || g.id() != Self::ID {
+            return Err(Error::WrongGroup { found: g.id() });
+        }
+        let d = g.data();
+        let c = if d.len() >= 4 {
+            usize::from(super::group::le16(d, 2))
+        } else {
+            usize::MAX
+        };
+        let expected = 76 + c;
+        if c % 20 != 0 || usize::from(g.byte_count()) != expected || d.len() < 44 + c {
+            return Err(Error::WrongSize {
+                id: Self::ID,
+                expected: u16::try_from(expected).unwrap_or(u16::MAX),
+                found: g.byte_count(),
+            });
+        }
+        let k = 4 + c;
+        Ok(Self {
+            time: g.time_fields(),
+            solution: d[0] as i8,
+            satellites: d[1],
+            channels: (c / 20) as u16,
+            dop: [f32_at(d, k), f32_at(d, k + 4)],
+            week: le32(d, k + 14),
+            utc_offset: f64_at(d, k + 18),
+            receiver: super::group::le16(d, k + 34),
+        })
+    }
+
+    /// Write the group with no channel blocks; its length (84).
+    pub fn emit(&self, out: &mut [u8]) -> Option<usize> {
+        let mut d = [0u8; 44];
+        d[0] = self.solution as u8;
+        d[1] = self.satellites;
+        put_f32(&mut d, 4, self.dop[0]);
+        put_f32(&mut d, 8, self.dop[1]);
+        d[18..22].copy_from_slice(&self.week.to_le_bytes());
+        put_f64(&mut d, 22, self.utc_offset);
+        d[38..40].copy_from_slice(&self.receiver.to_le_bytes());
+        emit_group(Self::ID, &self.time, &d, out)
+    }
+}

@@ -96,6 +96,22 @@ fn group_lengths_follow_the_tables() {
     };
     assert_eq!(m.emit(&mut out), Some(88));
     assert_eq!(n.emit(&mut out[..139]), None);
+    let g = GnssStatus {
+        time: TimeFields::default(),
+        solution: 7,
+        satellites: 14,
+        channels: 0,
+        dop: [0.8, 1.2],
+        week: 2290,
+        utc_offset: 18.0,
+        receiver: 16,
+    };
+    assert_eq!(g.emit(&mut out), Some(84));
+    assert_eq!(u16::from_le_bytes([out[6], out[7]]), 76);
+    assert_eq!(
+        GnssStatus::parse(&Group::new_checked(&out[..84]).unwrap()),
+        Ok(g)
+    );
 }
 
 fn f64s() -> impl Strategy<Value = f64> {

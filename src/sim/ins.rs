@@ -101,8 +101,9 @@ impl<'w, 'a> InsSim<'w, 'a> {
         GpsTime(self.first + j as i64 * self.period_ns)
     }
 
-    /// Write the next frame into `out` (at least 64 bytes); its true time and length.
-    pub fn next_frame(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
+    /// The next sample with its noise: true time, reported (stamped) GPS time [ns], roll,
+    /// pitch, heading relative to the local level [rad], and the WGS84 position.
+    fn next_sample(&mut self) -> Option<(GpsTime, i64, [f64; 3], crate::frames::Geodetic)> {
         if self.j >= self.count {
             return None;
         }
@@ -120,15 +121,32 @@ impl<'w, 'a> InsSim<'w, 'a> {
         let local = c.transpose() * rotation(s.rph[0], s.rph[1], s.rph[2]);
         let [r, p, h] = roll_pitch_heading(&local);
         let sig = self.cfg.att_sigma;
-        let ypr = [
+        let (h, p, r) = (
             h + self.rng.gauss(sig),
             p + self.rng.gauss(sig),
             r + self.rng.gauss(sig),
-        ];
+        );
+        let stamp = (t.0 + self.cfg.time_offset_ns).max(0);
+        Some((t, stamp, [r, p, h], g))
+    }
+
+    fn corrupt(&mut self, bytes: &mut [u8]) {
+        if self.cfg.corrupt_prob > 0.0 {
+            for b in bytes.iter_mut() {
+                if self.rng.chance(self.cfg.corrupt_prob) {
+                    *b ^= (self.rng.next_u64() % 255 + 1) as u8;
+                    self.stats.corrupted_bytes += 1;
+                }
+            }
+        }
+    }
+
+    /// Write the next frame into `out` (at least 64 bytes); its true time and length.
+    pub fn next_frame(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
+        let (t, stamp, [r, p, h], g) = self.next_sample()?;
         let mut payload = [0u8; 46];
-        let stamp = (t.0 + self.cfg.time_offset_ns).max(0) as u64;
-        payload[..8].copy_from_slice(&stamp.to_le_bytes());
-        for (i, a) in ypr.iter().enumerate() {
+        payload[..8].copy_from_slice(&(stamp as u64).to_le_bytes());
+        for (i, a) in [h, p, r].iter().enumerate() {
             payload[8 + 4 * i..12 + 4 * i].copy_from_slice(&(a.to_degrees() as f32).to_le_bytes());
         }
         for (i, v) in [g.lat.to_degrees(), g.lon.to_degrees(), g.h]
@@ -140,14 +158,86 @@ impl<'w, 'a> InsSim<'w, 'a> {
         payload[44..46].copy_from_slice(&INS_STATUS.to_le_bytes());
         let n = emit(out, &output_masks(), &payload).ok()?;
         self.stats.frames += 1;
-        if self.cfg.corrupt_prob > 0.0 {
-            for b in out[..n].iter_mut() {
-                if self.rng.chance(self.cfg.corrupt_prob) {
-                    *b ^= (self.rng.next_u64() % 255 + 1) as u8;
-                    self.stats.corrupted_bytes += 1;
-                }
+        self.corrupt(&mut out[..n]);
+        Some((t, n))
+    }
+
+    /// The same samples (the same noise as [`Self::next_frame`] for the same seed) as an
+    /// Applanix POS MV's real-time output (ICD groups, time 1 in UTC seconds of the week as
+    /// a POS MV sends by default, time 2 POS time): Group 1 per sample, and at each whole
+    /// second Group 3 (GPS week, GPS - UTC), Group 7 (PPS, synchronized) and Group 2 (RMS
+    /// errors: the noise settings). Writes into `out` (at least 512 bytes); the true time and
+    /// the length.
+    pub fn next_posmv(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
+        use crate::posmv::{
+            Alignment, GnssStatus, Metrics, Navigation, PpsTime, TimeFields, TimeSync, TimeType,
+        };
+        let first = self.j == 0;
+        let (t, stamp, rph, g) = self.next_sample()?;
+        let leap = self.world.leap_seconds;
+        let (week, gps_tow_ns) = GpsTime(stamp).week_tow_ns();
+        let pos_time = (t.0 - self.first) as f64 * 1e-9 + 100.0;
+        let utc_sow = gps_tow_ns as f64 * 1e-9 - leap as f64;
+        let time = TimeFields {
+            time1: utc_sow,
+            time2: pos_time,
+            distance: 0.0,
+            time1_type: TimeType::Utc,
+            time2_type: TimeType::Pos,
+            distance_type: 1,
+        };
+        let mut n = 0;
+        let whole_second = first || gps_tow_ns % 1_000_000_000 < self.period_ns;
+        if whole_second {
+            let second = TimeFields {
+                time1: utc_sow.floor(),
+                ..time
+            };
+            n += GnssStatus {
+                time: second,
+                solution: 7,
+                satellites: 14,
+                channels: 0,
+                dop: [0.8, 1.3],
+                week: week as u32,
+                utc_offset: leap as f64,
+                receiver: 17,
             }
+            .emit(&mut out[n..])?;
+            n += PpsTime {
+                time: second,
+                pps_count: (pos_time as u32).saturating_sub(90),
+                sync: TimeSync::Synchronized,
+            }
+            .emit(&mut out[n..])?;
+            let (ps, at) = (
+                self.cfg.pos_sigma as f32,
+                self.cfg.att_sigma.to_degrees() as f32,
+            );
+            n += Metrics {
+                time,
+                position_rms: [ps; 3],
+                velocity_rms: [0.01; 3],
+                attitude_rms: [at; 3],
+                ellipse: [ps, ps, 0.0],
+            }
+            .emit(&mut out[n..])?;
         }
+        let heading = rph[2].to_degrees().rem_euclid(360.0);
+        n += Navigation {
+            time,
+            lla: [g.lat.to_degrees(), g.lon.to_degrees(), g.h],
+            velocity: [0.0; 3],
+            rph: [rph[0].to_degrees(), rph[1].to_degrees(), heading],
+            wander: 0.0,
+            track_speed: [0.0; 2],
+            rate: [0.0; 3],
+            accel: [0.0; 3],
+            alignment: Alignment::FullNavigation,
+        }
+        .emit(&mut out[n..])?;
+        self.stats.frames += 1;
+        self.corrupt(&mut out[..n]);
         Some((t, n))
     }
 }

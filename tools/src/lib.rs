@@ -37,6 +37,8 @@ pub struct Survey {
     pub ins: Option<pipeline::Files>,
     /// ... or Applanix SBET files and their GPS week (None: from the capture's RMC date).
     pub sbet: Option<pipeline::Files>,
+    /// ... or an Applanix POS MV stream and the group its poses come from.
+    pub posmv: Option<(pipeline::Files, u16)>,
     /// The SBET's GPS week.
     pub gps_week: Option<u16>,
     /// The SBET's accuracy file (POSPac smrmsg; None: `smrmsg_NAME` beside `sbet_NAME` if
@@ -54,6 +56,7 @@ impl Survey {
             model: None,
             ins: Some(dir.join("ins.bin").into()),
             sbet: None,
+            posmv: None,
             gps_week: None,
             smrmsg: None,
             site: dir.join("site.toml"),
@@ -167,9 +170,10 @@ pub fn run_calibrate(
     let site = config::site::Site::load(&survey.site)?;
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = start.params();
-    let (ins, accuracy) = match (survey.ins, survey.sbet) {
-        (Some(i), _) => (InsInput::Vn200(i), None),
-        (None, Some(s)) => {
+    let (ins, accuracy) = match (survey.ins, survey.sbet, survey.posmv) {
+        (Some(i), _, _) => (InsInput::Vn200(i), None),
+        (None, None, Some((f, g))) => (InsInput::Posmv(f, survey.gps_week, g), None),
+        (None, Some(s), _) => {
             // Beside a single SBET file, its smrmsg.
             let acc = survey.smrmsg.or_else(|| match s.0.as_slice() {
                 [one] => pipeline::accuracy::beside_sbet(one),
@@ -177,7 +181,7 @@ pub fn run_calibrate(
             });
             (InsInput::Sbet(s, survey.gps_week), acc)
         }
-        (None, None) => return Err("give --ins or --sbet".into()),
+        (None, None, None) => return Err("give --ins, --sbet or --posmv".into()),
     };
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;

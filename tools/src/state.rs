@@ -155,6 +155,9 @@ pub struct InsState {
     pub longest_gap_s: f64,
     /// Poses kept although their status says not tracking (the user asked).
     pub kept_untracked: u64,
+    /// What a POS MV stream gave (None: not a POS MV stream).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub posmv: Option<crate::pipeline::posmv::PosmvState>,
 }
 
 /// The reason a VN-200 InsStatus leaves a pose out (PROTOCOLS.md: bits 0-1 mode, 0 not
@@ -204,7 +207,15 @@ impl InsState {
 
     /// Lines for people.
     pub fn describe(&self) -> String {
-        let mut o = if self.sbet_records > 0 {
+        let mut o = if let Some(p) = &self.posmv {
+            format!(
+                "{}: {} bytes, {} bytes skipped; {} poses used",
+                p.describe(),
+                self.bytes,
+                self.skipped_bytes,
+                self.poses
+            )
+        } else if self.sbet_records > 0 {
             format!(
                 "SBET: {} bytes, {} records; {} poses used",
                 self.bytes, self.sbet_records, self.poses

@@ -121,6 +121,11 @@ fn named(keys: [&str; 3], v: [f64; 3]) -> BTreeMap<String, f64> {
 
 /// Delay between the first firing of a packet and its capture on the rig's computer.
 const NETWORK_DELAY_NS: i64 = 1_400_000;
+/// A POS MV group's delay from its time of validity to its datagram's arrival (the ICD's
+/// real-time port emphasises latency; a few milliseconds).
+const POSMV_DELAY_NS: i64 = 3_000_000;
+/// The POS MV Real-Time Data Port (ICD section 2).
+const POSMV_PORT: u16 = spherecal::posmv::REALTIME_PORT;
 
 /// The simulated VN-200's serial rate.
 const SERIAL_BAUD: u32 = 921_600;
@@ -238,6 +243,37 @@ fn write_lidar(
     let ep = UdpEndpoints::default();
     let mut payload = [0u8; 1206];
     let mut frame = Vec::with_capacity(1300);
+    // A POS MV on the same network: its datagrams (one per sample, as the Real-Time Data Port
+    // sends them) merged in receive order.
+    let mut posmv = (s.ins.kind == "posmv").then(|| InsSim::new(world, s.ins_config()));
+    let mut posmv_next: Option<(HostTime, Vec<u8>)> = None;
+    let mut posmv_buf = [0u8; 1024];
+    let mut pull_posmv = |posmv: &mut Option<InsSim<'_, '_>>| -> Option<(HostTime, Vec<u8>)> {
+        let sim = posmv.as_mut()?;
+        let (t, n) = sim.next_posmv(&mut posmv_buf)?;
+        let host = HostTime(gps_to_unix_ns(t, s.leap_seconds) + POSMV_DELAY_NS);
+        Some((host, posmv_buf[..n].to_vec()))
+    };
+    posmv_next = posmv_next.or_else(|| pull_posmv(&mut posmv));
+    let mut write_posmv_until = |until: Option<HostTime>,
+                                 posmv: &mut Option<InsSim<'_, '_>>,
+                                 next: &mut Option<(HostTime, Vec<u8>)>,
+                                 pcap: &mut PcapWriter<_>,
+                                 frame: &mut Vec<u8>|
+     -> Result<(), String> {
+        while let Some((h, bytes)) = next.take() {
+            if until.is_some_and(|u| h > u) {
+                *next = Some((h, bytes));
+                break;
+            }
+            build_udp_frame(frame, &ep, POSMV_PORT, POSMV_PORT, &bytes)
+                .map_err(|e| io(&pcap_path, e))?;
+            pcap.write_frame(h, frame)
+                .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
+            *next = pull_posmv(posmv);
+        }
+        Ok(())
+    };
     loop {
         let next = match cache {
             Some(c) => lidar.next_packet_replayed(&mut payload, c.packet(data_k)),
@@ -271,9 +307,14 @@ fn write_lidar(
         build_udp_frame(&mut frame, &ep, port, port, &payload[..len])
             .map_err(|e| io(&pcap_path, e))?;
         let host = HostTime(gps_to_unix_ns(time, s.leap_seconds) + NETWORK_DELAY_NS);
+        if posmv_next.is_some() {
+            let mut f2 = Vec::with_capacity(1300);
+            write_posmv_until(Some(host), &mut posmv, &mut posmv_next, &mut pcap, &mut f2)?;
+        }
         pcap.write_frame(host, &frame)
             .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     }
+    write_posmv_until(None, &mut posmv, &mut posmv_next, &mut pcap, &mut frame)?;
     pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
     labels.flush().map_err(|e| io(&labels_path, e))?;
 
@@ -308,6 +349,18 @@ fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, St
     }
     w.flush().map_err(|e| io(&ins_path, e))?;
     log.flush().map_err(|e| io(&log_path, e))?;
+    if s.ins.kind == "posmv" {
+        // The Logging Data Port's byte stream, as a POS MV logs it (.000 files).
+        let p = dir.join("ins.posmv");
+        let f = std::fs::File::create(&p).map_err(|e| io(&p, e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, f);
+        let mut sim = InsSim::new(world, s.ins_config());
+        let mut buf = [0u8; 1024];
+        while let Some((_, n)) = sim.next_posmv(&mut buf) {
+            w.write_all(&buf[..n]).map_err(|e| io(&p, e))?;
+        }
+        w.flush().map_err(|e| io(&p, e))?;
+    }
 
     Ok(ins.stats)
 }

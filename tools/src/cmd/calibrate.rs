@@ -64,6 +64,7 @@ pub fn run(a: Args) -> ExitCode {
         model: s.model,
         ins: (!s.ins.is_empty()).then(|| s.ins.into()),
         sbet: (!s.sbet.is_empty()).then(|| s.sbet.into()),
+        posmv: (!s.posmv.is_empty()).then(|| (s.posmv.into(), s.posmv_group)),
         gps_week: s.gps_week,
         smrmsg: s.smrmsg,
         site: s.site,

@@ -45,6 +45,8 @@ pub fn run(a: Args) -> ExitCode {
         model,
         ins,
         sbet,
+        posmv,
+        posmv_group,
         gps_week,
         site,
         ..
@@ -62,10 +64,11 @@ pub fn run(a: Args) -> ExitCode {
     };
     let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
     let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
-    let ins = match (ins.is_empty(), sbet.is_empty()) {
-        (false, _) => InsInput::Vn200(ins.into()),
-        (true, false) => InsInput::Sbet(sbet.into(), gps_week),
-        (true, true) => return fail("georef", "give --ins or --sbet"),
+    let ins = match (ins.is_empty(), sbet.is_empty(), posmv.is_empty()) {
+        (false, _, _) => InsInput::Vn200(ins.into()),
+        (true, false, _) => InsInput::Sbet(sbet.into(), gps_week),
+        (true, true, false) => InsInput::Posmv(posmv.into(), gps_week, posmv_group),
+        (true, true, true) => return fail("georef", "give --ins, --sbet or --posmv"),
     };
     let inp = Inputs {
         pcap: pcap.into(),

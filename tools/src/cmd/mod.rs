@@ -72,12 +72,26 @@ pub struct Survey {
     #[arg(long, value_parser = parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
     /// VN-200 serial bytes (raw or serial logs): files or patterns, in name order.
-    #[arg(long, num_args = 1.., required_unless_present = "sbet", conflicts_with = "sbet")]
+    #[arg(
+        long,
+        num_args = 1..,
+        required_unless_present_any = ["sbet", "posmv"],
+        conflicts_with_all = ["sbet", "posmv"]
+    )]
     pub ins: Vec<PathBuf>,
     /// An Applanix SBET trajectory instead of the VN-200: files or patterns, in time order.
-    #[arg(long, num_args = 1..)]
+    #[arg(long, num_args = 1.., conflicts_with = "posmv")]
     pub sbet: Vec<PathBuf>,
-    /// GPS week of the SBET (default: from the capture's RMC date).
+    /// An Applanix POS MV's real-time groups instead: logged `.000` streams, or captures of its
+    /// UDP datagrams (the LiDAR's own capture when both were recorded on one network).
+    #[arg(long, num_args = 1..)]
+    pub posmv: Vec<PathBuf>,
+    /// The POS MV group the poses come from: 1 (vessel reference point, default), 102 or 103
+    /// (sensor 1 or 2).
+    #[arg(long, default_value_t = 1, requires = "posmv")]
+    pub posmv_group: u16,
+    /// GPS week of the SBET or POS MV stream (default: the POS MV's Group 3, else the
+    /// capture's RMC date).
     #[arg(long)]
     pub gps_week: Option<u16>,
     /// The SBET's accuracy file (POSPac smrmsg): the calibration weighs each return by the

@@ -18,6 +18,10 @@ pub struct Args {
     /// scenario's `[lidar] model`.
     #[arg(long, value_parser = super::parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
+    /// The INS to simulate, instead of the scenario's `[ins] kind`: `vn200`, or `posmv` (an
+    /// Applanix POS MV: its UDP datagrams in lidar.pcap and its logged stream ins.posmv).
+    #[arg(long, value_parser = ["vn200", "posmv"])]
+    pub ins: Option<String>,
     /// Print a built-in scenario as TOML (to edit) and exit.
     #[arg(long, value_name = "NAME", conflicts_with_all = ["scenario", "out"])]
     pub print_scenario: Option<String>,
@@ -49,6 +53,9 @@ pub fn run(a: Args) -> ExitCode {
     };
     if let Some(m) = a.model {
         s.lidar.model = m.key().into();
+    }
+    if let Some(k) = a.ins {
+        s.ins.kind = k;
     }
     let t0 = std::time::Instant::now();
     match crate::synth::synth(&s, &out) {

@@ -183,6 +183,10 @@ pub struct LidarSpec {
     pub rmc_valid: bool,
 }
 
+fn default_ins_kind() -> String {
+    "vn200".into()
+}
+
 fn default_model() -> String {
     "vlp16".into()
 }
@@ -207,6 +211,11 @@ fn default_merge() -> f64 {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InsSpec {
+    /// `vn200` (default: ins.bin and ins.vnlog only) or `posmv`: also an Applanix POS MV's
+    /// real-time groups, as its UDP datagrams (port 5602) in lidar.pcap and as a logged
+    /// stream, ins.posmv.
+    #[serde(default = "default_ins_kind")]
+    pub kind: String,
     /// Output rate [Hz].
     pub rate_hz: f64,
     /// Attitude noise, 1 sigma [deg].
@@ -532,6 +541,11 @@ impl Scenario {
             self.ins.time_offset_s.abs() < 10.0,
             "ins.time_offset_s",
             "expected |t| < 10 s",
+        )?;
+        check(
+            matches!(self.ins.kind.as_str(), "vn200" | "posmv"),
+            "ins.kind",
+            "expected vn200 or posmv",
         )?;
         check(
             (0.0..=1.0).contains(&self.ins.corrupt_prob),

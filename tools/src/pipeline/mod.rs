@@ -16,6 +16,7 @@
 
 pub mod accuracy;
 mod feed;
+pub mod posmv;
 mod readers;
 
 pub use feed::{AlignStorage, Aligner, InsWait};
@@ -124,6 +125,10 @@ pub enum InsInput {
     Vn200(Files),
     /// SBET files and their GPS week (None: taken from the capture's RMC date).
     Sbet(Files, Option<u16>),
+    /// Applanix POS MV real-time groups: logged `.000` streams, or captures holding its UDP
+    /// datagrams; the GPS week (None: from its Group 3, else the capture's RMC date) and the
+    /// group the poses come from (1, 102 or 103).
+    Posmv(Files, Option<u16>, u16),
 }
 
 /// Inputs of a georeferencing run.
@@ -158,7 +163,7 @@ impl Inputs {
     /// The trajectory's files.
     pub fn ins_files(&self) -> &Files {
         match &self.ins {
-            InsInput::Vn200(p) | InsInput::Sbet(p, _) => p,
+            InsInput::Vn200(p) | InsInput::Sbet(p, _) | InsInput::Posmv(p, _, _) => p,
         }
     }
 
@@ -288,7 +293,7 @@ impl RunStats {
     /// file and what was found instead.
     pub fn unusable(&self, pcap: &Files, ins: &InsInput, ins_head: &[u8]) -> Option<String> {
         let (sbet, ins) = match ins {
-            InsInput::Vn200(f) => (false, f),
+            InsInput::Vn200(f) | InsInput::Posmv(f, _, _) => (false, f),
             InsInput::Sbet(f, _) => (true, f),
         };
         if let Some(why) = self.model_problem() {
@@ -430,7 +435,7 @@ pub fn run<C: Send>(
                 policy: Overflow::Wait,
                 full: &full_ref[1],
             };
-            let r = ins_file_reader(ins_src, frame, keep_untracked, max_gap, &mut out);
+            let r = ins_file_reader(ins_src, frame, keep_untracked, max_gap, leap, &mut out);
             enqueue(out.ring, InsItem::End, Overflow::Wait, out.full);
             r
         });

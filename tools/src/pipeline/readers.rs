@@ -98,6 +98,9 @@ pub enum InsFile {
     Vn200(FileChain),
     /// SBET files in the order of their first record's time, and their GPS week.
     Sbet(Vec<PathBuf>, u16),
+    /// POS MV streams (raw `.000` files or captures of its datagrams) in name order, the week
+    /// that dates them until their Group 3 does, and the pose group.
+    Posmv(Vec<PathBuf>, Option<u16>, u16),
 }
 
 impl InsFile {
@@ -114,6 +117,15 @@ impl InsFile {
                 FileChain::open(p.expand()?)
                     .map(Self::Vn200)
                     .map_err(|e| e.to_string())
+            }
+            InsInput::Posmv(p, week, group) => {
+                if ![1, 102, 103].contains(group) {
+                    return Err(format!(
+                        "POS MV group {group}: poses come from group 1, 102 or 103"
+                    ));
+                }
+                let week = week.or_else(|| week_from_capture(pcap, leap));
+                Ok(Self::Posmv(p.expand()?, week, *group))
             }
             InsInput::Sbet(p, week) => {
                 let week = sbet_week(*week, pcap, leap)?;
@@ -200,6 +212,7 @@ pub fn ins_file_reader(
     frame: LocalFrame,
     keep_untracked: bool,
     max_gap_ns: i64,
+    leap_seconds: i64,
     out: &mut InsRing<'_, '_>,
 ) -> Result<(InsState, Vec<u8>), String> {
     match src {
@@ -220,6 +233,56 @@ pub fn ins_file_reader(
                 &mut |_, _| {},
             )
             .map_err(|e| e.to_string())?;
+            Ok((feed.state(), head))
+        }
+        InsFile::Posmv(files, week, group) => {
+            let mut feed = super::posmv::PosmvFeed::new(
+                frame,
+                group,
+                keep_untracked,
+                max_gap_ns,
+                leap_seconds,
+                week,
+            );
+            let mut head = Vec::new();
+            for path in files {
+                let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+                let mut f = std::fs::File::open(&path).map_err(|e| err(&e))?;
+                let mut magic = [0u8; 4];
+                use std::io::{Read as _, Seek as _};
+                let n = f.read(&mut magic).map_err(|e| err(&e))?;
+                f.rewind().map_err(|e| err(&e))?;
+                if head.is_empty() {
+                    head.extend_from_slice(&magic[..n]);
+                }
+                if crate::state::looks_like(&magic[..n]) == "a pcap capture"
+                    || magic[..n] == [0x0A, 0x0D, 0x0D, 0x0A]
+                {
+                    // A capture: every UDP payload that is not the LiDAR's.
+                    let mut src = spherecal_hal::pcap::PcapSource::new(std::io::BufReader::new(f))
+                        .map_err(|e| err(&e))?;
+                    while let Some(rec) = src.next_record().map_err(|e| err(&e))? {
+                        if let Record::Udp(d) = rec {
+                            if d.dst_port != spherecal::velodyne::DATA_PORT
+                                && d.dst_port != spherecal::velodyne::POSITION_PORT
+                            {
+                                feed.feed(d.payload, Some(d.time), out);
+                            }
+                        }
+                    }
+                } else {
+                    let mut rd = std::io::BufReader::with_capacity(1 << 16, f);
+                    let mut buf = [0u8; 1 << 16];
+                    loop {
+                        let n = rd.read(&mut buf).map_err(|e| err(&e))?;
+                        if n == 0 {
+                            break;
+                        }
+                        feed.feed(&buf[..n], None, out);
+                    }
+                }
+            }
+            feed.finish(out);
             Ok((feed.state(), head))
         }
         InsFile::Sbet(files, week) => {
