@@ -166,7 +166,7 @@ fn rig_steady_state_allocates_nothing_per_packet() {
     std::thread::spawn(move || {
         let to = Target {
             host: std::net::Ipv4Addr::LOCALHOST,
-            ports: [(2368, 23760), (8308, 23761)],
+            ports: [(2368, 23760), (8308, 23761), (5602, 5602)],
         };
         replay_both(
             d2.join("lidar.pcap"),

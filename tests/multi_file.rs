@@ -127,7 +127,7 @@ fn rotated_logs_give_the_single_files_result() {
     let sink = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
     let port = sink.local_addr().unwrap().port();
     let mut to = Target::host(std::net::Ipv4Addr::LOCALHOST);
-    to.ports = [(2368, port), (8308, port)];
+    to.ports = [(2368, port), (8308, port), (5602, port)];
     let mut serial: Vec<u8> = Vec::new();
     let logs_pattern = Files::from(parts.join("*.vnlog"));
     let (udp, wrote) = replay_both(

@@ -158,7 +158,7 @@ fn table1() -> spherecal_tools::config::scenario::Scenario {
 fn loopback(dp: u16, pp: u16) -> Target {
     Target {
         host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (8308, pp)],
+        ports: [(2368, dp), (8308, pp), (5602, 5602)],
     }
 }
 
@@ -591,6 +591,83 @@ fn hdl32e_through_the_rig() {
         let got = rep["lever_arm_m"][k].as_f64().unwrap();
         assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
     }
+}
+
+/// A vessel with a POS MV (table1's quay, its clock 20 ms late): its real-time groups over UDP
+/// beside the LiDAR's datagrams, replayed at twice real time into `spherecal run` with
+/// `[ins] kind = "posmv"`. The rig dates them by their Group 3, calibrates to the truth with
+/// the time offset, logs the POS MV's datagrams with the LiDAR's (a replayable folder), and
+/// its summary says what the POS MV sent.
+#[test]
+fn posmv_vessel_through_the_rig() {
+    let mut s = table1();
+    s.ins.kind = "posmv".into();
+    s.ins.time_offset_s = 0.02;
+    s.name = "table1-posmv".into();
+    let (dp, pp, ip) = (23_795, 23_796, 23_797);
+    let Setup { dir, .. } = setup("rig-posmv", &s, dp, pp);
+    let board = board_with(
+        &dir,
+        dp,
+        pp,
+        &[(
+            "kind = \"vn200\"",
+            &format!("kind = \"posmv\"\nudp_port = {ip}\nposmv_group = 1"),
+        )],
+    );
+    let report = dir.join("run-report.json");
+    let logs = dir.join("logs");
+    let rig = Rig::start(&[
+        "--board".as_ref(),
+        board.as_os_str(),
+        "--site".as_ref(),
+        dir.join("site.toml").as_os_str(),
+        "--log-dir".as_ref(),
+        logs.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--duration".as_ref(),
+        "600".as_ref(),
+    ]);
+    let to = Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(2368, dp), (8308, pp), (5602, ip)],
+    };
+    let (sent, _) = replay_both(dir.join("lidar.pcap"), to, None, Speed::Factor(2.0)).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(60));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["converged"], true, "{rep}");
+    let t = &s.mount.truth;
+    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
+        let got = rep["boresight_deg"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
+        let got = rep["lever_arm_m"][k].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
+    }
+    let dt = rep["time_offset_s"].as_f64().unwrap();
+    assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
+    // Every datagram logged, the POS MV's among them; its groups counted in the summary.
+    let sm = summary(&logs);
+    let pm = &sm["ins"]["posmv"];
+    assert_eq!(u(&pm["groups"]["1"]), 12_901, "{sm}");
+    assert!(u(&pm["groups"]["3"]) >= 60, "{sm}");
+    assert_eq!(u(&pm["rejected"]), 0, "{sm}");
+    assert_eq!(pm["week"], 2318, "{sm}");
+    assert_eq!(u(&sm["ins"]["poses"]), 12_901 - u(&pm["no_week"]), "{sm}");
+    let (logged, _) = datagrams(&files(&logs, "lidar"));
+    assert_eq!(logged.len() as u64, sent.sent, "every datagram logged");
+    assert_eq!(
+        logged.iter().filter(|d| d.0 == ip).count(),
+        12_901,
+        "the POS MV's datagrams in the log"
+    );
 }
 
 #[test]

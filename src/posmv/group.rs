@@ -276,7 +276,7 @@ pub fn header_len(b: &[u8]) -> Result<usize, Error> {
     };
     let byte_count = le16(b, field::BYTE_COUNT.start);
     let len = usize::from(byte_count) + field::HEADER;
-    if byte_count < min || len % 4 != 0 {
+    if byte_count < min || !len.is_multiple_of(4) {
         return Err(Error::BadLength { byte_count });
     }
     Ok(len)

@@ -422,7 +422,7 @@ impl GnssStatus {
             usize::MAX
         };
         let expected = 76 + c;
-        if c % 20 != 0 || usize::from(g.byte_count()) != expected || d.len() < 44 + c {
+        if !c.is_multiple_of(20) || usize::from(g.byte_count()) != expected || d.len() < 44 + c {
             return Err(Error::WrongSize {
                 id: Self::ID,
                 expected: u16::try_from(expected).unwrap_or(u16::MAX),

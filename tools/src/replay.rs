@@ -82,13 +82,14 @@ impl<'c> Pacer<'c> {
     }
 }
 
-/// Where datagrams go: a host, and the capture's data/position ports mapped to others.
+/// Where datagrams go: a host, and the capture's data/position ports (and a POS MV's
+/// Real-Time Data Port) mapped to others.
 #[derive(Debug, Clone, Copy)]
 pub struct Target {
     /// Host.
     pub host: Ipv4Addr,
-    /// (capture port, port to send to) for data and position packets.
-    pub ports: [(u16, u16); 2],
+    /// (capture port, port to send to) for data and position packets, and POS MV groups.
+    pub ports: [(u16, u16); 3],
 }
 
 impl Target {
@@ -96,7 +97,7 @@ impl Target {
     pub fn host(host: Ipv4Addr) -> Self {
         Self {
             host,
-            ports: [(2368, 2368), (8308, 8308)],
+            ports: [(2368, 2368), (8308, 8308), (5602, 5602)],
         }
     }
 

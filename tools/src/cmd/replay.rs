@@ -24,6 +24,9 @@ pub struct Args {
     /// Send the capture's data (2368) and position (8308) packets to these ports instead.
     #[arg(long, value_name = "DATA,POSITION", value_parser = parse_ports)]
     pub ports: Option<[u16; 2]>,
+    /// Send a POS MV's groups (the capture's UDP 5602) to this port instead.
+    #[arg(long, value_name = "PORT")]
+    pub posmv_port: Option<u16>,
     /// Serial device to write the INS bytes to (none: the bytes are not replayed).
     #[arg(long)]
     pub serial: Option<String>,
@@ -74,7 +77,11 @@ pub fn run(a: Args) -> ExitCode {
     };
     let mut to = Target::host(a.udp);
     if let Some([d, p]) = a.ports {
-        to.ports = [(2368, d), (8308, p)];
+        to.ports[0] = (2368, d);
+        to.ports[1] = (8308, p);
+    }
+    if let Some(i) = a.posmv_port {
+        to.ports[2] = (spherecal::posmv::REALTIME_PORT, i);
     }
     let mut port = match &a.serial {
         Some(dev) => match serialport::new(dev.as_str(), a.baud).open() {

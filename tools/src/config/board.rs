@@ -33,7 +33,8 @@ fn any_address() -> String {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InsLink {
-    /// `vn200` (live serial) or `sbet` (trajectory processed afterwards).
+    /// `vn200` (live serial), `posmv` (an Applanix POS MV's real-time groups over UDP) or
+    /// `sbet` (trajectory processed afterwards).
     pub kind: String,
     /// Serial device (`vn200`; empty: given on the command line).
     #[serde(default)]
@@ -54,6 +55,20 @@ pub struct InsLink {
     /// The VN-200 serial port the rig is wired to (1 or 2).
     #[serde(default = "port_one")]
     pub port: u8,
+    /// `posmv`: the UDP port its groups arrive on (the Real-Time Data Port, 5602, by default).
+    #[serde(default = "posmv_port")]
+    pub udp_port: u16,
+    /// `posmv`: the group poses come from: 1 (vessel reference point), 102 or 103 (sensor 1/2).
+    #[serde(default = "group_one")]
+    pub posmv_group: u16,
+}
+
+fn posmv_port() -> u16 {
+    spherecal::posmv::REALTIME_PORT
+}
+
+fn group_one() -> u16 {
+    1
 }
 
 impl InsLink {
@@ -288,8 +303,22 @@ impl Board {
                     );
                 }
             }
+            "posmv" => {
+                if self.ins.udp_port == 0
+                    || self.ins.udp_port == self.lidar.data_port
+                    || self.ins.udp_port == self.lidar.position_port
+                {
+                    return bad(
+                        "ins.udp_port",
+                        "expected the POS MV's UDP port (5602), not the LiDAR's",
+                    );
+                }
+                if ![1, 102, 103].contains(&self.ins.posmv_group) {
+                    return bad("ins.posmv_group", "expected 1, 102 or 103");
+                }
+            }
             "sbet" => {}
-            _ => return bad("ins.kind", "expected vn200 or sbet"),
+            _ => return bad("ins.kind", "expected vn200, posmv or sbet"),
         }
         if !(1.0..=400.0).contains(&self.ins.rate_hz) {
             return bad("ins.rate_hz", "expected 1..=400");
@@ -386,7 +415,7 @@ mod tests {
         );
         assert_eq!(
             Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\"")).unwrap_err(),
-            "ins.kind: expected vn200 or sbet"
+            "ins.kind: expected vn200, posmv or sbet"
         );
     }
 

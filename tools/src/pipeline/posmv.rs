@@ -275,6 +275,11 @@ impl PosmvFeed {
         enqueue(out.ring, InsItem::Pose(sample, host), out.policy, out.full);
     }
 
+    /// The last alignment status a Group 1 gave.
+    pub fn alignment(&self) -> Option<Alignment> {
+        self.alignment
+    }
+
     /// The stream's state so far.
     pub fn state(&self) -> InsState {
         let fs = self.framer.stats();

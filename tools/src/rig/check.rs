@@ -13,10 +13,14 @@ pub fn check(opts: &RunOptions) -> Vec<Result<String, String>> {
     let b = &opts.board;
     let mut out = vec![Ok(format!("board {}: valid", b.name))];
     let bind: Ipv4Addr = b.lidar.bind_addr.parse().unwrap_or(Ipv4Addr::UNSPECIFIED);
+    let posmv = (b.ins.kind == "posmv").then_some(("POS MV", b.ins.udp_port));
     for (what, port) in [
         ("data", b.lidar.data_port),
         ("position", b.lidar.position_port),
-    ] {
+    ]
+    .into_iter()
+    .chain(posmv)
+    {
         // The rig binds with address reuse: another program on the port would share (and
         // take) the LiDAR's datagrams without an error, so look first.
         match bound_sockets(port) {

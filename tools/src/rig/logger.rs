@@ -6,8 +6,7 @@ use super::*;
 pub(super) fn logger(
     pcap: &mut PcapLog,
     mut serial: Option<&mut SerialLog>,
-    mut data: Consumer<'_, UdpLogItem>,
-    mut pos: Consumer<'_, UdpLogItem>,
+    [mut data, mut pos, mut posmv]: [Consumer<'_, UdpLogItem>; 3],
     mut ser: Consumer<'_, SerialChunk>,
     dst: Ipv4Addr,
     to_sync: &Mutex<Vec<std::fs::File>>,
@@ -25,17 +24,18 @@ pub(super) fn logger(
         let done = sh.readers.load(Ordering::Acquire) == 0;
         let mut n = 0usize;
         loop {
-            // Merge the two sockets' datagrams in receive order.
-            let take_data = match (data.peek(), pos.peek()) {
-                (Some(a), Some(b)) => a.time <= b.time,
-                (Some(_), None) => true,
-                (None, Some(_)) => false,
-                (None, None) => break,
+            // Merge the sockets' datagrams in receive order.
+            let times = [data.peek(), pos.peek(), posmv.peek()].map(|p| p.map(|i| i.time));
+            let Some(k) = (0..3)
+                .filter(|&k| times[k].is_some())
+                .min_by_key(|&k| times[k])
+            else {
+                break;
             };
-            let it = if take_data {
-                data.dequeue()
-            } else {
-                pos.dequeue()
+            let it = match k {
+                0 => data.dequeue(),
+                1 => pos.dequeue(),
+                _ => posmv.dequeue(),
             };
             let Some(it) = it else { break };
             n += 1;

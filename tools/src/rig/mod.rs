@@ -5,7 +5,7 @@
 //! ```text
 //! UDP data reader ----> data ring ----\                          /--> batches --> solver
 //! UDP position reader -> position ring --> aligner (this thread) -
-//! serial reader ------> INS ring -----/
+//! serial reader ------> INS ring -----/   (or a UDP reader of a POS MV's groups)
 //!   each reader also --> its log ring --> logger: rotating pcap + serial log
 //!                                           --> syncer: fdatasync, so a power cut loses < 1 s
 //! status: one line a second on the console; stops everything on SIGINT/SIGTERM or --duration
@@ -33,7 +33,7 @@ mod summary;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use logger::{logger, syncer};
-use readers::{serial_reader, udp_reader};
+use readers::{posmv_reader, serial_reader, udp_reader};
 use serde::Serialize;
 use solver::solver;
 use spherecal::calib::Params;
@@ -67,6 +67,8 @@ pub const DATA_RING: usize = 1024;
 pub const POSITION_RING: usize = 256;
 /// Log ring for data datagrams (6 MB: 5.4 s of a VLP-16, for a disk that stalls).
 pub const DATA_LOG_RING: usize = 4096;
+/// Log ring for a POS MV's datagrams (1.5 MB: 5 s at 200 Hz).
+pub const POSMV_LOG_RING: usize = 1024;
 /// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes; 2 MB, ~10 s of reads at 200 Hz).
 pub const SERIAL_LOG_RING: usize = 2048;
 /// Largest serial read.
@@ -394,7 +396,7 @@ fn run_rig(
     }
     let plan = Plan::new(opts);
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
-    let readers = 2 + usize::from(io.serial.is_some());
+    let readers = 2 + usize::from(io.serial.is_some()) + usize::from(io.posmv.is_some());
     let sh = Shared::new(stop, readers, plan.ids.len(), probes, io.accept.ports);
     let started = Instant::now();
     let path = io.log_dir.join(format!("{}-run.json", io.stamp));
@@ -412,6 +414,8 @@ struct RigIo {
     data_sock: UdpSource,
     pos_sock: UdpSource,
     serial: Option<(String, SerialSource)>,
+    /// A POS MV's Real-Time Data Port (`ins.kind = "posmv"`).
+    posmv: Option<UdpSource>,
     log_dir: PathBuf,
     /// The UTC start stamp that names the run's files.
     stamp: String,
@@ -448,6 +452,10 @@ impl RigIo {
             }
             _ => None,
         };
+        let posmv = match b.ins.kind.as_str() {
+            "posmv" => Some(bind_port(b.ins.udp_port)?),
+            _ => None,
+        };
         let log_dir = opts
             .log_dir
             .clone()
@@ -472,6 +480,7 @@ impl RigIo {
             data_sock,
             pos_sock,
             serial,
+            posmv,
             log_dir,
             stamp,
             pcap_log,
@@ -527,6 +536,7 @@ struct Rings {
     ins: Box<Queue<InsItem, INS_RING>>,
     data_log: Box<Queue<UdpLogItem, DATA_LOG_RING>>,
     pos_log: Box<Queue<UdpLogItem, POSITION_RING>>,
+    posmv_log: Box<Queue<UdpLogItem, POSMV_LOG_RING>>,
     serial_log: Box<Queue<SerialChunk, SERIAL_LOG_RING>>,
 }
 
@@ -538,6 +548,7 @@ impl Rings {
             ins: Box::new(Queue::new()),
             data_log: Box::new(Queue::new()),
             pos_log: Box::new(Queue::new()),
+            posmv_log: Box::new(Queue::new()),
             serial_log: Box::new(Queue::new()),
         }
     }
@@ -559,6 +570,7 @@ fn run_threads(
     let (mut ins_p, mut ins_c) = rings.ins.split();
     let (dlog_p, dlog_c) = rings.data_log.split();
     let (plog_p, plog_c) = rings.pos_log.split();
+    let (ilog_p, ilog_c) = rings.posmv_log.split();
     let (slog_p, slog_c) = rings.serial_log.split();
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let (pool_tx, pool_rx) = crossbeam_channel::bounded::<Vec<Observation>>(64);
@@ -572,6 +584,7 @@ fn run_threads(
         data_sock,
         pos_sock,
         serial,
+        posmv,
         mut pcap_log,
         mut serial_log,
         ..
@@ -583,12 +596,18 @@ fn run_threads(
         let pos = spawn(sc, "udp-position", move || {
             udp_reader(pos_sock, pos_p, plog_p, accept, 1, sh, false)
         });
-        let ins = match serial {
-            Some((dev, src)) => Some(spawn(sc, "serial", move || {
+        let ins = match (serial, posmv) {
+            (Some((dev, src)), _) => Some(spawn(sc, "serial", move || {
                 let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
                 serial_reader(&dev, &plan.expected, src, frame, keep, ins_p, slog_p, sh)
             })),
-            None => {
+            (None, Some(sock)) => Some(spawn(sc, "udp-posmv", move || {
+                let b = &opts.board;
+                let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
+                let (group, leap) = (b.ins.posmv_group, b.leap_seconds);
+                posmv_reader(sock, frame, group, keep, leap, ins_p, ilog_p, sh)
+            })),
+            (None, None) => {
                 let _ = ins_p.enqueue(InsItem::End);
                 None
             }
@@ -597,7 +616,15 @@ fn run_threads(
         let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh));
         let logger = spawn(sc, "logger", move || {
             let sl = serial_log.as_mut();
-            logger(&mut pcap_log, sl, dlog_c, plog_c, slog_c, bind, to_sync, sh);
+            logger(
+                &mut pcap_log,
+                sl,
+                [dlog_c, plog_c, ilog_c],
+                slog_c,
+                bind,
+                to_sync,
+                sh,
+            );
             let mut files = pcap_log.files().to_vec();
             let mut n = [pcap_log.records, 0];
             if let Some(s) = &serial_log {

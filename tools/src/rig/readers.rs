@@ -137,3 +137,72 @@ pub(super) fn serial_reader(
     }
     feed.state()
 }
+
+/// A POS MV's Real-Time Data Port until the stop: every datagram to the log ring, its groups
+/// through the same [`PosmvFeed`](crate::pipeline::posmv::PosmvFeed) as a logged file, the
+/// poses onto the INS ring (dropped and counted when it is full). The GPS week comes from its
+/// Group 3 (select it on the port): poses before one are counted, not guessed.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn posmv_reader(
+    mut sock: UdpSource,
+    frame: &LocalFrame,
+    group: u16,
+    keep_unaligned: bool,
+    leap_seconds: i64,
+    mut ring: Producer<'_, InsItem>,
+    mut log: Producer<'_, UdpLogItem>,
+    sh: &Shared<'_>,
+) -> InsState {
+    use spherecal::posmv::Alignment;
+    use spherecal_hal::{PacketSource, Record};
+    let _alive = ReaderGuard(sh);
+    let port = sock.port();
+    let mut feed = crate::pipeline::posmv::PosmvFeed::new(
+        *frame,
+        group,
+        keep_unaligned,
+        MAX_INS_GAP_NS,
+        leap_seconds,
+        None,
+    );
+    {
+        let mut out = InsRing {
+            ring: &mut ring,
+            policy: Overflow::Drop,
+            full: &sh.ring_drops.ins,
+        };
+        while !sh.stop.load(Ordering::Relaxed) {
+            match sock.next_record() {
+                Ok(Some(Record::Udp(d))) => {
+                    sh.serial_bytes
+                        .fetch_add(d.payload.len() as u64, Ordering::Relaxed);
+                    enqueue(
+                        &mut log,
+                        UdpLogItem::new(&d),
+                        Overflow::Drop,
+                        &sh.ring_drops.datagram_log,
+                    );
+                    feed.feed(d.payload, Some(d.time), &mut out);
+                    // The status line's INS mode: tracking in full navigation.
+                    let mode = match feed.alignment() {
+                        Some(Alignment::FullNavigation) => 2,
+                        Some(Alignment::NoSolution) => 0,
+                        Some(_) => 1,
+                        None => continue,
+                    };
+                    sh.ins_mode.store(mode, Ordering::Relaxed);
+                }
+                Ok(Some(_)) => {}
+                Ok(None) => break,
+                Err(e) => {
+                    sh.error(format!("POS MV UDP port {port}: {e}"));
+                    break;
+                }
+            }
+        }
+    }
+    while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    feed.state()
+}

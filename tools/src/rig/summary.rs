@@ -194,7 +194,12 @@ pub fn render(s: &RunSummary) -> String {
             " (NOT trusted: not PPS-locked with valid RMCs)"
         }
     );
-    let _ = writeln!(o, "serial: {}", s.ins.describe());
+    let what = if s.ins.posmv.is_some() {
+        "POS MV"
+    } else {
+        "serial"
+    };
+    let _ = writeln!(o, "{what}: {}", s.ins.describe());
     let _ = writeln!(
         o,
         "time offset applied at the end: {:+.6} s (INS time = LiDAR time + this)",
