@@ -190,7 +190,7 @@ impl<'w, 'a> InsSim<'w, 'a> {
         let whole_second = first || gps_tow_ns % 1_000_000_000 < self.period_ns;
         if whole_second {
             let second = TimeFields {
-                time1: utc_sow.floor(),
+                time1: libm::floor(utc_sow),
                 ..time
             };
             n += GnssStatus {
@@ -223,7 +223,8 @@ impl<'w, 'a> InsSim<'w, 'a> {
             }
             .emit(&mut out[n..])?;
         }
-        let heading = rph[2].to_degrees().rem_euclid(360.0);
+        let h = rph[2].to_degrees();
+        let heading = h - 360.0 * libm::floor(h / 360.0);
         n += Navigation {
             time,
             lla: [g.lat.to_degrees(), g.lon.to_degrees(), g.h],
