@@ -1,8 +1,11 @@
-//! Any bytes as a VLP-16 data or position packet: views, Repr parsing and decoding.
+//! Any bytes as a Velodyne data or position packet: views, Repr parsing and decoding as the
+//! product byte says and as every model.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal::velodyne::{decode, DataPacket, DataRepr, PointBuf, PositionPacket, PositionRepr};
+use spherecal::velodyne::{
+    decode, decode_as, DataPacket, DataRepr, Model, PointBuf, PositionPacket, PositionRepr,
+};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(p) = DataPacket::new_checked(data) {
@@ -11,6 +14,15 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(n, out.len());
             for pt in out.as_slice() {
                 assert!(pt.x.is_finite() && pt.y.is_finite() && pt.z.is_finite());
+            }
+        }
+        for m in Model::ALL {
+            if let Ok(n) = decode_as(&p, m, &mut out) {
+                assert_eq!(n, out.len());
+                for pt in out.as_slice() {
+                    assert!(pt.x.is_finite() && pt.y.is_finite() && pt.z.is_finite());
+                    assert!(usize::from(pt.laser) < m.lasers());
+                }
             }
         }
         if let Ok(repr) = DataRepr::parse(&p) {

@@ -317,6 +317,14 @@ impl RunStats {
                     st.describe()
                 ));
             }
+            if let Some(p) = &st.posmv {
+                return Some(format!(
+                    "{}: no usable POS MV pose in {} bytes ({})",
+                    ins.display(),
+                    st.bytes,
+                    p.describe()
+                ));
+            }
             if sbet {
                 return Some(format!(
                     "{}: no valid SBET record in {} bytes ({} records of 136 bytes, {} of them out of range or not finite): it looks like {}",
