@@ -1,5 +1,5 @@
 //! spherecal core: decoding, alignment, georeferencing and calibration of a mobile LiDAR rig
-//! (Velodyne VLP-16 + VectorNav VN-200 or Applanix POS MV).
+//! (Velodyne VLP-16 / Puck Hi-Res / HDL-32E / VLP-32C + VectorNav VN-200 or Applanix POS MV).
 //!
 //! `#![no_std]`, no heap, no I/O, no clocks: every function here is pure logic over borrowed
 //! bytes and fixed-capacity buffers, and no input makes it panic. See `docs/DESIGN.md`

@@ -194,12 +194,11 @@ pub fn render(s: &RunSummary) -> String {
             " (NOT trusted: not PPS-locked with valid RMCs)"
         }
     );
-    let what = if s.ins.posmv.is_some() {
-        "POS MV"
+    if s.ins.posmv.is_some() {
+        let _ = writeln!(o, "{}", s.ins.describe());
     } else {
-        "serial"
-    };
-    let _ = writeln!(o, "{what}: {}", s.ins.describe());
+        let _ = writeln!(o, "serial: {}", s.ins.describe());
+    }
     let _ = writeln!(
         o,
         "time offset applied at the end: {:+.6} s (INS time = LiDAR time + this)",
