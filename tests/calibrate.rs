@@ -128,14 +128,7 @@ fn table1_quay_from_the_papers_start() {
     assert!(out.contains("clutter rejected: "), "{out}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    let got = [
-        r["boresight_deg"]["roll"].as_f64().unwrap(),
-        r["boresight_deg"]["pitch"].as_f64().unwrap(),
-        r["boresight_deg"]["heading"].as_f64().unwrap(),
-        r["lever_arm_m"]["x"].as_f64().unwrap(),
-        r["lever_arm_m"]["y"].as_f64().unwrap(),
-        r["lever_arm_m"]["z"].as_f64().unwrap(),
-    ];
+    let got = common::report_deg_m(&r);
     common::assert_within(&got, &truth(&s), 1e-3, "table1");
     assert_eq!(r["converged"], true);
     assert_eq!(
@@ -446,14 +439,7 @@ fn table1_quay_with_every_model() {
             serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
         assert_eq!(r["converged"], true, "{model}: {}", r["reason"]);
         assert_eq!(r["inputs"]["lidar_model"], model.name());
-        let got = [
-            r["boresight_deg"]["roll"].as_f64().unwrap(),
-            r["boresight_deg"]["pitch"].as_f64().unwrap(),
-            r["boresight_deg"]["heading"].as_f64().unwrap(),
-            r["lever_arm_m"]["x"].as_f64().unwrap(),
-            r["lever_arm_m"]["y"].as_f64().unwrap(),
-            r["lever_arm_m"]["z"].as_f64().unwrap(),
-        ];
+        let got = common::report_deg_m(&r);
         eprintln!("{model}: {got:?}");
         common::assert_within(&got, &truth(&s), 1e-3, model.name());
         assert!(r["time_offset_s"].as_f64().unwrap().abs() < 1e-3);

@@ -127,14 +127,7 @@ fn calibrate(dir: &Path, posmv: &Path, extra: &[&str]) -> (serde_json::Value, St
 
 fn assert_truth(r: &serde_json::Value, text: &str, dt: f64) {
     assert_eq!(r["converged"], true, "{text}");
-    let got = [
-        r["boresight_deg"]["roll"].as_f64().unwrap(),
-        r["boresight_deg"]["pitch"].as_f64().unwrap(),
-        r["boresight_deg"]["heading"].as_f64().unwrap(),
-        r["lever_arm_m"]["x"].as_f64().unwrap(),
-        r["lever_arm_m"]["y"].as_f64().unwrap(),
-        r["lever_arm_m"]["z"].as_f64().unwrap(),
-    ];
+    let got = common::report_deg_m(r);
     common::assert_within(
         &got,
         &[179.5, -44.9, 1.2, 1.5, -1.24, -1.36],

@@ -257,26 +257,19 @@ fn table1_through_the_rig() {
         Speed::Factor(1.0),
     )
     .unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    rig.signal(nix::sys::signal::Signal::SIGINT);
-    let (code, lines, err) = rig.wait(Duration::from_secs(60));
-    eprintln!("{}\n{err}", lines.join("\n"));
-    assert_eq!(code, Some(0), "{err}");
+    let (lines, _) = interrupt_after_replay(rig);
     drop(slave);
 
     // The report recovers the truth.
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
-    let t = &s.mount.truth;
-    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
-        let got = rep["boresight_deg"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
-    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
-        let got = rep["lever_arm_m"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
+    common::assert_within(
+        &common::report_deg_m(&rep),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        &s.name,
+    );
     let dt = rep["time_offset_s"].as_f64().unwrap();
     assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
     // The status line showed it, and the verdict: ready (noise-free table1 against the board's
@@ -455,7 +448,10 @@ fn table1_through_the_rig() {
         .calibration
         .expect("the last line shows the calibration")
         .0;
-    assert!((cal[0] - t.boresight_deg[0]).abs() < 2e-3, "{cal:?}");
+    assert!(
+        (cal[0] - s.mount.truth.boresight_deg[0]).abs() < 2e-3,
+        "{cal:?}"
+    );
     assert_eq!(last.windows.len(), 2);
     assert!(last.windows.iter().all(|w| w.1 > 1000), "{last:?}");
     let _ = std::fs::remove_dir_all(&dir);
@@ -476,6 +472,17 @@ fn dir_ins(pcap: &Path) -> PathBuf {
 }
 
 /// Read the rig's lines for `secs`, then SIGTERM it and wait: exit code, lines, stderr.
+/// SIGINT 1.5 s after a replay ended (the aligner's INS wait and the last solve): the rig must
+/// stop cleanly. Its status lines and stderr.
+fn interrupt_after_replay(rig: Rig) -> (Vec<String>, String) {
+    std::thread::sleep(Duration::from_millis(1500));
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(60));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    (lines, err)
+}
+
 fn stop_after(mut rig: Rig, secs: u64) -> (Option<i32>, Vec<String>, String) {
     let t = Instant::now();
     while t.elapsed() < Duration::from_secs(secs) {
@@ -499,6 +506,35 @@ fn start_rig(dir: &Path, dp: u16, pp: u16, slave: &str, site: bool) -> Rig {
 }
 
 /// `start_rig` with edits to the board.
+/// The rig with the site, a report at `dir/run-report.json`, and the serial device if any.
+fn start_rig_reporting(
+    dir: &Path,
+    dp: u16,
+    pp: u16,
+    slave: Option<&str>,
+    edits: &[(&str, &str)],
+) -> Rig {
+    let board = board_with(dir, dp, pp, edits);
+    let mut args: Vec<std::ffi::OsString> = vec![
+        "--board".into(),
+        board.into(),
+        "--site".into(),
+        dir.join("site.toml").into(),
+        "--log-dir".into(),
+        dir.join("logs").into(),
+        "--report".into(),
+        dir.join("run-report.json").into(),
+        "--duration".into(),
+        "600".into(),
+    ];
+    if let Some(dev) = slave {
+        args.push("--serial".into());
+        args.push(dev.into());
+    }
+    let refs: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
+    Rig::start(&refs)
+}
+
 fn start_rig_with(
     dir: &Path,
     dp: u16,
@@ -527,9 +563,6 @@ fn start_rig_with(
     Rig::start(&refs)
 }
 
-/// Overload: the capture replayed ten times as fast as loopback takes it. Whatever is lost is
-/// counted where it is lost: sent = received + kernel drops on each socket, received =
-/// enqueued + ring drops + skipped, and the aligner and the logger account for every item.
 /// An HDL-32E (table1's quay, 1808 packets/s) through the rig with no model on its board: the
 /// rig hears "HDL-32E (0x21)", decodes it as one (product byte and period agree) and
 /// calibrates to the truth; replayed at twice real time.
@@ -547,22 +580,8 @@ fn hdl32e_through_the_rig() {
         ..
     } = setup("rig-hdl32e", &s, dp, pp);
     let slave_name = slave.name().unwrap();
-    let board = board(&dir, dp, pp);
     let report = dir.join("run-report.json");
-    let rig = Rig::start(&[
-        "--board".as_ref(),
-        board.as_os_str(),
-        "--serial".as_ref(),
-        slave_name.as_ref(),
-        "--site".as_ref(),
-        dir.join("site.toml").as_os_str(),
-        "--log-dir".as_ref(),
-        dir.join("logs").as_os_str(),
-        "--report".as_ref(),
-        report.as_os_str(),
-        "--duration".as_ref(),
-        "600".as_ref(),
-    ]);
+    let rig = start_rig_reporting(&dir, dp, pp, Some(&slave_name), &[]);
     replay_both(
         dir.join("lidar.pcap"),
         to,
@@ -570,11 +589,7 @@ fn hdl32e_through_the_rig() {
         Speed::Factor(2.0),
     )
     .unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    rig.signal(nix::sys::signal::Signal::SIGINT);
-    let (code, lines, err) = rig.wait(Duration::from_secs(60));
-    eprintln!("{}\n{err}", lines.join("\n"));
-    assert_eq!(code, Some(0), "{err}");
+    let (lines, err) = interrupt_after_replay(rig);
     drop(slave);
     let all = format!("{}\n{err}", lines.join("\n"));
     assert!(all.contains("HDL-32E or an early VLP-16 (0x21)"), "{all}");
@@ -582,15 +597,12 @@ fn hdl32e_through_the_rig() {
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
-    let t = &s.mount.truth;
-    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
-        let got = rep["boresight_deg"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
-    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
-        let got = rep["lever_arm_m"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
+    common::assert_within(
+        &common::report_deg_m(&rep),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        &s.name,
+    );
 }
 
 /// A vessel with a POS MV (table1's quay, its clock 20 ms late): its real-time groups over UDP
@@ -606,51 +618,24 @@ fn posmv_vessel_through_the_rig() {
     s.name = "table1-posmv".into();
     let (dp, pp, ip) = (23_795, 23_796, 23_797);
     let Setup { dir, .. } = setup("rig-posmv", &s, dp, pp);
-    let board = board_with(
-        &dir,
-        dp,
-        pp,
-        &[(
-            "kind = \"vn200\"",
-            &format!("kind = \"posmv\"\nudp_port = {ip}\nposmv_group = 1"),
-        )],
-    );
-    let report = dir.join("run-report.json");
-    let logs = dir.join("logs");
-    let rig = Rig::start(&[
-        "--board".as_ref(),
-        board.as_os_str(),
-        "--site".as_ref(),
-        dir.join("site.toml").as_os_str(),
-        "--log-dir".as_ref(),
-        logs.as_os_str(),
-        "--report".as_ref(),
-        report.as_os_str(),
-        "--duration".as_ref(),
-        "600".as_ref(),
-    ]);
+    let posmv = format!("kind = \"posmv\"\nudp_port = {ip}\nposmv_group = 1");
+    let rig = start_rig_reporting(&dir, dp, pp, None, &[("kind = \"vn200\"", &posmv)]);
+    let (report, logs) = (dir.join("run-report.json"), dir.join("logs"));
     let to = Target {
         host: Ipv4Addr::LOCALHOST,
         ports: [(2368, dp), (8308, pp), (5602, ip)],
     };
     let (sent, _) = replay_both(dir.join("lidar.pcap"), to, None, Speed::Factor(2.0)).unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
-    rig.signal(nix::sys::signal::Signal::SIGINT);
-    let (code, lines, err) = rig.wait(Duration::from_secs(60));
-    eprintln!("{}\n{err}", lines.join("\n"));
-    assert_eq!(code, Some(0), "{err}");
+    interrupt_after_replay(rig);
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
-    let t = &s.mount.truth;
-    for (k, want) in ["roll", "pitch", "heading"].iter().zip(t.boresight_deg) {
-        let got = rep["boresight_deg"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
-    for (k, want) in ["x", "y", "z"].iter().zip(t.lever_arm_m) {
-        let got = rep["lever_arm_m"][k].as_f64().unwrap();
-        assert!((got - want).abs() < 1e-3, "{k}: {got} vs {want}");
-    }
+    common::assert_within(
+        &common::report_deg_m(&rep),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        &s.name,
+    );
     let dt = rep["time_offset_s"].as_f64().unwrap();
     assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
     // Every datagram logged, the POS MV's among them; its groups counted in the summary.
@@ -670,6 +655,9 @@ fn posmv_vessel_through_the_rig() {
     );
 }
 
+/// Overload: the capture replayed ten times as fast as loopback takes it. Whatever is lost is
+/// counted where it is lost: sent = received + kernel drops on each socket, received =
+/// enqueued + ring drops + skipped, and the aligner and the logger account for every item.
 #[test]
 fn overload_every_drop_is_counted() {
     let (dp, pp) = (23_720, 23_721);

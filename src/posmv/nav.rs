@@ -155,6 +155,38 @@ fn f32x3(d: &[u8], at: usize) -> [f32; 3] {
     [f32_at(d, at), f32_at(d, at + 4), f32_at(d, at + 8)]
 }
 
+/// Position, velocity, attitude and wander angle: the first 68 data bytes of Groups 1 and
+/// 102/103 (Tables 4 and 29 share them).
+type Pva = ([f64; 3], [f32; 3], [f64; 3], f64);
+
+fn read_pva(d: &[u8]) -> Pva {
+    (
+        [f64_at(d, 0), f64_at(d, 8), f64_at(d, 16)],
+        f32x3(d, 24),
+        [f64_at(d, 36), f64_at(d, 44), f64_at(d, 52)],
+        f64_at(d, 60),
+    )
+}
+
+fn write_pva(d: &mut [u8], (lla, velocity, rph, wander): Pva) {
+    for (i, v) in lla.iter().enumerate() {
+        put_f64(d, 8 * i, *v);
+    }
+    for (i, v) in velocity.iter().enumerate() {
+        put_f32(d, 24 + 4 * i, *v);
+    }
+    for (i, v) in rph.iter().enumerate() {
+        put_f64(d, 36 + 8 * i, *v);
+    }
+    put_f64(d, 60, wander);
+}
+
+fn write_f32s(d: &mut [u8], at: usize, v: &[f32]) {
+    for (i, x) in v.iter().enumerate() {
+        put_f32(d, at + 4 * i, *x);
+    }
+}
+
 /// Group 1: the vessel's (reference point's) position, velocity, attitude and dynamics.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Navigation {
@@ -189,12 +221,13 @@ impl Navigation {
     pub fn parse<T: AsRef<[u8]>>(g: &Group<T>) -> Result<Self, Error> {
         check(g, &[Self::ID], Self::BYTE_COUNT)?;
         let d = g.data();
+        let (lla, velocity, rph, wander) = read_pva(d);
         Ok(Self {
             time: g.time_fields(),
-            lla: [f64_at(d, 0), f64_at(d, 8), f64_at(d, 16)],
-            velocity: f32x3(d, 24),
-            rph: [f64_at(d, 36), f64_at(d, 44), f64_at(d, 52)],
-            wander: f64_at(d, 60),
+            lla,
+            velocity,
+            rph,
+            wander,
             track_speed: [f32_at(d, 68), f32_at(d, 72)],
             rate: f32x3(d, 76),
             accel: f32x3(d, 88),
@@ -205,24 +238,10 @@ impl Navigation {
     /// Write the group into `out`; its length (140), or `None` if `out` is too short.
     pub fn emit(&self, out: &mut [u8]) -> Option<usize> {
         let mut d = [0u8; 101];
-        for (i, v) in self.lla.iter().enumerate() {
-            put_f64(&mut d, 8 * i, *v);
-        }
-        for (i, v) in self.velocity.iter().enumerate() {
-            put_f32(&mut d, 24 + 4 * i, *v);
-        }
-        for (i, v) in self.rph.iter().enumerate() {
-            put_f64(&mut d, 36 + 8 * i, *v);
-        }
-        put_f64(&mut d, 60, self.wander);
-        put_f32(&mut d, 68, self.track_speed[0]);
-        put_f32(&mut d, 72, self.track_speed[1]);
-        for (i, v) in self.rate.iter().enumerate() {
-            put_f32(&mut d, 76 + 4 * i, *v);
-        }
-        for (i, v) in self.accel.iter().enumerate() {
-            put_f32(&mut d, 88 + 4 * i, *v);
-        }
+        write_pva(&mut d, (self.lla, self.velocity, self.rph, self.wander));
+        write_f32s(&mut d, 68, &self.track_speed);
+        write_f32s(&mut d, 76, &self.rate);
+        write_f32s(&mut d, 88, &self.accel);
         d[100] = self.alignment.to_byte();
         emit_group(Self::ID, &self.time, &d, out)
     }
@@ -259,13 +278,14 @@ impl SensorNavigation {
     pub fn parse<T: AsRef<[u8]>>(g: &Group<T>) -> Result<Self, Error> {
         check(g, &[102, 103], Self::BYTE_COUNT)?;
         let d = g.data();
+        let (lla, velocity, rph, wander) = read_pva(d);
         Ok(Self {
             id: g.id(),
             time: g.time_fields(),
-            lla: [f64_at(d, 0), f64_at(d, 8), f64_at(d, 16)],
-            velocity: f32x3(d, 24),
-            rph: [f64_at(d, 36), f64_at(d, 44), f64_at(d, 52)],
-            wander: f64_at(d, 60),
+            lla,
+            velocity,
+            rph,
+            wander,
             heave: f32_at(d, 68),
             rate: f32x3(d, 72),
             accel: f32x3(d, 84),
@@ -275,23 +295,10 @@ impl SensorNavigation {
     /// Write the group; its length (136).
     pub fn emit(&self, out: &mut [u8]) -> Option<usize> {
         let mut d = [0u8; 96];
-        for (i, v) in self.lla.iter().enumerate() {
-            put_f64(&mut d, 8 * i, *v);
-        }
-        for (i, v) in self.velocity.iter().enumerate() {
-            put_f32(&mut d, 24 + 4 * i, *v);
-        }
-        for (i, v) in self.rph.iter().enumerate() {
-            put_f64(&mut d, 36 + 8 * i, *v);
-        }
-        put_f64(&mut d, 60, self.wander);
+        write_pva(&mut d, (self.lla, self.velocity, self.rph, self.wander));
         put_f32(&mut d, 68, self.heave);
-        for (i, v) in self.rate.iter().enumerate() {
-            put_f32(&mut d, 72 + 4 * i, *v);
-        }
-        for (i, v) in self.accel.iter().enumerate() {
-            put_f32(&mut d, 84 + 4 * i, *v);
-        }
+        write_f32s(&mut d, 72, &self.rate);
+        write_f32s(&mut d, 84, &self.accel);
         emit_group(self.id, &self.time, &d, out)
     }
 }
@@ -339,9 +346,7 @@ impl Metrics {
             self.attitude_rms,
             self.ellipse,
         ];
-        for (i, v) in all.iter().flatten().enumerate() {
-            put_f32(&mut d, 4 * i, *v);
-        }
+        write_f32s(&mut d, 0, all.as_flattened());
         emit_group(Self::ID, &self.time, &d, out)
     }
 }

@@ -76,6 +76,20 @@ pub fn survey_args(dir: &std::path::Path) -> Vec<std::ffi::OsString> {
 
 /// Every one of the six parameters (roll, pitch, heading [deg], x, y, z [m]) within `tol` of
 /// the truth, naming the first that is not.
+/// A JSON report's six: boresight roll, pitch, heading [deg], lever arm x, y, z [m].
+pub fn report_deg_m(r: &serde_json::Value) -> [f64; 6] {
+    let b = &r["boresight_deg"];
+    let l = &r["lever_arm_m"];
+    [
+        b["roll"].as_f64().unwrap(),
+        b["pitch"].as_f64().unwrap(),
+        b["heading"].as_f64().unwrap(),
+        l["x"].as_f64().unwrap(),
+        l["y"].as_f64().unwrap(),
+        l["z"].as_f64().unwrap(),
+    ]
+}
+
 pub fn assert_within(got: &[f64; 6], want: &[f64; 6], tol: f64, what: &str) {
     for i in 0..6 {
         assert!(

@@ -132,10 +132,15 @@ pub(super) fn serial_reader(
         Ok(InsEnd::SourceEnded) => sh.error(format!("serial {dev}: the stream ended")),
         Err(e) => sh.error(format!("serial {dev}: {e}")),
     }
+    end_ins(&mut ring, sh);
+    feed.state()
+}
+
+/// End the INS ring: wait for room for the End, unless the aligner is gone.
+fn end_ins(ring: &mut Producer<'_, InsItem>, sh: &Shared<'_>) {
     while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
-    feed.state()
 }
 
 /// A POS MV's Real-Time Data Port until the stop: every datagram to the log ring, its groups
@@ -201,8 +206,6 @@ pub(super) fn posmv_reader(
             }
         }
     }
-    while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    end_ins(&mut ring, sh);
     feed.state()
 }
