@@ -1214,8 +1214,8 @@ fn sphere_reports(
 }
 
 /// The quality checks on a least-squares answer: the weak parameters, then the first reason
-/// to refuse it — not converged, ill-conditioned, residuals over-dispersed against the noise
-/// model, a held time offset the data contradict, a pass inconsistent with the others.
+/// to refuse it — a held time offset the data contradict, not converged, ill-conditioned,
+/// residuals over-dispersed against the noise model, a pass inconsistent with the others.
 fn checks(
     targets: &[Target],
     obs: &[&mut [Observation]],
@@ -1237,7 +1237,15 @@ fn checks(
         let d = (f - dt).abs();
         d > s.held_dt_floor && d > s.held_dt_sigmas * sg
     });
-    if !lm.converged {
+    // A held offset the data contradict comes first: it is the cause, and the mounting fitted
+    // around it may fail to converge or fit badly only because of it.
+    if let Some((found, sigma)) = contradicted {
+        Some(Refusal::TimeOffsetContradicted {
+            held: dt,
+            found,
+            sigma,
+        })
+    } else if !lm.converged {
         Some(Refusal::NotConverged {
             iterations: lm.iterations,
         })
@@ -1250,12 +1258,6 @@ fn checks(
         Some(Refusal::OverDispersed {
             rms: lm.rms,
             predicted,
-        })
-    } else if let Some((found, sigma)) = contradicted {
-        Some(Refusal::TimeOffsetContradicted {
-            held: dt,
-            found,
-            sigma,
         })
     } else {
         worst

@@ -355,7 +355,17 @@ fn write_rows(
         line.push(b',');
         push_fixed(line, f64::from(p.azimuth).to_degrees(), 4);
         line.push(b',');
+        // The table's value as the manual prints it: whole degrees without decimals.
+        let start = line.len();
         push_fixed(line, model.beam(p.laser()).elevation_deg, 3);
+        if line[start..].contains(&b'.') {
+            while line.last() == Some(&b'0') {
+                line.pop();
+            }
+            if line.last() == Some(&b'.') {
+                line.pop();
+            }
+        }
         line.push(b',');
         push_u64(line, mm / 1000);
         line.push(b'.');

@@ -61,10 +61,10 @@ pub fn run(a: Args) -> ExitCode {
     match crate::synth::synth(&s, &out) {
         Ok(t) => {
             sayln!(
-                "{} ({}): {:.1} s of scanning, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
+                "{}: {:.1} s of scanning with a {}, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
                 s.name,
-                s.model().unwrap_or_default(),
                 s.duration_s(),
+                s.model().unwrap_or_default(),
                 t.data_packets,
                 t.position_packets,
                 t.ins_frames,
