@@ -563,56 +563,17 @@ fn start_rig_with(
     Rig::start(&refs)
 }
 
-/// An HDL-32E (table1's quay, 1808 packets/s) through the rig with no model on its board: the
-/// rig hears "HDL-32E (0x21)", decodes it as one (product byte and period agree) and
-/// calibrates to the truth; replayed at twice real time.
+/// A vessel with an HDL-32E and a POS MV (table1's quay, the POS MV's clock 20 ms late): its
+/// real-time groups over UDP beside the LiDAR's datagrams (1808 data packets/s), replayed at
+/// four times real time into `spherecal run` with `[ins] kind = "posmv"` and no model on the
+/// board. The rig hears "HDL-32E (0x21)" and decodes it as one (product byte and period
+/// agree), dates the POS MV's groups by their Group 3, calibrates to the truth with the time
+/// offset, logs the POS MV's datagrams with the LiDAR's (a replayable folder), and its summary
+/// says what the POS MV sent.
 #[test]
-fn hdl32e_through_the_rig() {
+fn hdl32e_and_posmv_vessel_through_the_rig() {
     let mut s = table1();
     s.lidar.model = "hdl32e".into();
-    s.name = "table1-hdl32e".into();
-    let (dp, pp) = (23_790, 23_791);
-    let Setup {
-        dir,
-        mut master,
-        slave,
-        to,
-        ..
-    } = setup("rig-hdl32e", &s, dp, pp);
-    let slave_name = slave.name().unwrap();
-    let report = dir.join("run-report.json");
-    let rig = start_rig_reporting(&dir, dp, pp, Some(&slave_name), &[]);
-    replay_both(
-        dir.join("lidar.pcap"),
-        to,
-        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
-        Speed::Factor(2.0),
-    )
-    .unwrap();
-    let (lines, err) = interrupt_after_replay(rig);
-    drop(slave);
-    let all = format!("{}\n{err}", lines.join("\n"));
-    assert!(all.contains("HDL-32E or an early VLP-16 (0x21)"), "{all}");
-    assert!(!all.contains("not aligned unless"), "{all}");
-    let rep: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(rep["converged"], true, "{rep}");
-    common::assert_within(
-        &common::report_deg_m(&rep),
-        &s.mount.truth.deg_m().0,
-        1e-3,
-        &s.name,
-    );
-}
-
-/// A vessel with a POS MV (table1's quay, its clock 20 ms late): its real-time groups over UDP
-/// beside the LiDAR's datagrams, replayed at twice real time into `spherecal run` with
-/// `[ins] kind = "posmv"`. The rig dates them by their Group 3, calibrates to the truth with
-/// the time offset, logs the POS MV's datagrams with the LiDAR's (a replayable folder), and
-/// its summary says what the POS MV sent.
-#[test]
-fn posmv_vessel_through_the_rig() {
-    let mut s = table1();
     s.ins.kind = "posmv".into();
     s.ins.time_offset_s = 0.02;
     s.name = "table1-posmv".into();
@@ -625,8 +586,11 @@ fn posmv_vessel_through_the_rig() {
         host: Ipv4Addr::LOCALHOST,
         ports: [(2368, dp), (8308, pp), (5602, ip)],
     };
-    let (sent, _) = replay_both(dir.join("lidar.pcap"), to, None, Speed::Factor(2.0)).unwrap();
-    interrupt_after_replay(rig);
+    let (sent, _) = replay_both(dir.join("lidar.pcap"), to, None, Speed::Factor(4.0)).unwrap();
+    let (lines, err) = interrupt_after_replay(rig);
+    let all = format!("{}\n{err}", lines.join("\n"));
+    assert!(all.contains("HDL-32E or an early VLP-16 (0x21)"), "{all}");
+    assert!(!all.contains("not aligned unless"), "{all}");
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
