@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-say() { printf '\n== %s\n' "$*"; }
+say() { printf '\n== %s (%d s in)\n' "$*" "$SECONDS"; }
 
 say "set-up"
 rustup component add rustfmt clippy >/dev/null 2>&1 || echo "warning: could not add rustfmt/clippy components"
@@ -31,12 +31,12 @@ say "clippy (all targets, warnings are errors)"
 cargo clippy --workspace --all-targets -- -D warnings
 
 say "core builds as no_std for the bare-metal target"
-cargo build -p spherecal --no-default-features
 if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
   cargo build -p spherecal --no-default-features --target "$THUMB"
   cargo build -p spherecal --no-default-features --features sim --target "$THUMB"
 else
-  echo "warning: skipped: $THUMB is not installed"
+  echo "warning: $THUMB is not installed: the no_std core is built for this machine instead"
+  cargo build -p spherecal --no-default-features
 fi
 
 say "doc tests (nextest does not run them)"
@@ -45,7 +45,7 @@ cargo test --workspace --doc -q
 say "tests"
 $RUNNER
 
-say "fuzzing: build every target, run each for ${FUZZ_SECONDS:-20} s from the committed corpus"
+say "fuzzing: build every target, run each for ${FUZZ_SECONDS:-10} s from the committed corpus"
 if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
 fi
@@ -59,7 +59,7 @@ if cargo fuzz --version >/dev/null 2>&1; then
     mkdir -p "$work/$t"
     # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
     if ! (cd fuzz && cargo fuzz run -O "$t" "$work/$t" "seeds/$t" -- \
-        -max_total_time="${FUZZ_SECONDS:-20}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
+        -max_total_time="${FUZZ_SECONDS:-10}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
       grep -A8 "panicked at" "$work/$t.log" | cut -c1-400 || true
       tail -20 "$work/$t.log" | cut -c1-400
       echo "error: fuzz target $t failed (reproducer in fuzz/artifacts/$t)" >&2
@@ -70,3 +70,4 @@ if cargo fuzz --version >/dev/null 2>&1; then
 else
   echo "warning: skipped: cargo-fuzz is not installed"
 fi
+say "done"

@@ -3,6 +3,9 @@
 use super::*;
 use spherecal::calib::Params;
 
+/// Anything that arrived is solved with at most this long after the last solve [s].
+pub(super) const RESOLVE_S: u64 = 5;
+
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solver(
     rx: crossbeam_channel::Receiver<BatchMsg>,
@@ -118,9 +121,13 @@ pub(super) fn solver(
         }
         // Solve when every sphere has enough returns, then again each time the store has
         // grown by a quarter over what the last solve left in it (a converged solve prunes
-        // it), at most once a second; and at the end if anything arrived since.
-        let due = last_solve.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
-        if ready && due && total * 4 >= last_total * 5 && total > last_total {
+        // it), at most once a second, or when anything arrived in the [`RESOLVE_S`] since the
+        // last solve (passes at long range add few returns: they must count too); and at the
+        // end if anything arrived since.
+        let since = last_solve.map(|t| t.elapsed());
+        let due = since.is_none_or(|e| e >= Duration::from_secs(1));
+        let stale = since.is_none_or(|e| e >= Duration::from_secs(RESOLVE_S));
+        if ready && due && total > last_total && (total * 4 >= last_total * 5 || stale) {
             latest = Some(solve(&mut store, &mut start, &mut store_offset));
             last_total = store.iter().map(Vec::len).sum();
             last_solve = Some(Instant::now());
