@@ -52,13 +52,15 @@ fi
 if cargo fuzz --version >/dev/null 2>&1; then
   # cargo-fuzz needs nightly flags; RUSTC_BOOTSTRAP lets the stable toolchain take them.
   export RUSTC_BOOTSTRAP=1
-  (cd fuzz && cargo fuzz build -O)
+  # No sanitizer: the code under test is safe Rust (forbid(unsafe_code)); libFuzzer's
+  # coverage guidance and the panics are what find bugs here, 10-30x faster without ASan.
+  (cd fuzz && cargo fuzz build -O -s none)
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT
   for t in $(cd fuzz && cargo fuzz list); do
     mkdir -p "$work/$t"
     # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
-    if ! (cd fuzz && cargo fuzz run -O "$t" "$work/$t" "seeds/$t" -- \
+    if ! (cd fuzz && cargo fuzz run -O -s none "$t" "$work/$t" "seeds/$t" -- \
         -max_total_time="${FUZZ_SECONDS:-10}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
       grep -A8 "panicked at" "$work/$t.log" | cut -c1-400 || true
       tail -20 "$work/$t.log" | cut -c1-400

@@ -10,7 +10,7 @@ use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{Inputs, InsInput};
-use spherecal_tools::verdict::{assess, coverage, Targets};
+use spherecal_tools::verdict::{assess, coverage, predicted_sigma, Targets};
 
 #[test]
 fn verdict_turns_ready_with_the_passes_that_make_it() {
@@ -52,7 +52,25 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
             .collect();
         let (sol, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
         let cov = coverage(&ids, &obs, &sol);
-        let v = assess(&rep, &cov, &goal);
+        let predicted = predicted_sigma(&targets, &obs, &sol, &settings, s.ins.rate_hz);
+        let v = assess(&rep, &cov, &goal, Some(&predicted));
+        // Once claimed, the prediction from the kept returns' geometry agrees with the
+        // solution's own (cluster-robust) sigma: the noise model is the site's, the data's
+        // scatter the simulator's.
+        if rep.converged {
+            let reported = rep.sigma.deg_m();
+            for i in 0..6 {
+                let r = predicted[i] / reported[i];
+                eprintln!(
+                    "until {until} s: {} predicted / reported {r:.2}",
+                    spherecal::calib::NAMES[i]
+                );
+                assert!(
+                    (0.7..1.4).contains(&r),
+                    "until {until} s: parameter {i}: {r}"
+                );
+            }
+        }
         eprintln!(
             "until {until} s: ready {} sigma {:?}: {:?}",
             v.ready,

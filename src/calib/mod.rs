@@ -15,6 +15,7 @@ pub mod extract;
 pub mod lm;
 pub mod nelder_mead;
 pub mod objective;
+pub mod predict;
 pub mod solve;
 pub mod sphere_fit;
 

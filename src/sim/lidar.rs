@@ -99,6 +99,9 @@ pub struct LidarConfig {
     pub clutter_keep: f64,
     /// Cull with the broad phase (false: every firing against every object; for tests).
     pub cull: bool,
+    /// Trace only the firings that can hit a target sphere (against everything, so that what
+    /// hides a sphere still does): the survey planner's geometry, a fraction of the work.
+    pub targets_only: bool,
     /// Seed of what the tracing draws (the water's glints): the scene's, not the noise's, so
     /// that one trace serves every noise seed.
     pub trace_seed: u64,
@@ -129,6 +132,7 @@ impl Default for LidarConfig {
             range_walk: 0.0,
             clutter_keep: 1.0,
             cull: true,
+            targets_only: false,
             trace_seed: 0x5CE7E,
             clock_offset_ns: 0,
             pps: PpsStatus::Locked,
@@ -459,6 +463,21 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         GpsTime(self.world.start.0 + (ns + 500).div_euclid(1000) * 1000)
     }
 
+    /// Run only data packets `first..end` (from the broad phase's cache boundary at or before
+    /// `first`): one pass of a survey, or one share of it per thread. The data packets keep
+    /// their times, seeds aside (the noise draws start anew).
+    pub fn restrict(&mut self, first: u64, end: u64) {
+        self.packets = end.min(self.packets);
+        self.k = (first - first % CACHE_PACKETS).min(self.packets);
+        let unix = gps_to_unix_ns(self.packet_time(self.k), self.world.leap_seconds);
+        self.next_position_s = unix.div_euclid(1_000_000_000) + 1;
+    }
+
+    /// The first data packet at or after trajectory time `t` [s].
+    pub fn packet_at(&self, t: f64) -> u64 {
+        ((t * 1e9 / self.period_ns as f64).ceil().max(0.0) as u64).min(self.packets)
+    }
+
     /// The sensor's timestamp of a true GPS time: microseconds past its hour, on its clock.
     fn stamp(&self, t: GpsTime) -> u32 {
         micros_past_hour(
@@ -726,6 +745,17 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 let u = beam_unit(model.beam(laser), sa, ca);
                 let glint = glints && u.dot(&nadir_l) >= self.glint_cos;
                 if near.is_empty() && !glint {
+                    continue;
+                }
+                if self.cfg.targets_only
+                    && !near.iter().any(|&k| {
+                        let obj = usize::from(self.live[usize::from(k)].obj);
+                        self.world
+                            .objects
+                            .get(obj)
+                            .is_some_and(|o| o.target.is_some())
+                    })
+                {
                     continue;
                 }
                 self.stats.candidates += 1;

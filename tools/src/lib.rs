@@ -12,6 +12,7 @@ pub mod html;
 pub mod ins;
 pub mod montecarlo;
 pub mod pipeline;
+pub mod plan;
 pub mod plot;
 pub mod progress;
 pub mod replay;

@@ -29,6 +29,9 @@ enum Cmd {
     Calibrate(cmd::calibrate::Args),
     /// Calibrate one synthetic survey from many perturbed starts, on all cores.
     Montecarlo(cmd::montecarlo::Args),
+    /// Predict the accuracy of a planned calibration survey (each parameter's sigma, what each
+    /// pass and sphere brings) and propose the cheapest change that meets the targets.
+    Plan(cmd::plan::Args),
     /// Play recorded files back: UDP datagrams to their ports, serial bytes to a device.
     Replay(cmd::replay::Args),
     /// The rig: listen to the VLP-16 and the VN-200, log everything raw, show a status line every
@@ -71,6 +74,7 @@ fn main() -> ExitCode {
         Some(Cmd::Georef(a)) => cmd::georef::run(a),
         Some(Cmd::Calibrate(a)) => cmd::calibrate::run(a),
         Some(Cmd::Montecarlo(a)) => cmd::montecarlo::run(a),
+        Some(Cmd::Plan(a)) => cmd::plan::run(a),
         Some(Cmd::Replay(a)) => cmd::replay::run(a),
         Some(Cmd::Run(a)) => cmd::run::run(a),
         Some(Cmd::Ins(a)) => cmd::ins::run(a),

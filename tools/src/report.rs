@@ -608,8 +608,13 @@ pub fn render_montecarlo(r: &McReport) -> String {
 /// (a surveyor's viewer polling the rig's report) never sees half of one.
 pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), String> {
     let json = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
-    let tmp = p.with_extension("json.tmp");
-    std::fs::write(&tmp, json + "\n").map_err(|e| {
+    write_atomically(p, (json + "\n").as_bytes())
+}
+
+/// Write `bytes` to `p` through a temporary file beside it and a rename.
+pub fn write_atomically(p: &Path, bytes: &[u8]) -> Result<(), String> {
+    let tmp = p.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| {
         format!(
             "{}: cannot write the report (through {}): {e}",
             p.display(),

@@ -2,6 +2,9 @@
 //! directions, the range span) and each parameter's sigma from the solution on the data so far
 //! against the board's targets; `ready`, or `collecting` with what is missing in words
 //! ("S2: no southbound pass", "heading sigma 0.031 > 0.010 deg: add a pass at 8-15 m").
+//! Before a solution is claimed (one pass, one direction) the sigmas are the survey planner's
+//! prediction from the geometry of the returns kept so far and the noise model
+//! ([`spherecal::calib::predict`]), marked `(predicted)`.
 
 use crate::report::Report;
 use serde::{Deserialize, Serialize};
@@ -70,6 +73,10 @@ pub struct Verdict {
     pub missing: Vec<String>,
     /// Per sphere.
     pub coverage: Vec<Coverage>,
+    /// The sigmas predicted from the geometry of the returns kept so far: the six [deg, m]
+    /// and the time offset [s] (null: not determined).
+    #[serde(default)]
+    pub predicted_sigma: Option<[Option<f64>; 7]>,
 }
 
 /// Each sphere's coverage by its kept returns (the first `used` of its observations after the
@@ -158,8 +165,50 @@ fn bound(h: f64) -> &'static str {
     P[(((h.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
 }
 
-/// The verdict from the solution's report on the data so far and the coverage.
-pub fn assess(rep: &Report, cov: &[Coverage], t: &Targets) -> Verdict {
+/// The sigmas the planner's predictor gives the returns kept so far ([`coverage`]'s) at the
+/// solution, with the solver's noise model (range, INS attitude and position per sample of
+/// an INS at `ins_rate_hz`, the 2 mm range step): the six [deg, m] and the time offset [s]
+/// (infinite where the geometry cannot determine them).
+pub fn predicted_sigma(
+    targets: &[spherecal::window::Target],
+    obs: &[Vec<Observation>],
+    sol: &Solution,
+    settings: &spherecal::calib::Settings,
+    ins_rate_hz: f64,
+) -> [f64; 7] {
+    use spherecal::calib::predict::{Info, NoiseModel, Predicted};
+    let noise = NoiseModel {
+        range: settings.range_noise,
+        beam_sigma: 0.0,
+        range_unit: 0.002,
+        position: settings.position_noise,
+        attitude: settings.attitude_noise,
+        ins_period_ns: (1e9 / ins_rate_hz.max(1.0)).round() as i64,
+    };
+    let mut kept: Vec<(usize, &Observation)> = Vec::new();
+    for (j, v) in obs.iter().enumerate().take(targets.len()) {
+        let used = sol.spheres.get(j).map_or(0, |s| s.used);
+        kept.extend(v[..used.min(v.len())].iter().map(|o| (j, o)));
+    }
+    kept.sort_by_key(|(_, o)| o.time);
+    let mut info = Info::default();
+    info.add_returns(targets, kept, &sol.b.0, &noise);
+    let p = Predicted::of(&info);
+    let d = spherecal::calib::Params(core::array::from_fn(|i| p.sigma[i]))
+        .deg_m()
+        .0;
+    core::array::from_fn(|i| if i < 6 { d[i] } else { p.sigma[6] })
+}
+
+/// The verdict from the solution's report on the data so far, the coverage, and the sigmas
+/// predicted from the geometry so far ([`predicted_sigma`]; used where the solution gives
+/// none).
+pub fn assess(
+    rep: &Report,
+    cov: &[Coverage],
+    t: &Targets,
+    predicted: Option<&[f64; 7]>,
+) -> Verdict {
     let mut missing = Vec::new();
     if !rep.converged {
         let why = rep.reason.as_deref().unwrap_or("not converged");
@@ -200,7 +249,10 @@ pub fn assess(rep: &Report, cov: &[Coverage], t: &Targets) -> Verdict {
         } else {
             (t.target_sigma_m, "m")
         };
-        let s = sig[i];
+        let (s, how) = match predicted {
+            Some(p) if !(rep.converged && sig[i].is_finite()) => (p[i], " (predicted)"),
+            _ => (sig[i], ""),
+        };
         if !(s.is_finite() && s <= target) {
             let advice = if i < 3 {
                 format!("add a pass {band} (ranges so far {lo:.0}-{hi:.0} m)")
@@ -210,7 +262,7 @@ pub fn assess(rep: &Report, cov: &[Coverage], t: &Targets) -> Verdict {
                 "add a pass closer to the spheres".to_string()
             };
             missing.push(format!(
-                "{name} sigma {} > {target} {unit}: {advice}",
+                "{name} sigma{how} {} > {target} {unit}: {advice}",
                 if s.is_finite() {
                     format!("{s:.4}")
                 } else {
@@ -223,6 +275,8 @@ pub fn assess(rep: &Report, cov: &[Coverage], t: &Targets) -> Verdict {
         ready: missing.is_empty(),
         missing,
         coverage: cov.to_vec(),
+        predicted_sigma: predicted
+            .map(|p| core::array::from_fn(|i| p[i].is_finite().then_some(p[i]))),
     }
 }
 

@@ -28,6 +28,7 @@ pub mod demo;
 pub mod georef;
 pub mod ins;
 pub mod montecarlo;
+pub mod plan;
 pub mod replay;
 pub mod run;
 pub mod site;

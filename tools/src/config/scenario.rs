@@ -88,7 +88,7 @@ pub struct SiteOrigin {
 }
 
 /// A target sphere.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SphereSpec {
     /// Name.
@@ -229,7 +229,7 @@ pub struct InsSpec {
 }
 
 /// One pass.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PassSpec {
     /// Start north, east [m].

@@ -643,6 +643,7 @@ fn run_threads(
                 ids,
                 &plan.b0,
                 &opts.settings,
+                opts.board.ins.rate_hz,
                 &opts.board.calibration,
                 plan.margin,
                 report,

@@ -14,6 +14,7 @@ pub(super) fn solver(
     ids: &[String],
     b0: &Params,
     settings: &Settings,
+    ins_rate_hz: f64,
     goal: &crate::verdict::Targets,
     apriori_margin: f64,
     report: Option<&Path>,
@@ -32,8 +33,10 @@ pub(super) fn solver(
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
         let cov = crate::verdict::coverage(ids, store, &sol);
+        let predicted =
+            crate::verdict::predicted_sigma(targets, store, &sol, settings, ins_rate_hz);
         if let Ok(mut v) = sh.verdict.lock() {
-            *v = Some(crate::verdict::assess(&rep, &cov, goal));
+            *v = Some(crate::verdict::assess(&rep, &cov, goal, Some(&predicted)));
         }
         rep.time_offset_s += *offset as f64 * 1e-9;
         if rep.converged {

@@ -1,0 +1,98 @@
+//! `spherecal plan --scenario NAME|FILE [--target-sigma-deg A --target-sigma-m L] [--report
+//! OUT.json|.html] [--write-plan OUT.toml]`.
+
+use super::{claimed, fail};
+use crate::plan::{html, plan, recommend, render, Goal};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Predict the accuracy of a planned calibration survey; propose changes if it misses.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A built-in scenario or a scenario file (the planned spheres, scene, passes, sensors).
+    #[arg(long)]
+    pub scenario: String,
+    /// Each boresight angle's 1-sigma wanted [deg].
+    #[arg(long, default_value_t = 0.01)]
+    pub target_sigma_deg: f64,
+    /// Each lever-arm component's 1-sigma wanted [m].
+    #[arg(long, default_value_t = 0.005)]
+    pub target_sigma_m: f64,
+    /// Write the report: JSON, or a self-contained HTML page if the name ends in .html.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the plan with the first recommendation applied, as a scenario file to edit.
+    #[arg(long)]
+    pub write_plan: Option<PathBuf>,
+    /// Predict only: no recommendations.
+    #[arg(long)]
+    pub no_recommend: bool,
+}
+
+/// Run it: exit 0 when the plan meets the targets, 1 when it misses them, 2 on bad input.
+pub fn run(a: Args) -> ExitCode {
+    let s = match crate::config::scenario::Scenario::load(&a.scenario) {
+        Ok(s) => s,
+        Err(e) => return fail("plan", e),
+    };
+    if !(a.target_sigma_deg > 0.0 && a.target_sigma_m > 0.0) {
+        return fail(
+            "plan",
+            "--target-sigma-deg and --target-sigma-m: expected > 0",
+        );
+    }
+    let goal = Goal {
+        sigma_deg: a.target_sigma_deg,
+        sigma_m: a.target_sigma_m,
+        ..Goal::default()
+    };
+    let r = match plan(&s, &goal, !a.no_recommend) {
+        Ok(r) => r,
+        Err(e) => return fail("plan", e),
+    };
+    say!("{}", render(&r));
+    if let Some(p) = &a.report {
+        let out = if p
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("html"))
+        {
+            html::render(&s, &r)
+                .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))
+        } else {
+            crate::report::write_json_atomically(p, &r)
+        };
+        if let Err(e) = out {
+            return fail("plan", e);
+        }
+    }
+    if let Some(p) = &a.write_plan {
+        let Some(rec) = r.recommendations.first() else {
+            return fail(
+                "plan",
+                format!(
+                    "--write-plan {}: no change to write (the plan {})",
+                    p.display(),
+                    if r.meets {
+                        "meets the targets"
+                    } else {
+                        "has no candidate change: it uses a recorded trajectory"
+                    }
+                ),
+            );
+        };
+        let mut improved = recommend::apply(&s, &rec.changes);
+        improved.name = format!("{}-planned", s.name);
+        let text = match toml::to_string(&improved) {
+            Ok(t) => format!(
+                "# {} with the plan's recommendation: {}\n{t}",
+                s.name, rec.words
+            ),
+            Err(e) => return fail("plan", e),
+        };
+        if let Err(e) = crate::report::write_atomically(p, text.as_bytes()) {
+            return fail("plan", e);
+        }
+        sayln!("wrote {}", p.display());
+    }
+    claimed(r.meets)
+}

@@ -1,0 +1,326 @@
+//! The plan as one self-contained HTML page (`plan --report OUT.html`): the verdict, the
+//! predicted sigmas against the targets (a table and a bar chart), the plan from above (each
+//! pass coloured by its share of the information, the spheres), what each pass and sphere
+//! brings, the recommendations, the correlations. No script, no network; inline SVG.
+
+use super::{segments, PlanReport, Segment};
+use crate::config::scenario::Scenario;
+use crate::html::escape;
+use plotters::prelude::*;
+use spherecal::calib::{NAMES, P};
+use std::fmt::Write as _;
+
+fn e<E: std::fmt::Display>(x: E) -> String {
+    x.to_string()
+}
+
+/// A colour from light grey (share 0) to deep red (share 1).
+fn heat(share: f64) -> RGBColor {
+    let s = share.clamp(0.0, 1.0);
+    let mix = |a: f64, b: f64| (a + (b - a) * s) as u8;
+    RGBColor(mix(200.0, 180.0), mix(200.0, 20.0), mix(200.0, 30.0))
+}
+
+/// The plan from above: east to the right, north up, 1:1.
+pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
+    let segs = segments(s);
+    // Each segment's path, sampled every 0.5 s.
+    let paths: Vec<(Segment, Vec<(f64, f64)>)> = s
+        .with_world(|w| {
+            segs.iter()
+                .map(|&(seg, a, b)| {
+                    let (a, b) = if a.is_finite() {
+                        (a, b)
+                    } else {
+                        (0.0, w.trajectory.duration())
+                    };
+                    let n = ((b - a) / 0.5).ceil().max(1.0) as usize;
+                    let pts = (0..=n)
+                        .map(|k| {
+                            let st = w.trajectory.state(a + (b - a) * k as f64 / n as f64);
+                            (st.position.y, st.position.x)
+                        })
+                        .collect();
+                    (seg, pts)
+                })
+                .collect()
+        })
+        .map_err(|e| e.to_string())?;
+    let share_of = |seg: Segment| -> f64 {
+        let name = super::segment_name(s, seg);
+        r.passes
+            .iter()
+            .find(|p| p.what == name)
+            .map_or(0.0, |p| p.share)
+    };
+    let all = paths
+        .iter()
+        .flat_map(|p| p.1.iter().copied())
+        .chain(s.sphere.iter().map(|sp| (sp.ned_m[1], sp.ned_m[0])));
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for (x, y) in all {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    let pad = 0.08 * (x1 - x0).max(y1 - y0).max(10.0);
+    let (x0, x1, y0, y1) = (x0 - pad, x1 + pad, y0 - pad, y1 + pad);
+    // 1:1 within 620 x 560 px.
+    let scale = (560.0 / (x1 - x0)).min(480.0 / (y1 - y0));
+    let (w, h) = (
+        ((x1 - x0) * scale) as u32 + 90,
+        ((y1 - y0) * scale) as u32 + 80,
+    );
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let mut ch = ChartBuilder::on(&root)
+            .caption(
+                "the plan from above (passes coloured by their share of the information)",
+                ("sans-serif", 14),
+            )
+            .margin(10)
+            .x_label_area_size(34)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(e)?;
+        ch.configure_mesh()
+            .x_desc("east [m]")
+            .y_desc("north [m]")
+            .draw()
+            .map_err(e)?;
+        for (seg, pts) in &paths {
+            let (colour, width) = match seg {
+                Segment::Turn(_) => (RGBColor(170, 170, 170), 1),
+                _ => (heat(share_of(*seg)), 3),
+            };
+            ch.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(width)))
+                .map_err(e)?;
+            if let (Segment::Pass(i), Some(&last)) = (seg, pts.last()) {
+                let mid = pts[pts.len() / 2];
+                ch.draw_series([Text::new(
+                    format!("{}", i + 1),
+                    mid,
+                    ("sans-serif", 13).into_font().color(&BLACK),
+                )])
+                .map_err(e)?;
+                ch.draw_series([Circle::new(last, 3, colour.filled())])
+                    .map_err(e)?;
+            }
+        }
+        for sp in &s.sphere {
+            let c = (sp.ned_m[1], sp.ned_m[0]);
+            ch.draw_series([Circle::new(c, 5, RGBColor(30, 90, 180).filled())])
+                .map_err(e)?;
+            ch.draw_series([Text::new(
+                sp.id.clone(),
+                (c.0 + 0.8, c.1 + 0.8),
+                ("sans-serif", 12).into_font().color(&RGBColor(30, 90, 180)),
+            )])
+            .map_err(e)?;
+        }
+        root.present().map_err(e)?;
+    }
+    Ok(out)
+}
+
+/// The predicted sigma of each parameter over its target (1: the target).
+pub fn sigma_svg(r: &PlanReport) -> Result<String, String> {
+    let ratio: Vec<f64> = (0..P)
+        .map(|i| {
+            let t = if i < 3 {
+                r.goal.sigma_deg
+            } else {
+                r.goal.sigma_m
+            };
+            r.predicted.sigma_deg_m[i].map_or(10.0, |s| (s / t).min(10.0))
+        })
+        .collect();
+    let top = ratio.iter().copied().fold(1.2f64, f64::max) * 1.1;
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, (460, 300)).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let mut ch = ChartBuilder::on(&root)
+            .caption("predicted sigma / target", ("sans-serif", 14))
+            .margin(10)
+            .x_label_area_size(34)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..P as f64, 0.0..top)
+            .map_err(e)?;
+        ch.configure_mesh()
+            .disable_x_mesh()
+            .x_labels(P)
+            .x_label_formatter(&|x| {
+                NAMES
+                    .get(*x as usize)
+                    .map_or(String::new(), |s| s.to_string())
+            })
+            .y_desc("sigma / target")
+            .draw()
+            .map_err(e)?;
+        ch.draw_series(ratio.iter().enumerate().map(|(i, &v)| {
+            let c = if v <= 1.0 {
+                RGBColor(60, 160, 60)
+            } else {
+                RGBColor(200, 50, 40)
+            };
+            Rectangle::new([(i as f64 + 0.2, 0.0), (i as f64 + 0.8, v)], c.filled())
+        }))
+        .map_err(e)?;
+        ch.draw_series(LineSeries::new(
+            [(0.0, 1.0), (P as f64, 1.0)],
+            BLACK.stroke_width(2),
+        ))
+        .map_err(e)?;
+        root.present().map_err(e)?;
+    }
+    Ok(out)
+}
+
+fn fmt(v: Option<f64>, i: usize) -> String {
+    v.map_or("&ndash;".into(), |v| {
+        if i < 3 {
+            format!("{v:.4}")
+        } else {
+            format!("{:.1}", v * 1e3)
+        }
+    })
+}
+
+/// The page.
+pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, String> {
+    let mut o = String::new();
+    let _ = write!(
+        o,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>spherecal plan: {}</title><style>{}</style></head><body>\n<h1>Calibration survey plan: {}</h1>\n",
+        escape(&r.scenario),
+        crate::html::STYLE,
+        escape(&r.scenario)
+    );
+    if r.meets {
+        let _ = writeln!(
+            o,
+            "<p class=\"ok\">The plan meets the targets ({} deg, {} mm).</p>",
+            r.goal.sigma_deg,
+            r.goal.sigma_m * 1e3
+        );
+    } else {
+        let _ = writeln!(
+            o,
+            "<p class=\"no\">The plan misses the targets: {}.</p>",
+            escape(&r.missing.join("; "))
+        );
+    }
+    let n = &r.noise;
+    let _ = writeln!(
+        o,
+        "<p class=\"note\">{} sphere returns predicted; noise{}: range {} m{}, INS attitude {} deg and position {} m per sample at {} Hz. Condition number {}; weakest direction: {}.</p>",
+        r.predicted.returns,
+        if n.assumed { " (the scenario states none: the sensors' specified values)" } else { "" },
+        n.range_m,
+        if n.incidence_divergence_mrad > 0.0 { format!(", growing at grazing incidence ({} mrad)", n.incidence_divergence_mrad) } else { String::new() },
+        n.attitude_deg,
+        n.position_m,
+        n.ins_rate_hz,
+        r.predicted.condition.map_or("infinite".into(), |c| format!("{c:.1}")),
+        escape(&super::weakest_words(&r.weakest))
+    );
+    o.push_str("<h2>Predicted 1-sigma</h2><table><tr><th class=\"l\">parameter</th><th>predicted</th><th>target</th></tr>\n");
+    for i in 0..P {
+        let (t, unit) = if i < 3 {
+            (format!("{}", r.goal.sigma_deg), "deg")
+        } else {
+            (format!("{:.1}", r.goal.sigma_m * 1e3), "mm")
+        };
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{} [{unit}]</td><td>{}</td><td>{t}</td></tr>",
+            NAMES[i],
+            fmt(r.predicted.sigma_deg_m[i], i)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "<tr><td class=\"l\">time offset [ms]</td><td>{}</td><td></td></tr></table>",
+        r.predicted
+            .sigma_time_offset_s
+            .map_or("&ndash;".into(), |v| format!("{:.3}", v * 1e3))
+    );
+    let _ = writeln!(
+        o,
+        "<div class=\"figs\">{}{}</div>",
+        crate::plot::strip_xml_header(&map_svg(s, r)?),
+        crate::plot::strip_xml_header(&sigma_svg(r)?)
+    );
+    o.push_str("<h2>What each pass and sphere brings</h2><p class=\"note\">Share: the mean over the six of 1 &minus; (sigma / sigma without it)&sup2;. Sigmas without it: deg for the angles, mm for the lever arm.</p><table><tr><th class=\"l\"></th><th>returns</th><th>ranges [m]</th><th>share</th>");
+    for name in NAMES {
+        let _ = write!(o, "<th>{name} without</th>");
+    }
+    o.push_str("</tr>\n");
+    for sh in r.passes.iter().chain(&r.spheres) {
+        let _ = write!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.0} %</td>",
+            escape(&sh.what),
+            sh.returns,
+            sh.range_m.map_or("&ndash;".into(), |r| format!(
+                "{:.0}&ndash;{:.0}",
+                r[0], r[1]
+            )),
+            sh.share * 100.0
+        );
+        for i in 0..P {
+            let _ = write!(o, "<td>{}</td>", fmt(sh.sigma_without[i], i));
+        }
+        o.push_str("</tr>\n");
+    }
+    o.push_str("</table>\n");
+    if !r.recommendations.is_empty() {
+        o.push_str("<h2>Recommendations</h2><ol>\n");
+        for rec in &r.recommendations {
+            let _ = writeln!(
+                o,
+                "<li>{} <span class=\"note\">({:.0} s of survey; {})</span></li>",
+                escape(&rec.words),
+                rec.cost_s,
+                if rec.meets {
+                    "meets the targets"
+                } else {
+                    "still short of them"
+                }
+            );
+        }
+        o.push_str("</ol>\n");
+    }
+    o.push_str("<h2>Correlations</h2><table><tr><th></th>");
+    let names: Vec<&str> = NAMES.iter().copied().chain(["dt"]).collect();
+    for n in &names {
+        let _ = write!(o, "<th>{n}</th>");
+    }
+    o.push_str("</tr>\n");
+    for (i, row) in r.correlation.iter().enumerate() {
+        let _ = write!(o, "<tr><th>{}</th>", names[i]);
+        for v in row {
+            let _ = write!(
+                o,
+                "<td>{}</td>",
+                if v.is_finite() {
+                    format!("{v:+.2}")
+                } else {
+                    "&ndash;".into()
+                }
+            );
+        }
+        o.push_str("</tr>\n");
+    }
+    o.push_str("</table>\n</body></html>\n");
+    Ok(o)
+}

@@ -1,0 +1,801 @@
+//! `spherecal plan`: the accuracy a planned calibration survey will give, before anyone goes
+//! to the quay. The scenario's passes are traced against its scene (only the firings that can
+//! reach a sphere, against everything that may hide it: [`spherecal::sim::LidarConfig`]'s
+//! `targets_only`), every sphere return becomes the observation the pipeline would make of it,
+//! and the core predictor ([`spherecal::calib::predict`]) turns their geometry and the noise
+//! model into each parameter's sigma, the correlations, the conditioning and the weakest
+//! direction, without drawing any noise. Information adds over returns, so each pass and
+//! sphere's share is known (the sigmas without it), and a candidate change (a pass, a slower
+//! pass, a sphere: [`recommend`]) costs only its own tracing.
+
+pub mod html;
+pub mod recommend;
+
+use crate::config::scenario::Scenario;
+use nalgebra::{Rotation3, Vector3};
+use serde::{Deserialize, Serialize};
+use spherecal::calib::predict::{Info, NoiseModel, Predicted};
+use spherecal::calib::{Params, NAMES, P};
+use spherecal::georef::{beam_origin_l, beam_unit};
+use spherecal::sim::{LidarSim, SimPacket, World};
+use spherecal::velodyne::data::field;
+use spherecal::window::{Observation, Target};
+
+/// Half the span of the central differences that give each return's velocity and turn rate
+/// (the pipeline's, [`spherecal::align::history`]) [s].
+const RATE_HALF_S: f64 = 0.2;
+
+/// The noise the plan assumes (1 sigma).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlanNoise {
+    /// Range noise [m].
+    pub range_m: f64,
+    /// Beam divergence along the scan [mrad] when the range noise grows at grazing incidence
+    /// (0: it does not).
+    pub incidence_divergence_mrad: f64,
+    /// INS attitude noise per angle [deg] ...
+    pub attitude_deg: f64,
+    /// ... and position noise per axis [m], per sample ...
+    pub position_m: f64,
+    /// ... at this rate [Hz].
+    pub ins_rate_hz: f64,
+    /// The scenario states no noise at all: these are the sensors' specified values
+    /// ([`Self::SPECIFIED`]).
+    pub assumed: bool,
+}
+
+impl PlanNoise {
+    /// A VLP-16's range accuracy (datasheet: +-3 cm typical) and a VN-200-class INS (0.03 deg,
+    /// 2 cm), the noise a plan assumes when its scenario states none.
+    pub const SPECIFIED: [f64; 3] = [0.03, 0.03, 0.02];
+
+    /// The scenario's noise, or the specified values when it states none (a noise-free
+    /// simulation predicts nothing).
+    pub fn of(s: &Scenario) -> Self {
+        let none =
+            s.lidar.range_sigma_m == 0.0 && s.ins.att_sigma_deg == 0.0 && s.ins.pos_sigma_m == 0.0;
+        let [range, att, pos] = if none {
+            Self::SPECIFIED
+        } else {
+            [
+                s.lidar.range_sigma_m,
+                s.ins.att_sigma_deg,
+                s.ins.pos_sigma_m,
+            ]
+        };
+        Self {
+            range_m: range,
+            incidence_divergence_mrad: if s.lidar.incidence_noise {
+                s.lidar.beam_divergence_mrad[0]
+            } else {
+                0.0
+            },
+            attitude_deg: att,
+            position_m: pos,
+            ins_rate_hz: s.ins.rate_hz,
+            assumed: none,
+        }
+    }
+
+    /// The core predictor's model, with the model's range quantisation.
+    pub fn model(&self, unit_m: f64) -> NoiseModel {
+        NoiseModel {
+            range: self.range_m,
+            beam_sigma: self.incidence_divergence_mrad * 1e-3 / 4.0,
+            range_unit: unit_m,
+            position: self.position_m,
+            attitude: self.attitude_deg.to_radians(),
+            ins_period_ns: (1e9 / self.ins_rate_hz.max(1.0)).round() as i64,
+        }
+    }
+}
+
+/// The scenario with [`PlanNoise::SPECIFIED`] where it states no noise: what a plan assumes,
+/// and what the Monte Carlo that checks it simulates.
+pub fn with_planning_noise(s: &Scenario) -> Scenario {
+    let mut s = s.clone();
+    let n = PlanNoise::of(&s);
+    if n.assumed {
+        s.lidar.range_sigma_m = n.range_m;
+        s.ins.att_sigma_deg = n.attitude_deg;
+        s.ins.pos_sigma_m = n.position_m;
+    }
+    s
+}
+
+/// A stretch of the trajectory: a pass, or the turn after one.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Segment {
+    /// Pass i (0-based).
+    Pass(usize),
+    /// The turn after pass i.
+    Turn(usize),
+    /// A recorded trajectory (`trajectory.file`).
+    Recorded,
+}
+
+/// The segments of a scenario's trajectory, with their trajectory times [s].
+pub fn segments(s: &Scenario) -> Vec<(Segment, f64, f64)> {
+    if s.trajectory.file.is_some() {
+        return vec![(Segment::Recorded, f64::NEG_INFINITY, f64::INFINITY)];
+    }
+    let mut out = Vec::new();
+    let mut t = 0.0;
+    let n = s.trajectory.pass.len();
+    for (i, p) in s.trajectory.pass.iter().enumerate() {
+        out.push((Segment::Pass(i), t, t + p.duration_s));
+        t += p.duration_s;
+        if i + 1 < n {
+            out.push((Segment::Turn(i), t, t + s.trajectory.turn_s));
+            t += s.trajectory.turn_s;
+        }
+    }
+    out
+}
+
+/// One sphere's returns in one segment: their information and extent.
+#[derive(Debug, Clone, Default)]
+pub struct Cell {
+    /// The information.
+    pub info: Info,
+    /// Shortest and longest range [m] (infinite, 0 without returns).
+    pub range_m: [f64; 2],
+}
+
+/// A traced plan: per segment, per sphere.
+#[derive(Debug, Clone)]
+pub struct Geometry {
+    /// The segments.
+    pub segments: Vec<(Segment, f64, f64)>,
+    /// `cells[segment][sphere]`.
+    pub cells: Vec<Vec<Cell>>,
+}
+
+impl Geometry {
+    /// All of it.
+    pub fn total(&self) -> Info {
+        self.sum(|_, _| true)
+    }
+
+    /// The cells `keep(segment, sphere)` says.
+    pub fn sum(&self, keep: impl Fn(usize, usize) -> bool) -> Info {
+        let mut i = Info::default();
+        for (k, row) in self.cells.iter().enumerate() {
+            for (j, c) in row.iter().enumerate() {
+                if keep(k, j) {
+                    i += &c.info;
+                }
+            }
+        }
+        i
+    }
+}
+
+/// The returns of sphere(s) of a scenario as the pipeline would observe them (true poses,
+/// rates by central differences over 0.4 s): `(trajectory time, sphere, observation)` in time
+/// order, over the trajectory times `span` (None: all). Traced on `threads` threads.
+pub fn observe(
+    s: &Scenario,
+    span: Option<(f64, f64)>,
+    threads: usize,
+) -> Result<Vec<(f64, usize, Observation)>, String> {
+    let cfg = {
+        let mut c = s.lidar_config();
+        // The geometry: ideal beams, nothing lost (drops scale the information instead).
+        c.divergence = [0.0; 2];
+        c.drop_prob = 0.0;
+        c.clutter_keep = 1.0;
+        c.range_sigma = 0.0;
+        c.incidence_noise = false;
+        c.range_walk = 0.0;
+        c.targets_only = true;
+        c
+    };
+    let n_spheres = s.sphere.len();
+    s.with_world(|world| {
+        let probe = LidarSim::new(world, cfg);
+        let (t0, t1) = span.unwrap_or((0.0, world.trajectory.duration()));
+        let (first, end) = (probe.packet_at(t0), probe.packet_at(t1));
+        let threads = threads.clamp(1, 8);
+        let step = (end.saturating_sub(first)).div_ceil(threads as u64).max(1);
+        let mut parts: Vec<Vec<(f64, usize, Observation)>> = Vec::new();
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (0..threads as u64)
+                .map(|k| {
+                    let (a, b) = (first + k * step, (first + (k + 1) * step).min(end));
+                    sc.spawn(move || observe_packets(world, cfg, a, b, n_spheres))
+                })
+                .collect();
+            for h in handles {
+                parts.push(h.join().unwrap_or_default());
+            }
+        });
+        parts.concat()
+    })
+    .map_err(|e| e.to_string())
+}
+
+/// The sphere returns of data packets `first..end`.
+fn observe_packets(
+    world: &World<'_>,
+    cfg: spherecal::sim::LidarConfig,
+    first: u64,
+    end: u64,
+    n_spheres: usize,
+) -> Vec<(f64, usize, Observation)> {
+    let mut out = Vec::new();
+    if first >= end {
+        return out;
+    }
+    let mut sim = LidarSim::new(world, cfg);
+    sim.restrict(first, end);
+    let model = cfg.model;
+    let mut buf = [0u8; 1206];
+    let state = |t: f64| world.trajectory.state(t);
+    while let Some(p) = sim.next_packet(&mut buf) {
+        let SimPacket::Data { time, .. } = p else {
+            continue;
+        };
+        if sim.packet_at(world.t_of(time)) < first {
+            continue;
+        }
+        for h in &sim.hits {
+            let j = usize::from(h.object);
+            if j >= n_spheres || h.purity < 230 {
+                continue;
+            }
+            let t = world.t_of(h.time);
+            let st = state(t);
+            let (a, b) = (state(t - RATE_HALF_S), state(t + RATE_HALF_S));
+            let velocity = (b.position - a.position) / (2.0 * RATE_HALF_S);
+            let turn = Rotation3::from_matrix_unchecked(b.r_ig() * a.r_ig().transpose());
+            let omega: Vector3<f64> = turn.scaled_axis() / (2.0 * RATE_HALF_S);
+            let laser = model.channels()[usize::from(h.channel) % field::CHANNELS].laser;
+            let beam = model.beam(usize::from(laser));
+            let (sa, ca) = h.azimuth.sin_cos();
+            let q = beam_unit(beam, sa, ca) * h.range + beam_origin_l(beam);
+            out.push((
+                t,
+                j,
+                Observation {
+                    q_l: q.cast(),
+                    position: st.position,
+                    r_ig: st.r_ig().cast(),
+                    time: h.time,
+                    velocity: velocity.cast(),
+                    omega: omega.cast(),
+                    range: h.range as f32,
+                    block: h.block,
+                    channel: h.channel,
+                    laser,
+                    ..Observation::default()
+                },
+            ));
+        }
+    }
+    out
+}
+
+/// The scenario's spheres as the solver's targets (site NED).
+pub fn targets_of_scenario(s: &Scenario) -> Vec<Target> {
+    s.sphere
+        .iter()
+        .map(|sp| Target {
+            center: Vector3::from(sp.ned_m),
+            radius: sp.radius_m,
+        })
+        .collect()
+}
+
+/// Trace a scenario into per-segment, per-sphere information.
+pub fn geometry(s: &Scenario, noise: &PlanNoise, threads: usize) -> Result<Geometry, String> {
+    let obs = observe(s, None, threads)?;
+    Ok(geometry_of(s, noise, &obs, segments(s)))
+}
+
+/// Fewest returns of a sphere in a slice of time for the solver to keep them: its
+/// detections within the prior need 4 inliers ([`ExtractSettings`]'s `min_inliers_prior`).
+/// (8 made table1's time offset 25 % worse than 200 noisy calibrations; 1 made pontoon's
+/// 20 % better: its turns see the spheres in slices of 1-3 returns the solver never keeps.)
+///
+/// [`ExtractSettings`]: spherecal::calib::extract::ExtractSettings
+pub const MIN_SLICE_RETURNS: usize = 4;
+
+/// Which returns the solver can keep: those in slices of time (as the solver cuts them: at
+/// most `slice_ns`, a gap of half of it ends one) holding at least [`MIN_SLICE_RETURNS`] of
+/// their sphere's returns. Sparse sightings (a sphere far off in a turn) are left out: the
+/// solver detects them in some runs and not in others.
+fn detectable(obs: &[(f64, usize, Observation)], spheres: usize) -> Vec<bool> {
+    let st = spherecal::calib::extract::ExtractSettings::default();
+    let min = MIN_SLICE_RETURNS;
+    let mut keep = vec![false; obs.len()];
+    for j in 0..spheres {
+        let idx: Vec<usize> = (0..obs.len()).filter(|&k| obs[k].1 == j).collect();
+        let mut start = 0;
+        while start < idx.len() {
+            let t0 = obs[idx[start]].2.time.0;
+            let mut end = start + 1;
+            while end < idx.len() {
+                let t = obs[idx[end]].2.time.0;
+                if t - t0 > st.slice_ns || t - obs[idx[end - 1]].2.time.0 > st.slice_ns / 2 {
+                    break;
+                }
+                end += 1;
+            }
+            if end - start >= min {
+                for &k in &idx[start..end] {
+                    keep[k] = true;
+                }
+            }
+            start = end;
+        }
+    }
+    keep
+}
+
+/// The information of observations, per segment and sphere.
+pub fn geometry_of(
+    s: &Scenario,
+    noise: &PlanNoise,
+    obs: &[(f64, usize, Observation)],
+    segs: Vec<(Segment, f64, f64)>,
+) -> Geometry {
+    let targets = targets_of_scenario(s);
+    let model = noise.model(s.model().unwrap_or_default().distance_unit_m());
+    let b = s.truth_mount().params().0;
+    let keep = 1.0 - s.lidar.drop_prob;
+    let mut cells = vec![vec![Cell::default(); targets.len()]; segs.len()];
+    let detectable = detectable(obs, targets.len());
+    // Per segment, its returns in time order (all spheres: they share the INS samples).
+    let mut buckets: Vec<Vec<(usize, Observation)>> = vec![Vec::new(); segs.len()];
+    for ((t, j, o), _) in obs.iter().zip(&detectable).filter(|(_, d)| **d) {
+        let k = segs
+            .iter()
+            .position(|(_, a, b)| *t >= *a && *t < *b)
+            .unwrap_or(segs.len() - 1);
+        buckets[k].push((*j, *o));
+    }
+    for (k, v) in buckets.iter().enumerate() {
+        for (j, c) in cells[k].iter_mut().enumerate() {
+            c.range_m = [f64::INFINITY, 0.0];
+            for (_, o) in v.iter().filter(|(jj, _)| *jj == j) {
+                let r = f64::from(o.range);
+                c.range_m = [c.range_m[0].min(r), c.range_m[1].max(r)];
+            }
+            // A sphere's cell holds its information with the INS errors it shares with the
+            // others' returns (attributed to the cell of the return).
+            let mut only = Info::default();
+            only.add_returns(
+                &targets,
+                v.iter().map(|(jj, o)| (*jj, o)).filter(|(jj, _)| *jj == j),
+                &b,
+                &model,
+            );
+            c.info = only;
+        }
+        // The segment's whole information, shared errors included, minus the cells' sum: the
+        // cross terms, given to the segment's first cell so that sums over whole segments are
+        // exact (per-sphere sums leave them out: a small share).
+        let mut all = Info::default();
+        all.add_returns(&targets, v.iter().map(|(jj, o)| (*jj, o)), &b, &model);
+        let mut sum = Info::default();
+        for c in &cells[k] {
+            sum += &c.info;
+        }
+        if let Some(c0) = cells[k].first_mut() {
+            c0.info.m += all.m - sum.m;
+        }
+        if keep < 1.0 {
+            for c in cells[k].iter_mut() {
+                c.info = c.info.scaled(keep);
+            }
+        }
+    }
+    Geometry {
+        segments: segs,
+        cells,
+    }
+}
+
+/// The accuracy wanted.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Goal {
+    /// Each boresight angle's 1-sigma [deg].
+    pub sigma_deg: f64,
+    /// Each lever-arm component's 1-sigma [m].
+    pub sigma_m: f64,
+    /// The solver's largest acceptable condition number (it refuses beyond).
+    pub max_condition: f64,
+    /// Fewest returns per sphere the solver needs.
+    pub min_returns: u32,
+}
+
+impl Default for Goal {
+    fn default() -> Self {
+        let st = spherecal::calib::Settings::default();
+        Self {
+            sigma_deg: 0.01,
+            sigma_m: 0.005,
+            max_condition: st.max_condition,
+            min_returns: st.min_points as u32,
+        }
+    }
+}
+
+/// A prediction in the surveyor's units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Prediction {
+    /// 1 sigma: roll, pitch, heading [deg], x, y, z [m] (null: not determined).
+    pub sigma_deg_m: [Option<f64>; P],
+    /// 1 sigma of the time offset [s].
+    pub sigma_time_offset_s: Option<f64>,
+    /// Condition number of the unit-diagonal normal matrix.
+    pub condition: Option<f64>,
+    /// Returns.
+    pub returns: u32,
+}
+
+impl Prediction {
+    /// From the core's.
+    pub fn of(p: &Predicted) -> Self {
+        let fin = |v: f64| v.is_finite().then_some(v);
+        let d = Params(core::array::from_fn(|i| p.sigma[i])).deg_m().0;
+        Self {
+            sigma_deg_m: d.map(fin),
+            sigma_time_offset_s: fin(p.sigma[P]),
+            condition: fin(p.condition),
+            returns: p.n,
+        }
+    }
+
+    /// The worst sigma over its target (above 1: missed; infinite: not determined).
+    pub fn worst_ratio(&self, goal: &Goal) -> f64 {
+        (0..P)
+            .map(|i| {
+                let t = if i < 3 { goal.sigma_deg } else { goal.sigma_m };
+                self.sigma_deg_m[i].map_or(f64::INFINITY, |s| s / t)
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+/// What one pass or sphere brings: the prediction without it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Share {
+    /// `pass 3 (northbound, 1.3 m/s)`, `turn after pass 1`, or the sphere's id.
+    pub what: String,
+    /// Its sphere returns.
+    pub returns: u32,
+    /// The ranges they span [m] (null without returns).
+    pub range_m: Option<[f64; 2]>,
+    /// The sigmas without it (null: not determined without it).
+    pub sigma_without: [Option<f64>; P],
+    /// Its share of the information: the mean over the six of 1 - (sigma / sigma without)^2
+    /// (0: adds nothing; 1: nothing without it).
+    pub share: f64,
+}
+
+/// The plan's report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanReport {
+    /// Scenario name.
+    pub scenario: String,
+    /// The noise assumed.
+    pub noise: PlanNoise,
+    /// The accuracy wanted.
+    pub goal: Goal,
+    /// The prediction.
+    pub predicted: Prediction,
+    /// Correlations of the six and the time offset (row-major 7x7).
+    pub correlation: Vec<Vec<f64>>,
+    /// The weakest direction: the six and the time offset (unit vector of the scaled normal
+    /// matrix).
+    pub weakest: [f64; P + 1],
+    /// The plan meets the goal.
+    pub meets: bool,
+    /// What misses it, in words.
+    pub missing: Vec<String>,
+    /// Per pass (and turn with sphere returns).
+    pub passes: Vec<Share>,
+    /// Per sphere.
+    pub spheres: Vec<Share>,
+    /// Changes that meet the goal, cheapest first (or the best steps towards it).
+    pub recommendations: Vec<recommend::Recommendation>,
+    /// Time to predict [ms] (tracing included, recommendations not).
+    pub ms: f64,
+}
+
+/// Words for a segment.
+pub fn segment_name(s: &Scenario, seg: Segment) -> String {
+    match seg {
+        Segment::Pass(i) => {
+            let p = &s.trajectory.pass[i];
+            format!(
+                "pass {} ({}, {:.1} m/s)",
+                i + 1,
+                compass(p.heading_deg),
+                p.speed_mps
+            )
+        }
+        Segment::Turn(i) => format!("turn after pass {}", i + 1),
+        Segment::Recorded => "the recorded trajectory".into(),
+    }
+}
+
+/// `northbound`, `south-westbound`, ...
+pub fn compass(deg: f64) -> &'static str {
+    const N: [&str; 8] = [
+        "northbound",
+        "north-eastbound",
+        "eastbound",
+        "south-eastbound",
+        "southbound",
+        "south-westbound",
+        "westbound",
+        "north-westbound",
+    ];
+    N[(((deg.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
+}
+
+fn share(p: &Predicted, without: &Predicted) -> f64 {
+    let mut s = 0.0;
+    for i in 0..P {
+        s += if without.sigma[i].is_finite() {
+            (1.0 - (p.sigma[i] / without.sigma[i]).powi(2)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+    }
+    s / P as f64
+}
+
+/// Whether a prediction meets the goal, and what misses it in words.
+pub fn assess(
+    pred: &Prediction,
+    p: &Predicted,
+    per_sphere: &[u32],
+    ids: &[String],
+    goal: &Goal,
+) -> Vec<String> {
+    let mut missing = Vec::new();
+    for (j, &n) in per_sphere.iter().enumerate() {
+        if n < goal.min_returns {
+            missing.push(format!(
+                "{}: {n} returns predicted, the solver needs {}",
+                ids.get(j).map_or("?", |s| s.as_str()),
+                goal.min_returns
+            ));
+        }
+    }
+    match pred.condition {
+        Some(c) if c <= goal.max_condition => {}
+        c => missing.push(format!(
+            "condition number {} > {:.0e}: the solver would refuse (weakest: {})",
+            c.map_or("infinite".into(), |c| format!("{c:.3e}")),
+            goal.max_condition,
+            weakest_words(&p.weakest)
+        )),
+    }
+    for i in 0..P {
+        let (t, unit) = if i < 3 {
+            (goal.sigma_deg, "deg")
+        } else {
+            (goal.sigma_m, "m")
+        };
+        match pred.sigma_deg_m[i] {
+            Some(s) if s <= t => {}
+            Some(s) => missing.push(format!("{} sigma {s:.4} > {t} {unit}", NAMES[i])),
+            None => missing.push(format!("{} not determined", NAMES[i])),
+        }
+    }
+    missing
+}
+
+/// The parameters with a large share of the weakest direction.
+pub fn weakest_words(w: &[f64; P + 1]) -> String {
+    let names: Vec<&str> = (0..=P)
+        .filter(|&i| w[i].abs() > 0.3)
+        .map(|i| if i < P { NAMES[i] } else { "time offset" })
+        .collect();
+    names.join(", ")
+}
+
+/// Predict a scenario's accuracy (and, with `recommend`, the changes that meet the goal).
+pub fn plan(s: &Scenario, goal: &Goal, recommend: bool) -> Result<PlanReport, String> {
+    let t0 = std::time::Instant::now();
+    let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let noise = PlanNoise::of(s);
+    let g = geometry(s, &noise, threads)?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut rep = report_of(s, &noise, &g, goal);
+    rep.ms = ms;
+    if recommend && !rep.meets {
+        rep.recommendations = recommend::recommend(s, &noise, &g, goal, threads)?;
+    }
+    Ok(rep)
+}
+
+/// The report of a traced plan (no recommendations).
+pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> PlanReport {
+    let total = g.total();
+    let p = Predicted::of(&total);
+    let pred = Prediction::of(&p);
+    let ids: Vec<String> = s.sphere.iter().map(|x| x.id.clone()).collect();
+    let per_sphere: Vec<u32> = (0..ids.len())
+        .map(|j| g.cells.iter().map(|r| r[j].info.n).sum())
+        .collect();
+    let missing = assess(&pred, &p, &per_sphere, &ids, goal);
+    let range_of = |cells: &mut dyn Iterator<Item = &Cell>| {
+        let r = cells.fold([f64::INFINITY, 0.0f64], |r, c| {
+            [r[0].min(c.range_m[0]), r[1].max(c.range_m[1])]
+        });
+        r[0].is_finite().then_some(r)
+    };
+    let mut passes = Vec::new();
+    for (k, (seg, _, _)) in g.segments.iter().enumerate() {
+        let n: u32 = g.cells[k].iter().map(|c| c.info.n).sum();
+        if n == 0 && !matches!(seg, Segment::Pass(_)) {
+            continue;
+        }
+        let without = Predicted::of(&g.sum(|kk, _| kk != k));
+        passes.push(Share {
+            what: segment_name(s, *seg),
+            returns: n,
+            range_m: range_of(&mut g.cells[k].iter()),
+            sigma_without: Prediction::of(&without).sigma_deg_m,
+            share: share(&p, &without),
+        });
+    }
+    let spheres = ids
+        .iter()
+        .enumerate()
+        .map(|(j, id)| {
+            let without = Predicted::of(&g.sum(|_, jj| jj != j));
+            Share {
+                what: id.clone(),
+                returns: per_sphere[j],
+                range_m: range_of(&mut g.cells.iter().map(|r| &r[j])),
+                sigma_without: Prediction::of(&without).sigma_deg_m,
+                share: share(&p, &without),
+            }
+        })
+        .collect();
+    PlanReport {
+        scenario: s.name.clone(),
+        noise: *noise,
+        goal: *goal,
+        correlation: (0..=P)
+            .map(|i| (0..=P).map(|j| p.correlation[(i, j)]).collect())
+            .collect(),
+        weakest: p.weakest,
+        meets: missing.is_empty(),
+        missing,
+        predicted: pred,
+        passes,
+        spheres,
+        recommendations: Vec::new(),
+        ms: 0.0,
+    }
+}
+
+/// The plan in words.
+pub fn render(r: &PlanReport) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    let n = &r.noise;
+    let _ = writeln!(
+        o,
+        "plan {}: {} sphere returns predicted{}",
+        r.scenario,
+        r.predicted.returns,
+        if r.ms > 0.0 {
+            format!(" ({:.0} ms)", r.ms)
+        } else {
+            String::new()
+        }
+    );
+    let _ =
+        writeln!(
+        o,
+        "noise{}: range {:.3} m{}, INS attitude {:.3} deg, position {:.3} m per sample at {} Hz",
+        if n.assumed {
+            " (the scenario states none: the sensors' specified values)"
+        } else {
+            ""
+        },
+        n.range_m,
+        if n.incidence_divergence_mrad > 0.0 {
+            format!(" growing at grazing incidence ({} mrad beam)", n.incidence_divergence_mrad)
+        } else {
+            String::new()
+        },
+        n.attitude_deg,
+        n.position_m,
+        n.ins_rate_hz
+    );
+    let fmt = |v: Option<f64>, i: usize| {
+        v.map_or("-".to_string(), |v| {
+            if i < 3 {
+                format!("{v:.4} deg")
+            } else {
+                format!("{:.1} mm", v * 1e3)
+            }
+        })
+    };
+    let _ = writeln!(
+        o,
+        "predicted 1 sigma (target {} deg, {} mm):",
+        r.goal.sigma_deg,
+        r.goal.sigma_m * 1e3
+    );
+    for i in 0..P {
+        let _ = writeln!(
+            o,
+            "  {:<8} {}",
+            NAMES[i],
+            fmt(r.predicted.sigma_deg_m[i], i)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "  time offset {}",
+        r.predicted
+            .sigma_time_offset_s
+            .map_or("-".into(), |v| format!("{:.3} ms", v * 1e3))
+    );
+    let _ = writeln!(
+        o,
+        "condition number {} (the solver refuses above {:.0e}); weakest direction: {}",
+        r.predicted
+            .condition
+            .map_or("infinite".into(), |c| format!("{c:.1}")),
+        r.goal.max_condition,
+        weakest_words(&r.weakest)
+    );
+    let mut worst = (0.0, 0, 0);
+    for i in 0..P {
+        for j in 0..i {
+            let c = r.correlation[i][j].abs();
+            if c > worst.0 {
+                worst = (c, i, j);
+            }
+        }
+    }
+    let _ = writeln!(
+        o,
+        "strongest correlation: {} / {} {:+.3}",
+        NAMES[worst.1], NAMES[worst.2], r.correlation[worst.1][worst.2]
+    );
+    let _ = writeln!(
+        o,
+        "what each pass brings (share of the information; sigmas without it):"
+    );
+    for s in r.passes.iter().chain(&r.spheres) {
+        let _ = writeln!(
+            o,
+            "  {:<34} {:>6} returns at {:<9} share {:>3.0} %   without: {}",
+            s.what,
+            s.returns,
+            s.range_m
+                .map_or("-".into(), |r| format!("{:.0}-{:.0} m", r[0], r[1])),
+            s.share * 100.0,
+            (0..P)
+                .map(|i| fmt(s.sigma_without[i], i))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    if r.meets {
+        let _ = writeln!(o, "verdict: the plan meets the targets");
+    } else {
+        let _ = writeln!(
+            o,
+            "verdict: the plan misses the targets: {}",
+            r.missing.join("; ")
+        );
+    }
+    for (k, rec) in r.recommendations.iter().enumerate() {
+        let _ = writeln!(o, "recommendation {}: {}", k + 1, rec.words);
+    }
+    o
+}
