@@ -7,7 +7,7 @@
 use spherecal::calib::predict::Predicted;
 use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};
-use spherecal_tools::config::scenario::{PassSpec, Scenario};
+use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
 use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::plan::{self, recommend, Goal, PlanNoise};
@@ -186,17 +186,11 @@ fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
 /// scenario that `plan` accepts with exit 0, the HTML report).
 #[test]
 fn recommendations_turn_a_plan_that_misses_into_one_that_meets() {
-    let mut s = Scenario::load("table1").unwrap();
-    s.name = "table1-far-north".into();
-    s.trajectory.pass = [1.5, 2.0, 2.5]
-        .iter()
-        .map(|&v| PassSpec {
-            start_ne_m: [-22.0, 24.4],
-            heading_deg: 0.0,
-            speed_mps: v,
-            duration_s: 64.0 / v,
-        })
-        .collect();
+    let far = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/plans/table1-far-north.toml"
+    );
+    let s = Scenario::load(far).unwrap();
     let goal = Goal {
         sigma_deg: 0.05,
         sigma_m: 0.005,
@@ -250,11 +244,8 @@ fn recommendations_turn_a_plan_that_misses_into_one_that_meets() {
     // The command line.
     let bin = env!("CARGO_BIN_EXE_spherecal");
     let dir = tmp("cli");
-    let plan_file = dir.join("far-north.toml");
-    std::fs::write(&plan_file, toml::to_string(&s).unwrap()).unwrap();
     let out = std::process::Command::new(bin)
-        .args(["plan", "--scenario"])
-        .arg(&plan_file)
+        .args(["plan", "--scenario", far])
         .args([
             "--target-sigma-deg",
             "0.05",

@@ -52,7 +52,15 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
             .collect();
         let (sol, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
         let cov = coverage(&ids, &obs, &sol);
-        let predicted = predicted_sigma(&targets, &obs, &sol, &settings, s.ins.rate_hz);
+        // The prediction with the simulation's own noise (the site states none: the solver's
+        // defaults, 0.05 deg and 3 cm, are conservative for this INS).
+        let sim_noise = Settings {
+            range_noise: s.lidar.range_sigma_m,
+            attitude_noise: s.ins.att_sigma_deg.to_radians(),
+            position_noise: s.ins.pos_sigma_m,
+            ..settings
+        };
+        let predicted = predicted_sigma(&targets, &obs, &sol, &sim_noise, s.ins.rate_hz);
         let v = assess(&rep, &cov, &goal, Some(&predicted));
         // Once claimed, the prediction from the kept returns' geometry agrees with the
         // solution's own (cluster-robust) sigma: the noise model is the site's, the data's

@@ -700,10 +700,20 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 });
             }
         }
-        let glints = self
-            .world
-            .water
-            .is_some_and(|w| w.specular_prob > 0.0 && w.specular > 0.0);
+        let objects = self.world.objects;
+        let is_target = |w: &Window| {
+            objects
+                .get(usize::from(w.obj))
+                .is_some_and(|o| o.target.is_some())
+        };
+        if self.cfg.targets_only && !self.live.iter().any(is_target) {
+            return;
+        }
+        let glints = !self.cfg.targets_only
+            && self
+                .world
+                .water
+                .is_some_and(|w| w.specular_prob > 0.0 && w.specular > 0.0);
         if self.live.is_empty() && !glints {
             return;
         }
@@ -741,21 +751,18 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                     }
                     let _ = near.push(k as u16);
                 }
+                if near.is_empty() && !glints {
+                    continue;
+                }
+                if self.cfg.targets_only
+                    && !near.iter().any(|&k| is_target(&self.live[usize::from(k)]))
+                {
+                    continue;
+                }
                 let (sa, ca) = libm::sincos(a);
                 let u = beam_unit(model.beam(laser), sa, ca);
                 let glint = glints && u.dot(&nadir_l) >= self.glint_cos;
                 if near.is_empty() && !glint {
-                    continue;
-                }
-                if self.cfg.targets_only
-                    && !near.iter().any(|&k| {
-                        let obj = usize::from(self.live[usize::from(k)].obj);
-                        self.world
-                            .objects
-                            .get(obj)
-                            .is_some_and(|o| o.target.is_some())
-                    })
-                {
                     continue;
                 }
                 self.stats.candidates += 1;

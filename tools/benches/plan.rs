@@ -5,7 +5,7 @@
 //! `cargo bench -p spherecal-tools --bench plan`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use spherecal_tools::config::scenario::{PassSpec, Scenario};
+use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::plan::{self, Goal};
 
 fn bench(c: &mut Criterion) {
@@ -17,16 +17,11 @@ fn bench(c: &mut Criterion) {
             b.iter(|| plan::plan(&s, &Goal::default(), false).unwrap())
         });
     }
-    let mut far = Scenario::load("table1").unwrap();
-    far.trajectory.pass = [1.5, 2.0, 2.5]
-        .iter()
-        .map(|&v| PassSpec {
-            start_ne_m: [-22.0, 24.4],
-            heading_deg: 0.0,
-            speed_mps: v,
-            duration_s: 64.0 / v,
-        })
-        .collect();
+    let far = Scenario::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/plans/table1-far-north.toml"
+    ))
+    .unwrap();
     let goal = Goal {
         sigma_deg: 0.05,
         ..Goal::default()

@@ -150,8 +150,8 @@ fn one(id: &str, kept: &[&Observation]) -> Coverage {
     c
 }
 
-/// The compass point of a heading ("northbound" ...).
-fn bound(h: f64) -> &'static str {
+/// The compass point of a course [deg] ("northbound", "south-westbound" ...).
+pub fn bound(h: f64) -> &'static str {
     const P: [&str; 8] = [
         "northbound",
         "north-eastbound",

@@ -74,7 +74,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
     // 1:1 within 620 x 560 px.
     let scale = (560.0 / (x1 - x0)).min(480.0 / (y1 - y0));
     let (w, h) = (
-        ((x1 - x0) * scale) as u32 + 90,
+        (((x1 - x0) * scale) as u32 + 90).max(320),
         ((y1 - y0) * scale) as u32 + 80,
     );
     let mut out = String::new();
@@ -83,7 +83,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         root.fill(&WHITE).map_err(e)?;
         let mut ch = ChartBuilder::on(&root)
             .caption(
-                "the plan from above (passes coloured by their share of the information)",
+                "from above (red: passes with a large share)",
                 ("sans-serif", 14),
             )
             .margin(10)
@@ -94,6 +94,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         ch.configure_mesh()
             .x_desc("east [m]")
             .y_desc("north [m]")
+            .light_line_style(WHITE)
             .draw()
             .map_err(e)?;
         for (seg, pts) in &paths {
@@ -157,11 +158,17 @@ pub fn sigma_svg(r: &PlanReport) -> Result<String, String> {
             .map_err(e)?;
         ch.configure_mesh()
             .disable_x_mesh()
-            .x_labels(P)
+            .x_labels(4 * P + 1)
             .x_label_formatter(&|x| {
-                NAMES
-                    .get(*x as usize)
-                    .map_or(String::new(), |s| s.to_string())
+                // Names under the bars' centres only.
+                let i = x.floor();
+                if (x - i - 0.5).abs() < 0.01 {
+                    NAMES
+                        .get(i as usize)
+                        .map_or(String::new(), |s| s.to_string())
+                } else {
+                    String::new()
+                }
             })
             .y_desc("sigma / target")
             .draw()
@@ -234,7 +241,7 @@ pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         escape(&super::weakest_words(&r.weakest))
     );
     o.push_str("<h2>Predicted 1-sigma</h2><table><tr><th class=\"l\">parameter</th><th>predicted</th><th>target</th></tr>\n");
-    for i in 0..P {
+    for (i, name) in NAMES.iter().enumerate() {
         let (t, unit) = if i < 3 {
             (format!("{}", r.goal.sigma_deg), "deg")
         } else {
@@ -243,7 +250,7 @@ pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         let _ = writeln!(
             o,
             "<tr><td class=\"l\">{} [{unit}]</td><td>{}</td><td>{t}</td></tr>",
-            NAMES[i],
+            name,
             fmt(r.predicted.sigma_deg_m[i], i)
         );
     }

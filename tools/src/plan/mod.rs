@@ -513,28 +513,13 @@ pub fn segment_name(s: &Scenario, seg: Segment) -> String {
             format!(
                 "pass {} ({}, {:.1} m/s)",
                 i + 1,
-                compass(p.heading_deg),
+                crate::verdict::bound(p.heading_deg),
                 p.speed_mps
             )
         }
         Segment::Turn(i) => format!("turn after pass {}", i + 1),
         Segment::Recorded => "the recorded trajectory".into(),
     }
-}
-
-/// `northbound`, `south-westbound`, ...
-pub fn compass(deg: f64) -> &'static str {
-    const N: [&str; 8] = [
-        "northbound",
-        "north-eastbound",
-        "eastbound",
-        "south-eastbound",
-        "southbound",
-        "south-westbound",
-        "westbound",
-        "north-westbound",
-    ];
-    N[(((deg.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
 }
 
 fn share(p: &Predicted, without: &Predicted) -> f64 {
@@ -576,7 +561,7 @@ pub fn assess(
             weakest_words(&p.weakest)
         )),
     }
-    for i in 0..P {
+    for (i, name) in NAMES.iter().enumerate() {
         let (t, unit) = if i < 3 {
             (goal.sigma_deg, "deg")
         } else {
@@ -584,8 +569,8 @@ pub fn assess(
         };
         match pred.sigma_deg_m[i] {
             Some(s) if s <= t => {}
-            Some(s) => missing.push(format!("{} sigma {s:.4} > {t} {unit}", NAMES[i])),
-            None => missing.push(format!("{} not determined", NAMES[i])),
+            Some(s) => missing.push(format!("{} sigma {s:.4} > {t} {unit}", name)),
+            None => missing.push(format!("{} not determined", name)),
         }
     }
     missing
@@ -728,13 +713,8 @@ pub fn render(r: &PlanReport) -> String {
         r.goal.sigma_deg,
         r.goal.sigma_m * 1e3
     );
-    for i in 0..P {
-        let _ = writeln!(
-            o,
-            "  {:<8} {}",
-            NAMES[i],
-            fmt(r.predicted.sigma_deg_m[i], i)
-        );
+    for (i, name) in NAMES.iter().enumerate() {
+        let _ = writeln!(o, "  {:<8} {}", name, fmt(r.predicted.sigma_deg_m[i], i));
     }
     let _ = writeln!(
         o,
@@ -795,7 +775,27 @@ pub fn render(r: &PlanReport) -> String {
         );
     }
     for (k, rec) in r.recommendations.iter().enumerate() {
-        let _ = writeln!(o, "recommendation {}: {}", k + 1, rec.words);
+        let steps: Vec<&str> = rec.words.split("; then ").collect();
+        let _ = writeln!(
+            o,
+            "recommendation {}: {}{}",
+            k + 1,
+            steps[0],
+            if steps.len() > 1 { ";" } else { "" }
+        );
+        for st in &steps[1..] {
+            let _ = writeln!(o, "  then {st}");
+        }
+        let _ = writeln!(
+            o,
+            "  ({:.0} s of survey; {})",
+            rec.cost_s,
+            if rec.meets {
+                "the plan then meets the targets"
+            } else {
+                "the plan is then still short of the targets: no candidate change gains more"
+            }
+        );
     }
     o
 }

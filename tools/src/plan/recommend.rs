@@ -282,7 +282,7 @@ pub fn recommend(
             cost_s: p.duration_s + turn,
             words: format!(
                 "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, start N {:.1} E {:.1})",
-                super::compass(p.heading_deg),
+                crate::verdict::bound(p.heading_deg),
                 p_offset(s, &p),
                 p.speed_mps,
                 p.duration_s,
@@ -378,9 +378,9 @@ pub fn recommend(
             .iter()
             .enumerate()
             .filter(|(k, c)| {
-                !taken.contains(k)
-                    && !(matches!(c.change, Change::SlowPass { .. })
-                        && taken.iter().any(|&t| cands[t].change == c.change))
+                let slowed_again = matches!(c.change, Change::SlowPass { .. })
+                    && taken.iter().any(|&t| cands[t].change == c.change);
+                !taken.contains(k) && !slowed_again
             })
             .map(|(k, c)| {
                 let p = Predicted::of(&with(&info, c));
