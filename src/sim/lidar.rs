@@ -475,7 +475,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// The first data packet at or after trajectory time `t` [s].
     pub fn packet_at(&self, t: f64) -> u64 {
-        ((t * 1e9 / self.period_ns as f64).ceil().max(0.0) as u64).min(self.packets)
+        (libm::ceil(t * 1e9 / self.period_ns as f64).max(0.0) as u64).min(self.packets)
     }
 
     /// The sensor's timestamp of a true GPS time: microseconds past its hour, on its clock.
