@@ -193,46 +193,97 @@ impl Problem<'_> {
         b: &[f64; P],
         mut f: impl FnMut(usize, &Observation, f64, &[f64; P7], f64),
     ) {
-        let (r_li, d) = rotation_and_derivatives(b);
-        let a = Vector3::new(b[3], b[4], b[5]);
+        let lin = Linearised::at(b);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                let (q, rot) = (o.q(), o.rot());
-                let y = r_li * q;
-                let w = rot * (a + y);
-                let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
-                let moved = v + om.cross(&w);
-                let dx = (o.position - s.target.center) + w + moved * self.dt;
-                let norm = dx.norm();
-                if norm == 0.0 {
-                    continue;
+                if let Some(r) = lin.row(o, &s.target, self.dt) {
+                    f(j, o, r.residual, &r.row, r.grazing);
                 }
-                let n = dx / norm;
-                let m = if self.dt == 0.0 {
-                    rot
-                } else {
-                    rot + skew(&om) * rot * self.dt
-                };
-                let g = m.transpose() * n;
-                let row = [
-                    g.dot(&(d[0] * q)),
-                    g.dot(&(d[1] * q)),
-                    g.dot(&(d[2] * q)),
-                    g.x,
-                    g.y,
-                    g.z,
-                    n.dot(&moved),
-                ];
-                // The beam R_ig y against the normal: (R y).n = y.(R^T n).
-                let yn = y.norm();
-                let cos = if yn > 0.0 {
-                    y.dot(&(rot.transpose() * n)) / yn
-                } else {
-                    1.0
-                };
-                f(j, o, norm - s.target.radius, &row, 1.0 - cos * cos);
             }
         }
+    }
+}
+
+/// The mounting's rotation, its derivatives and the lever arm: what every residual's
+/// gradient at `b` needs (six trig calls, once).
+#[derive(Debug, Clone, Copy)]
+pub struct Linearised {
+    r_li: Matrix3<f64>,
+    d: [Matrix3<f64>; 3],
+    a: Vector3<f64>,
+}
+
+/// One residual and its gradient ([`Problem::jacobian_with`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Row {
+    /// `||x - c|| - r` [m].
+    pub residual: f64,
+    /// Its derivatives by the six and the time offset.
+    pub row: [f64; P7],
+    /// The grazing factor `1 - (u.n)^2`.
+    pub grazing: f64,
+    /// The surface normal at the return (site frame).
+    pub normal: Vector3<f64>,
+    /// The return relative to the INS in the site frame before the time offset,
+    /// `R_ig (a + R_li q)`.
+    pub arm: Vector3<f64>,
+}
+
+impl Linearised {
+    /// At mounting `b`.
+    pub fn at(b: &[f64; P]) -> Self {
+        let (r_li, d) = rotation_and_derivatives(b);
+        Self {
+            r_li,
+            d,
+            a: Vector3::new(b[3], b[4], b[5]),
+        }
+    }
+
+    /// The residual of `o` against `target` with the time offset `dt`, and its gradient
+    /// (`None` at the centre itself).
+    #[inline]
+    pub fn row(&self, o: &Observation, target: &Target, dt: f64) -> Option<Row> {
+        let (q, rot) = (o.q(), o.rot());
+        let y = self.r_li * q;
+        let w = rot * (self.a + y);
+        let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
+        let moved = v + om.cross(&w);
+        let dx = (o.position - target.center) + w + moved * dt;
+        let norm = dx.norm();
+        if norm == 0.0 {
+            return None;
+        }
+        let n = dx / norm;
+        let m = if dt == 0.0 {
+            rot
+        } else {
+            rot + skew(&om) * rot * dt
+        };
+        let g = m.transpose() * n;
+        let row = [
+            g.dot(&(self.d[0] * q)),
+            g.dot(&(self.d[1] * q)),
+            g.dot(&(self.d[2] * q)),
+            g.x,
+            g.y,
+            g.z,
+            n.dot(&moved),
+        ];
+        // The beam R_ig y against the normal: (R y).n = y.(R^T n).
+        let yn = y.norm();
+        let cos = if yn > 0.0 {
+            y.dot(&(rot.transpose() * n)) / yn
+        } else {
+            1.0
+        };
+        Some(Row {
+            residual: norm - target.radius,
+            row,
+            grazing: 1.0 - cos * cos,
+            normal: n,
+            arm: w,
+        })
     }
 }
 

@@ -22,11 +22,10 @@
 //! (what a pass contributes, what a new one would add) without tracing again.
 
 use super::lm::{conditioning, row_q, MatQ, Q};
-use super::objective::{rotation_and_derivatives, Problem, SphereObs, P7};
+use super::objective::{Linearised, P7};
 use super::P;
-use crate::frames::roll_pitch_heading;
 use crate::window::{Observation, Target};
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The residual's sensitivity to one INS sample's errors: Q x 6 (position N, E, D; roll,
 /// pitch, heading).
@@ -101,23 +100,6 @@ impl Info {
         }
     }
 
-    /// The information of one sphere's returns (`obs` in time order) at mounting `b`:
-    /// added to `self`.
-    pub fn add_sphere(
-        &mut self,
-        target: &Target,
-        obs: &[Observation],
-        b: &[f64; P],
-        noise: &NoiseModel,
-    ) {
-        self.add_returns(
-            core::slice::from_ref(target),
-            obs.iter().map(|o| (0, o)),
-            b,
-            noise,
-        );
-    }
-
     /// The information of returns of several spheres, `(sphere, observation)` in time order
     /// across the spheres (returns of two spheres between the same INS samples share their
     /// errors), at mounting `b`: added to `self`.
@@ -128,8 +110,7 @@ impl Info {
         b: &[f64; P],
         noise: &NoiseModel,
     ) {
-        let r_li = crate::frames::rotation(b[0], b[1], b[2]);
-        let lever = Vector3::new(b[3], b[4], b[5]);
+        let lin = Linearised::at(b);
         let period = noise.ins_period_ns.max(1);
         let p2 = noise.position * noise.position;
         let a2 = noise.attitude * noise.attitude;
@@ -149,47 +130,29 @@ impl Info {
             let Some(target) = targets.get(j) else {
                 continue;
             };
-            let spheres = [SphereObs {
-                target: *target,
-                obs: core::slice::from_ref(o),
-            }];
-            let pb = Problem {
-                spheres: &spheres,
-                stride: 1,
-                dt: 0.0,
-                weights: None,
-            };
-            let mut one = None;
-            pb.jacobian_with(b, |_, _, _, row, g| one = Some((*row, g)));
-            let Some((row, g)) = one else {
+            let Some(r) = lin.row(o, target, 0.0) else {
                 continue;
             };
-            let jv = row_q(&row, g, true);
+            let (g, jv) = (r.grazing, row_q(&r.row, r.grazing, true));
             self.a += jv * jv.transpose();
             self.n += 1;
             // Range noise, radial part.
             let cos2 = (1.0 - g).clamp(0.0, 1.0);
             let var = noise.range_variance(f64::from(o.range), libm::sqrt(cos2)) * cos2;
             self.m += jv * jv.transpose() * var;
-            // INS errors: the normal, and the point relative to the INS in the site frame.
-            let rot = o.rot();
-            let w = lever + r_li * o.q();
-            let d = o.position + rot * w - target.center;
-            let norm = d.norm();
-            if norm == 0.0 {
-                continue;
-            }
-            let nrm = d / norm;
-            let rph = roll_pitch_heading(&rot);
-            let (_, dr) = rotation_and_derivatives(&[rph[0], rph[1], rph[2], 0.0, 0.0, 0.0]);
-            let gi = SVector::<f64, 6>::from_column_slice(&[
-                nrm.x,
-                nrm.y,
-                nrm.z,
-                nrm.dot(&(dr[0] * w)),
-                nrm.dot(&(dr[1] * w)),
-                nrm.dot(&(dr[2] * w)),
-            ]);
+            // INS errors: the normal against the return's move by the INS position and by
+            // its roll, pitch, heading ([`attitude_moves`]).
+            let gi = {
+                let (n, mv) = (r.normal, attitude_moves(&o.rot(), &r.arm));
+                SVector::<f64, 6>::from_column_slice(&[
+                    n.x,
+                    n.y,
+                    n.z,
+                    n.dot(&mv[0]),
+                    n.dot(&mv[1]),
+                    n.dot(&mv[2]),
+                ])
+            };
             let t = o.time.0;
             let i = t.div_euclid(period);
             let f = (t - i * period) as f64 / period as f64;
@@ -223,6 +186,27 @@ impl Info {
         flush(&mut self.m, &s0);
         flush(&mut self.m, &s1);
     }
+}
+
+/// How a point `R x` moves per radian of roll, pitch and heading of `R` (DESIGN.md: `R =
+/// Rz(heading) Ry(pitch) Rx(roll)`), with `w = R x`: roll turns about the body x axis,
+/// `R (e_x x x)`; pitch about the once-yawed y axis `Rz e_y = (-sin h, cos h, 0)`; heading
+/// about the site's down axis. No trig: `(cos h, sin h)` is the first column's horizontal
+/// direction.
+pub fn attitude_moves(r: &Matrix3<f64>, w: &Vector3<f64>) -> [Vector3<f64>; 3] {
+    let x = r.transpose() * w;
+    let (c, s) = (r[(0, 0)], r[(1, 0)]);
+    let h = libm::hypot(c, s);
+    let axis = if h > 0.0 {
+        Vector3::new(-s / h, c / h, 0.0)
+    } else {
+        Vector3::y()
+    };
+    [
+        r * Vector3::x().cross(&x),
+        axis.cross(w),
+        Vector3::z().cross(w),
+    ]
 }
 
 /// The predicted accuracy.
@@ -300,10 +284,45 @@ mod tests {
     use crate::georef::{Mount, Params};
     use crate::time::GpsTime;
 
-    /// Returns on a sphere of radius r seen head-on (the beam along the normal) from a
-    /// platform that does not rotate: the residual is the range error, so a single
-    /// parameter, the radius offset, is the mean of n independent errors: sigma / sqrt(n),
-    /// by hand. Here we check the diagonal of M against sum cos^2 sigma^2 j j^T directly.
+    /// How a point moves with roll, pitch and heading, against finite differences of
+    /// `frames::rotation` (independent of the closed forms), at attitudes up to 80 deg of
+    /// pitch and every heading.
+    #[test]
+    fn attitude_moves_match_finite_differences() {
+        let mut rng = crate::sim::Rng::new(17);
+        for _ in 0..200 {
+            let rph = [
+                rng.range(-1.5, 1.5),
+                rng.range(-1.4, 1.4),
+                rng.range(-3.2, 3.2),
+            ];
+            let x = Vector3::new(
+                rng.range(-30.0, 30.0),
+                rng.range(-30.0, 30.0),
+                rng.range(-5.0, 5.0),
+            );
+            let r = crate::frames::rotation(rph[0], rph[1], rph[2]);
+            let mv = attitude_moves(&r, &(r * x));
+            for k in 0..3 {
+                let (mut p, mut m) = (rph, rph);
+                p[k] += 1e-6;
+                m[k] -= 1e-6;
+                let fd = (crate::frames::rotation(p[0], p[1], p[2]) * x
+                    - crate::frames::rotation(m[0], m[1], m[2]) * x)
+                    / 2e-6;
+                assert!(
+                    (fd - mv[k]).norm() < 1e-6 * (1.0 + fd.norm()),
+                    "angle {k}: {fd} vs {}",
+                    mv[k]
+                );
+            }
+        }
+    }
+
+    /// Returns on a sphere seen head-on (the beam along the normal, cos = 1) with range noise
+    /// only: every residual's error is the whole range error, independent per return, so the
+    /// middle of the sandwich is sigma^2 times the normal matrix (and the covariance the
+    /// classic sigma^2 (J^T J)^-1).
     #[test]
     fn range_noise_enters_as_its_radial_part() {
         let noise = NoiseModel {
@@ -337,7 +356,7 @@ mod tests {
             });
         }
         let mut info = Info::default();
-        info.add_sphere(&t, &obs, &b, &noise);
+        info.add_returns(&[t], obs.iter().map(|o| (0, o)), &b, &noise);
         assert_eq!(info.n, 50);
         // Head-on: cos = 1, every residual's error has variance 0.03^2: M = sigma^2 A.
         let d = info.m - info.a * 9e-4;

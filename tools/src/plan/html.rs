@@ -193,13 +193,7 @@ pub fn sigma_svg(r: &PlanReport) -> Result<String, String> {
 }
 
 fn fmt(v: Option<f64>, i: usize) -> String {
-    v.map_or("&ndash;".into(), |v| {
-        if i < 3 {
-            format!("{v:.4}")
-        } else {
-            format!("{:.1}", v * 1e3)
-        }
-    })
+    super::sigma_text(v, i, false).unwrap_or_else(|| "&ndash;".into())
 }
 
 /// The page.

@@ -173,12 +173,8 @@ impl Geometry {
 
 /// The returns of sphere(s) of a scenario as the pipeline would observe them (true poses,
 /// rates by central differences over 0.4 s): `(trajectory time, sphere, observation)` in time
-/// order, over the trajectory times `span` (None: all). Traced on `threads` threads.
-pub fn observe(
-    s: &Scenario,
-    span: Option<(f64, f64)>,
-    threads: usize,
-) -> Result<Vec<(f64, usize, Observation)>, String> {
+/// order. Traced on `threads` threads, each over its share of the packets.
+pub fn observe(s: &Scenario, threads: usize) -> Result<Vec<(f64, usize, Observation)>, String> {
     let cfg = {
         let mut c = s.lidar_config();
         // The geometry: ideal beams, nothing lost (drops scale the information instead).
@@ -194,8 +190,7 @@ pub fn observe(
     let n_spheres = s.sphere.len();
     s.with_world(|world| {
         let probe = LidarSim::new(world, cfg);
-        let (t0, t1) = span.unwrap_or((0.0, world.trajectory.duration()));
-        let (first, end) = (probe.packet_at(t0), probe.packet_at(t1));
+        let (first, end) = (0, probe.packet_at(world.trajectory.duration()));
         let threads = threads.clamp(1, 8);
         let step = (end.saturating_sub(first)).div_ceil(threads as u64).max(1);
         let mut parts: Vec<Vec<(f64, usize, Observation)>> = Vec::new();
@@ -289,7 +284,7 @@ pub fn targets_of_scenario(s: &Scenario) -> Vec<Target> {
 
 /// Trace a scenario into per-segment, per-sphere information.
 pub fn geometry(s: &Scenario, noise: &PlanNoise, threads: usize) -> Result<Geometry, String> {
-    let obs = observe(s, None, threads)?;
+    let obs = observe(s, threads)?;
     Ok(geometry_of(s, noise, &obs, segments(s)))
 }
 
@@ -301,33 +296,24 @@ pub fn geometry(s: &Scenario, noise: &PlanNoise, threads: usize) -> Result<Geome
 /// [`ExtractSettings`]: spherecal::calib::extract::ExtractSettings
 pub const MIN_SLICE_RETURNS: usize = 4;
 
-/// Which returns the solver can keep: those in slices of time (as the solver cuts them: at
-/// most `slice_ns`, a gap of half of it ends one) holding at least [`MIN_SLICE_RETURNS`] of
+/// Which returns the solver can keep: those in slices of time (cut as the solver cuts them,
+/// [`spherecal::calib::extract::assign_slices`]) holding at least [`MIN_SLICE_RETURNS`] of
 /// their sphere's returns. Sparse sightings (a sphere far off in a turn) are left out: the
 /// solver detects them in some runs and not in others.
 fn detectable(obs: &[(f64, usize, Observation)], spheres: usize) -> Vec<bool> {
-    let st = spherecal::calib::extract::ExtractSettings::default();
-    let min = MIN_SLICE_RETURNS;
+    use spherecal::calib::extract::{assign_slices, ExtractSettings};
+    let slice_ns = ExtractSettings::default().slice_ns;
     let mut keep = vec![false; obs.len()];
     for j in 0..spheres {
         let idx: Vec<usize> = (0..obs.len()).filter(|&k| obs[k].1 == j).collect();
-        let mut start = 0;
-        while start < idx.len() {
-            let t0 = obs[idx[start]].2.time.0;
-            let mut end = start + 1;
-            while end < idx.len() {
-                let t = obs[idx[end]].2.time.0;
-                if t - t0 > st.slice_ns || t - obs[idx[end - 1]].2.time.0 > st.slice_ns / 2 {
-                    break;
-                }
-                end += 1;
-            }
-            if end - start >= min {
-                for &k in &idx[start..end] {
-                    keep[k] = true;
-                }
-            }
-            start = end;
+        let mut mine: Vec<Observation> = idx.iter().map(|&k| obs[k].2).collect();
+        assign_slices(&mut mine, slice_ns, usize::MAX);
+        let mut count = std::collections::HashMap::<u32, usize>::new();
+        for o in &mine {
+            *count.entry(o.work.slice).or_default() += 1;
+        }
+        for (&k, o) in idx.iter().zip(&mine) {
+            keep[k] = count[&o.work.slice] >= MIN_SLICE_RETURNS;
         }
     }
     keep
@@ -663,6 +649,17 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
     }
 }
 
+/// Parameter `i`'s sigma as the plan shows it: deg with 4 decimals for the angles, mm with 1
+/// for the lever arm (`units`: followed by the unit); `None` when not determined.
+pub fn sigma_text(v: Option<f64>, i: usize, units: bool) -> Option<String> {
+    let (x, prec, unit) = if i < 3 {
+        (v?, 4, " deg")
+    } else {
+        (v? * 1e3, 1, " mm")
+    };
+    Some(format!("{x:.prec$}{}", if units { unit } else { "" }))
+}
+
 /// The plan in words.
 pub fn render(r: &PlanReport) -> String {
     use std::fmt::Write as _;
@@ -698,15 +695,7 @@ pub fn render(r: &PlanReport) -> String {
         n.position_m,
         n.ins_rate_hz
     );
-    let fmt = |v: Option<f64>, i: usize| {
-        v.map_or("-".to_string(), |v| {
-            if i < 3 {
-                format!("{v:.4} deg")
-            } else {
-                format!("{:.1} mm", v * 1e3)
-            }
-        })
-    };
+    let fmt = |v: Option<f64>, i: usize| sigma_text(v, i, true).unwrap_or_else(|| "-".into());
     let _ = writeln!(
         o,
         "predicted 1 sigma (target {} deg, {} mm):",

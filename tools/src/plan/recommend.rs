@@ -56,17 +56,46 @@ struct Candidate {
     cost_s: f64,
     add: Info,
     remove: Info,
+    /// Returns it adds (or takes away) per sphere; a new sphere's count is one more entry.
+    returns: Vec<i64>,
     words: String,
 }
 
-/// How far a plan is from its goal: the worst sigma over its target, or the condition number
-/// over its limit, whichever is worse (1 or less: met, returns aside).
-fn score(p: &Predicted, goal: &Goal) -> f64 {
-    let pred = Prediction::of(p);
-    let c = pred
-        .condition
-        .map_or(f64::INFINITY, |c| c / goal.max_condition);
-    pred.worst_ratio(goal).max(c)
+/// A plan as the search sees it: its information and its returns per sphere.
+#[derive(Clone)]
+struct State {
+    info: Info,
+    returns: Vec<i64>,
+}
+
+impl State {
+    fn with(&self, c: &Candidate) -> Self {
+        let mut info = self.info;
+        info += &c.add;
+        info.a -= c.remove.a;
+        info.m -= c.remove.m;
+        info.n = info.n.saturating_sub(c.remove.n);
+        let mut returns = self.returns.clone();
+        returns.resize(returns.len().max(c.returns.len()), 0);
+        for (r, d) in returns.iter_mut().zip(&c.returns) {
+            *r += d;
+        }
+        Self { info, returns }
+    }
+
+    /// How far it is from the goal: the worst sigma over its target, the condition number
+    /// over its limit, or the returns the solver needs over a sphere's fewest, whichever is
+    /// worst (1 or less: met, as [`super::assess`] judges).
+    fn score(&self, goal: &Goal) -> (f64, Predicted) {
+        let p = Predicted::of(&self.info);
+        let pred = Prediction::of(&p);
+        let c = pred
+            .condition
+            .map_or(f64::INFINITY, |c| c / goal.max_condition);
+        let fewest = self.returns.iter().copied().min().unwrap_or(0).max(0);
+        let r = f64::from(goal.min_returns) / fewest as f64;
+        (pred.worst_ratio(goal).max(c).max(r), p)
+    }
 }
 
 /// The line of the spheres: centroid (N, E), unit direction along it, the unit normal towards
@@ -209,10 +238,26 @@ fn pass_info(
     noise: &PlanNoise,
     p: &PassSpec,
     threads: usize,
-) -> Result<Info, String> {
+) -> Result<(Info, Vec<i64>), String> {
     let t = with_passes(s, vec![p.clone()]);
-    let obs = observe(&t, None, threads)?;
-    Ok(geometry_of(&t, noise, &obs, segments(&t)).total())
+    let obs = observe(&t, threads)?;
+    let g = geometry_of(&t, noise, &obs, segments(&t));
+    Ok((g.total(), returns_per_sphere(&g, |_| true)))
+}
+
+/// Each sphere's returns in the segments `keep` says.
+fn returns_per_sphere(g: &Geometry, keep: impl Fn(usize) -> bool) -> Vec<i64> {
+    let n = g.cells.first().map_or(0, Vec::len);
+    (0..n)
+        .map(|j| {
+            g.cells
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| keep(*k))
+                .map(|(_, r)| i64::from(r[j].info.n))
+                .sum()
+        })
+        .collect()
 }
 
 /// Apply changes to a scenario.
@@ -243,13 +288,7 @@ fn sigma_words(before: &Prediction, after: &Prediction, goal: &Goal) -> String {
         .max_by(|&a, &b| ratio(before, a).total_cmp(&ratio(before, b)))
         .unwrap_or(0);
     let f = |p: &Prediction| {
-        p.sigma_deg_m[i].map_or("undetermined".to_string(), |v| {
-            if i < 3 {
-                format!("{v:.4} deg")
-            } else {
-                format!("{:.1} mm", v * 1e3)
-            }
-        })
+        super::sigma_text(p.sigma_deg_m[i], i, true).unwrap_or_else(|| "undetermined".into())
     };
     let cond = |p: &Prediction| p.condition.map_or("inf".into(), |c| format!("{c:.0}"));
     format!(
@@ -276,9 +315,11 @@ pub fn recommend(
     let turn = s.trajectory.turn_s;
     let mut cands: Vec<Candidate> = Vec::new();
     for p in candidate_passes(s) {
+        let (add, returns) = pass_info(s, noise, &p, threads)?;
         cands.push(Candidate {
-            add: pass_info(s, noise, &p, threads)?,
+            add,
             remove: Info::default(),
+            returns,
             cost_s: p.duration_s + turn,
             words: format!(
                 "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, start N {:.1} E {:.1})",
@@ -300,9 +341,15 @@ pub fn recommend(
             .segments
             .iter()
             .position(|(seg, _, _)| *seg == Segment::Pass(i));
+        let (add, mut returns) = pass_info(s, noise, &slow, threads)?;
+        let old = returns_per_sphere(g, |kk| Some(kk) == k);
+        for (r, o) in returns.iter_mut().zip(old) {
+            *r -= o;
+        }
         cands.push(Candidate {
-            add: pass_info(s, noise, &slow, threads)?,
+            add,
             remove: k.map_or(Info::default(), |k| g.sum(|kk, _| kk == k)),
+            returns,
             cost_s: slow.duration_s - p.duration_s,
             words: format!(
                 "drive pass {} at {speed:.2} m/s instead of {:.2} ({:.0} s more)",
@@ -320,10 +367,14 @@ pub fn recommend(
         for sp in candidate_spheres(s) {
             let mut t = s.clone();
             t.sphere = vec![sp.clone()];
-            let obs = observe(&t, None, threads)?;
+            let obs = observe(&t, threads)?;
+            let add = geometry_of(&t, noise, &obs, segments(&t)).total();
+            let mut returns = vec![0; s.sphere.len()];
+            returns.push(i64::from(add.n));
             cands.push(Candidate {
-                add: geometry_of(&t, noise, &obs, segments(&t)).total(),
+                add,
                 remove: Info::default(),
+                returns,
                 cost_s: SPHERE_COST_S,
                 words: format!(
                     "set up one more sphere at N {:.1} E {:.1}, {:.1} m up ({})",
@@ -333,23 +384,19 @@ pub fn recommend(
             });
         }
     }
-    let base = g.total();
-    let before = Prediction::of(&Predicted::of(&base));
-    let with = |info: &Info, c: &Candidate| {
-        let mut i = *info;
-        i += &c.add;
-        i.a -= c.remove.a;
-        i.m -= c.remove.m;
-        i.n = i.n.saturating_sub(c.remove.n);
-        i
+    let base = State {
+        info: g.total(),
+        returns: returns_per_sphere(g, |_| true),
     };
+    let before = Prediction::of(&Predicted::of(&base.info));
     let mut out = Vec::new();
     // Single changes that meet the goal, cheapest first (up to three).
     let mut singles: Vec<(f64, usize, Predicted)> = cands
         .iter()
         .enumerate()
-        .map(|(k, c)| (c.cost_s, k, Predicted::of(&with(&base, c))))
-        .filter(|(_, _, p)| score(p, goal) <= 1.0)
+        .map(|(k, c)| (c.cost_s, k, base.with(c).score(goal)))
+        .filter(|(_, _, (sc, _))| *sc <= 1.0)
+        .map(|(cost, k, (_, p))| (cost, k, p))
         .collect();
     singles.sort_by(|a, b| a.0.total_cmp(&b.0));
     for (cost, k, p) in singles.iter().take(3) {
@@ -367,11 +414,11 @@ pub fn recommend(
         return Ok(out);
     }
     // Otherwise greedily: the best gain per second, until it meets or no change helps.
-    let mut info = base;
+    let mut state = base;
     let mut taken: Vec<usize> = Vec::new();
     let mut words = Vec::new();
     let mut cost = 0.0;
-    let mut now = score(&Predicted::of(&info), goal);
+    let mut now = state.score(goal).0;
     let mut last = before.clone();
     for _ in 0..MAX_STEPS {
         let best = cands
@@ -383,8 +430,7 @@ pub fn recommend(
                 !taken.contains(k) && !slowed_again
             })
             .map(|(k, c)| {
-                let p = Predicted::of(&with(&info, c));
-                let sc = score(&p, goal);
+                let (sc, p) = state.with(c).score(goal);
                 let gain = (now.max(1e-300).ln() - sc.max(1e-300).ln()) / c.cost_s.max(1.0);
                 // A change that meets the goal now beats every partial gain, cheapest first.
                 let key = if sc <= 1.0 { 1e9 - c.cost_s } else { gain };
@@ -393,7 +439,7 @@ pub fn recommend(
             .filter(|(_, _, sc, _)| sc.is_finite() && *sc < now)
             .max_by(|a, b| a.3.total_cmp(&b.3));
         let Some((k, p, sc, _)) = best else { break };
-        info = with(&info, &cands[k]);
+        state = state.with(&cands[k]);
         taken.push(k);
         cost += cands[k].cost_s;
         let after = Prediction::of(&p);
