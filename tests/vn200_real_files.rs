@@ -273,3 +273,44 @@ fn thirdparty_quoted_ascii_file() {
         2048 * 604_800_000_000_000 + 224_159_474_991_000
     );
 }
+
+/// The two attitude fields of the real VN-310 files (each frame carries YawPitchRoll and
+/// Quaternion, as the device computed them) give one body -> NED rotation through
+/// `align::history::body_to_ned`: the quaternion path must agree with the Euler angles. With
+/// the quaternion's transpose (NED -> body) the two disagree by up to 2.0.
+#[test]
+fn vn310_quaternion_and_yaw_pitch_roll_give_one_attitude() {
+    use spherecal::align::history::body_to_ned;
+    use spherecal::vn200::pose::Attitude;
+    for file in ["vn200/vn310_gnss.bin", "vn200/vn310_imu.bin"] {
+        let bytes = std::fs::read(common::test_data(file)).unwrap();
+        let mut framer: Box<Framer> = Box::default();
+        let (mut checked, mut worst, mut worst_transposed) = (0, 0f64, 0f64);
+        let mut handle = |it: spherecal::vn200::Framed<'_>| {
+            let Item::Binary(f) = it.item else { return };
+            let (Some(ypr), Some(q)) = (f.yaw_pitch_roll_deg(), f.quaternion()) else {
+                return;
+            };
+            let ypr = Attitude::YawPitchRoll(ypr.map(|d| f64::from(d).to_radians()));
+            let q = Attitude::Quaternion(q.map(f64::from));
+            let (a, b) = (body_to_ned(&ypr).unwrap(), body_to_ned(&q).unwrap());
+            worst = worst.max((a - b).abs().max());
+            worst_transposed = worst_transposed.max((a - b.transpose()).abs().max());
+            checked += 1;
+        };
+        framer.consume(&bytes, &mut handle);
+        framer.finish();
+        while let Some(it) = framer.next() {
+            handle(it);
+        }
+        assert!(
+            checked >= 10,
+            "{file}: {checked} frames with both attitudes"
+        );
+        assert!(worst < 1e-5, "{file}: R(q) vs Euler {worst:e}");
+        assert!(
+            worst_transposed > 0.5,
+            "{file}: the attitudes are not a test ({worst_transposed})"
+        );
+    }
+}

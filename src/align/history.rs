@@ -34,21 +34,14 @@ impl PoseSample {
     }
 
     /// From a VN-200 pose: WGS84 position and attitude relative to the local level, into the
-    /// site frame. A VectorNav quaternion (x, y, z, w) rotates NED into body (VN-200 manual,
-    /// Attitude Quaternion; checked against YawPitchRoll on the VN-310 file in the tests).
+    /// site frame. The body -> NED rotation is [`body_to_ned`].
     pub fn from_vn200(site: &LocalFrame, pose: &Pose) -> Option<Self> {
         let g = Geodetic {
             lat: pose.lat,
             lon: pose.lon,
             h: pose.h,
         };
-        let local = match pose.attitude {
-            Attitude::YawPitchRoll([yaw, pitch, roll]) => rotation(roll, pitch, yaw),
-            Attitude::Quaternion([x, y, z, w]) => {
-                let q = UnitQuaternion::try_new(Quaternion::new(w, x, y, z), 1e-6)?;
-                q.to_rotation_matrix().into_inner().transpose()
-            }
-        };
+        let local = body_to_ned(&pose.attitude)?;
         Some(Self::from_geodetic(site, pose.time, &g, &local))
     }
 
@@ -62,6 +55,30 @@ impl PoseSample {
     ) -> Self {
         let r = site.from_local_level(g.lat, g.lon) * body_to_local;
         Self::new(time, site.to_ned(g), &r)
+    }
+}
+
+/// The body -> local-level NED rotation of a VN-200 attitude. YawPitchRoll are the 3-2-1 Euler
+/// angles (`Rz(yaw) Ry(pitch) Rx(roll)`); the quaternion (x, y, z, w: scalar last) is the same
+/// rotation, `R(q)` with the Hamilton convention (VN-200 manual, Attitude Quaternion). Checked
+/// on the real VN-310 files, which carry both: `R(q)` agrees with the Euler matrix to 3e-6, its
+/// transpose is off by up to 2 (tests/vn200_real_files.rs). `None` for a quaternion far from
+/// unit norm.
+pub fn body_to_ned(a: &Attitude) -> Option<Matrix3<f64>> {
+    match *a {
+        Attitude::YawPitchRoll([yaw, pitch, roll]) => Some(rotation(roll, pitch, yaw)),
+        Attitude::Quaternion([x, y, z, w]) => {
+            let q = Quaternion::new(w, x, y, z);
+            let n = q.norm();
+            if !(n > 0.9 && n < 1.1) {
+                return None;
+            }
+            Some(
+                UnitQuaternion::new_normalize(q)
+                    .to_rotation_matrix()
+                    .into_inner(),
+            )
+        }
     }
 }
 

@@ -1,6 +1,7 @@
 //! The VN-200 side of the simulator: binary output frames (Common group: TimeGps,
-//! YawPitchRoll, Position, InsStatus) at a fixed rate, sampled from the truth, with optional
-//! noise, a clock offset and corrupted bytes, written through the VN-200 emit side.
+//! YawPitchRoll or Quaternion, Position, InsStatus) at a fixed rate, sampled from the truth,
+//! with optional noise, a clock offset, clock steps and corrupted bytes, written through the
+//! VN-200 emit side.
 
 use super::rng::Rng;
 use super::World;
@@ -27,6 +28,21 @@ pub struct InsConfig {
     pub margin_s: f64,
     /// Seed.
     pub seed: u64,
+    /// The attitude field sent.
+    pub attitude: AttitudeOutput,
+    /// Steps of the INS clock: from true time `.0` [ns since the GPS epoch] on, the reported
+    /// time is off by a further `.1` [ns] (a receiver's clock jump; negative: time goes back).
+    pub time_steps: [(i64, i64); 4],
+}
+
+/// Which attitude field the simulated VN-200 sends (VN-200 manual, Common group bits 3, 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AttitudeOutput {
+    /// YawPitchRoll: heading, pitch, roll [deg, f32].
+    #[default]
+    YawPitchRoll,
+    /// Quaternion x, y, z, w (scalar last) of the body -> NED rotation [f32].
+    Quaternion,
 }
 
 impl Default for InsConfig {
@@ -39,16 +55,35 @@ impl Default for InsConfig {
             corrupt_prob: 0.0,
             margin_s: 1.0,
             seed: 2,
+            attitude: AttitudeOutput::YawPitchRoll,
+            time_steps: [(i64::MAX, 0); 4],
         }
     }
 }
 
-/// The fields the simulated VN-200 sends: Common group TimeGps (1), YawPitchRoll (3),
-/// Position (6), InsStatus (12).
-pub fn output_masks() -> Masks {
+impl InsConfig {
+    /// The INS clock's error at true time `t` [ns]: the offset plus every step taken by then.
+    pub fn clock_error_ns(&self, t: GpsTime) -> i64 {
+        self.time_offset_ns
+            + self
+                .time_steps
+                .iter()
+                .filter(|(at, _)| t.0 >= *at)
+                .map(|(_, step)| step)
+                .sum::<i64>()
+    }
+}
+
+/// The fields the simulated VN-200 sends: Common group TimeGps (1), YawPitchRoll (3) or
+/// Quaternion (4), Position (6), InsStatus (12).
+pub fn output_masks(attitude: AttitudeOutput) -> Masks {
+    let att = match attitude {
+        AttitudeOutput::YawPitchRoll => 3,
+        AttitudeOutput::Quaternion => 4,
+    };
     Masks::default()
         .with(Group::Common, 1)
-        .with(Group::Common, 3)
+        .with(Group::Common, att)
         .with(Group::Common, 6)
         .with(Group::Common, 12)
 }
@@ -126,7 +161,7 @@ impl<'w, 'a> InsSim<'w, 'a> {
             p + self.rng.gauss(sig),
             r + self.rng.gauss(sig),
         );
-        let stamp = (t.0 + self.cfg.time_offset_ns).max(0);
+        let stamp = (t.0 + self.cfg.clock_error_ns(t)).max(0);
         Some((t, stamp, [r, p, h], g))
     }
 
@@ -144,19 +179,34 @@ impl<'w, 'a> InsSim<'w, 'a> {
     /// Write the next frame into `out` (at least 64 bytes); its true time and length.
     pub fn next_frame(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
         let (t, stamp, [r, p, h], g) = self.next_sample()?;
-        let mut payload = [0u8; 46];
-        payload[..8].copy_from_slice(&(stamp as u64).to_le_bytes());
-        for (i, a) in [h, p, r].iter().enumerate() {
-            payload[8 + 4 * i..12 + 4 * i].copy_from_slice(&(a.to_degrees() as f32).to_le_bytes());
+        let mut payload = [0u8; 50];
+        let mut w = 0;
+        let mut put = |b: &[u8]| {
+            payload[w..w + b.len()].copy_from_slice(b);
+            w += b.len();
+        };
+        put(&(stamp as u64).to_le_bytes());
+        match self.cfg.attitude {
+            AttitudeOutput::YawPitchRoll => {
+                for a in [h, p, r] {
+                    put(&(a.to_degrees() as f32).to_le_bytes());
+                }
+            }
+            AttitudeOutput::Quaternion => {
+                let q = nalgebra::UnitQuaternion::from_rotation_matrix(
+                    &nalgebra::Rotation3::from_matrix_unchecked(rotation(r, p, h)),
+                );
+                // Scalar last, as VectorNav sends it.
+                for c in [q.i, q.j, q.k, q.w] {
+                    put(&(c as f32).to_le_bytes());
+                }
+            }
         }
-        for (i, v) in [g.lat.to_degrees(), g.lon.to_degrees(), g.h]
-            .iter()
-            .enumerate()
-        {
-            payload[20 + 8 * i..28 + 8 * i].copy_from_slice(&v.to_le_bytes());
+        for v in [g.lat.to_degrees(), g.lon.to_degrees(), g.h] {
+            put(&v.to_le_bytes());
         }
-        payload[44..46].copy_from_slice(&INS_STATUS.to_le_bytes());
-        let n = emit(out, &output_masks(), &payload).ok()?;
+        put(&INS_STATUS.to_le_bytes());
+        let n = emit(out, &output_masks(self.cfg.attitude), &payload[..w]).ok()?;
         self.stats.frames += 1;
         self.corrupt(&mut out[..n]);
         Some((t, n))

@@ -108,6 +108,9 @@ pub struct LidarConfig {
     /// The sensor's clock error [ns]: its timestamps are the true time plus this (a unit
     /// without PPS runs on its own oscillator).
     pub clock_offset_ns: i64,
+    /// Its oscillator's rate error [parts per million]: without PPS the clock error grows by
+    /// this from the start of the scan (a free-running crystal: tens of ppm).
+    pub clock_drift_ppm: f64,
     /// The PPS state its position packets report.
     pub pps: PpsStatus,
     /// Its GPS has a fix: the position packets' `$GPRMC` say A (valid), else V.
@@ -135,6 +138,7 @@ impl Default for LidarConfig {
             targets_only: false,
             trace_seed: 0x5CE7E,
             clock_offset_ns: 0,
+            clock_drift_ppm: 0.0,
             pps: PpsStatus::Locked,
             rmc_valid: true,
         }
@@ -480,8 +484,12 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// The sensor's timestamp of a true GPS time: microseconds past its hour, on its clock.
     fn stamp(&self, t: GpsTime) -> u32 {
+        let drift = (self.cfg.clock_drift_ppm * 1e-6 * (t.0 - self.world.start.0) as f64) as i64;
         micros_past_hour(
-            GpsTime(t.0.saturating_add(self.cfg.clock_offset_ns)),
+            GpsTime(
+                t.0.saturating_add(self.cfg.clock_offset_ns)
+                    .saturating_add(drift),
+            ),
             self.world.leap_seconds,
         )
     }

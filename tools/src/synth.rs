@@ -324,6 +324,14 @@ fn write_lidar(
 
 /// ins.bin, and the same bytes as a serial log with the times a rig would have received
 /// them (sample time + output latency + transmission at the baud rate), for replay.
+/// Only the INS files (`ins.bin`, `ins.vnlog`, and `ins.posmv` for a POS MV) of a scenario,
+/// into `dir` (created if needed): the same stream [`synth`] writes.
+pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    s.with_world(|world| write_ins(s, world, dir))
+        .map_err(|e| e.to_string())?
+}
+
 fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, String> {
     let ins_path = dir.join("ins.bin");
     let log_path = dir.join("ins.vnlog");

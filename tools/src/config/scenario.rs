@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
+use spherecal::sim::ins::AttitudeOutput;
 use spherecal::sim::trajectory::Sample;
 use spherecal::sim::{InsConfig, LidarConfig, Motion, Object, Pass, Shape};
 use spherecal::time::{days_from_civil, unix_ns_to_gps, GpsTime};
@@ -181,6 +182,14 @@ pub struct LidarSpec {
     /// Its GPS has a fix: `$GPRMC` status A (default), else V.
     #[serde(default = "default_true")]
     pub rmc_valid: bool,
+    /// Its clock's rate error without PPS [ppm]: the error grows by this from the scan's start
+    /// (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub clock_drift_ppm: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 fn default_ins_kind() -> String {
@@ -226,6 +235,24 @@ pub struct InsSpec {
     pub time_offset_s: f64,
     /// Probability of a corrupted serial byte.
     pub corrupt_prob: f64,
+    /// The attitude field the VN-200 sends: `yaw_pitch_roll` (default) or `quaternion`.
+    #[serde(
+        default = "default_attitude",
+        skip_serializing_if = "is_default_attitude"
+    )]
+    pub attitude: String,
+    /// Steps of the INS clock: `[[at_s, step_s], ...]`, at most four: from `at_s` seconds after
+    /// the scan's start on, its time is off by a further `step_s` (negative: it goes back).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clock_steps: Vec<[f64; 2]>,
+}
+
+fn default_attitude() -> String {
+    "yaw_pitch_roll".into()
+}
+
+fn is_default_attitude(s: &String) -> bool {
+    s == "yaw_pitch_roll"
 }
 
 /// One pass.
@@ -491,6 +518,11 @@ impl Scenario {
             "expected |offset| < 3600 s",
         )?;
         check(
+            self.lidar.clock_drift_ppm.abs() <= 1000.0,
+            "lidar.clock_drift_ppm",
+            "expected |drift| <= 1000 ppm",
+        )?;
+        check(
             self.pps().is_some(),
             "lidar.pps",
             "expected locked, absent, syncing or error",
@@ -551,6 +583,21 @@ impl Scenario {
             (0.0..=1.0).contains(&self.ins.corrupt_prob),
             "ins.corrupt_prob",
             "expected 0..=1",
+        )?;
+        check(
+            matches!(self.ins.attitude.as_str(), "yaw_pitch_roll" | "quaternion"),
+            "ins.attitude",
+            "expected yaw_pitch_roll or quaternion",
+        )?;
+        check(
+            self.ins.clock_steps.len() <= 4
+                && self
+                    .ins
+                    .clock_steps
+                    .iter()
+                    .all(|[a, d]| a.is_finite() && *a >= 0.0 && d.is_finite() && d.abs() < 10.0),
+            "ins.clock_steps",
+            "expected at most 4 [at_s >= 0, |step_s| < 10]",
         )?;
         Ok(())
     }
@@ -845,6 +892,7 @@ impl Scenario {
             range_walk: self.lidar.range_walk_m,
             clutter_keep: self.lidar.clutter_keep,
             clock_offset_ns: (self.lidar.clock_offset_s * 1e9).round() as i64,
+            clock_drift_ppm: self.lidar.clock_drift_ppm,
             pps: self.pps().unwrap_or(spherecal::velodyne::PpsStatus::Locked),
             rmc_valid: self.lidar.rmc_valid,
             seed: self.seed.wrapping_mul(2).wrapping_add(1),
@@ -861,6 +909,21 @@ impl Scenario {
             time_offset_ns: (self.ins.time_offset_s * 1e9).round() as i64,
             corrupt_prob: self.ins.corrupt_prob,
             seed: self.seed.wrapping_mul(2).wrapping_add(2),
+            attitude: if self.ins.attitude == "quaternion" {
+                AttitudeOutput::Quaternion
+            } else {
+                AttitudeOutput::YawPitchRoll
+            },
+            time_steps: {
+                let mut steps = [(i64::MAX, 0); 4];
+                for (k, [at, d]) in self.ins.clock_steps.iter().take(4).enumerate() {
+                    steps[k] = (
+                        self.start().0 + (at * 1e9).round() as i64,
+                        (d * 1e9).round() as i64,
+                    );
+                }
+                steps
+            },
             ..InsConfig::default()
         }
     }
