@@ -24,7 +24,7 @@
 //! six parameters against the surveyed centres, re-georeferences, re-detects with a tighter
 //! prior and shell, until the kept set stops changing. Returns are tagged with a [`Verdict`].
 
-use super::objective::Noise;
+use super::objective::{Noise, TimeOffset};
 use crate::georef::Mount;
 use crate::window::{Observation, Target};
 use core::ops::Range;
@@ -93,8 +93,12 @@ impl Verdict {
 pub struct ExtractSettings {
     /// Length of a slice of time [ns].
     pub slice_ns: i64,
-    /// A gap longer than this between a sphere's returns separates two passes [ns].
+    /// A gap longer than this between a sphere's returns separates two passes even on one
+    /// course (a second visit) [ns]; a turn of the course always does.
     pub pass_gap_ns: i64,
+    /// A piece of a pass shorter than this after a turn (the turn itself) joins the pass before
+    /// it [ns].
+    pub pass_min_ns: i64,
     /// Fewest inliers of a detection without a prior.
     pub min_inliers: usize,
     /// Fewest inliers of a detection within the prior.
@@ -119,7 +123,8 @@ impl Default for ExtractSettings {
     fn default() -> Self {
         Self {
             slice_ns: 400_000_000,
-            pass_gap_ns: 2_000_000_000,
+            pass_gap_ns: 20_000_000_000,
+            pass_min_ns: 2_000_000_000,
             min_inliers: 10,
             min_inliers_prior: 4,
             peaks: 12,
@@ -179,14 +184,14 @@ fn norm(a: V3) -> f32 {
     libm::sqrtf(dot(a, a))
 }
 
-/// Georeference every observation of one sphere with `mount` and the time offset `dt` (on
+/// Georeference every observation of one sphere with `mount` and the time offset `time` (on
 /// top of the observations' poses, [`Observation::georef_dt`]): the return relative to the
 /// surveyed centre and the beam's direction, into `work`.
-pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount, dt: f64) {
+pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount, time: &TimeOffset) {
     for o in obs.iter_mut() {
         let rot = o.rot();
         let y = mount.r_li * o.q();
-        let x = o.georef_dt(mount, dt) - t.center;
+        let x = o.georef_dt(mount, time.at(o)) - t.center;
         let u = rot * y;
         let n = u.norm().max(1e-9);
         o.work.x = [x.x as f32, x.y as f32, x.z as f32];
@@ -573,7 +578,35 @@ pub fn detect(
     dirs: &Directions,
     st: &ExtractSettings,
 ) -> Option<Detection> {
+    let mut all = Candidates::new();
+    detect_all(obs, keys, r, tau, prior, grid, dirs, st, &mut all);
+    all.first().copied()
+}
+
+/// Most sphere-like candidates [`detect_all`] returns per slice.
+pub const MAX_CANDIDATES: usize = 4;
+
+/// A slice's accepted candidates, best first.
+pub type Candidates = heapless::Vec<Detection, MAX_CANDIDATES>;
+
+/// As [`detect`], every acceptable candidate into `out` (best score first, at most
+/// [`MAX_CANDIDATES`], centres at least a radius apart): a slice can hold the sphere and things
+/// that look like it (a buoy, a fender, a bollard's cap seen by one scan line), which only the
+/// consensus across slices, passes and spheres tells apart ([`super::consensus`]).
+#[allow(clippy::too_many_arguments)]
+pub fn detect_all(
+    obs: &[Observation],
+    keys: &mut [(f32, u32)],
+    r: f64,
+    tau: f64,
+    prior: Option<f64>,
+    grid: &mut [u16],
+    dirs: &Directions,
+    st: &ExtractSettings,
+    out: &mut Candidates,
+) {
     const K: usize = 16;
+    out.clear();
     let r = r as f32;
     let tau = tau as f32;
     let prior = prior.map(|p| p as f32);
@@ -603,7 +636,7 @@ pub fn detect(
         st.min_inliers
     };
     if voters < need {
-        return None;
+        return;
     }
     if let Some(p) = prior {
         for a in 0..3 {
@@ -613,7 +646,7 @@ pub fn detect(
     }
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0f32, f32::max);
     if !extent.is_finite() || extent <= 0.0 {
-        return None;
+        return;
     }
     let nmax = (libm::cbrt(grid.len() as f64) as u32).max(1);
     let h = (0.5 * r).max(extent / nmax as f32);
@@ -651,7 +684,6 @@ pub fn detect(
     // Refine and score the strongest peaks; keep the best acceptable one.
     let mut order: [usize; K] = core::array::from_fn(|i| i);
     order.sort_unstable_by(|&a, &b| peaks.count[b].cmp(&peaks.count[a]));
-    let mut best: Option<Detection> = None;
     // With a prior, the surveyed centre itself is the first candidate (refined within a
     // narrow band: the stand's returns are near); then the peaks (from a cell's precision).
     let first = prior.map(|_| ([0f32; 3], (2.0 * tau).max(0.01)));
@@ -674,10 +706,15 @@ pub fn detect(
         let score = s.weight
             - st.violation_weight * s.violations as f32
             - st.collar_weight * s.collar as f32;
+        // A candidate as good as one already accepted within a radius of it adds nothing.
+        let beaten = |c: [f32; 3], score: f32| {
+            out.iter()
+                .any(|d| norm(sub(d.center, c)) < r && d.score >= score)
+        };
         if (s.inliers as usize) < need
             || s.violations as f32 > 0.25 * s.inliers as f32 + 2.0
             || score <= 0.0
-            || best.is_some_and(|b| score <= b.score)
+            || beaten(c, score)
         {
             continue;
         }
@@ -696,14 +733,25 @@ pub fn detect(
         if violations as f32 > 0.25 * s.inliers as f32 + 2.0 || score <= 0.0 {
             continue;
         }
-        best = Some(Detection {
+        if beaten(c, score) {
+            continue;
+        }
+        out.retain(|d| norm(sub(d.center, c)) >= r);
+        let d = Detection {
             center: c,
             inliers: s.inliers,
             score,
             violations,
-        });
+        };
+        let at = out.partition_point(|o| o.score >= score);
+        if out.is_full() {
+            if at >= out.len() {
+                continue;
+            }
+            out.pop();
+        }
+        let _ = out.insert(at, d);
     }
-    best
 }
 
 /// Tag the observations of a slice against a sphere of radius `r` centred at `c` (relative):

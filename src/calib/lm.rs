@@ -34,14 +34,25 @@ use nalgebra::{Cholesky, SMatrix, SVector, SymmetricEigen};
 pub type Mat6 = SMatrix<f64, P, P>;
 /// 6-vector.
 pub type Vec6 = SVector<f64, P>;
-/// The six, the time offset, and the two nuisance parameters (radius offset, grazing
-/// inflation).
-pub const Q: usize = P + 3;
+/// The six, the time offset, the two nuisance parameters (radius offset, grazing inflation)
+/// and the time offset's drift.
+pub const Q: usize = P + 4;
 /// Q x Q.
 pub type MatQ = SMatrix<f64, Q, Q>;
 pub(crate) type VecQ = SVector<f64, Q>;
 /// Index of the time offset in the parameter vector.
 const DT: usize = P;
+/// Index of the time offset's drift.
+pub(crate) const DRIFT: usize = P + 3;
+
+/// Which clock parameters are estimated with the six.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Clock {
+    /// The time offset.
+    pub dt: bool,
+    /// Its drift (needs `dt`).
+    pub drift: bool,
+}
 
 /// What LM found and how well the data determine it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,6 +64,12 @@ pub struct LmResult {
     pub dt: f64,
     /// The time offset was estimated.
     pub estimated_dt: bool,
+    /// The time offset's drift [s/s] (the problem's own when not estimated).
+    pub drift: f64,
+    /// Its 1-sigma (0 when not estimated).
+    pub sigma_drift: f64,
+    /// The drift was estimated.
+    pub estimated_drift: bool,
     /// Common radius offset [m] (what the spheres' apparent radius differs by).
     pub radius_offset: f64,
     /// Iterations taken.
@@ -87,7 +104,10 @@ pub struct LmResult {
     pub weakest: [f64; P7],
 }
 
-pub(crate) fn row_q(row: &[f64; P7], g: f64, dt: bool) -> VecQ {
+/// The full row of one residual: the six, the time offset (when estimated), the nuisance
+/// terms and the drift (the time offset's times `since`, the seconds from the reference time,
+/// when estimated).
+pub(crate) fn row_q(row: &[f64; P7], g: f64, clock: Clock, since: f64) -> VecQ {
     VecQ::from_column_slice(&[
         row[0],
         row[1],
@@ -95,9 +115,10 @@ pub(crate) fn row_q(row: &[f64; P7], g: f64, dt: bool) -> VecQ {
         row[3],
         row[4],
         row[5],
-        if dt { row[6] } else { 0.0 },
+        if clock.dt { row[6] } else { 0.0 },
         -1.0,
         -g,
+        if clock.drift { row[6] * since } else { 0.0 },
     ])
 }
 
@@ -105,7 +126,7 @@ pub(crate) fn row_q(row: &[f64; P7], g: f64, dt: bool) -> VecQ {
 struct At<'a, 'p> {
     pb: &'a Problem<'p>,
     z: [f64; Q],
-    dt: bool,
+    clock: Clock,
 }
 
 impl At<'_, '_> {
@@ -116,6 +137,7 @@ impl At<'_, '_> {
     fn problem(&self) -> Problem<'_> {
         Problem {
             dt: self.z[DT],
+            drift: self.z[DRIFT],
             ..*self.pb
         }
     }
@@ -130,7 +152,7 @@ impl At<'_, '_> {
         let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
         let pb = self.problem();
         pb.jacobian_with(&self.b(), |_, o, r, row, g| {
-            let j = row_q(row, g, self.dt);
+            let j = row_q(row, g, self.clock, pb.since_ref(o));
             let r = r - nu0 - nu1 * g;
             let w = pb.weight(o);
             jtj += j * j.transpose() * w;
@@ -139,9 +161,12 @@ impl At<'_, '_> {
             raw += r * r;
             n += 1;
         });
-        if !self.dt {
+        if !self.clock.dt {
             // The time offset is held: its equation is dt = dt.
             jtj[(DT, DT)] = 1.0;
+        }
+        if !self.clock.drift {
+            jtj[(DRIFT, DRIFT)] = 1.0;
         }
         (jtj, jtr, cost, n, raw)
     }
@@ -165,7 +190,8 @@ impl At<'_, '_> {
                 key = Some(k);
                 clusters += 1;
             }
-            g += row_q(row, gz, self.dt) * ((r - nu0 - nu1 * gz) * pb.weight(o));
+            g +=
+                row_q(row, gz, self.clock, pb.since_ref(o)) * ((r - nu0 - nu1 * gz) * pb.weight(o));
         });
         if key.is_some() {
             m += g * g.transpose();
@@ -282,28 +308,31 @@ pub(crate) fn conditioning(jtj: &MatQ, estimate_dt: bool) -> (f64, [f64; P7]) {
 }
 
 /// Refine `b0` by Levenberg-Marquardt, at most `max_iter` iterations; returns within
-/// `cluster_ns` of each other on one sphere count as one cluster for the covariance. With
-/// `estimate_dt`, the time offset is estimated with the six, from the problem's `dt`.
+/// `cluster_ns` of each other on one sphere count as one cluster for the covariance. `clock`:
+/// the time offset (and its drift) estimated with the six, from the problem's `dt` (and
+/// `drift`).
 pub fn refine(
     pb: &Problem<'_>,
     b0: &[f64; P],
     max_iter: usize,
     cluster_ns: i64,
-    estimate_dt: bool,
+    clock: Clock,
 ) -> LmResult {
+    let clock = Clock {
+        dt: clock.dt,
+        drift: clock.dt && clock.drift,
+    };
+    let estimate_dt = clock.dt;
     let mut z = [0.0; Q];
     z[..P].copy_from_slice(b0);
     z[DT] = pb.dt;
-    let at = At {
-        pb,
-        z,
-        dt: estimate_dt,
-    };
+    z[DRIFT] = pb.drift;
+    let at = At { pb, z, clock };
     let (at, Normal { jtj, cost, n, raw }, iterations, converged) = iterate(at, max_iter);
     let b = at.b();
     let converged = converged && cost.is_finite() && at.z.iter().all(|x| x.is_finite());
-    // Degrees of freedom: the held time offset is no parameter.
-    let params = if estimate_dt { Q } else { Q - 1 };
+    // Degrees of freedom: a held time offset or drift is no parameter.
+    let params = Q - usize::from(!clock.dt) - usize::from(!clock.drift);
     let dof = n.saturating_sub(params).max(1) as f64;
     let s2 = cost / dof;
     let inv = jtj.try_inverse();
@@ -355,10 +384,22 @@ pub fn refine(
         }
     }
     let (condition, weakest) = conditioning(&jtj, estimate_dt);
+    let sigma_drift = if clock.drift {
+        inv.map_or(f64::INFINITY, |m| {
+            let robust = (m * mid * m * corr)[(DRIFT, DRIFT)];
+            let classic = m[(DRIFT, DRIFT)] * s2;
+            libm::sqrt(robust.max(classic).max(0.0))
+        })
+    } else {
+        0.0
+    };
     LmResult {
         b,
         dt: at.z[DT],
         estimated_dt: estimate_dt,
+        drift: at.z[DRIFT],
+        sigma_drift,
+        estimated_drift: clock.drift,
         radius_offset: at.z[P + 1],
         iterations,
         converged,
@@ -457,9 +498,11 @@ mod tests {
             spheres: &s,
             stride: 1,
             dt: 0.0,
+            drift: 0.0,
+            t_ref: GpsTime(0),
             weights,
         };
-        refine(&pb, start, 100, 20_000_000, false)
+        refine(&pb, start, 100, 20_000_000, Clock::default())
     }
 
     #[test]

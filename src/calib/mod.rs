@@ -11,6 +11,7 @@
 //! - [`solve`]: all of it with re-windowing and the quality checks that refuse to claim a
 //!   solution the data cannot support.
 
+pub mod consensus;
 pub mod extract;
 pub mod lm;
 pub mod nelder_mead;

@@ -68,6 +68,39 @@ impl Noise {
     }
 }
 
+/// The time offset between the clocks as the solver models it (INS minus LiDAR, beyond what the
+/// pipeline applied): `dt + drift (t - t_ref)` [s].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TimeOffset {
+    /// The offset at `t_ref` [s].
+    pub dt: f64,
+    /// Its rate [s/s].
+    pub drift: f64,
+    /// The reference time.
+    pub t_ref: crate::time::GpsTime,
+}
+
+impl TimeOffset {
+    /// A constant offset.
+    pub const fn constant(dt: f64) -> Self {
+        Self {
+            dt,
+            drift: 0.0,
+            t_ref: crate::time::GpsTime(0),
+        }
+    }
+
+    /// The offset at `o`'s time [s].
+    #[inline]
+    pub fn at(&self, o: &Observation) -> f64 {
+        if self.drift == 0.0 {
+            self.dt
+        } else {
+            self.dt + self.drift * (o.time.0 - self.t_ref.0) as f64 * 1e-9
+        }
+    }
+}
+
 /// The problem: spheres with their observations.
 #[derive(Debug, Clone, Copy)]
 pub struct Problem<'a> {
@@ -76,14 +109,42 @@ pub struct Problem<'a> {
     /// [`Self::l1`] uses every `stride`-th observation of each sphere (1 = all).
     pub stride: usize,
     /// The time offset [s] to apply on top of the observations' poses (the INS clock minus the
-    /// LiDAR's, beyond what the pipeline applied), to first order ([`Observation::georef_dt`]).
+    /// LiDAR's, beyond what the pipeline applied), to first order ([`Observation::georef_dt`]),
+    /// at `t_ref`.
     pub dt: f64,
+    /// Its rate of change [s/s] (a LiDAR clock without PPS runs on its own crystal): the offset
+    /// of a return at time t is `dt + drift (t - t_ref)`.
+    pub drift: f64,
+    /// The time `dt` refers to.
+    pub t_ref: crate::time::GpsTime,
     /// Weighted least squares with this noise model (each residual by the inverse of its
     /// variance), or `None`: every residual alike.
     pub weights: Option<Noise>,
 }
 
 impl Problem<'_> {
+    /// Seconds from `t_ref` to `o`.
+    #[inline]
+    pub fn since_ref(&self, o: &Observation) -> f64 {
+        (o.time.0 - self.t_ref.0) as f64 * 1e-9
+    }
+
+    /// The time offset model.
+    #[inline]
+    pub fn time(&self) -> TimeOffset {
+        TimeOffset {
+            dt: self.dt,
+            drift: self.drift,
+            t_ref: self.t_ref,
+        }
+    }
+
+    /// The time offset at `o` [s]: `dt + drift (t - t_ref)`.
+    #[inline]
+    pub fn dt_at(&self, o: &Observation) -> f64 {
+        self.time().at(o)
+    }
+
     /// The least-squares weight of `o` (1 without a noise model).
     #[inline]
     pub fn weight(&self, o: &Observation) -> f64 {
@@ -138,11 +199,12 @@ impl Problem<'_> {
     ) -> Vector3<f64> {
         let w = o.rot() * (a + r_li * o.q());
         let d = (o.position - c) + w;
-        if self.dt == 0.0 {
+        let dt = self.dt_at(o);
+        if dt == 0.0 {
             d
         } else {
             let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
-            d + (v + om.cross(&w)) * self.dt
+            d + (v + om.cross(&w)) * dt
         }
     }
 
@@ -185,7 +247,8 @@ impl Problem<'_> {
     }
 
     /// As [`Self::jacobian`], with the derivative by the time offset as a seventh entry
-    /// (`dr/ddt = n . (v + omega x R (a + R_li q))`), the sphere index, the observation, and
+    /// (`dr/ddt = n . (v + omega x R (a + R_li q))`; by the drift it is that times
+    /// [`Self::since_ref`]), the sphere index, the observation, and
     /// the grazing factor `1 - (u.n)^2` of its beam `u` on the surface normal `n` (0 head-on,
     /// 1 tangent).
     pub fn jacobian_with(
@@ -196,7 +259,7 @@ impl Problem<'_> {
         let lin = Linearised::at(b);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
-                if let Some(r) = lin.row(o, &s.target, self.dt) {
+                if let Some(r) = lin.row(o, &s.target, self.dt_at(o)) {
                     f(j, o, r.residual, &r.row, r.grazing);
                 }
             }
@@ -335,6 +398,8 @@ mod tests {
             spheres: &spheres,
             stride: 1,
             dt: 0.0,
+            drift: 0.0,
+            t_ref: GpsTime(0),
             weights: None,
         };
         let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
@@ -374,6 +439,8 @@ mod tests {
             spheres: &spheres_m,
             stride: 1,
             dt,
+            drift: 0.0,
+            t_ref: GpsTime(0),
             weights: None,
         };
         let dt = 0.05;

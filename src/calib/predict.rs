@@ -21,7 +21,7 @@
 //! Information adds: an [`Info`] per pass and sphere, summed, gives any combination of them
 //! (what a pass contributes, what a new one would add) without tracing again.
 
-use super::lm::{conditioning, row_q, MatQ, Q};
+use super::lm::{conditioning, row_q, Clock, MatQ, DRIFT, Q};
 use super::objective::{Linearised, P7};
 use super::P;
 use crate::window::{Observation, Target};
@@ -133,7 +133,18 @@ impl Info {
             let Some(r) = lin.row(o, target, 0.0) else {
                 continue;
             };
-            let (g, jv) = (r.grazing, row_q(&r.row, r.grazing, true));
+            let (g, jv) = (
+                r.grazing,
+                row_q(
+                    &r.row,
+                    r.grazing,
+                    Clock {
+                        dt: true,
+                        drift: false,
+                    },
+                    0.0,
+                ),
+            );
             self.a += jv * jv.transpose();
             self.n += 1;
             // Range noise, radial part.
@@ -240,15 +251,18 @@ impl Predicted {
         // Scaled to unit diagonal before inverting (degrees, metres and seconds differ by
         // orders of magnitude).
         let mut d = SVector::<f64, Q>::zeros();
+        // The drift is not predicted: held (an identity row).
+        let mut a = info.a;
+        a[(DRIFT, DRIFT)] = 1.0;
         for i in 0..Q {
-            let v = info.a[(i, i)];
+            let v = a[(i, i)];
             if !(v > 0.0 && v.is_finite()) {
                 return inf;
             }
             d[i] = 1.0 / libm::sqrt(v);
         }
         let dm = MatQ::from_diagonal(&d);
-        let Some(inv) = (dm * info.a * dm).try_inverse() else {
+        let Some(inv) = (dm * a * dm).try_inverse() else {
             return inf;
         };
         let ainv = dm * inv * dm;

@@ -30,10 +30,14 @@
 //! only the average (an unestimated clock offset moves passes in opposite directions along the
 //! track and cancels in the mean).
 
+use super::consensus::{
+    consensus, Ambiguity, Bounds, Candidate, Consensus, ConsensusSettings, Search,
+};
 use super::extract::{self, Directions, ExtractSettings, Verdict};
+use super::lm::Clock;
 use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
-use super::objective::{Noise, Problem, SphereObs};
+use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
 use super::{DegM, Params, P};
 use crate::georef::Mount;
@@ -96,9 +100,27 @@ pub struct Settings {
     pub extract: ExtractSettings,
     /// Estimate the time offset between the clocks with the six.
     pub estimate_dt: bool,
+    /// Estimate its drift too (a LiDAR clock without PPS: its crystal runs fast or slow by
+    /// tens of ppm).
+    pub estimate_drift: bool,
+    /// The first round's consensus over the slices' candidates.
+    pub consensus: ConsensusSettings,
+    /// The margin the windows were made with around the start mounting [m]: the mounting may
+    /// move at most this far in each lever-arm component, and each angle at most as far as moves
+    /// the nearest windowed return by twice this (at most 45 deg): a mounting beyond would have
+    /// left the spheres outside their windows.
+    pub margin: f64,
 }
 
 impl Settings {
+    /// The clock parameters estimated with the six.
+    pub fn clock(&self) -> Clock {
+        Clock {
+            dt: self.estimate_dt,
+            drift: self.estimate_dt && self.estimate_drift,
+        }
+    }
+
     /// The noise model of the residuals.
     pub fn noise(&self) -> Noise {
         Noise {
@@ -133,6 +155,9 @@ impl Default for Settings {
             nm_points: 100,
             extract: ExtractSettings::default(),
             estimate_dt: true,
+            estimate_drift: false,
+            consensus: ConsensusSettings::default(),
+            margin: 3.0,
         }
     }
 }
@@ -188,6 +213,37 @@ pub enum Refusal {
         /// Its chi-square (3 degrees of freedom).
         chi2: f64,
     },
+    /// Two mountings put different candidates on a sphere and explain the survey nearly as well
+    /// (a buoy or a fender of the sphere's size beside it, at the same place relative to every
+    /// sphere, or passes that cannot tell them apart).
+    Ambiguous(Ambiguity),
+    /// The solve left the box the start values and the windows' margin allow.
+    OutOfBounds {
+        /// Parameter index (0-2 angles, 3-5 lever arm).
+        parameter: usize,
+        /// Its change from the start [rad or m].
+        change: f64,
+        /// The allowance [rad or m].
+        limit: f64,
+    },
+    /// The time offset is not the same over the survey: one pass's returns put it elsewhere,
+    /// beyond its uncertainty (an INS clock step, a LiDAR clock drifting without PPS).
+    ClockInconsistent {
+        /// Sphere index.
+        sphere: usize,
+        /// Index of the pass in [`Solution::passes`].
+        pass: usize,
+        /// The pass's first and last return.
+        start: GpsTime,
+        /// ...
+        end: GpsTime,
+        /// Them in seconds after the first windowed return.
+        into: [f64; 2],
+        /// The offset its returns give minus the solution's there [s].
+        shift: f64,
+        /// Its sigma [s].
+        sigma: f64,
+    },
     /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
     /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
     TimeOffsetContradicted {
@@ -224,9 +280,30 @@ pub struct SphereReport {
     pub rms_after: f64,
     /// Fitted minus surveyed centre [m, NED].
     pub center_offset: Option<Vector3<f64>>,
+    /// Slices of its window the first round's consensus explains (with the mounting all
+    /// spheres agree on).
+    pub agreed: u32,
+    /// Why it was not found.
+    pub lost: Option<Lost>,
 }
 
-/// One pass over one sphere (its window's returns without a gap of `pass_gap_ns`).
+/// Why a sphere was not found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lost {
+    /// No returns in its window.
+    NoReturns,
+    /// Nothing sphere-like detected in its window.
+    NotDetected,
+    /// Sphere-like things detected, none where the mounting the other spheres agree on puts it
+    /// (clutter, a decoy, or the sphere hidden).
+    Disagrees,
+    /// Detected, but fewer returns kept than a sphere needs.
+    TooFewReturns,
+    /// The solve stopped before any returns were kept (the refusal says why).
+    Stopped,
+}
+
+/// One pass over one sphere: its window's returns on one course ([`find_passes`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PassReport {
     /// Sphere index.
@@ -250,6 +327,11 @@ pub struct PassReport {
     pub along_track: f32,
     /// Its chi-square against its uncertainty (3 degrees of freedom).
     pub chi2: f32,
+    /// The time offset the pass's own returns give, minus the solution's at its time [s]
+    /// (with the mounting held; 0 with fewer than 10 returns).
+    pub dt_shift: f32,
+    /// Its 1-sigma [s] (0: not estimated).
+    pub dt_sigma: f32,
 }
 
 /// One detect-and-solve round.
@@ -275,8 +357,12 @@ pub struct Solution {
     /// The mounting parameters.
     pub b: Params,
     /// The time offset between the clocks on top of what the pipeline applied [s] (INS minus
-    /// LiDAR); 0 when not estimated.
+    /// LiDAR) at `t_ref`; 0 when not estimated.
     pub dt: f64,
+    /// Its drift [s/s] (0 when not estimated).
+    pub drift: f64,
+    /// The time `dt` refers to (the middle of the windowed returns).
+    pub t_ref: GpsTime,
     /// The Nelder-Mead stage.
     pub nm: NmResult<P>,
     /// The LM stage (covariance, correlation, conditioning).
@@ -305,6 +391,10 @@ pub struct Solution {
     pub dt_free: Option<(f64, f64)>,
     /// The residual RMS the noise model predicts [m].
     pub predicted_rms: f64,
+    /// The first round's consensus over the slices' candidates.
+    pub consensus: Option<Consensus>,
+    /// The box the mounting had to stay in.
+    pub bounds: Bounds,
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
 }
@@ -314,7 +404,7 @@ fn with_problem<R>(
     obs: &[&mut [Observation]],
     used: &[usize],
     stride: usize,
-    dt: f64,
+    time: TimeOffset,
     weights: Option<Noise>,
     f: impl FnOnce(&Problem<'_>) -> R,
 ) -> R {
@@ -328,7 +418,9 @@ fn with_problem<R>(
     f(&Problem {
         spheres: &spheres,
         stride,
-        dt,
+        dt: time.dt,
+        drift: time.drift,
+        t_ref: time.t_ref,
         weights,
     })
 }
@@ -371,9 +463,9 @@ impl Histogram {
 }
 
 /// Signed residual of one observation.
-fn residual(o: &Observation, t: &Target, b: &[f64; P], dt: f64) -> f64 {
+fn residual(o: &Observation, t: &Target, b: &[f64; P], time: &TimeOffset) -> f64 {
     let m = Mount::from_params(&Params(*b));
-    (o.georef_dt(&m, dt) - t.center).norm() - t.radius
+    (o.georef_dt(&m, time.at(o)) - t.center).norm() - t.radius
 }
 
 /// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range
@@ -412,7 +504,7 @@ fn consistency(
     obs: &[&mut [Observation]],
     used: &[usize],
     b: &[f64; P],
-    dt: f64,
+    time: &TimeOffset,
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
@@ -426,7 +518,7 @@ fn consistency(
         let kept = v[..used[j]]
             .iter()
             .filter(|o| o.time >= p.start && o.time <= p.end);
-        let Some(fit) = fit_with_covariance(kept.clone(), &mount, dt, t) else {
+        let Some(fit) = fit_with_covariance(kept.clone(), &mount, time, t) else {
             continue;
         };
         let (d, jtj, rms, n) = fit;
@@ -473,16 +565,106 @@ fn consistency(
     worst.map(|(_, r)| r)
 }
 
+/// Each pass's own time offset: the returns of one pass over one sphere, with the mounting and
+/// the time offset model held, fitted for a shift of the offset and a radius offset (`r_k = c +
+/// J_k shift`, `J_k = dr/ddt`, the platform's motion along the surface normal); its sigma from
+/// the fit's scatter inflated by the returns per cluster, as [`consistency`]. Into `passes`;
+/// the pass furthest off as a refusal when it is off by more than `held_dt_sigmas` sigmas and
+/// `held_dt_floor` seconds: a clock that steps or drifts moves some passes and not others.
+fn pass_clocks(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    b: &[f64; P],
+    time: &TimeOffset,
+    s: &Settings,
+    passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
+) -> Option<Refusal> {
+    let lin = super::objective::Linearised::at(b);
+    let first = passes.iter().map(|p| p.start.0).min().unwrap_or(0);
+    let mut worst: Option<(f64, Refusal)> = None;
+    for (k, p) in passes.iter_mut().enumerate() {
+        let j = usize::from(p.sphere);
+        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+            continue;
+        };
+        let kept = v[..used[j]]
+            .iter()
+            .filter(|o| o.time >= p.start && o.time <= p.end);
+        // Sums for the two-parameter fit, and the clusters.
+        let (mut n, mut sj, mut sr, mut sjj, mut sjr, mut srr) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut clusters, mut last) = (0usize, i64::MIN);
+        for o in kept {
+            let Some(row) = lin.row(o, t, time.at(o)) else {
+                continue;
+            };
+            let (jd, r) = (row.row[6], row.residual);
+            n += 1.0;
+            sj += jd;
+            sr += r;
+            sjj += jd * jd;
+            sjr += jd * r;
+            srr += r * r;
+            let c = o.time.0.div_euclid(s.cluster_ns.max(1));
+            if c != last {
+                clusters += 1;
+                last = c;
+            }
+        }
+        if n < 10.0 {
+            continue;
+        }
+        let vjj = sjj - sj * sj / n;
+        if vjj.is_nan() || vjj <= 0.0 {
+            continue;
+        }
+        let shift = (sjr - sj * sr / n) / vjj;
+        let c = (sr - shift * sj) / n;
+        // Residual scatter (at least 1 mm), inflated by the returns per cluster.
+        let e2 = (srr - 2.0 * c * sr - 2.0 * shift * sjr
+            + n * c * c
+            + 2.0 * c * shift * sj
+            + shift * shift * sjj)
+            / (n - 2.0).max(1.0);
+        let s2 = e2.max(1e-6) * n / clusters.max(1) as f64;
+        let sigma = libm::sqrt(s2 / vjj);
+        p.dt_shift = shift as f32;
+        p.dt_sigma = sigma as f32;
+        let z = shift.abs() / sigma;
+        if z > s.held_dt_sigmas
+            && shift.abs() > s.held_dt_floor
+            && worst.as_ref().is_none_or(|(w, _)| z > *w)
+        {
+            worst = Some((
+                z,
+                Refusal::ClockInconsistent {
+                    sphere: j,
+                    pass: k,
+                    start: p.start,
+                    end: p.end,
+                    into: [
+                        (p.start.0 - first) as f64 * 1e-9,
+                        (p.end.0 - first) as f64 * 1e-9,
+                    ],
+                    shift,
+                    sigma,
+                },
+            ));
+        }
+    }
+    worst.map(|(_, r)| r)
+}
+
 /// A sphere's centre fitted (radius fixed) to returns with a mounting and time offset, minus
 /// the surveyed one: (offset, `J^T J`, residual RMS, count); `None` with fewer than 10 returns
 /// or a singular geometry.
 fn fit_with_covariance<'a>(
     obs: impl Iterator<Item = &'a Observation> + Clone,
     mount: &Mount,
-    dt: f64,
+    time: &TimeOffset,
     t: &Target,
 ) -> Option<(Vector3<f64>, nalgebra::Matrix3<f64>, f64, usize)> {
-    let pts = obs.map(|o| o.georef_dt(mount, dt));
+    let pts = obs.map(|o| o.georef_dt(mount, time.at(o)));
     if pts.clone().count() < 10 {
         return None;
     }
@@ -537,6 +719,10 @@ pub struct Workspace<'a> {
     /// A slice's index by x; its length caps a slice's returns (32,768 is ample: 0.4 s of a
     /// window rarely holds 10,000).
     pub keys: &'a mut [(f32, u32)],
+    /// The first round's candidates (up to four per slice of each window; more are dropped).
+    pub cands: &'a mut [Candidate],
+    /// Candidate indices, as long as `cands`.
+    pub idx: &'a mut [usize],
 }
 
 /// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
@@ -618,19 +804,42 @@ fn pass_of(ps: &mut [PassReport], t: GpsTime) -> Option<&mut PassReport> {
     ps.get_mut(i.checked_sub(1)?)
 }
 
-/// The passes over one sphere: its windowed returns (in time order) split at gaps longer than
-/// `gap_ns`; appended to `out` (beyond its capacity the last one is extended).
+/// The passes over one sphere: its windowed returns (in time order) split where the platform's
+/// course has turned more than 90 deg from the pass's first course, and at gaps longer than
+/// `gap_ns` (a second visit on the same course); a piece shorter than `min_ns` after a turn
+/// (the turn itself) joins the pass before it. The course decides, not the window: a level
+/// scan sees a sphere's window from everywhere, a tilted one only when abeam, and turns show
+/// the sphere in fragments. Appended to `out` (beyond its capacity the last one is extended).
 fn find_passes(
     v: &[Observation],
     j: usize,
     gap_ns: i64,
+    min_ns: i64,
     out: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) {
+    /// Slower than this the course is not defined [m/s].
+    const MOVING: f32 = 0.3;
+    let course = |o: &Observation| {
+        let (n, e) = (o.velocity.x, o.velocity.y);
+        let s = libm::sqrtf(n * n + e * e);
+        (s > MOVING).then(|| [n / s, e / s])
+    };
+    let first = out.len();
     let mut last: Option<GpsTime> = None;
+    let mut first_course: Option<[f32; 2]> = None;
     for o in v {
-        let new = last.is_none_or(|l| o.time.0 - l.0 > gap_ns);
+        let c = course(o);
+        let gap = last.is_none_or(|l| o.time.0 - l.0 > gap_ns);
+        let turned =
+            matches!((first_course, c), (Some(a), Some(b)) if a[0] * b[0] + a[1] * b[1] < 0.0);
+        if turned && !gap {
+            join_short(out, first, min_ns);
+        }
         last = Some(o.time);
-        if new && !out.is_full() {
+        if gap || turned || first_course.is_none() {
+            first_course = c;
+        }
+        if (gap || turned) && !out.is_full() {
             let _ = out.push(PassReport {
                 sphere: j as u8,
                 start: o.time,
@@ -642,10 +851,27 @@ fn find_passes(
                 centre_offset: [0.0; 3],
                 along_track: 0.0,
                 chi2: 0.0,
+                dt_shift: 0.0,
+                dt_sigma: 0.0,
             });
         } else if let Some(p) = out.last_mut() {
             p.end = o.time;
         }
+    }
+    join_short(out, first, min_ns);
+}
+
+/// The last pass joins the one before it (of the same sphere, from index `first` of `out`)
+/// when it is shorter than `min_ns` and follows it within `min_ns`.
+fn join_short(out: &mut heapless::Vec<PassReport, MAX_PASSES>, first: usize, min_ns: i64) {
+    let n = out.len();
+    if n < first + 2 {
+        return;
+    }
+    let (prev, last) = (out[n - 2], out[n - 1]);
+    if last.end.0 - last.start.0 < min_ns && last.start.0 - prev.end.0 <= min_ns {
+        out[n - 2].end = last.end;
+        out.pop();
     }
 }
 
@@ -709,14 +935,14 @@ fn prepare(
     let mount0 = Mount::from_params(b0);
     for (v, t) in obs.iter_mut().zip(targets) {
         v.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
-        extract::georeference(v, t, &mount0, 0.0);
+        extract::georeference(v, t, &mount0, &TimeOffset::default());
         extract::runs(v, st.firing_ns, st.jump);
         extract::assign_slices(v, st.slice_ns, slices);
         extract::tag(v, Verdict::Unclassified);
     }
     let mut passes = heapless::Vec::new();
     for (j, v) in obs.iter().enumerate() {
-        find_passes(v, j, st.pass_gap_ns, &mut passes);
+        find_passes(v, j, st.pass_gap_ns, st.pass_min_ns, &mut passes);
     }
     passes
 }
@@ -739,11 +965,22 @@ fn split_ranges<'b>(
 }
 
 impl Solution {
+    /// The time offset model of the answer.
+    pub fn time(&self) -> TimeOffset {
+        TimeOffset {
+            dt: self.dt,
+            drift: self.drift,
+            t_ref: self.t_ref,
+        }
+    }
+
     /// Nothing solved yet: the start `b0`, the first shell `tau0`.
     fn start(b0: &Params, tau0: f64) -> Self {
         Self {
             b: *b0,
             dt: 0.0,
+            drift: 0.0,
+            t_ref: GpsTime(0),
             nm: NmResult {
                 x: b0.deg_m().0,
                 f: f64::INFINITY,
@@ -762,6 +999,8 @@ impl Solution {
             weak: [false; P + 1],
             dt_free: None,
             predicted_rms: 0.0,
+            consensus: None,
+            bounds: Bounds::none(b0),
             refusal: None,
         }
     }
@@ -785,14 +1024,42 @@ pub fn solve(
     }
     let mut passes = prepare(targets, obs, b0, &s.extract, ws.keys.len());
     let mut sol = Solution::start(b0, s.extract.tau0);
+    sol.bounds = bounds(obs, b0, s.margin);
     if n < 2 {
         sol.refusal = Some(Refusal::TooFewSpheres { have: n });
         return sol;
     }
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
-    let mut r = Rounds::start(b0, windowed, s.extract.tau0);
-    run_rounds(targets, obs, s, ws, &mut r, &mut sol);
+    let t_ref = middle_time(obs);
+    let mut r = Rounds::start(b0, windowed, s.extract.tau0, sol.bounds, t_ref);
+    sol.t_ref = t_ref;
+    run_rounds(targets, obs, s, ws, &passes, &mut r, &mut sol);
     sol.shell = r.tau;
+    sol.consensus = r.consensus;
+    if let Some(end) = r.end {
+        // The rounds could not go on: ambiguous spheres or a mounting out of bounds.
+        sol.b = Params(r.b);
+        sol.dt = r.time.dt;
+        sol.drift = r.time.drift;
+        sol.t_ref = r.time.t_ref;
+        let none = [0usize; MAX_TARGETS];
+        let per = PerSphere {
+            windowed: &windowed,
+            used: &none,
+            tallies: &[[0; 8]; MAX_TARGETS],
+            counts: &r.counts,
+        };
+        sphere_reports(targets, obs, &per, b0, &r.time, &mut sol);
+        for (j, sp) in sol.spheres.iter_mut().enumerate() {
+            sp.agreed = r
+                .consensus
+                .map_or(0, |c| c.support.get(j).copied().unwrap_or(0));
+            sp.lost = Some(Lost::Stopped);
+        }
+        sol.passes = passes;
+        sol.refusal = Some(end);
+        return sol;
+    }
     // 2. The last extraction, around the surveyed spheres.
     let (used, tallies) = last_extraction(targets, obs, s, ws, &mut r, &mut passes);
     sol.passes = passes;
@@ -806,7 +1073,8 @@ pub fn solve(
         tallies: &tallies,
         counts: &r.counts,
     };
-    sphere_reports(targets, obs, &per, b0, r.dt, &mut sol);
+    sphere_reports(targets, obs, &per, b0, &r.time, &mut sol);
+    lost_reasons(s, &mut sol);
     // 5. Checks.
     if found < 2 {
         sol.refusal = Some(Refusal::TooFewSpheres { have: found });
@@ -816,12 +1084,75 @@ pub fn solve(
     sol
 }
 
+/// The box the mounting must stay in: each lever-arm component within `margin` of the start
+/// (a larger error would leave the spheres outside windows made with that margin), each angle
+/// within the angle that moves the nearest windowed return (at least 1 m away) by twice the
+/// margin, between 5 and 45 deg.
+fn bounds(obs: &[&mut [Observation]], b0: &Params, margin: f64) -> Bounds {
+    if !(margin.is_finite() && margin > 0.0) {
+        return Bounds::none(b0);
+    }
+    let near = obs
+        .iter()
+        .flat_map(|v| v.iter())
+        .map(|o| f64::from(o.range))
+        .fold(f64::INFINITY, f64::min)
+        .max(1.0);
+    let angle = if near.is_finite() {
+        libm::atan(2.0 * margin / near)
+    } else {
+        core::f64::consts::FRAC_PI_4
+    };
+    Bounds {
+        start: b0.0,
+        angle: angle.clamp(5f64.to_radians(), 45f64.to_radians()),
+        lever: margin,
+    }
+}
+
+/// The middle of the windowed returns' times (the time offset's reference: its drift then
+/// barely correlates with it).
+fn middle_time(obs: &[&mut [Observation]]) -> GpsTime {
+    let (mut lo, mut hi) = (i64::MAX, i64::MIN);
+    for o in obs.iter().flat_map(|v| v.iter()) {
+        lo = lo.min(o.time.0);
+        hi = hi.max(o.time.0);
+    }
+    if lo > hi {
+        GpsTime(0)
+    } else {
+        GpsTime(lo + (hi - lo) / 2)
+    }
+}
+
+/// Why each sphere not found was lost.
+fn lost_reasons(s: &Settings, sol: &mut Solution) {
+    let c = sol.consensus;
+    for (j, sp) in sol.spheres.iter_mut().enumerate() {
+        sp.agreed = c.map_or(0, |c| c.support.get(j).copied().unwrap_or(0));
+        if sp.lost.is_some() {
+            continue;
+        }
+        sp.lost = if sp.used >= s.min_points {
+            None
+        } else if sp.windowed == 0 {
+            Some(Lost::NoReturns)
+        } else if c.is_some_and(|c| c.slices.get(j).copied().unwrap_or(0) == 0) {
+            Some(Lost::NotDetected)
+        } else if c.is_some_and(|c| c.support.get(j).copied().unwrap_or(0) < 3) {
+            Some(Lost::Disagrees)
+        } else {
+            Some(Lost::TooFewReturns)
+        };
+    }
+}
+
 /// What the rounds carry from one to the next and into the last extraction.
 struct Rounds {
     /// The parameters [rad, m] (plain numbers for the optimisers).
     b: [f64; P],
-    /// The time offset [s].
-    dt: f64,
+    /// The time offset model.
+    time: TimeOffset,
     /// The shell half-width [m].
     tau: f64,
     /// The prior radius (`None`: from afar, the whole window) [m].
@@ -830,18 +1161,56 @@ struct Rounds {
     active: [usize; MAX_TARGETS],
     /// Each sphere's slices and detections in the latest extraction.
     counts: [(u32, u32); MAX_TARGETS],
+    /// The box the mounting must stay in.
+    bounds: Bounds,
+    /// The first round's consensus.
+    consensus: Option<Consensus>,
+    /// Why the rounds could not go on (the solution is refused).
+    end: Option<Refusal>,
 }
 
 impl Rounds {
-    fn start(b0: &Params, windowed: [usize; MAX_TARGETS], tau0: f64) -> Self {
+    fn start(
+        b0: &Params,
+        windowed: [usize; MAX_TARGETS],
+        tau0: f64,
+        bounds: Bounds,
+        t_ref: GpsTime,
+    ) -> Self {
         Self {
             b: b0.0,
-            dt: 0.0,
+            time: TimeOffset {
+                dt: 0.0,
+                drift: 0.0,
+                t_ref,
+            },
             tau: tau0,
             prior: None,
             active: windowed,
             counts: [(0, 0); MAX_TARGETS],
+            bounds,
+            consensus: None,
+            end: None,
         }
+    }
+
+    /// The mounting is outside its box: the refusal naming the parameter furthest out.
+    fn out_of_bounds(&self) -> Option<Refusal> {
+        if self.bounds.contains(&self.b) {
+            return None;
+        }
+        let u = self.bounds.usage(&self.b);
+        let i = (0..P).max_by(|&a, &b| u[a].total_cmp(&u[b])).unwrap_or(0);
+        let limit = if i < 3 {
+            self.bounds.angle
+        } else {
+            self.bounds.lever
+        };
+        Some(Refusal::OutOfBounds {
+            parameter: i,
+            change: u[i] * limit,
+            limit,
+        })
     }
 }
 
@@ -853,6 +1222,7 @@ fn run_rounds(
     obs: &mut [&mut [Observation]],
     s: &Settings,
     ws: &mut Workspace<'_>,
+    passes: &[PassReport],
     r: &mut Rounds,
     sol: &mut Solution,
 ) {
@@ -860,10 +1230,15 @@ fn run_rounds(
     let mut last_kept: Option<usize> = None;
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
-        let (b_before, dt_before) = (r.b, r.dt);
-        let Some((total, print, next_prior)) = one_round(targets, obs, s, ws, r, sol) else {
+        let (b_before, dt_before) = (r.b, r.time.dt);
+        let Some((total, print, next_prior)) = one_round(targets, obs, s, ws, passes, r, sol)
+        else {
             break;
         };
+        if let Some(out) = r.out_of_bounds() {
+            r.end = Some(out);
+            break;
+        }
         let moved = Params(r.b)
             .deg_m()
             .0
@@ -871,7 +1246,7 @@ fn run_rounds(
             .zip(Params(b_before).deg_m().0)
             .map(|(a, c)| (a - c).abs())
             .fold(0.0, f64::max)
-            .max((r.dt - dt_before).abs() * 20.0);
+            .max((r.time.dt - dt_before).abs() * 20.0);
         let settled = r.prior.is_some()
             && ((last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total)
                 && moved < 2e-3)
@@ -896,12 +1271,17 @@ fn one_round(
     obs: &mut [&mut [Observation]],
     s: &Settings,
     ws: &mut Workspace<'_>,
+    passes: &[PassReport],
     r: &mut Rounds,
     sol: &mut Solution,
 ) -> Option<(usize, u64, f64)> {
     let n = targets.len();
     let round_tau = r.tau;
-    let kept = round_extract(targets, obs, s, ws, r)?;
+    let kept = if r.prior.is_none() {
+        first_extract(targets, obs, s, ws, passes, r)?
+    } else {
+        round_extract(targets, obs, s, ws, r)?
+    };
     let ranges = gather(obs, &r.active[..n], &kept[..n], ws.kept);
     let buf = &mut *ws.kept;
     let mut print = 0xcbf2_9ce4_8422_2325u64;
@@ -919,9 +1299,147 @@ fn one_round(
         kept: total,
         detected: r.counts[..n].iter().map(|c| c.1).sum(),
         b: Params(r.b),
-        dt: r.dt,
+        dt: r.time.dt,
     });
     Some((total, print, next_prior))
+}
+
+/// The first round: every sphere-like candidate of every slice ([`extract::detect_all`]), the
+/// consensus over them ([`consensus`]) for the mounting and the candidates that are the spheres,
+/// and the returns within `tau` of those kept. The consensus mounting becomes the rounds'
+/// parameters; an ambiguous sphere ends the rounds. `None` when fewer than two spheres are
+/// agreed on.
+fn first_extract(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    passes: &[PassReport],
+    r: &mut Rounds,
+) -> Option<[usize; MAX_TARGETS]> {
+    let n = targets.len();
+    let dirs = Directions::default();
+    let mount = Mount::from_params(&Params(r.b));
+    let mut nc = 0;
+    let mut found = extract::Candidates::new();
+    for j in 0..n {
+        let v = &mut obs[j][..r.active[j]];
+        extract::georeference(v, &targets[j], &mount, &r.time);
+        extract::tag(v, Verdict::Undetected);
+        let (mut slices, mut detected) = (0, 0);
+        let mut start = 0;
+        loop {
+            let Some(sl) = extract::slices(&v[start..]).next() else {
+                break;
+            };
+            let sl = start + sl.start..start + sl.end;
+            start = sl.end;
+            slices += 1;
+            let slice = &v[sl.clone()];
+            extract::detect_all(
+                slice,
+                ws.keys,
+                targets[j].radius,
+                r.tau,
+                None,
+                ws.grid,
+                &dirs,
+                &s.extract,
+                &mut found,
+            );
+            detected += u32::from(!found.is_empty());
+            // The pose of the slice's middle return carries its candidates.
+            let rep = &slice[slice.len() / 2];
+            let group = passes
+                .iter()
+                .rposition(|p| usize::from(p.sphere) == j && p.start <= rep.time)
+                .unwrap_or(0);
+            for d in &found {
+                let Some(c) = Candidate::new(d.center, rep, &targets[j], &mount, &r.time) else {
+                    continue;
+                };
+                if let Some(slot) = ws.cands.get_mut(nc) {
+                    *slot = Candidate {
+                        sphere: j as u8,
+                        group: group as u16,
+                        slice: rep.work.slice,
+                        inliers: d.inliers,
+                        ..c
+                    };
+                    nc += 1;
+                }
+            }
+        }
+        r.counts[j] = (slices, detected);
+    }
+    let mut search = Search {
+        cands: &mut ws.cands[..nc],
+        targets,
+        time: r.time,
+        bounds: r.bounds,
+        settings: s.consensus,
+    };
+    let Some(c) = consensus(&mut search, &r.b, ws.idx) else {
+        // Not three candidates apart, or no mounting within the bounds explains any.
+        r.consensus = Some(Consensus {
+            b: r.b,
+            score: 0.0,
+            support: [0; MAX_TARGETS],
+            slices: core::array::from_fn(|j| r.counts[j].1),
+            rms: f64::NAN,
+            hypotheses: 0,
+            ambiguous: None,
+        });
+        return None;
+    };
+    r.consensus = Some(c);
+    if let Some(a) = c.ambiguous {
+        r.end = Some(Refusal::Ambiguous(a));
+        return None;
+    }
+    // Keep the returns of the chosen candidates (slices and candidates are in one order).
+    let mut kept = [0usize; MAX_TARGETS];
+    let cands = &ws.cands[..nc];
+    let mut k = 0;
+    for j in 0..n {
+        let v = &mut obs[j][..r.active[j]];
+        let mut start = 0;
+        loop {
+            let Some(sl) = extract::slices(&v[start..]).next() else {
+                break;
+            };
+            let sl = start + sl.start..start + sl.end;
+            start = sl.end;
+            let id = v[sl.start + sl.len() / 2].work.slice;
+            while k < nc
+                && (usize::from(cands[k].sphere) < j
+                    || (usize::from(cands[k].sphere) == j && cands[k].slice < id))
+            {
+                k += 1;
+            }
+            let mut chosen = None;
+            while k < nc && usize::from(cands[k].sphere) == j && cands[k].slice == id {
+                if cands[k].chosen {
+                    chosen = Some(cands[k].detected);
+                }
+                k += 1;
+            }
+            if let Some(at) = chosen {
+                kept[j] += extract::keep(&mut v[sl], at, targets[j].radius, r.tau, &s.noise());
+            }
+        }
+    }
+    r.b = c.b;
+    if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
+        return None;
+    }
+    for (j, v) in obs.iter_mut().enumerate() {
+        if kept[j] < s.min_points {
+            kept[j] = 0;
+            extract::tag(&mut v[..r.active[j]], Verdict::Undetected);
+        }
+    }
+    Some(kept)
 }
 
 /// Each sphere's returns extracted with the current parameters, shell and prior; spheres with
@@ -940,7 +1458,7 @@ fn round_extract(
     let mut kept = [0usize; MAX_TARGETS];
     for j in 0..n {
         let v = &mut obs[j][..r.active[j]];
-        extract::georeference(v, &targets[j], &mount, r.dt);
+        extract::georeference(v, &targets[j], &mount, &r.time);
         if let Some(p) = r.prior {
             // Returns far from the sphere (a few prior radii beyond its surface, at least
             // half a metre) cannot become its returns any more: they leave the rounds.
@@ -992,7 +1510,7 @@ fn round_solve(
     if r.prior.is_none() {
         let most = lens[..n].iter().copied().max().unwrap_or(1);
         let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-        let mut nm = with_problem(targets, part, lens, stride, r.dt, None, |pb| {
+        let mut nm = with_problem(targets, part, lens, stride, r.time, None, |pb| {
             minimize::<P, 7>(
                 |x| pb.l1(&DegM(*x).params().0),
                 &Params(r.b).deg_m().0,
@@ -1009,12 +1527,13 @@ fn round_solve(
             p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
         }
         let w = weights(part, &lens[..n], s);
-        let lm = with_problem(targets, part, lens, 1, r.dt, w, |pb| {
-            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
+        let lm = with_problem(targets, part, lens, 1, r.time, w, |pb| {
+            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.clock())
         });
         r.b = lm.b;
-        if lm.dt.is_finite() {
-            r.dt = lm.dt;
+        if lm.dt.is_finite() && lm.drift.is_finite() {
+            r.time.dt = lm.dt;
+            r.time.drift = lm.drift;
         }
     }
 }
@@ -1028,7 +1547,7 @@ fn next_shell(
     s: &Settings,
     r: &mut Rounds,
 ) -> f64 {
-    let med = with_problem(targets, part, lens, 1, r.dt, None, |pb| {
+    let med = with_problem(targets, part, lens, 1, r.time, None, |pb| {
         let mut h = Histogram::new();
         pb.residuals(&r.b, |_, e| h.add(e.abs()));
         h.median()
@@ -1042,7 +1561,7 @@ fn next_shell(
     let mut offsets = Histogram::new();
     for j in (0..targets.len()).filter(|&j| lens[j] > 0) {
         part[j].sort_unstable_by_key(|o| o.work.slice);
-        extract::georeference(part[j], &targets[j], &mount, r.dt);
+        extract::georeference(part[j], &targets[j], &mount, &r.time);
         apparent_offsets(part[j], targets[j].radius, &mut offsets);
     }
     let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
@@ -1068,7 +1587,7 @@ fn last_extraction(
     let mut tallies = [[0u32; 8]; MAX_TARGETS];
     for j in 0..targets.len() {
         let v = &mut obs[j][..r.active[j]];
-        extract::georeference(v, &targets[j], &mount, r.dt);
+        extract::georeference(v, &targets[j], &mount, &r.time);
         let mine = {
             let a = passes.partition_point(|p| usize::from(p.sphere) < j);
             let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
@@ -1128,13 +1647,14 @@ fn final_fit(
 ) {
     let w = weights(obs, used, s);
     let lm = (found >= 2).then(|| {
-        with_problem(targets, obs, used, 1, r.dt, w, |pb| {
-            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.estimate_dt)
+        with_problem(targets, obs, used, 1, r.time, w, |pb| {
+            refine(pb, &r.b, s.lm_iter, s.cluster_ns, s.clock())
         })
     });
     if let Some(l) = &lm {
         r.b = l.b;
-        r.dt = l.dt;
+        r.time.dt = l.dt;
+        r.time.drift = l.drift;
     }
     if let (false, Some(l)) = (s.estimate_dt, &lm) {
         // Where the data move the offset, and its sigma at the held solution (no iteration:
@@ -1142,10 +1662,14 @@ fn final_fit(
         // from it). The free fit need not converge: far from the truth it stalls on the way (a
         // 0.3 s error stops after 0.14 s, its own sigma inflated by the misfit), which is
         // evidence enough against the held value.
-        let (free, at_held) = with_problem(targets, obs, used, 1, r.dt, w, |pb| {
+        let free_clock = Clock {
+            dt: true,
+            drift: s.estimate_drift,
+        };
+        let (free, at_held) = with_problem(targets, obs, used, 1, r.time, w, |pb| {
             (
-                refine(pb, &l.b, s.lm_iter, s.cluster_ns, true),
-                refine(pb, &l.b, 0, s.cluster_ns, true),
+                refine(pb, &l.b, s.lm_iter, s.cluster_ns, free_clock),
+                refine(pb, &l.b, 0, s.cluster_ns, free_clock),
             )
         });
         let sigma = at_held.sigma_dt;
@@ -1154,9 +1678,11 @@ fn final_fit(
         }
     }
     sol.b = Params(r.b);
-    sol.dt = r.dt;
+    sol.dt = r.time.dt;
+    sol.drift = r.time.drift;
+    sol.t_ref = r.time.t_ref;
     sol.lm = lm;
-    sol.l1 = with_problem(targets, obs, used, 1, r.dt, None, |pb| pb.l1(&r.b));
+    sol.l1 = with_problem(targets, obs, used, 1, r.time, None, |pb| pb.l1(&r.b));
 }
 
 /// Per-sphere counts gathered on the way to the answer.
@@ -1174,7 +1700,7 @@ fn sphere_reports(
     obs: &[&mut [Observation]],
     per: &PerSphere<'_>,
     b0: &Params,
-    dt: f64,
+    time: &TimeOffset,
     sol: &mut Solution,
 ) {
     let mount = sol.b.mount();
@@ -1184,12 +1710,12 @@ fn sphere_reports(
         let rms = |bb: &[f64; P]| {
             let s2: f64 = kept
                 .iter()
-                .map(|o| libm::pow(residual(o, t, bb, dt), 2.0))
+                .map(|o| libm::pow(residual(o, t, bb, time), 2.0))
                 .sum();
             libm::sqrt(s2 / kept.len().max(1) as f64)
         };
         let center = fit_center(
-            kept.iter().map(|o| o.georef_dt(&mount, dt)),
+            kept.iter().map(|o| o.georef_dt(&mount, time.at(o))),
             t.radius,
             t.center,
         )
@@ -1208,6 +1734,8 @@ fn sphere_reports(
             rms_before: rms(&b0.0),
             rms_after: rms(&sol.b.0),
             center_offset: center,
+            agreed: 0,
+            lost: None,
         });
     }
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
@@ -1229,10 +1757,11 @@ fn checks(
     for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
         *w = weak_geometry && v.abs() > 0.3;
     }
-    let (b, dt) = (sol.b.0, sol.dt);
+    let (b, time, dt) = (sol.b.0, sol.time(), sol.dt);
     let predicted = predicted_rms(obs, used, s);
     sol.predicted_rms = predicted;
-    let worst = consistency(targets, obs, used, &b, dt, s, &mut sol.passes);
+    let worst = consistency(targets, obs, used, &b, &time, s, &mut sol.passes);
+    let clock = pass_clocks(targets, obs, used, &b, &time, s, &mut sol.passes);
     let contradicted = sol.dt_free.filter(|&(f, sg)| {
         let d = (f - dt).abs();
         d > s.held_dt_floor && d > s.held_dt_sigmas * sg
@@ -1254,6 +1783,10 @@ fn checks(
             condition: lm.condition,
             limit: s.max_condition,
         })
+    } else if clock.is_some() {
+        // A clock that steps or drifts also spreads the residuals and moves passes' centres:
+        // the cause first.
+        clock
     } else if lm.rms.is_nan() || lm.rms > s.max_dispersion * predicted {
         Some(Refusal::OverDispersed {
             rms: lm.rms,

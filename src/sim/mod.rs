@@ -7,6 +7,7 @@ pub mod lidar;
 pub mod rng;
 pub mod scene;
 pub mod trajectory;
+pub mod visibility;
 
 pub use ins::{InsConfig, InsSim};
 pub use lidar::{LidarConfig, LidarSim, SimPacket};

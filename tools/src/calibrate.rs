@@ -7,7 +7,8 @@ pub use crate::report::{
     render, Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
     Verdicts, Xyz,
 };
-use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
+use spherecal::calib::consensus::Candidate;
+use spherecal::calib::solve::{Lost, Refusal, Settings, Solution, Workspace};
 use spherecal::calib::{solve, Params, NAMES, P};
 use spherecal::window::{Observation, Target};
 use std::fmt::Write as _;
@@ -34,7 +35,9 @@ pub fn search_time_offset<E>(
 ) -> Result<Vec<SearchCandidate>, E> {
     let n = (half / SEARCH_STEP_S).round().clamp(1.0, 400.0) as i64;
     let mut out = Vec::with_capacity(2 * n as usize + 1);
+    let bar = crate::progress::bar(2 * n as u64 + 1, "time offset search");
     for k in -n..=n {
+        bar.inc(1);
         let start = centre + k as f64 * SEARCH_STEP_S;
         let one = |sol: &Solution| SearchCandidate {
             start_s: start,
@@ -48,11 +51,40 @@ pub fn search_time_offset<E>(
         if k == 0 {
             out.push(one(at_centre));
         } else {
-            let (_, _, sol, _) = attempt(start)?;
-            out.push(one(&sol));
+            // A start where the clocks no longer overlap finds nothing; it does not end the
+            // search.
+            match attempt(start) {
+                Ok((_, _, sol, _)) => out.push(one(&sol)),
+                Err(_) => out.push(SearchCandidate {
+                    start_s: start,
+                    found_s: None,
+                    kept: 0,
+                    rms_m: None,
+                }),
+            }
         }
     }
+    bar.finish_and_clear();
     Ok(out)
+}
+
+/// The widest search around `centre` [s] that keeps at least half the LiDAR data's span
+/// (`lidar`, GPS seconds without any offset) within the INS's (`ins`): beyond it the clocks
+/// barely overlap and nothing can be found; `half` clipped to it.
+pub fn search_half_width(
+    centre: f64,
+    half: f64,
+    lidar: Option<(f64, f64)>,
+    ins: Option<(f64, f64)>,
+) -> f64 {
+    let (Some((l0, l1)), Some((i0, i1))) = (lidar, ins) else {
+        return half;
+    };
+    // Offsets dt with [l0 + dt, l1 + dt] half inside [i0, i1].
+    let w = 0.5 * (l1 - l0);
+    let (lo, hi) = (i0 - l0 - w, i1 - l1 + w);
+    let reach = (centre - lo).min(hi - centre).max(SEARCH_STEP_S);
+    half.min(reach)
 }
 
 /// The most compact start: among those whose solve converged, the lowest RMS of those that
@@ -100,6 +132,42 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
             rms / predicted.max(1e-12),
             predicted * 1e3
         ),
+        Refusal::Ambiguous(a) => {
+            let d = (a.offset[0].powi(2) + a.offset[1].powi(2) + a.offset[2].powi(2)).sqrt();
+            format!(
+                "ambiguous: sphere {}: another mounting puts other sphere-like returns {:.2} m from the chosen ones (N {:+.2}, E {:+.2}, D {:+.2} m) on it and explains the survey nearly as well ({} of its slices against {}; {:.0} of all against {:.0}): a buoy, fender or other round object of its size beside it, or passes that cannot tell them apart; move the object, or add passes from other directions",
+                ids.get(a.sphere).map_or("?", |s| s.as_str()),
+                d,
+                a.offset[0],
+                a.offset[1],
+                a.offset[2],
+                a.support[1],
+                a.support[0],
+                a.score[1],
+                a.score[0]
+            )
+        }
+        Refusal::OutOfBounds { parameter, change, limit } => {
+            let (v, l, unit) = if *parameter < 3 {
+                (change.to_degrees(), limit.to_degrees(), "deg")
+            } else {
+                (*change, *limit, "m")
+            };
+            format!(
+                "the solve left the a-priori bounds: {} moved {v:.3} {unit} from the start, more than the {l:.3} {unit} the windows' margin allows (the spheres would have been outside their windows): the returns kept are not the spheres'; check the a-priori values and the site",
+                NAMES.get(*parameter).copied().unwrap_or("?")
+            )
+        }
+        Refusal::ClockInconsistent { sphere, pass, into, shift, sigma, .. } => format!(
+            "the clocks are not steady: in pass {} over sphere {} ({:.1}-{:.1} s into the data) the returns put the time offset {:+.1} ms (sigma {:.1} ms, {:.0} sigma) off the rest of the survey's: an INS time step or a LiDAR clock drifting; look for the step in the INS line above (time going back or jumping), or give the LiDAR PPS",
+            pass + 1,
+            ids.get(*sphere).map_or("?", |s| s.as_str()),
+            into[0],
+            into[1],
+            shift * 1e3,
+            sigma * 1e3,
+            shift.abs() / sigma.max(1e-12)
+        ),
         Refusal::TimeOffsetContradicted { held, found, sigma } => format!(
             "the time offset held is contradicted by the data: free to estimate it, they move it by {:+.6} s (sigma {sigma:.6} s, {:.0} sigma); the mounting found with it held has absorbed the clock error (drop --hold-time-offset, or hold the offset the data give)",
             found - held,
@@ -119,6 +187,17 @@ pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
     }
 }
 
+/// A lost sphere's reason code in reports.
+pub fn lost_name(l: Lost) -> &'static str {
+    match l {
+        Lost::NoReturns => "no_returns",
+        Lost::NotDetected => "not_detected",
+        Lost::Disagrees => "disagrees",
+        Lost::TooFewReturns => "too_few_returns",
+        Lost::Stopped => "stopped",
+    }
+}
+
 /// Cells of the detection's vote grid (64^3: 512 KB).
 pub const GRID_CELLS: usize = 64 * 64 * 64;
 /// Kept returns a detect-and-solve round solves on at most (8.6 MB).
@@ -126,12 +205,17 @@ pub const KEPT_CAPACITY: usize = 50_000;
 /// Returns in one slice of time at most (longer ones are split).
 pub const SLICE_CAPACITY: usize = 32_768;
 
+/// The first round's candidates at most (four per slice of 0.4 s: 16 spheres seen for 100 s).
+pub const CANDIDATE_CAPACITY: usize = 16_384;
+
 /// The solver's scratch, owned.
 #[derive(Debug, Clone)]
 pub struct Scratch {
     grid: Vec<u16>,
     kept: Vec<Observation>,
     keys: Vec<(f32, u32)>,
+    cands: Vec<Candidate>,
+    idx: Vec<usize>,
 }
 
 impl Default for Scratch {
@@ -140,6 +224,8 @@ impl Default for Scratch {
             grid: vec![0; GRID_CELLS],
             kept: vec![Observation::default(); KEPT_CAPACITY],
             keys: vec![(0.0, 0); SLICE_CAPACITY],
+            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
+            idx: vec![0; CANDIDATE_CAPACITY],
         }
     }
 }
@@ -151,6 +237,8 @@ impl Scratch {
             grid: &mut self.grid,
             kept: &mut self.kept,
             keys: &mut self.keys,
+            cands: &mut self.cands,
+            idx: &mut self.idx,
         }
     }
 }
@@ -204,6 +292,9 @@ pub fn solve_report(
         },
         time_offset_s: sol.dt,
         time_offset_estimated: s.estimate_dt,
+        time_drift_ppm: sol.drift * 1e6,
+        time_drift_sigma_ppm: lm.map_or(0.0, |l| l.sigma_drift * 1e6),
+        time_offset_reference_gps_s: sol.t_ref.as_secs_f64(),
         rms_m: lm.map_or(f64::NAN, |l| l.rms),
         objective_l1_m: sol.l1,
         points_per_sphere: sol.spheres.iter().map(|s| s.used).collect(),
@@ -250,6 +341,8 @@ pub fn solve_report(
                 centre_offset_m: p.centre_offset,
                 along_track_m: p.along_track,
                 chi2: p.chi2,
+                time_offset_shift_s: p.dt_shift,
+                time_offset_shift_sigma_s: p.dt_sigma,
             })
             .collect(),
         shell_m: sol.shell,
@@ -285,6 +378,8 @@ pub fn solve_report(
                 rms_before_m: s.rms_before,
                 rms_after_m: s.rms_after,
                 centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
+                agreed_slices: s.agreed,
+                lost: s.lost.map(|l| lost_name(l).to_string()),
             })
             .collect(),
         solve_ms,
@@ -362,6 +457,7 @@ pub fn calibrate(
         range_noise: noise.range_m,
         attitude_noise: noise.attitude_deg.to_radians(),
         position_noise: noise.position_m,
+        margin: inp.margin,
         ..Default::default()
     };
     // The model, once: every collection decodes as it, and the extraction's scan lines follow
@@ -384,18 +480,26 @@ pub fn calibrate(
         (None, _) => None,
     };
     let mut used_accuracy = None;
+    // A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
+    let drift = std::cell::Cell::new(false);
     let mut attempt = |applied: f64| -> Result<_, String> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let (stats, mut obs) = collect(inp)?;
         if let Some(a) = &accuracy {
             used_accuracy = Some(a.apply(&mut obs));
         }
-        let (sol, rep) = solve_report(targets, ids, &mut obs, b0, &settings);
+        let mut s = settings;
+        s.estimate_drift = drift.get();
+        let (sol, rep) = solve_report(targets, ids, &mut obs, b0, &s);
         Ok((stats, obs, sol, rep))
     };
     let mut start = clock.start.unwrap_or(0.0);
     let mut first = attempt(start)?;
     let trusted = first.0.clock.trusted();
+    if !trusted && clock.estimate {
+        drift.set(true);
+        first = attempt(start)?;
+    }
     // An untrusted LiDAR clock: start where its RMCs put it (INS time = LiDAR time - its
     // error).
     if clock.start.is_none() && !trusted {
@@ -408,6 +512,8 @@ pub fn calibrate(
         .search
         .or((!trusted && clock.estimate).then_some(DEFAULT_SEARCH_S));
     let mut searched = Vec::new();
+    let search =
+        search.map(|h| search_half_width(start, h, first.0.align.lidar_span, first.0.ins.span));
     if let Some(half) = search.filter(|h| *h > 0.0 && clock.estimate) {
         searched = search_time_offset(start, half, &first.2, &mut attempt)?;
         if let Some(best) = best_candidate(&searched) {
@@ -444,6 +550,24 @@ pub fn calibrate(
     let mut inputs = InputsReport::of(inp, &stats);
     inputs.accuracy = used_accuracy;
     rep.inputs = Some(inputs);
+    // The INS clock: a step within the data moves every pose after it.
+    let span = stats
+        .align
+        .lidar_span
+        .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+    if let Some(&(at, step)) = stats.ins.steps_within(span).next() {
+        if rep.converged {
+            let n = stats.ins.steps_within(span).count();
+            rep.converged = false;
+            rep.reason = Some(format!(
+                "the INS clock stepped by {:+.1} ms {:.1} s into the LiDAR data (GPS {at:.3} s){}: one frame's time is not one output period after the one before it with nothing lost between them, so the poses after it are {:+.1} ms off those before; calibrate the parts on either side separately, or fix the INS time",
+                step * 1e3,
+                at - span.0,
+                if n > 1 { format!(", and {} more times", n - 1) } else { String::new() },
+                step * 1e3
+            ));
+        }
+    }
     // The LiDAR clock.
     if rep.converged && !stats.clock.trusted() {
         let explained = stats

@@ -58,6 +58,8 @@ pub struct InsSummary {
     pub sentences: BTreeMap<String, u64>,
     /// Frames and sentences that carried a complete pose.
     pub poses: u64,
+    /// Their times: span, clock steps, time going back ([`crate::state::InsState`]).
+    pub clock: crate::state::InsState,
     /// First rejected item: offset and reason.
     pub first_error: Option<(u64, String)>,
 }
@@ -79,8 +81,10 @@ pub fn frame_bytes(bytes: &[u8], csv: Option<&mut dyn Write>) -> io::Result<InsS
     s.stats = for_each_item(bytes, |it| match it.item {
         Item::Binary(f) => {
             *s.frames_by_header.entry(hex(f.header_bytes())).or_default() += 1;
-            if Pose::from_frame(&f).is_some() {
+            if let Some(p) = Pose::from_frame(&f) {
                 s.poses += 1;
+                s.clock.sample_frame(p.time, it.offset, f.bytes().len());
+                s.clock.used(p.time, i64::MAX);
             }
             for (key, name, _) in frame_columns(&f) {
                 columns.entry(key).or_insert(name);
@@ -89,8 +93,10 @@ pub fn frame_bytes(bytes: &[u8], csv: Option<&mut dyn Write>) -> io::Result<InsS
         Item::Ascii(a) | Item::Nmea(a) => {
             *s.sentences.entry(a.name().to_string()).or_default() += 1;
             if let Ok(Vn::Ins(ins)) = a.decode() {
-                if Pose::from_ins(&ins).is_some() {
+                if let Some(p) = Pose::from_ins(&ins) {
                     s.poses += 1;
+                    s.clock.sample(p.time, false);
+                    s.clock.used(p.time, i64::MAX);
                 }
             }
         }
@@ -159,6 +165,25 @@ impl InsSummary {
             let _ = writeln!(o, "  {n}: {c}");
         }
         let _ = writeln!(o, "poses: {}", self.poses);
+        let c = &self.clock;
+        if let Some((a, b)) = c.span {
+            let _ = writeln!(
+                o,
+                "pose times: {:.3} s from GPS {a:.3} s; clock steps: {}{}{}",
+                b - a,
+                c.clock_step_count,
+                c.clock_steps
+                    .iter()
+                    .take(4)
+                    .map(|(t, d)| format!(" ({d:+.4} s at {:.3} s)", t - a))
+                    .collect::<String>(),
+                if c.backward > 0 {
+                    format!("; time went back {} times", c.backward)
+                } else {
+                    String::new()
+                }
+            );
+        }
         let _ = writeln!(
             o,
             "skipped bytes: {} (unknown headers at 0xFA: {}, too long: {})",

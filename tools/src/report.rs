@@ -127,6 +127,14 @@ pub struct PerPass {
     /// Its chi-square against the pass's own uncertainty (3 degrees of freedom; the solution is
     /// refused as inconsistent above 25 with more than 3 mm).
     pub chi2: f32,
+    /// The time offset this pass's returns give, minus the solution's at its time [s] (the
+    /// solution is refused when a pass is off by more than 5 sigma and 1 ms: the clocks step
+    /// or drift).
+    #[serde(default)]
+    pub time_offset_shift_s: f32,
+    /// Its 1-sigma [s] (0: too few returns).
+    #[serde(default)]
+    pub time_offset_shift_sigma_s: f32,
 }
 
 /// Per sphere.
@@ -152,6 +160,15 @@ pub struct PerSphere {
     pub rms_after_m: f64,
     /// Fitted minus surveyed centre, NED [m].
     pub centre_offset_m: Option<[f64; 3]>,
+    /// Slices where the first round's consensus (the mounting all spheres agree on) found it.
+    #[serde(default)]
+    pub agreed_slices: u32,
+    /// Why it was not found: `no_returns` (empty window), `not_detected` (nothing sphere-like
+    /// in it), `disagrees` (sphere-like things, none where the others' mounting puts it:
+    /// clutter, a decoy, or the sphere hidden), `too_few_returns`, `stopped` (the solve stopped
+    /// before keeping returns: the report's reason says why).
+    #[serde(default)]
+    pub lost: Option<String>,
 }
 
 /// The tests a solution passed (or failed) before it is claimed.
@@ -182,6 +199,16 @@ pub struct Report {
     /// The time offset was estimated (else held at the value the pipeline applied).
     #[serde(default)]
     pub time_offset_estimated: bool,
+    /// Its drift [ppm]: the offset at GPS time t is `time_offset_s + drift 1e-6 (t -
+    /// time_offset_reference_gps_s)` (estimated for a LiDAR clock without PPS; else 0).
+    #[serde(default)]
+    pub time_drift_ppm: f64,
+    /// Its 1-sigma [ppm] (0 when not estimated).
+    #[serde(default)]
+    pub time_drift_sigma_ppm: f64,
+    /// The GPS time [s] the offset refers to (the middle of the windowed returns).
+    #[serde(default)]
+    pub time_offset_reference_gps_s: f64,
     /// 1-sigma.
     pub sigma: Sigma,
     /// RMS of the residuals [m].
@@ -394,6 +421,20 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         ))
     );
     }
+    if let (Some(a), Some(b)) = (r.time_offset_search.first(), r.time_offset_search.last()) {
+        let found = r
+            .time_offset_search
+            .iter()
+            .filter(|c| c.found_s.is_some())
+            .count();
+        let _ = writeln!(
+            o,
+            "time offset searched from {:+.2} to {:+.2} s in 0.25 s steps ({} starts, {found} converged; a search is kept to offsets that leave half the LiDAR data within the INS's)",
+            a.start_s,
+            b.start_s,
+            r.time_offset_search.len()
+        );
+    }
     if let Some(a) = r.inputs.as_ref().and_then(|i| i.accuracy.as_ref()) {
         let _ = writeln!(
             o,
@@ -414,10 +455,30 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     for p in &r.per_sphere {
         let v = &p.verdicts;
         if !p.found {
+            let why = match p.lost.as_deref() {
+                Some("no_returns") => "no returns in its window".to_string(),
+                Some("not_detected") => "nothing sphere-like in its window".to_string(),
+                Some("stopped") => {
+                    let _ = writeln!(
+                        o,
+                        "  {}: {} windowed returns, found by the consensus in {} of {} slices; not solved (the reason above)",
+                        p.id, p.windowed, p.agreed_slices, p.slices
+                    );
+                    continue;
+                }
+                Some("disagrees") => format!(
+                    "sphere-like returns in {} of {} slices, none where the mounting the other spheres agree on puts it (clutter, a decoy, or the sphere hidden or moved)",
+                    p.detected, p.slices
+                ),
+                _ => format!(
+                    "detected in {} of {} slices, too few returns kept",
+                    p.detected, p.slices
+                ),
+            };
             let _ = writeln!(
                 o,
-                "  {}: NOT FOUND among {} windowed returns (detected in {} of {} slices): left out",
-                p.id, p.windowed, p.detected, p.slices
+                "  {}: NOT FOUND among {} windowed returns: {why}; left out",
+                p.id, p.windowed
             );
             continue;
         }

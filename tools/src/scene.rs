@@ -49,6 +49,21 @@ pub struct PoleSpec {
     pub velocity_ned_mps: Option<[f64; 3]>,
 }
 
+/// A ball that is not a target: a buoy, a round fender, a float (a decoy for the extraction).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BallSpec {
+    /// Name.
+    pub name: String,
+    /// Centre [m, site NED].
+    pub center_m: [f64; 3],
+    /// Radius [m].
+    pub radius_m: f64,
+    /// Diffuse reflectivity 0..1.
+    #[serde(default = "default_rho")]
+    pub reflectivity: f64,
+}
+
 /// A flat rectangle without thickness (a sign, a roof, a fence panel).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,6 +159,8 @@ pub struct SceneSpec<'a> {
     pub poles: &'a [PoleSpec],
     /// Flat rectangles.
     pub planes: &'a [PlaneSpec],
+    /// Balls that are not targets.
+    pub balls: &'a [BallSpec],
     /// Random clutter.
     pub scatter: &'a [ScatterSpec],
     /// Water.
@@ -279,6 +296,17 @@ impl Scene {
                 Object::new(shape, None).with_reflectivity(p.reflectivity),
                 p.name.clone(),
                 "plane",
+            );
+        }
+        for b in spec.balls {
+            let shape = Shape::Sphere {
+                c: Vector3::from(b.center_m),
+                r: b.radius_m,
+            };
+            self.push(
+                Object::new(shape, None).with_reflectivity(b.reflectivity),
+                b.name.clone(),
+                "ball",
             );
         }
         for (i, s) in spec.scatter.iter().enumerate() {
@@ -501,6 +529,20 @@ impl SceneSpec<'_> {
             )?;
             check_rho(p.reflectivity, &format!("{key}.reflectivity"))?;
         }
+        for (i, b) in self.balls.iter().enumerate() {
+            let key = format!("ball[{i}]");
+            check(
+                finite(&b.center_m),
+                &format!("{key}.center_m"),
+                "not finite",
+            )?;
+            check(
+                b.radius_m > 0.0 && b.radius_m < 5.0,
+                &format!("{key}.radius_m"),
+                "expected 0 < r < 5",
+            )?;
+            check_rho(b.reflectivity, &format!("{key}.reflectivity"))?;
+        }
         for (i, s) in self.scatter.iter().enumerate() {
             let key = format!("scatter[{i}]");
             check(
@@ -568,6 +610,11 @@ impl SceneSpec<'_> {
             .vessel
             .as_ref()
             .map_or(0, |v| v.boxes.len() + v.poles.len());
-        self.boxes.len() + self.poles.len() + self.planes.len() + scatter + vessel
+        self.boxes.len()
+            + self.poles.len()
+            + self.planes.len()
+            + self.balls.len()
+            + scatter
+            + vessel
     }
 }

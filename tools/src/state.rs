@@ -155,10 +155,37 @@ pub struct InsState {
     pub longest_gap_s: f64,
     /// Poses kept although their status says not tracking (the user asked).
     pub kept_untracked: u64,
+    /// Samples whose time was not after the sample before (the INS clock went back).
+    #[serde(default)]
+    pub backward: u64,
+    /// Steps of the INS clock: a sample right after another (nothing lost between them) whose
+    /// time is not one output period later, or time going back: GPS seconds of the later
+    /// sample and the step [s] (at most 16 listed; [`Self::clock_step_count`] counts all).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub clock_steps: Vec<(f64, f64)>,
+    /// Clock steps in all.
+    #[serde(default)]
+    pub clock_step_count: u64,
+    /// What the clock check remembers between samples.
+    #[serde(skip)]
+    pub watch: ClockWatch,
     /// What a POS MV stream gave (None: not a POS MV stream).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub posmv: Option<crate::pipeline::posmv::PosmvState>,
 }
+
+/// The INS clock between samples: the last sample's time, the output period learnt from the
+/// first contiguous intervals (their median).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ClockWatch {
+    last: Option<i64>,
+    end: Option<u64>,
+    period: Option<i64>,
+    learn: Vec<i64>,
+}
+
+/// Intervals the output period is learnt from.
+const LEARN: usize = 15;
 
 /// The reason a VN-200 InsStatus leaves a pose out (PROTOCOLS.md: bits 0-1 mode, 0 not
 /// tracking, 1 aligning, 2 tracking, 3 loss of GNSS; bit 2 GNSS fix), as an index into
@@ -174,6 +201,56 @@ pub fn excluded_by(status: u16) -> Option<usize> {
 }
 
 impl InsState {
+    /// Every sample with a time, used or not, in stream order; `contiguous`: it came right after
+    /// the sample before with nothing lost between (consecutive binary frames, consecutive
+    /// records). Time going back is always a step; a contiguous sample more than a quarter of
+    /// the output period (and 2 ms) off one period after the one before is a step too (a lost
+    /// frame is not contiguous).
+    pub fn sample(&mut self, t: GpsTime, contiguous: bool) {
+        let w = &mut self.watch;
+        let Some(last) = w.last.replace(t.0) else {
+            return;
+        };
+        let d = t.0 - last;
+        let step = if d <= 0 {
+            self.backward += 1;
+            Some(d - w.period.unwrap_or(0))
+        } else if !contiguous {
+            None
+        } else if let Some(p) = w.period {
+            ((d - p).abs() > (p / 4).max(2_000_000)).then_some(d - p)
+        } else {
+            w.learn.push(d);
+            if w.learn.len() == LEARN {
+                let mut v = w.learn.clone();
+                v.sort_unstable();
+                w.period = Some(v[LEARN / 2]);
+            }
+            None
+        };
+        if let Some(d) = step {
+            self.clock_step_count += 1;
+            if self.clock_steps.len() < 16 {
+                self.clock_steps.push((secs(t), d as f64 * 1e-9));
+            }
+        }
+    }
+
+    /// A sample from the frame at byte `offset` of `len` bytes: contiguous when the sample
+    /// before ended where it starts.
+    pub fn sample_frame(&mut self, t: GpsTime, offset: u64, len: usize) {
+        let contiguous = self.watch.end == Some(offset);
+        self.watch.end = Some(offset + len as u64);
+        self.sample(t, contiguous);
+    }
+
+    /// The clock steps within GPS seconds `span` (the LiDAR data's).
+    pub fn steps_within(&self, span: (f64, f64)) -> impl Iterator<Item = &(f64, f64)> {
+        self.clock_steps
+            .iter()
+            .filter(move |(t, _)| *t >= span.0 && *t <= span.1)
+    }
+
     /// A pose used at `t`; `max_gap_ns`: the interpolation limit.
     pub fn used(&mut self, t: GpsTime, max_gap_ns: i64) {
         self.poses += 1;
@@ -261,6 +338,31 @@ impl InsState {
                 self.gaps, self.longest_gap_s
             );
         }
+        if self.clock_step_count > 0 {
+            let first = self.span.map_or(0.0, |s| s.0);
+            let listed: Vec<String> = self
+                .clock_steps
+                .iter()
+                .take(4)
+                .map(|(t, d)| format!("{:+.4} s at {:.1} s", d, t - first))
+                .collect();
+            let _ = write!(
+                o,
+                "; CLOCK STEPS: {} ({}{}){}",
+                self.clock_step_count,
+                listed.join(", "),
+                if self.clock_step_count > 4 {
+                    ", ..."
+                } else {
+                    ""
+                },
+                if self.backward > 0 {
+                    format!(", time went back {} times", self.backward)
+                } else {
+                    String::new()
+                }
+            );
+        }
         o
     }
 }
@@ -288,6 +390,33 @@ mod tests {
         assert_eq!(excluded_by(0x0004), Some(0)); // not tracking
         assert_eq!(excluded_by(0x0005), Some(1)); // aligning
         assert_eq!(excluded_by(0x0007), Some(2)); // GNSS lost
+    }
+
+    /// 200 Hz samples: a lost frame is a gap, not a step; a contiguous +20 ms and a -50 ms
+    /// are steps, the latter also time going back.
+    #[test]
+    fn clock_steps_and_time_going_back() {
+        let mut s = InsState::default();
+        let mut t = 0i64;
+        let mut next = |s: &mut InsState, d: i64, contiguous: bool| {
+            t += d;
+            s.sample(GpsTime(t), contiguous);
+        };
+        for _ in 0..40 {
+            next(&mut s, 5_000_000, true);
+        }
+        next(&mut s, 10_000_000, false); // a frame lost
+        next(&mut s, 25_000_000, true); // +20 ms
+        next(&mut s, 5_000_000, true);
+        next(&mut s, -45_000_000, true); // -50 ms
+        for _ in 0..5 {
+            next(&mut s, 5_000_000, true);
+        }
+        next(&mut s, 5_400_000, true); // jitter
+        assert_eq!(s.clock_step_count, 2, "{:?}", s.clock_steps);
+        assert_eq!(s.backward, 1);
+        assert!((s.clock_steps[0].1 - 0.020).abs() < 1e-9);
+        assert!((s.clock_steps[1].1 + 0.050).abs() < 1e-9);
     }
 
     #[test]

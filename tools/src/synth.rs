@@ -324,6 +324,64 @@ fn write_lidar(
 
 /// ins.bin, and the same bytes as a serial log with the times a rig would have received
 /// them (sample time + output latency + transmission at the baud rate), for replay.
+/// Fewer returns than this on a sphere and `synth` / `plan` say why.
+pub const FEW_RETURNS: u64 = 30;
+
+/// Why sphere `j` of a scenario gets few or no returns, in words (the survey sampled every
+/// 0.25 s: range, the lasers' fan, what stands in the line of sight, the LiDAR inside an
+/// object); `None` when nothing explains it.
+pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
+    let scene = s.scene();
+    let lidar = s.lidar_config();
+    let v = s
+        .with_world(|w| {
+            spherecal::sim::visibility::visibility(w, lidar.model, lidar.max_range, j as u8, 0.25)
+        })
+        .ok()?;
+    let name = |i: usize| {
+        scene
+            .names
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("object {i}"))
+    };
+    let id = s.sphere.get(j).map_or("?", |sp| sp.id.as_str());
+    let pct = |n: u32, of: u32| 100.0 * f64::from(n) / f64::from(of.max(1));
+    if let Some((i, n)) = v.lidar_inside {
+        if n * 2 >= v.samples {
+            return Some(format!(
+                "{id}: the LiDAR is inside {} ({:.0} % of the survey): the mounting puts it there",
+                name(i),
+                pct(n, v.samples)
+            ));
+        }
+    }
+    if v.in_range == 0 {
+        return Some(format!(
+            "{id}: never within the LiDAR's range ({:.0} m) of the survey",
+            lidar.max_range
+        ));
+    }
+    if v.on_a_laser == 0 {
+        let (a, b) = v.elevation_deg.unwrap_or((0.0, 0.0));
+        let (lo, hi) = lidar.model.elevation_span_deg();
+        return Some(format!(
+            "{id}: never on a laser: it is {a:.1} to {b:.1} deg above the LiDAR's equator, its lasers {lo:.1} to {hi:.1} deg"
+        ));
+    }
+    if let Some((i, n)) = v.blocker {
+        if v.seen * 4 < v.on_a_laser {
+            return Some(format!(
+                "{id}: hidden by {} ({:.0} % of the times a laser points at it; in sight {:.0} %)",
+                name(i),
+                pct(n, v.on_a_laser),
+                pct(v.seen, v.on_a_laser)
+            ));
+        }
+    }
+    None
+}
+
 /// Only the INS files (`ins.bin`, `ins.vnlog`, and `ins.posmv` for a POS MV) of a scenario,
 /// into `dir` (created if needed): the same stream [`synth`] writes.
 pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {

@@ -14,23 +14,57 @@ pub struct ChainError {
     /// The file.
     pub path: PathBuf,
     /// What went wrong.
-    pub error: PcapError,
+    pub fault: ChainFault,
+}
+
+/// What went wrong with a file of a chain.
+#[derive(Debug)]
+pub enum ChainFault {
+    /// Reading it.
+    File(PcapError),
+    /// It starts before the file read before it ended (two recordings of one time, or one
+    /// file under two names): that file, its last datagram's time, and this file's first.
+    Overlaps(PathBuf, HostTime, HostTime),
 }
 
 impl fmt::Display for ChainError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path.display(), self.error)
+        match &self.fault {
+            ChainFault::Overlaps(earlier, last, first) => write!(
+                f,
+                "{}: its first datagram ({:.6} s) comes before the last of {} ({:.6} s): the captures cover the same time (two recordings of one survey, or one file under two names); give the captures of one recording",
+                self.path.display(),
+                first.as_secs_f64(),
+                earlier.display(),
+                last.as_secs_f64()
+            ),
+            ChainFault::File(e) => write!(f, "{}: {e}", self.path.display()),
+        }
     }
 }
 
 impl std::error::Error for ChainError {}
 
+impl ChainError {
+    fn of(path: &Path, error: PcapError) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            fault: ChainFault::File(error),
+        }
+    }
+}
+
 /// Capture files in time order, as one [`PacketSource`]. Between two files it yields one
-/// [`Record::Idle`] (a reader goes on; the borrow of a finished file ends there).
+/// [`Record::Idle`] (a reader goes on; the borrow of a finished file ends there). A file that
+/// starts before the one before it ended is refused ([`ChainFault::Overlaps`]).
 pub struct PcapChain {
     files: Vec<PathBuf>,
+    /// Each file's first datagram time.
+    firsts: Vec<Option<HostTime>>,
     next: usize,
     cur: Option<PcapSource<BufReader<std::fs::File>>>,
+    /// The last datagram's time read so far.
+    last: Option<HostTime>,
 }
 
 /// The time of a capture's first datagram (`None`: it has none).
@@ -50,17 +84,16 @@ impl PcapChain {
     pub fn open(paths: &[PathBuf]) -> Result<Self, ChainError> {
         let mut timed = Vec::with_capacity(paths.len());
         for (i, p) in paths.iter().enumerate() {
-            let t = first_time(p).map_err(|error| ChainError {
-                path: p.clone(),
-                error,
-            })?;
-            timed.push((t.map_or(i64::MAX, |t| t.0), i, p.clone()));
+            let t = first_time(p).map_err(|error| ChainError::of(p, error))?;
+            timed.push((t.map_or(i64::MAX, |t| t.0), i, p.clone(), t));
         }
-        timed.sort();
+        timed.sort_by_key(|(t, i, _, _)| (*t, *i));
         Ok(Self {
-            files: timed.into_iter().map(|(_, _, p)| p).collect(),
+            firsts: timed.iter().map(|(_, _, _, t)| *t).collect(),
+            files: timed.into_iter().map(|(_, _, p, _)| p).collect(),
             next: 0,
             cur: None,
+            last: None,
         })
     }
 
@@ -89,10 +122,19 @@ impl PacketSource for PcapChain {
             let Some(path) = self.files.get(self.next) else {
                 return Ok(None);
             };
-            let src = PcapSource::open(path).map_err(|error| ChainError {
-                path: path.clone(),
-                error,
-            })?;
+            if let (Some(last), Some(Some(first)), Some(prev)) = (
+                self.last,
+                self.firsts.get(self.next),
+                self.next.checked_sub(1).and_then(|i| self.files.get(i)),
+            ) {
+                if first.0 < last.0 {
+                    return Err(ChainError {
+                        path: path.clone(),
+                        fault: ChainFault::Overlaps(prev.clone(), last, *first),
+                    });
+                }
+            }
+            let src = PcapSource::open(path).map_err(|error| ChainError::of(path, error))?;
             self.cur = Some(src);
             self.next += 1;
         }
@@ -100,10 +142,12 @@ impl PacketSource for PcapChain {
         let Some(src) = self.cur.as_mut() else {
             return Ok(None);
         };
-        let r = src.next_record().map_err(|error| ChainError {
-            path: path.clone(),
-            error,
-        })?;
+        let r = src
+            .next_record()
+            .map_err(|error| ChainError::of(path, error))?;
+        if let Some(Record::Udp(d)) = &r {
+            self.last = Some(d.time);
+        }
         // At a file's end: the next call opens the next file.
         Ok(Some(r.unwrap_or(Record::Idle)))
     }

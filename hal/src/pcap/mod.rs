@@ -20,7 +20,7 @@ pub mod read;
 pub mod slice;
 pub mod write;
 
-pub use chain::{ChainError, PcapChain};
+pub use chain::{ChainError, ChainFault, PcapChain};
 pub use read::PcapSource;
 pub use slice::{build_udp_frame, slice_udp, UdpEndpoints};
 pub use write::PcapWriter;

@@ -37,7 +37,7 @@ pub struct Args {
     pub returns: Option<PathBuf>,
     /// Start from this time offset between the clocks [s] (INS time = LiDAR time + this;
     /// default 0, or what the LiDAR's RMC says when its clock is not PPS-locked).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::finite)]
     pub time_offset: Option<f64>,
     /// Hold the time offset (at `--time-offset`) instead of estimating it.
     #[arg(long)]
@@ -52,7 +52,7 @@ pub struct Args {
     /// Search the time offset over +- this many seconds around the start, in 0.25 s steps
     /// (default: 2 s when the LiDAR clock is not PPS-locked with a valid RMC, else none; 0
     /// turns it off).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::non_negative)]
     pub search_time_offset: Option<f64>,
 }
 

@@ -118,6 +118,45 @@ fn parse_n<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
         .ok_or_else(|| format!("{s:?}: expected {what}"))
 }
 
+/// A finite number (`nan` and `inf` are refused).
+pub(crate) fn finite(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{s:?}: expected a finite number"))
+    }
+}
+
+/// A finite number at least 0.
+pub(crate) fn non_negative(s: &str) -> Result<f64, String> {
+    let v = finite(s)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s:?}: expected a number >= 0"))
+    }
+}
+
+/// A finite number above 0.
+pub(crate) fn positive(s: &str) -> Result<f64, String> {
+    let v = finite(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s:?}: expected a number > 0"))
+    }
+}
+
+/// A count of at least 1.
+pub(crate) fn count(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        Ok(_) => Err(format!("{s:?}: expected at least 1")),
+        Err(e) => Err(format!("{s:?}: {e}")),
+    }
+}
+
 /// `r,p,h,x,y,z`.
 fn parse6(s: &str) -> Result<[f64; 6], String> {
     parse_n(s, "six finite numbers r,p,h,x,y,z")

@@ -76,6 +76,17 @@ pub fn run(a: Args) -> ExitCode {
                 t.points_per_sphere,
                 t.clutter_points
             );
+            for (j, &n) in t.points_per_sphere.iter().enumerate() {
+                if n < crate::synth::FEW_RETURNS {
+                    let why = crate::synth::why_unseen(&s, j).unwrap_or_else(|| {
+                        format!(
+                            "{}: in range and on a laser, not hidden at its centre: grazed only, or between the firings",
+                            s.sphere[j].id
+                        )
+                    });
+                    sayln!("warning: {n} returns on {why}");
+                }
+            }
             sayln!(
                 "wrote {}/{{lidar.pcap, ins.bin, site.toml, truth.json}}",
                 out.display()

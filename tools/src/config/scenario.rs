@@ -2,7 +2,8 @@
 //! its validation (unknown keys and impossible values are rejected by name), and the built-ins.
 
 use crate::scene::{
-    BoxSpec, PlaneSpec, PoleSpec, ScatterSpec, Scene, SceneSpec, Stand, VesselSpec, WaterSpec,
+    BallSpec, BoxSpec, PlaneSpec, PoleSpec, ScatterSpec, Scene, SceneSpec, Stand, VesselSpec,
+    WaterSpec,
 };
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -65,6 +66,9 @@ pub struct Scenario {
     /// Flat rectangles.
     #[serde(default, rename = "plane", skip_serializing_if = "Vec::is_empty")]
     pub planes: Vec<PlaneSpec>,
+    /// Balls that are not targets: buoys, fenders (decoys).
+    #[serde(default, rename = "ball", skip_serializing_if = "Vec::is_empty")]
+    pub balls: Vec<BallSpec>,
     /// Random clutter regions.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub scatter: Vec<ScatterSpec>,
@@ -749,6 +753,7 @@ impl Scenario {
             boxes: &self.boxes,
             poles: &self.poles,
             planes: &self.planes,
+            balls: &self.balls,
             scatter: &self.scatter,
             water: self.water.as_ref(),
             vessel: self.vessel.as_ref(),

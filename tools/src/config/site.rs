@@ -228,6 +228,17 @@ impl Site {
         for (i, s) in self.sphere.iter().enumerate() {
             let key = format!("sphere[{i}] ({})", s.id);
             need(
+                !s.id.trim().is_empty(),
+                format!("sphere[{i}].id"),
+                "expected a name (reports and the rig name spheres by it)",
+            )?;
+            if let Some(k) = self.sphere[..i].iter().position(|o| o.id == s.id) {
+                return Err(format!(
+                    "sphere[{i}].id: {:?} is also sphere[{k}]'s: every sphere needs its own id",
+                    s.id
+                ));
+            }
+            need(
                 s.radius_m.is_finite() && s.radius_m > 0.0 && s.radius_m < 5.0,
                 format!("{key}.radius_m"),
                 "expected a finite radius 0 < r < 5 m",
@@ -332,6 +343,26 @@ mod tests {
             let e = s.check().unwrap_err();
             assert!(e.starts_with(&format!("{key}: ")), "{to}: {e}");
         }
+    }
+
+    /// Every sphere needs its own, non-empty id.
+    #[test]
+    fn duplicate_and_empty_ids_are_refused() {
+        let second = "[[sphere]]\nid = \"S2\"\nlat_deg = 48.3801\nlon_deg = -4.49\nh_m = 53.6\nradius_m = 0.19\n[apriori]";
+        let two = GOOD.replacen("[apriori]", second, 1);
+        let s: Site = toml::from_str(&two).unwrap();
+        assert_eq!(s.check(), Ok(()));
+        let s: Site = toml::from_str(&two.replacen("id = \"S2\"", "id = \"S1\"", 1)).unwrap();
+        let e = s.check().unwrap_err();
+        assert!(
+            e.starts_with("sphere[1].id: \"S1\" is also sphere[0]'s"),
+            "{e}"
+        );
+        let s: Site = toml::from_str(&two.replacen("id = \"S2\"", "id = \" \"", 1)).unwrap();
+        assert!(s
+            .check()
+            .unwrap_err()
+            .starts_with("sphere[1].id: expected a name"));
     }
 
     /// Surveyed coordinates: computed into WGS84, refused without `[crs]`, incomplete, or

@@ -291,7 +291,13 @@ impl RunStats {
 
     /// The inputs cannot be calibrated or georeferenced at all: why, in a sentence naming the
     /// file and what was found instead.
-    pub fn unusable(&self, pcap: &Files, ins: &InsInput, ins_head: &[u8]) -> Option<String> {
+    pub fn unusable(
+        &self,
+        pcap: &Files,
+        ins: &InsInput,
+        ins_head: &[u8],
+        offset_ns: i64,
+    ) -> Option<String> {
         let (sbet, ins) = match ins {
             InsInput::Vn200(f) | InsInput::Posmv(f, _, _) => (false, f),
             InsInput::Sbet(f, _) => (true, f),
@@ -352,9 +358,19 @@ impl RunStats {
                 self.align.lidar_span.unwrap_or_default(),
                 st.span.unwrap_or_default(),
             );
+            let dt = offset_ns as f64 * 1e-9;
             return Some(format!(
-                "the LiDAR's times (GPS {:.1} .. {:.1} s) and the INS's ({:.1} .. {:.1} s) do not overlap; the LiDAR clock: {}",
-                l.0, l.1, i.0, i.1, self.clock.describe()
+                "the LiDAR's times (GPS {:.1} .. {:.1} s{}) and the INS's ({:.1} .. {:.1} s) do not overlap; the LiDAR clock: {}",
+                l.0 + dt,
+                l.1 + dt,
+                if offset_ns == 0 {
+                    String::new()
+                } else {
+                    format!(", with the time offset {dt:+.3} s applied")
+                },
+                i.0,
+                i.1,
+                self.clock.describe()
             ));
         }
         None
@@ -501,7 +517,7 @@ pub fn run<C: Send>(
         let c = consumer
             .join()
             .map_err(|_| "consumer panicked".to_string())?;
-        if let Some(why) = stats.unusable(&inp.pcap, &inp.ins, &ins_head) {
+        if let Some(why) = stats.unusable(&inp.pcap, &inp.ins, &ins_head, inp.time_offset_ns) {
             return Err(why);
         }
         Ok((stats, c))

@@ -252,6 +252,7 @@ impl PosmvFeed {
             self.st.exclude(p.time, 1);
             return;
         }
+        self.st.sample(p.time, false);
         if !p.alignment.is_navigating() {
             let k = if p.alignment == Alignment::NoSolution {
                 0

@@ -322,6 +322,8 @@ pub fn ins_file_reader(
                         h: r.h,
                     };
                     let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
+                    // Records of one file follow each other: nothing is lost between them.
+                    st.sample(t, rd.records > 1);
                     st.used(t, max_gap_ns);
                     let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
                     enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
@@ -410,6 +412,10 @@ impl PoseGate {
         seen(it, &got);
         match got {
             InsOutcome::Pose(s, status) => {
+                match &it.item {
+                    Item::Binary(f) => st.sample_frame(s.time, it.offset, f.bytes().len()),
+                    _ => st.sample(s.time, false),
+                }
                 // Not tracking, aligning, GNSS lost, no fix: left out (counted).
                 match status.and_then(crate::state::excluded_by) {
                     Some(k) if !self.keep_untracked => {

@@ -595,7 +595,23 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
     let per_sphere: Vec<u32> = (0..ids.len())
         .map(|j| g.cells.iter().map(|r| r[j].info.n).sum())
         .collect();
-    let missing = assess(&pred, &p, &per_sphere, &ids, goal);
+    let mut missing = assess(&pred, &p, &per_sphere, &ids, goal);
+    // Why a sphere gets too few returns, where the survey's geometry says it.
+    for (j, &n) in per_sphere.iter().enumerate() {
+        if n < goal.min_returns {
+            if let (Some(why), Some(m)) = (
+                crate::synth::why_unseen(s, j),
+                missing
+                    .iter_mut()
+                    .find(|m| m.starts_with(&format!("{}: ", ids[j]))),
+            ) {
+                m.push_str(&format!(
+                    " ({})",
+                    why.trim_start_matches(&format!("{}: ", ids[j]))
+                ));
+            }
+        }
+    }
     let range_of = |cells: &mut dyn Iterator<Item = &Cell>| {
         let r = cells.fold([f64::INFINITY, 0.0f64], |r, c| {
             [r[0].min(c.range_m[0]), r[1].max(c.range_m[1])]
