@@ -94,3 +94,126 @@ fn errors_name_the_file_and_the_reason() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Inputs that cannot be right are refused with exit 2 before a calibration is claimed (issue
+/// 25): two captures of the same minute given together (named), non-finite or negative numbers
+/// for options, two spheres with one id or none; and a time offset search wider than the data
+/// is kept to where the clocks overlap and says so.
+#[test]
+fn impossible_inputs_are_refused() {
+    let a = common::tmp("errors", "a");
+    let b = common::tmp("errors", "b");
+    let bare = Scenario::load("table1-bare").unwrap();
+    spherecal_tools::synth::synth(&bare, &a).unwrap();
+    let mut other = bare.clone();
+    other.mount.truth.lever_arm_m[0] += 0.2;
+    spherecal_tools::synth::synth(&other, &b).unwrap();
+    let (pcap, ins, site) = (a.join("lidar.pcap"), a.join("ins.bin"), a.join("site.toml"));
+    // The same minute twice, from two surveys: the second file named with the first.
+    let mut args = calibrate(&pcap, "--ins", &ins, &site, &[]);
+    args.insert(3, b.join("lidar.pcap").into());
+    let b_pcap = b.join("lidar.pcap").display().to_string();
+    let a_pcap = pcap.display().to_string();
+    let out = common::spherecal().args(&args).output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert!(se.contains("the captures cover the same time"), "{se}");
+    assert!(se.contains(&a_pcap) && se.contains(&b_pcap), "{se}");
+    // Numbers.
+    for (opt, v, why) in [
+        ("--time-offset", "nan", "expected a finite number"),
+        ("--time-offset", "inf", "expected a finite number"),
+        ("--search-time-offset", "nan", "expected a finite number"),
+        ("--search-time-offset", "-1", "expected a number >= 0"),
+    ] {
+        refused(
+            &calibrate(&pcap, "--ins", &ins, &site, &[opt, v]),
+            &[opt, why],
+            true,
+        );
+    }
+    for args in [
+        vec!["montecarlo", "--scenario", "table1-bare", "--trials", "0"],
+        vec![
+            "montecarlo",
+            "--scenario",
+            "table1-bare",
+            "--angle-noise-deg",
+            "-1",
+        ],
+        vec![
+            "plan",
+            "--scenario",
+            "table1-bare",
+            "--target-sigma-m",
+            "nan",
+        ],
+        vec![
+            "georef",
+            "--pcap",
+            "x",
+            "--ins",
+            "y",
+            "--site",
+            "z",
+            "--max-gap-ms",
+            "0",
+        ],
+    ] {
+        let args: Vec<OsString> = args.iter().map(OsString::from).collect();
+        refused(&args, &["invalid value"], true);
+    }
+    // Sphere ids: two alike, or an empty one.
+    let text = std::fs::read_to_string(&site).unwrap();
+    for (to, why) in [
+        ("id = \"S1\"", "\"S1\" is also sphere[0]'s"),
+        ("id = \"\"", "expected a name"),
+    ] {
+        let bad = a.join("bad-site.toml");
+        std::fs::write(&bad, text.replacen("id = \"S2\"", to, 1)).unwrap();
+        refused(
+            &calibrate(&pcap, "--ins", &ins, &bad, &[]),
+            &["sphere[1].id", why],
+            true,
+        );
+    }
+    // A search of +-100 s over a minute of data: kept to the overlap, and it runs.
+    let r = a.join("search.json");
+    let mut args = calibrate(
+        &pcap,
+        "--ins",
+        &ins,
+        &site,
+        &["--search-time-offset", "100"],
+    );
+    args.extend(["--report".into(), r.clone().into()]);
+    let out = common::spherecal().args(&args).output().unwrap();
+    let so = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{so}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&r).unwrap()).unwrap();
+    let s = rep["time_offset_search"].as_array().unwrap();
+    let (lo, hi) = (
+        s[0]["start_s"].as_f64().unwrap(),
+        s[s.len() - 1]["start_s"].as_f64().unwrap(),
+    );
+    // table1-bare: 62.5 s of LiDAR data within 64.5 s of INS data: +-32 s keep half inside.
+    assert!(
+        lo > -33.0 && lo < -30.0 && hi > 30.0 && hi < 33.0,
+        "{lo} {hi}"
+    );
+    assert!(so.contains("time offset searched from"), "{so}");
+    assert!(rep["time_offset_s"].as_f64().unwrap().abs() < 1e-3);
+    std::fs::remove_dir_all(a).unwrap();
+    std::fs::remove_dir_all(b).unwrap();
+}

@@ -580,3 +580,136 @@ fn residuals_beyond_the_noise_model_are_refused() {
     assert!(c.dispersion > 0.4 && c.dispersion < 1.0, "{c:?}");
     std::fs::remove_dir_all(d).unwrap();
 }
+
+/// The INS clock stepping within the survey (a receiver's time jump), 31 s into table1-noisy:
+/// +20 ms (within the interpolation limit, so no gap shows), +50 ms and -50 ms (time going
+/// back). Each is found in the stream itself (a frame right after another, nothing lost
+/// between, not one output period later), reported by `calibrate`, `georef` and `ins`, and the
+/// calibration refused naming the step and its time. The same survey without a step converges
+/// (`noisy_ins_late_is_within_three_sigma` and the planner's Monte Carlo).
+#[test]
+fn ins_clock_steps_are_found_reported_and_refused() {
+    let cases = [(0.020, "+20.0"), (0.050, "+50.0"), (-0.050, "-50.0")];
+    let made: Vec<_> = std::thread::scope(|sc| {
+        cases
+            .iter()
+            .map(|&(step, _)| {
+                sc.spawn(move || {
+                    synth("table1-noisy", &format!("step{step}"), |s| {
+                        s.ins.clock_steps = vec![[31.0, step]];
+                    })
+                })
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .map(|h| h.join().unwrap())
+            .collect()
+    });
+    for ((d, _), (step, ms)) in made.iter().zip(cases) {
+        let (o, r) = calibrate(d, &d.join("ins.bin"), &[]);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(1), "{t}");
+        let reason = r.unwrap().reason.unwrap();
+        assert!(
+            reason.starts_with(&format!(
+                "the INS clock stepped by {ms} ms 31.0 s into the LiDAR data"
+            )),
+            "{reason}"
+        );
+        let line = format!("CLOCK STEPS: 1 ({:+.4} s at ", step);
+        assert!(t.contains(&line), "{t}");
+        // georef and ins say it too.
+        let g = common::stdout_of(
+            common::spherecal()
+                .arg("georef")
+                .args(common::survey_args(d)),
+        );
+        assert!(g.contains(&line), "{g}");
+        let i = common::stdout_of(common::spherecal().arg("ins").arg(d.join("ins.bin")));
+        assert!(
+            i.contains(&format!("clock steps: 1 ({:+.4} s at ", step)),
+            "{i}"
+        );
+        assert_eq!(i.contains("time went back 1 times"), step < 0.0, "{i}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+}
+
+/// A POS MV stream's groups say nothing of what was lost between them, so a step of its clock
+/// is caught by the calibration itself: the passes' own time offsets disagree. +50 ms 31 s in:
+/// refused, naming the clocks and the pass; the pass after the step is off by about the step.
+#[test]
+fn a_clock_step_the_stream_cannot_show_is_caught_by_the_passes() {
+    let (d, _) = synth("table1-noisy", "posmv-step", |s| {
+        s.ins.kind = "posmv".into();
+        s.ins.clock_steps = vec![[31.0, 0.05]];
+    });
+    let out = common::spherecal()
+        .arg("calibrate")
+        .arg("--pcap")
+        .arg(d.join("lidar.pcap"))
+        .arg("--posmv")
+        .arg(d.join("ins.posmv"))
+        .arg("--site")
+        .arg(d.join("site.toml"))
+        .arg("--report")
+        .arg(d.join("r.json"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let r: Report =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    let reason = r.reason.unwrap();
+    assert!(
+        reason.starts_with("the clocks are not steady: in pass "),
+        "{reason}"
+    );
+    // Every pass wholly after the step sees the INS 50 ms late against the rest.
+    let t0 = r
+        .per_pass
+        .iter()
+        .map(|p| p.start_gps_s)
+        .fold(f64::INFINITY, f64::min);
+    let after: Vec<_> = r
+        .per_pass
+        .iter()
+        .filter(|p| p.start_gps_s > t0 + 32.0 && p.time_offset_shift_sigma_s > 0.0)
+        .collect();
+    assert!(!after.is_empty());
+    for p in after {
+        assert!(p.time_offset_shift_s > 0.0, "{p:?}");
+    }
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// A LiDAR without PPS whose crystal runs 200 ppm fast (its clock 12 ms ahead by the end of
+/// table1's minute): the drift of the time offset is estimated with it (-200 ppm: INS minus
+/// LiDAR falls), within 4 sigma, and every parameter within 4 sigma of the truth; claimed with
+/// `--allow-unlocked-clock`.
+#[test]
+fn an_unlocked_lidar_clock_drifting_is_modelled() {
+    let (d, s) = synth("table1-noisy", "drift", |s| {
+        s.lidar.pps = "absent".into();
+        s.lidar.clock_drift_ppm = 200.0;
+    });
+    let (o, r) = calibrate(&d, &d.join("ins.bin"), &["--allow-unlocked-clock"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let r = r.unwrap();
+    assert!(
+        (r.time_drift_ppm + 200.0).abs() < 4.0 * r.time_drift_sigma_ppm,
+        "{} +- {} ppm",
+        r.time_drift_ppm,
+        r.time_drift_sigma_ppm
+    );
+    let (got, want, sg) = (r.deg_m(), truth(&s), r.sigma.deg_m());
+    for i in 0..6 {
+        assert!(
+            (got[i] - want[i]).abs() < 4.0 * sg[i],
+            "{i}: {} vs {} (sigma {})",
+            got[i],
+            want[i],
+            sg[i]
+        );
+    }
+    std::fs::remove_dir_all(d).unwrap();
+}

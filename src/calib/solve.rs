@@ -566,7 +566,7 @@ fn consistency(
 }
 
 /// Each pass's own time offset: the returns of one pass over one sphere, with the mounting and
-/// the time offset model held, fitted for a shift of the offset and a radius offset (`r_k = c +
+/// the time offset model held, fitted for a shift of the offset and a radius offset (`r_k = c -
 /// J_k shift`, `J_k = dr/ddt`, the platform's motion along the surface normal); its sigma from
 /// the fit's scatter inflated by the returns per cluster, as [`consistency`]. Into `passes`;
 /// the pass furthest off as a refusal when it is off by more than `held_dt_sigmas` sigmas and
@@ -618,16 +618,17 @@ fn pass_clocks(
         if vjj.is_nan() || vjj <= 0.0 {
             continue;
         }
-        let shift = (sjr - sj * sr / n) / vjj;
-        let c = (sr - shift * sj) / n;
+        // r = c + J kk; a residual r at the model's offset is what -J (dt_data - dt_model)
+        // leaves, so the pass's own offset is the model's minus kk.
+        let kk = (sjr - sj * sr / n) / vjj;
+        let c = (sr - kk * sj) / n;
         // Residual scatter (at least 1 mm), inflated by the returns per cluster.
-        let e2 = (srr - 2.0 * c * sr - 2.0 * shift * sjr
-            + n * c * c
-            + 2.0 * c * shift * sj
-            + shift * shift * sjj)
-            / (n - 2.0).max(1.0);
+        let e2 =
+            (srr - 2.0 * c * sr - 2.0 * kk * sjr + n * c * c + 2.0 * c * kk * sj + kk * kk * sjj)
+                / (n - 2.0).max(1.0);
         let s2 = e2.max(1e-6) * n / clusters.max(1) as f64;
         let sigma = libm::sqrt(s2 / vjj);
+        let shift = -kk;
         p.dt_shift = shift as f32;
         p.dt_sigma = sigma as f32;
         let z = shift.abs() / sigma;

@@ -556,7 +556,8 @@ pub fn calibrate(
         .lidar_span
         .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
     if let Some(&(at, step)) = stats.ins.steps_within(span).next() {
-        if rep.converged {
+        // The cause, whatever else the solve found (a step also spreads the passes' offsets).
+        {
             let n = stats.ins.steps_within(span).count();
             rep.converged = false;
             rep.reason = Some(format!(

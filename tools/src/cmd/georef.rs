@@ -17,7 +17,7 @@ pub struct Args {
     #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
     pub lever: Option<[f64; 3]>,
     /// Largest INS sample spacing to interpolate over [ms].
-    #[arg(long, default_value_t = 50.0, value_parser = super::positive)]
+    #[arg(long, default_value_t = 50.0, allow_hyphen_values = true, value_parser = super::positive)]
     pub max_gap_ms: f64,
     /// The time offset between the clocks [s]: INS time = LiDAR time + this (what
     /// `calibrate` reports as `time_offset_s`).

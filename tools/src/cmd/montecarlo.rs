@@ -11,13 +11,13 @@ pub struct Args {
     #[arg(long)]
     pub scenario: String,
     /// Number of starts.
-    #[arg(long, default_value_t = 200, value_parser = super::count)]
+    #[arg(long, default_value_t = 200, allow_hyphen_values = true, value_parser = super::count)]
     pub trials: usize,
     /// Starts within +- this of the true angles [deg].
-    #[arg(long, default_value_t = 5.0, value_parser = super::non_negative)]
+    #[arg(long, default_value_t = 5.0, allow_hyphen_values = true, value_parser = super::non_negative)]
     pub angle_noise_deg: f64,
     /// Starts within +- this of the true lever arm [m].
-    #[arg(long, default_value_t = 0.5, value_parser = super::non_negative)]
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true, value_parser = super::non_negative)]
     pub lever_noise_m: f64,
     /// Seed of the starts.
     #[arg(long, default_value_t = 1)]

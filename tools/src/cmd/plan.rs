@@ -13,10 +13,10 @@ pub struct Args {
     #[arg(long)]
     pub scenario: String,
     /// Each boresight angle's 1-sigma wanted [deg].
-    #[arg(long, default_value_t = 0.01, value_parser = super::positive)]
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true, value_parser = super::positive)]
     pub target_sigma_deg: f64,
     /// Each lever-arm component's 1-sigma wanted [m].
-    #[arg(long, default_value_t = 0.005, value_parser = super::positive)]
+    #[arg(long, default_value_t = 0.005, allow_hyphen_values = true, value_parser = super::positive)]
     pub target_sigma_m: f64,
     /// Write the report: JSON, or a self-contained HTML page if the name ends in .html.
     #[arg(long)]

@@ -25,10 +25,10 @@ pub struct Args {
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
     /// Rotate raw log files at this size [MB] (overrides the board's).
-    #[arg(long, value_parser = super::positive)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
     pub rotate_mb: Option<f64>,
     /// Stop after this many seconds.
-    #[arg(long, value_parser = super::positive)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
     pub duration: Option<f64>,
     /// Write the calibration report here after every solve.
     #[arg(long)]

@@ -37,7 +37,7 @@ pub struct ImportArgs {
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::finite)]
     pub geoid_n: f64,
     /// Radius [m] of spheres whose row has none.
-    #[arg(long, value_parser = super::positive)]
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
     pub radius: Option<f64>,
     /// GPS - UTC [s].
     #[arg(long, default_value_t = 18)]
@@ -46,7 +46,7 @@ pub struct ImportArgs {
     #[arg(long, value_parser = parse6, allow_hyphen_values = true, default_value = "0,0,0,0,0,0")]
     pub apriori: [f64; 6],
     /// Window margin beyond the radius [m] (how far the a-priori mounting may be off there).
-    #[arg(long, default_value_t = 2.5, value_parser = super::positive)]
+    #[arg(long, default_value_t = 2.5, allow_hyphen_values = true, value_parser = super::positive)]
     pub margin: f64,
     /// The site file to write.
     #[arg(short, long)]
