@@ -354,7 +354,8 @@ fn set_status(ins: &mut [u8], at: usize, status: u16) {
 
 /// The VN-200 stream edited the way a real one misbehaves: 3 s of frames whose InsStatus
 /// says "aligning" (mode 1) and 2 s saying "GNSS lost" (mode 3), CRC damage in every 10th frame
-/// elsewhere, and a 2 s hole. The report counts exactly what was edited, the excluded spans
+/// elsewhere, and a 2 s hole (cutting the frames either side). The report counts exactly what
+/// was edited, it is a gap and not a clock step, the excluded spans
 /// match, the calibration still holds (the edits miss the sphere passes only partly: the
 /// solution must stay right), and `--keep-untracked-ins` keeps the untracked poses.
 #[test]
@@ -376,7 +377,16 @@ fn ins_byte_edits_status_crc_and_gaps() {
         let status = u16::from_le_bytes([f[48], f[49]]);
         assert_eq!(status & 3, 2, "the synthetic INS tracks");
         if (20.0..22.0).contains(&t) {
+            // The line dropped out for 2 s: it also cuts the frames either side of the hole
+            // (a serial line does not fail at a frame's boundary).
+            if removed == 0 {
+                out.truncate(out.len() - 20);
+            }
             removed += 1;
+            continue;
+        } else if removed > 0 && t < 22.01 {
+            f.drain(..20);
+            out.extend_from_slice(&f);
             continue;
         } else if (2.0..5.0).contains(&t) {
             set_status(&mut f, 0, (status & !3) | 1);
@@ -428,6 +438,7 @@ fn ins_byte_edits_status_crc_and_gaps() {
         "{}",
         st.longest_gap_s
     );
+    assert_eq!(st.clock_step_count, 0, "{:?}", st.clock_steps);
     let t = text(&o);
     assert!(t.contains("CRC") && t.contains("aligning"), "{t}");
     assert_mount(&r, &s, 1e-3, "edited INS");

@@ -204,15 +204,20 @@ impl InsState {
     /// Every sample with a time, used or not, in stream order; `contiguous`: it came right after
     /// the sample before with nothing lost between (consecutive binary frames, consecutive
     /// records). Time going back is always a step; a contiguous sample more than a quarter of
-    /// the output period (and 2 ms) off one period after the one before is a step too (a lost
-    /// frame is not contiguous).
+    /// the output period (and 2 ms) off one period after the one before is a step too: a serial
+    /// line that loses data cuts frames and is not contiguous, and a VN-200 does not skip its
+    /// outputs. A second message of the same sample (the same time) is not a step.
     pub fn sample(&mut self, t: GpsTime, contiguous: bool) {
         let w = &mut self.watch;
+        if w.last == Some(t.0) {
+            // The same sample again (a second message of it).
+            return;
+        }
         let Some(last) = w.last.replace(t.0) else {
             return;
         };
         let d = t.0 - last;
-        let step = if d <= 0 {
+        let step = if d < 0 {
             self.backward += 1;
             Some(d - w.period.unwrap_or(0))
         } else if !contiguous {
