@@ -579,7 +579,7 @@ pub fn detect(
     st: &ExtractSettings,
 ) -> Option<Detection> {
     let mut all = Candidates::new();
-    detect_all(obs, keys, r, tau, prior, grid, dirs, st, &mut all);
+    detect_all(obs, keys, r, tau, prior, grid, dirs, st, 1, &mut all);
     all.first().copied()
 }
 
@@ -589,7 +589,7 @@ pub const MAX_CANDIDATES: usize = 4;
 /// A slice's accepted candidates, best first.
 pub type Candidates = heapless::Vec<Detection, MAX_CANDIDATES>;
 
-/// As [`detect`], every acceptable candidate into `out` (best score first, at most
+/// As [`detect`], the `most` best acceptable candidates into `out` (best score first, at most
 /// [`MAX_CANDIDATES`], centres at least a radius apart): a slice can hold the sphere and things
 /// that look like it (a buoy, a fender, a bollard's cap seen by one scan line), which only the
 /// consensus across slices, passes and spheres tells apart ([`super::consensus`]).
@@ -603,10 +603,12 @@ pub fn detect_all(
     grid: &mut [u16],
     dirs: &Directions,
     st: &ExtractSettings,
+    most: usize,
     out: &mut Candidates,
 ) {
     const K: usize = 16;
     out.clear();
+    let most = most.clamp(1, MAX_CANDIDATES);
     let r = r as f32;
     let tau = tau as f32;
     let prior = prior.map(|p| p as f32);
@@ -711,9 +713,12 @@ pub fn detect_all(
             out.iter()
                 .any(|d| norm(sub(d.center, c)) < r && d.score >= score)
         };
+        // Only what could still enter the list gets the costlier tests below.
+        let full = out.len() >= most && out.last().is_some_and(|w| score <= w.score);
         if (s.inliers as usize) < need
             || s.violations as f32 > 0.25 * s.inliers as f32 + 2.0
             || score <= 0.0
+            || full
             || beaten(c, score)
         {
             continue;
@@ -744,7 +749,7 @@ pub fn detect_all(
             violations,
         };
         let at = out.partition_point(|o| o.score >= score);
-        if out.is_full() {
+        if out.len() >= most {
             if at >= out.len() {
                 continue;
             }

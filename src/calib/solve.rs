@@ -1346,6 +1346,7 @@ fn first_extract(
                 ws.grid,
                 &dirs,
                 &s.extract,
+                extract::MAX_CANDIDATES,
                 &mut found,
             );
             detected += u32::from(!found.is_empty());
