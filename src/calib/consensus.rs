@@ -200,7 +200,7 @@ impl Rng {
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;
         let x = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        ((x >> 32) as usize * n) >> 32
+        (((x >> 32) * n as u64) >> 32) as usize
     }
 }
 
