@@ -55,7 +55,7 @@ fn errors_name_the_file_and_the_reason() {
         );
     }
     // Text given as an SBET, a capture given as an SBET: what was read and what it looks like.
-    let week = ["--gps-week", "2300"];
+    let week = ["--gps-week", "2300", "--trajectory-datum", "WGS84"];
     refused(
         &calibrate(&pcap, "--sbet", &text, &site, &week),
         &["notes.txt", "no valid SBET record", "looks like text"],

@@ -491,6 +491,7 @@ fn wrong_files_exit_2_naming_them() {
             .arg(d.join("lidar.pcap"))
             .arg("--sbet")
             .arg(&f)
+            .args(["--trajectory-datum", "WGS84"])
             .arg("--site")
             .arg(d.join("site.toml"))
             .output()

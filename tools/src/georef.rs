@@ -27,41 +27,100 @@ pub enum LasFrame {
 struct ToMap {
     crs: Crs,
     frame: spherecal::frames::LocalFrame,
+    /// From the site frame's datum (the trajectory's) to the CRS's.
+    shift: crate::config::datum::DatumShift,
     /// Subtracted from ellipsoidal heights (the geoid undulation for orthometric heights).
-    undulation: f64,
+    undulation: crate::config::crs::Undulation,
+    /// The compound CRS (horizontal + vertical) the LAS file records, as WKT1.
+    wkt: String,
 }
 
 impl ToMap {
     fn for_site(site: &Site, frame: spherecal::frames::LocalFrame) -> Result<Self, String> {
+        use crate::config::crs::Undulation;
         let own = match &site.crs {
             Some(c) => Some((Crs::epsg(c.epsg)?, c)).filter(|(crs, _)| !crs.is_geographic()),
             None => None,
         };
-        let (crs, undulation) = match own {
-            Some((crs, c)) => (crs, c.undulation()),
+        let (crs, undulation, vertical) = match own {
+            Some((crs, c)) => (crs, c.undulation(&site.base)?, c.vertical_epsg),
             None => {
                 let (lat, lon) = (site.origin.lat_deg, site.origin.lon_deg);
                 let zone = (((lon + 180.0) / 6.0).floor() as i32).clamp(0, 59) as u16 + 1;
                 (
                     Crs::epsg(if lat >= 0.0 { 32600 } else { 32700 } + zone)?,
-                    0.0,
+                    Undulation::None,
+                    None,
                 )
             }
         };
+        let shift = crate::config::datum::DatumShift::between(
+            &site.datum(),
+            &crate::config::datum::Datum::of_crs(crs.code)?,
+        )?;
+        let wkt = compound_wkt(&crs, &undulation, vertical);
         Ok(Self {
             crs,
             frame,
+            shift,
             undulation,
+            wkt,
         })
     }
 
     fn xyz(&self, ned: &nalgebra::Vector3<f64>) -> Result<(f64, f64, f64), String> {
         let g = self.frame.to_geodetic(ned);
-        let (x, y, h) = self
-            .crs
-            .from_wgs84(g.lat.to_degrees(), g.lon.to_degrees(), g.h)?;
-        Ok((x, y, h - self.undulation))
+        let (lat, lon, h) = self
+            .shift
+            .apply(g.lat.to_degrees(), g.lon.to_degrees(), g.h)?;
+        let (x, y, h) = self.crs.from_geographic(lat, lon, h)?;
+        Ok((x, y, h - self.undulation.at(lat, lon)?))
     }
+}
+
+/// A LAS file's compound CRS (LAS 1.4 R15 2.4: WKT in an OGC coordinate system VLR): the
+/// horizontal CRS's WKT1 without its `TOWGS84` (with it, readers do not see the EPSG code) and
+/// the heights' vertical CRS: the EPSG one given, else an orthometric height on a geoid, or
+/// ellipsoidal heights (`VERT_DATUM` type 2002: pyproj reads the whole as a 3D CRS).
+pub fn compound_wkt(
+    crs: &Crs,
+    undulation: &crate::config::crs::Undulation,
+    vertical_epsg: Option<u16>,
+) -> String {
+    use crate::config::crs::Undulation;
+    let mut h = crs.wkt.to_string();
+    while let Some(i) = h.find(",TOWGS84[") {
+        let end = h[i + 1..].find(']').map_or(h.len(), |j| i + 2 + j);
+        h.replace_range(i..end, "");
+    }
+    let name = h.split('"').nth(1).unwrap_or("horizontal").to_string();
+    let known = vertical_epsg.and_then(|v| {
+        crate::config::epsg_tables::VERTICAL
+            .binary_search_by_key(&v, |x| x.0)
+            .ok()
+            .map(|i| crate::config::epsg_tables::VERTICAL[i].1)
+    });
+    let metre = "UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]]";
+    let v = match (known, undulation) {
+        (Some(w), _) => w.to_string(),
+        (None, Undulation::None) => format!(
+            "VERT_CS[\"ellipsoidal height\",VERT_DATUM[\"Ellipsoid\",2002],{metre},AXIS[\"Up\",UP]]"
+        ),
+        (None, Undulation::Constant(n)) => format!(
+            "VERT_CS[\"orthometric height (geoid N = {n} m)\",VERT_DATUM[\"geoid N = {n} m\",2005],{metre},AXIS[\"Gravity-related height\",UP]]"
+        ),
+        (None, Undulation::Grid(g)) => {
+            let f = g
+                .path
+                .file_name()
+                .map_or("a geoid grid".into(), |f| f.to_string_lossy().to_string());
+            format!(
+                "VERT_CS[\"orthometric height ({f})\",VERT_DATUM[\"{f}\",2005],{metre},AXIS[\"Gravity-related height\",UP]]"
+            )
+        }
+    };
+    let vname = v.split('"').nth(1).unwrap_or("vertical").to_string();
+    format!("COMPD_CS[\"{name} + {vname}\",{h},{v}]")
 }
 
 /// Extra bytes per point: laser (u8), window (u8: sphere index + 1, 0 none), residual to the
@@ -156,7 +215,7 @@ impl LasOut {
         let mut header = b.into_header().map_err(|e| e.to_string())?;
         if let Some(m) = &to_map {
             header
-                .set_wkt_crs(m.crs.wkt.as_bytes().to_vec())
+                .set_wkt_crs(m.wkt.as_bytes().to_vec())
                 .map_err(|e| e.to_string())?;
         }
         let w =

@@ -47,6 +47,9 @@ pub struct Survey {
     pub smrmsg: Option<PathBuf>,
     /// site.toml.
     pub site: PathBuf,
+    /// The trajectory's datum (`--trajectory-datum`; None: a VN-200's or POS MV's WGS 84; an
+    /// SBET must say).
+    pub trajectory_datum: Option<String>,
 }
 
 impl Survey {
@@ -61,6 +64,7 @@ impl Survey {
             gps_week: None,
             smrmsg: None,
             site: dir.join("site.toml"),
+            trajectory_datum: None,
         }
     }
 }
@@ -184,6 +188,8 @@ pub fn run_calibrate(
         }
         (None, None, None) => return Err("give --ins, --sbet or --posmv".into()),
     };
+    let (site, datums) =
+        pipeline::site_in_trajectory_datum(&site, &ins, survey.trajectory_datum.as_deref())?;
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
     inp.accuracy = accuracy;
@@ -191,7 +197,8 @@ pub fn run_calibrate(
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     let (targets, ids) = calibrate::site_targets(&inp);
     let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
-    let mut text = stats.describe_inputs(&inp.pcap, inp.ins_files());
+    let mut text = format!("{datums}\n");
+    text.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_files()));
     text.push_str(&format!(
         "{} returns, windows {:?}\n",
         stats.align.window.points,

@@ -436,6 +436,9 @@ fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, St
 fn site_of(s: &Scenario) -> Site {
     let site_frame = s.site();
     Site {
+        datum: None,
+        geodetic: None,
+        base: std::path::PathBuf::new(),
         leap_seconds: s.leap_seconds,
         crs: None,
         origin: Origin {

@@ -68,6 +68,7 @@ pub fn run(a: Args) -> ExitCode {
         gps_week: s.gps_week,
         smrmsg: s.smrmsg,
         site: s.site,
+        trajectory_datum: s.trajectory_datum,
     };
     let out = crate::Outputs {
         report: a.report,

@@ -49,6 +49,7 @@ pub fn run(a: Args) -> ExitCode {
         posmv_group,
         gps_week,
         site,
+        trajectory_datum,
         ..
     } = a.survey;
     for (flag, p) in [("--las", &a.las), ("--windows", &a.windows)] {
@@ -70,6 +71,12 @@ pub fn run(a: Args) -> ExitCode {
         (true, true, false) => InsInput::Posmv(posmv.into(), gps_week, posmv_group),
         (true, true, true) => return fail("georef", "give --ins, --sbet or --posmv"),
     };
+    let (site, datums) =
+        match crate::pipeline::site_in_trajectory_datum(&site, &ins, trajectory_datum.as_deref()) {
+            Ok(s) => s,
+            Err(e) => return fail("georef", e),
+        };
+    sayln!("{datums}");
     let inp = Inputs {
         pcap: pcap.into(),
         model,

@@ -103,6 +103,12 @@ pub struct Survey {
     /// site.toml: spheres, origin, a-priori values.
     #[arg(long)]
     pub site: PathBuf,
+    /// The datum of the trajectory's positions: WGS84, ITRF2014, NAD83(CSRS), ETRS89, ...,
+    /// `EPSG:<CRS>` or `datum:<EPSG datum code>` (default: WGS 84 for a VN-200 or a POS MV's
+    /// real-time output; an SBET must say). The site's coordinates are transformed into it,
+    /// and the transformation named.
+    #[arg(long)]
+    pub trajectory_datum: Option<String>,
 }
 
 /// Comma-separated finite numbers, exactly `N` of them (`what` names them in the error).

@@ -63,6 +63,24 @@ pub fn run(a: Args) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail("run", e),
     };
+    // The site in the INS's datum, the transformation said once.
+    let site = match site
+        .map(|s| {
+            let to = match &board.ins.datum {
+                Some(d) => crate::config::datum::Datum::parse(d)?,
+                None => crate::config::datum::Datum::wgs84(),
+            };
+            let (s, shift) = s.in_datum(&to)?;
+            if !shift.is_identity() {
+                sayln!("datums: {}", shift.describe());
+            }
+            Ok::<_, String>(s)
+        })
+        .transpose()
+    {
+        Ok(s) => s,
+        Err(e) => return fail("run", e),
+    };
     if let Some(d) = a.duration.filter(|d| !(d.is_finite() && *d > 0.0)) {
         return fail(
             "run",

@@ -33,9 +33,16 @@ pub struct ImportArgs {
     /// What the heights are: `ellipsoidal` (on the CRS's datum) or `orthometric`.
     #[arg(long, default_value = "ellipsoidal")]
     pub height: HeightSystem,
-    /// Geoid undulation N [m] for orthometric heights (h = H + N).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::finite)]
-    pub geoid_n: f64,
+    /// Geoid undulation N [m] for orthometric heights (h = H + N), one for the site ...
+    #[arg(long, allow_negative_numbers = true, value_parser = super::finite, conflicts_with = "geoid")]
+    pub geoid_n: Option<f64>,
+    /// ... or a geoid grid (GTX: CGG2013, EGM2008, GEOID18 ... on the CRS's datum).
+    #[arg(long)]
+    pub geoid: Option<PathBuf>,
+    /// The vertical CRS of orthometric heights (`EPSG:n`, e.g. EPSG:6647 for CGVD2013, 5703
+    /// NAVD88, 3855 EGM2008): LAS files name it.
+    #[arg(long)]
+    pub vertical_crs: Option<String>,
     /// Radius [m] of spheres whose row has none.
     #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
     pub radius: Option<f64>,
@@ -71,9 +78,31 @@ fn import(a: &ImportArgs) -> Result<String, String> {
         ));
     }
     let crs = Crs::parse(&a.crs)?;
-    if a.height == HeightSystem::Ellipsoidal && a.geoid_n != 0.0 {
-        return Err("--geoid-n is for orthometric heights: give --height orthometric".into());
-    }
+    let base = a
+        .out
+        .parent()
+        .map(std::path::Path::to_path_buf)
+        .unwrap_or_default();
+    // The grid's path as the site file will give it: relative to its folder when it is in it.
+    let geoid_grid = a.geoid.as_ref().map(|g| {
+        let abs = |p: &std::path::Path| std::fs::canonicalize(p).unwrap_or(p.to_path_buf());
+        let (g_abs, b_abs) = (
+            abs(g),
+            abs(if base.as_os_str().is_empty() {
+                std::path::Path::new(".")
+            } else {
+                &base
+            }),
+        );
+        g_abs
+            .strip_prefix(&b_abs)
+            .map(|r| r.display().to_string())
+            .unwrap_or_else(|_| g_abs.display().to_string())
+    });
+    let vertical_epsg = match &a.vertical_crs {
+        Some(v) => Some(vertical_code(v)?),
+        None => None,
+    };
     let text = std::fs::read_to_string(&a.csv).map_err(|e| format!("{}: {e}", a.csv.display()))?;
     let [r, p, h, x, y, z] = a.apriori;
     let o = ImportOptions {
@@ -81,6 +110,8 @@ fn import(a: &ImportArgs) -> Result<String, String> {
             epsg: crs.code,
             height: a.height,
             geoid_undulation_m: a.geoid_n,
+            geoid_grid,
+            vertical_epsg,
         },
         radius_m: a.radius,
         leap_seconds: a.leap_seconds,
@@ -89,27 +120,30 @@ fn import(a: &ImportArgs) -> Result<String, String> {
             lever_arm_m: [x, y, z],
             window_margin_m: a.margin,
         },
+        base,
     };
-    let site = import_csv(&text, &a.csv.display().to_string(), &o)?;
+    let (site, columns) = import_csv(&text, &a.csv.display().to_string(), &o)?;
+    let datum = site.datum();
+    let heights = match (a.height, a.geoid_n, &a.geoid) {
+        (HeightSystem::Ellipsoidal, _, _) => "ellipsoidal heights".to_string(),
+        (_, Some(n), _) => format!("orthometric heights, N = {n} m"),
+        (_, _, Some(g)) => format!("orthometric heights, N from {}", g.display()),
+        _ => "orthometric heights".into(),
+    };
     let head = format!(
-        "# Written by spherecal site import from {} ({} {:?} heights{}).\n# lat_deg/lon_deg/h_m are WGS84, computed from easting/northing/height_m.\n",
+        "# Written by spherecal site import from {} (columns {columns}; {} {heights}).\n# lat_deg/lon_deg/h_m are on the CRS's datum, {}, computed from easting/northing/height_m.\n",
         a.csv.display(),
         a.crs,
-        a.height,
-        if a.height == HeightSystem::Orthometric {
-            format!(", N = {} m", a.geoid_n)
-        } else {
-            String::new()
-        }
+        datum.label()
     );
-    std::fs::write(&a.out, head + &site.to_toml())
-        .map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::report::write_atomically(&a.out, (head + &site.to_toml()).as_bytes())?;
     let mut out = format!(
-        "{} spheres from {} (EPSG:{}) -> {}\n",
+        "{} spheres from {} (EPSG:{}; columns {columns}) -> {}\ndatum: {}: the trajectory's datum must be it, or calibrate applies (and names) the transformation to it\n",
         site.sphere.len(),
         a.csv.display(),
         crs.code,
-        a.out.display()
+        a.out.display(),
+        datum.label()
     );
     for s in &site.sphere {
         out += &format!(
@@ -118,4 +152,23 @@ fn import(a: &ImportArgs) -> Result<String, String> {
         );
     }
     Ok(out)
+}
+
+/// `EPSG:n` of a vertical CRS this build knows.
+fn vertical_code(v: &str) -> Result<u16, String> {
+    let code = v
+        .trim()
+        .trim_start_matches("EPSG:")
+        .trim_start_matches("epsg:")
+        .parse::<u16>()
+        .map_err(|_| format!("--vertical-crs {v:?}: expected EPSG:<code>, e.g. EPSG:6647"))?;
+    if crate::config::epsg_tables::VERTICAL
+        .binary_search_by_key(&code, |v| v.0)
+        .is_err()
+    {
+        return Err(format!(
+            "--vertical-crs EPSG:{code}: not a vertical CRS in metres that this build knows (e.g. 6647 CGVD2013, 5703 NAVD88, 3855 EGM2008, 5701 ODN, 5720 NGF-IGN69)"
+        ));
+    }
+    Ok(code)
 }

@@ -61,6 +61,10 @@ pub struct InsLink {
     /// `posmv`: the group poses come from: 1 (vessel reference point), 102 or 103 (sensor 1/2).
     #[serde(default = "group_one")]
     pub posmv_group: u16,
+    /// The datum of its positions (default WGS 84: a VN-200's, and a POS MV's unless its GNSS
+    /// corrections come from another datum's base): the site is transformed into it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub datum: Option<String>,
 }
 
 fn posmv_port() -> u16 {

@@ -22,6 +22,8 @@ pub struct Crs {
     pub proj4: &'static str,
     proj: Proj,
     wgs84: Proj,
+    /// Geographic coordinates on the CRS's own datum (its ellipsoid and `+towgs84`).
+    geog: Proj,
 }
 
 impl std::fmt::Debug for Crs {
@@ -59,13 +61,76 @@ impl Crs {
             ));
         }
         let wgs84 = Proj::from_proj_string(WGS84).map_err(|e| format!("WGS84: {e}"))?;
+        // The same datum, as longitude and latitude: the CRS's datum parameters, nothing else.
+        let keep: Vec<&str> = def
+            .proj4
+            .split_whitespace()
+            .filter(|t| {
+                [
+                    "+ellps=",
+                    "+datum=",
+                    "+towgs84=",
+                    "+a=",
+                    "+b=",
+                    "+rf=",
+                    "+f=",
+                    "+nadgrids=",
+                ]
+                .iter()
+                .any(|p| t.starts_with(p))
+            })
+            .collect();
+        let geog_def = format!("+proj=longlat {} +no_defs", keep.join(" "));
+        let geog = Proj::from_proj_string(&geog_def)
+            .map_err(|e| format!("EPSG:{code} ({geog_def}): {e}"))?;
         Ok(Self {
             code,
             wkt: def.wkt,
             proj4: def.proj4,
             proj,
             wgs84,
+            geog,
         })
+    }
+
+    /// (x, y) in this CRS -> latitude, longitude [deg] on its own datum (no datum shift); `h`
+    /// passes through.
+    pub fn to_geographic(&self, x: f64, y: f64, h: f64) -> Result<(f64, f64, f64), String> {
+        if ![x, y, h].iter().all(|v| v.is_finite()) {
+            return Err(format!("EPSG:{}: ({x}, {y}, {h}) is not finite", self.code));
+        }
+        if self.is_geographic() {
+            return if y.abs() <= 90.0 && x.abs() <= 360.0 {
+                Ok((y, x, h))
+            } else {
+                Err(format!(
+                    "EPSG:{}: ({x}, {y}) is not a longitude, latitude",
+                    self.code
+                ))
+            };
+        }
+        let mut p = (x, y, 0.0);
+        proj4rs::transform::transform(&self.proj, &self.geog, &mut p)
+            .map_err(|e| format!("EPSG:{}: ({x}, {y}): {e}", self.code))?;
+        let (lon, lat) = (p.0.to_degrees(), p.1.to_degrees());
+        if !(lat.is_finite() && lon.is_finite()) || lat.abs() > 90.0 {
+            return Err(format!(
+                "EPSG:{}: ({x}, {y}) is outside the projection's domain",
+                self.code
+            ));
+        }
+        Ok((lat, lon, h))
+    }
+
+    /// Latitude, longitude [deg] on this CRS's datum -> (x, y) in it; `h` passes through.
+    pub fn from_geographic(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), String> {
+        if self.is_geographic() {
+            return Ok((lon, lat, h));
+        }
+        let mut p = (lon.to_radians(), lat.to_radians(), 0.0);
+        proj4rs::transform::transform(&self.geog, &self.proj, &mut p)
+            .map_err(|e| format!("EPSG:{}: ({lat}, {lon}): {e}", self.code))?;
+        Ok((p.0, p.1, h))
     }
 
     /// Longitude, latitude in degrees (else easting, northing).
@@ -136,7 +201,7 @@ impl std::str::FromStr for HeightSystem {
 
 /// The `[crs]` section of a site file: the CRS and height system the spheres' `easting`,
 /// `northing`, `height_m` are in.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SiteCrs {
     /// EPSG code of the horizontal CRS.
@@ -144,41 +209,90 @@ pub struct SiteCrs {
     /// What the heights are.
     #[serde(default)]
     pub height: HeightSystem,
-    /// Geoid undulation N above the datum's ellipsoid [m] (orthometric heights; a constant
-    /// for a small site).
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub geoid_undulation_m: f64,
+    /// Geoid undulation N above the datum's ellipsoid [m] for orthometric heights, one for the
+    /// whole site ...
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geoid_undulation_m: Option<f64>,
+    /// ... or a geoid grid (GTX, on the CRS's datum), its path relative to the site file's
+    /// folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geoid_grid: Option<String>,
+    /// The EPSG code of the orthometric heights' vertical CRS (e.g. 6647, CGVD2013(CGG2013)
+    /// height): the LAS file's compound CRS names it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertical_epsg: Option<u16>,
 }
 
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
+/// How a site's heights become ellipsoidal: h = H + N.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Undulation {
+    /// Ellipsoidal heights: N = 0.
+    None,
+    /// One N for the site [m].
+    Constant(f64),
+    /// N from a geoid grid.
+    Grid(Box<super::geoid::Geoid>),
+}
+
+impl Undulation {
+    /// N at latitude, longitude [deg] on the CRS's datum.
+    pub fn at(&self, lat: f64, lon: f64) -> Result<f64, String> {
+        match self {
+            Undulation::None => Ok(0.0),
+            Undulation::Constant(n) => Ok(*n),
+            Undulation::Grid(g) => g.undulation(lat, lon).ok_or_else(|| {
+                format!(
+                    "({lat:.6}, {lon:.6}) is outside the geoid grid {} (or beside its holes)",
+                    g.path.display()
+                )
+            }),
+        }
+    }
 }
 
 impl SiteCrs {
-    /// The ellipsoidal height of a surveyed height.
-    pub fn ellipsoidal(&self, height: f64) -> f64 {
-        match self.height {
-            HeightSystem::Ellipsoidal => height,
-            HeightSystem::Orthometric => height + self.geoid_undulation_m,
+    /// The heights' undulation, the grid read from `base` (the site file's folder); refused:
+    /// orthometric heights without a geoid, a geoid with ellipsoidal heights, both N and a grid.
+    pub fn undulation(&self, base: &std::path::Path) -> Result<Undulation, String> {
+        match (self.height, self.geoid_undulation_m, &self.geoid_grid) {
+            (HeightSystem::Ellipsoidal, None, None) => Ok(Undulation::None),
+            (HeightSystem::Ellipsoidal, _, _) => Err(
+                "crs: a geoid (geoid_undulation_m, geoid_grid) goes with height = \"orthometric\"; ellipsoidal heights need none".into(),
+            ),
+            (HeightSystem::Orthometric, Some(n), None) => {
+                if n.is_finite() && n.abs() <= 150.0 {
+                    Ok(Undulation::Constant(n))
+                } else {
+                    Err("crs.geoid_undulation_m: expected a finite N, |N| <= 150 m".into())
+                }
+            }
+            (HeightSystem::Orthometric, None, Some(g)) => {
+                let path = base.join(g);
+                super::geoid::Geoid::load(&path)
+                    .map(|g| Undulation::Grid(Box::new(g)))
+                    .map_err(|e| format!("crs.geoid_grid: {e}"))
+            }
+            (HeightSystem::Orthometric, Some(_), Some(_)) => {
+                Err("crs: give geoid_undulation_m or geoid_grid, not both".into())
+            }
+            (HeightSystem::Orthometric, None, None) => Err(
+                "crs: orthometric heights need the geoid: geoid_undulation_m (N [m] for the site) or geoid_grid (a GTX file); N = 0 is never assumed".into(),
+            ),
         }
     }
 
-    /// What is subtracted from an ellipsoidal height to give this system's height (N for
-    /// orthometric heights, else 0).
-    pub fn undulation(&self) -> f64 {
-        self.ellipsoidal(0.0)
-    }
-
-    /// A surveyed point (x, y, height) -> WGS84 latitude, longitude [deg], ellipsoidal
-    /// height [m].
-    pub fn to_wgs84(
+    /// A surveyed point (x, y, height) -> latitude, longitude [deg] and ellipsoidal height [m]
+    /// on the CRS's own datum.
+    pub fn to_geographic(
         &self,
         crs: &Crs,
+        n: &Undulation,
         x: f64,
         y: f64,
         height: f64,
     ) -> Result<(f64, f64, f64), String> {
-        crs.to_wgs84(x, y, self.ellipsoidal(height))
+        let (lat, lon, _) = crs.to_geographic(x, y, 0.0)?;
+        Ok((lat, lon, height + n.at(lat, lon)?))
     }
 }
 
@@ -214,18 +328,47 @@ mod tests {
         assert!(c.to_wgs84(f64::NAN, 0.0, 0.0).is_err());
     }
 
+    /// h = H + N with one N, none with ellipsoidal heights, refused without a geoid
+    /// (never N = 0) or with both N and a grid; a point on UTM 30N's central meridian.
     #[test]
     fn orthometric_heights_add_the_undulation() {
         let s = SiteCrs {
             epsg: 32630,
             height: HeightSystem::Orthometric,
-            geoid_undulation_m: 51.25,
+            geoid_undulation_m: Some(51.25),
+            geoid_grid: None,
+            vertical_epsg: None,
         };
-        assert_eq!(s.ellipsoidal(3.5), 54.75);
+        let here = std::path::Path::new(".");
+        let n = s.undulation(here).unwrap();
+        let c = Crs::epsg(32630).unwrap();
+        let (_, lon, h) = s
+            .to_geographic(&c, &n, 500_000.0, 5_360_000.0, 3.5)
+            .unwrap();
+        assert!((lon + 3.0).abs() < 1e-12 && h == 54.75);
         let e = SiteCrs {
+            height: HeightSystem::Ellipsoidal,
+            geoid_undulation_m: None,
+            ..s.clone()
+        };
+        assert_eq!(e.undulation(here).unwrap(), Undulation::None);
+        let none = SiteCrs {
+            geoid_undulation_m: None,
+            ..s.clone()
+        };
+        assert!(none
+            .undulation(here)
+            .unwrap_err()
+            .contains("N = 0 is never assumed"));
+        let both = SiteCrs {
+            geoid_grid: Some("x.gtx".into()),
+            ..s.clone()
+        };
+        assert!(both.undulation(here).unwrap_err().contains("not both"));
+        let stray = SiteCrs {
             height: HeightSystem::Ellipsoidal,
             ..s
         };
-        assert_eq!(e.ellipsoidal(3.5), 3.5);
+        assert!(stray.undulation(here).is_err());
     }
 }

@@ -7,6 +7,11 @@ use spherecal::calib::DegM;
 
 pub mod board;
 pub mod crs;
+pub mod datum;
+#[allow(clippy::all, missing_docs)]
+#[rustfmt::skip]
+pub mod epsg_tables;
+pub mod geoid;
 pub mod scenario;
 pub mod site;
 pub mod survey;

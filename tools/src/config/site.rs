@@ -17,21 +17,21 @@ pub struct Origin {
     pub h_m: f64,
 }
 
-/// A surveyed sphere: its centre as WGS84 latitude, longitude, ellipsoidal height, or as
-/// surveyed in the site's `[crs]` (easting, northing, height), from which the WGS84 values are
-/// computed on loading (given both, they must agree to a millimetre).
+/// A surveyed sphere: its centre as latitude, longitude, ellipsoidal height on the site's
+/// datum, or as surveyed in the site's `[crs]` (easting, northing, height), from which those
+/// are computed on loading (given both, they must agree to a millimetre).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SiteSphere {
     /// Name.
     pub id: String,
-    /// Centre latitude [deg] (WGS84).
+    /// Centre latitude [deg] (on the site's datum).
     #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub lat_deg: f64,
-    /// Centre longitude [deg] (WGS84).
+    /// Centre longitude [deg] (on the site's datum).
     #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub lon_deg: f64,
-    /// Centre ellipsoidal height [m] (WGS84).
+    /// Centre ellipsoidal height [m] (on the site's datum's ellipsoid).
     #[serde(default = "nan", skip_serializing_if = "is_nan")]
     pub h_m: f64,
     /// Easting in the site's CRS (longitude [deg] for a geographic one).
@@ -123,6 +123,17 @@ impl Default for SiteNoise {
 pub struct Site {
     /// GPS - UTC [s].
     pub leap_seconds: i64,
+    /// The geodetic datum of `origin` and the spheres' latitude, longitude and height: a name
+    /// (`WGS84`, `NAD83(CSRS)`, `ETRS89`, `ITRF2014`, ...), `EPSG:<CRS>` or `datum:<code>`
+    /// (default WGS 84; with `[crs]`, its CRS's datum).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub datum: Option<String>,
+    /// The datum, resolved on loading.
+    #[serde(skip)]
+    pub geodetic: Option<super::datum::Datum>,
+    /// The folder of the site file (a geoid grid's path is relative to it).
+    #[serde(skip)]
+    pub base: std::path::PathBuf,
     /// The CRS and height system of the spheres' surveyed coordinates (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub crs: Option<SiteCrs>,
@@ -143,25 +154,75 @@ impl Site {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut s: Site = toml::from_str(&text)
             .map_err(|e| format!("{}: {}", path.display(), e.to_string().trim()))?;
+        s.base = path
+            .parent()
+            .map(std::path::Path::to_path_buf)
+            .unwrap_or_default();
         s.resolve()
             .map_err(|e| format!("{}: {e}", path.display()))?;
         s.check().map_err(|e| format!("{}: {e}", path.display()))?;
         Ok(s)
     }
 
-    /// Compute each sphere's WGS84 centre from its surveyed coordinates in `[crs]` (checking
-    /// any WGS84 values also given against them); without `[crs]`, surveyed coordinates are
-    /// refused.
+    /// The datum of its coordinates (WGS 84 unless the file says otherwise).
+    pub fn datum(&self) -> super::datum::Datum {
+        self.geodetic
+            .clone()
+            .unwrap_or_else(super::datum::Datum::wgs84)
+    }
+
+    /// The site with its origin and spheres in datum `to` (the trajectory's), and the
+    /// transformation applied (none when it is the site's own); refused when no transformation
+    /// between them is known. The surveyed coordinates stay as they are.
+    pub fn in_datum(
+        &self,
+        to: &super::datum::Datum,
+    ) -> Result<(Site, super::datum::DatumShift), String> {
+        let shift = super::datum::DatumShift::between(&self.datum(), to)?;
+        let mut s = self.clone();
+        let o = &mut s.origin;
+        (o.lat_deg, o.lon_deg, o.h_m) = shift.apply(o.lat_deg, o.lon_deg, o.h_m)?;
+        for sp in s.sphere.iter_mut() {
+            (sp.lat_deg, sp.lon_deg, sp.h_m) = shift
+                .apply(sp.lat_deg, sp.lon_deg, sp.h_m)
+                .map_err(|e| format!("sphere {}: {e}", sp.id))?;
+        }
+        s.geodetic = Some(to.clone());
+        Ok((s, shift))
+    }
+
+    /// Compute each sphere's centre on the datum of `[crs]` from its surveyed coordinates
+    /// (checking any latitude, longitude, height also given against them); without `[crs]`,
+    /// surveyed coordinates are refused. Resolves the site's datum.
     pub fn resolve(&mut self) -> Result<(), String> {
         let crs = match &self.crs {
             Some(c) => Some((c, Crs::epsg(c.epsg).map_err(|e| format!("crs.epsg: {e}"))?)),
             None => None,
         };
-        if let Some((c, _)) = &crs {
-            if !c.geoid_undulation_m.is_finite() || c.geoid_undulation_m.abs() > 150.0 {
-                return Err("crs.geoid_undulation_m: expected a finite N, |N| <= 150 m".into());
+        let named = match &self.datum {
+            Some(d) => Some(super::datum::Datum::parse(d).map_err(|e| format!("datum: {e}"))?),
+            None => None,
+        };
+        self.geodetic = match (&crs, named) {
+            (Some((c, _)), named) => {
+                let own =
+                    super::datum::Datum::of_crs(c.epsg).map_err(|e| format!("crs.epsg: {e}"))?;
+                if let Some(n) = named.filter(|n| n.code != own.code) {
+                    return Err(format!(
+                        "datum: {} is not the datum of crs.epsg = {} ({}): leave it out or give the CRS of that datum",
+                        n.label(),
+                        c.epsg,
+                        own.label()
+                    ));
+                }
+                Some(own)
             }
-        }
+            (None, named) => named,
+        };
+        let undulation = match &crs {
+            Some((c, _)) => c.undulation(&self.base)?,
+            None => super::crs::Undulation::None,
+        };
         for (i, sp) in self.sphere.iter_mut().enumerate() {
             let key = format!("sphere[{i}] ({})", sp.id);
             let surveyed = (sp.easting, sp.northing, sp.height_m);
@@ -176,7 +237,7 @@ impl Site {
                 _ => return Err(format!("{key}: give all of easting, northing, height_m")),
             };
             let (lat, lon, h) = c
-                .to_wgs84(crs, x, y, z)
+                .to_geographic(crs, &undulation, x, y, z)
                 .map_err(|e| format!("{key}: {e}"))?;
             if sp.lat_deg.is_finite() || sp.lon_deg.is_finite() || sp.h_m.is_finite() {
                 let f = LocalFrame::new(Geodetic::from_deg(lat, lon, h));

@@ -377,6 +377,63 @@ impl RunStats {
     }
 }
 
+/// The trajectory's datum: the one declared, else a VN-200's or a POS MV's real-time WGS 84
+/// (their GNSS's frame); an SBET says nothing of its own and must be declared. With why.
+pub fn trajectory_datum(
+    ins: &InsInput,
+    declared: Option<&str>,
+) -> Result<(crate::config::datum::Datum, &'static str), String> {
+    use crate::config::datum::Datum;
+    if let Some(d) = declared {
+        return Ok((Datum::parse(d)?, "--trajectory-datum"));
+    }
+    match ins {
+        InsInput::Vn200(_) => Ok((Datum::wgs84(), "the VN-200's")),
+        InsInput::Posmv(..) => Ok((
+            Datum::wgs84(),
+            "a POS MV's real-time output, unless its GNSS corrections come from another datum: --trajectory-datum",
+        )),
+        InsInput::Sbet(..) => Err(
+            "an SBET does not say its datum (POSPac writes the one its processing used): give --trajectory-datum, e.g. WGS84, ITRF2014, NAD83(CSRS), ETRS89".into(),
+        ),
+    }
+}
+
+/// The site with its spheres in the trajectory's datum, and a line saying which transformation
+/// did it (a warning when it is good to no better than 5 cm).
+pub fn site_in_trajectory_datum(
+    site: &Site,
+    ins: &InsInput,
+    declared: Option<&str>,
+) -> Result<(Site, String), String> {
+    let (to, why) = trajectory_datum(ins, declared)?;
+    let (s, shift) = site.in_datum(&to)?;
+    let mut line = if shift.is_identity() {
+        format!(
+            "datums: the spheres' survey and the trajectory ({why}) are both {}: no transformation",
+            to.label()
+        )
+    } else {
+        format!(
+            "datums: the spheres' survey {} -> the trajectory's {} ({why}): {}",
+            shift.from.label(),
+            to.label(),
+            shift.describe()
+        )
+    };
+    if shift.accuracy_m > 0.05 || shift.accuracy_m < 0.0 {
+        line.push_str(&format!(
+            "\nwarning: that transformation is good to {} only: every sphere may be off by as much, and the mounting with it; survey the spheres in the trajectory's datum (or process the trajectory in the survey's)",
+            if shift.accuracy_m < 0.0 {
+                "an unknown accuracy".to_string()
+            } else {
+                format!("{} m", shift.accuracy_m)
+            }
+        ));
+    }
+    Ok((s, line))
+}
+
 /// Where the site's spheres are, in the site frame.
 pub fn targets(site: &Site) -> (LocalFrame, Vec<Target>) {
     let frame = LocalFrame::new(Geodetic::from_deg(
