@@ -1169,3 +1169,83 @@ fn service_unit_uses_real_options() {
     }
     assert!(n >= 5, "{unit}");
 }
+
+/// The VN-200 stops 6 s into the survey (its stream cut there) while the LiDAR goes on, and an
+/// earlier session's bytes wait in the serial port when the rig opens it. The stale bytes are
+/// discarded and counted; a second after the INS goes quiet the status line says
+/// `ins=silent:...` and a WARNING says it in words, again while it lasts; the count of returns
+/// without a pose grows on the status line; run.json keeps the silence and the warnings.
+#[test]
+fn a_silent_ins_is_said_and_stale_bytes_are_discarded() {
+    let (dp, pp) = (23_790, 23_791);
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        to,
+        ..
+    } = setup("rig-silent", &table1(), dp, pp);
+    // The stream cut 6 s in: the serial log's records up to then.
+    let log = dir.join("ins.vnlog");
+    let mut r = spherecal_hal::serial::LogReader::new(std::fs::File::open(&log).unwrap()).unwrap();
+    let mut out = Vec::new();
+    let mut w = spherecal_hal::serial::LogWriter::new(&mut out, 921_600).unwrap();
+    let (mut rec, mut first) = (Vec::new(), None);
+    while let Some(st) = r.next_record(&mut rec).unwrap() {
+        let t0 = *first.get_or_insert(st.wall.0);
+        if st.wall.0 - t0 < 6_000_000_000 {
+            w.record(st, &rec).unwrap();
+        }
+    }
+    drop(w);
+    std::fs::write(&log, out).unwrap();
+    // An earlier session's bytes, waiting in the line.
+    let ins = std::fs::read(dir.join("ins.bin")).unwrap();
+    std::io::Write::write_all(&mut master, &ins[..4_000]).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let mut rig = start_rig(&dir, dp, pp, &slave.name().unwrap(), true);
+    replay_in_background(&dir, to, master, Speed::Factor(1.0));
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(22) {
+        rig.next_line(Duration::from_millis(500));
+    }
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    let status: Vec<Status> = lines.iter().filter_map(|l| Status::parse(l)).collect();
+    let silent: Vec<&Status> = status
+        .iter()
+        .filter(|s| s.ins.starts_with("silent:"))
+        .collect();
+    assert!(silent.len() >= 5, "{lines:?}");
+    // The returns without a pose grow while it is silent (the LiDAR goes on).
+    let (a, b) = (
+        silent[0].without_pose,
+        silent[silent.len() - 1].without_pose,
+    );
+    assert!(b > a + 10_000, "{a} -> {b}");
+    let warn: Vec<&String> = lines
+        .iter()
+        .filter(|l| l.starts_with("WARNING: the INS has been silent for"))
+        .collect();
+    assert_eq!(warn.len(), 1, "{lines:?}");
+    assert!(lines
+        .iter()
+        .any(|l| l.starts_with("WARNING: the INS is still silent")));
+    let sm = summary(&dir.join("logs"));
+    assert!(
+        u(&sm["stale_serial_bytes"]) >= 3_000,
+        "{}",
+        sm["stale_serial_bytes"]
+    );
+    let sil = sm["ins_silences"].as_array().unwrap();
+    assert_eq!(sil.len(), 1, "{sil:?}");
+    assert!(sil[0][1].as_f64().unwrap() > 8.0, "{sil:?}");
+    assert!(
+        sm["warnings"].to_string().contains("silent"),
+        "{}",
+        sm["warnings"]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

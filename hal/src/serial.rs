@@ -79,6 +79,14 @@ impl SerialSource {
         Ok(Self { port })
     }
 
+    /// Discard what waits in the port's input buffer (bytes from before this program opened
+    /// it: an earlier session's stream); how many.
+    pub fn discard_pending(&mut self) -> Result<u32, serialport::Error> {
+        let n = self.port.bytes_to_read()?;
+        self.port.clear(serialport::ClearBuffer::Input)?;
+        Ok(n)
+    }
+
     /// Wrap a port opened elsewhere (a pseudo-terminal in tests).
     pub fn from_port(port: Box<dyn serialport::SerialPort>) -> Self {
         Self { port }

@@ -276,6 +276,11 @@ impl PosmvFeed {
         enqueue(out.ring, InsItem::Pose(sample, host), out.policy, out.full);
     }
 
+    /// Poses used so far.
+    pub fn poses_used(&self) -> u64 {
+        self.st.poses
+    }
+
     /// The last alignment status a Group 1 gave.
     pub fn alignment(&self) -> Option<Alignment> {
         self.alignment

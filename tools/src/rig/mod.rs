@@ -25,6 +25,7 @@ use crate::state::{ClockState, InsState};
 
 pub mod check;
 pub mod hearing;
+pub mod ins_watch;
 mod logger;
 mod readers;
 mod solver;
@@ -218,6 +219,12 @@ struct Shared<'a> {
     /// The windows the aligner is to use after a converged solve: the solution and a margin
     /// [rad, m; m], with a count of the changes.
     windows: Mutex<(u64, Option<(Params, f64)>)>,
+    /// Whether the INS speaks.
+    ins_watch: ins_watch::InsWatch,
+    /// Returns that got no pose so far.
+    without_pose: AtomicU64,
+    /// Warnings said on the console (run.json keeps them).
+    warnings: Mutex<Vec<String>>,
 }
 
 /// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
@@ -291,6 +298,9 @@ impl<'a> Shared<'a> {
             heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
             verdict: Mutex::new(None),
             windows: Mutex::new((0, None)),
+            ins_watch: ins_watch::InsWatch::default(),
+            without_pose: AtomicU64::new(0),
+            warnings: Mutex::new(Vec::new()),
         }
     }
 
@@ -306,6 +316,15 @@ impl<'a> Shared<'a> {
     fn error(&self, e: String) {
         if let Ok(mut v) = self.errors.lock() {
             v.push(e);
+        }
+    }
+
+    /// A warning said on the console, kept for run.json (the first 200).
+    fn warn(&self, w: String) {
+        if let Ok(mut v) = self.warnings.lock() {
+            if v.len() < 200 {
+                v.push(w);
+            }
         }
     }
 }
@@ -398,6 +417,9 @@ fn run_rig(
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some()) + usize::from(io.posmv.is_some());
     let sh = Shared::new(stop, readers, plan.ids.len(), probes, io.accept.ports);
+    sh.ins_watch
+        .stale_bytes
+        .store(io.stale_serial_bytes, Ordering::Relaxed);
     let started = Instant::now();
     let path = io.log_dir.join(format!("{}-run.json", io.stamp));
     let ended = run_threads(opts, console, io, &plan, &sh, started);
@@ -421,6 +443,8 @@ struct RigIo {
     stamp: String,
     pcap_log: PcapLog,
     serial_log: Option<SerialLog>,
+    /// Bytes that waited in the serial port from before the run (discarded at open).
+    stale_serial_bytes: u64,
 }
 
 impl RigIo {
@@ -438,6 +462,7 @@ impl RigIo {
             UdpSource::bind(bind, port, READ_TIMEOUT).map_err(|e| format!("UDP {bind}:{port}: {e}"))
         };
         let (data_sock, pos_sock) = (bind_port(ports.data)?, bind_port(ports.position)?);
+        let mut stale = 0u32;
         let serial = match b.ins.kind.as_str() {
             "vn200" => {
                 let dev = opts
@@ -446,8 +471,10 @@ impl RigIo {
                     .filter(|s| !s.is_empty())
                     .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
                     .ok_or("board: ins.serial is empty: give --serial DEV")?;
-                let src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
+                let mut src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
                     .map_err(|e| format!("serial {dev}: {e}"))?;
+                // What an earlier session left in the port is not this run's stream.
+                stale = src.discard_pending().unwrap_or(0);
                 Some((dev, src))
             }
             _ => None,
@@ -485,6 +512,7 @@ impl RigIo {
             stamp,
             pcap_log,
             serial_log,
+            stale_serial_bytes: u64::from(stale),
         })
     }
 }
@@ -803,5 +831,10 @@ fn align_until_end(
         for (i, w) in sh.windowed.iter().enumerate() {
             w.store(al.core.windowed_now(i), Ordering::Relaxed);
         }
+        let w = &al.core.stats.window;
+        sh.without_pose.store(
+            w.before_history + w.after_history + w.in_gap,
+            Ordering::Relaxed,
+        );
     }
 }

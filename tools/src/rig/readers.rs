@@ -100,11 +100,18 @@ pub(super) fn serial_reader(
         if let Item::Binary(f) = &it.item {
             check_outputs(f.masks(), it.offset, &mut last_masks, expected, dev, sh);
         }
-        if let InsOutcome::Pose(_, Some(m)) = out {
-            sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
+        if let InsOutcome::Pose(_, status) = out {
+            if let Some(m) = status {
+                sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
+            }
+            // Usable: tracking (or kept although not, when asked).
+            if keep_untracked || status.and_then(crate::state::excluded_by).is_none() {
+                sh.ins_watch.pose();
+            }
         }
     };
     let mut log_chunk = |b: &[u8], stamp: Option<RxStamp>| {
+        sh.ins_watch.bytes();
         sh.serial_bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
         let mut chunk = SerialChunk {
             stamp: stamp.unwrap_or_else(RxStamp::now),
@@ -179,6 +186,7 @@ pub(super) fn posmv_reader(
         while !sh.stop.load(Ordering::Relaxed) {
             match sock.next_record() {
                 Ok(Some(Record::Udp(d))) => {
+                    sh.ins_watch.bytes();
                     sh.serial_bytes
                         .fetch_add(d.payload.len() as u64, Ordering::Relaxed);
                     enqueue(
@@ -187,7 +195,11 @@ pub(super) fn posmv_reader(
                         Overflow::Drop,
                         &sh.ring_drops.datagram_log,
                     );
+                    let before = feed.poses_used();
                     feed.feed(d.payload, Some(d.time), &mut out);
+                    if feed.poses_used() > before {
+                        sh.ins_watch.pose();
+                    }
                     // The status line's INS mode: tracking in full navigation.
                     let mode = match feed.alignment() {
                         Some(Alignment::FullNavigation) => 2,

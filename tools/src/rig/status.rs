@@ -1,13 +1,16 @@
 //! The rig's status line, one a second on the console (a serial port or stdout).
 //!
 //! ```text
-//! t=12s rx/s=754 al/s=754 drop=0/0/0 kdrop=0 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
+//! t=12s rx/s=754 al/s=754 drop=0/0/0 kdrop=0 pps=locked ins=tracking nopose=0 lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001
 //! ```
 //! Fields, space separated, `key=value`: `t` seconds since start; `rx/s` datagrams received on
 //! the data port in the last second (any sender: a working LiDAR shows here even while the INS
 //! is silent); `al/s` data packets aligned with the INS in the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
 //! dropped (socket buffer full) so far; `pps` the position packets' PPS state;
-//! `ins` the INS mode; `lag_ms` LiDAR clock minus INS time, each against the host receive
+//! `ins` the INS mode, or `silent:3.2s` (no usable pose and no bytes for that long) or
+//! `unusable:3.2s` (bytes, but no usable pose: not tracking, no pose fields) after a second;
+//! `nopose` the returns that got no pose so far; `lag_ms` LiDAR clock minus INS time, each
+//! against the host receive
 //! clock, at the last aligned packet [ms];
 //! `win` returns per sphere window; `cal` the latest calibration (roll, pitch, heading [deg],
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`; `dt_ms` the time offset
@@ -37,8 +40,11 @@ pub struct Status {
     pub kernel_drops: u64,
     /// PPS state name.
     pub pps: String,
-    /// INS mode name.
+    /// INS mode name, or `silent:<s>s` / `unusable:<s>s` when no usable pose came for more
+    /// than a second.
     pub ins: String,
+    /// Returns that got no pose so far (before or after the INS's history, or in its gaps).
+    pub without_pose: u64,
     /// LiDAR minus INS time [ms], if known.
     pub lag_ms: Option<f64>,
     /// (sphere id, returns in its window).
@@ -60,7 +66,7 @@ impl Status {
         let mut o = String::with_capacity(160);
         let _ = write!(
             o,
-            "t={}s rx/s={} al/s={} drop={}/{}/{} kdrop={} pps={} ins={}",
+            "t={}s rx/s={} al/s={} drop={}/{}/{} kdrop={} pps={} ins={} nopose={}",
             self.t_s,
             self.received_per_s,
             self.aligned_per_s,
@@ -69,7 +75,8 @@ impl Status {
             self.drops[2],
             self.kernel_drops,
             self.pps,
-            self.ins
+            self.ins,
+            self.without_pose
         );
         match self.lag_ms {
             Some(l) => {
@@ -136,6 +143,7 @@ impl Status {
                 "kdrop" => s.kernel_drops = v.parse().ok()?,
                 "pps" => s.pps = v.to_string(),
                 "ins" => s.ins = v.to_string(),
+                "nopose" => s.without_pose = v.parse().ok()?,
                 "lag_ms" => {
                     s.lag_ms = if v == "-" {
                         None
@@ -215,7 +223,12 @@ pub(super) fn snapshot(
         kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
             + sh.kernel_drops[1].load(Ordering::Relaxed),
         pps: pps_name(sh.pps.load(Ordering::Relaxed)).into(),
-        ins: ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
+        ins: match sh.ins_watch.speaking() {
+            super::ins_watch::Speaking::Yes => ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
+            super::ins_watch::Speaking::Silent(s) => format!("silent:{s:.1}s"),
+            super::ins_watch::Speaking::Unusable(s) => format!("unusable:{s:.1}s"),
+        },
+        without_pose: sh.without_pose.load(Ordering::Relaxed),
         lag_ms: (lag != i64::MIN).then_some(lag as f64 * 1e-6),
         windows: ids
             .iter()
@@ -314,6 +327,7 @@ pub(super) fn status_loop<'c>(
         first: None,
     };
     let mut tick = 1u64;
+    let mut silence = super::ins_watch::SilenceTalk::default();
     let over = || duration.is_some_and(|d| started.elapsed() >= d);
     loop {
         let next = started + Duration::from_secs(tick);
@@ -326,13 +340,28 @@ pub(super) fn status_loop<'c>(
             sh.stop.store(true, Ordering::Relaxed);
         }
         if sh.stop.load(Ordering::Relaxed) {
+            silence.close(&sh.ins_watch);
             // The caller shows the last line once everything has stopped.
             return console;
         }
         tick += 1;
         sh.poll_kernel_drops();
         let s = snapshot(sh, ids, started, &mut last);
-        for l in hearing.lines(sh, s.t_s) {
+        let mut said = hearing.lines(sh, s.t_s);
+        // The INS: silent or unusable for a second is said, and again while it lasts (not
+        // before the ports have had the time to be heard).
+        let now = sh.ins_watch.speaking();
+        if s.t_s > HEAR_S {
+            if let Some(l) =
+                silence.tick(&sh.ins_watch, now, sh.without_pose.load(Ordering::Relaxed))
+            {
+                said.push(l);
+            }
+        }
+        for l in said {
+            if l.starts_with("WARNING") {
+                sh.warn(format!("t={}s {l}", s.t_s));
+            }
             if let Err(e) = console.write_line(&l) {
                 sh.error(format!("console: {e}"));
             }
@@ -383,6 +412,7 @@ mod tests {
             kernel_drops: 7,
             pps: "locked".into(),
             ins: "tracking".into(),
+            without_pose: 0,
             lag_ms: Some(1.4),
             windows: vec![("S1".into(), 812), ("S2".into(), 790)],
             calibration: Some((

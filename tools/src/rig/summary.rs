@@ -68,6 +68,14 @@ pub struct RunSummary {
     pub calibration: Option<Report>,
     /// Problems met (a reader or the logger stopping early).
     pub errors: Vec<String>,
+    /// Warnings said on the console (a silent INS, a silent port, another sender), with the
+    /// run's second.
+    pub warnings: Vec<String>,
+    /// The INS's silences (no usable pose for more than a second): start [s since the
+    /// start] and length [s].
+    pub ins_silences: Vec<(f64, f64)>,
+    /// Bytes that waited in the serial port from before the run: discarded, not framed.
+    pub stale_serial_bytes: u64,
 }
 
 /// What the threads hand back when a run ends.
@@ -134,6 +142,18 @@ impl RunSummary {
             log_files: e.logged.0,
             logged: e.logged.1,
             calibration: e.calibration,
+            warnings: sh
+                .warnings
+                .lock()
+                .map(|mut v| std::mem::take(&mut *v))
+                .unwrap_or_default(),
+            ins_silences: sh
+                .ins_watch
+                .silences
+                .lock()
+                .map(|v| v.clone())
+                .unwrap_or_default(),
+            stale_serial_bytes: sh.ins_watch.stale_bytes.load(Ordering::Relaxed),
             errors: sh
                 .errors
                 .lock()
@@ -209,6 +229,27 @@ pub fn render(s: &RunSummary) -> String {
         "{} returns; without a pose: {} before the INS history, {} after it, {} in INS gaps",
         s.returns, s.without_pose[0], s.without_pose[1], s.without_pose[2]
     );
+    if !s.ins_silences.is_empty() {
+        let listed: Vec<String> = s
+            .ins_silences
+            .iter()
+            .take(8)
+            .map(|(a, d)| format!("{d:.1} s from t={a:.1} s"))
+            .collect();
+        let _ = writeln!(
+            o,
+            "WARNING: the INS gave no usable pose {} time(s): {}",
+            s.ins_silences.len(),
+            listed.join(", ")
+        );
+    }
+    if s.stale_serial_bytes > 0 {
+        let _ = writeln!(
+            o,
+            "serial: {} bytes waiting from before the run were discarded",
+            s.stale_serial_bytes
+        );
+    }
     let _ = writeln!(
         o,
         "logged {} datagrams, {} serial reads in {} files",
