@@ -1197,7 +1197,7 @@ fn a_silent_ins_is_said_and_stale_bytes_are_discarded() {
             w.record(st, &rec).unwrap();
         }
     }
-    drop(w);
+    w.flush().unwrap();
     std::fs::write(&log, out).unwrap();
     // An earlier session's bytes, waiting in the line.
     let ins = std::fs::read(dir.join("ins.bin")).unwrap();
