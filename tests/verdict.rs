@@ -10,7 +10,7 @@ use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{Inputs, InsInput};
-use spherecal_tools::verdict::{assess, coverage, predicted_sigma, Targets};
+use spherecal_tools::verdict::{assess, coverage, data_info, predicted_sigma, Targets};
 
 #[test]
 fn verdict_turns_ready_with_the_passes_that_make_it() {
@@ -35,8 +35,8 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
         ..Default::default()
     };
     let goal = Targets {
-        target_sigma_deg: 0.045,
-        target_sigma_m: 0.005,
+        target_sigma_deg: Some(0.045),
+        target_sigma_m: Some(0.005),
     };
     // The data so far after pass 1 (0-20 s), pass 2 (to 38 s), pass 3 (to 50.5 s), all.
     let mut verdicts = Vec::new();
@@ -61,7 +61,7 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
             ..settings
         };
         let predicted = predicted_sigma(&targets, &obs, &sol, &sim_noise, s.ins.rate_hz);
-        let v = assess(&rep, &cov, &goal, Some(&predicted));
+        let v = assess(&rep, &cov, &goal, Some(&predicted), None);
         // Once claimed, the prediction from the kept returns' geometry agrees with the
         // solution's own (cluster-robust) sigma: the noise model is the site's, the data's
         // scatter the simulator's.
@@ -112,5 +112,99 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
         assert!(verdicts[k].ready, "{:?}", verdicts[k]);
         assert!(verdicts[k].missing.is_empty());
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The planner on the survey under way (the rig's advice): after table1-noisy's first two
+/// passes it proposes a pass; with targets the sensors cannot reach (0.002 deg, 0.5 mm) it says
+/// they are out of reach, naming the parameter; with none, the survey is done once another
+/// pass would improve no sigma by more than 20 %, and each pass flown shrinks what the next
+/// could gain.
+#[test]
+fn the_live_planner_advises_and_says_what_is_out_of_reach() {
+    let dir = common::tmp("verdict", "live");
+    let s = Scenario::load("table1-noisy").unwrap();
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
+    let inp = Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
+        site,
+    );
+    let (targets, ids) = site_targets(&inp);
+    let (_, all) = collect(&inp).unwrap();
+    let t0 = s.start().0;
+    let b0 = inp.site.apriori_deg_m().params();
+    let settings = Settings {
+        range_noise: s.lidar.range_sigma_m,
+        attitude_noise: s.ins.att_sigma_deg.to_radians(),
+        position_noise: s.ins.pos_sigma_m,
+        ..Default::default()
+    };
+    let mut live = spherecal_tools::plan::live::Live::new(
+        &targets,
+        &ids,
+        spherecal::velodyne::Model::Vlp16,
+        600.0,
+        s.ins.rate_hz,
+        &settings,
+    )
+    .unwrap();
+    let none = Targets::default();
+    let tight = Targets {
+        target_sigma_deg: Some(0.002),
+        target_sigma_m: Some(0.0005),
+    };
+    let mut gains = Vec::new();
+    for until in [39.0, 70.0] {
+        let mut obs: Vec<Vec<_>> = all
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .filter(|o| ((o.time.0 - t0) as f64) * 1e-9 < until)
+                    .copied()
+                    .collect()
+            })
+            .collect();
+        let (sol, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
+        assert!(rep.converged, "{:?}", rep.reason);
+        let cov = coverage(&ids, &obs, &sol);
+        let (info, returns) = data_info(&targets, &obs, &sol, &settings, s.ins.rate_hz);
+        live.update(&sol, &obs).unwrap();
+        assert!(live.has_candidates());
+        let a = live.advise(&info, &returns, None);
+        let next = a.next.clone().unwrap().0;
+        assert!(
+            next.starts_with("add a ") && next.contains("m off the spheres' line"),
+            "{next}"
+        );
+        let v = assess(&rep, &cov, &none, None, Some(&a));
+        eprintln!(
+            "until {until}: gain {:.3}: {next}; ready {}: {:?} {}",
+            a.gain, v.ready, v.missing, v.ready_because
+        );
+        assert_eq!(
+            v.ready,
+            a.gain <= spherecal_tools::plan::live::ENOUGH_GAIN,
+            "{v:?}"
+        );
+        gains.push(a.gain);
+        // Out of reach: the targets, the parameter, the sensors' noise.
+        let g = tight.goal();
+        let a = live.advise(&info, &returns, g.as_ref());
+        let o = a.out_of_reach.clone().expect("0.002 deg is out of reach");
+        assert!(
+            o.starts_with(
+                "the board's targets are out of reach: with four more passes the planner predicts "
+            ),
+            "{o}"
+        );
+        let v = assess(&rep, &cov, &tight, None, Some(&a));
+        assert!(
+            !v.ready && v.missing.iter().any(|m| m.contains("(the planner's)")),
+            "{v:?}"
+        );
+    }
+    assert!(gains[1] < gains[0], "{gains:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -12,32 +12,32 @@ use spherecal::calib::solve::Solution;
 use spherecal::calib::NAMES;
 use spherecal::window::Observation;
 
-/// The accuracy wanted (board `[calibration]`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// The accuracy wanted (board `[calibration]`): each sigma at most this. Without them the
+/// survey is done when another pass would improve no sigma by more than
+/// [`crate::plan::live::ENOUGH_GAIN`] (what the board's sensors can reach, by the planner).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Targets {
     /// Each boresight angle's 1-sigma at most [deg].
-    #[serde(default = "default_deg")]
-    pub target_sigma_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_sigma_deg: Option<f64>,
     /// Each lever-arm component's 1-sigma at most [m].
-    #[serde(default = "default_m")]
-    pub target_sigma_m: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_sigma_m: Option<f64>,
 }
 
-fn default_deg() -> f64 {
-    0.01
-}
-
-fn default_m() -> f64 {
-    0.005
-}
-
-impl Default for Targets {
-    fn default() -> Self {
-        Self {
-            target_sigma_deg: default_deg(),
-            target_sigma_m: default_m(),
+impl Targets {
+    /// The planner's goal for these targets (a target not given constrains nothing); `None`
+    /// without any.
+    pub fn goal(&self) -> Option<crate::plan::Goal> {
+        if self.target_sigma_deg.is_none() && self.target_sigma_m.is_none() {
+            return None;
         }
+        Some(crate::plan::Goal {
+            sigma_deg: self.target_sigma_deg.unwrap_or(f64::INFINITY),
+            sigma_m: self.target_sigma_m.unwrap_or(f64::INFINITY),
+            ..crate::plan::Goal::default()
+        })
     }
 }
 
@@ -77,6 +77,9 @@ pub struct Verdict {
     /// and the time offset [s] (null: not determined).
     #[serde(default)]
     pub predicted_sigma: Option<[Option<f64>; 7]>,
+    /// Why it is ready, in words.
+    #[serde(default)]
+    pub ready_because: String,
 }
 
 /// Each sphere's coverage by its kept returns (the first `used` of its observations after the
@@ -165,18 +168,17 @@ pub fn bound(h: f64) -> &'static str {
     P[(((h.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
 }
 
-/// The sigmas the planner's predictor gives the returns kept so far ([`coverage`]'s) at the
-/// solution, with the solver's noise model (range, INS attitude and position per sample of
-/// an INS at `ins_rate_hz`, the 2 mm range step): the six [deg, m] and the time offset [s]
-/// (infinite where the geometry cannot determine them).
-pub fn predicted_sigma(
+/// The information (the planner's predictor) of the returns kept so far ([`coverage`]'s) at
+/// the solution, with the solver's noise model (range, INS attitude and position per sample of
+/// an INS at `ins_rate_hz`, the 2 mm range step), and the returns per sphere.
+pub fn data_info(
     targets: &[spherecal::window::Target],
     obs: &[Vec<Observation>],
     sol: &Solution,
     settings: &spherecal::calib::Settings,
     ins_rate_hz: f64,
-) -> [f64; 7] {
-    use spherecal::calib::predict::{Info, NoiseModel, Predicted};
+) -> (spherecal::calib::predict::Info, Vec<i64>) {
+    use spherecal::calib::predict::{Info, NoiseModel};
     let noise = NoiseModel {
         range: settings.range_noise,
         beam_sigma: 0.0,
@@ -186,28 +188,47 @@ pub fn predicted_sigma(
         ins_period_ns: (1e9 / ins_rate_hz.max(1.0)).round() as i64,
     };
     let mut kept: Vec<(usize, &Observation)> = Vec::new();
+    let mut returns = Vec::new();
     for (j, v) in obs.iter().enumerate().take(targets.len()) {
-        let used = sol.spheres.get(j).map_or(0, |s| s.used);
-        kept.extend(v[..used.min(v.len())].iter().map(|o| (j, o)));
+        let used = sol.spheres.get(j).map_or(0, |s| s.used).min(v.len());
+        kept.extend(v[..used].iter().map(|o| (j, o)));
+        returns.push(used as i64);
     }
     kept.sort_by_key(|(_, o)| o.time);
     let mut info = Info::default();
     info.add_returns(targets, kept, &sol.b.0, &noise);
-    let p = Predicted::of(&info);
+    (info, returns)
+}
+
+/// The sigmas the planner's predictor gives the returns kept so far ([`data_info`]): the six
+/// [deg, m] and the time offset [s] (infinite where the geometry cannot determine them).
+pub fn predicted_sigma(
+    targets: &[spherecal::window::Target],
+    obs: &[Vec<Observation>],
+    sol: &Solution,
+    settings: &spherecal::calib::Settings,
+    ins_rate_hz: f64,
+) -> [f64; 7] {
+    let (info, _) = data_info(targets, obs, sol, settings, ins_rate_hz);
+    let p = spherecal::calib::predict::Predicted::of(&info);
     let d = spherecal::calib::Params(core::array::from_fn(|i| p.sigma[i]))
         .deg_m()
         .0;
     core::array::from_fn(|i| if i < 6 { d[i] } else { p.sigma[6] })
 }
 
-/// The verdict from the solution's report on the data so far, the coverage, and the sigmas
+/// The verdict from the solution's report on the data so far, the coverage, the sigmas
 /// predicted from the geometry so far ([`predicted_sigma`]; used where the solution gives
-/// none).
+/// none) and the planner's advice on the next pass ([`crate::plan::live`]): with the board's
+/// targets, each sigma against its target (the advice: the planner's pass, and whether the
+/// targets are out of reach); without, done once another pass would improve no sigma by more
+/// than [`crate::plan::live::ENOUGH_GAIN`].
 pub fn assess(
     rep: &Report,
     cov: &[Coverage],
     t: &Targets,
     predicted: Option<&[f64; 7]>,
+    advice: Option<&crate::plan::live::LiveAdvice>,
 ) -> Verdict {
     let mut missing = Vec::new();
     if !rep.converged {
@@ -228,51 +249,94 @@ pub fn assess(
             ));
         }
     }
-    let (lo, hi) = cov.iter().fold((f64::INFINITY, 0.0f64), |(a, b), c| {
-        if c.returns > 0 {
-            (a.min(c.range_m[0]), b.max(c.range_m[1]))
-        } else {
-            (a, b)
-        }
-    });
-    let band = if lo > 15.0 {
-        "at 8-15 m"
-    } else if hi < 20.0 {
-        "at 20-30 m"
-    } else {
-        "crossing the spheres at another range"
-    };
-    let sig = rep.sigma.deg_m();
-    for (i, name) in NAMES.iter().enumerate() {
-        let (target, unit) = if i < 3 {
-            (t.target_sigma_deg, "deg")
-        } else {
-            (t.target_sigma_m, "m")
-        };
-        let (s, how) = match predicted {
-            Some(p) if !(rep.converged && sig[i].is_finite()) => (p[i], " (predicted)"),
-            _ => (sig[i], ""),
-        };
-        if !(s.is_finite() && s <= target) {
-            let advice = if i < 3 {
-                format!("add a pass {band} (ranges so far {lo:.0}-{hi:.0} m)")
-            } else if cov.iter().any(|c| !c.both_directions) {
-                "add a pass in the other direction".to_string()
-            } else {
-                "add a pass closer to the spheres".to_string()
-            };
-            missing.push(format!(
-                "{name} sigma{how} {} > {target} {unit}: {advice}",
-                if s.is_finite() {
-                    format!("{s:.4}")
+    let next = advice.and_then(|a| a.next.as_ref().map(|n| n.0.clone()));
+    match t.goal() {
+        Some(goal) => {
+            let (lo, hi) = cov.iter().fold((f64::INFINITY, 0.0f64), |(a, b), c| {
+                if c.returns > 0 {
+                    (a.min(c.range_m[0]), b.max(c.range_m[1]))
                 } else {
-                    "-".into()
+                    (a, b)
                 }
-            ));
+            });
+            let band = if lo > 15.0 {
+                "at 8-15 m"
+            } else if hi < 20.0 {
+                "at 20-30 m"
+            } else {
+                "crossing the spheres at another range"
+            };
+            let sig = rep.sigma.deg_m();
+            // Every sigma short of its target, then one advice for them all.
+            let mut short = Vec::new();
+            let mut angle_short = false;
+            for (i, name) in NAMES.iter().enumerate() {
+                let (target, unit) = if i < 3 {
+                    (goal.sigma_deg, "deg")
+                } else {
+                    (goal.sigma_m, "m")
+                };
+                let (s, how) = match predicted {
+                    Some(p) if !(rep.converged && sig[i].is_finite()) => (p[i], " (predicted)"),
+                    _ => (sig[i], ""),
+                };
+                if !(s.is_finite() && s <= target) {
+                    angle_short |= i < 3;
+                    short.push(format!(
+                        "{name} sigma{how} {} > {target} {unit}",
+                        if s.is_finite() {
+                            format!("{s:.4}")
+                        } else {
+                            "-".into()
+                        }
+                    ));
+                }
+            }
+            let short_of_target = !short.is_empty();
+            if short_of_target {
+                let advice = match &next {
+                    Some(w) => format!("{w} (the planner's)"),
+                    None if angle_short => {
+                        format!("add a pass {band} (ranges so far {lo:.0}-{hi:.0} m)")
+                    }
+                    None if cov.iter().any(|c| !c.both_directions) => {
+                        "add a pass in the other direction".to_string()
+                    }
+                    None => "add a pass closer to the spheres".to_string(),
+                };
+                missing.push(format!("{}: {advice}", short.join(", ")));
+            }
+            // Out of reach matters only while a sigma is short of its target: the data may
+            // beat the planner's noise model.
+            if let Some(o) = advice.and_then(|a| a.out_of_reach.clone()) {
+                if short_of_target {
+                    missing.push(o);
+                }
+            }
         }
+        None => match advice {
+            Some(a) if a.gain > crate::plan::live::ENOUGH_GAIN => missing.push(format!(
+                "another pass would still improve a sigma by {:.0} %: {}",
+                a.gain * 100.0,
+                next.unwrap_or_else(|| "-".into())
+            )),
+            Some(_) => {}
+            None => missing.push("no advice from the planner yet (no pass flown)".into()),
+        },
     }
+    let ready_because = match (t.goal(), advice) {
+        (Some(_), _) => "every sphere seen both ways, every sigma within the board's targets".into(),
+        (None, Some(a)) => format!(
+            "every sphere seen both ways; another pass would improve no sigma by more than {:.0} % ({:.0} % at best: {})",
+            crate::plan::live::ENOUGH_GAIN * 100.0,
+            a.gain * 100.0,
+            a.next.as_ref().map_or("-", |n| n.0.as_str())
+        ),
+        (None, None) => String::new(),
+    };
     Verdict {
         ready: missing.is_empty(),
+        ready_because,
         missing,
         coverage: cov.to_vec(),
         predicted_sigma: predicted

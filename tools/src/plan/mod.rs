@@ -9,6 +9,7 @@
 //! pass, a sphere: [`recommend`]) costs only its own tracing.
 
 pub mod html;
+pub mod live;
 pub mod recommend;
 
 use crate::config::scenario::Scenario;

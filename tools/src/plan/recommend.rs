@@ -301,6 +301,50 @@ fn sigma_words(before: &Prediction, after: &Prediction, goal: &Goal) -> String {
     )
 }
 
+/// A candidate pass, traced: the pass, in words, its cost (its duration and a turn) [s], and
+/// the information and returns per sphere it adds.
+pub struct PassCandidate {
+    /// The pass.
+    pub pass: PassSpec,
+    /// In words.
+    pub words: String,
+    /// Its cost [s].
+    pub cost_s: f64,
+    /// The information it adds.
+    pub info: Info,
+    /// Its returns per sphere.
+    pub returns: Vec<i64>,
+}
+
+/// Every candidate pass of a plan ([`candidate_passes`]), traced.
+pub fn candidate_pass_infos(
+    s: &Scenario,
+    noise: &PlanNoise,
+    threads: usize,
+) -> Result<Vec<PassCandidate>, String> {
+    let turn = s.trajectory.turn_s;
+    let mut out = Vec::new();
+    for p in candidate_passes(s) {
+        let (info, returns) = pass_info(s, noise, &p, threads)?;
+        out.push(PassCandidate {
+            words: format!(
+                "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, start N {:.1} E {:.1})",
+                crate::verdict::bound(p.heading_deg),
+                p_offset(s, &p),
+                p.speed_mps,
+                p.duration_s,
+                p.start_ne_m[0],
+                p.start_ne_m[1]
+            ),
+            cost_s: p.duration_s + turn,
+            info,
+            returns,
+            pass: p,
+        });
+    }
+    Ok(out)
+}
+
 /// The recommendations for a traced plan that misses its goal.
 pub fn recommend(
     s: &Scenario,
@@ -312,27 +356,17 @@ pub fn recommend(
     if s.trajectory.file.is_some() {
         return Ok(Vec::new());
     }
-    let turn = s.trajectory.turn_s;
-    let mut cands: Vec<Candidate> = Vec::new();
-    for p in candidate_passes(s) {
-        let (add, returns) = pass_info(s, noise, &p, threads)?;
-        cands.push(Candidate {
-            add,
+    let mut cands: Vec<Candidate> = candidate_pass_infos(s, noise, threads)?
+        .into_iter()
+        .map(|c| Candidate {
+            add: c.info,
             remove: Info::default(),
-            returns,
-            cost_s: p.duration_s + turn,
-            words: format!(
-                "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, start N {:.1} E {:.1})",
-                crate::verdict::bound(p.heading_deg),
-                p_offset(s, &p),
-                p.speed_mps,
-                p.duration_s,
-                p.start_ne_m[0],
-                p.start_ne_m[1]
-            ),
-            change: Change::AddPass(p),
-        });
-    }
+            returns: c.returns,
+            cost_s: c.cost_s,
+            words: c.words,
+            change: Change::AddPass(c.pass),
+        })
+        .collect();
     for (i, p) in s.trajectory.pass.iter().enumerate() {
         let speed = (p.speed_mps / 2.0 * 100.0).round() / 100.0;
         let mut slow = p.clone();

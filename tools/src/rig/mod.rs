@@ -673,6 +673,7 @@ fn run_threads(
                 &opts.settings,
                 opts.board.ins.rate_hz,
                 &opts.board.calibration,
+                opts.board.lidar_model().unwrap_or_default(),
                 plan.margin,
                 report,
                 sh,

@@ -16,6 +16,7 @@ pub(super) fn solver(
     settings: &Settings,
     ins_rate_hz: f64,
     goal: &crate::verdict::Targets,
+    model: spherecal::velodyne::Model,
     apriori_margin: f64,
     report: Option<&Path>,
     sh: &Shared<'_>,
@@ -28,15 +29,41 @@ pub(super) fn solver(
     let mut start = *b0;
     // The time offset the store's observations were aligned at [ns].
     let mut store_offset = 0i64;
-    let solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
+    // The planner on the survey under way (built at the first solve: the LiDAR's rpm is known
+    // by then).
+    let mut live: Option<crate::plan::live::Live> = None;
+    let mut solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
         let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
         let cov = crate::verdict::coverage(ids, store, &sol);
+        let (info, returns) =
+            crate::verdict::data_info(targets, store, &sol, settings, ins_rate_hz);
         let predicted =
             crate::verdict::predicted_sigma(targets, store, &sol, settings, ins_rate_hz);
+        if live.is_none() {
+            let rpm = sh.heard[0].lock().ok().and_then(|h| h.rpm).unwrap_or(600.0);
+            match crate::plan::live::Live::new(targets, ids, model, rpm, ins_rate_hz, settings) {
+                Ok(l) => live = Some(l),
+                Err(e) => sh.error(format!("the live planner: {e}")),
+            }
+        }
+        let advice = live.as_mut().and_then(|l| {
+            if let Err(e) = l.update(&sol, store) {
+                sh.error(format!("the live planner: {e}"));
+                return None;
+            }
+            l.has_candidates()
+                .then(|| l.advise(&info, &returns, goal.goal().as_ref()))
+        });
         if let Ok(mut v) = sh.verdict.lock() {
-            *v = Some(crate::verdict::assess(&rep, &cov, goal, Some(&predicted)));
+            *v = Some(crate::verdict::assess(
+                &rep,
+                &cov,
+                goal,
+                Some(&predicted),
+                advice.as_ref(),
+            ));
         }
         rep.time_offset_s += *offset as f64 * 1e-9;
         if rep.converged {

@@ -382,7 +382,7 @@ pub(super) fn status_loop<'c>(
         if let Some(v) = sh.verdict.lock().ok().and_then(|v| v.clone()) {
             if said_verdict.as_ref() != Some(&v.missing) {
                 let line = if v.ready {
-                    "verdict: ready: every sphere seen both ways, every sigma within the board's targets".to_string()
+                    format!("verdict: ready: {}", v.ready_because)
                 } else {
                     format!("verdict: collecting: {}", v.missing.join("; "))
                 };
@@ -425,7 +425,7 @@ mod tests {
         };
         assert_eq!(
             s.line(),
-            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004 verdict=collecting cov=S1:1185/3/2/9-30,S2:1271/2/1/9-21"
+            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking nopose=0 lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004 verdict=collecting cov=S1:1185/3/2/9-30,S2:1271/2/1/9-21"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -435,7 +435,7 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning lag_ms=- win=- cal=- sig=- dt_ms=- verdict=- cov=-"
+            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning nopose=0 lag_ms=- win=- cal=- sig=- dt_ms=- verdict=- cov=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);
