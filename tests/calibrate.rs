@@ -516,7 +516,7 @@ fn one_sphere_is_refused() {
         &Settings::default(),
         &mut scratch.workspace(),
     );
-    assert_eq!(sol.refusal, Some(Refusal::TooFewSpheres { have: 1 }));
+    assert_eq!(sol.refusal, Some(Refusal::TooFewTargets { given: 1 }));
     // The command says so and exits 1.
     let out = common::spherecal()
         .arg("calibrate")
@@ -525,7 +525,10 @@ fn one_sphere_is_refused() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("NOT CONVERGED: 1 sphere(s) found: at least two are needed"));
+    assert!(
+        text.contains("NOT CONVERGED: the site gives 1 sphere(s): at least two are needed"),
+        "{text}"
+    );
     // The refusal comes before the table, and the table has no NaN (no sigma without LM).
     let refusal = text.find("NOT CONVERGED").unwrap();
     assert!(refusal < text.find("parameter").unwrap(), "{text}");

@@ -143,8 +143,27 @@ fn truncated_capture_is_a_counted_skip() {
     // Cut inside the 11th record.
     std::fs::write(&p, &full[..24 + 10 * (16 + 1248) + 700]).unwrap();
     let out = common::spherecal().arg("decode").arg(&p).output().unwrap();
-    assert_eq!(out.status.code(), Some(0));
+    // Said loudly, on both streams, with exit 2: the counts of what was read, then why not all.
+    assert_eq!(out.status.code(), Some(2));
     let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // The record that is cut: where the counted skip says it starts.
+    let at: u64 = stdout
+        .split("truncated file: 1 (first at byte ")
+        .nth(1)
+        .and_then(|r| r.split(':').next())
+        .and_then(|n| n.parse().ok())
+        .expect("the skip's byte");
+    assert!(at > 24 + 9 * 600 && at < 24 + 11 * (16 + 1248), "{at}");
+    for text in [&stdout, &stderr] {
+        assert!(
+            text.contains(&format!(
+                "is truncated: it ends inside the record at byte {at}"
+            )),
+            "{text}"
+        );
+        assert!(text.contains("cut short"), "{text}");
+    }
     assert!(stdout.contains("skipped: 1"), "{stdout}");
     assert!(
         stdout.contains("truncated file: 1 (first at byte"),

@@ -86,6 +86,39 @@ fn errors_name_the_file_and_the_reason() {
         &["notes.txt", "no VN-200 pose", "looks like text"],
         false,
     );
+    // Windows that catch nothing say why: a site thousands of km from the data (its spheres
+    // and origin moved 38 deg south), and an a-priori mounting given in radians.
+    let far = dir.join("far.toml");
+    let moved: String = std::fs::read_to_string(&site)
+        .unwrap()
+        .lines()
+        .map(|l| match l.strip_prefix("lat_deg = ") {
+            Some(v) => format!("lat_deg = {}\n", v.parse::<f64>().unwrap() - 38.0),
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&far, moved).unwrap();
+    for (site, extra, want) in [
+        (
+            &far,
+            &[][..],
+            "the trajectory never came within the LiDAR's 100 m of them (closest: S1 4136 km at GPS",
+        ),
+        (
+            &site,
+            &["--init", "3.17,-0.74,0.042,1.3,-1.2,-1.76"][..],
+            "the trajectory passed within the LiDAR's reach (S1 ",
+        ),
+    ] {
+        let out = common::spherecal()
+            .args(calibrate(&pcap, "--ins", &ins, site, extra))
+            .output()
+            .unwrap();
+        let so = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(1), "{so}");
+        assert!(so.contains("NOT CONVERGED: no return in the windows of S1, S2"), "{so}");
+        assert!(so.contains(want), "{want:?} in {so}");
+    }
     // A site file that is not TOML: the file and the line.
     refused(
         &calibrate(&pcap, "--ins", &ins, &text, &[]),
@@ -216,4 +249,112 @@ fn impossible_inputs_are_refused() {
     assert!(rep["time_offset_s"].as_f64().unwrap().abs() < 1e-3);
     std::fs::remove_dir_all(a).unwrap();
     std::fs::remove_dir_all(b).unwrap();
+}
+
+/// Outputs are whole or absent (issue 26): a folder that takes no file and a folder given as a
+/// file are refused before any work; an output that fails after the calibration (here the LAS,
+/// over a file-size limit) is said after the printed result, which stands, with exit 2 and
+/// nothing half-written; `synth` interrupted with Ctrl-C leaves no file of its run.
+#[test]
+fn outputs_are_whole_or_absent() {
+    use nix::sys::signal::{kill, Signal};
+    use nix::unistd::Pid;
+    let dir = common::tmp("outputs", "survey");
+    spherecal_tools::synth::synth(&Scenario::load("table1-bare").unwrap(), &dir).unwrap();
+    let (pcap, ins, site) = (
+        dir.join("lidar.pcap"),
+        dir.join("ins.bin"),
+        dir.join("site.toml"),
+    );
+    // /sys takes no new file, even for root.
+    refused(
+        &calibrate(
+            &pcap,
+            "--ins",
+            &ins,
+            &site,
+            &["--las", "/sys/spherecal.las"],
+        ),
+        &[
+            "--las /sys/spherecal.las",
+            "cannot write in the folder /sys",
+        ],
+        true,
+    );
+    refused(
+        &calibrate(
+            &pcap,
+            "--ins",
+            &ins,
+            &site,
+            &["--report", dir.to_str().unwrap()],
+        ),
+        &["--report", "is a folder, not a file"],
+        true,
+    );
+
+    // A late failure: the shell lets files grow to 64 blocks (write() then fails with EFBIG
+    // instead of killing the process); the report fits, the LAS does not.
+    let out_dir = common::tmp("outputs", "late");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let (report, las) = (out_dir.join("r.json"), out_dir.join("x.las"));
+    let mut args = calibrate(&pcap, "--ins", &ins, &site, &[]);
+    args.extend(["--report".into(), report.clone().into()]);
+    args.extend(["--las".into(), las.clone().into()]);
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg("trap '' XFSZ; ulimit -f 64; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_spherecal"))
+        .args(&args)
+        .output()
+        .unwrap();
+    let (so, se) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(2), "{so}{se}");
+    assert!(
+        so.contains("boresight") || so.contains("roll"),
+        "the result first: {so}"
+    );
+    assert!(so.contains("converged"), "the verdict first: {so}");
+    assert!(
+        se.contains("the result above stands, but an output was not written")
+            && se.contains("x.las"),
+        "{se}"
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(r["converged"].as_bool().unwrap(), "{r}");
+    let left: Vec<_> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left, vec!["r.json".to_string()], "nothing half-written");
+
+    // Ctrl-C during synth: exit 130, no file of the run, no temporary.
+    let s_dir = common::tmp("outputs", "interrupted");
+    let mut child = common::spherecal()
+        .args(["synth", "--scenario", "table1-bare", "--out"])
+        .arg(&s_dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let partial = s_dir.join(".lidar.pcap.partial");
+    let t0 = std::time::Instant::now();
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 4 << 20 {
+        assert!(t0.elapsed().as_secs() < 60, "synth never wrote 4 MB");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    kill(Pid::from_raw(child.id() as i32), Signal::SIGINT).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{se}");
+    assert!(se.contains("nothing half-written is left"), "{se}");
+    let left: Vec<_> = std::fs::read_dir(&s_dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+    for d in [dir, out_dir, s_dir] {
+        std::fs::remove_dir_all(d).unwrap();
+    }
 }

@@ -1126,10 +1126,11 @@ fn run_check_names_each_problem() {
         &format!("check: ok: UDP data port {dp} on 127.0.0.1: free, bound"),
         &format!("check: ok: UDP position port {pp}"),
         "opens at 921600 baud",
-        "log folder",
+        "does not exist yet, the run will create it",
     ] {
         assert!(text.contains(want), "{want:?} in {text}");
     }
+    assert!(!logs.exists(), "run --check creates nothing: {text}");
     // Another program on the data port, no serial device, a log folder under a file.
     let _holder = std::net::UdpSocket::bind(("127.0.0.1", dp)).unwrap();
     let file = dir.join("a-file");
@@ -1152,7 +1153,7 @@ fn run_check_names_each_problem() {
         text.contains("serial /dev/nonexistent-vn200: no such device"),
         "{text}"
     );
-    assert!(text.contains("not writable"), "{text}");
+    assert!(text.contains("a-file is not a folder"), "{text}");
     assert!(text.contains("3 problem(s)"), "{text}");
 }
 

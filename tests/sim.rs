@@ -681,7 +681,7 @@ fn recorded_trajectory_from_csv_and_sbet() {
                 "{name}: {a} vs {b} returns on sphere {k}"
             );
         }
-        let (text, ok) = spherecal_tools::run_calibrate(
+        let c = spherecal_tools::run_calibrate(
             spherecal_tools::Survey::synth_dir(&out),
             None,
             Default::default(),
@@ -689,6 +689,7 @@ fn recorded_trajectory_from_csv_and_sbet() {
             None,
         )
         .unwrap();
+        let (text, ok) = (c.text, c.converged);
         assert!(ok, "{text}");
         let r: Vec<f64> = text
             .lines()

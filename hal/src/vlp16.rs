@@ -122,6 +122,14 @@ impl SkipStats {
     pub fn lines(&self) -> &[SkipLine] {
         &self.lines
     }
+    /// Where the file ends inside a record (a capture cut short: a recording interrupted, a
+    /// copy not finished), as the byte offset of that record, and what was left.
+    pub fn truncated_file(&self) -> Option<(u64, &str)> {
+        self.lines
+            .iter()
+            .find(|l| l.reason == "truncated file")
+            .map(|l| (l.first_offset, l.first.as_str()))
+    }
     /// Count for one reason name.
     pub fn get(&self, reason: &str) -> u64 {
         self.lines

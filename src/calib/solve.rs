@@ -165,9 +165,14 @@ impl Default for Settings {
 /// Why a solution is not claimed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Refusal {
-    /// Fewer than two spheres (given, or found among the clutter).
+    /// Fewer than two spheres given (the site's).
+    TooFewTargets {
+        /// Spheres given.
+        given: usize,
+    },
+    /// Fewer than two spheres found among the clutter.
     TooFewSpheres {
-        /// Spheres given or found.
+        /// Spheres found.
         have: usize,
     },
     /// A sphere with too few returns.
@@ -1027,7 +1032,7 @@ pub fn solve(
     let mut sol = Solution::start(b0, s.extract.tau0);
     sol.bounds = bounds(obs, b0, s.margin);
     if n < 2 {
-        sol.refusal = Some(Refusal::TooFewSpheres { have: n });
+        sol.refusal = Some(Refusal::TooFewTargets { given: n });
         return sol;
     }
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.

@@ -2,6 +2,7 @@
 //! summary, optionally the calibrated cloud as LAS and the residual plots as SVG).
 
 use crate::pipeline::accuracy::Accuracy;
+use crate::pipeline::Closest;
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
 pub use crate::report::{
     render, Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
@@ -119,6 +120,7 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String
 /// A refusal in words.
 pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
     match r {
+        Refusal::TooFewTargets { given } => format!("the site gives {given} sphere(s): at least two are needed (one sphere cannot fix the rotation about the line to it)"),
         Refusal::TooFewSpheres { have } => format!("{have} sphere(s) found: at least two are needed (one sphere cannot fix the rotation about the line to it)"),
         Refusal::TooFewPoints { sphere, have, need } => format!("sphere {}: {have} returns, at least {need} are needed", ids.get(*sphere).map_or("?", |s| s.as_str())),
         Refusal::IllConditioned { condition, limit } => format!(
@@ -393,6 +395,59 @@ pub fn solve_report(
     (sol, report)
 }
 
+/// Why the windows of some spheres (id, how close the trajectory came, window radius: the
+/// sphere's radius + the margin) caught no return, from how close the trajectory came to them
+/// and the LiDAR's reach: out of reach, the site and the trajectory do not meet; within it,
+/// the a-priori mounting puts the returns elsewhere.
+pub fn empty_windows(empty: &[(&str, Closest, f64)], reach: f64) -> Option<String> {
+    let far = |d: f64| {
+        if d >= 10_000.0 {
+            format!("{:.0} km", d / 1000.0)
+        } else {
+            format!("{d:.1} m")
+        }
+    };
+    let list = |v: &[&(&str, Closest, f64)]| {
+        v.iter()
+            .map(|(id, c, _)| format!("{id} {} at GPS {:.1} s", far(c.distance_m), c.time_s))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let names = |v: &[&(&str, Closest, f64)]| v.iter().map(|e| e.0).collect::<Vec<_>>().join(", ");
+    let unread: Vec<_> = empty
+        .iter()
+        .filter(|e| !e.1.distance_m.is_finite())
+        .collect();
+    let out: Vec<_> = empty
+        .iter()
+        .filter(|e| e.1.distance_m.is_finite() && e.1.distance_m > reach)
+        .collect();
+    let near: Vec<_> = empty.iter().filter(|e| e.1.distance_m <= reach).collect();
+    let mut why = Vec::new();
+    if !unread.is_empty() {
+        why.push(format!(
+            "no return in the windows of {}: no INS pose was read",
+            names(&unread)
+        ));
+    }
+    if !out.is_empty() {
+        why.push(format!(
+            "no return in the windows of {}: the trajectory never came within the LiDAR's {reach:.0} m of them (closest: {}): the site and the trajectory do not meet — check the site's coordinates, CRS (zone, easting/northing order) and datum against the trajectory's",
+            names(&out),
+            list(&out)
+        ));
+    }
+    if !near.is_empty() {
+        why.push(format!(
+            "no return in the windows of {}: the trajectory passed within the LiDAR's reach ({}), yet no return fell within {:.2} m of their centres: the a-priori mounting puts the returns elsewhere (check the site's [apriori] or --init: roll,pitch,heading in degrees, x,y,z in metres; or widen window_margin_m), or the spheres were hidden",
+            names(&near),
+            list(&near),
+            near.iter().map(|e| e.2).fold(0.0, f64::max)
+        ));
+    }
+    (!why.is_empty()).then(|| why.join("; "))
+}
+
 /// Write every windowed return with its verdict (`--returns`): sphere id, where it is in the
 /// capture, its time, laser and range, its place with the solution `b` (site NED), its signed
 /// distance from the sphere's surface, and the extraction's verdict.
@@ -405,8 +460,7 @@ pub fn write_returns(
 ) -> Result<(), String> {
     use std::io::Write as _;
     let err = |e: std::io::Error| format!("{}: {e}", path.display());
-    let f = std::fs::File::create(path).map_err(err)?;
-    let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+    let mut w = crate::output::Staged::create(path)?;
     writeln!(w, "{}", crate::RETURNS_HEADER).map_err(err)?;
     let mount = spherecal::georef::Mount::from_params(b);
     let mut line = String::new();
@@ -433,7 +487,7 @@ pub fn write_returns(
             w.write_all(line.as_bytes()).map_err(err)?;
         }
     }
-    w.flush().map_err(err)
+    w.commit()
 }
 
 /// The whole calibration of the files of `inp` from `b0` [rad, m]: collect the windows,
@@ -550,6 +604,25 @@ pub fn calibrate(
     let mut inputs = InputsReport::of(inp, &stats);
     inputs.accuracy = used_accuracy;
     rep.inputs = Some(inputs);
+    // Windows that caught nothing: how far the trajectory came from those spheres says why.
+    if !rep.converged {
+        let reach = inp.model.unwrap_or_default().max_range_m();
+        let empty: Vec<(&str, Closest, f64)> = obs
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_empty())
+            .filter_map(|(k, _)| {
+                let c = *stats.closest.get(k)?;
+                Some((ids[k].as_str(), c, targets[k].radius + inp.margin))
+            })
+            .collect();
+        if let Some(why) = empty_windows(&empty, reach) {
+            rep.reason = Some(format!(
+                "{why}{}",
+                rep.reason.map(|r| format!("; so {r}")).unwrap_or_default()
+            ));
+        }
+    }
     // The INS clock: a step within the data moves every pose after it.
     let span = stats
         .align

@@ -441,10 +441,24 @@ fn fmt_utc(t: &UtcDateTime) -> String {
 }
 
 impl DecodeSummary {
+    /// A capture that ends inside a record, said loudly: where, and what it means.
+    pub fn truncation(&self, path: &str) -> Option<String> {
+        self.skips.truncated_file().map(|(at, what)| {
+            format!(
+                "WARNING: {path} is truncated: it ends inside the record at byte {at} ({what}): \
+                 the capture was cut short (a recording interrupted, a copy not finished); \
+                 only what comes before byte {at} is decoded"
+            )
+        })
+    }
+
     /// The human summary `spherecal decode` prints.
     pub fn render(&self, path: &str) -> String {
         let mut o = String::new();
         let _ = writeln!(o, "file: {path}");
+        if let Some(w) = self.truncation(path) {
+            let _ = writeln!(o, "{w}");
+        }
         let _ = write!(o, "data packets: {}", self.data_packets);
         for (m, n) in &self.return_modes {
             let _ = write!(o, " ({m}: {n})");

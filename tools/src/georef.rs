@@ -158,7 +158,8 @@ fn extra_bytes_vlr() -> las::Vlr {
 /// A LAS 1.4 writer (point format 6 + extra bytes: GPS time, intensity, classification 1 in a
 /// window, laser, window, residual), in the site's CRS or local east-north-up metres.
 pub struct LasOut {
-    w: las::Writer<std::io::BufWriter<std::fs::File>>,
+    w: las::Writer<crate::output::Staged>,
+    abandon: crate::output::Abandon,
     path: std::path::PathBuf,
     to_map: Option<ToMap>,
     targets: Vec<spherecal::window::Target>,
@@ -169,6 +170,16 @@ pub struct LasOut {
 }
 
 impl LasOut {
+    /// The LAS of `site`'s points can be made in `frame` (its CRS and the datum shift to it
+    /// are known): checked before a long run.
+    pub fn check(site: &Site, frame: LasFrame) -> Result<(), String> {
+        if frame == LasFrame::Projected {
+            let (local, _) = crate::pipeline::targets(site);
+            ToMap::for_site(site, local).map_err(|e| format!("--las: {e}"))?;
+        }
+        Ok(())
+    }
+
     /// Create the file for `site`'s points, in `frame`.
     pub fn create(path: &Path, site: &Site, frame: LasFrame) -> Result<Self, String> {
         let (local, targets) = crate::pipeline::targets(site);
@@ -218,10 +229,15 @@ impl LasOut {
                 .set_wkt_crs(m.wkt.as_bytes().to_vec())
                 .map_err(|e| e.to_string())?;
         }
-        let w =
-            las::Writer::from_path(path, header).map_err(|e| format!("{}: {e}", path.display()))?;
+        let staged = crate::output::Staged::create(path)?;
+        let abandon = staged.abandon_handle();
+        let w = las::Writer::new(staged, header).map_err(|e| {
+            abandon.abandon();
+            format!("{}: {e}", path.display())
+        })?;
         Ok(Self {
             w,
+            abandon,
             path: path.to_path_buf(),
             to_map,
             targets,
@@ -276,14 +292,17 @@ impl LasOut {
         }
     }
 
-    /// Finish the file.
-    pub fn close(mut self) -> Result<u64, String> {
+    /// Finish the file (written whole under its name only now; on an error nothing is left).
+    pub fn close(self) -> Result<u64, String> {
         if let Some(e) = self.error {
-            return Err(e);
+            // The writer finishes the file as it drops: into nothing.
+            self.abandon.abandon();
+            return Err(format!("{}: {e}", self.path.display()));
         }
         self.w
-            .close()
-            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+            .into_inner()
+            .map_err(|e| format!("{}: {e}", self.path.display()))?
+            .commit()?;
         Ok(self.points)
     }
 }
@@ -297,12 +316,7 @@ pub fn georef(
     let mut las_out = las
         .map(|(p, f)| LasOut::create(p, &inp.site, f))
         .transpose()?;
-    let mut wfile = match windows {
-        Some(p) => Some(std::io::BufWriter::new(
-            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
-        )),
-        None => None,
-    };
+    let mut wfile = windows.map(crate::output::Staged::create).transpose()?;
     let ids: Vec<String> = inp.site.sphere.iter().map(|s| s.id.clone()).collect();
     let mount: Mount = inp.mount;
     let mut add = |p: &GeoPoint| {
@@ -355,6 +369,9 @@ pub fn georef(
     })?;
     if let Some(e) = werr {
         return Err(format!("windows CSV: {e}"));
+    }
+    if let Some(w) = wfile {
+        w.commit()?;
     }
     let las_points = match las_out {
         Some(l) => Some(l.close().map_err(|e| format!("LAS: {e}"))?),

@@ -11,6 +11,7 @@ pub mod georef;
 pub mod html;
 pub mod ins;
 pub mod montecarlo;
+pub mod output;
 pub mod pipeline;
 pub mod plan;
 pub mod plot;
@@ -86,26 +87,15 @@ pub struct Outputs {
     pub las_frame: georef::LasFrame,
 }
 
-/// An output file can be created where it is asked for: its folder exists (checked before a
-/// long run, so that it does not fail at the end). `flag` names the option in the message.
+/// An output file can be created where it is asked for ([`output::check`]: its folder exists
+/// and takes a new file, it is not a folder), checked before a long run so that it does not
+/// fail at the end. `flag` names the option in the message.
 pub fn check_output(flag: &str, p: &std::path::Path) -> Result<(), String> {
-    let dir = match p.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => return Ok(()),
-    };
-    if dir.is_dir() {
-        Ok(())
-    } else {
-        Err(format!(
-            "{flag} {}: the folder {} does not exist",
-            p.display(),
-            dir.display()
-        ))
-    }
+    output::check(flag, p)
 }
 
 impl Outputs {
-    /// Every output's folder exists ([`check_output`]).
+    /// Every output can be written ([`check_output`]).
     pub fn check(&self) -> Result<(), String> {
         for (flag, p) in [
             ("--report", &self.report),
@@ -169,7 +159,7 @@ pub fn run_calibrate(
     clock: ClockOptions,
     out: &Outputs,
     truth: Option<[f64; 7]>,
-) -> Result<(String, bool), String> {
+) -> Result<Calibrated, String> {
     use pipeline::{Inputs, InsInput};
     out.check()?;
     let site = config::site::Site::load(&survey.site)?;
@@ -190,6 +180,9 @@ pub fn run_calibrate(
     };
     let (site, datums) =
         pipeline::site_in_trajectory_datum(&site, &ins, survey.trajectory_datum.as_deref())?;
+    if out.las.is_some() {
+        georef::LasOut::check(&site, out.las_frame)?;
+    }
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
     inp.accuracy = accuracy;
@@ -205,12 +198,21 @@ pub fn run_calibrate(
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
     text.push_str(&report::render(&rep, truth.as_ref()));
+    // The result is printed whatever happens to the files: an output that fails now (a disk
+    // full, a mount gone) is said after it, not instead of it.
+    let mut wrote = String::new();
+    let mut output_errors = Vec::new();
+    let mut put = |r: Result<Option<String>, String>| match r {
+        Ok(Some(line)) => wrote.push_str(&line),
+        Ok(None) => {}
+        Err(e) => output_errors.push(e),
+    };
     if let Some(p) = &out.report {
-        report::write_json_atomically(p, &rep)?;
+        put(report::write_json_atomically(p, &rep).map(|()| None));
     }
     if let Some(p) = &out.returns {
-        calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)?;
-        text.push_str(&format!("returns: {}\n", p.display()));
+        put(calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)
+            .map(|()| Some(format!("returns: {}\n", p.display()))));
     }
     if let Some(p) = &out.las {
         let inp2 = pipeline::Inputs {
@@ -218,20 +220,35 @@ pub fn run_calibrate(
             time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
             ..inp.clone()
         };
-        let (_, _, t) = georef::georef(&inp2, Some((p, out.las_frame)), None)?;
-        text.push_str(&t);
+        put(georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(_, _, t)| Some(t)));
     }
     if out.plot.is_some() || out.html.is_some() {
         let figs = plot::Figures::new(&targets, &ids, &obs, &sol, &b0, &rep);
         if let Some(p) = &out.plot {
-            plot::plot(p, &figs)?;
-            text.push_str(&format!("plot: {}\n", p.display()));
+            put(plot::plot(p, &figs).map(|()| Some(format!("plot: {}\n", p.display()))));
         }
         if let Some(p) = &out.html {
-            let page = html::render(&rep, &figs, inp.site.leap_seconds)?;
-            std::fs::write(p, page).map_err(|e| format!("{}: {e}", p.display()))?;
-            text.push_str(&format!("report (HTML): {}\n", p.display()));
+            put(html::render(&rep, &figs, inp.site.leap_seconds)
+                .and_then(|page| output::write(p, page.as_bytes()))
+                .map(|()| Some(format!("report (HTML): {}\n", p.display()))));
         }
     }
-    Ok((text, rep.converged))
+    text.push_str(&wrote);
+    Ok(Calibrated {
+        text,
+        converged: rep.converged,
+        output_errors,
+    })
+}
+
+/// What [`run_calibrate`] gives: the printed result, whether a solution is claimed, and the
+/// outputs that could not be written (said after the result).
+#[derive(Debug, Clone)]
+pub struct Calibrated {
+    /// The inputs, the datums, the table and the verdict, as printed.
+    pub text: String,
+    /// A solution is claimed (every check passed).
+    pub converged: bool,
+    /// Outputs that failed, each naming its file.
+    pub output_errors: Vec<String>,
 }

@@ -374,7 +374,7 @@ pub fn plot(path: &Path, f: &Figures) -> Res<()> {
         }
     }
     out.push_str("</svg>\n");
-    std::fs::write(path, out).map_err(|e| format!("{}: {e}", path.display()))
+    crate::output::write(path, out.as_bytes())
 }
 
 /// A figure's width from its `<svg width="...">`.

@@ -672,15 +672,7 @@ pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), St
     write_atomically(p, (json + "\n").as_bytes())
 }
 
-/// Write `bytes` to `p` through a temporary file beside it and a rename.
+/// Write `bytes` to `p` whole or not at all ([`crate::output::write`]).
 pub fn write_atomically(p: &Path, bytes: &[u8]) -> Result<(), String> {
-    let tmp = p.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(|e| {
-        format!(
-            "{}: cannot write the report (through {}): {e}",
-            p.display(),
-            tmp.display()
-        )
-    })?;
-    std::fs::rename(&tmp, p).map_err(|e| format!("{}: cannot write the report: {e}", p.display()))
+    crate::output::write(p, bytes).map_err(|e| format!("cannot write the report: {e}"))
 }

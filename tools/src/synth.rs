@@ -12,6 +12,7 @@
 
 use crate::config::scenario::Scenario;
 use crate::config::site::{Origin, Site, SiteApriori, SiteSphere};
+use crate::output::Staged;
 use serde::{Deserialize, Serialize};
 use spherecal::sim::ins::InsStats;
 use spherecal::sim::lidar::{LidarStats, Traced};
@@ -21,7 +22,7 @@ use spherecal_hal::packet::HostTime;
 use spherecal_hal::pcap::{build_udp_frame, PcapWriter, UdpEndpoints};
 use spherecal_hal::serial::{LogWriter, RxStamp};
 use std::collections::BTreeMap;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
 /// `truth.json`.
@@ -191,15 +192,35 @@ fn write_files(
     dir: &Path,
     cache: Option<&TraceCache>,
 ) -> Result<Truth, String> {
-    let lidar = write_lidar(s, world, dir, cache)?;
-    let ins = write_ins(s, world, dir)?;
+    // Every file goes to its temporary first and all are renamed at the end: an interrupted
+    // or failed synth leaves no file of this run, none half-written ([`crate::output`]).
+    let mut files = Vec::new();
+    let lidar = write_lidar(s, world, dir, cache, &mut files)?;
+    let ins = write_ins(s, world, dir, &mut files)?;
     let site_path = dir.join("site.toml");
-    std::fs::write(&site_path, site_of(s).to_toml()).map_err(|e| io(&site_path, e))?;
+    files.push(staged_bytes(&site_path, site_of(s).to_toml().as_bytes())?);
     let truth = truth_of(s, &lidar, &ins);
     let truth_path = dir.join("truth.json");
     let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
-    std::fs::write(&truth_path, json + "\n").map_err(|e| io(&truth_path, e))?;
+    files.push(staged_bytes(&truth_path, (json + "\n").as_bytes())?);
+    crate::output::commit_all(files)?;
     Ok(truth)
+}
+
+/// The files a scenario's [`synth`] writes, by name (the POS MV's log only with a POS MV).
+pub fn file_names(s: &Scenario) -> Vec<&'static str> {
+    let mut v = vec!["lidar.pcap", "labels.bin", "ins.bin", "ins.vnlog"];
+    if s.ins.kind == "posmv" {
+        v.push("ins.posmv");
+    }
+    v.extend(["site.toml", "truth.json"]);
+    v
+}
+
+fn staged_bytes(p: &Path, bytes: &[u8]) -> Result<Staged, String> {
+    let mut f = Staged::create(p)?;
+    f.write_all(bytes).map_err(|e| io(p, e))?;
+    Ok(f)
 }
 
 fn io(p: &Path, e: std::io::Error) -> String {
@@ -213,10 +234,10 @@ fn write_lidar(
     world: &World<'_>,
     dir: &Path,
     cache: Option<&TraceCache>,
+    files: &mut Vec<Staged>,
 ) -> Result<LidarStats, String> {
     let pcap_path = dir.join("lidar.pcap");
-    let f = std::fs::File::create(&pcap_path).map_err(|e| io(&pcap_path, e))?;
-    let mut pcap = PcapWriter::new(BufWriter::with_capacity(1 << 20, f))
+    let mut pcap = PcapWriter::new(Staged::create(&pcap_path)?)
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     let mut lidar = LidarSim::new(world, s.lidar_config());
     if let Some(c) = cache {
@@ -232,8 +253,7 @@ fn write_lidar(
     let mut data_k = 0usize;
     let bar = crate::progress::bar(lidar.packet_count(), "simulating data packets");
     let labels_path = dir.join("labels.bin");
-    let f = std::fs::File::create(&labels_path).map_err(|e| io(&labels_path, e))?;
-    let mut labels = BufWriter::with_capacity(1 << 20, f);
+    let mut labels = Staged::create(&labels_path)?;
     let mut head = [0u8; 16];
     head[..8].copy_from_slice(LABELS_MAGIC);
     head[8..12].copy_from_slice(&1u32.to_le_bytes());
@@ -315,8 +335,8 @@ fn write_lidar(
             .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
     }
     write_posmv_until(None, &mut posmv, &mut posmv_next, &mut pcap, &mut frame)?;
-    pcap.into_inner().flush().map_err(|e| io(&pcap_path, e))?;
-    labels.flush().map_err(|e| io(&labels_path, e))?;
+    files.push(pcap.into_inner());
+    files.push(labels);
 
     bar.finish_and_clear();
     Ok(lidar.stats)
@@ -386,18 +406,26 @@ pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
 /// into `dir` (created if needed): the same stream [`synth`] writes.
 pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    s.with_world(|world| write_ins(s, world, dir))
-        .map_err(|e| e.to_string())?
+    s.with_world(|world| {
+        let mut files = Vec::new();
+        let stats = write_ins(s, world, dir, &mut files)?;
+        crate::output::commit_all(files)?;
+        Ok(stats)
+    })
+    .map_err(|e| e.to_string())?
 }
 
-fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, String> {
+fn write_ins(
+    s: &Scenario,
+    world: &World<'_>,
+    dir: &Path,
+    files: &mut Vec<Staged>,
+) -> Result<InsStats, String> {
     let ins_path = dir.join("ins.bin");
     let log_path = dir.join("ins.vnlog");
-    let f = std::fs::File::create(&ins_path).map_err(|e| io(&ins_path, e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, f);
-    let f = std::fs::File::create(&log_path).map_err(|e| io(&log_path, e))?;
-    let mut log = LogWriter::new(BufWriter::with_capacity(1 << 20, f), SERIAL_BAUD)
-        .map_err(|e| io(&log_path, e))?;
+    let mut w = Staged::create(&ins_path)?;
+    let mut log =
+        LogWriter::new(Staged::create(&log_path)?, SERIAL_BAUD).map_err(|e| io(&log_path, e))?;
     let mut ins = InsSim::new(world, s.ins_config());
     let mut buf = [0u8; 128];
     let mut first_wall: Option<i64> = None;
@@ -413,19 +441,18 @@ fn write_ins(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<InsStats, St
         };
         log.record(stamp, &buf[..n]).map_err(|e| io(&log_path, e))?;
     }
-    w.flush().map_err(|e| io(&ins_path, e))?;
-    log.flush().map_err(|e| io(&log_path, e))?;
+    files.push(w);
+    files.push(log.into_inner());
     if s.ins.kind == "posmv" {
         // The Logging Data Port's byte stream, as a POS MV logs it (.000 files).
         let p = dir.join("ins.posmv");
-        let f = std::fs::File::create(&p).map_err(|e| io(&p, e))?;
-        let mut w = BufWriter::with_capacity(1 << 20, f);
+        let mut w = Staged::create(&p)?;
         let mut sim = InsSim::new(world, s.ins_config());
         let mut buf = [0u8; 1024];
         while let Some((_, n)) = sim.next_posmv(&mut buf) {
             w.write_all(&buf[..n]).map_err(|e| io(&p, e))?;
         }
-        w.flush().map_err(|e| io(&p, e))?;
+        files.push(w);
     }
 
     Ok(ins.stats)

@@ -92,10 +92,11 @@ pub fn run(a: Args) -> ExitCode {
         keep_untracked_ins: a.keep_untracked_ins,
         search: a.search_time_offset,
     };
+    crate::output::remove_partial_on_interrupt();
     match crate::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None) {
-        Ok((text, ok)) => {
-            say!("{text}");
-            claimed(ok)
+        Ok(c) => {
+            say!("{}", c.text);
+            super::outputs_failed("calibrate", &c.output_errors).unwrap_or(claimed(c.converged))
         }
         Err(e) => fail("calibrate", e),
     }

@@ -25,13 +25,19 @@ pub fn run(a: Args) -> ExitCode {
         Ok(o) => o,
         Err(code) => return code,
     };
+    crate::output::remove_partial_on_interrupt();
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
     match crate::decode::decode_file(&a.file, w, a.model) {
         Ok(s) => {
-            say!("{}", s.render(&a.file.display().to_string()));
-            match &s.stopped {
-                Some(stop) => fail("decode", format!("{}: {stop}", a.file.display())),
-                None => ExitCode::SUCCESS,
+            let path = a.file.display().to_string();
+            say!("{}", s.render(&path));
+            if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
+                return fail("decode", e);
+            }
+            match (&s.stopped, s.truncation(&path)) {
+                (Some(stop), _) => fail("decode", format!("{path}: {stop}")),
+                (None, Some(w)) => fail("decode", w),
+                (None, None) => ExitCode::SUCCESS,
             }
         }
         Err(e) => fail("decode", e),

@@ -71,8 +71,11 @@ pub fn run(a: Args) -> ExitCode {
         Some(truth7),
     );
     let code = match res {
-        Ok((text, ok)) => {
-            say!("{text}");
+        Ok(c) => {
+            say!("{}", c.text);
+            if let Some(code) = super::outputs_failed("demo", &c.output_errors) {
+                return code;
+            }
             sayln!(
                 "report: {} (open {} in a browser)",
                 dir.join("report.json").display(),
@@ -82,7 +85,7 @@ pub fn run(a: Args) -> ExitCode {
                 "the survey's files are in {d}/ (lidar.pcap, ins.bin, site.toml, truth.json); try\n  spherecal calibrate --pcap {d}/lidar.pcap --ins {d}/ins.bin --site {d}/site.toml",
                 d = dir.display()
             );
-            claimed(ok)
+            claimed(c.converged)
         }
         Err(e) => fail("demo", e),
     };

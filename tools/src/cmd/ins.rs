@@ -43,6 +43,9 @@ pub fn run(a: Args) -> ExitCode {
                     ),
                 );
             }
+            if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
+                return fail("ins", e);
+            }
             ExitCode::SUCCESS
         }
         Err(e) => fail("ins", format!("{}: writing CSV: {e}", a.file.display())),

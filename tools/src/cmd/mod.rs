@@ -2,7 +2,6 @@
 //! arguments, calls the library and maps the outcome to the exit code of the command contract
 //! (0 success; 1 calibration refused; 2 bad arguments or unreadable input).
 
-use std::io::BufWriter;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,6 +38,15 @@ pub mod vn200;
 fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
     eprintln!("spherecal {cmd}: {why}");
     ExitCode::from(2)
+}
+
+/// Outputs that failed after the result was printed: each said, exit 2 (`None` when all
+/// were written).
+fn outputs_failed(cmd: &str, errors: &[String]) -> Option<ExitCode> {
+    for e in errors {
+        eprintln!("spherecal {cmd}: the result above stands, but an output was not written: {e}");
+    }
+    (!errors.is_empty()).then(|| ExitCode::from(2))
 }
 
 /// Print the text and exit 0, or fail (exit 2) with the error.
@@ -195,18 +203,8 @@ fn parse_ports(s: &str) -> Result<[u16; 2], String> {
 }
 
 /// The CSV file `--csv` names, buffered, or the exit code of a file that cannot be created.
-fn create_csv(
-    cmd: &str,
-    csv: Option<&PathBuf>,
-) -> Result<Option<BufWriter<std::fs::File>>, ExitCode> {
-    match csv.map(std::fs::File::create).transpose() {
-        Ok(f) => Ok(f.map(|f| BufWriter::with_capacity(1 << 20, f))),
-        Err(e) => Err(fail(
-            cmd,
-            format!(
-                "{}: cannot create: {e}",
-                csv.map(|p| p.display().to_string()).unwrap_or_default()
-            ),
-        )),
-    }
+fn create_csv(cmd: &str, csv: Option<&PathBuf>) -> Result<Option<crate::output::Staged>, ExitCode> {
+    csv.map(|p| crate::output::Staged::create(p))
+        .transpose()
+        .map_err(|e| fail(cmd, e))
 }

@@ -33,6 +33,12 @@ pub fn run(a: Args) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail("montecarlo", e),
     };
+    if let Some(p) = &a.report {
+        if let Err(e) = crate::check_output("--report", p) {
+            return fail("montecarlo", e);
+        }
+    }
+    crate::output::remove_partial_on_interrupt();
     let r = match crate::montecarlo::montecarlo(
         &s,
         a.trials,

@@ -41,6 +41,28 @@ pub fn run(a: Args) -> ExitCode {
             "--target-sigma-deg and --target-sigma-m: expected > 0",
         );
     }
+    for (flag, p) in [("--report", &a.report), ("--write-plan", &a.write_plan)] {
+        if let Some(p) = p {
+            if let Err(e) = crate::check_output(flag, p) {
+                return fail("plan", e);
+            }
+        }
+    }
+    if let Some(p) = &a.report {
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("json" | "html" | "htm")) {
+            return fail(
+                "plan",
+                format!(
+                    "--report {}: expected a .json or .html file (the report is JSON or one HTML page)",
+                    p.display()
+                ),
+            );
+        }
+    }
+    crate::output::remove_partial_on_interrupt();
     let goal = Goal {
         sigma_deg: a.target_sigma_deg,
         sigma_m: a.target_sigma_m,
@@ -54,7 +76,7 @@ pub fn run(a: Args) -> ExitCode {
     if let Some(p) = &a.report {
         let out = if p
             .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("html"))
+            .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
         {
             html::render(&s, &r)
                 .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))

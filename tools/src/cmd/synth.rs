@@ -57,6 +57,7 @@ pub fn run(a: Args) -> ExitCode {
     if let Some(k) = a.ins {
         s.ins.kind = k;
     }
+    crate::output::remove_partial_on_interrupt();
     let t0 = std::time::Instant::now();
     match crate::synth::synth(&s, &out) {
         Ok(t) => {
@@ -88,8 +89,9 @@ pub fn run(a: Args) -> ExitCode {
                 }
             }
             sayln!(
-                "wrote {}/{{lidar.pcap, ins.bin, site.toml, truth.json}}",
-                out.display()
+                "wrote {}/{{{}}}",
+                out.display(),
+                crate::synth::file_names(&s).join(", ")
             );
             ExitCode::SUCCESS
         }

@@ -43,6 +43,19 @@ pub struct Aligner<'a> {
     ins_done: bool,
     /// The LiDAR clock as its position packets tell it.
     pub clock: crate::state::ClockState,
+    /// Each sphere's centre, and how close the INS came to it (for a window that catches
+    /// nothing: [`Closest`]).
+    centres: Vec<nalgebra::Vector3<f64>>,
+    closest: Vec<Closest>,
+}
+
+/// How close the trajectory (the INS's reference point) came to a sphere's centre, and when.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Closest {
+    /// Distance [m] (infinite when no pose was seen).
+    pub distance_m: f64,
+    /// GPS time of the closest pose [s].
+    pub time_s: f64,
 }
 
 impl<'a> Aligner<'a> {
@@ -77,6 +90,14 @@ impl<'a> Aligner<'a> {
             time,
             ins_done: false,
             clock: Default::default(),
+            centres: targets.iter().map(|t| t.center).collect(),
+            closest: vec![
+                Closest {
+                    distance_m: f64::INFINITY,
+                    time_s: 0.0,
+                };
+                targets.len()
+            ],
         }
     }
 
@@ -90,6 +111,15 @@ impl<'a> Aligner<'a> {
     fn take(&mut self, it: InsItem) {
         match it {
             InsItem::Pose(s, h) => {
+                for (c, best) in self.centres.iter().zip(&mut self.closest) {
+                    let d = (s.position - c).norm();
+                    if d < best.distance_m {
+                        *best = Closest {
+                            distance_m: d,
+                            time_s: s.time.as_secs_f64(),
+                        };
+                    }
+                }
                 self.core.push_pose(s, h);
             }
             InsItem::End => self.ins_done = true,
@@ -170,6 +200,7 @@ impl<'a> Aligner<'a> {
             ins,
             ring_full,
             model: self.core.model(),
+            closest: self.closest.clone(),
         }
     }
 }

@@ -19,7 +19,7 @@ mod feed;
 pub mod posmv;
 mod readers;
 
-pub use feed::{AlignStorage, Aligner, InsWait};
+pub use feed::{AlignStorage, Aligner, Closest, InsWait};
 pub use readers::{
     end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, sbet_week,
     vn200_pose, week_from_capture, Accept, Files, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
@@ -225,6 +225,8 @@ pub struct RunStats {
     pub ring_full: [u64; 2],
     /// The model the data packets were decoded as.
     pub model: Option<Model>,
+    /// How close the trajectory came to each sphere.
+    pub closest: Vec<Closest>,
 }
 
 impl RunStats {
@@ -246,6 +248,13 @@ impl RunStats {
             let _ = write!(o, " over {:.1} s", b - a);
         }
         let _ = writeln!(o, ", {} skipped", self.skips.total());
+        if let Some((at, what)) = self.skips.truncated_file() {
+            let _ = writeln!(
+                o,
+                "WARNING: a capture is truncated: it ends inside the record at byte {at} ({what}): \
+                 cut short (a recording interrupted, a copy not finished); what follows is missing"
+            );
+        }
         for l in self.skips.lines() {
             let _ = writeln!(
                 o,

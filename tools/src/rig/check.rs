@@ -46,14 +46,7 @@ pub fn check(opts: &RunOptions) -> Vec<Result<String, String>> {
         .log_dir
         .clone()
         .unwrap_or_else(|| std::path::PathBuf::from(&b.log.dir));
-    let probe = dir.join(".spherecal-check");
-    out.push(
-        std::fs::create_dir_all(&dir)
-            .and_then(|()| std::fs::write(&probe, b"check"))
-            .and_then(|()| std::fs::remove_file(&probe))
-            .map(|()| format!("log folder {}: writable", dir.display()))
-            .map_err(|e| format!("log folder {}: not writable: {e}", dir.display())),
-    );
+    out.push(log_folder(&dir));
     if b.console.device != "stdout" {
         out.push(
             serialport::new(b.console.device.as_str(), b.console.baud)
@@ -66,6 +59,64 @@ pub fn check(opts: &RunOptions) -> Vec<Result<String, String>> {
         out.push(Ok(format!("site: {} spheres", s.sphere.len())));
     }
     out
+}
+
+/// The log folder can be written, creating nothing: an existing folder is tried with a probe
+/// file (removed), a missing one is said to be created by the run if its nearest existing
+/// ancestor takes a new folder (tried by creating and removing a probe file there).
+fn log_folder(dir: &std::path::Path) -> Result<String, String> {
+    let try_write = |d: &std::path::Path| {
+        let probe = d.join(".spherecal-check");
+        std::fs::write(&probe, b"check").and_then(|()| std::fs::remove_file(&probe))
+    };
+    if dir.is_dir() {
+        return try_write(dir)
+            .map(|()| format!("log folder {}: writable", dir.display()))
+            .map_err(|e| format!("log folder {}: not writable: {e}", dir.display()));
+    }
+    if dir.exists() {
+        return Err(format!(
+            "log folder {}: exists and is not a folder",
+            dir.display()
+        ));
+    }
+    let mut up = dir.parent();
+    while let Some(a) = up {
+        let a = if a.as_os_str().is_empty() {
+            std::path::Path::new(".")
+        } else {
+            a
+        };
+        if a.is_dir() {
+            return try_write(a)
+                .map(|()| {
+                    format!(
+                        "log folder {}: does not exist yet, the run will create it in {}",
+                        dir.display(),
+                        a.display()
+                    )
+                })
+                .map_err(|e| {
+                    format!(
+                        "log folder {}: cannot be created, {} is not writable: {e}",
+                        dir.display(),
+                        a.display()
+                    )
+                });
+        }
+        if a.exists() {
+            return Err(format!(
+                "log folder {}: cannot be created: {} is not a folder",
+                dir.display(),
+                a.display()
+            ));
+        }
+        up = a.parent();
+    }
+    Err(format!(
+        "log folder {}: no existing folder above it",
+        dir.display()
+    ))
 }
 
 /// The serial device opens at `baud`; a permission problem says how to fix it.
