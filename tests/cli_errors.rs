@@ -334,7 +334,7 @@ fn outputs_are_whole_or_absent() {
 
     // Ctrl-C during synth: exit 130, no file of the run, no temporary.
     let s_dir = common::tmp("outputs", "interrupted");
-    let mut child = common::spherecal()
+    let child = common::spherecal()
         .args(["synth", "--scenario", "table1-bare", "--out"])
         .arg(&s_dir)
         .stdout(std::process::Stdio::null())
