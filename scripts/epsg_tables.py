@@ -204,3 +204,18 @@ for code, name in DB.execute(
     if w:
         out.write(f'    ({code}, r#"{w}"#),\n')
 out.write("];\n")
+
+# Compound CRSs (horizontal + vertical): `--crs` names its parts when given one.
+out.write("""
+/// (EPSG code, name, horizontal CRS code, vertical CRS code) of every current compound CRS:
+/// a site's `--crs` takes the horizontal part and `--vertical-crs` the vertical one.
+pub const COMPOUND: &[(u16, &str, u16, u16)] = &[
+""")
+for code, name, h, v in DB.execute(
+    "select code, name, horiz_crs_code, vertical_crs_code from compound_crs where auth_name = 'EPSG' and deprecated = 0 and horiz_crs_auth_name = 'EPSG' and vertical_crs_auth_name = 'EPSG' order by cast(code as integer)"
+).fetchall():
+    if max(int(code), int(h), int(v)) > 65535:
+        continue
+    n = name.replace('"', '\\"')
+    out.write(f'    ({code}, "{n}", {h}, {v}),\n')
+out.write("];\n")

@@ -204,19 +204,38 @@ fn table1_quay_from_the_papers_start() {
     let written = b.mount.deg_m().0;
     common::assert_within(&written, &got, 1e-6, "board [mount]");
     let after = std::fs::read_to_string(&board).unwrap();
-    let changed = original
+    // Where the values came from, when, how well they are known, and the clocks' offset.
+    let notes: Vec<&str> = after
         .lines()
-        .zip(after.lines())
-        .filter(|(a, b)| a != b)
-        .count();
-    assert_eq!(
-        (changed, original.lines().count()),
-        (2, after.lines().count())
+        .filter(|l| l.starts_with("# set-mount: "))
+        .collect();
+    assert_eq!(notes.len(), 3, "{after}");
+    assert!(
+        notes[0].contains("report.json") && notes[0].contains("UTC"),
+        "{after}"
     );
+    assert!(
+        notes[1].contains("1-sigma: roll 0.0") && notes[1].contains(" mm"),
+        "{after}"
+    );
+    assert!(
+        notes[2].contains("time offset (INS time = LiDAR time + this):"),
+        "{after}"
+    );
+    let kept: Vec<&str> = after
+        .lines()
+        .filter(|l| !l.starts_with("# set-mount: "))
+        .collect();
+    let changed = original.lines().zip(&kept).filter(|(a, b)| a != *b).count();
+    assert_eq!((changed, original.lines().count()), (2, kept.len()));
     // A refused calibration is not written without --even-if-refused.
     let mut refused = r.clone();
     refused["converged"] = serde_json::json!(false);
     refused["reason"] = serde_json::json!("ill-conditioned");
+    // As a refused report has them: numbers that are not numbers, written as null.
+    refused["rms_m"] = serde_json::Value::Null;
+    refused["condition_number"] = serde_json::Value::Null;
+    refused["sigma"]["boresight_deg"]["roll"] = serde_json::Value::Null;
     let refused_path = dir.join("refused.json");
     std::fs::write(&refused_path, refused.to_string()).unwrap();
     let out = common::spherecal()
@@ -228,6 +247,19 @@ fn table1_quay_from_the_papers_start() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("was refused (ill-conditioned)"));
+    let said = common::stdout_of(
+        common::spherecal()
+            .args(["board", "set-mount"])
+            .arg(&board)
+            .arg("--from")
+            .arg(&refused_path)
+            .arg("--even-if-refused"),
+    );
+    assert!(said.contains("a REFUSED calibration"), "{said}");
+    let after = std::fs::read_to_string(&board).unwrap();
+    assert!(after.contains("1-sigma: roll -, pitch 0.0"), "{after}");
+    assert!(after.contains("written with --even-if-refused"), "{after}");
+    assert_eq!(after.matches("# set-mount: ").count(), 3, "{after}");
     let bad = dir.join("bad.json");
     std::fs::write(&bad, "{\"boresight_deg\": 1}").unwrap();
     let out = common::spherecal()

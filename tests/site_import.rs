@@ -123,3 +123,48 @@ fn refusals_name_the_problem() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("EPSG:99999"));
 }
+
+/// A compound or vertical code given as `--crs` names the parts to give instead, as the EPSG
+/// dataset (pyproj) splits them; a code no CRS has says so.
+#[test]
+fn compound_and_unknown_codes_say_what_to_give() {
+    let codes = [6649u16, 5498, 9518, 7415];
+    let script = format!(
+        "from pyproj import CRS\nfor c in {codes:?}:\n    s = CRS.from_epsg(c).sub_crs_list\n    print(c, s[0].to_epsg(), s[1].to_epsg())\n"
+    );
+    let csv = common::tmp("site-import-codes", "s.csv");
+    std::fs::write(
+        &csv,
+        "id,easting,northing,height\nA,250000,5186000,10\nB,250010,5186000,10\n",
+    )
+    .unwrap();
+    let run = |crs: &str| {
+        let out = common::spherecal()
+            .args(["site", "import"])
+            .arg(&csv)
+            .args(["--radius", "0.19", "--crs", crs, "--force", "-o"])
+            .arg(csv.with_extension("toml"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{crs}");
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    for line in common::python(&script, "pyproj").lines() {
+        let v: Vec<&str> = line.split_whitespace().collect();
+        let said = run(&format!("EPSG:{}", v[0]));
+        assert!(said.contains("is a compound CRS"), "{said}");
+        assert!(
+            said.contains(&format!("--crs EPSG:{} --vertical-crs EPSG:{}", v[1], v[2])),
+            "{said}"
+        );
+    }
+    let said = run("EPSG:5703");
+    assert!(
+        said.contains("is a vertical CRS") && said.contains("--vertical-crs EPSG:5703"),
+        "{said}"
+    );
+    for code in ["EPSG:99999", "EPSG:60000"] {
+        assert!(run(code).contains("not a CRS this build knows"), "{code}");
+    }
+    assert!(run("EPSG:x1").contains("expected EPSG:<code> (digits)"));
+}

@@ -79,8 +79,8 @@ pub fn run(a: Args) -> ExitCode {
         returns: a.returns,
     };
     let (init, start) = match &a.init_from {
-        Some(p) => match crate::report::Report::load(p) {
-            Ok(r) => (Some(r.deg_m()), a.time_offset.or(Some(r.time_offset_s))),
+        Some(p) => match crate::report::Solved::load(p) {
+            Ok(r) => (Some(r.deg_m), a.time_offset.or(Some(r.time_offset_s))),
             Err(e) => return fail("calibrate", e),
         },
         None => (a.init, a.time_offset),

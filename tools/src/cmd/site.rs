@@ -160,8 +160,11 @@ fn vertical_code(v: &str) -> Result<u16, String> {
         .trim()
         .trim_start_matches("EPSG:")
         .trim_start_matches("epsg:")
-        .parse::<u16>()
-        .map_err(|_| format!("--vertical-crs {v:?}: expected EPSG:<code>, e.g. EPSG:6647"))?;
+        .parse::<u32>()
+        .map_err(|_| {
+            format!("--vertical-crs {v:?}: expected EPSG:<code> (digits), e.g. EPSG:6647")
+        })?;
+    let code = u16::try_from(code).unwrap_or(u16::MAX);
     if crate::config::epsg_tables::VERTICAL
         .binary_search_by_key(&code, |v| v.0)
         .is_err()

@@ -189,22 +189,48 @@ impl Board {
         Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 
-    /// `text` (a board file) with its `[mount]` set to `m`: only the values of
-    /// `boresight_deg` and `lever_arm_m` change (added under `[mount]` if missing); every other
+    /// `text` (a board file) with its `[mount]` set to `m`, written in full (the shortest
+    /// decimals that read back to the same f64): only the values of `boresight_deg` and
+    /// `lever_arm_m` change (added under `[mount]` if missing), and the `# set-mount:` comment
+    /// lines under `[mount]` are replaced by `notes` (where the values came from); every other
     /// line, comment and the keys' own comments stay. The result is parsed back and must give
-    /// `m`.
-    pub fn with_mount(text: &str, m: &super::MountDegM) -> Result<String, String> {
-        let arr = |v: [f64; 3]| format!("[{:.6}, {:.6}, {:.6}]", v[0], v[1], v[2]);
+    /// `m` exactly.
+    pub fn with_mount(
+        text: &str,
+        m: &super::MountDegM,
+        notes: &[String],
+    ) -> Result<String, String> {
+        if m.boresight_deg
+            .iter()
+            .chain(&m.lever_arm_m)
+            .any(|v| !v.is_finite())
+        {
+            return Err("[mount]: a value is not a number".into());
+        }
+        let arr = |v: [f64; 3]| format!("[{:?}, {:?}, {:?}]", v[0], v[1], v[2]);
         let want = [
             ("boresight_deg", arr(m.boresight_deg)),
             ("lever_arm_m", arr(m.lever_arm_m)),
         ];
+        const NOTE: &str = "# set-mount: ";
         let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
         let header = |l: &str| l.split('#').next().unwrap_or("").trim().to_string();
         let start = lines
             .iter()
             .position(|l| header(l) == "[mount]")
             .ok_or("no [mount] section")?;
+        // The notes of an earlier set-mount go; the new ones follow the section's header.
+        let mut i = start + 1;
+        while i < lines.len() && !header(&lines[i]).starts_with('[') {
+            if lines[i].trim_start().starts_with(NOTE) {
+                lines.remove(i);
+            } else {
+                i += 1;
+            }
+        }
+        for (k, n) in notes.iter().enumerate() {
+            lines.insert(start + 1 + k, format!("{NOTE}{}", n.replace('\n', " ")));
+        }
         let end = lines[start + 1..]
             .iter()
             .position(|l| header(l).starts_with('['))
@@ -242,7 +268,7 @@ impl Board {
         let b = Self::from_toml(&out)?;
         let back = b.mount.deg_m().0;
         let want6 = m.deg_m().0;
-        if back.iter().zip(want6).any(|(a, b)| (a - b).abs() > 1e-6) {
+        if back != want6 {
             return Err("[mount] did not read back as written".into());
         }
         Ok(out)
@@ -438,7 +464,7 @@ mod tests {
             boresight_deg: [181.787123, -42.4231, 2.431],
             lever_arm_m: [1.31234, -1.2051, -1.759],
         };
-        let out = Board::with_mount(&text, &m).unwrap();
+        let out = Board::with_mount(&text, &m, &[]).unwrap();
         let (a, b): (Vec<&str>, Vec<&str>) = (text.lines().collect(), out.lines().collect());
         assert_eq!(a.len(), b.len());
         let changed: Vec<(&str, &str)> = a
@@ -452,19 +478,36 @@ mod tests {
             [
                 (
                     "boresight_deg = [180.0, -45.0, 0.0]",
-                    "boresight_deg = [181.787123, -42.423100, 2.431000]"
+                    "boresight_deg = [181.787123, -42.4231, 2.431]"
                 ),
                 (
                     "lever_arm_m = [1.5, -1.2, -1.4]   # tape-measured 2026-05",
-                    "lever_arm_m = [1.312340, -1.205100, -1.759000]  # tape-measured 2026-05"
+                    "lever_arm_m = [1.31234, -1.2051, -1.759]  # tape-measured 2026-05"
                 ),
             ]
         );
         assert_eq!(Board::from_toml(&out).unwrap().mount, m);
         // Missing keys are added under [mount]; no [mount] is an error.
         let bare = text.replace("boresight_deg = [180.0, -45.0, 0.0]\n", "");
-        let out = Board::with_mount(&bare, &m).unwrap();
+        let out = Board::with_mount(&bare, &m, &[]).unwrap();
         assert_eq!(Board::from_toml(&out).unwrap().mount, m);
-        assert!(Board::with_mount("leap_seconds = 18\n", &m).is_err());
+        assert!(Board::with_mount("leap_seconds = 18\n", &m, &[]).is_err());
+        // Every digit kept (a value 1 ulp off reads back exactly), whole numbers as floats;
+        // the notes replace the last set-mount's, nothing else moves.
+        let fine = crate::config::MountDegM {
+            boresight_deg: [181.78712345678912, -42.0, 1e-7],
+            lever_arm_m: [f64::from_bits(1.3f64.to_bits() + 1), -1.2, 0.0],
+        };
+        let once = Board::with_mount(&text, &fine, &["a".into(), "b".into()]).unwrap();
+        assert_eq!(Board::from_toml(&once).unwrap().mount, fine);
+        assert!(once.contains("# set-mount: a\n# set-mount: b\n"), "{once}");
+        let twice = Board::with_mount(&once, &m, &["c".into()]).unwrap();
+        assert_eq!(twice.matches("# set-mount:").count(), 1, "{twice}");
+        assert_eq!(twice.lines().count(), text.lines().count() + 1);
+        let nan = crate::config::MountDegM {
+            boresight_deg: [f64::NAN, 0.0, 0.0],
+            ..m
+        };
+        assert!(Board::with_mount(&text, &nan, &[]).is_err());
     }
 }

@@ -43,16 +43,40 @@ impl Crs {
             .strip_prefix("EPSG:")
             .or_else(|| t.strip_prefix("epsg:"))
             .unwrap_or(t);
-        let code: u16 = digits
-            .parse()
-            .map_err(|_| format!("CRS {s:?}: expected EPSG:<code>, e.g. EPSG:32630"))?;
+        let code: u32 = digits.parse().map_err(|_| {
+            format!("CRS {s:?}: expected EPSG:<code> (digits), e.g. EPSG:32630 or EPSG:2949")
+        })?;
+        let code = u16::try_from(code).map_err(|_| {
+            format!("EPSG:{code}: not a CRS this build knows (no EPSG CRS code is that large)")
+        })?;
         Self::epsg(code)
+    }
+
+    /// What a code that is not a horizontal CRS is: a compound (horizontal + vertical) or a
+    /// vertical CRS, said with the parts to give instead.
+    pub fn not_horizontal(code: u16) -> Option<String> {
+        use super::epsg_tables::{COMPOUND, VERTICAL};
+        if let Ok(i) = COMPOUND.binary_search_by_key(&code, |c| c.0) {
+            let (_, name, h, v) = COMPOUND[i];
+            return Some(format!(
+                "EPSG:{code} ({name}) is a compound CRS: give its horizontal part and its heights separately, --crs EPSG:{h} --vertical-crs EPSG:{v} (with --height orthometric and the geoid)"
+            ));
+        }
+        VERTICAL.binary_search_by_key(&code, |v| v.0).ok().map(|_| {
+            format!(
+                "EPSG:{code} is a vertical CRS (heights only): give the horizontal CRS as --crs and this one as --vertical-crs EPSG:{code}"
+            )
+        })
     }
 
     /// The CRS with EPSG code `code`.
     pub fn epsg(code: u16) -> Result<Self, String> {
-        let def = crs_definitions::from_code(code)
-            .ok_or_else(|| format!("EPSG:{code}: not a CRS this build knows"))?;
+        if let Some(why) = Self::not_horizontal(code) {
+            return Err(why);
+        }
+        let def = crs_definitions::from_code(code).ok_or_else(|| {
+            format!("EPSG:{code}: not a CRS this build knows (a geographic or projected CRS of the EPSG dataset)")
+        })?;
         let proj = Proj::from_proj_string(def.proj4)
             .map_err(|e| format!("EPSG:{code} ({}): {e}", def.proj4))?;
         if proj.is_geocent() {
