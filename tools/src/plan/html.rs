@@ -53,9 +53,28 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
             .find(|p| p.what == name)
             .map_or(0.0, |p| p.share)
     };
+    // The first recommendation's new passes (east, north from start to end), numbered.
+    let proposed: Vec<[(f64, f64); 2]> = r
+        .recommendations
+        .first()
+        .map(|rec| {
+            rec.changes
+                .iter()
+                .filter_map(|c| match c {
+                    super::recommend::Change::AddPass(p) => {
+                        let (h, d) = (p.heading_deg.to_radians(), p.speed_mps * p.duration_s);
+                        let (n, e) = (p.start_ne_m[0], p.start_ne_m[1]);
+                        Some([(e, n), (e + d * h.sin(), n + d * h.cos())])
+                    }
+                    _ => None,
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     let all = paths
         .iter()
         .flat_map(|p| p.1.iter().copied())
+        .chain(proposed.iter().flatten().copied())
         .chain(s.sphere.iter().map(|sp| (sp.ned_m[1], sp.ned_m[0])));
     let (mut x0, mut x1, mut y0, mut y1) = (
         f64::INFINITY,
@@ -83,7 +102,11 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         root.fill(&WHITE).map_err(e)?;
         let mut ch = ChartBuilder::on(&root)
             .caption(
-                "from above (red: passes with a large share)",
+                if proposed.is_empty() {
+                    "from above (red: passes with a large share)"
+                } else {
+                    "from above (red: large share; dashed: recommended)"
+                },
                 ("sans-serif", 14),
             )
             .margin(10)
@@ -115,6 +138,28 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
                 ch.draw_series([Circle::new(last, 3, colour.filled())])
                     .map_err(e)?;
             }
+        }
+        let green = RGBColor(20, 140, 60);
+        for (k, [a, b]) in proposed.iter().enumerate() {
+            ch.draw_series(DashedLineSeries::new(
+                [*a, *b],
+                6,
+                4,
+                green.stroke_width(2),
+            ))
+            .map_err(e)?;
+            ch.draw_series([Circle::new(*b, 3, green.filled())])
+                .map_err(e)?;
+            ch.draw_series([Text::new(
+                format!("R{}", k + 1),
+                {
+                    // Staggered along the line, so that passes on one track keep apart.
+                    let f = 0.2 + 0.15 * (k % 5) as f64;
+                    (a.0 + f * (b.0 - a.0) + 0.8, a.1 + f * (b.1 - a.1))
+                },
+                ("sans-serif", 13).into_font().color(&green),
+            )])
+            .map_err(e)?;
         }
         for sp in &s.sphere {
             let c = (sp.ned_m[1], sp.ned_m[0]);

@@ -805,3 +805,46 @@ pub fn render(r: &PlanReport) -> String {
     }
     o
 }
+
+/// A point of the site (north, east [m] from its origin) where a helmsman can find it: the
+/// site offsets, WGS 84 latitude and longitude, and UTM easting and northing with the zone.
+pub fn place(s: &Scenario, ne: [f64; 2]) -> String {
+    let g = s
+        .site()
+        .to_geodetic(&nalgebra::Vector3::new(ne[0], ne[1], 0.0));
+    let (lat, lon) = (g.lat.to_degrees(), g.lon.to_degrees());
+    let hemi = |v: f64, p: char, n: char| format!("{:.6} {}", v.abs(), if v >= 0.0 { p } else { n });
+    let zone = (((lon + 180.0) / 6.0).floor() as i32).clamp(0, 59) as u16 + 1;
+    let code = if lat >= 0.0 { 32600 } else { 32700 } + zone;
+    let utm = crate::config::crs::Crs::epsg(code)
+        .and_then(|c| c.from_wgs84(lat, lon, 0.0))
+        .map(|(e, n, _)| {
+            format!(
+                ", UTM {zone}{} E {e:.1} N {n:.1}",
+                if lat >= 0.0 { 'N' } else { 'S' }
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "N {:.1} E {:.1} m from the site origin = {} {}{utm}",
+        ne[0],
+        ne[1],
+        hemi(lat, 'N', 'S'),
+        hemi(lon, 'E', 'W')
+    )
+}
+
+
+#[cfg(test)]
+mod tests {
+    /// Against pyproj: the NED offset through EPSG:4978 to latitude and longitude, then
+    /// EPSG:32630 (48.380360 N 4.489671 W; E 389698.006 N 5359649.094).
+    #[test]
+    fn place_in_latitude_longitude_and_utm() {
+        let s = crate::config::scenario::Scenario::load("table1").unwrap();
+        let p = super::place(&s, [40.0, 24.4]);
+        assert!(p.contains("N 40.0 E 24.4 m from the site origin"), "{p}");
+        assert!(p.contains("48.380360 N 4.489671 W"), "{p}");
+        assert!(p.contains("UTM 30N E 389698.0 N 5359649.1"), "{p}");
+    }
+}

@@ -328,13 +328,13 @@ pub fn candidate_pass_infos(
         let (info, returns) = pass_info(s, noise, &p, threads)?;
         out.push(PassCandidate {
             words: format!(
-                "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, start N {:.1} E {:.1})",
+                "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, course {:03.0} deg, start {})",
                 crate::verdict::bound(p.heading_deg),
                 p_offset(s, &p),
                 p.speed_mps,
                 p.duration_s,
-                p.start_ne_m[0],
-                p.start_ne_m[1]
+                p.heading_deg.rem_euclid(360.0),
+                super::place(s, p.start_ne_m)
             ),
             cost_s: p.duration_s + turn,
             info,
