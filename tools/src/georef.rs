@@ -389,11 +389,13 @@ pub fn georef(
     for (i, id) in ids.iter().enumerate() {
         let _ = writeln!(o, "window {id}: {} points", counts[i]);
     }
-    let _ = writeln!(
-        o,
-        "readers waited for room in the rings (files: nothing is lost): LiDAR {}, INS {}; windowed returns lost to full batches: {}",
-        stats.ring_full[0], stats.ring_full[1], stats.align.batch_overflow
-    );
+    if stats.align.batch_overflow > 0 {
+        let _ = writeln!(
+            o,
+            "WARNING: {} windowed returns lost: a window's fixed-capacity batch was full",
+            stats.align.batch_overflow
+        );
+    }
     if let Some(n) = las_points {
         let _ = writeln!(o, "LAS points written: {n}");
     }

@@ -9,6 +9,9 @@ use crate::report::{utc, Report};
 use spherecal::calib::{NAMES, P};
 use std::fmt::Write as _;
 
+/// Under this long [s] (or under 3 scan slices) a pass is a glimpse.
+const GLIMPSE_S: f64 = 1.5;
+
 /// `s` with `&`, `<`, `>` and `"` escaped.
 pub fn escape(s: &str) -> String {
     let mut o = String::with_capacity(s.len());
@@ -41,7 +44,7 @@ th{background:#f2f2f2}td.l,th.l{text-align:left}
 .ok{background:#e3f4e3;border:2px solid #3a3;padding:10px 14px;font-size:17px}
 .no{background:#fbe4e4;border:2px solid #c33;padding:10px 14px;font-size:17px}
 .figs{display:flex;flex-wrap:wrap;gap:6px}.figs svg{border:1px solid #ddd}
-.note{color:#555;font-size:13px}";
+.note{color:#555;font-size:13px}tr.dim td{color:#999}";
 
 /// The page.
 pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, String> {
@@ -336,10 +339,14 @@ fn spheres(o: &mut String, r: &Report) {
         *k += 1;
         let c = p.centre_offset_m;
         let d = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        // A glimpse: the sphere seen for a moment (in a turn), not a pass to judge.
+        let glimpse = p.end_gps_s - p.start_gps_s < GLIMPSE_S || p.slices < 3;
         let _ = writeln!(
             o,
-            "<tr><td class=\"l\">{}</td><td>{k}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{} of {}</td><td>{:.1}</td><td>{:+.1}</td><td>{:.1}</td></tr>",
+            "<tr{}><td class=\"l\">{}</td><td>{k}{}</td><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{} of {}</td><td>{:.1}</td><td>{:+.1}</td><td>{:.1}</td></tr>",
+            if glimpse { " class=\"dim\"" } else { "" },
             escape(&p.sphere),
+            if glimpse { " (a glimpse)" } else { "" },
             p.start_gps_s - t0,
             p.end_gps_s - p.start_gps_s,
             p.windowed,
@@ -351,7 +358,7 @@ fn spheres(o: &mut String, r: &Report) {
             p.chi2
         );
     }
-    o.push_str("</table><p class=\"note\">Pass: numbered per sphere in time order, as in the figures. Start: seconds after the first pass. Centre offset: the sphere fitted to the pass's own returns with the solution, minus the surveyed centre (zero under 10 returns).</p>\n");
+    o.push_str("</table><p class=\"note\">Pass: numbered per sphere in time order, as in the figures. Start: seconds after the first pass. Centre offset: the sphere fitted to the pass's own returns with the solution, minus the surveyed centre (zero under 10 returns). A glimpse (greyed): the sphere seen for under 1.5 s or in fewer than 3 scan slices, in a turn or at the edge of the view: its returns count in the calibration, but it is too short to judge as a pass.</p>\n");
 }
 
 fn correlation(o: &mut String, r: &Report) {

@@ -220,7 +220,19 @@ pub fn run_calibrate(
             time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
             ..inp.clone()
         };
-        put(georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(_, _, t)| Some(t)));
+        put(
+            georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(st, _, _)| {
+                Some(format!(
+                    "LAS: {} ({} returns with the calibrated mount, {} coordinates)\n",
+                    p.display(),
+                    st.align.window.georeferenced,
+                    match out.las_frame {
+                        georef::LasFrame::Projected => "map",
+                        georef::LasFrame::Local => "local east-north-up",
+                    }
+                ))
+            }),
+        );
     }
     if out.plot.is_some() || out.html.is_some() {
         let figs = plot::Figures::new(&targets, &ids, &obs, &sol, &b0, &rep);
