@@ -21,6 +21,16 @@ pub fn run(a: Args) -> ExitCode {
         Ok(b) => b,
         Err(e) => return fail("ins", format!("{}: {e}", a.file.display())),
     };
+    let kind = crate::state::looks_like(&bytes[..bytes.len().min(64)]);
+    if kind.contains("pcap") {
+        return fail(
+            "ins",
+            format!(
+                "{}: {kind}, not a VN-200 byte stream: `spherecal decode` reads a LiDAR capture, `--posmv` a POS MV's captured datagrams",
+                a.file.display()
+            ),
+        );
+    }
     let mut out = match create_csv("ins", a.csv.as_ref()) {
         Ok(o) => o,
         Err(code) => return code,
@@ -30,6 +40,16 @@ pub fn run(a: Args) -> ExitCode {
         Ok(s) => {
             say!("{}", s.render(&a.file.display().to_string()));
             let st = &s.stats;
+            if st.frames == 0 && st.crc_failures > 0 {
+                return fail(
+                    "ins",
+                    format!(
+                        "{}: {} frame headers, every one failing its CRC: not a VN-200 binary stream (another baud rate, another device, or corrupted bytes)",
+                        a.file.display(),
+                        st.crc_failures
+                    ),
+                );
+            }
             if st.frames + st.ascii + st.nmea == 0 {
                 // Nothing a VN-200 sends: say what the file looks like instead.
                 let head = &bytes[..bytes.len().min(64)];

@@ -296,7 +296,8 @@ impl Hearing {
             let (text, warnings) = h.describe(what, self.sensor, secs, data_heard);
             out.push(format!("heard: {text}"));
             out.extend(warnings.into_iter().map(|w| format!("WARNING: {w}")));
-            if h.datagrams == 0 && !self.bind.is_unspecified() {
+            // Loopback is a replay or simulator on this computer: no broadcast to miss.
+            if h.datagrams == 0 && !self.bind.is_unspecified() && !self.bind.is_loopback() {
                 out.push(format!(
                     "WARNING: lidar.bind_addr is {}: datagrams broadcast to 255.255.255.255 (a factory VLP-16's destination) are not delivered to a socket bound to one address; bind 0.0.0.0 (the default)",
                     self.bind
