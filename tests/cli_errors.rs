@@ -157,6 +157,10 @@ fn impossible_inputs_are_refused() {
     let se = String::from_utf8_lossy(&out.stderr);
     assert!(se.contains("the captures cover the same time"), "{se}");
     assert!(se.contains(&a_pcap) && se.contains(&b_pcap), "{se}");
+    // The same INS data twice (the other survey's stream covers the same minute).
+    let mut args = calibrate(&pcap, "--ins", &ins, &site, &[]);
+    args.insert(5, b.join("ins.bin").into());
+    refused(&args, &["the INS time goes back", "holds the same time twice"], false);
     // Numbers.
     for (opt, v, why) in [
         ("--time-offset", "nan", "expected a finite number"),

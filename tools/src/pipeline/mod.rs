@@ -361,6 +361,15 @@ impl RunStats {
                 crate::state::looks_like(ins_head)
             ));
         }
+        // Time going back by more than a second is no glitch of one stream: the same time is
+        // in the input twice (a file given twice or under two names, or two recordings).
+        if let Some(&(at, step)) = st.clock_steps.iter().find(|s| s.1 < -1.0) {
+            return Some(format!(
+                "{}: the INS time goes back {:.3} s (to GPS {at:.3} s): the trajectory holds the same time twice — a file given twice or under two names, or two recordings of one survey; give the files of one recording",
+                ins.display(),
+                -step
+            ));
+        }
         let w = &self.align.window;
         if w.points > 0 && w.before_history + w.after_history == w.points {
             let (l, i) = (
