@@ -47,6 +47,16 @@ impl UtcDateTime {
 }
 
 /// Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's `days_from_civil`).
+///
+/// ```
+/// use spherecal::time::{civil_from_days, days_from_civil};
+/// // The GPS epoch, 1980-01-06, is Unix time 315 964 800 s (IS-GPS-200, 20.3.3.5.2.4).
+/// assert_eq!(days_from_civil(1980, 1, 6) * 86_400, 315_964_800);
+/// assert_eq!(civil_from_days(3657), (1980, 1, 6));
+/// // 2000 was a leap year, 1900 was not.
+/// assert_eq!(days_from_civil(2000, 3, 1) - days_from_civil(2000, 2, 28), 2);
+/// assert_eq!(days_from_civil(1900, 3, 1) - days_from_civil(1900, 2, 28), 1);
+/// ```
 pub fn days_from_civil(year: i32, month: u8, day: u8) -> i64 {
     let y = i64::from(year) - i64::from(month <= 2);
     let era = y.div_euclid(400);
@@ -93,6 +103,17 @@ impl UtcDateTime {
 
 /// GPS time -> nanoseconds since the Unix epoch in UTC (UTC = GPS - leap seconds). Saturates
 /// instead of overflowing (a [`GpsTime::is_valid`] time never comes near).
+///
+/// ```
+/// use spherecal::time::{gps_to_unix_ns, micros_past_hour, unix_ns_to_gps, GpsTime, UtcDateTime};
+/// // GPS week 2000, second 0 (2018-05-06) is 2018-05-05 23:59:42 UTC with 18 leap seconds.
+/// let t = GpsTime(2000 * 604_800 * 1_000_000_000);
+/// let u = UtcDateTime::from_unix_ns(gps_to_unix_ns(t, 18));
+/// assert_eq!((u.year, u.month, u.day, u.hour, u.minute, u.second), (2018, 5, 5, 23, 59, 42));
+/// assert_eq!(unix_ns_to_gps(gps_to_unix_ns(t, 18), 18), t);
+/// // The VLP-16's timestamp: microseconds past that UTC hour, 59 min 42 s.
+/// assert_eq!(micros_past_hour(t, 18), (59 * 60 + 42) * 1_000_000);
+/// ```
 pub fn gps_to_unix_ns(t: GpsTime, leap_seconds: i64) -> i64 {
     t.0.saturating_sub(leap_seconds.saturating_mul(1_000_000_000))
         .saturating_add(GPS_EPOCH_UNIX_S * 1_000_000_000)

@@ -160,7 +160,11 @@ fn impossible_inputs_are_refused() {
     // The same INS data twice (the other survey's stream covers the same minute).
     let mut args = calibrate(&pcap, "--ins", &ins, &site, &[]);
     args.insert(5, b.join("ins.bin").into());
-    refused(&args, &["the INS time goes back", "holds the same time twice"], false);
+    refused(
+        &args,
+        &["the INS time goes back", "holds the same time twice"],
+        false,
+    );
     // Numbers.
     for (opt, v, why) in [
         ("--time-offset", "nan", "expected a finite number"),

@@ -110,11 +110,17 @@ fn ins_counts_crc_failures() {
 fn ins_refuses_a_capture_and_foreign_bytes() {
     let run = |p: &std::path::Path| {
         let out = common::spherecal().arg("ins").arg(p).output().unwrap();
-        (out.status.code(), String::from_utf8_lossy(&out.stderr).to_string())
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
     };
     let (code, said) = run(&common::test_data("vlp16/mrpt_vlp16_gps.pcap"));
     assert_eq!(code, Some(2), "{said}");
-    assert!(said.contains("a pcap capture, not a VN-200 byte stream"), "{said}");
+    assert!(
+        said.contains("a pcap capture, not a VN-200 byte stream"),
+        "{said}"
+    );
     // Bytes with VN-200 sync bytes but no valid frame (a xorshift stream, 0xFA every 97).
     let mut x = 0x2545_f491_4f6c_dd1du64;
     let bytes: Vec<u8> = (0..100_000)
@@ -122,7 +128,11 @@ fn ins_refuses_a_capture_and_foreign_bytes() {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
-            if i % 97 == 0 { 0xFA } else { x as u8 }
+            if i % 97 == 0 {
+                0xFA
+            } else {
+                x as u8
+            }
         })
         .collect();
     let p = tmp("foreign.bin");

@@ -141,13 +141,8 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
         }
         let green = RGBColor(20, 140, 60);
         for (k, [a, b]) in proposed.iter().enumerate() {
-            ch.draw_series(DashedLineSeries::new(
-                [*a, *b],
-                6,
-                4,
-                green.stroke_width(2),
-            ))
-            .map_err(e)?;
+            ch.draw_series(DashedLineSeries::new([*a, *b], 6, 4, green.stroke_width(2)))
+                .map_err(e)?;
             ch.draw_series([Circle::new(*b, 3, green.filled())])
                 .map_err(e)?;
             ch.draw_series([Text::new(

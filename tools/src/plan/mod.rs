@@ -813,7 +813,8 @@ pub fn place(s: &Scenario, ne: [f64; 2]) -> String {
         .site()
         .to_geodetic(&nalgebra::Vector3::new(ne[0], ne[1], 0.0));
     let (lat, lon) = (g.lat.to_degrees(), g.lon.to_degrees());
-    let hemi = |v: f64, p: char, n: char| format!("{:.6} {}", v.abs(), if v >= 0.0 { p } else { n });
+    let hemi =
+        |v: f64, p: char, n: char| format!("{:.6} {}", v.abs(), if v >= 0.0 { p } else { n });
     let zone = (((lon + 180.0) / 6.0).floor() as i32).clamp(0, 59) as u16 + 1;
     let code = if lat >= 0.0 { 32600 } else { 32700 } + zone;
     let utm = crate::config::crs::Crs::epsg(code)
@@ -833,7 +834,6 @@ pub fn place(s: &Scenario, ne: [f64; 2]) -> String {
         hemi(lon, 'E', 'W')
     )
 }
-
 
 #[cfg(test)]
 mod tests {
