@@ -116,9 +116,9 @@ fn provenance(from: &std::path::Path, r: &Solved) -> Vec<String> {
             sig(0, "deg", 1.0, 4),
             sig(1, "deg", 1.0, 4),
             sig(2, "deg", 1.0, 4),
-            sig(3, "mm", 1e3, 1),
-            sig(4, "mm", 1e3, 1),
-            sig(5, "mm", 1e3, 1)
+            sig(3, "mm", 1e3, 2),
+            sig(4, "mm", 1e3, 2),
+            sig(5, "mm", 1e3, 2)
         ),
         format!(
             "time offset (INS time = LiDAR time + this): {:+.6} s{}",
