@@ -188,6 +188,13 @@ fn table1_quay_from_the_papers_start() {
     }
     assert!((r2["start"]["z"].as_f64().unwrap() - got[5]).abs() < 1e-12);
     assert_eq!(r2["converged"], true);
+    assert_eq!(r2["termination"], "settled");
+    assert!(common::stdout_of(
+        common::spherecal()
+            .arg("calibrate")
+            .args(common::survey_args(&dir))
+    )
+    .contains("rounds (ended: the kept returns and the mounting settled)"));
     // Into a board's [mount]: the values read back, the rest of the file is untouched.
     let board = dir.join("board.toml");
     let original =
@@ -549,6 +556,7 @@ fn one_sphere_is_refused() {
         &mut scratch.workspace(),
     );
     assert_eq!(sol.refusal, Some(Refusal::TooFewTargets { given: 1 }));
+    assert_eq!(sol.termination, spherecal::calib::Termination::NotStarted);
     // The command says so and exits 1.
     let out = common::spherecal()
         .arg("calibrate")

@@ -117,6 +117,7 @@ fn errors_name_the_file_and_the_reason() {
         let so = String::from_utf8_lossy(&out.stdout);
         assert_eq!(out.status.code(), Some(1), "{so}");
         assert!(so.contains("NOT CONVERGED: no return in the windows of S1, S2"), "{so}");
+        assert!(so.contains("(ended: a round found fewer than two spheres)"), "{so}");
         assert!(so.contains(want), "{want:?} in {so}");
     }
     // A site file that is not TOML: the file and the line.

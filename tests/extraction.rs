@@ -187,6 +187,7 @@ fn a_decoy_beside_every_sphere_on_one_course_is_ambiguous() {
         if buoys.is_empty() {
             assert_eq!(code, Some(0), "{text}");
             assert_within(&report_deg_m(&rep), &s.mount.truth.deg_m().0, 1e-3, name);
+            assert!(["settled", "cycle"].contains(&rep["termination"].as_str().unwrap()));
         } else {
             assert_eq!(code, Some(1), "{text}");
             let why = rep["reason"].as_str().unwrap();
@@ -195,6 +196,7 @@ fn a_decoy_beside_every_sphere_on_one_course_is_ambiguous() {
             assert!(!rep["converged"].as_bool().unwrap());
             let per = rep["per_sphere"].as_array().unwrap();
             assert!(per.iter().all(|p| p["lost"] == "stopped"), "{per:?}");
+            assert_eq!(rep["termination"], "stopped");
             assert!(text.contains("not solved (the reason above)"), "{text}");
         }
         let _ = std::fs::remove_dir_all(&d);

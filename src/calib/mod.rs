@@ -22,7 +22,7 @@ pub mod sphere_fit;
 
 pub use crate::georef::{DegM, Params};
 pub use objective::Problem;
-pub use solve::{solve, Refusal, Settings, Solution};
+pub use solve::{solve, Refusal, Settings, Solution, Termination};
 
 /// Number of parameters.
 pub const P: usize = 6;

@@ -356,6 +356,56 @@ pub struct Round {
     pub dt: f64,
 }
 
+/// How the detect-and-solve rounds ended (argmin's `TerminationReason`, for these rounds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Termination {
+    /// No round ran: fewer than two spheres were given.
+    #[default]
+    NotStarted,
+    /// The kept sets barely changed and the parameters stood still.
+    Settled,
+    /// The kept sets came back to an earlier round's (a few returns at the shell's edge going
+    /// in and out).
+    Cycle,
+    /// A round found fewer than two spheres.
+    TooFewSpheres,
+    /// The rounds could not go on: the spheres are ambiguous or the mounting left its bounds
+    /// (the refusal says which).
+    Stopped,
+    /// `Settings::max_rounds` rounds ran without settling.
+    MaxRounds,
+}
+
+impl Termination {
+    /// A stable name (the report's `termination` key).
+    pub fn name(self) -> &'static str {
+        match self {
+            Termination::NotStarted => "not_started",
+            Termination::Settled => "settled",
+            Termination::Cycle => "cycle",
+            Termination::TooFewSpheres => "too_few_spheres",
+            Termination::Stopped => "stopped",
+            Termination::MaxRounds => "max_rounds",
+        }
+    }
+
+    /// In words.
+    pub fn words(self) -> &'static str {
+        match self {
+            Termination::NotStarted => "no round ran (fewer than two spheres given)",
+            Termination::Settled => "the kept returns and the mounting settled",
+            Termination::Cycle => {
+                "the kept returns went round a cycle (returns at the shell's edge in and out)"
+            }
+            Termination::TooFewSpheres => "a round found fewer than two spheres",
+            Termination::Stopped => {
+                "the rounds could not go on (ambiguous spheres or a mounting out of bounds)"
+            }
+            Termination::MaxRounds => "the rounds reached their limit without settling",
+        }
+    }
+}
+
 /// The answer and everything known about it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution {
@@ -376,6 +426,8 @@ pub struct Solution {
     pub l1: f64,
     /// Detect-and-solve rounds.
     pub rounds: usize,
+    /// How they ended.
+    pub termination: Termination,
     /// What each round did.
     pub log: heapless::Vec<Round, 16>,
     /// The final shell half-width [m].
@@ -997,6 +1049,7 @@ impl Solution {
             lm: None,
             l1: f64::INFINITY,
             rounds: 0,
+            termination: Termination::NotStarted,
             log: heapless::Vec::new(),
             shell: tau0,
             spheres: heapless::Vec::new(),
@@ -1234,15 +1287,22 @@ fn run_rounds(
 ) {
     let mut prints: heapless::Vec<u64, 4> = heapless::Vec::new();
     let mut last_kept: Option<usize> = None;
+    sol.termination = Termination::MaxRounds;
     for round in 0..s.max_rounds {
         sol.rounds = round + 1;
         let (b_before, dt_before) = (r.b, r.time.dt);
         let Some((total, print, next_prior)) = one_round(targets, obs, s, ws, passes, r, sol)
         else {
+            sol.termination = if r.end.is_some() {
+                Termination::Stopped
+            } else {
+                Termination::TooFewSpheres
+            };
             break;
         };
         if let Some(out) = r.out_of_bounds() {
             r.end = Some(out);
+            sol.termination = Termination::Stopped;
             break;
         }
         let moved = Params(r.b)
@@ -1253,10 +1313,10 @@ fn run_rounds(
             .map(|(a, c)| (a - c).abs())
             .fold(0.0, f64::max)
             .max((r.time.dt - dt_before).abs() * 20.0);
-        let settled = r.prior.is_some()
-            && ((last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total)
-                && moved < 2e-3)
-                || prints.contains(&print));
+        let still =
+            last_kept.is_some_and(|k: usize| k.abs_diff(total) * 200 <= total) && moved < 2e-3;
+        let cycle = prints.contains(&print);
+        let settled = r.prior.is_some() && (still || cycle);
         r.prior = Some(next_prior);
         last_kept = Some(total);
         if prints.is_full() {
@@ -1264,6 +1324,11 @@ fn run_rounds(
         }
         let _ = prints.push(print);
         if settled {
+            sol.termination = if still {
+                Termination::Settled
+            } else {
+                Termination::Cycle
+            };
             break;
         }
     }

@@ -304,6 +304,7 @@ pub fn solve_report(
         nm_iterations: sol.nm.iterations,
         lm_iterations: lm.map_or(0, |l| l.iterations),
         rounds: sol.rounds,
+        termination: sol.termination.name().into(),
         converged: sol.refusal.is_none(),
         reason: sol.refusal.as_ref().map(|r| refusal_text(r, ids, &weak)),
         correlation: (0..=P)

@@ -210,7 +210,10 @@ fn checks(o: &mut String, r: &Report) {
             "{} rounds, {} Nelder-Mead evaluations, {} LM iterations, {:.1} ms",
             r.rounds, r.evaluations, r.lm_iterations, r.solve_ms
         ),
-        "",
+        &escape(&format!(
+            "the rounds {}",
+            crate::report::termination_words(&r.termination)
+        )),
     );
     if r.batch_overflow > 0 {
         row(

@@ -225,6 +225,10 @@ pub struct Report {
     pub lm_iterations: usize,
     /// Re-windowing rounds.
     pub rounds: usize,
+    /// How the rounds ended (`settled`, `cycle`, `too_few_spheres`, `stopped`, `max_rounds`,
+    /// `not_started`: [`spherecal::calib::Termination`]).
+    #[serde(default)]
+    pub termination: String,
     /// A solution is claimed.
     pub converged: bool,
     /// Why not, if not.
@@ -363,6 +367,25 @@ impl Solved {
         }
         Ok(s)
     }
+}
+
+/// A report's `termination` in words ("the rounds ended: ...").
+pub fn termination_words(name: &str) -> String {
+    use spherecal::calib::Termination as T;
+    [
+        T::NotStarted,
+        T::Settled,
+        T::Cycle,
+        T::TooFewSpheres,
+        T::Stopped,
+        T::MaxRounds,
+    ]
+    .into_iter()
+    .find(|t| t.name() == name)
+    .map_or_else(
+        || format!("ended: {name}"),
+        |t| format!("ended: {}", t.words()),
+    )
 }
 
 /// One start of the time offset search.
@@ -590,7 +613,7 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             r.batch_overflow
         );
     }
-    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds, LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, r.lm_iterations, r.solve_ms);
+    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds ({}), LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, termination_words(&r.termination), r.lm_iterations, r.solve_ms);
     match &r.reason {
         None => {
             let _ = writeln!(o, "converged");
