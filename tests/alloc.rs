@@ -154,7 +154,6 @@ fn rig_steady_state_allocates_nothing_per_packet() {
         rotate_bytes: None,
         duration: None,
         report: None,
-        settings: spherecal::calib::Settings::default(),
         keep_untracked_ins: false,
     };
     static STOP: AtomicBool = AtomicBool::new(false);

@@ -49,6 +49,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         time_offset_ns: 0,
         keep_untracked_ins: false,
         accuracy: None,
+        ports: Default::default(),
     }
 }
 

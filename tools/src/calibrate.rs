@@ -245,6 +245,31 @@ impl Scratch {
     }
 }
 
+/// The solver's settings for a survey, built here only, for `calibrate` and the rig alike: the
+/// site's noise model (`[noise]`, else the sensors' specified values), the window margin (the
+/// bounds the mounting must stay in), the LiDAR model's laser period (the extraction's scan
+/// lines), and whether the time offset is estimated.
+pub fn settings_for(
+    site: &crate::config::site::Site,
+    model: Option<spherecal::velodyne::Model>,
+    estimate_dt: bool,
+    margin: f64,
+) -> Settings {
+    let noise = site.noise.unwrap_or_default();
+    let mut s = Settings {
+        estimate_dt,
+        range_noise: noise.range_m,
+        attitude_noise: noise.attitude_deg.to_radians(),
+        position_noise: noise.position_m,
+        margin,
+        ..Default::default()
+    };
+    if let Some(m) = model {
+        s.extract.firing_ns = i64::from(m.laser_period_ns());
+    }
+    s
+}
+
 /// Solve and build the report from collected observations.
 pub fn solve_report(
     targets: &[Target],
@@ -506,21 +531,12 @@ pub fn calibrate(
     b0: &Params,
     clock: crate::ClockOptions,
 ) -> Result<Calibrated, String> {
-    let noise = inp.site.noise.unwrap_or_default();
-    let mut settings = Settings {
-        estimate_dt: clock.estimate,
-        range_noise: noise.range_m,
-        attitude_noise: noise.attitude_deg.to_radians(),
-        position_noise: noise.position_m,
-        margin: inp.margin,
-        ..Default::default()
-    };
     // The model, once: every collection decodes as it, and the extraction's scan lines follow
     // its laser period.
     if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
         inp.model = Some(m);
-        settings.extract.firing_ns = i64::from(m.laser_period_ns());
     }
+    let settings = settings_for(&inp.site, inp.model, clock.estimate, inp.margin);
     let accuracy = match (&inp.accuracy, &inp.ins) {
         (Some(p), crate::pipeline::InsInput::Sbet(_, week)) => Some(Accuracy::load(
             p,

@@ -51,6 +51,8 @@ pub struct Survey {
     /// The trajectory's datum (`--trajectory-datum`; None: a VN-200's or POS MV's WGS 84; an
     /// SBET must say).
     pub trajectory_datum: Option<String>,
+    /// The LiDAR's UDP ports in the capture (`--lidar-ports`; default 2368, 8308).
+    pub ports: spherecal_hal::vlp16::Ports,
 }
 
 impl Survey {
@@ -66,6 +68,7 @@ impl Survey {
             smrmsg: None,
             site: dir.join("site.toml"),
             trajectory_datum: None,
+            ports: Default::default(),
         }
     }
 }
@@ -185,6 +188,7 @@ pub fn run_calibrate(
     }
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
+    inp.ports = survey.ports;
     inp.accuracy = accuracy;
     inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;

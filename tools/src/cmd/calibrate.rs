@@ -59,6 +59,7 @@ pub struct Args {
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
     let s = a.survey;
+    let ports = s.ports();
     let survey = crate::Survey {
         pcap: s.pcap.into(),
         model: s.model,
@@ -69,6 +70,7 @@ pub fn run(a: Args) -> ExitCode {
         smrmsg: s.smrmsg,
         site: s.site,
         trajectory_datum: s.trajectory_datum,
+        ports,
     };
     let out = crate::Outputs {
         report: a.report,

@@ -40,6 +40,7 @@ pub struct Args {
 
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
+    let ports = a.survey.ports();
     let Survey {
         pcap,
         model,
@@ -87,6 +88,7 @@ pub fn run(a: Args) -> ExitCode {
         time_offset_ns: (a.time_offset * 1e9).round() as i64,
         keep_untracked_ins: a.keep_untracked_ins,
         accuracy: None,
+        ports,
         site,
     };
     match crate::georef::georef(

@@ -117,6 +117,20 @@ pub struct Survey {
     /// and the transformation named.
     #[arg(long)]
     pub trajectory_datum: Option<String>,
+    /// The UDP ports the capture's LiDAR datagrams went to, DATA,POSITION (default 2368,8308;
+    /// a sensor or a rig's board set to others: the board's `[lidar]` ports).
+    #[arg(long, value_name = "DATA,POSITION", value_parser = parse_ports)]
+    pub lidar_ports: Option<[u16; 2]>,
+}
+
+impl Survey {
+    /// The ports as the pipeline takes them.
+    fn ports(&self) -> spherecal_hal::vlp16::Ports {
+        self.lidar_ports
+            .map_or_else(Default::default, |[data, position]| {
+                spherecal_hal::vlp16::Ports { data, position }
+            })
+    }
 }
 
 /// Comma-separated finite numbers, exactly `N` of them (`what` names them in the error).
@@ -181,7 +195,6 @@ fn parse3(s: &str) -> Result<[f64; 3], String> {
     parse_n(s, "three finite numbers a,b,c")
 }
 
-/// Two comma-separated ports.
 /// A LiDAR model by name (`--model`).
 fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String> {
     spherecal::velodyne::Model::parse(s).ok_or_else(|| {
@@ -192,6 +205,7 @@ fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String> {
     })
 }
 
+/// Two comma-separated ports.
 fn parse_ports(s: &str) -> Result<[u16; 2], String> {
     match s.split_once(',') {
         Some((a, b)) => match (a.trim().parse::<u16>(), b.trim().parse::<u16>()) {

@@ -99,7 +99,6 @@ pub fn run(a: Args) -> ExitCode {
             rotate_bytes: None,
             duration: None,
             report: None,
-            settings: spherecal::calib::Settings::default(),
             keep_untracked_ins: false,
         };
         let results = crate::rig::check::check(&opts);
@@ -138,7 +137,6 @@ pub fn run(a: Args) -> ExitCode {
         rotate_bytes: a.rotate_mb.map(|m| (m * 1_048_576.0) as u64),
         duration: a.duration.map(std::time::Duration::from_secs_f64),
         report: a.report,
-        settings: spherecal::calib::Settings::default(),
         keep_untracked_ins: a.keep_untracked_ins,
     };
     match crate::rig::run(&opts, &mut console, &stop) {

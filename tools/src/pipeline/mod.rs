@@ -157,6 +157,9 @@ pub struct Inputs {
     /// The trajectory's accuracy file (POSPac smrmsg), if any: the calibration's noise model
     /// takes each return's INS sigmas from it ([`accuracy`]).
     pub accuracy: Option<PathBuf>,
+    /// The UDP ports the capture's LiDAR datagrams went to (a sensor or a rig's board set to
+    /// other ports than 2368 / 8308).
+    pub ports: Ports,
 }
 
 impl Inputs {
@@ -180,6 +183,7 @@ impl Inputs {
             keep_untracked_ins: false,
             accuracy: None,
             model: None,
+            ports: Ports::default(),
             site,
         }
     }
@@ -196,7 +200,7 @@ pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, String> {
     let Some(first) = files.first() else {
         return Ok(None);
     };
-    crate::decode::identify_file(first, Ports::default()).map_err(|e| e.to_string())
+    crate::decode::identify_file(first, inp.ports).map_err(|e| e.to_string())
 }
 
 /// A batch of one sphere's observations.
@@ -523,7 +527,11 @@ pub fn run<C: Send>(
                 full: &full_ref[0],
                 queued: &queued,
             };
-            let (skips, r) = lidar_reader(&mut pcap, &mut out, Accept::default(), &never);
+            let accept = Accept {
+                ports: inp.ports,
+                sensor: None,
+            };
+            let (skips, r) = lidar_reader(&mut pcap, &mut out, accept, &never);
             end_lidar(out.ring, &never);
             r.map(|()| skips).map_err(|e| e.to_string())
         });

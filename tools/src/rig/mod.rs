@@ -112,8 +112,6 @@ pub struct RunOptions {
     pub duration: Option<Duration>,
     /// Write the calibration report here after every solve.
     pub report: Option<PathBuf>,
-    /// Solver settings.
-    pub settings: Settings,
     /// Use VN-200 poses whose InsStatus says not tracking (else left out, counted).
     pub keep_untracked_ins: bool,
 }
@@ -523,6 +521,9 @@ struct Plan {
     targets: Vec<Target>,
     ids: Vec<String>,
     margin: f64,
+    /// The solver's settings: the site's noise and margin, the board's LiDAR model
+    /// ([`crate::calibrate::settings_for`], as `calibrate` builds them).
+    settings: Settings,
     /// The board's a-priori mounting.
     b0: Params,
     /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
@@ -546,11 +547,16 @@ impl Plan {
             ),
         };
         let expected = b.ins.common_bits();
+        let settings = match &opts.site {
+            Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
+            None => Settings::default(),
+        };
         Self {
             frame,
             targets,
             ids,
             margin,
+            settings,
             b0: b.mount.deg_m().params(),
             expected,
         }
@@ -670,7 +676,7 @@ fn run_threads(
                 tg,
                 ids,
                 &plan.b0,
-                &opts.settings,
+                &plan.settings,
                 opts.board.ins.rate_hz,
                 &opts.board.calibration,
                 opts.board.lidar_model().unwrap_or_default(),
