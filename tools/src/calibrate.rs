@@ -270,7 +270,8 @@ pub fn settings_for(
     s
 }
 
-/// Solve and build the report from collected observations.
+/// Solve and build the report from collected observations (with a scratch of its own: see
+/// [`solve_report_in`] to keep one between solves).
 pub fn solve_report(
     targets: &[Target],
     ids: &[String],
@@ -278,8 +279,20 @@ pub fn solve_report(
     b0: &Params,
     s: &Settings,
 ) -> (Solution, Report) {
+    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default())
+}
+
+/// [`solve_report`] in a lent scratch (the core's workspace, ~9 MB: the rig keeps one for all
+/// its solves).
+pub fn solve_report_in(
+    targets: &[Target],
+    ids: &[String],
+    obs: &mut [Vec<Observation>],
+    b0: &Params,
+    s: &Settings,
+    scratch: &mut Scratch,
+) -> (Solution, Report) {
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
-    let mut scratch = Scratch::default();
     let t0 = std::time::Instant::now();
     let sol = solve(targets, &mut slices, b0, s, &mut scratch.workspace());
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -14,7 +14,7 @@
 //! rings each have their count); the kernel's own drops on each socket are read back too, so
 //! `sent = received + kernel drops` and `received = enqueued + ring drops + skipped`.
 
-use crate::calibrate::{solve_report, Report};
+use crate::calibrate::Report;
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{

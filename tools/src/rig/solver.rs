@@ -32,8 +32,11 @@ pub(super) fn solver(
     // The planner on the survey under way (built at the first solve: the LiDAR's rpm is known
     // by then).
     let mut live: Option<crate::plan::live::Live> = None;
+    // The core's workspace, lent to every solve (not built afresh each time).
+    let mut scratch = crate::calibrate::Scratch::default();
     let mut solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
-        let (sol, mut rep) = solve_report(targets, ids, store, start, settings);
+        let (sol, mut rep) =
+            crate::calibrate::solve_report_in(targets, ids, store, start, settings, &mut scratch);
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
         let cov = crate::verdict::coverage(ids, store, &sol);
