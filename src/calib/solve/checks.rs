@@ -1,0 +1,272 @@
+//! The checks a solution must pass before it is claimed: the noise model's predicted RMS and
+//! weights, the dispersion and every pass's chi-square, the clocks per pass, the reasons a sphere
+//! is lost (see the module [`super`] for the limits).
+
+#[allow(unused_imports)]
+use super::*;
+
+/// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range
+/// noise, INS attitude noise times the range, INS position noise, the 2 mm range quantisation;
+/// each return's own INS sigmas where the trajectory's accuracy file gives them).
+pub(super) fn predicted_rms(obs: &[&mut [Observation]], used: &[usize], s: &Settings) -> f64 {
+    let noise = s.noise();
+    let (mut s2, mut n) = (0.0, 0usize);
+    for (v, &u) in obs.iter().zip(used) {
+        for o in &v[..u] {
+            s2 += noise.variance(o);
+            n += 1;
+        }
+    }
+    libm::sqrt(s2 / n.max(1) as f64)
+}
+
+/// The least squares are weighted by the noise model when the trajectory's accuracy file gave
+/// any kept return its own INS sigmas (the returns' variances then differ along the survey);
+/// otherwise every residual counts alike, as in the paper.
+pub(super) fn weights(obs: &[&mut [Observation]], used: &[usize], s: &Settings) -> Option<Noise> {
+    obs.iter()
+        .zip(used)
+        .any(|(v, &u)| v[..u.min(v.len())].iter().any(|o| o.ins_sigma != [0.0; 2]))
+        .then(|| s.noise())
+}
+
+/// Each pass's sphere centre (fitted, radius fixed, to its kept returns with the solution)
+/// against the surveyed one: its offset, along-track component and chi-square into `passes`;
+/// returns the worst pass as a refusal if any fails (beyond `max_pass_chi2` and
+/// `pass_offset_floor`). The uncertainty: the fit's, from the pass's residual scatter (at least
+/// 1 mm), inflated by the returns per 20 ms cluster (they share INS errors).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn consistency(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    b: &[f64; P],
+    time: &TimeOffset,
+    s: &Settings,
+    passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
+) -> Option<Refusal> {
+    let mount = Mount::from_params(&Params(*b));
+    let mut worst: Option<(f64, Refusal)> = None;
+    for (k, p) in passes.iter_mut().enumerate() {
+        let j = usize::from(p.sphere);
+        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+            continue;
+        };
+        let kept = v[..used[j]]
+            .iter()
+            .filter(|o| o.time >= p.start && o.time <= p.end);
+        let Some(fit) = fit_with_covariance(kept.clone(), &mount, time, t) else {
+            continue;
+        };
+        let (d, jtj, rms, n) = fit;
+        // Clusters of 20 ms: returns within one share INS errors.
+        let mut clusters = 0usize;
+        let mut last = i64::MIN;
+        let mut vel = Vector3::<f64>::zeros();
+        for o in kept {
+            let c = o.time.0.div_euclid(s.cluster_ns.max(1));
+            if c != last {
+                clusters += 1;
+                last = c;
+            }
+            vel += o.velocity.cast::<f64>();
+        }
+        let inflate = n as f64 / clusters.max(1) as f64;
+        let s2 = rms.max(1e-3) * rms.max(1e-3) * inflate;
+        let chi2 = d.dot(&(jtj * d)) / s2;
+        vel.z = 0.0;
+        let along = if vel.norm() > 0.0 {
+            d.dot(&(vel / vel.norm()))
+        } else {
+            0.0
+        };
+        p.centre_offset = [d.x as f32, d.y as f32, d.z as f32];
+        p.along_track = along as f32;
+        p.chi2 = chi2 as f32;
+        if chi2 > s.max_pass_chi2
+            && d.norm() > s.pass_offset_floor
+            && worst.as_ref().is_none_or(|(c, _)| chi2 > *c)
+        {
+            worst = Some((
+                chi2,
+                Refusal::Inconsistent {
+                    sphere: j,
+                    pass: k,
+                    offset: [d.x, d.y, d.z],
+                    along_track: along,
+                    chi2,
+                },
+            ));
+        }
+    }
+    worst.map(|(_, r)| r)
+}
+
+/// Each pass's own time offset: the returns of one pass over one sphere, with the mounting and
+/// the time offset model held, fitted for a shift of the offset and a radius offset (`r_k = c -
+/// J_k shift`, `J_k = dr/ddt`, the platform's motion along the surface normal); its sigma from
+/// the fit's scatter inflated by the returns per cluster, as [`consistency`]. Into `passes`;
+/// the pass furthest off as a refusal when it is off by more than `held_dt_sigmas` sigmas and
+/// `held_dt_floor` seconds: a clock that steps or drifts moves some passes and not others.
+pub(super) fn pass_clocks(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    b: &[f64; P],
+    time: &TimeOffset,
+    s: &Settings,
+    passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
+) -> Option<Refusal> {
+    let lin = super::super::objective::Linearised::at(b);
+    let first = passes.iter().map(|p| p.start.0).min().unwrap_or(0);
+    let mut worst: Option<(f64, Refusal)> = None;
+    for (k, p) in passes.iter_mut().enumerate() {
+        let j = usize::from(p.sphere);
+        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+            continue;
+        };
+        let kept = v[..used[j]]
+            .iter()
+            .filter(|o| o.time >= p.start && o.time <= p.end);
+        // Sums for the two-parameter fit, and the clusters.
+        let (mut n, mut sj, mut sr, mut sjj, mut sjr, mut srr) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut clusters, mut last) = (0usize, i64::MIN);
+        for o in kept {
+            let Some(row) = lin.row(o, t, time.at(o)) else {
+                continue;
+            };
+            let (jd, r) = (row.row[6], row.residual);
+            n += 1.0;
+            sj += jd;
+            sr += r;
+            sjj += jd * jd;
+            sjr += jd * r;
+            srr += r * r;
+            let c = o.time.0.div_euclid(s.cluster_ns.max(1));
+            if c != last {
+                clusters += 1;
+                last = c;
+            }
+        }
+        if n < 10.0 {
+            continue;
+        }
+        let vjj = sjj - sj * sj / n;
+        if vjj.is_nan() || vjj <= 0.0 {
+            continue;
+        }
+        // r = c + J kk; a residual r at the model's offset is what -J (dt_data - dt_model)
+        // leaves, so the pass's own offset is the model's minus kk.
+        let kk = (sjr - sj * sr / n) / vjj;
+        let c = (sr - kk * sj) / n;
+        // Residual scatter (at least 1 mm), inflated by the returns per cluster.
+        let e2 =
+            (srr - 2.0 * c * sr - 2.0 * kk * sjr + n * c * c + 2.0 * c * kk * sj + kk * kk * sjj)
+                / (n - 2.0).max(1.0);
+        let s2 = e2.max(1e-6) * n / clusters.max(1) as f64;
+        let sigma = libm::sqrt(s2 / vjj);
+        let shift = -kk;
+        p.dt_shift = shift as f32;
+        p.dt_sigma = sigma as f32;
+        let z = shift.abs() / sigma;
+        if z > s.held_dt_sigmas
+            && shift.abs() > s.held_dt_floor
+            && worst.as_ref().is_none_or(|(w, _)| z > *w)
+        {
+            worst = Some((
+                z,
+                Refusal::ClockInconsistent {
+                    sphere: j,
+                    pass: k,
+                    start: p.start,
+                    end: p.end,
+                    into: [
+                        (p.start.0 - first) as f64 * 1e-9,
+                        (p.end.0 - first) as f64 * 1e-9,
+                    ],
+                    shift,
+                    sigma,
+                },
+            ));
+        }
+    }
+    worst.map(|(_, r)| r)
+}
+
+/// Why each sphere not found was lost.
+pub(super) fn lost_reasons(s: &Settings, sol: &mut Solution) {
+    let c = sol.consensus;
+    for (j, sp) in sol.spheres.iter_mut().enumerate() {
+        sp.agreed = c.map_or(0, |c| c.support.get(j).copied().unwrap_or(0));
+        if sp.lost.is_some() {
+            continue;
+        }
+        sp.lost = if sp.used >= s.min_points {
+            None
+        } else if sp.windowed == 0 {
+            Some(Lost::NoReturns)
+        } else if c.is_some_and(|c| c.slices.get(j).copied().unwrap_or(0) == 0) {
+            Some(Lost::NotDetected)
+        } else if c.is_some_and(|c| c.support.get(j).copied().unwrap_or(0) < 3) {
+            Some(Lost::Disagrees)
+        } else {
+            Some(Lost::TooFewReturns)
+        };
+    }
+}
+
+/// The quality checks on a least-squares answer: the weak parameters, then the first reason
+/// to refuse it — a held time offset the data contradict, not converged, ill-conditioned,
+/// residuals over-dispersed against the noise model, a pass inconsistent with the others.
+pub(super) fn checks(
+    targets: &[Target],
+    obs: &[&mut [Observation]],
+    used: &[usize],
+    s: &Settings,
+    sol: &mut Solution,
+) -> Option<Refusal> {
+    let lm = sol.lm?;
+    // Every unit vector has components above 0.3: the direction only matters when it is weak.
+    let weak_geometry = lm.condition.is_nan() || lm.condition > s.weak_condition;
+    for (w, &v) in sol.weak.iter_mut().zip(&lm.weakest) {
+        *w = weak_geometry && v.abs() > 0.3;
+    }
+    let (b, time, dt) = (sol.b.0, sol.time(), sol.dt);
+    let predicted = predicted_rms(obs, used, s);
+    sol.predicted_rms = predicted;
+    let worst = consistency(targets, obs, used, &b, &time, s, &mut sol.passes);
+    let clock = pass_clocks(targets, obs, used, &b, &time, s, &mut sol.passes);
+    let contradicted = sol.dt_free.filter(|&(f, sg)| {
+        let d = (f - dt).abs();
+        d > s.held_dt_floor && d > s.held_dt_sigmas * sg
+    });
+    // A held offset the data contradict comes first: it is the cause, and the mounting fitted
+    // around it may fail to converge or fit badly only because of it.
+    if let Some((found, sigma)) = contradicted {
+        Some(Refusal::TimeOffsetContradicted {
+            held: dt,
+            found,
+            sigma,
+        })
+    } else if !lm.converged {
+        Some(Refusal::NotConverged {
+            iterations: lm.iterations,
+        })
+    } else if lm.condition.is_nan() || lm.condition > s.max_condition {
+        Some(Refusal::IllConditioned {
+            condition: lm.condition,
+            limit: s.max_condition,
+        })
+    } else if clock.is_some() {
+        // A clock that steps or drifts also spreads the residuals and moves passes' centres:
+        // the cause first.
+        clock
+    } else if lm.rms.is_nan() || lm.rms > s.max_dispersion * predicted {
+        Some(Refusal::OverDispersed {
+            rms: lm.rms,
+            predicted,
+        })
+    } else {
+        worst
+    }
+}

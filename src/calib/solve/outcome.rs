@@ -1,0 +1,374 @@
+//! What the solve gives: the solution, its rounds, spheres and passes, how the rounds ended
+//! ([`Termination`]) and why a solution is not claimed ([`Refusal`]).
+
+#[allow(unused_imports)]
+use super::*;
+
+/// Why a solution is not claimed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Refusal {
+    /// Fewer than two spheres given (the site's).
+    TooFewTargets {
+        /// Spheres given.
+        given: usize,
+    },
+    /// Fewer than two spheres found among the clutter.
+    TooFewSpheres {
+        /// Spheres found.
+        have: usize,
+    },
+    /// A sphere with too few returns.
+    TooFewPoints {
+        /// Sphere index.
+        sphere: usize,
+        /// Returns used.
+        have: usize,
+        /// Needed.
+        need: usize,
+    },
+    /// The data cannot determine all six parameters well.
+    IllConditioned {
+        /// Condition number.
+        condition: f64,
+        /// Limit.
+        limit: f64,
+    },
+    /// The least squares did not converge (stalled, or non-finite).
+    NotConverged {
+        /// Iterations taken.
+        iterations: usize,
+    },
+    /// The residuals are far above what the sensors' noise explains.
+    OverDispersed {
+        /// RMS [m].
+        rms: f64,
+        /// What the noise model predicts [m].
+        predicted: f64,
+    },
+    /// In one pass the calibrated returns leave a sphere off its surveyed centre, beyond its
+    /// uncertainty: the model does not fit (along the track: a time offset or a lever-arm x
+    /// error; across it: the boresight).
+    Inconsistent {
+        /// Sphere index.
+        sphere: usize,
+        /// Index of the pass in [`Solution::passes`].
+        pass: usize,
+        /// The fitted minus surveyed centre [m, NED].
+        offset: [f64; 3],
+        /// Its component along the track [m].
+        along_track: f64,
+        /// Its chi-square (3 degrees of freedom).
+        chi2: f64,
+    },
+    /// Two mountings put different candidates on a sphere and explain the survey nearly as well
+    /// (a buoy or a fender of the sphere's size beside it, at the same place relative to every
+    /// sphere, or passes that cannot tell them apart).
+    Ambiguous(Ambiguity),
+    /// The solve left the box the start values and the windows' margin allow.
+    OutOfBounds {
+        /// Parameter index (0-2 angles, 3-5 lever arm).
+        parameter: usize,
+        /// Its change from the start [rad or m].
+        change: f64,
+        /// The allowance [rad or m].
+        limit: f64,
+    },
+    /// The time offset is not the same over the survey: one pass's returns put it elsewhere,
+    /// beyond its uncertainty (an INS clock step, a LiDAR clock drifting without PPS).
+    ClockInconsistent {
+        /// Sphere index.
+        sphere: usize,
+        /// Index of the pass in [`Solution::passes`].
+        pass: usize,
+        /// The pass's first and last return.
+        start: GpsTime,
+        /// ...
+        end: GpsTime,
+        /// Them in seconds after the first windowed return.
+        into: [f64; 2],
+        /// The offset its returns give minus the solution's there [s].
+        shift: f64,
+        /// Its sigma [s].
+        sigma: f64,
+    },
+    /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
+    /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
+    TimeOffsetContradicted {
+        /// The offset held [s] (on top of what the pipeline applied).
+        held: f64,
+        /// The offset the data give [s].
+        found: f64,
+        /// Its sigma [s].
+        sigma: f64,
+    },
+}
+
+/// Per sphere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereReport {
+    /// Returns in the a-priori window.
+    pub windowed: usize,
+    /// Returns kept (used by the solution).
+    pub used: usize,
+    /// The sphere was found among the clutter (enough returns in detected slices).
+    pub found: bool,
+    /// Slices of time with window returns, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Windowed returns by verdict.
+    pub verdicts: Tally,
+    /// RMS of the kept returns' residuals with the starting values [m].
+    pub rms_before: f64,
+    /// ... with the solution [m].
+    pub rms_after: f64,
+    /// Fitted minus surveyed centre [m, NED].
+    pub center_offset: Option<Vector3<f64>>,
+    /// Slices of its window the first round's consensus explains (with the mounting all
+    /// spheres agree on).
+    pub agreed: u32,
+    /// Why it was not found.
+    pub lost: Option<Lost>,
+}
+
+/// Why a sphere was not found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lost {
+    /// No returns in its window.
+    NoReturns,
+    /// Nothing sphere-like detected in its window.
+    NotDetected,
+    /// Sphere-like things detected, none where the mounting the other spheres agree on puts it
+    /// (clutter, a decoy, or the sphere hidden).
+    Disagrees,
+    /// Detected, but fewer returns kept than a sphere needs.
+    TooFewReturns,
+    /// The solve stopped before any returns were kept (the refusal says why).
+    Stopped,
+}
+
+/// One pass over one sphere: its window's returns on one course ([`find_passes`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PassReport {
+    /// Sphere index.
+    pub sphere: u8,
+    /// First and last windowed return.
+    pub start: GpsTime,
+    /// ...
+    pub end: GpsTime,
+    /// Slices of time, and those where the sphere was detected.
+    pub slices: u32,
+    /// ...
+    pub detected: u32,
+    /// Mean inliers of its detections (the detection score).
+    pub mean_inliers: f32,
+    /// Windowed returns by verdict.
+    pub verdicts: Tally,
+    /// The sphere's centre fitted (radius fixed) to the pass's kept returns with the solution,
+    /// minus the surveyed one [m, NED] (zero with fewer than 10 returns).
+    pub centre_offset: [f32; 3],
+    /// Its component along the track (the platform's mean horizontal velocity) [m].
+    pub along_track: f32,
+    /// Its chi-square against its uncertainty (3 degrees of freedom).
+    pub chi2: f32,
+    /// The time offset the pass's own returns give, minus the solution's at its time [s]
+    /// (with the mounting held; 0 with fewer than 10 returns).
+    pub dt_shift: f32,
+    /// Its 1-sigma [s] (0: not estimated).
+    pub dt_sigma: f32,
+}
+
+/// One detect-and-solve round.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Round {
+    /// The shell (inlier band) used [m].
+    pub tau: f64,
+    /// The prior radius used (`None`: the whole window) [m].
+    pub prior: Option<f64>,
+    /// Returns kept, all spheres.
+    pub kept: usize,
+    /// Slices where a sphere was detected, all spheres.
+    pub detected: u32,
+    /// The parameters after the round's solve.
+    pub b: Params,
+    /// The time offset after the round's solve [s].
+    pub dt: f64,
+}
+
+/// How the detect-and-solve rounds ended (argmin's `TerminationReason`, for these rounds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Termination {
+    /// No round ran: fewer than two spheres were given.
+    #[default]
+    NotStarted,
+    /// The kept sets barely changed and the parameters stood still.
+    Settled,
+    /// The kept sets came back to an earlier round's (a few returns at the shell's edge going
+    /// in and out).
+    Cycle,
+    /// A round found fewer than two spheres.
+    TooFewSpheres,
+    /// The rounds could not go on: the spheres are ambiguous or the mounting left its bounds
+    /// (the refusal says which).
+    Stopped,
+    /// `Settings::max_rounds` rounds ran without settling.
+    MaxRounds,
+}
+
+impl Termination {
+    /// A stable name (the report's `termination` key).
+    pub fn name(self) -> &'static str {
+        match self {
+            Termination::NotStarted => "not_started",
+            Termination::Settled => "settled",
+            Termination::Cycle => "cycle",
+            Termination::TooFewSpheres => "too_few_spheres",
+            Termination::Stopped => "stopped",
+            Termination::MaxRounds => "max_rounds",
+        }
+    }
+
+    /// In words.
+    pub fn words(self) -> &'static str {
+        match self {
+            Termination::NotStarted => "no round ran (fewer than two spheres given)",
+            Termination::Settled => "the kept returns and the mounting settled",
+            Termination::Cycle => {
+                "the kept returns went round a cycle (returns at the shell's edge in and out)"
+            }
+            Termination::TooFewSpheres => "a round found fewer than two spheres",
+            Termination::Stopped => {
+                "the rounds could not go on (ambiguous spheres or a mounting out of bounds)"
+            }
+            Termination::MaxRounds => "the rounds reached their limit without settling",
+        }
+    }
+}
+
+/// The answer and everything known about it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// The mounting parameters.
+    pub b: Params,
+    /// The time offset between the clocks on top of what the pipeline applied [s] (INS minus
+    /// LiDAR) at `t_ref`; 0 when not estimated.
+    pub dt: f64,
+    /// Its drift [s/s] (0 when not estimated).
+    pub drift: f64,
+    /// The time `dt` refers to (the middle of the windowed returns).
+    pub t_ref: GpsTime,
+    /// The Nelder-Mead stage.
+    pub nm: NmResult<P>,
+    /// The LM stage (covariance, correlation, conditioning).
+    pub lm: Option<LmResult>,
+    /// Eq. 6 at the solution over the kept returns [m].
+    pub l1: f64,
+    /// Detect-and-solve rounds.
+    pub rounds: usize,
+    /// How they ended.
+    pub termination: Termination,
+    /// What each round did.
+    pub log: heapless::Vec<Round, 16>,
+    /// The final shell half-width [m].
+    pub shell: f64,
+    /// Per sphere.
+    pub spheres: heapless::Vec<SphereReport, MAX_TARGETS>,
+    /// Per pass over each sphere.
+    pub passes: heapless::Vec<PassReport, MAX_PASSES>,
+    /// RMS of fitted minus surveyed centres [m].
+    pub center_rms: Option<f64>,
+    /// Parameters the data determine poorly: with a condition number above
+    /// [`Settings::weak_condition`], those with a share above 0.3 of the weakest direction
+    /// (the eigenvector of the scaled normal matrix's smallest eigenvalue); the six, then the
+    /// time offset. None on a well-conditioned solution.
+    pub weak: [bool; P + 1],
+    /// With the time offset held: what the data give when free to estimate it (offset, sigma
+    /// [s]), the test of the held value.
+    pub dt_free: Option<(f64, f64)>,
+    /// The residual RMS the noise model predicts [m].
+    pub predicted_rms: f64,
+    /// The first round's consensus over the slices' candidates.
+    pub consensus: Option<Consensus>,
+    /// The box the mounting had to stay in.
+    pub bounds: Bounds,
+    /// Why the solution is not claimed, if it is not.
+    pub refusal: Option<Refusal>,
+}
+
+impl Solution {
+    /// The time offset model of the answer.
+    pub fn time(&self) -> TimeOffset {
+        TimeOffset {
+            dt: self.dt,
+            drift: self.drift,
+            t_ref: self.t_ref,
+        }
+    }
+
+    /// Nothing solved yet: the start `b0`, the first shell `tau0`.
+    pub(super) fn start(b0: &Params, tau0: f64) -> Self {
+        Self {
+            b: *b0,
+            dt: 0.0,
+            drift: 0.0,
+            t_ref: GpsTime(0),
+            nm: NmResult {
+                x: b0.deg_m().0,
+                f: f64::INFINITY,
+                iterations: 0,
+                evaluations: 0,
+                converged: false,
+            },
+            lm: None,
+            l1: f64::INFINITY,
+            rounds: 0,
+            termination: Termination::NotStarted,
+            log: heapless::Vec::new(),
+            shell: tau0,
+            spheres: heapless::Vec::new(),
+            passes: heapless::Vec::new(),
+            center_rms: None,
+            weak: [false; P + 1],
+            dt_free: None,
+            predicted_rms: 0.0,
+            consensus: None,
+            bounds: Bounds::none(b0),
+            refusal: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Termination as T;
+
+    /// The names are the report's contract: distinct, stable, and each has words.
+    #[test]
+    fn termination_names_are_distinct_and_said() {
+        let all = [
+            T::NotStarted,
+            T::Settled,
+            T::Cycle,
+            T::TooFewSpheres,
+            T::Stopped,
+            T::MaxRounds,
+        ];
+        let names: Vec<&str> = all.iter().map(|t| t.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "not_started",
+                "settled",
+                "cycle",
+                "too_few_spheres",
+                "stopped",
+                "max_rounds"
+            ]
+        );
+        for (i, a) in all.iter().enumerate() {
+            assert!(!a.words().is_empty());
+            assert!(all[i + 1..].iter().all(|b| b.words() != a.words()));
+        }
+        assert_eq!(T::default(), T::NotStarted);
+    }
+}

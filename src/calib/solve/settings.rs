@@ -1,0 +1,117 @@
+//! What the solve is told: its limits, its noise model and its stopping rules.
+
+#[allow(unused_imports)]
+use super::*;
+
+/// Solver settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// Nelder-Mead settings (coordinates in degrees and metres).
+    pub nm: NmSettings,
+    /// Initial simplex step per parameter (deg, deg, deg, m, m, m).
+    pub step: [f64; P],
+    /// LM iteration cap.
+    pub lm_iter: usize,
+    /// Fewest returns per sphere.
+    pub min_points: usize,
+    /// Largest acceptable condition number.
+    pub max_condition: f64,
+    /// Condition number above which the geometry counts as weak and the parameters with a
+    /// large share of its weakest direction are named (below it every parameter is well
+    /// determined, whatever that direction is).
+    pub weak_condition: f64,
+    /// The range noise the sensor is specified for, 1 sigma [m] (VLP-16: 3 cm).
+    pub range_noise: f64,
+    /// The INS attitude noise, 1 sigma [rad].
+    pub attitude_noise: f64,
+    /// The INS position noise, 1 sigma [m].
+    pub position_noise: f64,
+    /// Over-dispersion: the residual RMS may be at most this many times what the noise model
+    /// predicts.
+    pub max_dispersion: f64,
+    /// A pass's sphere centre offset fails the consistency test beyond this chi-square (3
+    /// degrees of freedom; 25: p = 1.4e-5) ...
+    pub max_pass_chi2: f64,
+    /// ... and this many metres.
+    pub pass_offset_floor: f64,
+    /// A held time offset is contradicted when the data, free to estimate it, move it by more
+    /// than this many of its sigmas ...
+    pub held_dt_sigmas: f64,
+    /// ... and this many seconds.
+    pub held_dt_floor: f64,
+    /// The shell: this many robust sigmas ...
+    pub shell_sigmas: f64,
+    /// ... but at least this [m].
+    pub shell_floor: f64,
+    /// Detect-and-solve rounds at most.
+    pub max_rounds: usize,
+    /// Returns of one sphere this close in time share INS errors: one cluster for the
+    /// covariance [ns].
+    pub cluster_ns: i64,
+    /// Returns per sphere Nelder-Mead evaluates (evenly spread; LM uses all).
+    pub nm_points: usize,
+    /// Sphere extraction.
+    pub extract: ExtractSettings,
+    /// Estimate the time offset between the clocks with the six.
+    pub estimate_dt: bool,
+    /// Estimate its drift too (a LiDAR clock without PPS: its crystal runs fast or slow by
+    /// tens of ppm).
+    pub estimate_drift: bool,
+    /// The first round's consensus over the slices' candidates.
+    pub consensus: ConsensusSettings,
+    /// The margin the windows were made with around the start mounting [m]: the mounting may
+    /// move at most this far in each lever-arm component, and each angle at most as far as moves
+    /// the nearest windowed return by twice this (at most 45 deg): a mounting beyond would have
+    /// left the spheres outside their windows.
+    pub margin: f64,
+}
+
+impl Settings {
+    /// The clock parameters estimated with the six.
+    pub fn clock(&self) -> Clock {
+        Clock {
+            dt: self.estimate_dt,
+            drift: self.estimate_dt && self.estimate_drift,
+        }
+    }
+
+    /// The noise model of the residuals.
+    pub fn noise(&self) -> Noise {
+        Noise {
+            range: self.range_noise,
+            attitude: self.attitude_noise,
+            position: self.position_noise,
+        }
+    }
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            nm: NmSettings::default(),
+            step: [1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
+            lm_iter: 100,
+            min_points: 30,
+            max_condition: 1e3,
+            weak_condition: 100.0,
+            range_noise: 0.03,
+            attitude_noise: 0.05f64.to_radians(),
+            position_noise: 0.03,
+            max_dispersion: 2.0,
+            max_pass_chi2: 25.0,
+            pass_offset_floor: 0.003,
+            held_dt_sigmas: 5.0,
+            held_dt_floor: 0.001,
+            shell_sigmas: 3.5,
+            shell_floor: 0.004,
+            max_rounds: 12,
+            cluster_ns: 20_000_000,
+            nm_points: 100,
+            extract: ExtractSettings::default(),
+            estimate_dt: true,
+            estimate_drift: false,
+            consensus: ConsensusSettings::default(),
+            margin: 3.0,
+        }
+    }
+}
