@@ -371,18 +371,7 @@ impl Solved {
 
 /// A report's `termination` in words ("the rounds ended: ...").
 pub fn termination_words(name: &str) -> String {
-    use spherecal::calib::Termination as T;
-    [
-        T::NotStarted,
-        T::Settled,
-        T::Cycle,
-        T::TooFewSpheres,
-        T::Stopped,
-        T::MaxRounds,
-    ]
-    .into_iter()
-    .find(|t| t.name() == name)
-    .map_or_else(
+    spherecal::calib::Termination::from_name(name).map_or_else(
         || format!("ended: {name}"),
         |t| format!("ended: {}", t.words()),
     )

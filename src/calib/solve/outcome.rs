@@ -216,6 +216,21 @@ pub enum Termination {
 }
 
 impl Termination {
+    /// Every way the rounds end.
+    pub const ALL: [Termination; 6] = [
+        Termination::NotStarted,
+        Termination::Settled,
+        Termination::Cycle,
+        Termination::TooFewSpheres,
+        Termination::Stopped,
+        Termination::MaxRounds,
+    ];
+
+    /// The one with this [`Termination::name`] (a report's `termination`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
     /// A stable name (the report's `termination` key).
     pub fn name(self) -> &'static str {
         match self {
@@ -345,14 +360,7 @@ mod tests {
     /// The names are the report's contract: distinct, stable, and each has words.
     #[test]
     fn termination_names_are_distinct_and_said() {
-        let all = [
-            T::NotStarted,
-            T::Settled,
-            T::Cycle,
-            T::TooFewSpheres,
-            T::Stopped,
-            T::MaxRounds,
-        ];
+        let all = T::ALL;
         let names: Vec<&str> = all.iter().map(|t| t.name()).collect();
         assert_eq!(
             names,
@@ -370,5 +378,7 @@ mod tests {
             assert!(all[i + 1..].iter().all(|b| b.words() != a.words()));
         }
         assert_eq!(T::default(), T::NotStarted);
+        assert!(all.iter().all(|t| T::from_name(t.name()) == Some(*t)));
+        assert_eq!(T::from_name("converged"), None);
     }
 }
