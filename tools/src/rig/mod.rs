@@ -24,6 +24,7 @@ use crate::pipeline::{
 use crate::state::{ClockState, InsState};
 
 pub mod check;
+mod from_logs;
 pub mod hearing;
 pub mod ins_watch;
 mod logger;
@@ -424,7 +425,7 @@ fn run_rig(
     // The final answer: the file engine over the rig's own logs, what `calibrate` gives on
     // them (the live solves work on a store pruned and rebased as the data came).
     if let Some(site) = &opts.site {
-        match final_from_logs(opts, site, &ended.logged.0, &plan) {
+        match from_logs::final_from_logs(opts, site, &ended.logged.0, &plan) {
             Ok(Some(rep)) => {
                 let line = format!(
                     "final (the rig's logs through the file engine): {}; the rounds {}",
@@ -455,53 +456,6 @@ fn run_rig(
     let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     std::fs::write(&path, json + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(summary)
-}
-
-/// The calibration of the run's logs (`files`: its pcaps, and its serial logs for a VN-200)
-/// as `calibrate` makes it: the same settings, the board's mounting to start from, its ports,
-/// model and INS. `None` when nothing was logged.
-fn final_from_logs(
-    opts: &RunOptions,
-    site: &Site,
-    files: &[PathBuf],
-    plan: &Plan,
-) -> Result<Option<Report>, String> {
-    let of = |ext: &str| -> Vec<PathBuf> {
-        files
-            .iter()
-            .filter(|p| p.extension().is_some_and(|e| e == ext))
-            .cloned()
-            .collect()
-    };
-    let pcaps = of("pcap");
-    let b = &opts.board;
-    let ins = match b.ins.kind.as_str() {
-        "posmv" => crate::pipeline::InsInput::Posmv(
-            crate::pipeline::Files(pcaps.clone()),
-            None,
-            b.ins.posmv_group,
-        ),
-        _ => crate::pipeline::InsInput::Vn200(crate::pipeline::Files(of("vnlog"))),
-    };
-    if pcaps.is_empty() || plan.targets.len() < 2 {
-        return Ok(None);
-    }
-    let mut inp =
-        crate::pipeline::Inputs::apriori(crate::pipeline::Files(pcaps), ins, site.clone());
-    inp.model = b.lidar_model();
-    inp.ports = Ports {
-        data: b.lidar.data_port,
-        position: b.lidar.position_port,
-    };
-    inp.keep_untracked_ins = opts.keep_untracked_ins;
-    inp.mount = plan.b0.mount();
-    let (targets, ids) = crate::calibrate::site_targets(&inp);
-    let clock = crate::ClockOptions {
-        keep_untracked_ins: opts.keep_untracked_ins,
-        ..Default::default()
-    };
-    let (_, _, _, rep) = crate::calibrate::calibrate(&mut inp, &targets, &ids, &plan.b0, clock)?;
-    Ok(Some(rep))
 }
 
 /// The rig's inputs and raw logs, opened from the board (and the command line's overrides).

@@ -1,0 +1,51 @@
+//! The rig's final answer: the file engine over the run's own logs (what `calibrate` gives on
+//! them), not the live store, which is pruned and rebased as the data come.
+
+use super::*;
+
+/// The calibration of the run's logs (`files`: its pcaps, and its serial logs for a VN-200)
+/// as `calibrate` makes it: the same settings, the board's mounting to start from, its ports,
+/// model and INS. `None` when nothing was logged.
+pub(super) fn final_from_logs(
+    opts: &RunOptions,
+    site: &Site,
+    files: &[PathBuf],
+    plan: &Plan,
+) -> Result<Option<Report>, String> {
+    let of = |ext: &str| -> Vec<PathBuf> {
+        files
+            .iter()
+            .filter(|p| p.extension().is_some_and(|e| e == ext))
+            .cloned()
+            .collect()
+    };
+    let pcaps = of("pcap");
+    let b = &opts.board;
+    let ins = match b.ins.kind.as_str() {
+        "posmv" => crate::pipeline::InsInput::Posmv(
+            crate::pipeline::Files(pcaps.clone()),
+            None,
+            b.ins.posmv_group,
+        ),
+        _ => crate::pipeline::InsInput::Vn200(crate::pipeline::Files(of("vnlog"))),
+    };
+    if pcaps.is_empty() || plan.targets.len() < 2 {
+        return Ok(None);
+    }
+    let mut inp =
+        crate::pipeline::Inputs::apriori(crate::pipeline::Files(pcaps), ins, site.clone());
+    inp.model = b.lidar_model();
+    inp.ports = Ports {
+        data: b.lidar.data_port,
+        position: b.lidar.position_port,
+    };
+    inp.keep_untracked_ins = opts.keep_untracked_ins;
+    inp.mount = plan.b0.mount();
+    let (targets, ids) = crate::calibrate::site_targets(&inp);
+    let clock = crate::ClockOptions {
+        keep_untracked_ins: opts.keep_untracked_ins,
+        ..Default::default()
+    };
+    let (_, _, _, rep) = crate::calibrate::calibrate(&mut inp, &targets, &ids, &plan.b0, clock)?;
+    Ok(Some(rep))
+}
