@@ -94,14 +94,36 @@ fn synth_and_solve(
     let inp = inputs(&dir);
     let (_, mut obs) = collect(&inp).unwrap();
     let (t, ids) = site_targets(&inp);
-    let (sol, rep) = solve_report(
+    let mut heard = Heard::default();
+    let (sol, rep) = spherecal_tools::calibrate::solve_report_in(
         &t,
         &ids,
         &mut obs,
         &inp.mount.params(),
         &Settings::default(),
+        &mut Scratch::default(),
+        &mut heard,
     );
+    // The observer hook hears every round the solution logs, and how they ended.
+    assert_eq!(heard.rounds, sol.log.len(), "{name}");
+    assert_eq!(heard.ended, Some((sol.termination, sol.rounds)), "{name}");
     (dir, rep, sol, obs)
+}
+
+/// What the solver's observer hook told.
+#[derive(Default)]
+struct Heard {
+    rounds: usize,
+    ended: Option<(spherecal::calib::Termination, usize)>,
+}
+
+impl spherecal::calib::solve::Observe for Heard {
+    fn round(&mut self, _: usize, _: &spherecal::calib::solve::Round) {
+        self.rounds += 1;
+    }
+    fn ended(&mut self, how: spherecal::calib::Termination, rounds: usize) {
+        self.ended = Some((how, rounds));
+    }
 }
 
 /// table1 at the quay, as a user runs it: `calibrate` from the paper's erroneous a-priori

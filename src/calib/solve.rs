@@ -55,6 +55,7 @@ mod settings;
 use checks::*;
 pub use outcome::*;
 use passes::*;
+pub use rounds::Observe;
 use rounds::*;
 pub use settings::*;
 
@@ -374,6 +375,32 @@ pub fn solve(
     s: &Settings,
     ws: &mut Workspace<'_>,
 ) -> Solution {
+    solve_watched(targets, obs, b0, s, ws, &mut ())
+}
+
+/// [`solve`], telling `watch` of every round and of how the rounds ended.
+pub fn solve_watched(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    b0: &Params,
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    watch: &mut impl Observe,
+) -> Solution {
+    let mut sol = solve_data(targets, obs, b0, s, ws, watch);
+    sol.refusal = clock_checks(s, &sol, sol.refusal);
+    sol
+}
+
+/// [`solve_watched`] on the returns alone (the clocks' checks follow).
+fn solve_data(
+    targets: &[Target],
+    obs: &mut [&mut [Observation]],
+    b0: &Params,
+    s: &Settings,
+    ws: &mut Workspace<'_>,
+    watch: &mut impl Observe,
+) -> Solution {
     let n = targets.len().min(obs.len()).min(MAX_TARGETS);
     let targets = &targets[..n];
     let obs = &mut obs[..n];
@@ -390,9 +417,15 @@ pub fn solve(
     }
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
     let t_ref = middle_time(obs);
-    let mut r = Rounds::start(b0, windowed, s.extract.tau0, sol.bounds, t_ref);
+    let mut r = Rounds::init(b0, windowed, s.extract.tau0, sol.bounds, t_ref);
     sol.t_ref = t_ref;
-    run_rounds(targets, obs, s, ws, &passes, &mut r, &mut sol);
+    let mut d = Data {
+        targets,
+        obs,
+        s,
+        ws,
+    };
+    run_rounds(&mut d, &passes, &mut r, &mut sol, watch);
     sol.shell = r.tau;
     sol.consensus = r.consensus;
     if let Some(end) = r.end {
@@ -420,11 +453,12 @@ pub fn solve(
         return sol;
     }
     // 2. The last extraction, around the surveyed spheres.
-    let (used, tallies) = last_extraction(targets, obs, s, ws, &mut r, &mut passes);
+    let (used, tallies) = r.last_extraction(&mut d, &mut passes);
     sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
     // 3. Least squares on the kept returns: the answer and its uncertainty.
-    final_fit(targets, obs, &used[..n], found, s, &mut r, &mut sol);
+    r.final_fit(&d, &used[..n], found, &mut sol);
+    let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {
         windowed: &windowed,

@@ -10,7 +10,7 @@ pub use crate::report::{
 };
 use spherecal::calib::consensus::Candidate;
 use spherecal::calib::solve::{Lost, Refusal, Settings, Solution, Workspace};
-use spherecal::calib::{solve, Params, NAMES, P};
+use spherecal::calib::{Params, NAMES, P};
 use spherecal::window::{Observation, Target};
 use std::fmt::Write as _;
 
@@ -119,7 +119,38 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String
 
 /// A refusal in words.
 pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
+    refusal_text_clock(r, ids, weak, None)
+}
+
+/// [`refusal_text`], with the LiDAR clock's state in words where a refusal is about it.
+pub fn refusal_text_clock(
+    r: &Refusal,
+    ids: &[String],
+    weak: &[String],
+    lidar_clock: Option<&str>,
+) -> String {
+    let clock_words = lidar_clock.unwrap_or("see the LiDAR clock line");
     match r {
+        Refusal::InsClockStep(st) => format!(
+            "the INS clock stepped by {:+.1} ms {:.1} s into the LiDAR data (GPS {:.3} s){}: one frame's time is not one output period after the one before it with nothing lost between them, so the poses after it are {:+.1} ms off those before; calibrate the parts on either side separately, or fix the INS time",
+            st.step_s * 1e3,
+            st.into_s,
+            st.at_s,
+            if st.count > 1 { format!(", and {} more times", st.count - 1) } else { String::new() },
+            st.step_s * 1e3
+        ),
+        Refusal::LidarClockUntrusted { offset_s, explained, allowed: false, .. } => format!(
+            "the LiDAR clock is not PPS-locked with a valid RMC ({clock_words}); the time offset found is {offset_s:+.4} s{}: --allow-unlocked-clock claims the solution",
+            match explained {
+                Some(true) => ", which explains the stamps' disagreement with the RMC",
+                Some(false) => ", which does NOT explain the stamps' disagreement with the RMC",
+                None => "",
+            }
+        ),
+        Refusal::LidarClockUntrusted { offset_s, rmc_offset_s, .. } => format!(
+            "the LiDAR clock is not PPS-locked ({clock_words}) and the time offset found is {offset_s:+.4} s, which does not explain the stamps' disagreement with the RMC ({:+.3} s)",
+            rmc_offset_s.unwrap_or(0.0)
+        ),
         Refusal::TooFewTargets { given } => format!("the site gives {given} sphere(s): at least two are needed (one sphere cannot fix the rotation about the line to it)"),
         Refusal::TooFewSpheres { have } => format!("{have} sphere(s) found: at least two are needed (one sphere cannot fix the rotation about the line to it)"),
         Refusal::TooFewPoints { sphere, have, need } => format!("sphere {}: {have} returns, at least {need} are needed", ids.get(*sphere).map_or("?", |s| s.as_str())),
@@ -279,11 +310,11 @@ pub fn solve_report(
     b0: &Params,
     s: &Settings,
 ) -> (Solution, Report) {
-    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default())
+    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default(), &mut ())
 }
 
 /// [`solve_report`] in a lent scratch (the core's workspace, ~9 MB: the rig keeps one for all
-/// its solves).
+/// its solves), telling `watch` of the rounds.
 pub fn solve_report_in(
     targets: &[Target],
     ids: &[String],
@@ -291,10 +322,18 @@ pub fn solve_report_in(
     b0: &Params,
     s: &Settings,
     scratch: &mut Scratch,
+    watch: &mut impl spherecal::calib::solve::Observe,
 ) -> (Solution, Report) {
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
     let t0 = std::time::Instant::now();
-    let sol = solve(targets, &mut slices, b0, s, &mut scratch.workspace());
+    let sol = spherecal::calib::solve::solve_watched(
+        targets,
+        &mut slices,
+        b0,
+        s,
+        &mut scratch.workspace(),
+        watch,
+    );
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
     let b = sol.b.0;
     let lm = sol.lm;
@@ -566,6 +605,9 @@ pub fn calibrate(
     let mut used_accuracy = None;
     // A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
     let drift = std::cell::Cell::new(false);
+    // One core workspace for every attempt; the rounds on a spinner (on a terminal only).
+    let mut scratch = Scratch::default();
+    let spinner = crate::progress::spinner("solving");
     let mut attempt = |applied: f64| -> Result<_, String> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let (stats, mut obs) = collect(inp)?;
@@ -574,7 +616,16 @@ pub fn calibrate(
         }
         let mut s = settings;
         s.estimate_drift = drift.get();
-        let (sol, rep) = solve_report(targets, ids, &mut obs, b0, &s);
+        s.clocks = clock_facts(&stats, applied, clock.allow_unlocked);
+        let (sol, rep) = solve_report_in(
+            targets,
+            ids,
+            &mut obs,
+            b0,
+            &s,
+            &mut scratch,
+            &mut crate::progress::Rounds(&spinner),
+        );
         Ok((stats, obs, sol, rep))
     };
     let mut start = clock.start.unwrap_or(0.0);
@@ -635,7 +686,7 @@ pub fn calibrate(
     inputs.accuracy = used_accuracy;
     rep.inputs = Some(inputs);
     // Windows that caught nothing: how far the trajectory came from those spheres says why.
-    if !rep.converged {
+    if !rep.converged && !matches!(sol.refusal, Some(Refusal::InsClockStep(_))) {
         let reach = inp.model.unwrap_or_default().max_range_m();
         let empty: Vec<(&str, Closest, f64)> = obs
             .iter()
@@ -653,55 +704,50 @@ pub fn calibrate(
             ));
         }
     }
-    // The INS clock: a step within the data moves every pose after it.
+    // The clocks' refusals are the core's (`Settings::clocks`); their words name the LiDAR
+    // clock's state.
+    if let Some(r) = &sol.refusal {
+        if matches!(r, Refusal::LidarClockUntrusted { .. }) {
+            rep.reason = Some(refusal_text_clock(
+                r,
+                ids,
+                &[],
+                Some(&stats.clock.describe()),
+            ));
+        }
+    }
+    Ok((stats, obs, sol, rep))
+}
+
+/// What the streams say of the clocks, for the core's checks: the LiDAR clock's trust (with
+/// the offset `applied` before the solve) and the first INS clock step within the LiDAR data.
+fn clock_facts(
+    stats: &crate::pipeline::RunStats,
+    applied: f64,
+    allowed: bool,
+) -> spherecal::calib::solve::ClockFacts {
     let span = stats
         .align
         .lidar_span
         .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-    if let Some(&(at, step)) = stats.ins.steps_within(span).next() {
-        // The cause, whatever else the solve found (a step also spreads the passes' offsets).
-        {
-            let n = stats.ins.steps_within(span).count();
-            rep.converged = false;
-            rep.reason = Some(format!(
-                "the INS clock stepped by {:+.1} ms {:.1} s into the LiDAR data (GPS {at:.3} s){}: one frame's time is not one output period after the one before it with nothing lost between them, so the poses after it are {:+.1} ms off those before; calibrate the parts on either side separately, or fix the INS time",
-                step * 1e3,
-                at - span.0,
-                if n > 1 { format!(", and {} more times", n - 1) } else { String::new() },
-                step * 1e3
-            ));
-        }
+    let count = stats.ins.steps_within(span).count();
+    spherecal::calib::solve::ClockFacts {
+        lidar_untrusted: (!stats.clock.trusted()).then(|| {
+            spherecal::calib::solve::UntrustedLidar {
+                rmc_offset_s: stats.clock.rmc_offset_s(),
+                applied_s: applied,
+                allowed,
+            }
+        }),
+        ins_step: stats.ins.steps_within(span).next().map(|&(at, step)| {
+            spherecal::calib::solve::InsStep {
+                at_s: at,
+                into_s: at - span.0,
+                step_s: step,
+                count,
+            }
+        }),
     }
-    // The LiDAR clock.
-    if rep.converged && !stats.clock.trusted() {
-        let explained = stats
-            .clock
-            .rmc_offset_s()
-            .map(|e| (rep.time_offset_s + e).abs() <= 1.5);
-        let found = format!("the time offset found is {:+.4} s", rep.time_offset_s);
-        let why = match (clock.allow_unlocked, explained) {
-            (false, _) => Some(format!(
-                "the LiDAR clock is not PPS-locked with a valid RMC ({}); {found}{}: --allow-unlocked-clock claims the solution",
-                stats.clock.describe(),
-                match explained {
-                    Some(true) => ", which explains the stamps' disagreement with the RMC",
-                    Some(false) => ", which does NOT explain the stamps' disagreement with the RMC",
-                    None => "",
-                }
-            )),
-            (true, Some(false)) => Some(format!(
-                "the LiDAR clock is not PPS-locked ({}) and {found}, which does not explain the stamps' disagreement with the RMC ({:+.3} s)",
-                stats.clock.describe(),
-                stats.clock.rmc_offset_s().unwrap_or(0.0)
-            )),
-            _ => None,
-        };
-        if let Some(why) = why {
-            rep.converged = false;
-            rep.reason = Some(why);
-        }
-    }
-    Ok((stats, obs, sol, rep))
 }
 
 /// Site targets and ids.

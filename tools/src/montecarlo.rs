@@ -5,7 +5,8 @@ use crate::calibrate::collect;
 use crate::config::scenario::Scenario;
 use crate::pipeline::{targets, Inputs, InsInput};
 pub use crate::report::{render_montecarlo as render, McReport, Trial};
-use spherecal::calib::{solve, Settings, P};
+use spherecal::calib::solve::solve_watched;
+use spherecal::calib::P;
 use spherecal::sim::Rng;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -30,6 +31,13 @@ pub fn montecarlo(
     let (_, obs) = collect(&inp)?;
     let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
+    // As `calibrate` would (the mounting held to the clock: the simulated one has PPS).
+    let settings = crate::calibrate::settings_for(
+        &site,
+        scenario.model(),
+        false,
+        site.apriori.window_margin_m,
+    );
     let t = &scenario.mount.truth;
     let truth = t.deg_m().0;
     let mut rng = Rng::new(seed);
@@ -73,12 +81,13 @@ pub fn montecarlo(
                     let mut slices: Vec<&mut [spherecal::window::Observation]> =
                         work.iter_mut().map(|v| v.as_mut_slice()).collect();
                     let t0 = std::time::Instant::now();
-                    let sol = solve(
+                    let sol = solve_watched(
                         &tg,
                         &mut slices,
                         &b0,
-                        &Settings::default(),
+                        &settings,
                         &mut scratch.workspace(),
+                        &mut crate::progress::Rounds(&bar),
                     );
                     let ms = t0.elapsed().as_secs_f64() * 1e3;
                     let solution = sol.b.deg_m().0;

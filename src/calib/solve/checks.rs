@@ -270,3 +270,124 @@ pub(super) fn checks(
         worst
     }
 }
+
+/// The clocks' verdict over the solve's (`found`): an INS clock step within the data is the
+/// cause whatever else was found; an untrusted LiDAR clock refuses an otherwise claimed
+/// solution unless allowed and its offset explains the stamps' RMC disagreement.
+pub(super) fn clock_checks(
+    s: &Settings,
+    sol: &Solution,
+    found: Option<Refusal>,
+) -> Option<Refusal> {
+    if let Some(step) = s.clocks.ins_step {
+        return Some(Refusal::InsClockStep(step));
+    }
+    if found.is_some() {
+        return found;
+    }
+    let u = s.clocks.lidar_untrusted?;
+    let offset_s = u.applied_s + sol.dt;
+    let explained = u.rmc_offset_s.map(|e| (offset_s + e).abs() <= 1.5);
+    let refused = !u.allowed || explained == Some(false);
+    refused.then_some(Refusal::LidarClockUntrusted {
+        offset_s,
+        explained,
+        allowed: u.allowed,
+        rmc_offset_s: u.rmc_offset_s,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with(facts: ClockFacts) -> Settings {
+        Settings {
+            clocks: facts,
+            ..Settings::default()
+        }
+    }
+
+    fn solved(dt: f64) -> Solution {
+        let mut sol = Solution::start(&Params([0.0; P]), 0.1);
+        sol.dt = dt;
+        sol
+    }
+
+    fn untrusted(rmc: Option<f64>, applied: f64, allowed: bool) -> ClockFacts {
+        ClockFacts {
+            lidar_untrusted: Some(UntrustedLidar {
+                rmc_offset_s: rmc,
+                applied_s: applied,
+                allowed,
+            }),
+            ins_step: None,
+        }
+    }
+
+    #[test]
+    fn trusted_clocks_leave_the_verdict_alone() {
+        let s = with(ClockFacts::default());
+        assert_eq!(clock_checks(&s, &solved(0.01), None), None);
+        let found = Some(Refusal::TooFewSpheres { have: 1 });
+        assert_eq!(clock_checks(&s, &solved(0.01), found), found);
+    }
+
+    #[test]
+    fn an_ins_step_is_the_cause_whatever_else_was_found() {
+        let step = InsStep {
+            at_s: 1000.5,
+            into_s: 31.0,
+            step_s: 0.02,
+            count: 2,
+        };
+        let s = with(ClockFacts {
+            lidar_untrusted: None,
+            ins_step: Some(step),
+        });
+        let found = Some(Refusal::TooFewSpheres { have: 1 });
+        assert_eq!(
+            clock_checks(&s, &solved(0.0), found),
+            Some(Refusal::InsClockStep(step))
+        );
+        assert_eq!(
+            clock_checks(&s, &solved(0.0), None),
+            Some(Refusal::InsClockStep(step))
+        );
+    }
+
+    #[test]
+    fn an_untrusted_lidar_clock_claims_only_when_allowed_and_explained() {
+        // Applied 0.25 s + found 0.05 s = 0.30 s; the stamps are 0.30 s behind the RMC.
+        let refused = |f, dt| clock_checks(&with(f), &solved(dt), None);
+        match refused(untrusted(Some(-0.3), 0.25, false), 0.05) {
+            Some(Refusal::LidarClockUntrusted {
+                offset_s,
+                explained,
+                allowed,
+                ..
+            }) => {
+                assert!((offset_s - 0.30).abs() < 1e-12);
+                assert_eq!((explained, allowed), (Some(true), false));
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(refused(untrusted(Some(-0.3), 0.25, true), 0.05), None);
+        assert_eq!(refused(untrusted(None, 0.25, true), 0.05), None);
+        // 1.5 s is the limit: 0.30 + 1.21 = 1.51 s unexplained.
+        assert!(matches!(
+            refused(untrusted(Some(1.21), 0.25, true), 0.05),
+            Some(Refusal::LidarClockUntrusted {
+                explained: Some(false),
+                ..
+            })
+        ));
+        assert_eq!(refused(untrusted(Some(1.19), 0.25, true), 0.05), None);
+        // A refusal of the data stands over the clock's.
+        let found = Some(Refusal::TooFewSpheres { have: 0 });
+        assert_eq!(
+            clock_checks(&with(untrusted(None, 0.0, false)), &solved(0.0), found),
+            found
+        );
+    }
+}

@@ -91,6 +91,21 @@ pub enum Refusal {
         /// Its sigma [s].
         sigma: f64,
     },
+    /// The INS clock stepped within the LiDAR data (found in the stream): the poses after it
+    /// are off those before, whatever the returns say.
+    InsClockStep(InsStep),
+    /// The LiDAR clock is not PPS-locked with a valid RMC, and either an unlocked clock is not
+    /// allowed or the time offset found does not explain the stamps' disagreement with the RMC.
+    LidarClockUntrusted {
+        /// The time offset found, the applied one included [s].
+        offset_s: f64,
+        /// Whether it explains the stamps' RMC disagreement (`None`: no RMC to tell).
+        explained: Option<bool>,
+        /// The user allowed an unlocked clock.
+        allowed: bool,
+        /// The stamps minus the RMC time [s], if known.
+        rmc_offset_s: Option<f64>,
+    },
     /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
     /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
     TimeOffsetContradicted {

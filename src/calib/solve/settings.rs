@@ -64,6 +64,43 @@ pub struct Settings {
     /// the nearest windowed return by twice this (at most 45 deg): a mounting beyond would have
     /// left the spheres outside their windows.
     pub margin: f64,
+    /// What the streams say of the clocks (the core sees no packets): the checks refuse on
+    /// it as on the returns.
+    pub clocks: ClockFacts,
+}
+
+/// What the caller read of the clocks in the streams.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ClockFacts {
+    /// The LiDAR clock is not PPS-locked with a valid RMC (`None`: it is).
+    pub lidar_untrusted: Option<UntrustedLidar>,
+    /// The INS clock stepped within the LiDAR data (`None`: it did not).
+    pub ins_step: Option<InsStep>,
+}
+
+/// A LiDAR clock without PPS and a valid RMC: a solution is claimed only when allowed and the
+/// time offset found explains the stamps' disagreement with the RMC (within 1.5 s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UntrustedLidar {
+    /// The stamps minus the RMC time, if the RMCs give it [s].
+    pub rmc_offset_s: Option<f64>,
+    /// The offset the caller applied before the solve; the solution's `dt` is on top [s].
+    pub applied_s: f64,
+    /// The user allows an unlocked clock (`--allow-unlocked-clock`).
+    pub allowed: bool,
+}
+
+/// The first INS clock step within the LiDAR data: every pose after it is off by the step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InsStep {
+    /// When, GPS seconds of week [s].
+    pub at_s: f64,
+    /// When, after the first LiDAR data [s].
+    pub into_s: f64,
+    /// By how much [s].
+    pub step_s: f64,
+    /// How many steps within the data.
+    pub count: usize,
 }
 
 impl Settings {
@@ -112,6 +149,7 @@ impl Default for Settings {
             estimate_drift: false,
             consensus: ConsensusSettings::default(),
             margin: 3.0,
+            clocks: ClockFacts::default(),
         }
     }
 }

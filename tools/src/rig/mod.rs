@@ -205,6 +205,8 @@ struct Shared<'a> {
     windowed: Vec<AtomicU64>,
     batch_drops: AtomicU64,
     solves: AtomicU64,
+    /// The solve under way (`r<N>`: its round N) or how the last one ended (`<how>:<rounds>`).
+    solve_state: Mutex<String>,
     calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
     /// The time offset the aligner is to apply [ns] (set by the solver).
     time_offset_ns: AtomicI64,
@@ -290,6 +292,7 @@ impl<'a> Shared<'a> {
             windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
             batch_drops: AtomicU64::new(0),
             solves: AtomicU64::new(0),
+            solve_state: Mutex::new(String::new()),
             calibration: Mutex::new(None),
             time_offset_ns: AtomicI64::new(0),
             time_offset: Mutex::new(None),

@@ -35,8 +35,15 @@ pub(super) fn solver(
     // The core's workspace, lent to every solve (not built afresh each time).
     let mut scratch = crate::calibrate::Scratch::default();
     let mut solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
-        let (sol, mut rep) =
-            crate::calibrate::solve_report_in(targets, ids, store, start, settings, &mut scratch);
+        let (sol, mut rep) = crate::calibrate::solve_report_in(
+            targets,
+            ids,
+            store,
+            start,
+            settings,
+            &mut scratch,
+            &mut StatusRounds(sh),
+        );
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
         let cov = crate::verdict::coverage(ids, store, &sol);
@@ -164,6 +171,22 @@ pub(super) fn solver(
             latest = Some(solve(&mut store, &mut start, &mut store_offset));
             last_total = store.iter().map(Vec::len).sum();
             last_solve = Some(Instant::now());
+        }
+    }
+}
+
+/// The solve's rounds on the status line's `solve=` (the core's observer hook).
+struct StatusRounds<'a, 'b>(&'a Shared<'b>);
+
+impl spherecal::calib::solve::Observe for StatusRounds<'_, '_> {
+    fn round(&mut self, n: usize, _: &spherecal::calib::solve::Round) {
+        if let Ok(mut s) = self.0.solve_state.lock() {
+            *s = format!("r{n}");
+        }
+    }
+    fn ended(&mut self, how: spherecal::calib::Termination, rounds: usize) {
+        if let Ok(mut s) = self.0.solve_state.lock() {
+            *s = format!("{}:{rounds}", how.name());
         }
     }
 }

@@ -16,7 +16,8 @@
 //! x, y, z [m]) or `-`; `sig` its 1-sigma in the same units or `-`; `dt_ms` the time offset
 //! between the clocks and its 1-sigma [ms] or `-`; `verdict` `collecting` or `ready` after the
 //! first solve (`-` before); `cov` per sphere `id:returns/passes/directions/min-max range [m]`
-//! of the kept returns at the last solve. When the verdict's missing items change, a line
+//! of the kept returns at the last solve; `solve` the solve under way (`r3`: its third round)
+//! or how the last one's rounds ended (`settled:4`) or `-`. When the verdict's missing items change, a line
 //! `verdict: collecting: ...` (or `verdict: ready`) says them in words.
 //!
 //! [`status_loop`] writes it once a second from a snapshot of the rig's shared counters.
@@ -58,6 +59,9 @@ pub struct Status {
     pub verdict: Option<String>,
     /// Coverage per sphere ([`crate::verdict::status_field`]).
     pub coverage: Option<String>,
+    /// The solve under way (`r3`: in its third round) or how the last one's rounds ended
+    /// (`settled:4`, [`spherecal::calib::Termination::name`]); `None` before the first.
+    pub solve: Option<String>,
 }
 
 impl Status {
@@ -121,6 +125,7 @@ impl Status {
                 .filter(|c| !c.is_empty())
                 .unwrap_or("-")
         );
+        let _ = write!(o, " solve={}", self.solve.as_deref().unwrap_or("-"));
         o
     }
 
@@ -165,6 +170,7 @@ impl Status {
                 }
                 "verdict" => s.verdict = (v != "-").then(|| v.to_string()),
                 "cov" => s.coverage = (v != "-").then(|| v.to_string()),
+                "solve" => s.solve = (v != "-").then(|| v.to_string()),
                 "cal" | "sig" if v == "-" => {}
                 "cal" | "sig" => {
                     let vals: Vec<f64> = v
@@ -244,6 +250,12 @@ pub(super) fn snapshot(
             .map(|(d, s)| (d * 1e3, s * 1e3)),
         verdict,
         coverage,
+        solve: sh
+            .solve_state
+            .lock()
+            .ok()
+            .map(|s| s.clone())
+            .filter(|s| !s.is_empty()),
     };
     *last = [received, aligned];
     s
@@ -423,10 +435,11 @@ mod tests {
             time_offset_ms: Some((100.125, 0.004)),
             verdict: Some("collecting".into()),
             coverage: Some("S1:1185/3/2/9-30,S2:1271/2/1/9-21".into()),
+            solve: Some("settled:4".into()),
         };
         assert_eq!(
             s.line(),
-            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking nopose=0 lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004 verdict=collecting cov=S1:1185/3/2/9-30,S2:1271/2/1/9-21"
+            "t=12s rx/s=760 al/s=754 drop=0/3/1 kdrop=7 pps=locked ins=tracking nopose=0 lag_ms=+1.4 win=S1:812,S2:790 cal=179.500,-44.900,1.200,1.500,-1.240,-1.360 sig=0.0003,0.0004,0.0002,0.0001,0.0001,0.0001 dt_ms=+100.125,0.004 verdict=collecting cov=S1:1185/3/2/9-30,S2:1271/2/1/9-21 solve=settled:4"
         );
         assert_eq!(Status::parse(&s.line()), Some(s));
         let empty = Status {
@@ -436,7 +449,7 @@ mod tests {
         };
         assert_eq!(
             empty.line(),
-            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning nopose=0 lag_ms=- win=- cal=- sig=- dt_ms=- verdict=- cov=-"
+            "t=0s rx/s=0 al/s=0 drop=0/0/0 kdrop=0 pps=none ins=aligning nopose=0 lag_ms=- win=- cal=- sig=- dt_ms=- verdict=- cov=- solve=-"
         );
         assert_eq!(Status::parse(&empty.line()), Some(empty));
         assert_eq!(Status::parse("t=1s bogus=3"), None);
