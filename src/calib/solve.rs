@@ -1,34 +1,8 @@
-//! The whole solve: find each sphere's returns among the clutter of its window
-//! ([`super::extract`]), solve the six parameters on them against the surveyed centres
-//! (Nelder-Mead on eq. 6, the authors' method), re-georeference, re-detect with a tighter prior
-//! and shell, until the kept returns stop changing; then Levenberg-Marquardt on the kept
-//! returns for the answer and its uncertainty, and the checks.
-//!
-//! Rounds. Round 1 knows nothing of where the sphere appears (a wrong a-priori mounting moves it
-//! by metres): each slice of time is searched over its whole window, and only detections whose
-//! cap is clearly curved are accepted; the returns within `tau0` of each detected sphere are
-//! kept. After each solve the shell `tau` becomes `shell_sigmas` robust sigmas of the kept
-//! returns' residuals against the surveyed spheres (sigma = 1.4826 x the median |residual|, from
-//! a fixed log-spaced histogram: no heap, no sort), never below `shell_floor`, and the prior
-//! radius three times the RMS offset of the slices' apparent spheres from the surveyed ones (at
-//! least three shells): later rounds detect only near the surveyed centre. The last round keeps
-//! the returns within the shell of the *surveyed* sphere, in the slices where the sphere was
-//! detected there.
-//!
-//! A sphere detected in too few slices to give `min_points` returns is reported as not found
-//! and left out; the others calibrate if at least two remain.
-//!
-//! Refusals (the solution is still reported): fewer than two spheres found (a single sphere
-//! cannot fix a rotation about the line to it); a condition number of the unit-diagonal normal
-//! matrix above `max_condition` = 1e3 (the weakest combination of parameters is then determined
-//! 30 times worse than the best, and some pair correlates beyond 0.998: table1's four passes give
-//! 7, a single pass 1.3e4 with roll, heading and z inseparable); the least squares not
-//! converged; a residual RMS above `max_dispersion` times what the noise model predicts
-//! (range, INS attitude x range, INS position, quantisation); a pass whose sphere, re-fitted to
-//! its own calibrated returns, sits off the surveyed centre by more than its uncertainty allows
-//! (chi-square over `max_pass_chi2` and more than `pass_offset_floor`): each pass must agree, not
-//! only the average (an unestimated clock offset moves passes in opposite directions along the
-//! track and cancels in the mean).
+//! The whole solve: the spheres' returns found among the clutter ([`super::extract`]), the
+//! detect-and-solve rounds (argmin-shaped, with an [`Observe`] hook), the
+//! last extraction and least squares, the checks that refuse what the data cannot support
+//! ([`Refusal`]). Parts: `settings`, `outcome` (the results), `passes`, `rounds`, `checks`.
+//! The method and its limits: docs/DESIGN.md, "Extraction and the solve".
 
 use super::consensus::{
     consensus, Ambiguity, Bounds, Candidate, Consensus, ConsensusSettings, Search,

@@ -1,0 +1,127 @@
+//! What meets a sphere (its stand, a deck, a pole) recognised in the collar around it and its
+//! returns rejected ([`reject_attachments`]).
+
+#[allow(unused_imports)]
+use super::*;
+
+/// Reject the kept returns where a structure meets the sphere (centre at the origin of
+/// `work.x`, radius `r`, shell `tau` = 3.5 noise sigmas): a tripod head or a pole under it, a
+/// deck it sits on, a wall it leans on. Such a structure shows as returns in the collar just
+/// outside the shell, gathered in one direction from the centre (returns on a free sphere
+/// leave the collar nearly empty; mixed pixels spread around the silhouette). Where at least
+/// `min_cluster` collar returns crowd into one direction (three times the collar's average),
+/// the kept returns within the cap around it are rejected: its half-angle is the 90th
+/// percentile of those collar returns' angles from their mean direction plus `atan(2 sigma /
+/// r)` (noise moves the structure's returns sideways), at most 50 deg; at most two such caps.
+/// The collar returns' shape names the verdict: `Pole` along a line, `Plane` otherwise.
+/// Returns (planes, poles).
+pub fn reject_attachments(
+    obs: &mut [Observation],
+    r: f64,
+    tau: f64,
+    dirs: &Directions,
+    min_cluster: u32,
+) -> (usize, usize) {
+    let (r, tau) = (r as f32, tau as f32);
+    let sigma = tau / 3.5;
+    let outer = r + tau + (2.0 * tau).max(0.05);
+    let collar = |o: &Observation| {
+        let d = norm(o.work.x);
+        d > r + tau && d < outer
+    };
+    let (mut planes, mut poles) = (0, 0);
+    let mut taken = [usize::MAX; 2];
+    for cap in 0..2 {
+        // Collar returns per lattice direction.
+        let mut bins = [0u32; 48];
+        let mut total = 0u32;
+        for o in obs.iter().filter(|o| collar(o)) {
+            let x = o.work.x;
+            let d = norm(x).max(1e-9);
+            let u = [x[0] / d, x[1] / d, x[2] / d];
+            let k = (0..48)
+                .max_by(|&a, &b| dot(dirs.0[a], u).total_cmp(&dot(dirs.0[b], u)))
+                .unwrap_or(0);
+            if !taken.contains(&k) {
+                bins[k] += 1;
+                total += 1;
+            }
+        }
+        let (k, &top) = bins
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, &c)| c)
+            .unwrap_or((0, &0));
+        if top < min_cluster || top * 48 < 3 * total * 3 {
+            break;
+        }
+        taken[cap] = k;
+        // The cluster: collar returns within 40 deg of the bin's direction; their mean
+        // direction and spread, and their shape.
+        let axis0 = dirs.0[k];
+        let cos40 = 0.766f32;
+        let mut m = [0f32; 3];
+        let mut n = 0f32;
+        let mut cov = Matrix3::<f32>::zeros();
+        let mut centroid = Vector3::<f32>::zeros();
+        for o in obs.iter().filter(|o| collar(o)) {
+            let x = o.work.x;
+            let d = norm(x).max(1e-9);
+            if dot(x, axis0) / d >= cos40 {
+                for a in 0..3 {
+                    m[a] += x[a] / d;
+                }
+                n += 1.0;
+                let v = Vector3::from(x);
+                centroid += v;
+                cov += v * v.transpose();
+            }
+        }
+        let mlen = norm(m).max(1e-9);
+        let axis = [m[0] / mlen, m[1] / mlen, m[2] / mlen];
+        let centroid = centroid / n.max(1.0);
+        let cov = cov / n.max(1.0) - centroid * centroid.transpose();
+        let line = eigenvalues(cov).is_some_and(|mut ev| {
+            ev.sort_unstable_by(|x, y| y.total_cmp(x));
+            ev[1] < 0.1 * ev[0]
+        });
+        // 90th percentile of the angles, from a histogram of 1-degree bins up to 60 deg.
+        let mut hist = [0u32; 61];
+        for o in obs.iter().filter(|o| collar(o)) {
+            let x = o.work.x;
+            let c = dot(x, axis) / norm(x).max(1e-9);
+            if c >= cos40 {
+                let a = libm::acosf(c.clamp(-1.0, 1.0)).to_degrees();
+                hist[(a as usize).min(60)] += 1;
+            }
+        }
+        let want = (0.9 * n) as u32;
+        let mut acc = 0;
+        let mut p90 = 60.0f32;
+        for (deg, &c) in hist.iter().enumerate() {
+            acc += c;
+            if acc >= want.max(1) {
+                p90 = deg as f32 + 1.0;
+                break;
+            }
+        }
+        let half = (p90 + libm::atanf(2.0 * sigma / r).to_degrees()).min(50.0);
+        let cos_half = libm::cosf(half.to_radians());
+        for o in obs.iter_mut() {
+            if o.work.verdict != Verdict::Kept as u8 {
+                continue;
+            }
+            let x = o.work.x;
+            if dot(x, axis) / norm(x).max(1e-9) >= cos_half {
+                o.work.verdict = if line {
+                    poles += 1;
+                    Verdict::Pole
+                } else {
+                    planes += 1;
+                    Verdict::Plane
+                } as u8;
+            }
+        }
+    }
+    (planes, poles)
+}
