@@ -276,30 +276,7 @@ impl Scratch {
     }
 }
 
-/// The solver's settings for a survey, built here only, for `calibrate` and the rig alike: the
-/// site's noise model (`[noise]`, else the sensors' specified values), the window margin (the
-/// bounds the mounting must stay in), the LiDAR model's laser period (the extraction's scan
-/// lines), and whether the time offset is estimated.
-pub fn settings_for(
-    site: &crate::config::site::Site,
-    model: Option<spherecal::velodyne::Model>,
-    estimate_dt: bool,
-    margin: f64,
-) -> Settings {
-    let noise = site.noise.unwrap_or_default();
-    let mut s = Settings {
-        estimate_dt,
-        range_noise: noise.range_m,
-        attitude_noise: noise.attitude_deg.to_radians(),
-        position_noise: noise.position_m,
-        margin,
-        ..Default::default()
-    };
-    if let Some(m) = model {
-        s.extract.firing_ns = i64::from(m.laser_period_ns());
-    }
-    s
-}
+pub use crate::session::settings_for;
 
 /// Solve and build the report from collected observations (with a scratch of its own: see
 /// [`solve_report_in`] to keep one between solves).
@@ -588,7 +565,11 @@ pub fn calibrate(
     if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
         inp.model = Some(m);
     }
-    let settings = settings_for(&inp.site, inp.model, clock.estimate, inp.margin);
+    let mut session = crate::session::Session::with_settings(
+        targets.to_vec(),
+        ids.to_vec(),
+        settings_for(&inp.site, inp.model, clock.estimate, inp.margin),
+    );
     let accuracy = match (&inp.accuracy, &inp.ins) {
         (Some(p), crate::pipeline::InsInput::Sbet(_, week)) => Some(Accuracy::load(
             p,
@@ -605,8 +586,7 @@ pub fn calibrate(
     let mut used_accuracy = None;
     // A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
     let drift = std::cell::Cell::new(false);
-    // One core workspace for every attempt; the rounds on a spinner (on a terminal only).
-    let mut scratch = Scratch::default();
+    // The rounds on a spinner (on a terminal only).
     let spinner = crate::progress::spinner("solving");
     let mut attempt = |applied: f64| -> Result<_, String> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
@@ -614,18 +594,12 @@ pub fn calibrate(
         if let Some(a) = &accuracy {
             used_accuracy = Some(a.apply(&mut obs));
         }
-        let mut s = settings;
-        s.estimate_drift = drift.get();
-        s.clocks = clock_facts(&stats, applied, clock.allow_unlocked);
-        let (sol, rep) = solve_report_in(
-            targets,
-            ids,
-            &mut obs,
-            b0,
-            &s,
-            &mut scratch,
-            &mut crate::progress::Rounds(&spinner),
-        );
+        session.estimate_drift(drift.get());
+        session.replace(obs, inp.time_offset_ns);
+        let clocks = clock_facts(&stats, applied, clock.allow_unlocked);
+        // The report's offset includes the one the windows were made at.
+        let (sol, rep) = session.solve(b0, clocks, &mut crate::progress::Rounds(&spinner));
+        let obs = session.take_store();
         Ok((stats, obs, sol, rep))
     };
     let mut start = clock.start.unwrap_or(0.0);
@@ -663,23 +637,23 @@ pub fn calibrate(
     let mut collections = 1;
     let (stats, obs, sol, mut rep) = loop {
         let (stats, obs, sol, rep) = first;
-        // Again with the offset found, while it moves by more than 0.5 ms (and stays within
-        // 2 s of the start: beyond, the first-order estimate is no guide).
-        let next = applied + sol.dt;
-        let again = clock.estimate
-            && collections < 5
-            && sol.lm.is_some_and(|l| l.converged)
-            && sol.dt.abs() > 5e-4
-            && (next - start).abs() <= 2.0;
-        if !again {
+        // Again with the offset found, while it moves enough to matter (the session's one
+        // rule), at most five collections.
+        let next = crate::session::next_offset(
+            applied,
+            start,
+            clock.estimate,
+            sol.dt,
+            sol.lm.is_some_and(|l| l.converged),
+        );
+        let Some(next) = next.filter(|_| collections < 5) else {
             break (stats, obs, sol, rep);
-        }
+        };
         applied = next;
         first = attempt(applied)?;
         collections += 1;
     };
     rep.time_offset_search = searched;
-    rep.time_offset_s += applied;
     rep.start.insert("time_offset".to_string(), start);
     rep.batch_overflow = stats.align.batch_overflow;
     let mut inputs = InputsReport::of(inp, &stats);

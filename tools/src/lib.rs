@@ -20,6 +20,7 @@ pub mod replay;
 pub mod report;
 pub mod rig;
 pub mod scene;
+pub mod session;
 pub mod state;
 pub mod synth;
 pub mod verdict;

@@ -22,31 +22,22 @@ pub(super) fn solver(
     sh: &Shared<'_>,
 ) -> Option<Report> {
     let n = targets.len();
-    let mut store: Vec<Vec<Observation>> = vec![Vec::new(); n];
+    // The calibration session: the same settings, workspace and offset rule as `calibrate`.
+    let mut session =
+        crate::session::Session::with_settings(targets.to_vec(), ids.to_vec(), *settings)
+            .with_capacity(MAX_OBS_PER_SPHERE);
     let mut last_total = 0usize;
     let mut last_solve: Option<Instant> = None;
     let mut latest: Option<Report> = None;
     let mut start = *b0;
-    // The time offset the store's observations were aligned at [ns].
-    let mut store_offset = 0i64;
     // The planner on the survey under way (built at the first solve: the LiDAR's rpm is known
     // by then).
     let mut live: Option<crate::plan::live::Live> = None;
-    // The core's workspace, lent to every solve (not built afresh each time).
-    let mut scratch = crate::calibrate::Scratch::default();
-    let mut solve = |store: &mut Vec<Vec<Observation>>, start: &mut Params, offset: &mut i64| {
-        let (sol, mut rep) = crate::calibrate::solve_report_in(
-            targets,
-            ids,
-            store,
-            start,
-            settings,
-            &mut scratch,
-            &mut StatusRounds(sh),
-        );
+    let mut solve = |session: &mut crate::session::Session, start: &mut Params| {
+        let (sol, rep) = session.solve(start, Default::default(), &mut StatusRounds(sh));
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
-        let cov = crate::verdict::coverage(ids, store, &sol);
+        let store = session.store();
         let (info, returns) =
             crate::verdict::data_info(targets, store, &sol, settings, ins_rate_hz);
         let predicted =
@@ -66,26 +57,19 @@ pub(super) fn solver(
             l.has_candidates()
                 .then(|| l.advise(&info, &returns, goal.goal().as_ref()))
         });
+        let verdict = session.claim(&sol, &rep, goal, Some(&predicted), advice.as_ref());
         if let Ok(mut v) = sh.verdict.lock() {
-            *v = Some(crate::verdict::assess(
-                &rep,
-                &cov,
-                goal,
-                Some(&predicted),
-                advice.as_ref(),
-            ));
+            *v = Some(verdict);
         }
-        rep.time_offset_s += *offset as f64 * 1e-9;
         if rep.converged {
             if let Ok(mut t) = sh.time_offset.lock() {
                 *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
             }
-            // Move the windows to the offset found (beyond 1 ms), and the store with them.
-            if settings.estimate_dt && sol.dt.is_finite() && sol.dt.abs() > 1e-3 {
-                let d = (sol.dt * 1e9).round() as i64;
-                rebase_or_clear(store, d);
-                *offset += d;
-                sh.time_offset_ns.store(*offset, Ordering::Relaxed);
+            // Move the windows to the offset found, and the store with them (the session's
+            // rule, as `calibrate`'s).
+            if let Some(to) = session.wants_offset(&sol) {
+                session.rebase(to);
+                sh.time_offset_ns.store(to, Ordering::Relaxed);
             }
             *start = sol.b;
             // The aligner's windows around the solution from now on, as tight as its residuals
@@ -108,7 +92,7 @@ pub(super) fn solver(
                 }
             }
             let mount = sol.b.mount();
-            for (v, t) in store.iter_mut().zip(targets) {
+            for (v, t) in session.store_mut().iter_mut().zip(targets) {
                 v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);
             }
             let d = sol.b.deg_m().0;
@@ -127,18 +111,11 @@ pub(super) fn solver(
     };
     loop {
         let closed = match rx.recv_timeout(Duration::from_millis(200)) {
-            Ok(mut m) => {
-                // Aligned at an older offset (in flight when it moved): moved to the store's.
-                if m.offset_ns != store_offset {
-                    let mut one = vec![std::mem::take(&mut m.obs)];
-                    rebase_or_clear(&mut one, store_offset - m.offset_ns);
-                    m.obs = one.pop().unwrap_or_default();
-                }
-                let room = MAX_OBS_PER_SPHERE.saturating_sub(store[m.sphere].len());
-                let k = m.obs.len().min(room);
-                store[m.sphere].extend_from_slice(&m.obs[..k]);
-                sh.batch_drops
-                    .fetch_add((m.obs.len() - k) as u64, Ordering::Relaxed);
+            Ok(m) => {
+                // Aligned at an older offset (in flight when it moved): the session moves it
+                // to the store's.
+                let dropped = session.add(m.sphere, &m.obs, m.offset_ns);
+                sh.batch_drops.fetch_add(dropped as u64, Ordering::Relaxed);
                 let _ = pool.try_send(m.obs);
                 false
             }
@@ -151,11 +128,14 @@ pub(super) fn solver(
             }
             continue;
         }
-        let total: usize = store.iter().map(Vec::len).sum();
-        let ready = store.iter().all(|s| s.len() >= settings.min_points);
+        let total: usize = session.store().iter().map(Vec::len).sum();
+        let ready = session
+            .store()
+            .iter()
+            .all(|s| s.len() >= settings.min_points);
         if closed {
             if ready && total > last_total {
-                latest = Some(solve(&mut store, &mut start, &mut store_offset));
+                latest = Some(solve(&mut session, &mut start));
             }
             return latest;
         }
@@ -168,8 +148,8 @@ pub(super) fn solver(
         let due = since.is_none_or(|e| e >= Duration::from_secs(1));
         let stale = since.is_none_or(|e| e >= Duration::from_secs(RESOLVE_S));
         if ready && due && total > last_total && (total * 4 >= last_total * 5 || stale) {
-            latest = Some(solve(&mut store, &mut start, &mut store_offset));
-            last_total = store.iter().map(Vec::len).sum();
+            latest = Some(solve(&mut session, &mut start));
+            last_total = session.store().iter().map(Vec::len).sum();
             last_solve = Some(Instant::now());
         }
     }
@@ -187,20 +167,6 @@ impl spherecal::calib::solve::Observe for StatusRounds<'_, '_> {
     fn ended(&mut self, how: spherecal::calib::Termination, rounds: usize) {
         if let Ok(mut s) = self.0.solve_state.lock() {
             *s = format!("{}:{rounds}", how.name());
-        }
-    }
-}
-
-/// Observations aligned at one time offset, moved to one larger by `d_ns` ([`Observation::rebase`],
-/// first order in the platform's velocity and turn rate, as the solver's own estimate is); beyond
-/// 2 s the first order is no guide and they are dropped.
-pub(super) fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
-    let d = d_ns as f64 * 1e-9;
-    for v in store {
-        if d.abs() > 2.0 {
-            v.clear();
-        } else {
-            v.iter_mut().for_each(|o| o.rebase(d));
         }
     }
 }

@@ -1,0 +1,306 @@
+//! One calibration session, driven the same way by `calibrate` (to convergence, collecting the
+//! files again at each time offset) and by the rig (step by step, as batches come): the
+//! solver's settings (built here only), the core's workspace kept between solves, the store of
+//! windowed returns with the time offset it was aligned at, and one claim rule.
+
+use crate::calibrate::{solve_report_in, Report, Scratch};
+use crate::config::site::Site;
+use spherecal::calib::solve::{ClockFacts, Observe};
+use spherecal::calib::{Params, Settings, Solution};
+use spherecal::window::{Observation, Target};
+
+/// The time offset moves the windows again when the solve moved it by more than this [s]
+/// (the solver's estimate is first order in the offset the poses were taken at).
+pub const OFFSET_STEP_S: f64 = 5e-4;
+/// ... and while it stays within this of where the session started [s]: beyond, the first
+/// order is no guide.
+pub const OFFSET_REACH_S: f64 = 2.0;
+
+/// The solver's settings for a survey: the site's noise model (`[noise]`, else the sensors'
+/// specified values), the window margin (the bounds the mounting must stay in), the LiDAR
+/// model's laser period (the extraction's scan lines), and whether the time offset is
+/// estimated.
+pub fn settings_for(
+    site: &Site,
+    model: Option<spherecal::velodyne::Model>,
+    estimate_dt: bool,
+    margin: f64,
+) -> Settings {
+    let noise = site.noise.unwrap_or_default();
+    let mut s = Settings {
+        estimate_dt,
+        range_noise: noise.range_m,
+        attitude_noise: noise.attitude_deg.to_radians(),
+        position_noise: noise.position_m,
+        margin,
+        ..Default::default()
+    };
+    if let Some(m) = model {
+        s.extract.firing_ns = i64::from(m.laser_period_ns());
+    }
+    s
+}
+
+/// A calibration under way.
+pub struct Session {
+    targets: Vec<Target>,
+    ids: Vec<String>,
+    settings: Settings,
+    scratch: Scratch,
+    store: Vec<Vec<Observation>>,
+    /// The time offset the store was aligned at [ns].
+    offset_ns: i64,
+    /// Where the offset started [ns].
+    start_ns: i64,
+    /// Most returns kept per sphere (`add` drops the rest, counted).
+    capacity: usize,
+}
+
+impl Session {
+    /// A session over the site's spheres, with the settings of [`settings_for`].
+    pub fn new(
+        site: &Site,
+        model: Option<spherecal::velodyne::Model>,
+        estimate_dt: bool,
+        margin: f64,
+    ) -> Self {
+        let (_, targets) = crate::pipeline::targets(site);
+        let ids = site.sphere.iter().map(|s| s.id.clone()).collect();
+        Self::with_settings(targets, ids, settings_for(site, model, estimate_dt, margin))
+    }
+
+    /// A session with settings made elsewhere by [`settings_for`] (the rig's plan).
+    pub fn with_settings(targets: Vec<Target>, ids: Vec<String>, settings: Settings) -> Self {
+        let n = targets.len();
+        Self {
+            targets,
+            ids,
+            settings,
+            scratch: Scratch::default(),
+            store: vec![Vec::new(); n],
+            offset_ns: 0,
+            start_ns: 0,
+            capacity: usize::MAX,
+        }
+    }
+
+    /// At most `n` returns kept per sphere.
+    pub fn with_capacity(mut self, n: usize) -> Self {
+        self.capacity = n;
+        self
+    }
+
+    /// The spheres and their ids.
+    pub fn targets(&self) -> (&[Target], &[String]) {
+        (&self.targets, &self.ids)
+    }
+
+    /// The settings (the same for every solve but what the clocks say).
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Estimate the LiDAR clock's drift too (a clock without PPS).
+    pub fn estimate_drift(&mut self, on: bool) {
+        self.settings.estimate_drift = on;
+    }
+
+    /// The returns kept so far, per sphere.
+    pub fn store(&self) -> &[Vec<Observation>] {
+        &self.store
+    }
+
+    /// The store, to prune or hand on.
+    pub fn store_mut(&mut self) -> &mut [Vec<Observation>] {
+        &mut self.store
+    }
+
+    /// The time offset the store is aligned at [ns].
+    pub fn offset_ns(&self) -> i64 {
+        self.offset_ns
+    }
+
+    /// A fresh collection, aligned at `offset_ns` (the file command collects the files again
+    /// at each offset).
+    pub fn replace(&mut self, obs: Vec<Vec<Observation>>, offset_ns: i64) {
+        self.store = obs;
+        self.store.resize(self.targets.len(), Vec::new());
+        self.offset_ns = offset_ns;
+    }
+
+    /// One sphere's batch aligned at `offset_ns`, moved to the store's offset first; returns
+    /// how many were dropped (the sphere's store full, or the sphere unknown).
+    pub fn add(&mut self, sphere: usize, obs: &[Observation], offset_ns: i64) -> usize {
+        let d = (self.offset_ns - offset_ns) as f64 * 1e-9;
+        let Some(v) = self.store.get_mut(sphere) else {
+            return obs.len();
+        };
+        if d.abs() > OFFSET_REACH_S {
+            return obs.len();
+        }
+        let k = obs.len().min(self.capacity.saturating_sub(v.len()));
+        let at = v.len();
+        v.extend_from_slice(&obs[..k]);
+        if d != 0.0 {
+            v[at..].iter_mut().for_each(|o| o.rebase(d));
+        }
+        obs.len() - k
+    }
+
+    /// Move the store to the offset `to_ns` without collecting again (the rig): first order in
+    /// the platform's velocity and turn rate, as the solver's own estimate is.
+    pub fn rebase(&mut self, to_ns: i64) {
+        rebase_or_clear(&mut self.store, to_ns - self.offset_ns);
+        self.offset_ns = to_ns;
+    }
+
+    /// Solve on the store from `b0` with what the streams say of the clocks (`clocks`, their
+    /// times relative to the store's offset), telling `watch` of the rounds. The report's time
+    /// offset includes the store's.
+    pub fn solve(
+        &mut self,
+        b0: &Params,
+        clocks: ClockFacts,
+        watch: &mut impl Observe,
+    ) -> (Solution, Report) {
+        let mut s = self.settings;
+        s.clocks = clocks;
+        let (sol, mut rep) = solve_report_in(
+            &self.targets,
+            &self.ids,
+            &mut self.store,
+            b0,
+            &s,
+            &mut self.scratch,
+            watch,
+        );
+        rep.time_offset_s += self.offset_ns as f64 * 1e-9;
+        (sol, rep)
+    }
+
+    /// The offset the windows should be aligned at next [ns], when the solve moved it enough to
+    /// matter ([`OFFSET_STEP_S`]) with the least squares converged, within [`OFFSET_REACH_S`]
+    /// of the start; `None` when the offset is held or settled.
+    pub fn wants_offset(&self, sol: &Solution) -> Option<i64> {
+        self.offset_after(sol.dt, sol.lm.is_some_and(|l| l.converged))
+    }
+
+    /// [`Session::wants_offset`] for a solve that moved the offset by `dt` [s].
+    fn offset_after(&self, dt: f64, converged: bool) -> Option<i64> {
+        next_offset(
+            self.offset_ns as f64 * 1e-9,
+            self.start_ns as f64 * 1e-9,
+            self.settings.estimate_dt,
+            dt,
+            converged,
+        )
+        .map(|t| (t * 1e9).round() as i64)
+    }
+
+    /// Where the time offset starts (the file command: after its search) [ns].
+    pub fn start_at(&mut self, offset_ns: i64) {
+        self.start_ns = offset_ns;
+    }
+
+    /// The store, taken out (the file command's last collection, for its outputs).
+    pub fn take_store(&mut self) -> Vec<Vec<Observation>> {
+        let n = self.targets.len();
+        std::mem::replace(&mut self.store, vec![Vec::new(); n])
+    }
+
+    /// The one claim rule: the report is claimed when the core's checks (the clocks' among
+    /// them) passed; it is enough when, besides, every sphere was seen in passes both ways and
+    /// the goal is met ([`crate::verdict::assess`]).
+    pub fn claim(
+        &self,
+        sol: &Solution,
+        rep: &Report,
+        goal: &crate::verdict::Targets,
+        predicted: Option<&[f64; 7]>,
+        advice: Option<&crate::plan::live::LiveAdvice>,
+    ) -> crate::verdict::Verdict {
+        let cov = crate::verdict::coverage(&self.ids, &self.store, sol);
+        crate::verdict::assess(rep, &cov, goal, predicted, advice)
+    }
+}
+
+/// The one rule for moving the windows' time offset [s]: from `aligned` (what the windows
+/// were made at) by the solve's `dt` when it was estimated, the least squares converged, the
+/// move exceeds [`OFFSET_STEP_S`] and the result stays within [`OFFSET_REACH_S`] of `start`.
+pub fn next_offset(
+    aligned: f64,
+    start: f64,
+    estimated: bool,
+    dt: f64,
+    converged: bool,
+) -> Option<f64> {
+    let next = aligned + dt;
+    (estimated
+        && converged
+        && dt.is_finite()
+        && dt.abs() > OFFSET_STEP_S
+        && (next - start).abs() <= OFFSET_REACH_S)
+        .then_some(next)
+}
+
+/// Observations aligned at one time offset, moved to one larger by `d_ns`
+/// ([`Observation::rebase`]); beyond [`OFFSET_REACH_S`] the first order is no guide and they
+/// are dropped.
+pub fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
+    let d = d_ns as f64 * 1e-9;
+    for v in store {
+        if d.abs() > OFFSET_REACH_S {
+            v.clear();
+        } else {
+            v.iter_mut().for_each(|o| o.rebase(d));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn session() -> Session {
+        let t = Target {
+            center: nalgebra::Vector3::zeros(),
+            radius: 0.2,
+        };
+        Session::with_settings(
+            vec![t, t],
+            vec!["S1".into(), "S2".into()],
+            Settings::default(),
+        )
+        .with_capacity(3)
+    }
+
+    #[test]
+    fn add_keeps_the_capacity_and_counts_the_rest() {
+        let mut s = session();
+        let o = Observation::default();
+        assert_eq!(s.add(0, &[o; 2], 0), 0);
+        assert_eq!(s.add(0, &[o; 2], 0), 1);
+        assert_eq!(s.add(7, &[o; 2], 0), 2, "an unknown sphere");
+        assert_eq!(s.store()[0].len(), 3);
+        // A batch aligned elsewhere beyond the first order's reach is dropped and counted.
+        assert_eq!(s.add(1, &[o; 2], 3_000_000_000), 2);
+        assert!(s.store()[1].is_empty());
+    }
+
+    #[test]
+    fn the_offset_moves_when_it_matters_and_within_reach() {
+        let mut s = session();
+        s.replace(vec![Vec::new(), Vec::new()], 100_000_000);
+        s.start_at(100_000_000);
+        assert_eq!(s.offset_after(0.0004, true), None, "settled");
+        assert_eq!(s.offset_after(0.02, false), None, "not converged");
+        assert_eq!(s.offset_after(0.02, true), Some(120_000_000));
+        assert_eq!(s.offset_after(2.5, true), None, "beyond reach");
+        s.rebase(120_000_000);
+        assert_eq!(s.offset_ns(), 120_000_000);
+        assert_eq!(s.offset_after(-0.001, true), Some(119_000_000));
+        let mut held = session();
+        held.settings.estimate_dt = false;
+        assert_eq!(held.offset_after(0.02, true), None, "held");
+    }
+}
