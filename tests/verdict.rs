@@ -61,7 +61,7 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
             ..settings
         };
         let predicted = predicted_sigma(&targets, &obs, &sol, &sim_noise, s.ins.rate_hz);
-        let v = assess(&rep, &cov, &goal, Some(&predicted), None);
+        let v = assess(&rep, &cov, goal.goal().as_ref(), Some(&predicted), None);
         // Once claimed, the prediction from the kept returns' geometry agrees with the
         // solution's own (cluster-robust) sigma: the noise model is the site's, the data's
         // scatter the simulator's.
@@ -178,7 +178,7 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
             next.starts_with("add a ") && next.contains("m off the spheres' line"),
             "{next}"
         );
-        let v = assess(&rep, &cov, &none, None, Some(&a));
+        let v = assess(&rep, &cov, none.goal().as_ref(), None, Some(&a));
         eprintln!(
             "until {until}: gain {:.3}: {next}; ready {}: {:?} {}",
             a.gain, v.ready, v.missing, v.ready_because
@@ -199,7 +199,7 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
             ),
             "{o}"
         );
-        let v = assess(&rep, &cov, &tight, None, Some(&a));
+        let v = assess(&rep, &cov, tight.goal().as_ref(), None, Some(&a));
         assert!(
             !v.ready && v.missing.iter().any(|m| m.contains("(the planner's)")),
             "{v:?}"

@@ -2,7 +2,7 @@
 //! returns off the deck, the quay wall, the stand, people and parked vehicles. By step: scan
 //! lines and slices ((`scan`)), Hough votes on the centre ((`vote`)), scoring a candidate
 //! ((`score`)), one slice's detection and the returns kept ((`detect`)), what meets the sphere
-//! ((`attach`)). The method: docs/DESIGN.md, "Extraction and the solve".
+//! (`attach`). The method: docs/extraction.md, section 2.
 
 use super::objective::{Noise, TimeOffset};
 use crate::georef::Mount;

@@ -2,7 +2,7 @@
 //! detect-and-solve rounds (argmin-shaped, with an [`Observe`] hook), the
 //! last extraction and least squares, the checks that refuse what the data cannot support
 //! ([`Refusal`]). Parts: `settings`, `outcome` (the results), `passes`, `rounds`, `checks`.
-//! The method and its limits: docs/DESIGN.md, "Extraction and the solve".
+//! The method and its limits: docs/extraction.md, section 2.
 
 use super::consensus::{
     consensus, Ambiguity, Bounds, Candidate, Consensus, ConsensusSettings, Search,

@@ -215,7 +215,7 @@ impl Session {
         &self,
         sol: &Solution,
         rep: &Report,
-        goal: &crate::verdict::Targets,
+        goal: Option<&crate::config::goal::Goal>,
         predicted: Option<&[f64; 7]>,
         advice: Option<&crate::plan::live::LiveAdvice>,
     ) -> crate::verdict::Verdict {

@@ -6,46 +6,15 @@
 //! prediction from the geometry of the returns kept so far and the noise model
 //! ([`spherecal::calib::predict`]), marked `(predicted)`.
 
+pub use crate::config::goal::Targets;
 use crate::report::Report;
 use serde::{Deserialize, Serialize};
 use spherecal::calib::solve::Solution;
 use spherecal::calib::NAMES;
 use spherecal::window::Observation;
 
-/// The accuracy wanted (board `[calibration]`): each sigma at most this. Without them the
-/// survey is done when another pass would improve no sigma by more than
-/// [`crate::plan::live::ENOUGH_GAIN`] (what the board's sensors can reach, by the planner).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Targets {
-    /// Each boresight angle's 1-sigma at most [deg].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub target_sigma_deg: Option<f64>,
-    /// Each lever-arm component's 1-sigma at most [m].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub target_sigma_m: Option<f64>,
-}
-
-impl Targets {
-    /// The planner's goal for these targets (a target not given constrains nothing); `None`
-    /// without any.
-    pub fn goal(&self) -> Option<crate::plan::Goal> {
-        if self.target_sigma_deg.is_none() && self.target_sigma_m.is_none() {
-            return None;
-        }
-        Some(crate::plan::Goal {
-            sigma_deg: self.target_sigma_deg.unwrap_or(f64::INFINITY),
-            sigma_m: self.target_sigma_m.unwrap_or(f64::INFINITY),
-            ..crate::plan::Goal::default()
-        })
-    }
-}
-
 /// A pass counts when it holds this many kept returns.
 pub const MIN_PASS_RETURNS: usize = 10;
-/// Kept returns further apart in time than this are two passes (as is a turn of more than
-/// 90 deg) [s].
-pub const PASS_GAP_S: f64 = 2.0;
 
 /// One sphere's coverage by the kept returns.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -54,7 +23,8 @@ pub struct Coverage {
     pub id: String,
     /// Returns kept.
     pub returns: usize,
-    /// Passes (runs of kept returns; at least [`MIN_PASS_RETURNS`] each).
+    /// Passes: the solver's (split at a turn past 90 deg or a gap, `Solution::passes`) with at
+    /// least [`MIN_PASS_RETURNS`] kept returns.
     pub passes: usize,
     /// The compass headings of the passes' mean velocities [deg].
     pub headings_deg: Vec<f64>,
@@ -83,74 +53,48 @@ pub struct Verdict {
 }
 
 /// Each sphere's coverage by its kept returns (the first `used` of its observations after the
-/// solve).
+/// solve) in the solver's passes.
 pub fn coverage(ids: &[String], obs: &[Vec<Observation>], sol: &Solution) -> Vec<Coverage> {
     ids.iter()
         .enumerate()
         .map(|(j, id)| {
             let used = sol.spheres.get(j).map_or(0, |s| s.used);
-            let mut kept: Vec<&Observation> = obs
-                .get(j)
-                .map_or(&[][..], |v| &v[..used.min(v.len())])
-                .iter()
-                .collect();
-            kept.sort_by_key(|o| o.time);
-            one(id, &kept)
+            let kept = obs.get(j).map_or(&[][..], |v| &v[..used.min(v.len())]);
+            let passes = sol.passes.iter().filter(|p| usize::from(p.sphere) == j);
+            one(id, kept, passes)
         })
         .collect()
 }
 
-fn one(id: &str, kept: &[&Observation]) -> Coverage {
-    let mut c = Coverage {
+fn one<'a>(
+    id: &str,
+    kept: &[Observation],
+    passes: impl Iterator<Item = &'a spherecal::calib::solve::PassReport>,
+) -> Coverage {
+    let kept_of = |p: &spherecal::calib::solve::PassReport| {
+        p.verdicts[spherecal::calib::extract::Verdict::Kept as usize] as usize
+    };
+    let dirs: Vec<[f64; 2]> = passes
+        .filter(|p| kept_of(p) >= MIN_PASS_RETURNS && p.course != [0.0; 2])
+        .map(|p| [f64::from(p.course[0]), f64::from(p.course[1])])
+        .collect();
+    let range_m = kept.iter().fold([f64::INFINITY, 0.0f64], |r, o| {
+        let d = f64::from(o.range);
+        [r[0].min(d), r[1].max(d)]
+    });
+    Coverage {
         id: id.to_string(),
         returns: kept.len(),
-        range_m: [f64::INFINITY, 0.0],
-        ..Coverage::default()
-    };
-    let mut dirs: Vec<[f64; 2]> = Vec::new();
-    let mut run: Vec<&Observation> = Vec::new();
-    let mut close = |run: &mut Vec<&Observation>| {
-        if run.len() >= MIN_PASS_RETURNS {
-            let (n, e) = run.iter().fold((0.0, 0.0), |(n, e), o| {
-                (n + f64::from(o.velocity.x), e + f64::from(o.velocity.y))
-            });
-            let norm = n.hypot(e);
-            if norm > 0.0 {
-                dirs.push([n / norm, e / norm]);
-            }
-        }
-        run.clear();
-    };
-    for o in kept {
-        // A new pass after a gap in time, or once the platform heads more than 90 deg away
-        // from where the pass started (a turn seen through: the sphere in view across it).
-        let turned = |a: &Observation| {
-            f64::from(a.velocity.x) * f64::from(o.velocity.x)
-                + f64::from(a.velocity.y) * f64::from(o.velocity.y)
-                < 0.0
-        };
-        if let (Some(first), Some(last)) = (run.first(), run.last()) {
-            if (o.time.0 - last.time.0) as f64 * 1e-9 > PASS_GAP_S || turned(first) {
-                close(&mut run);
-            }
-        }
-        run.push(o);
-        let r = f64::from(o.range);
-        c.range_m = [c.range_m[0].min(r), c.range_m[1].max(r)];
+        passes: dirs.len(),
+        headings_deg: dirs
+            .iter()
+            .map(|d| d[1].atan2(d[0]).to_degrees().rem_euclid(360.0))
+            .collect(),
+        both_directions: dirs
+            .iter()
+            .any(|a| dirs.iter().any(|b| a[0] * b[0] + a[1] * b[1] < -0.5)),
+        range_m: if kept.is_empty() { [0.0; 2] } else { range_m },
     }
-    close(&mut run);
-    c.passes = dirs.len();
-    c.headings_deg = dirs
-        .iter()
-        .map(|d| d[1].atan2(d[0]).to_degrees().rem_euclid(360.0))
-        .collect();
-    c.both_directions = dirs
-        .iter()
-        .any(|a| dirs.iter().any(|b| a[0] * b[0] + a[1] * b[1] < -0.5));
-    if c.returns == 0 {
-        c.range_m = [0.0; 2];
-    }
-    c
 }
 
 /// The compass point of a course [deg] ("northbound", "south-westbound" ...).
@@ -226,7 +170,7 @@ pub fn predicted_sigma(
 pub fn assess(
     rep: &Report,
     cov: &[Coverage],
-    t: &Targets,
+    goal: Option<&crate::config::goal::Goal>,
     predicted: Option<&[f64; 7]>,
     advice: Option<&crate::plan::live::LiveAdvice>,
 ) -> Verdict {
@@ -250,7 +194,7 @@ pub fn assess(
         }
     }
     let next = advice.and_then(|a| a.next.as_ref().map(|n| n.0.clone()));
-    match t.goal() {
+    match goal {
         Some(goal) => {
             let (lo, hi) = cov.iter().fold((f64::INFINITY, 0.0f64), |(a, b), c| {
                 if c.returns > 0 {
@@ -324,7 +268,7 @@ pub fn assess(
             None => missing.push("no advice from the planner yet (no pass flown)".into()),
         },
     }
-    let ready_because = match (t.goal(), advice) {
+    let ready_because = match (goal, advice) {
         (Some(_), _) => "every sphere seen both ways, every sigma within the board's targets".into(),
         (None, Some(a)) => format!(
             "every sphere seen both ways; another pass would improve no sigma by more than {:.0} % ({:.0} % at best: {})",
@@ -381,22 +325,55 @@ mod tests {
         }
     }
 
-    /// Hand case: 30 returns northbound at 9-12 m, then (5 s later) 30 southbound at 21 m.
+    fn pass(kept: u32, course: [f32; 2]) -> spherecal::calib::solve::PassReport {
+        let mut verdicts = [0; 8];
+        verdicts[spherecal::calib::extract::Verdict::Kept as usize] = kept;
+        spherecal::calib::solve::PassReport {
+            sphere: 0,
+            start: GpsTime(0),
+            end: GpsTime(0),
+            slices: 0,
+            detected: 0,
+            mean_inliers: 0.0,
+            verdicts,
+            centre_offset: [0.0; 3],
+            along_track: 0.0,
+            chi2: 0.0,
+            dt_shift: 0.0,
+            dt_sigma: 0.0,
+            course,
+        }
+    }
+
+    /// Hand case: 30 returns northbound at 9-12 m, then 30 southbound at 21 m, in the solver's
+    /// passes; a pass of 5 kept returns and one standing still do not count.
     #[test]
     fn passes_directions_and_span() {
         let mut v: Vec<Observation> = (0..30)
             .map(|k| obs(k as f64 * 0.05, [1.3, 0.0], 9.0 + k as f32 * 0.1))
             .collect();
-        let north_only: Vec<&Observation> = v.iter().collect();
-        let c = one("S1", &north_only);
+        let north = [
+            pass(30, [1.0, 0.0]),
+            pass(5, [-1.0, 0.0]),
+            pass(40, [0.0; 2]),
+        ];
+        let c = one("S1", &v, north.iter());
         assert_eq!((c.passes, c.both_directions), (1, false));
         assert!((c.headings_deg[0] - 0.0).abs() < 1e-9);
         assert_eq!(bound(c.headings_deg[0] + 180.0), "southbound");
         v.extend((0..30).map(|k| obs(6.5 + k as f64 * 0.05, [-1.8, 0.1], 21.0)));
-        let both: Vec<&Observation> = v.iter().collect();
-        let c = one("S1", &both);
+        let s = 1.8f32.hypot(0.1);
+        let both = [pass(30, [1.0, 0.0]), pass(30, [-1.8 / s, 0.1 / s])];
+        let c = one("S1", &v, both.iter());
         assert_eq!((c.passes, c.both_directions), (2, true));
+        assert!(
+            (c.headings_deg[1] - 176.82).abs() < 0.01,
+            "{:?}",
+            c.headings_deg
+        );
         assert_eq!(c.range_m, [9.0, 21.0]);
         assert_eq!(status_field(&[c]), "S1:60/2/2/9-21");
+        let none = one("S2", &[], [].iter());
+        assert_eq!((none.passes, none.range_m), (0, [0.0; 2]));
     }
 }

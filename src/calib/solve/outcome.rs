@@ -191,6 +191,9 @@ pub struct PassReport {
     pub dt_shift: f32,
     /// Its 1-sigma [s] (0: not estimated).
     pub dt_sigma: f32,
+    /// The platform's course over the pass's kept returns: their mean horizontal velocity's
+    /// direction (unit north, east; zero when none was kept or it stood still).
+    pub course: [f32; 2],
 }
 
 /// One detect-and-solve round.

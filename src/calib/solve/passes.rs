@@ -59,6 +59,7 @@ pub(super) fn find_passes(
                 chi2: 0.0,
                 dt_shift: 0.0,
                 dt_sigma: 0.0,
+                course: [0.0; 2],
             });
         } else if let Some(p) = out.last_mut() {
             p.end = o.time;

@@ -555,12 +555,23 @@ impl Rounds {
                 tallies[j][k] += 1;
                 if let Some(p) = pass_of(mine, o.time) {
                     p.verdicts[k] += 1;
+                    if k == Verdict::Kept as usize {
+                        p.course[0] += o.velocity.x;
+                        p.course[1] += o.velocity.y;
+                    }
                 }
             }
             for p in mine.iter_mut() {
                 if p.detected > 0 {
                     p.mean_inliers /= p.detected as f32;
                 }
+                let [n, e] = p.course;
+                let speed = libm::sqrtf(n * n + e * e);
+                p.course = if speed > 0.0 {
+                    [n / speed, e / speed]
+                } else {
+                    [0.0; 2]
+                };
             }
         }
         (used, tallies)

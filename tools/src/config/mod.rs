@@ -12,6 +12,7 @@ pub mod datum;
 #[rustfmt::skip]
 pub mod epsg_tables;
 pub mod geoid;
+pub mod goal;
 pub mod scenario;
 pub mod site;
 pub mod survey;

@@ -384,30 +384,7 @@ pub fn geometry_of(
     }
 }
 
-/// The accuracy wanted.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Goal {
-    /// Each boresight angle's 1-sigma [deg].
-    pub sigma_deg: f64,
-    /// Each lever-arm component's 1-sigma [m].
-    pub sigma_m: f64,
-    /// The solver's largest acceptable condition number (it refuses beyond).
-    pub max_condition: f64,
-    /// Fewest returns per sphere the solver needs.
-    pub min_returns: u32,
-}
-
-impl Default for Goal {
-    fn default() -> Self {
-        let st = spherecal::calib::Settings::default();
-        Self {
-            sigma_deg: 0.01,
-            sigma_m: 0.005,
-            max_condition: st.max_condition,
-            min_returns: st.min_points as u32,
-        }
-    }
-}
+pub use crate::config::goal::Goal;
 
 /// A prediction in the surveyor's units.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

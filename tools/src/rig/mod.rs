@@ -704,6 +704,7 @@ fn run_threads(
         let solver = spawn(sc, "solver", move || {
             let (tg, ids) = (&plan.targets, &plan.ids);
             let report = opts.report.as_deref();
+            let goal = opts.board.calibration.goal();
             solver(
                 rx,
                 pool_tx,
@@ -712,7 +713,7 @@ fn run_threads(
                 &plan.b0,
                 &plan.settings,
                 opts.board.ins.rate_hz,
-                &opts.board.calibration,
+                goal.as_ref(),
                 opts.board.lidar_model().unwrap_or_default(),
                 plan.margin,
                 report,

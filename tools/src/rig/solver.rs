@@ -15,7 +15,7 @@ pub(super) fn solver(
     b0: &Params,
     settings: &Settings,
     ins_rate_hz: f64,
-    goal: &crate::verdict::Targets,
+    goal: Option<&crate::config::goal::Goal>,
     model: spherecal::velodyne::Model,
     apriori_margin: f64,
     report: Option<&Path>,
@@ -54,8 +54,7 @@ pub(super) fn solver(
                 sh.error(format!("the live planner: {e}"));
                 return None;
             }
-            l.has_candidates()
-                .then(|| l.advise(&info, &returns, goal.goal().as_ref()))
+            l.has_candidates().then(|| l.advise(&info, &returns, goal))
         });
         let verdict = session.claim(&sol, &rep, goal, Some(&predicted), advice.as_ref());
         if let Ok(mut v) = sh.verdict.lock() {
