@@ -1,7 +1,7 @@
 //! Sphere extraction: which of a window's returns are on the sphere, among 10-100 times more
 //! returns off the deck, the quay wall, the stand, people and parked vehicles. By step: scan
-//! lines and slices ((`scan`)), Hough votes on the centre ((`vote`)), scoring a candidate
-//! ((`score`)), one slice's detection and the returns kept ((`detect`)), what meets the sphere
+//! lines and slices (`scan`), Hough votes on the centre (`vote`), scoring a candidate
+//! (`score`), one slice's detection and the returns kept (`detect`), what meets the sphere
 //! (`attach`). The method: docs/extraction.md, section 2.
 
 use super::objective::{Noise, TimeOffset};
