@@ -9,11 +9,14 @@ use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
+use spherecal_tools::montecarlo::windowed_packets;
 use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::plan::{self, recommend, Goal, PlanNoise};
 use std::path::{Path, PathBuf};
 
 const TRIALS: u64 = 200;
+/// The Monte Carlo's packet mask is made with windows this much wider than the site's [m].
+const WINDOW_EXTRA_M: f64 = 0.5;
 const NAMES: [&str; 7] = ["roll", "pitch", "heading", "x", "y", "z", "time offset"];
 
 fn tmp(name: &str) -> PathBuf {
@@ -80,7 +83,13 @@ fn agrees_with_monte_carlo(name: &str) {
         core::array::from_fn(|i| if i < 6 { d[i] } else { pred.sigma[6] })
     };
     eprintln!("{name}: predicted in {:?}: {sigma_pred:?}", t0.elapsed());
-    let cache = spherecal_tools::synth::trace(&s).unwrap();
+    // The trials simulate only the data packets that hold windowed returns (and their
+    // neighbours): the rest cannot change a calibration
+    // (`every_windowed_return_of_a_full_trial_is_simulated` checks the mask loses none).
+    let mut cache = spherecal_tools::synth::trace(&s).unwrap();
+    let (keep, n) = windowed_packets(&s, &cache, WINDOW_EXTRA_M, 2).unwrap();
+    eprintln!("{name}: trials simulate {n} of {} data packets", keep.len());
+    cache.keep_only(keep);
     let results = std::sync::Mutex::new(Vec::new());
     let seeds: Vec<u64> = (1000..1000 + TRIALS).collect();
     std::thread::scope(|sc| {
@@ -151,6 +160,41 @@ fn agrees_with_monte_carlo(name: &str) {
     }
     eprintln!("{name}: {TRIALS} trials in {:?}", t0.elapsed());
     assert!(bad.is_empty(), "{name}: {bad:?}");
+}
+
+/// The trials' packet mask (made on the scenario's own seed) keeps every data packet that
+/// holds a windowed return in a full trial on other seeds (all packets simulated, other noise):
+/// skipping the rest loses nothing the calibration reads.
+#[test]
+fn every_windowed_return_of_a_full_trial_is_simulated() {
+    for name in ["table1-noisy", "pontoon-noisy"] {
+        let s = plan::with_planning_noise(&Scenario::load(name).unwrap());
+        let cache = spherecal_tools::synth::trace(&s).unwrap();
+        let (keep, n) = windowed_packets(&s, &cache, WINDOW_EXTRA_M, 2).unwrap();
+        assert!(
+            n * 5 < keep.len(),
+            "{name}: the mask keeps {n} of {} packets",
+            keep.len()
+        );
+        for seed in [1003, 1077] {
+            let mut sd = s.clone();
+            sd.seed = seed;
+            let dir = tmp(&format!("full-{name}-{seed}"));
+            let (_, written) =
+                spherecal_tools::synth::synth_traced_written(&sd, &dir, &cache).unwrap();
+            let (_, obs) = collect(&inputs(&dir)).unwrap();
+            let windowed: usize = obs.iter().map(Vec::len).sum();
+            assert!(windowed > 10_000, "{name} {seed}: {windowed}");
+            for o in obs.iter().flatten() {
+                let k = written[o.packet as usize] as usize;
+                assert!(
+                    keep[k],
+                    "{name} seed {seed}: data packet {k} holds a windowed return"
+                );
+            }
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
 }
 
 #[test]

@@ -509,17 +509,24 @@ impl<'w, 'a> LidarSim<'w, 'a> {
 
     /// Write the next packet into `out` (at least 1206 bytes); `None` at the end.
     pub fn next_packet(&mut self, out: &mut [u8]) -> Option<SimPacket> {
-        self.next(out, None)
+        self.next(out, None, false)
     }
 
     /// As [`Self::next_packet`], but a data packet's echoes are `traced` (this packet's
     /// [`Self::traced`] from an earlier run over the same scene) instead of traced again: only
     /// the noise is drawn anew. The schedule is the same, so position packets need nothing.
     pub fn next_packet_replayed(&mut self, out: &mut [u8], traced: &[Traced]) -> Option<SimPacket> {
-        self.next(out, Some(traced))
+        self.next(out, Some(traced), false)
     }
 
-    fn next(&mut self, out: &mut [u8], replay: Option<&[Traced]>) -> Option<SimPacket> {
+    /// The next packet as [`LidarSim::next_packet`] would send it, but a data packet is only
+    /// timed, neither traced nor noised nor written (reported lost): a Monte Carlo skips the
+    /// packets that hold no windowed return. Position packets are written as ever.
+    pub fn skip_packet(&mut self, out: &mut [u8]) -> Option<SimPacket> {
+        self.next(out, Some(&[]), true)
+    }
+
+    fn next(&mut self, out: &mut [u8], replay: Option<&[Traced]>, skip: bool) -> Option<SimPacket> {
         if self.k >= self.packets || out.len() < DATA_PACKET_LEN {
             return None;
         }
@@ -540,6 +547,14 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let dropped = self.rng.chance(self.cfg.drop_prob);
         if dropped {
             self.stats.dropped += 1;
+        }
+        if skip {
+            self.hits.clear();
+            self.traced.clear();
+            return Some(SimPacket::Data {
+                time: t,
+                dropped: true,
+            });
         }
         self.write_data(t, dropped, replay, &mut out[..DATA_PACKET_LEN]);
         Some(SimPacket::Data { time: t, dropped })

@@ -139,3 +139,52 @@ pub fn montecarlo(
         runs,
     })
 }
+
+/// The data packets of a traced survey that hold a windowed return, for trials that simulate
+/// only those ([`crate::synth::TraceCache::keep_only`]): `s` synthesised once in full and
+/// collected with windows `extra` [m] wider than the site's (range and INS noise move a
+/// return by centimetres, not by `extra`), each packet marked with its `neighbours` either
+/// side. Skipping the rest changes nothing a calibration sees: it only reads the windows.
+/// Returns the mask and how many packets it keeps.
+pub fn windowed_packets(
+    s: &Scenario,
+    cache: &crate::synth::TraceCache,
+    extra: f64,
+    neighbours: usize,
+) -> Result<(Vec<bool>, usize), String> {
+    let dir = std::env::temp_dir().join(format!(
+        "spherecal-windowed-{}-{}-{}",
+        std::process::id(),
+        s.name,
+        s.seed
+    ));
+    let (_, written) = crate::synth::synth_traced_written(s, &dir, cache)?;
+    let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
+    let mut inp = Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
+        site,
+    );
+    inp.margin += extra;
+    let collected = collect(&inp);
+    let _ = std::fs::remove_dir_all(&dir);
+    let (_, obs) = collected?;
+    let mut keep = vec![false; cache.packets()];
+    for o in obs.iter().flatten() {
+        let Some(&k) = written.get(o.packet as usize) else {
+            return Err(format!(
+                "windowed return in data packet {} of {} written",
+                o.packet,
+                written.len()
+            ));
+        };
+        let k = k as usize;
+        let lo = k.saturating_sub(neighbours);
+        let hi = (k + neighbours).min(keep.len().saturating_sub(1));
+        for m in keep.iter_mut().take(hi + 1).skip(lo) {
+            *m = true;
+        }
+    }
+    let n = keep.iter().filter(|&&m| m).count();
+    Ok((keep, n))
+}

@@ -138,6 +138,7 @@ pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir, None))
         .map_err(|e| e.to_string())?
+        .map(|(t, _)| t)
 }
 
 /// A scene's trace: every data packet's echoes before noise ([`spherecal::sim::lidar::Traced`]),
@@ -147,9 +148,29 @@ pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
 pub struct TraceCache {
     offsets: Vec<usize>,
     echoes: Vec<Traced>,
+    /// The data packets to simulate (`None`: all); the others are skipped, not written.
+    keep: Option<Vec<bool>>,
 }
 
 impl TraceCache {
+    /// Simulate only the data packets `keep` marks (by their index in the survey); the others
+    /// are neither noised nor written (a Monte Carlo's trials need only the packets that hold
+    /// windowed returns: [`crate::montecarlo::windowed_packets`]).
+    pub fn keep_only(&mut self, keep: Vec<bool>) {
+        self.keep = Some(keep);
+    }
+
+    /// Data packets in the survey.
+    pub fn packets(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    fn skips(&self, k: usize) -> bool {
+        self.keep
+            .as_ref()
+            .is_some_and(|m| !m.get(k).copied().unwrap_or(false))
+    }
+
     fn packet(&self, k: usize) -> &[Traced] {
         match (self.offsets.get(k), self.offsets.get(k + 1)) {
             (Some(&a), Some(&b)) => &self.echoes[a..b],
@@ -165,6 +186,7 @@ pub fn trace(s: &Scenario) -> Result<TraceCache, String> {
         let mut cache = TraceCache {
             offsets: vec![0],
             echoes: Vec::new(),
+            keep: None,
         };
         let mut payload = [0u8; 1206];
         while let Some(p) = lidar.next_packet(&mut payload) {
@@ -181,6 +203,16 @@ pub fn trace(s: &Scenario) -> Result<TraceCache, String> {
 /// As [`synth`], with the LiDAR's echoes from `cache` (a [`trace`] of a scenario that differs
 /// from `s` at most in its seed and noise settings); the noise is `s`'s.
 pub fn synth_traced(s: &Scenario, dir: &Path, cache: &TraceCache) -> Result<Truth, String> {
+    synth_traced_written(s, dir, cache).map(|(t, _)| t)
+}
+
+/// [`synth_traced`], with each written data packet's index in the survey (the pcap's data
+/// packets in order; lost and skipped ones are not written).
+pub fn synth_traced_written(
+    s: &Scenario,
+    dir: &Path,
+    cache: &TraceCache,
+) -> Result<(Truth, Vec<u32>), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir, Some(cache)))
         .map_err(|e| e.to_string())?
@@ -191,11 +223,11 @@ fn write_files(
     world: &World<'_>,
     dir: &Path,
     cache: Option<&TraceCache>,
-) -> Result<Truth, String> {
+) -> Result<(Truth, Vec<u32>), String> {
     // Every file goes to its temporary first and all are renamed at the end: an interrupted
     // or failed synth leaves no file of this run, none half-written ([`crate::output`]).
     let mut files = Vec::new();
-    let lidar = write_lidar(s, world, dir, cache, &mut files)?;
+    let (lidar, written) = write_lidar(s, world, dir, cache, &mut files)?;
     let ins = write_ins(s, world, dir, &mut files)?;
     let site_path = dir.join("site.toml");
     files.push(staged_bytes(&site_path, site_of(s).to_toml().as_bytes())?);
@@ -204,7 +236,7 @@ fn write_files(
     let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
     files.push(staged_bytes(&truth_path, (json + "\n").as_bytes())?);
     crate::output::commit_all(files)?;
-    Ok(truth)
+    Ok((truth, written))
 }
 
 /// The files a scenario's [`synth`] writes, by name (the POS MV's log only with a POS MV).
@@ -235,7 +267,7 @@ fn write_lidar(
     dir: &Path,
     cache: Option<&TraceCache>,
     files: &mut Vec<Staged>,
-) -> Result<LidarStats, String> {
+) -> Result<(LidarStats, Vec<u32>), String> {
     let pcap_path = dir.join("lidar.pcap");
     let mut pcap = PcapWriter::new(Staged::create(&pcap_path)?)
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
@@ -294,8 +326,10 @@ fn write_lidar(
         }
         Ok(())
     };
+    let mut written = Vec::new();
     loop {
         let next = match cache {
+            Some(c) if c.skips(data_k) => lidar.skip_packet(&mut payload),
             Some(c) => lidar.next_packet_replayed(&mut payload, c.packet(data_k)),
             None => lidar.next_packet(&mut payload),
         };
@@ -319,6 +353,7 @@ fn write_lidar(
                     labels.write_all(&r).map_err(|e| io(&labels_path, e))?;
                 }
                 packet_index += 1;
+                written.push((data_k - 1) as u32);
                 time
             }
             SimPacket::Position { time } => time,
@@ -339,7 +374,7 @@ fn write_lidar(
     files.push(labels);
 
     bar.finish_and_clear();
-    Ok(lidar.stats)
+    Ok((lidar.stats, written))
 }
 
 /// ins.bin, and the same bytes as a serial log with the times a rig would have received
