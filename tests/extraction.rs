@@ -9,7 +9,7 @@ mod common;
 
 use common::{assert_within, report_deg_m, spherecal};
 use spherecal_tools::config::scenario::{Scenario, BUILTIN};
-use spherecal_tools::scene::BoxSpec;
+use spherecal_tools::config::scenery::BoxSpec;
 use std::path::PathBuf;
 
 fn dir(name: &str) -> PathBuf {

@@ -19,7 +19,6 @@ pub mod progress;
 pub mod replay;
 pub mod report;
 pub mod rig;
-pub mod scene;
 pub mod session;
 pub mod state;
 pub mod synth;

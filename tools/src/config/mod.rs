@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use spherecal::calib::DegM;
 
 pub mod board;
+pub mod checks;
 pub mod crs;
 pub mod datum;
 #[allow(clippy::all, missing_docs)]
@@ -14,6 +15,7 @@ pub mod epsg_tables;
 pub mod geoid;
 pub mod goal;
 pub mod scenario;
+pub mod scenery;
 pub mod site;
 pub mod survey;
 

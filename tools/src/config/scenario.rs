@@ -1,7 +1,9 @@
 //! Simulation scenarios: the TOML a surveyor edits (`spherecal synth --print-scenario table1`),
 //! its validation (unknown keys and impossible values are rejected by name), and the built-ins.
 
-use crate::scene::{
+pub use crate::config::checks::ScenarioError;
+use crate::config::checks::{check, finite};
+use crate::config::scenery::{
     BallSpec, BoxSpec, PlaneSpec, PoleSpec, ScatterSpec, Scene, SceneSpec, Stand, VesselSpec,
     WaterSpec,
 };
@@ -297,32 +299,6 @@ pub struct TrajectorySpec {
     /// (seconds after `start_utc`, site NED, body -> site NED attitude).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub file: Option<String>,
-}
-
-/// A scenario that cannot be used, with the key at fault.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ScenarioError(pub String);
-
-impl std::fmt::Display for ScenarioError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for ScenarioError {}
-
-/// `Err(key: why)` unless `ok`.
-pub(crate) fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(ScenarioError(format!("{key}: {why}")))
-    }
-}
-
-/// Every value finite.
-pub(crate) fn finite(v: &[f64]) -> bool {
-    v.iter().all(|x| x.is_finite())
 }
 
 /// Parse `YYYY-MM-DDTHH:MM:SS[.fff]Z` to Unix nanoseconds.

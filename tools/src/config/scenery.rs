@@ -3,7 +3,7 @@
 //! each sphere's `stand`), validated by key, and built into the simulator's objects with a name
 //! and a kind for each (the labels of `synth`'s `labels.bin` refer to them by index).
 
-use crate::config::scenario::{check, finite, ScenarioError};
+use crate::config::checks::{check, finite, ScenarioError};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::sim::{Frame, Object, Rng, Shape, Water};
