@@ -1,0 +1,248 @@
+//! A survey as the file commands take it: its files ([`Survey`]), the outputs asked for
+//! ([`Outputs`]), the clock options ([`ClockOptions`]) and the whole calibration of the files
+//! ([`run_calibrate`]: the pipeline, the session, the outputs).
+
+use crate::{calibrate, config, georef, html, output, pipeline, plot, report};
+use spherecal::calib::DegM;
+use std::path::PathBuf;
+
+/// What `spherecal calibrate` reads.
+#[derive(Debug, Clone)]
+pub struct Survey {
+    /// The Velodyne capture(s).
+    pub pcap: pipeline::Files,
+    /// The LiDAR model (None: as the packets say, checked against their period).
+    pub model: Option<spherecal::velodyne::Model>,
+    /// VN-200 serial bytes (raw or serial logs) ...
+    pub ins: Option<pipeline::Files>,
+    /// ... or Applanix SBET files and their GPS week (None: from the capture's RMC date).
+    pub sbet: Option<pipeline::Files>,
+    /// ... or an Applanix POS MV stream and the group its poses come from.
+    pub posmv: Option<(pipeline::Files, u16)>,
+    /// The SBET's GPS week.
+    pub gps_week: Option<u16>,
+    /// The SBET's accuracy file (POSPac smrmsg; None: `smrmsg_NAME` beside `sbet_NAME` if
+    /// there).
+    pub smrmsg: Option<PathBuf>,
+    /// site.toml.
+    pub site: PathBuf,
+    /// The trajectory's datum (`--trajectory-datum`; None: a VN-200's or POS MV's WGS 84; an
+    /// SBET must say).
+    pub trajectory_datum: Option<String>,
+    /// The LiDAR's UDP ports in the capture (`--lidar-ports`; default 2368, 8308).
+    pub ports: spherecal_hal::vlp16::Ports,
+}
+
+impl Survey {
+    /// A `synth` folder: `lidar.pcap`, `ins.bin`, `site.toml`.
+    pub fn synth_dir(dir: &std::path::Path) -> Self {
+        Self {
+            pcap: dir.join("lidar.pcap").into(),
+            model: None,
+            ins: Some(dir.join("ins.bin").into()),
+            sbet: None,
+            posmv: None,
+            gps_week: None,
+            smrmsg: None,
+            site: dir.join("site.toml"),
+            trajectory_datum: None,
+            ports: Default::default(),
+        }
+    }
+}
+
+/// What `spherecal calibrate` writes besides its summary.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs {
+    /// The JSON report.
+    pub report: Option<PathBuf>,
+    /// The cloud georeferenced with the result, as LAS.
+    pub las: Option<PathBuf>,
+    /// Residual plots (SVG).
+    pub plot: Option<PathBuf>,
+    /// The report as one self-contained HTML page.
+    pub html: Option<PathBuf>,
+    /// Every windowed return with its verdict (CSV).
+    pub returns: Option<PathBuf>,
+    /// Where the LAS coordinates are.
+    pub las_frame: georef::LasFrame,
+}
+
+/// An output file can be created where it is asked for ([`output::check`]: its folder exists
+/// and takes a new file, it is not a folder), checked before a long run so that it does not
+/// fail at the end. `flag` names the option in the message.
+pub fn check_output(flag: &str, p: &std::path::Path) -> Result<(), String> {
+    output::check(flag, p)
+}
+
+impl Outputs {
+    /// Every output can be written ([`check_output`]).
+    pub fn check(&self) -> Result<(), String> {
+        for (flag, p) in [
+            ("--report", &self.report),
+            ("--las", &self.las),
+            ("--plot", &self.plot),
+            ("--html", &self.html),
+            ("--returns", &self.returns),
+        ] {
+            if let Some(p) = p {
+                check_output(flag, p)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The `--returns` CSV header.
+pub const RETURNS_HEADER: &str =
+    "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
+
+/// How `calibrate` treats the clocks and the INS.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockOptions {
+    /// Estimate the time offset between the clocks (else hold `start`).
+    pub estimate: bool,
+    /// The time offset to start from [s] (INS time = LiDAR time + this); `None`: 0, or what
+    /// the LiDAR's RMC says when its clock is not PPS-locked.
+    pub start: Option<f64>,
+    /// Claim a solution although the LiDAR clock is not PPS-locked (when the time offset
+    /// found explains its disagreement with the RMC).
+    pub allow_unlocked: bool,
+    /// Use VN-200 poses whose InsStatus says not tracking.
+    pub keep_untracked_ins: bool,
+    /// Search the time offset over +- this [s] around the start (`None`: 2 s when the LiDAR
+    /// clock is not PPS-locked with a valid RMC, no search otherwise).
+    pub search: Option<f64>,
+}
+
+impl Default for ClockOptions {
+    fn default() -> Self {
+        Self {
+            estimate: true,
+            start: None,
+            allow_unlocked: false,
+            keep_untracked_ins: false,
+            search: None,
+        }
+    }
+}
+
+/// `spherecal calibrate` as a function: returns the summary and whether a solution is claimed.
+/// `init` overrides the site's a-priori start [deg, m]; `truth` (for the demo: the six and the
+/// time offset) is printed beside the result.
+///
+/// With the time offset estimated, the windows are collected again with the offset found
+/// (the solver's estimate is to first order in the offset the poses were taken at) until it
+/// changes by less than 0.5 ms (four times at most).
+pub fn run_calibrate(
+    survey: Survey,
+    init: Option<DegM>,
+    clock: ClockOptions,
+    out: &Outputs,
+    truth: Option<[f64; 7]>,
+) -> Result<Calibrated, String> {
+    use crate::pipeline::{Inputs, InsInput};
+    out.check()?;
+    let site = config::site::Site::load(&survey.site)?;
+    let start = init.unwrap_or(site.apriori_deg_m());
+    let b0 = start.params();
+    let (ins, accuracy) = match (survey.ins, survey.sbet, survey.posmv) {
+        (Some(i), _, _) => (InsInput::Vn200(i), None),
+        (None, None, Some((f, g))) => (InsInput::Posmv(f, survey.gps_week, g), None),
+        (None, Some(s), _) => {
+            // Beside a single SBET file, its smrmsg.
+            let acc = survey.smrmsg.or_else(|| match s.0.as_slice() {
+                [one] => pipeline::accuracy::beside_sbet(one),
+                _ => None,
+            });
+            (InsInput::Sbet(s, survey.gps_week), acc)
+        }
+        (None, None, None) => return Err("give --ins, --sbet or --posmv".into()),
+    };
+    let (site, datums) =
+        pipeline::site_in_trajectory_datum(&site, &ins, survey.trajectory_datum.as_deref())?;
+    if out.las.is_some() {
+        georef::LasOut::check(&site, out.las_frame)?;
+    }
+    let mut inp = Inputs::apriori(survey.pcap, ins, site);
+    inp.model = survey.model;
+    inp.ports = survey.ports;
+    inp.accuracy = accuracy;
+    inp.mount = b0.mount();
+    inp.keep_untracked_ins = clock.keep_untracked_ins;
+    let (targets, ids) = calibrate::site_targets(&inp);
+    let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
+    let mut text = format!("{datums}\n");
+    text.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_files()));
+    text.push_str(&format!(
+        "{} returns, windows {:?}\n",
+        stats.align.window.points,
+        obs.iter().map(Vec::len).collect::<Vec<_>>()
+    ));
+    text.push_str(&report::render(&rep, truth.as_ref()));
+    // The result is printed whatever happens to the files: an output that fails now (a disk
+    // full, a mount gone) is said after it, not instead of it.
+    let mut wrote = String::new();
+    let mut output_errors = Vec::new();
+    let mut put = |r: Result<Option<String>, String>| match r {
+        Ok(Some(line)) => wrote.push_str(&line),
+        Ok(None) => {}
+        Err(e) => output_errors.push(e),
+    };
+    if let Some(p) = &out.report {
+        put(report::write_json_atomically(p, &rep).map(|()| None));
+    }
+    if let Some(p) = &out.returns {
+        put(calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)
+            .map(|()| Some(format!("returns: {}\n", p.display()))));
+    }
+    if let Some(p) = &out.las {
+        let inp2 = pipeline::Inputs {
+            mount: sol.b.mount(),
+            time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
+            ..inp.clone()
+        };
+        put(
+            georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(st, _, _)| {
+                Some(format!(
+                    "LAS: {} ({} returns with the calibrated mount, {} coordinates)\n",
+                    p.display(),
+                    st.align.window.georeferenced,
+                    match out.las_frame {
+                        georef::LasFrame::Projected => "map",
+                        georef::LasFrame::Local => "local east-north-up",
+                    }
+                ))
+            }),
+        );
+    }
+    if out.plot.is_some() || out.html.is_some() {
+        let figs = plot::Figures::new(&targets, &ids, &obs, &sol, &b0, &rep);
+        if let Some(p) = &out.plot {
+            put(plot::plot(p, &figs).map(|()| Some(format!("plot: {}\n", p.display()))));
+        }
+        if let Some(p) = &out.html {
+            put(html::render(&rep, &figs, inp.site.leap_seconds)
+                .and_then(|page| output::write(p, page.as_bytes()))
+                .map(|()| Some(format!("report (HTML): {}\n", p.display()))));
+        }
+    }
+    text.push_str(&wrote);
+    Ok(Calibrated {
+        text,
+        converged: rep.converged,
+        output_errors,
+    })
+}
+
+/// What [`run_calibrate`] gives: the printed result, whether a solution is claimed, and the
+/// outputs that could not be written (said after the result).
+#[derive(Debug, Clone)]
+pub struct Calibrated {
+    /// The inputs, the datums, the table and the verdict, as printed.
+    pub text: String,
+    /// A solution is claimed (every check passed).
+    pub converged: bool,
+    /// Outputs that failed, each naming its file.
+    pub output_errors: Vec<String>,
+}
