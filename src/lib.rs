@@ -22,4 +22,5 @@ pub mod time;
 pub mod velodyne;
 
 pub mod vn200;
-pub mod window;
+/// The sphere windows: a stage of the alignment ([`align::window`]), here by its old path too.
+pub use align::window;

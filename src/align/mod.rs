@@ -9,6 +9,7 @@
 
 pub mod aligner;
 pub mod history;
+pub mod window;
 
 pub use aligner::{AlignStats, Aligner, HourFrom};
 pub use history::{AlignError, Motion, PoseHistory, PoseSample};

@@ -13,6 +13,7 @@
 //!   product byte against the packet period.
 //! - [`firing`]: per-firing time offsets, azimuth interpolation and the point in the sensor frame.
 
+pub mod beam;
 pub mod data;
 pub mod firing;
 pub mod model;

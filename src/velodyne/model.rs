@@ -20,37 +20,11 @@
 //! A point's azimuth is the block's azimuth interpolated to the firing time (its fraction of
 //! the block) plus the laser's azimuth offset (VLP-32C table 9-2; zero on the others).
 
+pub use super::beam::Beam;
 use super::tables;
 
 /// Most lasers of any model (the channel count of a block).
 pub const MAX_LASERS: usize = 32;
-
-/// One laser's geometry: the manual's values and their trigonometry (f64; the decoder casts).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Beam {
-    /// Elevation angle w [deg], positive up.
-    pub elevation_deg: f64,
-    /// Azimuth offset [deg] added to the interpolated azimuth (clockwise, as the azimuth).
-    pub azimuth_offset_deg: f64,
-    /// Vertical beam-origin offset [m] added to z.
-    pub vertical_offset_m: f64,
-    /// cos w.
-    pub cos_el: f64,
-    /// sin w.
-    pub sin_el: f64,
-    /// cos of the azimuth offset.
-    pub cos_az: f64,
-    /// sin of the azimuth offset.
-    pub sin_az: f64,
-}
-
-impl Beam {
-    /// The azimuth offset [rad].
-    #[inline]
-    pub fn azimuth_offset_rad(&self) -> f64 {
-        self.azimuth_offset_deg.to_radians()
-    }
-}
 
 /// A Velodyne model the decoder knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
