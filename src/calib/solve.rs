@@ -21,6 +21,7 @@ use core::ops::Range;
 use nalgebra::Vector3;
 
 mod checks;
+mod last;
 mod outcome;
 mod passes;
 mod rounds;
