@@ -9,7 +9,7 @@ pub use crate::report::{
     Verdicts, Xyz,
 };
 use spherecal::calib::consensus::Candidate;
-use spherecal::calib::solve::{Lost, Refusal, Settings, Solution, Workspace};
+use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
 use spherecal::calib::{Params, NAMES, P};
 use spherecal::window::{Observation, Target};
 use std::fmt::Write as _;
@@ -117,120 +117,6 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String
     )
 }
 
-/// A refusal in words.
-pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
-    refusal_text_clock(r, ids, weak, None)
-}
-
-/// [`refusal_text`], with the LiDAR clock's state in words where a refusal is about it.
-pub fn refusal_text_clock(
-    r: &Refusal,
-    ids: &[String],
-    weak: &[String],
-    lidar_clock: Option<&str>,
-) -> String {
-    let clock_words = lidar_clock.unwrap_or("see the LiDAR clock line");
-    match r {
-        Refusal::InsClockStep(st) => format!(
-            "the INS clock stepped by {:+.1} ms {:.1} s into the LiDAR data (GPS {:.3} s){}: one frame's time is not one output period after the one before it with nothing lost between them, so the poses after it are {:+.1} ms off those before; calibrate the parts on either side separately, or fix the INS time",
-            st.step_s * 1e3,
-            st.into_s,
-            st.at_s,
-            if st.count > 1 { format!(", and {} more times", st.count - 1) } else { String::new() },
-            st.step_s * 1e3
-        ),
-        Refusal::LidarClockUntrusted { offset_s, explained, allowed: false, .. } => format!(
-            "the LiDAR clock is not PPS-locked with a valid RMC ({clock_words}); the time offset found is {offset_s:+.4} s{}: --allow-unlocked-clock claims the solution",
-            match explained {
-                Some(true) => ", which explains the stamps' disagreement with the RMC",
-                Some(false) => ", which does NOT explain the stamps' disagreement with the RMC",
-                None => "",
-            }
-        ),
-        Refusal::LidarClockUntrusted { offset_s, rmc_offset_s, .. } => format!(
-            "the LiDAR clock is not PPS-locked ({clock_words}) and the time offset found is {offset_s:+.4} s, which does not explain the stamps' disagreement with the RMC ({:+.3} s)",
-            rmc_offset_s.unwrap_or(0.0)
-        ),
-        Refusal::TooFewTargets { given } => format!("the site gives {given} sphere(s): at least two are needed (one sphere cannot fix the rotation about the line to it)"),
-        Refusal::TooFewSpheres { have } => format!("{have} sphere(s) found: at least two are needed (one sphere cannot fix the rotation about the line to it)"),
-        Refusal::TooFewPoints { sphere, have, need } => format!("sphere {}: {have} returns, at least {need} are needed", ids.get(*sphere).map_or("?", |s| s.as_str())),
-        Refusal::IllConditioned { condition, limit } => format!(
-            "ill-conditioned: condition number {condition:.3e} > {limit:.0e}; the geometry cannot separate {}",
-            if weak.is_empty() { "the parameters".to_string() } else { weak.join(", ") }
-        ),
-        Refusal::NotConverged { iterations } => format!("the least squares did not converge (stalled after {iterations} iterations)"),
-        Refusal::OverDispersed { rms, predicted } => format!(
-            "residual RMS {:.1} mm is {:.1}x what the sensors' noise predicts ({:.1} mm): returns that are not on the spheres, or a model that does not fit",
-            rms * 1e3,
-            rms / predicted.max(1e-12),
-            predicted * 1e3
-        ),
-        Refusal::Ambiguous(a) => {
-            let d = (a.offset[0].powi(2) + a.offset[1].powi(2) + a.offset[2].powi(2)).sqrt();
-            format!(
-                "ambiguous: sphere {}: another mounting puts other sphere-like returns {:.2} m from the chosen ones (N {:+.2}, E {:+.2}, D {:+.2} m) on it and explains the survey nearly as well ({} of its slices against {}; {:.0} of all against {:.0}): a buoy, fender or other round object of its size beside it, or passes that cannot tell them apart; move the object, or add passes from other directions",
-                ids.get(a.sphere).map_or("?", |s| s.as_str()),
-                d,
-                a.offset[0],
-                a.offset[1],
-                a.offset[2],
-                a.support[1],
-                a.support[0],
-                a.score[1],
-                a.score[0]
-            )
-        }
-        Refusal::OutOfBounds { parameter, change, limit } => {
-            let (v, l, unit) = if *parameter < 3 {
-                (change.to_degrees(), limit.to_degrees(), "deg")
-            } else {
-                (*change, *limit, "m")
-            };
-            format!(
-                "the solve left the a-priori bounds: {} moved {v:.3} {unit} from the start, more than the {l:.3} {unit} the windows' margin allows (the spheres would have been outside their windows): the returns kept are not the spheres'; check the a-priori values and the site",
-                NAMES.get(*parameter).copied().unwrap_or("?")
-            )
-        }
-        Refusal::ClockInconsistent { sphere, pass, into, shift, sigma, .. } => format!(
-            "the clocks are not steady: in pass {} over sphere {} ({:.1}-{:.1} s into the data) the returns put the time offset {:+.1} ms (sigma {:.1} ms, {:.0} sigma) off the rest of the survey's: an INS time step or a LiDAR clock drifting; look for the step in the INS line above (time going back or jumping), or give the LiDAR PPS",
-            pass + 1,
-            ids.get(*sphere).map_or("?", |s| s.as_str()),
-            into[0],
-            into[1],
-            shift * 1e3,
-            sigma * 1e3,
-            shift.abs() / sigma.max(1e-12)
-        ),
-        Refusal::TimeOffsetContradicted { held, found, sigma } => format!(
-            "the time offset held is contradicted by the data: free to estimate it, they move it by {:+.6} s (sigma {sigma:.6} s, {:.0} sigma); the mounting found with it held has absorbed the clock error (drop --hold-time-offset, or hold the offset the data give)",
-            found - held,
-            (found - held).abs() / sigma.max(1e-12)
-        ),
-        Refusal::Inconsistent { sphere, pass, offset, along_track, chi2 } => {
-            let d = (offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]).sqrt();
-            format!(
-                "inconsistent: in pass {} over sphere {} the calibrated returns put its centre {:.1} mm off the surveyed one ({:.1} mm along the track; chi-square {chi2:.0} with 3 degrees of freedom){}",
-                pass + 1,
-                ids.get(*sphere).map_or("?", |s| s.as_str()),
-                d * 1e3,
-                along_track * 1e3,
-                if along_track.abs() > 0.7 * d { ": an along-track error of this kind is what an unestimated time offset between the clocks does" } else { "" }
-            )
-        }
-    }
-}
-
-/// A lost sphere's reason code in reports.
-pub fn lost_name(l: Lost) -> &'static str {
-    match l {
-        Lost::NoReturns => "no_returns",
-        Lost::NotDetected => "not_detected",
-        Lost::Disagrees => "disagrees",
-        Lost::TooFewReturns => "too_few_returns",
-        Lost::Stopped => "stopped",
-    }
-}
-
 /// Cells of the detection's vote grid (64^3: 512 KB).
 pub const GRID_CELLS: usize = 64 * 64 * 64;
 /// Kept returns a detect-and-solve round solves on at most (8.6 MB).
@@ -276,6 +162,7 @@ impl Scratch {
     }
 }
 
+pub use crate::reasons::{empty_windows, lost_name, refusal_text, refusal_text_clock};
 pub use crate::session::settings_for;
 
 /// Solve and build the report from collected observations (with a scratch of its own: see
@@ -448,59 +335,6 @@ pub fn solve_report_in(
             .collect(),
     };
     (sol, report)
-}
-
-/// Why the windows of some spheres (id, how close the trajectory came, window radius: the
-/// sphere's radius + the margin) caught no return, from how close the trajectory came to them
-/// and the LiDAR's reach: out of reach, the site and the trajectory do not meet; within it,
-/// the a-priori mounting puts the returns elsewhere.
-pub fn empty_windows(empty: &[(&str, Closest, f64)], reach: f64) -> Option<String> {
-    let far = |d: f64| {
-        if d >= 10_000.0 {
-            format!("{:.0} km", d / 1000.0)
-        } else {
-            format!("{d:.1} m")
-        }
-    };
-    let list = |v: &[&(&str, Closest, f64)]| {
-        v.iter()
-            .map(|(id, c, _)| format!("{id} {} at GPS {:.1} s", far(c.distance_m), c.time_s))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let names = |v: &[&(&str, Closest, f64)]| v.iter().map(|e| e.0).collect::<Vec<_>>().join(", ");
-    let unread: Vec<_> = empty
-        .iter()
-        .filter(|e| !e.1.distance_m.is_finite())
-        .collect();
-    let out: Vec<_> = empty
-        .iter()
-        .filter(|e| e.1.distance_m.is_finite() && e.1.distance_m > reach)
-        .collect();
-    let near: Vec<_> = empty.iter().filter(|e| e.1.distance_m <= reach).collect();
-    let mut why = Vec::new();
-    if !unread.is_empty() {
-        why.push(format!(
-            "no return in the windows of {}: no INS pose was read",
-            names(&unread)
-        ));
-    }
-    if !out.is_empty() {
-        why.push(format!(
-            "no return in the windows of {}: the trajectory never came within the LiDAR's {reach:.0} m of them (closest: {}): the site and the trajectory do not meet — check the site's coordinates, CRS (zone, easting/northing order) and datum against the trajectory's",
-            names(&out),
-            list(&out)
-        ));
-    }
-    if !near.is_empty() {
-        why.push(format!(
-            "no return in the windows of {}: the trajectory passed within the LiDAR's reach ({}), yet no return fell within {:.2} m of their centres: the a-priori mounting puts the returns elsewhere (check the site's [apriori] or --init: roll,pitch,heading in degrees, x,y,z in metres; or widen window_margin_m), or the spheres were hidden",
-            names(&near),
-            list(&near),
-            near.iter().map(|e| e.2).fold(0.0, f64::max)
-        ));
-    }
-    (!why.is_empty()).then(|| why.join("; "))
 }
 
 /// Write every windowed return with its verdict (`--returns`): sphere id, where it is in the

@@ -16,6 +16,7 @@ pub mod pipeline;
 pub mod plan;
 pub mod plot;
 pub mod progress;
+pub mod reasons;
 pub mod replay;
 pub mod report;
 pub mod rig;
