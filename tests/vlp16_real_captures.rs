@@ -5,7 +5,7 @@ mod common;
 
 use spherecal::velodyne::{self, PointBuf, PpsStatus};
 use spherecal_hal::pcap::PcapSource;
-use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 use std::collections::BTreeMap;
 

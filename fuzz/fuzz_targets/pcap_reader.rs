@@ -4,7 +4,7 @@
 use libfuzzer_sys::fuzz_target;
 use spherecal::velodyne::{decode, PointBuf};
 use spherecal_hal::pcap::PcapSource;
-use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 
 fuzz_target!(|data: &[u8]| {

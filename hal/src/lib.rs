@@ -2,7 +2,7 @@
 //!
 //! Small traits for what the core consumes ([`PacketSource`]: UDP datagrams with a receive
 //! time) and their std implementations: classic pcap and pcapng files ([`pcap`]). The VLP-16
-//! classifier ([`vlp16`]) sits on any packet source and counts every skipped frame by reason.
+//! classifier ([`velodyne`]) sits on any packet source and counts every skipped frame by reason.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -14,6 +14,6 @@ pub mod rawlog;
 pub mod sbet;
 pub mod serial;
 pub mod udp;
-pub mod vlp16;
+pub mod velodyne;
 
 pub use packet::{Datagram, PacketSource, Record, SkipReason, Tap};

@@ -11,7 +11,7 @@ use proptest::prelude::*;
 use spherecal::velodyne::{DataPacket, PositionPacket, PpsStatus, ReturnMode};
 use spherecal_hal::packet::HostTime;
 use spherecal_hal::pcap::{build_udp_frame, PcapError, PcapSource, PcapWriter, UdpEndpoints};
-use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record, SkipReason};
 use std::borrow::Cow;
 use std::io::Read;

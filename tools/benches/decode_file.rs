@@ -4,7 +4,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use spherecal::velodyne::{decode, PointBuf};
 use spherecal_hal::pcap::PcapSource;
-use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 use std::hint::black_box;
 use std::io::Read;

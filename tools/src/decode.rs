@@ -7,7 +7,7 @@ use spherecal::velodyne::{
     self, DataPacket, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode,
 };
 use spherecal_hal::pcap::{PcapError, PcapSource};
-use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -30,7 +30,7 @@ pub struct Survey {
     /// SBET must say).
     pub trajectory_datum: Option<String>,
     /// The LiDAR's UDP ports in the capture (`--lidar-ports`; default 2368, 8308).
-    pub ports: spherecal_hal::vlp16::Ports,
+    pub ports: spherecal_hal::velodyne::Ports,
 }
 
 impl Survey {

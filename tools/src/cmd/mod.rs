@@ -125,10 +125,10 @@ pub struct Survey {
 
 impl Survey {
     /// The ports as the pipeline takes them.
-    fn ports(&self) -> spherecal_hal::vlp16::Ports {
+    fn ports(&self) -> spherecal_hal::velodyne::Ports {
         self.lidar_ports
             .map_or_else(Default::default, |[data, position]| {
-                spherecal_hal::vlp16::Ports { data, position }
+                spherecal_hal::velodyne::Ports { data, position }
             })
     }
 }

@@ -38,7 +38,7 @@ use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};
 use spherecal_hal::packet::{Datagram, HostTime, SkipReason};
 use spherecal_hal::sbet::SbetReader;
-use spherecal_hal::vlp16::{classify, Ports, SkipStats, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

@@ -8,7 +8,7 @@ use super::pps_name;
 use serde::Serialize;
 use spherecal::velodyne::{Detector, Identity, Model, PositionPacket, PpsStatus, ReturnMode};
 use spherecal_hal::packet::{Datagram, HostTime};
-use spherecal_hal::vlp16::{classify, Ports, Vlp16Packet};
+use spherecal_hal::velodyne::{classify, Ports, Vlp16Packet};
 use std::net::Ipv4Addr;
 
 /// Senders told apart per port (more are counted together).

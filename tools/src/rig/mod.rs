@@ -52,7 +52,7 @@ use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
 use spherecal_hal::serial::{RxStamp, SerialSource};
 use spherecal_hal::udp::{DropProbe, UdpSource};
-use spherecal_hal::vlp16::{Ports, SkipStats};
+use spherecal_hal::velodyne::{Ports, SkipStats};
 use status::{show, snapshot, status_loop};
 use std::net::Ipv4Addr;
 use std::path::{Path, PathBuf};
@@ -197,7 +197,7 @@ struct Shared<'a> {
     kernel_drops: [AtomicU64; 2],
     drop_probes: [DropProbe; 2],
     ring_drops: RingDrops,
-    serial_bytes: AtomicU64,
+    ins_bytes: AtomicU64,
     pps: AtomicU8,
     ins_mode: AtomicU8,
     lag_ns: AtomicI64,
@@ -284,7 +284,7 @@ impl<'a> Shared<'a> {
             kernel_drops: Default::default(),
             drop_probes,
             ring_drops: Default::default(),
-            serial_bytes: AtomicU64::new(0),
+            ins_bytes: AtomicU64::new(0),
             pps: AtomicU8::new(NONE_U8),
             ins_mode: AtomicU8::new(NONE_U8),
             lag_ns: AtomicI64::new(i64::MIN),

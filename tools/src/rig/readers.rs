@@ -112,7 +112,7 @@ pub(super) fn serial_reader(
     };
     let mut log_chunk = |b: &[u8], stamp: Option<RxStamp>| {
         sh.ins_watch.bytes();
-        sh.serial_bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
+        sh.ins_bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
         let mut chunk = SerialChunk {
             stamp: stamp.unwrap_or_else(RxStamp::now),
             len: b.len() as u16,
@@ -187,7 +187,7 @@ pub(super) fn posmv_reader(
             match sock.next_record() {
                 Ok(Some(Record::Udp(d))) => {
                     sh.ins_watch.bytes();
-                    sh.serial_bytes
+                    sh.ins_bytes
                         .fetch_add(d.payload.len() as u64, Ordering::Relaxed);
                     enqueue(
                         &mut log,

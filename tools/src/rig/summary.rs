@@ -36,8 +36,8 @@ pub struct RunSummary {
     pub position_packets: u64,
     /// Data packets the aligner could not time (no RMC and no INS yet).
     pub packets_without_time: u64,
-    /// Serial bytes read.
-    pub serial_bytes: u64,
+    /// INS bytes read (the serial port's, or a POS MV's UDP payloads).
+    pub ins_bytes: u64,
     /// The INS stream: frames, CRC failures, poses used and left out by InsStatus, gaps.
     pub ins: InsState,
     /// The LiDAR clock as its position packets tell it (PPS, RMC validity, stamp - RMC).
@@ -127,7 +127,7 @@ impl RunSummary {
             returns: w.points,
             georeferenced: w.georeferenced,
             without_pose: [w.before_history, w.after_history, w.in_gap],
-            serial_bytes: sh.serial_bytes.load(Ordering::Relaxed),
+            ins_bytes: sh.ins_bytes.load(Ordering::Relaxed),
             clock_trusted: e.clock.trusted(),
             clock: e.clock,
             ins: e.ins,
@@ -196,11 +196,11 @@ pub fn render(s: &RunSummary) -> String {
     }
     let _ = writeln!(
         o,
-        "aligned {} data packets ({} without time), {} position packets; serial {} bytes; windows {:?}; {} solves",
+        "aligned {} data packets ({} without time), {} position packets; INS {} bytes; windows {:?}; {} solves",
         s.data_packets,
         s.packets_without_time,
         s.position_packets,
-        s.serial_bytes,
+        s.ins_bytes,
         s.windowed,
         s.solves
     );
