@@ -6,7 +6,7 @@
 
 use spherecal::calib::predict::Predicted;
 use spherecal::calib::Settings;
-use spherecal_tools::calibrate::{collect, site_targets, solve_report};
+use spherecal_tools::calibrate::{collect, site_targets, solve_report_in, Scratch};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
 use spherecal_tools::montecarlo::windowed_packets;
@@ -36,16 +36,22 @@ fn inputs(dir: &Path) -> Inputs {
 
 /// One calibration of a synthesised survey: errors of the six [deg, m] and the time offset
 /// [s], the reported sigmas, why it was refused if it was.
-fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option<String>) {
+fn calibrate(
+    s: &Scenario,
+    dir: &Path,
+    scratch: &mut Scratch,
+) -> ([f64; 7], [f64; 7], Option<String>) {
     let inp = inputs(dir);
     let (_, mut obs) = collect(&inp).unwrap();
     let (tg, ids) = site_targets(&inp);
-    let (sol, _) = solve_report(
+    let (sol, _) = solve_report_in(
         &tg,
         &ids,
         &mut obs,
         &inp.mount.params(),
         &Settings::default(),
+        scratch,
+        &mut (),
     );
     let b = sol.b.deg_m().0;
     let t = s.mount.truth.deg_m().0;
@@ -96,12 +102,14 @@ fn agrees_with_monte_carlo(name: &str) {
         for chunk in seeds.chunks(seeds.len() / 2) {
             let (s, results, cache) = (&s, &results, &cache);
             sc.spawn(move || {
+                // One core workspace per thread, lent to each of its trials.
+                let mut scratch = Scratch::default();
                 for &seed in chunk {
                     let mut sd = s.clone();
                     sd.seed = seed;
                     let dir = tmp(&format!("{name}-{seed}"));
                     spherecal_tools::synth::synth_traced(&sd, &dir, cache).unwrap();
-                    let r = calibrate(&sd, &dir);
+                    let r = calibrate(&sd, &dir, &mut scratch);
                     results.lock().unwrap().push((seed, r));
                     std::fs::remove_dir_all(&dir).unwrap();
                 }
@@ -255,7 +263,7 @@ fn recommendations_turn_a_plan_that_misses_into_one_that_meets() {
     let sn = plan::with_planning_noise(&improved);
     let dir = tmp("improved");
     spherecal_tools::synth::synth(&sn, &dir).unwrap();
-    let (err, sigma, refusal) = calibrate(&sn, &dir);
+    let (err, sigma, refusal) = calibrate(&sn, &dir, &mut Scratch::default());
     assert!(refusal.is_none(), "{refusal:?}");
     for i in 0..6 {
         let pred = r2.predicted.sigma_deg_m[i].unwrap();
