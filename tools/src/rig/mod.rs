@@ -163,13 +163,28 @@ struct RingDrops {
     serial_log: AtomicU64,
 }
 
+/// The LiDAR's two ports, each with its socket, reader and counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum LidarPort {
+    /// The data port (2368 by default).
+    Data = 0,
+    /// The position port (8308 by default).
+    Position = 1,
+}
+
+impl LidarPort {
+    /// Its index in the per-port counters (`received`, `enqueued`, `heard`, ...).
+    pub(super) fn index(self) -> usize {
+        self as usize
+    }
+}
+
 impl RingDrops {
-    /// The LiDAR ring of reader `which` (0 data, 1 position).
-    fn lidar(&self, which: usize) -> &AtomicU64 {
-        if which == 0 {
-            &self.data
-        } else {
-            &self.position
+    /// The LiDAR ring of this port's reader.
+    fn lidar(&self, port: LidarPort) -> &AtomicU64 {
+        match port {
+            LidarPort::Data => &self.data,
+            LidarPort::Position => &self.position,
         }
     }
 
@@ -659,10 +674,18 @@ fn run_threads(
     } = io;
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
-            udp_reader(data_sock, data_p, dlog_p, accept, 0, sh, true)
+            udp_reader(data_sock, data_p, dlog_p, accept, LidarPort::Data, sh, true)
         });
         let pos = spawn(sc, "udp-position", move || {
-            udp_reader(pos_sock, pos_p, plog_p, accept, 1, sh, false)
+            udp_reader(
+                pos_sock,
+                pos_p,
+                plog_p,
+                accept,
+                LidarPort::Position,
+                sh,
+                false,
+            )
         });
         let ins = match (serial, posmv) {
             (Some((dev, src)), _) => Some(spawn(sc, "serial", move || {

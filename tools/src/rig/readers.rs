@@ -13,15 +13,15 @@ pub(super) fn udp_reader(
     mut ring: Producer<'_, LidarItem>,
     mut log: Producer<'_, UdpLogItem>,
     accept: Accept,
-    which: usize,
+    port_of: LidarPort,
     sh: &Shared<'_>,
     ends_stream: bool,
 ) -> (SkipStats, u64) {
     let _alive = ReaderGuard(sh);
     let port = sock.port();
     let log_datagram = |d: &Datagram<'_>| {
-        sh.received[which].fetch_add(1, Ordering::Relaxed);
-        if let Ok(mut h) = sh.heard[which].lock() {
+        sh.received[port_of.index()].fetch_add(1, Ordering::Relaxed);
+        if let Ok(mut h) = sh.heard[port_of.index()].lock() {
             h.see(d, accept.ports);
         }
         enqueue(
@@ -35,8 +35,8 @@ pub(super) fn udp_reader(
     let mut out = LidarRing {
         ring: &mut ring,
         policy: Overflow::Drop,
-        full: sh.ring_drops.lidar(which),
-        queued: &sh.enqueued[which],
+        full: sh.ring_drops.lidar(port_of),
+        queued: &sh.enqueued[port_of.index()],
     };
     let (skips, r) = lidar_reader(&mut src, &mut out, accept, sh.stop);
     if let Err(e) = r {
