@@ -5,8 +5,7 @@
 //! turning a plan that misses its targets into one a simulated calibration confirms.
 
 use spherecal::calib::predict::Predicted;
-use spherecal::calib::Settings;
-use spherecal_tools::calibrate::{collect, site_targets, solve_report_in, Scratch};
+use spherecal_tools::calibrate::{collect, settings_for, site_targets, solve_report_in, Scratch};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
 use spherecal_tools::montecarlo::windowed_packets;
@@ -49,7 +48,8 @@ fn calibrate(
         &ids,
         &mut obs,
         &inp.mount.params(),
-        &Settings::default(),
+        // As `calibrate` builds them (the site's noise and margin, the model's laser period).
+        &settings_for(&inp.site, s.model(), true, inp.margin),
         scratch,
         &mut (),
     );

@@ -262,6 +262,35 @@ fn sigma_deg_m(rep: &serde_json::Value) -> [f64; 6] {
     .map(|v| v.as_f64().unwrap())
 }
 
+/// `spherecal run` on a board with the INS on the serial device `serial`, the survey's site,
+/// logs and report (`extra`: more options), for at most 600 s.
+fn serial_rig(
+    dir: &Path,
+    board: &Path,
+    serial: &str,
+    logs: &Path,
+    report: &Path,
+    extra: &[&str],
+) -> Rig {
+    let site = dir.join("site.toml");
+    let mut args: Vec<&std::ffi::OsStr> = vec![
+        "--board".as_ref(),
+        board.as_os_str(),
+        "--serial".as_ref(),
+        serial.as_ref(),
+        "--site".as_ref(),
+        site.as_os_str(),
+        "--log-dir".as_ref(),
+        logs.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--duration".as_ref(),
+        "600".as_ref(),
+    ];
+    args.extend(extra.iter().map(std::ffi::OsStr::new));
+    Rig::start(&args)
+}
+
 /// table1-noisy (range and INS noise, clutter) through the whole rig at twice real time, its
 /// INS 20 ms late: the rig's final answer is `calibrate`'s on its own logs (within a tenth of
 /// a sigma) and within three sigmas of the truth, the time offset too.
@@ -281,20 +310,7 @@ fn table1_noisy_through_the_rig() {
     let board = board(&dir, dp, pp);
     let logs = dir.join("logs");
     let report = dir.join("run-report.json");
-    let rig = Rig::start(&[
-        "--board".as_ref(),
-        board.as_os_str(),
-        "--serial".as_ref(),
-        slave_name.as_ref(),
-        "--site".as_ref(),
-        dir.join("site.toml").as_os_str(),
-        "--log-dir".as_ref(),
-        logs.as_os_str(),
-        "--report".as_ref(),
-        report.as_os_str(),
-        "--duration".as_ref(),
-        "600".as_ref(),
-    ]);
+    let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
     replay_both(
         dir.join("lidar.pcap"),
         to,
@@ -365,22 +381,14 @@ fn table1_through_the_rig() {
     let board = board(&dir, dp, pp);
     let logs = dir.join("logs");
     let report = dir.join("run-report.json");
-    let rig = Rig::start(&[
-        "--board".as_ref(),
-        board.as_os_str(),
-        "--serial".as_ref(),
-        slave_name.as_ref(),
-        "--site".as_ref(),
-        dir.join("site.toml").as_os_str(),
-        "--log-dir".as_ref(),
-        logs.as_os_str(),
-        "--rotate-mb".as_ref(),
-        "16".as_ref(),
-        "--report".as_ref(),
-        report.as_os_str(),
-        "--duration".as_ref(),
-        "600".as_ref(),
-    ]);
+    let rig = serial_rig(
+        &dir,
+        &board,
+        &slave_name,
+        &logs,
+        &report,
+        &["--rotate-mb", "16"],
+    );
     let (sent, wrote) = replay_both(
         dir.join("lidar.pcap"),
         to,

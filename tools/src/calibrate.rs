@@ -487,6 +487,7 @@ pub fn calibrate(
         first = attempt(applied)?;
         collections += 1;
     };
+    spinner.finish_and_clear();
     rep.time_offset_search = searched;
     rep.start.insert("time_offset".to_string(), start);
     rep.batch_overflow = stats.align.batch_overflow;

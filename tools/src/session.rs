@@ -50,25 +50,11 @@ pub struct Session {
     store: Vec<Vec<Observation>>,
     /// The time offset the store was aligned at [ns].
     offset_ns: i64,
-    /// Where the offset started [ns].
-    start_ns: i64,
     /// Most returns kept per sphere (`add` drops the rest, counted).
     capacity: usize,
 }
 
 impl Session {
-    /// A session over the site's spheres, with the settings of [`settings_for`].
-    pub fn new(
-        site: &Site,
-        model: Option<spherecal::velodyne::Model>,
-        estimate_dt: bool,
-        margin: f64,
-    ) -> Self {
-        let (_, targets) = crate::pipeline::targets(site);
-        let ids = site.sphere.iter().map(|s| s.id.clone()).collect();
-        Self::with_settings(targets, ids, settings_for(site, model, estimate_dt, margin))
-    }
-
     /// A session with settings made elsewhere by [`settings_for`] (the rig's plan).
     pub fn with_settings(targets: Vec<Target>, ids: Vec<String>, settings: Settings) -> Self {
         let n = targets.len();
@@ -79,7 +65,6 @@ impl Session {
             scratch: Scratch::default(),
             store: vec![Vec::new(); n],
             offset_ns: 0,
-            start_ns: 0,
             capacity: usize::MAX,
         }
     }
@@ -88,16 +73,6 @@ impl Session {
     pub fn with_capacity(mut self, n: usize) -> Self {
         self.capacity = n;
         self
-    }
-
-    /// The spheres and their ids.
-    pub fn targets(&self) -> (&[Target], &[String]) {
-        (&self.targets, &self.ids)
-    }
-
-    /// The settings (the same for every solve but what the clocks say).
-    pub fn settings(&self) -> &Settings {
-        &self.settings
     }
 
     /// Estimate the LiDAR clock's drift too (a clock without PPS).
@@ -180,7 +155,8 @@ impl Session {
 
     /// The offset the windows should be aligned at next [ns], when the solve moved it enough to
     /// matter ([`OFFSET_STEP_S`]) with the least squares converged, within [`OFFSET_REACH_S`]
-    /// of the start; `None` when the offset is held or settled.
+    /// of zero (where a session starts; `calibrate`, which starts where its search put it, asks
+    /// [`next_offset`] itself); `None` when the offset is held or settled.
     pub fn wants_offset(&self, sol: &Solution) -> Option<i64> {
         self.offset_after(sol.dt, sol.lm.is_some_and(|l| l.converged))
     }
@@ -189,17 +165,12 @@ impl Session {
     fn offset_after(&self, dt: f64, converged: bool) -> Option<i64> {
         next_offset(
             self.offset_ns as f64 * 1e-9,
-            self.start_ns as f64 * 1e-9,
+            0.0,
             self.settings.estimate_dt,
             dt,
             converged,
         )
         .map(|t| (t * 1e9).round() as i64)
-    }
-
-    /// Where the time offset starts (the file command: after its search) [ns].
-    pub fn start_at(&mut self, offset_ns: i64) {
-        self.start_ns = offset_ns;
     }
 
     /// The store, taken out (the file command's last collection, for its outputs).
@@ -246,7 +217,7 @@ pub fn next_offset(
 /// Observations aligned at one time offset, moved to one larger by `d_ns`
 /// ([`Observation::rebase`]); beyond [`OFFSET_REACH_S`] the first order is no guide and they
 /// are dropped.
-pub fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
+fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
     let d = d_ns as f64 * 1e-9;
     for v in store {
         if d.abs() > OFFSET_REACH_S {
@@ -291,11 +262,11 @@ mod tests {
     fn the_offset_moves_when_it_matters_and_within_reach() {
         let mut s = session();
         s.replace(vec![Vec::new(), Vec::new()], 100_000_000);
-        s.start_at(100_000_000);
         assert_eq!(s.offset_after(0.0004, true), None, "settled");
         assert_eq!(s.offset_after(0.02, false), None, "not converged");
         assert_eq!(s.offset_after(0.02, true), Some(120_000_000));
-        assert_eq!(s.offset_after(2.5, true), None, "beyond reach");
+        assert_eq!(s.offset_after(1.95, true), None, "beyond reach of zero");
+        assert_eq!(s.offset_after(1.85, true), Some(1_950_000_000));
         s.rebase(120_000_000);
         assert_eq!(s.offset_ns(), 120_000_000);
         assert_eq!(s.offset_after(-0.001, true), Some(119_000_000));

@@ -62,24 +62,18 @@ pub(super) fn consistency(
         // Clusters of 20 ms: returns within one share INS errors.
         let mut clusters = 0usize;
         let mut last = i64::MIN;
-        let mut vel = Vector3::<f64>::zeros();
         for o in kept {
             let c = o.time.0.div_euclid(s.cluster_ns.max(1));
             if c != last {
                 clusters += 1;
                 last = c;
             }
-            vel += o.velocity.cast::<f64>();
         }
         let inflate = n as f64 / clusters.max(1) as f64;
         let s2 = rms.max(1e-3) * rms.max(1e-3) * inflate;
         let chi2 = d.dot(&(jtj * d)) / s2;
-        vel.z = 0.0;
-        let along = if vel.norm() > 0.0 {
-            d.dot(&(vel / vel.norm()))
-        } else {
-            0.0
-        };
+        // Along the pass's course (its kept returns' mean horizontal velocity, unit or zero).
+        let along = d.x * f64::from(p.course[0]) + d.y * f64::from(p.course[1]);
         p.centre_offset = [d.x as f32, d.y as f32, d.z as f32];
         p.along_track = along as f32;
         p.chi2 = chi2 as f32;

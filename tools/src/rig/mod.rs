@@ -35,7 +35,7 @@ mod summary;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use logger::{logger, syncer};
-use readers::{posmv_reader, serial_reader, udp_reader};
+use readers::{posmv_reader, serial_reader, udp_reader, LidarPort};
 use serde::Serialize;
 use solver::solver;
 use spherecal::calib::Params;
@@ -161,22 +161,6 @@ struct RingDrops {
     ins: AtomicU64,
     datagram_log: AtomicU64,
     serial_log: AtomicU64,
-}
-
-/// The LiDAR's two ports, each with its socket, reader and counters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum LidarPort {
-    /// The data port (2368 by default).
-    Data = 0,
-    /// The position port (8308 by default).
-    Position = 1,
-}
-
-impl LidarPort {
-    /// Its index in the per-port counters (`received`, `enqueued`, `heard`, ...).
-    pub(super) fn index(self) -> usize {
-        self as usize
-    }
 }
 
 impl RingDrops {

@@ -4,6 +4,22 @@ use super::*;
 use crate::pipeline::{end_lidar, ins_reader, lidar_reader, InsEnd, LidarRing};
 use spherecal_hal::Tap;
 
+/// The LiDAR's two ports, each with its socket, reader and counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum LidarPort {
+    /// The data port (2368 by default).
+    Data = 0,
+    /// The position port (8308 by default).
+    Position = 1,
+}
+
+impl LidarPort {
+    /// Its index in the per-port counters (`received`, `enqueued`, `heard`, ...).
+    pub(super) fn index(self) -> usize {
+        self as usize
+    }
+}
+
 /// One socket until the stop, through the same [`lidar_reader`] as a capture file: every
 /// datagram to the log ring (a [`Tap`] on the socket), the sensor's VLP-16 packets to the
 /// aligner's ring. Returns the skips and how many datagrams had kernel receive times.
