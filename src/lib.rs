@@ -14,6 +14,7 @@ extern crate std;
 pub mod align;
 pub mod calib;
 pub mod frames;
+pub mod framing;
 pub mod georef;
 pub mod posmv;
 #[cfg(any(test, feature = "sim"))]

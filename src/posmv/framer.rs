@@ -8,6 +8,7 @@
 
 use super::group::{header_len, Group};
 use super::Error;
+use crate::framing::{FixedBuffer, StreamBuffer};
 
 /// What the framer found, and where it starts in the stream.
 #[derive(Debug, Clone, Copy)]
@@ -52,11 +53,7 @@ pub struct Stats {
 /// bytes; 8192 holds every fixed-size group of the ICD, Group 8's 4856 the longest).
 #[derive(Debug, Clone)]
 pub struct Framer<const N: usize = 8192> {
-    buf: [u8; N],
-    pos: usize,
-    len: usize,
-    base: u64,
-    eof: bool,
+    stream: StreamBuffer<FixedBuffer<N>>,
     stats: Stats,
 }
 
@@ -71,11 +68,7 @@ impl<const N: usize> Framer<N> {
     pub const fn new() -> Self {
         const { assert!(N >= 256, "framer buffer too small") };
         Self {
-            buf: [0; N],
-            pos: 0,
-            len: 0,
-            base: 0,
-            eof: false,
+            stream: StreamBuffer::fixed(),
             stats: Stats {
                 groups: 0,
                 messages: 0,
@@ -96,21 +89,12 @@ impl<const N: usize> Framer<N> {
     /// Copy in as many bytes as fit; returns how many were taken. Call [`Self::next`] until it
     /// returns `None` before pushing the rest.
     pub fn push(&mut self, data: &[u8]) -> usize {
-        if self.pos > 0 && self.len + data.len() > N {
-            self.buf.copy_within(self.pos..self.len, 0);
-            self.base += self.pos as u64;
-            self.len -= self.pos;
-            self.pos = 0;
-        }
-        let n = data.len().min(N - self.len);
-        self.buf[self.len..self.len + n].copy_from_slice(&data[..n]);
-        self.len += n;
-        n
+        self.stream.push(data)
     }
 
     /// No more bytes will come: what is left is framed as far as it goes, the rest skipped.
     pub fn finish(&mut self) {
-        self.eof = true;
+        self.stream.finish();
     }
 
     /// Feed `data` and hand every item to `f` (the whole-buffer convenience).
@@ -128,22 +112,21 @@ impl<const N: usize> Framer<N> {
     }
 
     fn skip(&mut self, n: usize) {
-        self.pos += n;
-        self.stats.skipped_bytes += n as u64;
+        let r = self.stream.take(n);
+        self.stats.skipped_bytes += r.len() as u64;
     }
 
     /// The next item from the buffered bytes, or `None` when more bytes are needed (or, after
     /// [`Self::finish`], when all is done).
     #[allow(clippy::should_implement_trait)]
     pub fn next(&mut self) -> Option<Framed<'_>> {
-        let (start, len, err) = loop {
-            if self.pos >= self.len {
-                self.base += self.len as u64;
-                self.pos = 0;
-                self.len = 0;
+        let eof = self.stream.is_finished();
+        let (at, err) = loop {
+            if self.stream.settle() {
                 return None;
             }
-            let avail = &self.buf[self.pos..self.len];
+            let full = self.stream.is_full();
+            let avail = self.stream.unconsumed();
             // Garbage up to the next '$' in one step.
             let Some(d) = avail.iter().position(|&c| c == b'$') else {
                 let n = avail.len();
@@ -154,7 +137,6 @@ impl<const N: usize> Framer<N> {
                 self.skip(d);
                 continue;
             }
-            let full = avail.len() >= N;
             let prefix = &avail[..avail.len().min(4)];
             if !b"$GRP".starts_with(prefix) && !b"$MSG".starts_with(prefix) {
                 self.skip(1);
@@ -163,7 +145,7 @@ impl<const N: usize> Framer<N> {
             let len = match header_len(avail) {
                 Ok(l) => l,
                 Err(Error::Truncated { .. }) => {
-                    if self.eof || full {
+                    if eof || full {
                         self.skip(1);
                         continue;
                     }
@@ -181,37 +163,33 @@ impl<const N: usize> Framer<N> {
                 continue;
             }
             if len > avail.len() {
-                if self.eof {
+                if eof {
                     self.skip(1);
                     continue;
                 }
                 return None;
             }
             match Group::new_checked(&avail[..len]) {
-                Ok(_) => {
-                    let start = self.pos;
-                    self.pos += len;
-                    break (start, len, None);
-                }
+                Ok(_) => break (self.stream.take(len), None),
                 Err(e) => {
                     match e {
                         Error::Checksum { .. } => self.stats.checksum_failures += 1,
                         _ => self.stats.bad_ends += 1,
                     }
-                    let start = self.pos;
-                    self.skip(1);
-                    break (start, 0, Some(e));
+                    let r = self.stream.take(1);
+                    self.stats.skipped_bytes += 1;
+                    break (r, Some(e));
                 }
             }
         };
-        let offset = self.base + start as u64;
+        let offset = self.stream.offset(at.start);
         if let Some(e) = err {
             return Some(Framed {
                 offset,
                 item: Item::Error(e),
             });
         }
-        let g = Group::new_unchecked(&self.buf[start..start + len]);
+        let g = Group::new_unchecked(self.stream.get(at));
         let item = if g.is_message() {
             self.stats.messages += 1;
             Item::Message(g)

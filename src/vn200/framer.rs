@@ -10,6 +10,7 @@
 use super::ascii::{self, Sentence, MAX_SENTENCE};
 use super::binary::{layout, Frame, Layout, CRC16, SYNC};
 use super::Error;
+use crate::framing::{FixedBuffer, StreamBuffer};
 
 /// What the framer found, and where it starts in the stream.
 #[derive(Debug, Clone, Copy)]
@@ -60,11 +61,7 @@ pub struct Stats {
 /// can accept is `N` bytes).
 #[derive(Debug, Clone)]
 pub struct Framer<const N: usize = 8192> {
-    buf: [u8; N],
-    pos: usize,
-    len: usize,
-    base: u64,
-    eof: bool,
+    stream: StreamBuffer<FixedBuffer<N>>,
     stats: Stats,
 }
 
@@ -74,9 +71,11 @@ impl<const N: usize> Default for Framer<N> {
     }
 }
 
+/// What the bytes at a range (consumed, or the one skipped byte of a rejected candidate) are.
 enum Found {
     Binary(Layout),
-    Line { end: usize },
+    /// The line without its CR LF.
+    Line,
     Rejected(Error),
 }
 
@@ -85,11 +84,7 @@ impl<const N: usize> Framer<N> {
     pub const fn new() -> Self {
         const { assert!(N >= 2 * MAX_SENTENCE, "framer buffer too small") };
         Self {
-            buf: [0; N],
-            pos: 0,
-            len: 0,
-            base: 0,
-            eof: false,
+            stream: StreamBuffer::fixed(),
             stats: Stats {
                 frames: 0,
                 crc_failures: 0,
@@ -111,27 +106,18 @@ impl<const N: usize> Framer<N> {
 
     /// Bytes buffered and not yet framed.
     pub fn pending(&self) -> usize {
-        self.len - self.pos
+        self.stream.pending()
     }
 
     /// Copy in as many bytes as fit; returns how many were taken. Call [`Self::next`] until it
     /// returns `None` before pushing the rest.
     pub fn push(&mut self, data: &[u8]) -> usize {
-        if self.pos > 0 && self.len + data.len() > N {
-            self.buf.copy_within(self.pos..self.len, 0);
-            self.base += self.pos as u64;
-            self.len -= self.pos;
-            self.pos = 0;
-        }
-        let n = data.len().min(N - self.len);
-        self.buf[self.len..self.len + n].copy_from_slice(&data[..n]);
-        self.len += n;
-        n
+        self.stream.push(data)
     }
 
     /// No more bytes will come: what is left is framed as far as it goes and the rest skipped.
     pub fn finish(&mut self) {
-        self.eof = true;
+        self.stream.finish();
     }
 
     /// Feed `data` and hand every item to `f` (the whole-buffer convenience).
@@ -149,28 +135,29 @@ impl<const N: usize> Framer<N> {
     }
 
     fn skip(&mut self) {
-        self.pos += 1;
-        self.stats.skipped_bytes += 1;
+        self.skip_n(1);
+    }
+
+    fn skip_n(&mut self, n: usize) {
+        let r = self.stream.take(n);
+        self.stats.skipped_bytes += r.len() as u64;
     }
 
     /// The next item from the buffered bytes, or `None` when more bytes are needed (or, after
     /// [`Self::finish`], when all is done).
     #[allow(clippy::should_implement_trait)]
     pub fn next(&mut self) -> Option<Framed<'_>> {
+        let eof = self.stream.is_finished();
         let (start, found) = loop {
-            if self.pos >= self.len {
-                self.base += self.len as u64;
-                self.pos = 0;
-                self.len = 0;
+            if self.stream.settle() {
                 return None;
             }
-            let start = self.pos;
-            let avail = &self.buf[start..self.len];
-            let full = avail.len() >= N;
+            let full = self.stream.is_full();
+            let avail = self.stream.unconsumed();
             match avail[0] {
                 SYNC => match layout(avail).map(|l| (l.len, l)) {
                     Err(Error::Incomplete) => {
-                        if self.eof || full {
+                        if eof || full {
                             self.skip();
                             continue;
                         }
@@ -185,7 +172,7 @@ impl<const N: usize> Framer<N> {
                         self.skip();
                     }
                     Ok((l, _)) if l > avail.len() => {
-                        if self.eof {
+                        if eof {
                             self.skip();
                             continue;
                         }
@@ -195,13 +182,13 @@ impl<const N: usize> Framer<N> {
                         let sent = u16::from_be_bytes([avail[l - 2], avail[l - 1]]);
                         let computed = CRC16.checksum(&avail[1..l - 2]);
                         if sent == computed {
-                            self.pos += l;
                             self.stats.frames += 1;
-                            break (start, Found::Binary(lay));
+                            break (self.stream.take(l), Found::Binary(lay));
                         }
                         self.stats.crc_failures += 1;
-                        self.skip();
-                        break (start, Found::Rejected(Error::Crc { computed, sent }));
+                        let r = self.stream.take(1);
+                        self.stats.skipped_bytes += 1;
+                        break (r, Found::Rejected(Error::Crc { computed, sent }));
                     }
                 },
                 b'$' => {
@@ -225,7 +212,7 @@ impl<const N: usize> Framer<N> {
                             self.skip();
                             continue;
                         }
-                        None if self.eof => (window.len(), window.len()),
+                        None if eof => (window.len(), window.len()),
                         None => return None,
                     };
                     let line_end = if end > 0 && avail[end - 1] == b'\r' {
@@ -243,18 +230,14 @@ impl<const N: usize> Framer<N> {
                                     self.stats.nmea_decoded += 1;
                                 }
                             }
-                            self.pos += consumed;
-                            break (
-                                start,
-                                Found::Line {
-                                    end: start + line_end,
-                                },
-                            );
+                            let r = self.stream.take(consumed);
+                            break (r.start..r.start + line_end, Found::Line);
                         }
                         Err(e @ Error::AsciiChecksum { .. }) => {
                             self.stats.ascii_bad_checksum += 1;
-                            self.skip();
-                            break (start, Found::Rejected(e));
+                            let r = self.stream.take(1);
+                            self.stats.skipped_bytes += 1;
+                            break (r, Found::Rejected(e));
                         }
                         Err(_) => self.skip(),
                     }
@@ -265,17 +248,14 @@ impl<const N: usize> Framer<N> {
                         .iter()
                         .position(|&b| b == SYNC || b == b'$')
                         .unwrap_or(avail.len());
-                    self.pos += n;
-                    self.stats.skipped_bytes += n as u64;
+                    self.skip_n(n);
                 }
             }
         };
-        let offset = self.base + start as u64;
+        let offset = self.stream.offset(start.start);
         let item = match found {
-            Found::Binary(l) => {
-                Item::Binary(Frame::from_layout(&self.buf[start..start + l.len], &l))
-            }
-            Found::Line { end } => match ascii::parse(&self.buf[start..end]) {
+            Found::Binary(l) => Item::Binary(Frame::from_layout(self.stream.get(start), &l)),
+            Found::Line => match ascii::parse(self.stream.get(start)) {
                 Ok(s) if s.is_vn() => Item::Ascii(s),
                 Ok(s) => Item::Nmea(s),
                 Err(e) => Item::Error(e),
