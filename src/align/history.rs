@@ -62,7 +62,7 @@ impl PoseSample {
 /// angles (`Rz(yaw) Ry(pitch) Rx(roll)`); the quaternion (x, y, z, w: scalar last) is the same
 /// rotation, `R(q)` with the Hamilton convention (VN-200 manual, Attitude Quaternion). Checked
 /// on the real VN-310 files, which carry both: `R(q)` agrees with the Euler matrix to 3e-6, its
-/// transpose is off by up to 2 (tests/vn200_real_files.rs). `None` for a quaternion far from
+/// transpose is off by up to 2 (tools/tests/e2e/vn200_real_files.rs). `None` for a quaternion far from
 /// unit norm.
 pub fn body_to_ned(a: &Attitude) -> Option<Matrix3<f64>> {
     match *a {

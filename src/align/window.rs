@@ -8,7 +8,7 @@
 //! segment the position is exactly linear and the attitude turns at a constant rate, so the
 //! first-order carry errs by (rate dt)^2 / 2 < 2.5e-7 rad at 1 rad/s (8 um at 33 m). Holding
 //! the attitude fixed over even one firing sequence would cost up to 6.6e-5 rad (2 mm at 33 m)
-//! in table1's 1.9 rad/s turns (measured, tests/georef.rs).
+//! in table1's 1.9 rad/s turns (measured, tools/tests/e2e/georef.rs).
 //!
 //! Broad phase: for each carried pose the sphere centres are moved into the LiDAR frame once,
 //! so a return far from every window costs one f32 distance test per sphere; only returns near a

@@ -1,7 +1,7 @@
 //! The VLP-16 decoder against real captures and an independent decoding of them
 //! (tests/data/vlp16/*.reference.csv, made by the velodyne-decoder package 3.1.0).
 
-mod common;
+use crate::common;
 
 use spherecal::velodyne::{self, PointBuf, PpsStatus};
 use spherecal_hal::pcap::PcapSource;

@@ -9,7 +9,7 @@
 //! predicted RMS follows the mix (the dispersion test stays near 1), and the solution lies
 //! within its sigmas of the truth.
 
-mod common;
+use crate::common;
 
 use common::spherecal;
 use spherecal::frames::{roll_pitch_heading, rotation};

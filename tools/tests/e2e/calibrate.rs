@@ -2,9 +2,9 @@
 //! (accuracy, and the sphere extraction's precision and recall against the simulator's labels),
 //! a clutter-density sweep (10x, 30x, 100x the sphere returns in the windows, each with 100
 //! Monte Carlo starts), the pontoon site, and the refusals (one sphere, a single pass, a hidden
-//! sphere). The noisy sites' uncertainties are checked in tests/plan.rs.
+//! sphere). The noisy sites' uncertainties are checked in tools/tests/e2e/plan.rs.
 
-mod common;
+use crate::common;
 
 use spherecal::calib::extract::Verdict;
 use spherecal::calib::solve::Refusal;
@@ -551,7 +551,7 @@ fn pontoon_site() {
     assert_eq!(mc.fraction_within, 1.0, "worst errors {:?}", mc.worst_error);
 }
 
-// The noisy sites' reported sigmas are checked over 200 noise seeds each in tests/plan.rs
+// The noisy sites' reported sigmas are checked over 200 noise seeds each in tools/tests/e2e/plan.rs
 // (errors within 3 reported sigmas in 97 % of the runs, RMS z-score 0.7-1.4), with the
 // planner's prediction of the same runs' spread.
 

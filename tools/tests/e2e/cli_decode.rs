@@ -1,6 +1,6 @@
 //! `spherecal decode` as a user runs it: summary, CSV contract, and bad files.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

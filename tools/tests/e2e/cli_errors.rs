@@ -2,7 +2,7 @@
 //! that cannot be written is refused before the work starts: the audit of issue 14's "honest
 //! diagnostics", on a synthetic survey and files that are not what they are given as.
 
-mod common;
+use crate::common;
 
 use spherecal_tools::config::scenario::Scenario;
 use std::ffi::OsString;

@@ -1,6 +1,6 @@
 //! `spherecal ins` as a user runs it: summary, the CSV against the independent decoding.
 
-mod common;
+use crate::common;
 
 fn tmp(name: &str) -> std::path::PathBuf {
     common::tmp("cli-ins", name)

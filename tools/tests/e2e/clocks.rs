@@ -7,7 +7,7 @@
 //! model. Expectations come from the edits themselves (counts and spans of what was edited), never from
 //! the code's own output.
 
-mod common;
+use crate::common;
 
 use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;

@@ -3,7 +3,7 @@
 //! scripts/test.sh) is the independent reference: its default NAD83(CSRS) -> WGS 84 is EPSG:1946
 //! (a Helmert transformation, 1.05 m horizontally and 1.08 m vertically there).
 
-mod common;
+use crate::common;
 
 use spherecal_tools::config::datum::Datum;
 use spherecal_tools::config::geoid::gtx_bytes;

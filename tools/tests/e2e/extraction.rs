@@ -5,7 +5,7 @@
 //! direction make, refused naming it; and `synth` / `plan` saying why a sphere gets no
 //! returns.
 
-mod common;
+use crate::common;
 
 use common::{assert_within, report_deg_m, spherecal};
 use spherecal_tools::config::scenario::{Scenario, BUILTIN};

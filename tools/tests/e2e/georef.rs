@@ -3,7 +3,7 @@
 //! the windows at the truth hold exactly the sphere returns), with the VN-200 stream and with an
 //! SBET trajectory; INS gaps; the LAS output read by another reader.
 
-mod common;
+use crate::common;
 
 use spherecal::frames::{roll_pitch_heading, rotation};
 use spherecal::georef::Mount;

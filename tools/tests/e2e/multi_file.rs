@@ -4,7 +4,7 @@
 //! order; the calibration equals the one from the single files, and `replay` of the parts'
 //! folder sends every datagram and the serial bytes exactly.
 
-mod common;
+use crate::common;
 
 use spherecal_tools::config::scenario::Scenario;
 use std::path::Path;

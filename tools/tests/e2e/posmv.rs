@@ -3,7 +3,7 @@
 //! (its datagrams in the capture, or its logged stream), with its faults: corrupted bytes,
 //! an alignment that is not full navigation yet, no Group 3 to date the stream.
 
-mod common;
+use crate::common;
 
 use spherecal::posmv::{self, Alignment, Framer, GnssStatus, Group, Item, Navigation, PpsTime};
 use spherecal_tools::config::scenario::Scenario;

@@ -1,7 +1,7 @@
 //! Progress bars: drawn on a terminal (a pseudo-terminal through util-linux `script`, part of
 //! every Debian), never into a pipe or a log.
 
-mod common;
+use crate::common;
 
 #[test]
 fn bars_on_a_terminal_only() {

@@ -1,6 +1,6 @@
 //! `replay` through loopback and a byte sink: everything sent arrives, paced as recorded.
 
-mod common;
+use crate::common;
 
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::udp::UdpSource;

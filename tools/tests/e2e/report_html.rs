@@ -4,7 +4,7 @@
 //! (an independent reader). The figures' geometry (1:1 cross-sections, histograms on their own
 //! axes) is tested in `plot.rs`; the page was looked at in headless Chromium (NOTES.md).
 
-mod common;
+use crate::common;
 
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::report::Report;

@@ -1,7 +1,7 @@
 //! The rig on one machine: `spherecal run` listening on loopback and a pseudo-terminal, fed by
 //! the replay of a synthetic survey. Each test uses its own UDP ports.
 
-mod common;
+use crate::common;
 
 use serialport::{SerialPort, TTYPort};
 use spherecal_hal::clock::HostTime;

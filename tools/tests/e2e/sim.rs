@@ -2,7 +2,7 @@
 //! carries them to ~1 mm, the files read back without a skip at the sensor's rates, and the
 //! same seed gives the same bytes.
 
-mod common;
+use crate::common;
 
 use nalgebra::Vector3;
 use spherecal::frames::rotation;

@@ -3,7 +3,7 @@
 //! projected coordinates (and orthometric heights H = h - N); the imported site must give back
 //! the WGS84 points.
 
-mod common;
+use crate::common;
 
 use spherecal_tools::config::site::Site;
 

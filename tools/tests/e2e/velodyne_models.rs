@@ -2,7 +2,7 @@
 //! of them (tests/data/velodyne_models: velodyne-decoder 3.1.0, README there), and the model
 //! detection on captures whose product byte lies.
 
-mod common;
+use crate::common;
 
 use spherecal::velodyne::{self, Model, PointBuf};
 use spherecal_hal::pcap::PcapSource;

@@ -4,7 +4,7 @@
 //! southbound pass); after the second, one parameter short; it turns `ready` only once the
 //! third pass adds the longer ranges that pin pitch down.
 
-mod common;
+use crate::common;
 
 use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};

@@ -4,7 +4,7 @@
 //! garbled line is retried, a baud change is followed, `--save` writes flash; an output the
 //! baud cannot carry, a silent unit and a missing device are refused in words.
 
-mod common;
+use crate::common;
 
 use serialport::{SerialPort, TTYPort};
 use spherecal_tools::config::board::Board;

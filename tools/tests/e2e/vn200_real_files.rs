@@ -1,7 +1,7 @@
 //! The VN-200 framer and decoder against real and vendor files and their independent decodings
 //! (tests/data/vn200/*.expected.csv, from a Python decoder checked against VectorNav's SDK).
 
-mod common;
+use crate::common;
 
 use spherecal::vn200::binary::Value;
 use spherecal::vn200::{Framer, Item};

@@ -1,0 +1,28 @@
+//! The end-to-end tests of the tools: one binary (one link) for every file below; each module
+//! is one subject, named as the file. `alloc` is its own binary (it counts allocations).
+
+#[allow(dead_code)]
+mod common;
+
+mod accuracy;
+mod calibrate;
+mod cli_decode;
+mod cli_errors;
+mod cli_ins;
+mod clocks;
+mod datums;
+mod extraction;
+mod georef;
+mod multi_file;
+mod plan;
+mod posmv;
+mod progress;
+mod replay;
+mod report_html;
+mod rig;
+mod sim;
+mod site_import;
+mod velodyne_models;
+mod verdict;
+mod vn200_configure;
+mod vn200_real_files;
