@@ -57,18 +57,28 @@ if cargo fuzz --version >/dev/null 2>&1; then
   (cd fuzz && cargo fuzz build -O -s none)
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT
-  for t in $(cd fuzz && cargo fuzz list); do
+  # One target per core at a time (each is single-threaded); a failing target's log is shown.
+  fuzz_one() {
+    local t=$1
     mkdir -p "$work/$t"
     # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
-    if ! (cd fuzz && cargo fuzz run -O -s none "$t" "$work/$t" "seeds/$t" -- \
+    if (cd fuzz && cargo fuzz run -O -s none "$t" "$work/$t" "seeds/$t" -- \
         -max_total_time="${FUZZ_SECONDS:-10}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
+      printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
+    else
       grep -A8 "panicked at" "$work/$t.log" | cut -c1-400 || true
       tail -20 "$work/$t.log" | cut -c1-400
       echo "error: fuzz target $t failed (reproducer in fuzz/artifacts/$t)" >&2
-      exit 1
+      return 1
     fi
-    printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
+  }
+  failed=0
+  for t in $(cd fuzz && cargo fuzz list); do
+    while [ "$(jobs -rp | wc -l)" -ge "$(nproc)" ]; do wait -n || failed=1; done
+    fuzz_one "$t" &
   done
+  while [ "$(jobs -rp | wc -l)" -gt 0 ]; do wait -n || failed=1; done
+  [ "$failed" -eq 0 ] || exit 1
 else
   echo "warning: skipped: cargo-fuzz is not installed"
 fi
