@@ -171,7 +171,7 @@ pub struct InsState {
     pub watch: ClockWatch,
     /// What a POS MV stream gave (None: not a POS MV stream).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub posmv: Option<crate::pipeline::posmv::PosmvState>,
+    pub posmv: Option<PosmvState>,
 }
 
 /// The INS clock between samples: the last sample's time, the output period learnt from the
@@ -381,6 +381,93 @@ pub fn looks_like(bytes: &[u8]) -> &'static str {
         [] => "an empty file",
         b if b.iter().take(256).all(|c| c.is_ascii()) => "text",
         _ => "unknown bytes",
+    }
+}
+
+/// What a POS MV stream gave, besides the poses ([`InsState::posmv`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PosmvState {
+    /// Groups accepted, by ID.
+    pub groups: std::collections::BTreeMap<u16, u64>,
+    /// Control messages seen.
+    pub messages: u64,
+    /// Groups whose checksum (or end) failed.
+    pub rejected: u64,
+    /// The group poses are taken from (1, 102 or 103).
+    pub pose_group: u16,
+    /// Poses on the POS clock (no GNSS time yet).
+    pub pos_time: u64,
+    /// Poses before any GPS week was known (no Group 3 yet and none given).
+    pub no_week: u64,
+    /// Poses while Group 7 said the POS was not synchronized to GPS time.
+    pub unsynchronized: u64,
+    /// The GPS week used (from Group 3, or given).
+    pub week: Option<u16>,
+    /// GPS - UTC from Group 3 [s].
+    pub utc_offset_s: Option<f64>,
+    /// The last alignment status (Group 1).
+    pub alignment: Option<String>,
+    /// The last time synchronization status (Group 7).
+    pub time_sync: Option<u8>,
+}
+
+impl PosmvState {
+    /// A line for people.
+    pub fn describe(&self) -> String {
+        let groups: Vec<String> = self
+            .groups
+            .iter()
+            .map(|(id, n)| format!("{n} x {id}"))
+            .collect();
+        let mut o = format!(
+            "POS MV groups {} ({} rejected), poses from group {}",
+            if groups.is_empty() {
+                "none".to_string()
+            } else {
+                groups.join(", ")
+            },
+            self.rejected,
+            self.pose_group
+        );
+        if let Some(w) = self.week {
+            let _ = write!(o, ", GPS week {w}");
+        }
+        if let Some(a) = &self.alignment {
+            let _ = write!(o, ", alignment: {a}");
+        }
+        if let Some(s) = self.time_sync {
+            let _ = write!(
+                o,
+                ", time sync {}",
+                sync_name(spherecal::posmv::TimeSync::from_byte(s))
+            );
+        }
+        for (n, what) in [
+            (self.pos_time, "on the POS clock (no GNSS time)"),
+            (
+                self.no_week,
+                "before a GPS week was known (no Group 3; give --gps-week)",
+            ),
+            (
+                self.unsynchronized,
+                "while not synchronized to GPS time (Group 7)",
+            ),
+        ] {
+            if n > 0 {
+                let _ = write!(o, "; {n} poses {what}");
+            }
+        }
+        o
+    }
+}
+
+fn sync_name(s: spherecal::posmv::TimeSync) -> &'static str {
+    match s {
+        spherecal::posmv::TimeSync::NotSynchronized => "not synchronized",
+        spherecal::posmv::TimeSync::Synchronizing => "synchronizing",
+        spherecal::posmv::TimeSync::Synchronized => "synchronized",
+        spherecal::posmv::TimeSync::OldOffset => "using old offset",
+        spherecal::posmv::TimeSync::Other(_) => "unknown",
     }
 }
 
