@@ -100,7 +100,7 @@ pub struct Work {
     pub run: f32,
     /// The slice of time it belongs to (`calib::extract::assign_slices`).
     pub slice: u32,
-    /// The extraction's verdict (`calib::extract::Verdict`).
+    /// The extraction's verdict (`calib::extract::ReturnClass`).
     pub verdict: u8,
 }
 

@@ -25,7 +25,7 @@ use vote::*;
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
-pub enum Verdict {
+pub enum ReturnClass {
     /// Not classified.
     Unclassified = 0,
     /// On the sphere: used.
@@ -44,17 +44,17 @@ pub enum Verdict {
     NotFound = 7,
 }
 
-impl Verdict {
+impl ReturnClass {
     /// All verdicts, in their numeric order.
-    pub const ALL: [Verdict; 8] = [
-        Verdict::Unclassified,
-        Verdict::Kept,
-        Verdict::Undetected,
-        Verdict::OutsideShell,
-        Verdict::Hidden,
-        Verdict::Plane,
-        Verdict::Pole,
-        Verdict::NotFound,
+    pub const ALL: [ReturnClass; 8] = [
+        ReturnClass::Unclassified,
+        ReturnClass::Kept,
+        ReturnClass::Undetected,
+        ReturnClass::OutsideShell,
+        ReturnClass::Hidden,
+        ReturnClass::Plane,
+        ReturnClass::Pole,
+        ReturnClass::NotFound,
     ];
 
     /// From the stored byte.
@@ -62,20 +62,20 @@ impl Verdict {
         Self::ALL
             .get(usize::from(v))
             .copied()
-            .unwrap_or(Verdict::Unclassified)
+            .unwrap_or(ReturnClass::Unclassified)
     }
 
     /// Its name in reports.
     pub fn name(self) -> &'static str {
         match self {
-            Verdict::Unclassified => "unclassified",
-            Verdict::Kept => "kept",
-            Verdict::Undetected => "undetected",
-            Verdict::OutsideShell => "outside_shell",
-            Verdict::Hidden => "hidden_side",
-            Verdict::Plane => "plane",
-            Verdict::Pole => "pole",
-            Verdict::NotFound => "sphere_not_found",
+            ReturnClass::Unclassified => "unclassified",
+            ReturnClass::Kept => "kept",
+            ReturnClass::Undetected => "undetected",
+            ReturnClass::OutsideShell => "outside_shell",
+            ReturnClass::Hidden => "hidden_side",
+            ReturnClass::Plane => "plane",
+            ReturnClass::Pole => "pole",
+            ReturnClass::NotFound => "sphere_not_found",
         }
     }
 }
@@ -192,7 +192,7 @@ pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount, time: &T
 }
 
 /// Tag every observation of a slice.
-pub fn tag(obs: &mut [Observation], v: Verdict) {
+pub fn tag(obs: &mut [Observation], v: ReturnClass) {
     for o in obs.iter_mut() {
         o.work.verdict = v as u8;
     }
@@ -299,7 +299,7 @@ mod tests {
         );
         let true_kept = obs
             .iter()
-            .filter(|o| o.packet == 1 && o.work.verdict == Verdict::Kept as u8)
+            .filter(|o| o.packet == 1 && o.work.verdict == ReturnClass::Kept as u8)
             .count();
         assert!(
             true_kept >= on_sphere * 95 / 100,

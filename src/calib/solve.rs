@@ -7,7 +7,7 @@
 use super::consensus::{
     consensus, Ambiguity, Bounds, Candidate, Consensus, ConsensusSettings, Search,
 };
-use super::extract::{self, Directions, ExtractSettings, Verdict};
+use super::extract::{self, Directions, ExtractSettings, ReturnClass};
 use super::lm::Clock;
 use super::lm::{refine, LmResult};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
@@ -37,7 +37,7 @@ pub use settings::*;
 /// Most passes (sightings of a sphere) reported per solve; later ones are added to the last.
 pub const MAX_PASSES: usize = 128;
 
-/// Counts of windowed returns by [`Verdict`] (indexed by its number).
+/// Counts of windowed returns by [`ReturnClass`] (indexed by its number).
 pub type Tally = [u32; 8];
 
 fn with_problem<R>(
@@ -143,7 +143,7 @@ fn fit_with_covariance<'a>(
 fn partition(v: &mut [Observation]) -> usize {
     let mut k = 0;
     for i in 0..v.len() {
-        if v[i].work.verdict == Verdict::Kept as u8 {
+        if v[i].work.verdict == ReturnClass::Kept as u8 {
             v.swap(i, k);
             k += 1;
         }
@@ -239,7 +239,7 @@ fn extract_sphere(
                 let c = if surveyed { [0.0; 3] } else { d.center };
                 kept += extract::keep(&mut v[sl.clone()], c, t.radius, tau, noise);
             }
-            None => extract::tag(&mut v[sl.clone()], Verdict::Undetected),
+            None => extract::tag(&mut v[sl.clone()], ReturnClass::Undetected),
         }
         if let Some(p) = passes.as_deref_mut().and_then(|ps| pass_of(ps, t0)) {
             p.slices += 1;
@@ -265,7 +265,7 @@ fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
             v.swap(i, w);
             w += 1;
         } else {
-            v[i].work.verdict = Verdict::OutsideShell as u8;
+            v[i].work.verdict = ReturnClass::OutsideShell as u8;
         }
     }
     w
@@ -287,7 +287,7 @@ fn gather(
         let start = w;
         let kept = v[..active[j]]
             .iter()
-            .filter(|o| o.work.verdict == Verdict::Kept as u8);
+            .filter(|o| o.work.verdict == ReturnClass::Kept as u8);
         for (k, o) in kept.enumerate() {
             if k.is_multiple_of(stride) && w < buf.len() {
                 buf[w] = *o;
@@ -315,7 +315,7 @@ fn prepare(
         extract::georeference(v, t, &mount0, &TimeOffset::default());
         extract::runs(v, st.firing_ns, st.jump);
         extract::assign_slices(v, st.slice_ns, slices);
-        extract::tag(v, Verdict::Unclassified);
+        extract::tag(v, ReturnClass::Unclassified);
     }
     let mut passes = heapless::Vec::new();
     for (j, v) in obs.iter().enumerate() {
@@ -342,7 +342,7 @@ fn split_ranges<'b>(
 }
 
 /// Solve from `b0` with every sphere's windowed returns (reordered in place: the
-/// kept ones first, in time order; each tagged with its [`Verdict`]).
+/// kept ones first, in time order; each tagged with its [`ReturnClass`]).
 pub fn solve(
     targets: &[Target],
     obs: &mut [&mut [Observation]],

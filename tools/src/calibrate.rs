@@ -371,7 +371,7 @@ pub fn write_returns(
                 x.y,
                 x.z,
                 e,
-                spherecal::calib::extract::Verdict::from_u8(o.work.verdict).name()
+                spherecal::calib::extract::ReturnClass::from_u8(o.work.verdict).name()
             );
             w.write_all(line.as_bytes()).map_err(err)?;
         }

@@ -76,7 +76,7 @@ pub struct Verdicts {
 
 impl Verdicts {
     pub(crate) fn from_tally(t: &spherecal::calib::solve::Tally) -> Self {
-        use spherecal::calib::extract::Verdict as V;
+        use spherecal::calib::extract::ReturnClass as V;
         let g = |v: V| t[v as usize];
         Self {
             kept: g(V::Kept),

@@ -72,7 +72,7 @@ fn one<'a>(
     passes: impl Iterator<Item = &'a spherecal::calib::solve::PassReport>,
 ) -> Coverage {
     let kept_of = |p: &spherecal::calib::solve::PassReport| {
-        p.verdicts[spherecal::calib::extract::Verdict::Kept as usize] as usize
+        p.verdicts[spherecal::calib::extract::ReturnClass::Kept as usize] as usize
     };
     let dirs: Vec<[f64; 2]> = passes
         .filter(|p| kept_of(p) >= MIN_PASS_RETURNS && p.course != [0.0; 2])
@@ -327,7 +327,7 @@ mod tests {
 
     fn pass(kept: u32, course: [f32; 2]) -> spherecal::calib::solve::PassReport {
         let mut verdicts = [0; 8];
-        verdicts[spherecal::calib::extract::Verdict::Kept as usize] = kept;
+        verdicts[spherecal::calib::extract::ReturnClass::Kept as usize] = kept;
         spherecal::calib::solve::PassReport {
             sphere: 0,
             start: GpsTime(0),

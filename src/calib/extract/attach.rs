@@ -108,17 +108,17 @@ pub fn reject_attachments(
         let half = (p90 + libm::atanf(2.0 * sigma / r).to_degrees()).min(50.0);
         let cos_half = libm::cosf(half.to_radians());
         for o in obs.iter_mut() {
-            if o.work.verdict != Verdict::Kept as u8 {
+            if o.work.verdict != ReturnClass::Kept as u8 {
                 continue;
             }
             let x = o.work.x;
             if dot(x, axis) / norm(x).max(1e-9) >= cos_half {
                 o.work.verdict = if line {
                     poles += 1;
-                    Verdict::Pole
+                    ReturnClass::Pole
                 } else {
                     planes += 1;
-                    Verdict::Plane
+                    ReturnClass::Plane
                 } as u8;
             }
         }

@@ -222,12 +222,12 @@ pub fn keep(obs: &mut [Observation], c: V3, r: f64, tau: f64, noise: &Noise) -> 
             // Grazing returns with noise may sit slightly beyond the silhouette.
             if dot(d, o.work.u) <= tau.max(0.25 * dist) {
                 n += 1;
-                Verdict::Kept
+                ReturnClass::Kept
             } else {
-                Verdict::Hidden
+                ReturnClass::Hidden
             }
         } else {
-            Verdict::OutsideShell
+            ReturnClass::OutsideShell
         } as u8;
     }
     n

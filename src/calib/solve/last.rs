@@ -46,12 +46,12 @@ impl Rounds {
             // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
             let kept = v
                 .iter()
-                .filter(|o| o.work.verdict == Verdict::Kept as u8)
+                .filter(|o| o.work.verdict == ReturnClass::Kept as u8)
                 .count() as u32;
             extract::reject_attachments(v, targets[j].radius, tau, &dirs, (kept / 33).max(8));
             used[j] = partition(obs[j]);
             if used[j] < s.min_points {
-                extract::tag(obs[j], Verdict::NotFound);
+                extract::tag(obs[j], ReturnClass::NotFound);
                 used[j] = 0;
             }
             for o in obs[j].iter() {
@@ -59,7 +59,7 @@ impl Rounds {
                 tallies[j][k] += 1;
                 if let Some(p) = pass_of(mine, o.time) {
                     p.verdicts[k] += 1;
-                    if k == Verdict::Kept as usize {
+                    if k == ReturnClass::Kept as usize {
                         p.course[0] += o.velocity.x;
                         p.course[1] += o.velocity.y;
                     }

@@ -256,7 +256,7 @@ impl Rounds {
         for j in 0..n {
             let v = &mut obs[j][..self.active[j]];
             extract::georeference(v, &targets[j], &mount, &self.time);
-            extract::tag(v, Verdict::Undetected);
+            extract::tag(v, ReturnClass::Undetected);
             let (mut slices, mut detected) = (0, 0);
             let mut start = 0;
             loop {
@@ -370,7 +370,7 @@ impl Rounds {
         for (j, v) in obs.iter_mut().enumerate() {
             if kept[j] < s.min_points {
                 kept[j] = 0;
-                extract::tag(&mut v[..self.active[j]], Verdict::Undetected);
+                extract::tag(&mut v[..self.active[j]], ReturnClass::Undetected);
             }
         }
         Some(kept)
@@ -419,7 +419,7 @@ impl Rounds {
                 kept[j] = 0;
             }
             if kept[j] == 0 {
-                extract::tag(&mut v[..self.active[j]], Verdict::Undetected);
+                extract::tag(&mut v[..self.active[j]], ReturnClass::Undetected);
             }
         }
         Some(kept)

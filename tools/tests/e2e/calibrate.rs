@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use spherecal::calib::extract::Verdict;
+use spherecal::calib::extract::ReturnClass;
 use spherecal::calib::solve::Refusal;
 use spherecal::calib::{solve, Settings};
 use spherecal::window::Observation;
@@ -64,7 +64,7 @@ fn extraction(dir: &Path, obs: &[Vec<Observation>]) -> Vec<Extraction> {
                     .expect("every windowed return has a label");
                 // Objects 0..n are the spheres, in the site's order.
                 let on = usize::from(l.0) == j && l.1 >= 230;
-                let k = o.work.verdict == Verdict::Kept as u8;
+                let k = o.work.verdict == ReturnClass::Kept as u8;
                 pos += usize::from(on);
                 kept += usize::from(k);
                 tp += usize::from(on && k);
