@@ -1,6 +1,6 @@
 //! `spherecal calibrate --pcap P (--ins I | --sbet S) --site SITE ...`.
 
-use super::{claimed, fail, parse6, Survey};
+use super::{claimed, fail, parse6, SurveyArgs};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -8,7 +8,7 @@ use std::process::ExitCode;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
-    pub survey: Survey,
+    pub survey: SurveyArgs,
     /// Start: roll,pitch,heading [deg],x,y,z [m] (default: the site's a-priori values).
     #[arg(long, value_parser = parse6, allow_hyphen_values = true, conflicts_with = "init_from")]
     pub init: Option<[f64; 6]>,

@@ -1,6 +1,6 @@
 //! `spherecal georef --pcap P (--ins I | --sbet S) --site SITE ...`.
 
-use super::{fail, parse3, Survey};
+use super::{fail, parse3, SurveyArgs};
 use crate::pipeline::{Inputs, InsInput};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -9,7 +9,7 @@ use std::process::ExitCode;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
-    pub survey: Survey,
+    pub survey: SurveyArgs,
     /// Boresight roll,pitch,heading [deg] (default: the site's a-priori).
     #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
     pub boresight: Option<[f64; 3]>,
@@ -41,7 +41,7 @@ pub struct Args {
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
     let ports = a.survey.ports();
-    let Survey {
+    let SurveyArgs {
         pcap,
         model,
         ins,

@@ -71,7 +71,7 @@ fn claimed(ok: bool) -> ExitCode {
 
 /// The recorded survey: capture, trajectory and site.
 #[derive(clap::Args, Debug, Clone)]
-pub struct Survey {
+pub struct SurveyArgs {
     /// The Velodyne capture: files, folders of captures or patterns
     /// (`'logs/*-lidar-*.pcap'`), one or several, taken in the order of their first datagram.
     #[arg(long, num_args = 1.., required = true)]
@@ -123,7 +123,7 @@ pub struct Survey {
     pub lidar_ports: Option<[u16; 2]>,
 }
 
-impl Survey {
+impl SurveyArgs {
     /// The ports as the pipeline takes them.
     fn ports(&self) -> spherecal_hal::velodyne::Ports {
         self.lidar_ports

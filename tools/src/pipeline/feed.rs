@@ -34,7 +34,7 @@ impl AlignStorage {
 
 /// The core aligner fed from the rings, with a waiting policy ([`InsWait`]) and the LiDAR
 /// clock's state counted from the position packets.
-pub struct Aligner<'a> {
+pub struct RingAligner<'a> {
     /// The core stage.
     pub core: CoreAligner<'a, HISTORY, BATCH>,
     wait: InsWait,
@@ -58,7 +58,7 @@ pub struct Closest {
     pub time_s: f64,
 }
 
-impl<'a> Aligner<'a> {
+impl<'a> RingAligner<'a> {
     /// An aligner for `targets` on `storage`, georeferencing with `mount`.
     pub fn new(
         storage: &'a mut AlignStorage,
@@ -244,7 +244,7 @@ mod tests {
         {
             let clock = MockClock::new(HostTime(t));
             let mut storage = AlignStorage::new(1, 50_000_000);
-            let mut al = Aligner::new(
+            let mut al = RingAligner::new(
                 &mut storage,
                 &targets,
                 0.5,

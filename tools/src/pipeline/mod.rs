@@ -19,7 +19,7 @@ mod feed;
 pub mod posmv;
 mod readers;
 
-pub use feed::{AlignStorage, Aligner, Closest, InsWait};
+pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use readers::{
     end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, sbet_week,
     vn200_pose, week_from_capture, Accept, Files, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
@@ -552,7 +552,7 @@ pub fn run<C: Send>(
 
         // Aligner (this thread).
         let mut storage = AlignStorage::new(targets.len(), inp.max_gap_ns);
-        let mut al = Aligner::new(
+        let mut al = RingAligner::new(
             &mut storage,
             &targets,
             inp.margin,

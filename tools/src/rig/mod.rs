@@ -18,8 +18,8 @@ use crate::calibrate::Report;
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
-    enqueue, targets, Accept, AlignStorage, Aligner, BatchMsg, InsItem, InsOutcome, InsRing,
-    InsWait, LidarItem, LidarKind, Overflow, Vn200Feed, BATCH, INS_RING,
+    enqueue, targets, Accept, AlignStorage, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
+    LidarItem, LidarKind, Overflow, RingAligner, Vn200Feed, BATCH, INS_RING,
 };
 use crate::state::{ClockState, InsState};
 
@@ -741,7 +741,7 @@ fn run_threads(
         // Aligner (this thread). Should it fail, everything winds down.
         let _aligner = AlignerGuard(sh);
         let mut storage = AlignStorage::new(plan.targets.len(), MAX_INS_GAP_NS);
-        let mut al = Aligner::new(
+        let mut al = RingAligner::new(
             &mut storage,
             &plan.targets,
             plan.margin,
@@ -827,7 +827,7 @@ impl Batches<'_, '_, '_> {
 /// they come, each data packet aligned (waiting for the INS as [`InsWait::Latency`] allows),
 /// a new time offset from the solver applied between batches, the counters published.
 fn align_until_end(
-    al: &mut Aligner<'_>,
+    al: &mut RingAligner<'_>,
     pos_c: &mut Consumer<'_, LidarItem>,
     ins_c: &mut Consumer<'_, InsItem>,
     data_c: &mut Consumer<'_, LidarItem>,
