@@ -32,6 +32,7 @@ mod readers;
 mod solver;
 pub mod status;
 mod summary;
+pub mod watch;
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use logger::{logger, syncer};
@@ -207,8 +208,8 @@ struct Shared<'a> {
     /// The solve under way (`r<N>`: its round N) or how the last one ended (`<how>:<rounds>`).
     solve_state: Mutex<String>,
     calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
-    /// The time offset the aligner is to apply [ns] (set by the solver).
-    time_offset_ns: AtomicI64,
+    /// The back-edge: the time offset and windows the solver tells the aligner to use.
+    steer: watch::Watch<watch::Steer>,
     /// The latest estimate of the time offset and its sigma [s].
     time_offset: Mutex<Option<(f64, f64)>>,
     errors: Mutex<Vec<String>>,
@@ -216,9 +217,6 @@ struct Shared<'a> {
     heard: [Mutex<hearing::Heard>; 2],
     /// The verdict after the latest solve.
     verdict: Mutex<Option<crate::verdict::Verdict>>,
-    /// The windows the aligner is to use after a converged solve: the solution and a margin
-    /// [rad, m; m], with a count of the changes.
-    windows: Mutex<(u64, Option<(Params, f64)>)>,
     /// Whether the INS speaks.
     ins_watch: ins_watch::InsWatch,
     /// Returns that got no pose so far.
@@ -293,12 +291,11 @@ impl<'a> Shared<'a> {
             solves: AtomicU64::new(0),
             solve_state: Mutex::new(String::new()),
             calibration: Mutex::new(None),
-            time_offset_ns: AtomicI64::new(0),
+            steer: watch::Watch::new(),
             time_offset: Mutex::new(None),
             errors: Mutex::new(Vec::new()),
             heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
             verdict: Mutex::new(None),
-            windows: Mutex::new((0, None)),
             ins_watch: ins_watch::InsWatch::default(),
             without_pose: AtomicU64::new(0),
             warnings: Mutex::new(Vec::new()),
@@ -835,7 +832,8 @@ fn align_until_end(
     sh: &Shared<'_>,
 ) {
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
-    let mut windows_seen = 0u64;
+    let mut steer = sh.steer.receiver();
+    let mut windows: Option<(Params, f64)> = None;
     loop {
         while let Some(p) = pos_c.dequeue() {
             al.position(&p.bytes[..512]);
@@ -845,24 +843,19 @@ fn align_until_end(
             std::thread::sleep(Duration::from_millis(1));
             continue;
         };
-        // A new time offset from the solver: the batches so far go at the old one.
-        let want = sh.time_offset_ns.load(Ordering::Relaxed);
-        if want != out.applied.get() {
-            al.finish(&mut emit);
-            al.core.time_offset_ns = want;
-            out.applied.set(want);
-        }
-        // New windows (around a converged solution): likewise between batches.
-        if let Some((k, (b, margin))) = sh
-            .windows
-            .lock()
-            .ok()
-            .and_then(|w| w.1.map(|x| (w.0, x)))
-            .filter(|(k, _)| *k != windows_seen)
-        {
-            al.finish(&mut emit);
-            al.core.set_windows(b.mount(), margin);
-            windows_seen = k;
+        // The solver's word, between batches: the batches so far go at the old offset and
+        // in the old windows.
+        if let Some(s) = steer.changed() {
+            if s.time_offset_ns != out.applied.get() {
+                al.finish(&mut emit);
+                al.core.time_offset_ns = s.time_offset_ns;
+                out.applied.set(s.time_offset_ns);
+            }
+            if let Some((b, margin)) = s.windows.filter(|w| Some(*w) != windows) {
+                al.finish(&mut emit);
+                al.core.set_windows(b.mount(), margin);
+                windows = s.windows;
+            }
         }
         match item.kind {
             LidarKind::End => break,

@@ -1,5 +1,6 @@
 //! The rig's solver thread: collects the windowed batches, solves when the windows hold enough, keeps the time offset and the report current.
 
+use super::watch::Steer;
 use super::*;
 use spherecal::calib::Params;
 
@@ -66,9 +67,9 @@ pub(super) fn solver(
             }
             // Move the windows to the offset found, and the store with them (the session's
             // rule, as `calibrate`'s).
-            if let Some(to) = session.wants_offset(&sol) {
+            let offset = session.wants_offset(&sol);
+            if let Some(to) = offset {
                 session.rebase(to);
-                sh.time_offset_ns.store(to, Ordering::Relaxed);
             }
             *start = sol.b;
             // The aligner's windows around the solution from now on, as tight as its residuals
@@ -81,15 +82,21 @@ pub(super) fn solver(
             let margin = (LIVE_MARGIN_RMS * rms)
                 .clamp(LIVE_MARGIN_FLOOR_M, KEEP_NEAR_M)
                 .min(apriori_margin);
-            if let Ok(mut w) = sh.windows.lock() {
-                let moved = w.1.is_none_or(|(b, m)| {
+            sh.steer.send_if(|now| {
+                let moved = now.windows.is_none_or(|(b, m)| {
                     (m - margin).abs() > 0.05
                         || b.0.iter().zip(sol.b.0).any(|(a, c)| (a - c).abs() > 1e-4)
                 });
-                if moved {
-                    *w = (w.0 + 1, Some((sol.b, margin)));
-                }
-            }
+                (moved || offset.is_some()).then(|| Steer {
+                    time_offset_ns: offset.unwrap_or(now.time_offset_ns),
+                    windows: if moved {
+                        Some((sol.b, margin))
+                    } else {
+                        now.windows
+                    },
+                    windows_moved: now.windows_moved + u64::from(moved),
+                })
+            });
             let mount = sol.b.mount();
             for (v, t) in session.store_mut().iter_mut().zip(targets) {
                 v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);

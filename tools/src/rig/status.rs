@@ -380,7 +380,7 @@ pub(super) fn status_loop<'c>(
             }
         }
         // The windows moved around the calibration: said when their margin changes.
-        if let Some((_, m)) = sh.windows.lock().ok().and_then(|w| w.1) {
+        if let Some((_, m)) = sh.steer.get().windows {
             if said_margin.is_none_or(|s| (s - m).abs() > 0.05) {
                 let line = format!(
                     "windows: around the calibration now, {m:.2} m beyond the spheres (less clutter in them)"

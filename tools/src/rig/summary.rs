@@ -109,8 +109,8 @@ impl RunSummary {
         Self {
             seconds: started.elapsed().as_secs_f64(),
             received: ld(&sh.received),
-            windows_moved: sh.windows.lock().map_or(0, |w| w.0),
-            live_margin_m: sh.windows.lock().ok().and_then(|w| w.1.map(|x| x.1)),
+            windows_moved: sh.steer.get().windows_moved,
+            live_margin_m: sh.steer.get().windows.map(|x| x.1),
             heard: sh
                 .heard
                 .each_ref()
@@ -131,7 +131,7 @@ impl RunSummary {
             clock_trusted: e.clock.trusted(),
             clock: e.clock,
             ins: e.ins,
-            time_offset_s: sh.time_offset_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+            time_offset_s: sh.steer.get().time_offset_ns as f64 * 1e-9,
             windowed: sh
                 .windowed
                 .iter()
