@@ -102,7 +102,7 @@ pub fn best_candidate(c: &[SearchCandidate]) -> Option<SearchCandidate> {
 }
 
 /// Run the pipeline and collect the windowed observations per sphere.
-pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), String> {
+pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), crate::Error> {
     let n = inp.site.sphere.len();
     run(
         inp,
@@ -393,7 +393,7 @@ pub fn calibrate(
     ids: &[String],
     b0: &Params,
     clock: crate::ClockOptions,
-) -> Result<Calibrated, String> {
+) -> Result<Calibrated, crate::Error> {
     // The model, once: every collection decodes as it, and the extraction's scan lines follow
     // its laser period.
     if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
@@ -410,10 +410,10 @@ pub fn calibrate(
             crate::pipeline::sbet_week(*week, &inp.pcap, inp.site.leap_seconds)?,
         )?),
         (Some(p), _) => {
-            return Err(format!(
+            return Err(crate::Error::bad_input(format!(
                 "{}: an accuracy file goes with an SBET trajectory",
                 p.display()
-            ))
+            )))
         }
         (None, _) => None,
     };
@@ -422,7 +422,7 @@ pub fn calibrate(
     let drift = std::cell::Cell::new(false);
     // The rounds on a spinner (on a terminal only).
     let spinner = crate::progress::spinner("solving");
-    let mut attempt = |applied: f64| -> Result<_, String> {
+    let mut attempt = |applied: f64| -> Result<_, crate::Error> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let (stats, mut obs) = collect(inp)?;
         if let Some(a) = &accuracy {

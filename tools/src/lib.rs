@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod cmd;
 pub mod config;
 pub mod decode;
+pub mod error;
 pub mod fixtures;
 pub mod georef;
 pub mod html;
@@ -27,6 +28,7 @@ pub mod synth;
 pub mod verdict;
 pub mod vn200;
 
+pub use error::{Error, ErrorKind};
 pub use survey::{
     check_output, run_calibrate, Calibrated, ClockOptions, Outputs, Survey, RETURNS_HEADER,
 };

@@ -140,7 +140,7 @@ pub fn run_calibrate(
     clock: ClockOptions,
     out: &Outputs,
     truth: Option<[f64; 7]>,
-) -> Result<Calibrated, String> {
+) -> Result<Calibrated, crate::Error> {
     use crate::pipeline::{Inputs, InsInput};
     out.check()?;
     let site = config::site::Site::load(&survey.site)?;

@@ -1,6 +1,7 @@
 //! The `spherecal` subcommands: each module owns its clap `Args` and its `run`, which reads the
 //! arguments, calls the library and maps the outcome to the exit code of the command contract
-//! (0 success; 1 calibration refused; 2 bad arguments or unreadable input).
+//! (0 success; 1 calibration refused; 2 bad arguments or unreadable input; 3 an internal
+//! fault: [`crate::Error`]).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -34,10 +35,16 @@ pub mod site;
 pub mod synth;
 pub mod vn200;
 
-/// Exit 2 with `spherecal CMD: why` on stderr.
+/// Exit 2 (bad input) with `spherecal CMD: why` on stderr.
 fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
     eprintln!("spherecal {cmd}: {why}");
     ExitCode::from(2)
+}
+
+/// `spherecal CMD: error` on stderr and the exit code of its kind.
+fn fail_with(cmd: &str, e: crate::Error) -> ExitCode {
+    eprintln!("spherecal {cmd}: {e}");
+    e.exit_code()
 }
 
 /// Outputs that failed after the result was printed: each said, exit 2 (`None` when all

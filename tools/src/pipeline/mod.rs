@@ -503,7 +503,7 @@ pub fn run<C: Send>(
     inp: &Inputs,
     mut each: Option<&mut dyn FnMut(&GeoPoint)>,
     consumer: impl FnOnce(crossbeam_channel::Receiver<BatchMsg>) -> C + Send,
-) -> Result<(RunStats, C), String> {
+) -> Result<(RunStats, C), crate::Error> {
     let (frame, targets) = targets(&inp.site);
     let leap = inp.site.leap_seconds;
     let mut lq: Box<Queue<LidarItem, LIDAR_RING>> = Box::new(Queue::new());
@@ -588,10 +588,10 @@ pub fn run<C: Send>(
         al.drain_until_end(&mut ic);
         let skips = lidar
             .join()
-            .map_err(|_| "LiDAR reader panicked".to_string())??;
+            .map_err(|_| crate::Error::internal("the LiDAR reader thread panicked"))??;
         let (ins, ins_head) = ins
             .join()
-            .map_err(|_| "INS reader panicked".to_string())??;
+            .map_err(|_| crate::Error::internal("the INS reader thread panicked"))??;
         let ring_full = [
             full[0].load(Ordering::Relaxed),
             full[1].load(Ordering::Relaxed),
@@ -599,9 +599,9 @@ pub fn run<C: Send>(
         let stats = al.run_stats(skips, ins, ring_full);
         let c = consumer
             .join()
-            .map_err(|_| "consumer panicked".to_string())?;
+            .map_err(|_| crate::Error::internal("the batch consumer thread panicked"))?;
         if let Some(why) = stats.unusable(&inp.pcap, &inp.ins, &ins_head, inp.time_offset_ns) {
-            return Err(why);
+            return Err(crate::Error::bad_input(why));
         }
         Ok((stats, c))
     })

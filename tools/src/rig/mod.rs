@@ -372,7 +372,7 @@ pub fn run(
     opts: &RunOptions,
     console: &mut Console,
     stop: &AtomicBool,
-) -> Result<RunSummary, String> {
+) -> Result<RunSummary, crate::Error> {
     // The rings are built on the stack before they move to the heap: give them room whatever
     // thread the caller is on.
     std::thread::scope(|sc| {
@@ -380,9 +380,10 @@ pub fn run(
             .name("rig".into())
             .stack_size(64 << 20)
             .spawn_scoped(sc, || run_rig(opts, console, stop))
-            .map_err(|e| format!("rig thread: {e}"))?
+            .map_err(|e| crate::Error::internal(format!("the rig thread: {e}")))?
             .join()
-            .map_err(|_| "the rig thread panicked".to_string())?
+            .map_err(|_| crate::Error::internal("the rig thread panicked"))?
+            .map_err(crate::Error::from)
     })
 }
 
