@@ -161,10 +161,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
 
     /// A position packet: the PPS state, and the hour from its RMC when it is valid (a void
     /// one may carry a stale time; the INS gives the hour otherwise).
-    pub fn position(&mut self, bytes: &[u8]) {
-        let Ok(p) = PositionPacket::new_checked(bytes) else {
-            return;
-        };
+    pub fn position<T: AsRef<[u8]>>(&mut self, p: &PositionPacket<T>) {
         self.stats.position_packets += 1;
         self.pps = Some(p.pps());
         if !self.clock.has_hour() {
@@ -177,7 +174,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
 
     /// The packet's first firing on the INS clock, as [`Self::data`] will time it (without
     /// changing the clock), given the history so far.
-    fn first_firing(&self, p: &DataPacket<&[u8]>) -> Option<GpsTime> {
+    fn first_firing<T: AsRef<[u8]>>(&self, p: &DataPacket<T>) -> Option<GpsTime> {
         let mut clock = self.clock;
         if !clock.has_hour() {
             let (_, newest) = self.history.span()?;
@@ -187,36 +184,31 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         Some(GpsTime(t0.0.saturating_add(self.time_offset_ns)))
     }
 
-    /// Whether more poses are needed before data packet `bytes` can be aligned: the history
+    /// Whether more poses are needed before data packet `p` can be aligned: the history
     /// must hold a pose (for the hour) and reach past the packet's last firing plus the
     /// look-ahead. A caller that cannot wait (the INS ended, a live deadline) aligns it anyway;
     /// what the history does not cover is counted.
-    pub fn wants_poses(&self, bytes: &[u8]) -> bool {
-        let Ok(p) = DataPacket::new_checked(bytes) else {
-            return false;
-        };
+    pub fn wants_poses<T: AsRef<[u8]>>(&self, p: &DataPacket<T>) -> bool {
         let Some((_, newest)) = self.history.span() else {
             return true;
         };
-        match self.first_firing(&p) {
+        match self.first_firing(p) {
             Some(t0) => newest.0 <= t0.0.saturating_add(PACKET_SPAN_NS + self.lookahead_ns),
             None => false,
         }
     }
 
-    /// A data packet received at `host` (if known): time it, georeference and window its returns;
+    /// A checked data packet received at `host` (if known): time it, georeference and window
+    /// its returns;
     /// `each`, if given, sees every georeferenced return; a batch that is half full goes to
     /// `emit(sphere, observations)`.
-    pub fn data(
+    pub fn data<T: AsRef<[u8]>>(
         &mut self,
-        bytes: &[u8],
+        p: &DataPacket<T>,
         host: Option<HostTime>,
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
-        let Ok(p) = DataPacket::new_checked(bytes) else {
-            return;
-        };
         let index = self.data_seen;
         self.data_seen = self.data_seen.wrapping_add(1);
         if !self.clock.has_hour() {
@@ -251,7 +243,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
                 }
             }
         };
-        if velodyne::decode_as(&p, model, &mut self.points).is_err() {
+        if velodyne::decode_as(p, model, &mut self.points).is_err() {
             return;
         }
         self.stats.data_packets += 1;
@@ -400,8 +392,9 @@ mod tests {
         let mut al = level_aligner(&targets, &mut batches, &mut history);
         al.time_offset_ns = offset_ns;
         let packet = data_packet();
-        // Garbage is not waited for; an empty history is.
-        assert!(!al.wants_poses(&packet[..100]));
+        // An empty history is waited for (garbage cannot get here: the packet is checked).
+        assert!(DataPacket::new_checked(&packet[..100]).is_err());
+        let packet = DataPacket::new_checked(&packet[..]).unwrap();
         assert!(al.wants_poses(&packet));
         if rmc {
             let utc = UtcDateTime {
@@ -422,7 +415,7 @@ mod tests {
                 nmea: &nmea[..n],
             }
             .emit(&mut PositionPacket::new_unchecked(&mut pos[..]));
-            al.position(&pos);
+            al.position(&PositionPacket::new_checked(&pos[..]).unwrap());
             assert_eq!(al.pps, Some(PpsStatus::Locked));
         }
         // Poses up to the packet's first firing (plus the offset) do not cover it...
@@ -500,8 +493,12 @@ mod tests {
         let mut batches = [Batch::<8>::default()];
         let mut history = PoseHistory::<16>::new(50_000_000);
         let mut al = level_aligner(&targets, &mut batches, &mut history);
-        al.data(&data_packet(), None, None, &mut |_, _| {});
-        al.data(&[0u8; 10], None, None, &mut |_, _| {});
+        al.data(
+            &DataPacket::new_checked(data_packet()).unwrap(),
+            None,
+            None,
+            &mut |_, _| {},
+        );
         assert_eq!(al.stats.packets_without_time, 1);
         assert_eq!(al.stats.data_packets, 0);
         assert_eq!(al.stats.hour_from, None);
@@ -542,7 +539,12 @@ mod tests {
                 let mut p = data_packet();
                 p[1205] = product;
                 p[1200..1204].copy_from_slice(&(STAMP_US + 1327 * k).to_le_bytes());
-                al.data(&p, None, None, &mut |_, _| {});
+                al.data(
+                    &DataPacket::new_checked(&p[..]).unwrap(),
+                    None,
+                    None,
+                    &mut |_, _| {},
+                );
             }
             assert_eq!(al.stats.model_refused, refused, "0x{product:02X}");
             assert_eq!(al.stats.identity, identity, "0x{product:02X}");

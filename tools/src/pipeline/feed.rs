@@ -137,19 +137,19 @@ impl<'a> RingAligner<'a> {
         }
     }
 
-    /// A position packet (its first 512 bytes): counted, then to the core.
-    pub fn position(&mut self, bytes: &[u8]) {
-        if let Ok(p) = PositionPacket::new_checked(bytes) {
-            self.clock.count(&p);
-        }
-        self.core.position(bytes);
+    /// A position packet: counted, then to the core.
+    pub fn position(&mut self, p: &PositionPacket<&[u8]>) {
+        self.clock.count(p);
+        self.core.position(p);
     }
 
-    /// A data packet: poses are pulled until the history covers it, the INS ends, or (live)
-    /// the latency allowed after its receive time has passed; then the core aligns it.
+    /// A data packet received at `host`: poses are pulled until the history covers it, the
+    /// INS ends, or (live) the latency allowed after its receive time has passed; then the core
+    /// aligns it.
     pub fn data(
         &mut self,
-        item: &LidarItem,
+        p: &DataPacket<&[u8]>,
+        host: Option<HostTime>,
         ic: &mut Consumer<'_, InsItem>,
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
@@ -158,11 +158,11 @@ impl<'a> RingAligner<'a> {
             InsWait::UntilEnd => None,
             InsWait::Latency(d) => {
                 let d = i64::try_from(d.as_nanos()).unwrap_or(i64::MAX);
-                let from = item.host.unwrap_or_else(|| self.time.wall());
+                let from = host.unwrap_or_else(|| self.time.wall());
                 Some(HostTime(from.0.saturating_add(d)))
             }
         };
-        while !self.ins_done && self.core.wants_poses(&item.bytes) {
+        while !self.ins_done && self.core.wants_poses(p) {
             match ic.dequeue() {
                 Some(it) => self.take(it),
                 None => match deadline {
@@ -172,7 +172,7 @@ impl<'a> RingAligner<'a> {
                 },
             }
         }
-        self.core.data(&item.bytes, item.host, each, emit);
+        self.core.data(p, host, each, emit);
     }
 
     /// Hand on what the batches still hold.
@@ -258,8 +258,8 @@ mod tests {
             if end {
                 assert!(p.enqueue(InsItem::End).is_ok());
             }
-            let item = LidarItem::new(LidarKind::Data, Some(HostTime(host_ns)), &packet);
-            al.data(&item, &mut c, None, &mut |_, _| {});
+            let p = DataPacket::new_checked(&packet[..]).unwrap();
+            al.data(&p, Some(HostTime(host_ns)), &mut c, None, &mut |_, _| {});
             let waited = clock.wall().0 - t;
             assert_eq!(waited, waited_ms * 1_000_000, "host {host_ns} end {end}");
             assert_eq!(al.core.stats.packets_without_time, 1);

@@ -32,7 +32,7 @@ use heapless::spsc::{Consumer, Queue};
 use spherecal::align::{AlignStats, Aligner as CoreAligner, PoseHistory, PoseSample};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
-use spherecal::velodyne::{Identity, Model, PositionPacket};
+use spherecal::velodyne::{DataPacket, Identity, Model, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
 use spherecal::window::{Batch, GeoPoint, Observation, Target};
 use spherecal_hal::clock::{Clock, SystemClock};
@@ -61,7 +61,7 @@ pub enum Overflow {
     Wait,
 }
 
-/// What a LiDAR ring item holds.
+/// What a LiDAR ring item holds (set once, by its checked constructors).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LidarKind {
     /// A data packet.
@@ -72,40 +72,74 @@ pub enum LidarKind {
     End,
 }
 
-/// An item on the LiDAR ring: the payload held in place, so a packet costs one copy into the
-/// ring and no allocation.
+/// An item on the LiDAR ring: a packet classified and checked once (smoltcp's `iface`: parse
+/// once, pass the typed value down), its payload held in place, so a packet costs one copy
+/// into the ring and no allocation. Read it as [`LidarItem::packet`].
 #[derive(Clone)]
 pub struct LidarItem {
-    /// What it is.
-    pub kind: LidarKind,
+    kind: LidarKind,
     /// When the host received it, if known.
     pub host: Option<HostTime>,
     /// The payload (data: all 1206 bytes; position: the first 512).
-    pub bytes: [u8; 1206],
+    bytes: [u8; 1206],
+}
+
+/// The checked packet a [`LidarItem`] holds.
+pub enum LidarPacket<'a> {
+    /// A data packet (1206 bytes).
+    Data(DataPacket<&'a [u8]>),
+    /// A position packet (its first 512 bytes).
+    Position(PositionPacket<&'a [u8]>),
+    /// The stream ended.
+    End,
 }
 
 impl LidarItem {
-    /// An item holding `payload` (at most 1206 bytes) received at `host`.
-    pub fn new(kind: LidarKind, host: Option<HostTime>, payload: &[u8]) -> Self {
+    fn holding(kind: LidarKind, host: Option<HostTime>, payload: &[u8]) -> Self {
         let mut bytes = [0u8; 1206];
         let n = payload.len().min(bytes.len());
         bytes[..n].copy_from_slice(&payload[..n]);
         Self { kind, host, bytes }
     }
-}
 
-impl LidarItem {
+    /// A data packet received at `host`.
+    pub fn data<T: AsRef<[u8]>>(p: DataPacket<T>, host: Option<HostTime>) -> Self {
+        Self::holding(LidarKind::Data, host, p.into_inner().as_ref())
+    }
+
+    /// A position packet received at `host`.
+    pub fn position<T: AsRef<[u8]>>(p: PositionPacket<T>, host: Option<HostTime>) -> Self {
+        Self::holding(LidarKind::Position, host, p.into_inner().as_ref())
+    }
+
+    /// The end of the stream.
+    pub fn end() -> Self {
+        Self::holding(LidarKind::End, None, &[])
+    }
+
     /// The ring item for a received datagram, or why it is skipped.
     pub fn classify(d: &Datagram<'_>, ports: Ports) -> Result<Self, SkipReason> {
         let host = Some(d.time);
         Ok(match classify(d, ports)? {
-            Vlp16Packet::Data { packet, .. } => {
-                Self::new(LidarKind::Data, host, packet.into_inner())
-            }
-            Vlp16Packet::Position { packet, .. } => {
-                Self::new(LidarKind::Position, host, packet.into_inner())
-            }
+            Vlp16Packet::Data { packet, .. } => Self::data(packet, host),
+            Vlp16Packet::Position { packet, .. } => Self::position(packet, host),
         })
+    }
+
+    /// What it holds.
+    pub fn kind(&self) -> LidarKind {
+        self.kind
+    }
+
+    /// The checked packet it holds (its lengths are fixed: no view can index out of it).
+    pub fn packet(&self) -> LidarPacket<'_> {
+        match self.kind {
+            LidarKind::Data => LidarPacket::Data(DataPacket::new_unchecked(&self.bytes[..])),
+            LidarKind::Position => {
+                LidarPacket::Position(PositionPacket::new_unchecked(&self.bytes[..512]))
+            }
+            LidarKind::End => LidarPacket::End,
+        }
     }
 }
 
@@ -576,10 +610,12 @@ pub fn run<C: Send>(
                 std::thread::yield_now();
                 continue;
             };
-            match item.kind {
-                LidarKind::End => break,
-                LidarKind::Position => al.position(&item.bytes[..512]),
-                LidarKind::Data => al.data(&item, &mut ic, each.as_deref_mut(), &mut emit),
+            match item.packet() {
+                LidarPacket::End => break,
+                LidarPacket::Position(p) => al.position(&p),
+                LidarPacket::Data(p) => {
+                    al.data(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
+                }
             }
         }
         al.finish(&mut emit);

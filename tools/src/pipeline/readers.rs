@@ -80,7 +80,7 @@ pub fn lidar_reader<S: PacketSource>(
 
 /// End the LiDAR ring: wait for room for the End, unless the aligner is `gone`.
 pub fn end_lidar(ring: &mut heapless::spsc::Producer<'_, LidarItem>, gone: &AtomicBool) {
-    let mut end = LidarItem::new(LidarKind::End, None, &[]);
+    let mut end = LidarItem::end();
     while let Err(back) = ring.enqueue(end) {
         if gone.load(Ordering::Acquire) {
             return;

@@ -19,13 +19,15 @@ use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
     enqueue, targets, Accept, AlignStorage, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
-    LidarItem, LidarKind, Overflow, RingAligner, Vn200Feed, BATCH, INS_RING,
+    LidarItem, LidarPacket, Overflow, RingAligner, Vn200Feed, BATCH, INS_RING,
 };
 use crate::state::{ClockState, InsState};
 
+mod align;
 pub mod check;
 mod from_logs;
 pub mod hearing;
+mod inputs;
 pub mod ins_watch;
 mod logger;
 mod readers;
@@ -33,6 +35,8 @@ mod solver;
 pub mod status;
 mod summary;
 pub mod watch;
+
+use inputs::{Plan, RigIo, Rings};
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use logger::{logger, syncer};
@@ -458,167 +462,6 @@ fn run_rig(
     Ok(summary)
 }
 
-/// The rig's inputs and raw logs, opened from the board (and the command line's overrides).
-struct RigIo {
-    accept: Accept,
-    bind: Ipv4Addr,
-    data_sock: UdpSource,
-    pos_sock: UdpSource,
-    serial: Option<(String, SerialSource)>,
-    /// A POS MV's Real-Time Data Port (`ins.kind = "posmv"`).
-    posmv: Option<UdpSource>,
-    log_dir: PathBuf,
-    /// The UTC start stamp that names the run's files.
-    stamp: String,
-    pcap_log: PcapLog,
-    serial_log: Option<SerialLog>,
-    /// Bytes that waited in the serial port from before the run (discarded at open).
-    stale_serial_bytes: u64,
-}
-
-impl RigIo {
-    fn open(opts: &RunOptions) -> Result<Self, String> {
-        let b = &opts.board;
-        let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
-        // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
-        let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
-            .filter(|a| !a.is_unspecified());
-        let ports = Ports {
-            data: b.lidar.data_port,
-            position: b.lidar.position_port,
-        };
-        let bind_port = |port: u16| {
-            UdpSource::bind(bind, port, READ_TIMEOUT).map_err(|e| format!("UDP {bind}:{port}: {e}"))
-        };
-        let (data_sock, pos_sock) = (bind_port(ports.data)?, bind_port(ports.position)?);
-        let mut stale = 0u32;
-        let serial = match b.ins.kind.as_str() {
-            "vn200" => {
-                let dev = opts
-                    .serial
-                    .clone()
-                    .filter(|s| !s.is_empty())
-                    .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
-                    .ok_or("board: ins.serial is empty: give --serial DEV")?;
-                let mut src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
-                    .map_err(|e| format!("serial {dev}: {e}"))?;
-                // What an earlier session left in the port is not this run's stream.
-                stale = src.discard_pending().unwrap_or(0);
-                Some((dev, src))
-            }
-            _ => None,
-        };
-        let posmv = match b.ins.kind.as_str() {
-            "posmv" => Some(bind_port(b.ins.udp_port)?),
-            _ => None,
-        };
-        let log_dir = opts
-            .log_dir
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(&b.log.dir));
-        std::fs::create_dir_all(&log_dir).map_err(|e| format!("{}: {e}", log_dir.display()))?;
-        let stamp = stamp_now();
-        let rotate = opts
-            .rotate_bytes
-            .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
-        let pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
-            .map_err(|e| format!("raw log: {e}"))?;
-        let serial_log = match &serial {
-            Some(_) => Some(
-                SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
-                    .map_err(|e| format!("raw log: {e}"))?,
-            ),
-            None => None,
-        };
-        Ok(Self {
-            accept: Accept { ports, sensor },
-            bind,
-            data_sock,
-            pos_sock,
-            serial,
-            posmv,
-            log_dir,
-            stamp,
-            pcap_log,
-            serial_log,
-            stale_serial_bytes: u64::from(stale),
-        })
-    }
-}
-
-/// What the aligner and the solver take from the site and the board.
-struct Plan {
-    frame: LocalFrame,
-    targets: Vec<Target>,
-    ids: Vec<String>,
-    margin: f64,
-    /// The solver's settings: the site's noise and margin, the board's LiDAR model
-    /// ([`crate::calibrate::settings_for`], as `calibrate` builds them).
-    settings: Settings,
-    /// The board's a-priori mounting.
-    b0: Params,
-    /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
-    expected: Vec<(&'static str, u8)>,
-}
-
-impl Plan {
-    fn new(opts: &RunOptions) -> Self {
-        let b = &opts.board;
-        let (frame, targets, ids, margin) = match &opts.site {
-            Some(site) => {
-                let (frame, t) = targets(site);
-                let ids = site.sphere.iter().map(|s| s.id.clone()).collect();
-                (frame, t, ids, site.apriori.window_margin_m)
-            }
-            None => (
-                LocalFrame::new(spherecal::frames::Geodetic::from_deg(0.0, 0.0, 0.0)),
-                Vec::new(),
-                Vec::new(),
-                0.0,
-            ),
-        };
-        let expected = b.ins.common_bits();
-        let settings = match &opts.site {
-            Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
-            None => Settings::default(),
-        };
-        Self {
-            frame,
-            targets,
-            ids,
-            margin,
-            settings,
-            b0: b.mount.deg_m().params(),
-            expected,
-        }
-    }
-}
-
-/// The rings between the threads (boxed: they are large).
-struct Rings {
-    data: Box<Queue<LidarItem, DATA_RING>>,
-    pos: Box<Queue<LidarItem, POSITION_RING>>,
-    ins: Box<Queue<InsItem, INS_RING>>,
-    data_log: Box<Queue<UdpLogItem, DATA_LOG_RING>>,
-    pos_log: Box<Queue<UdpLogItem, POSITION_RING>>,
-    posmv_log: Box<Queue<UdpLogItem, POSMV_LOG_RING>>,
-    serial_log: Box<Queue<SerialChunk, SERIAL_LOG_RING>>,
-}
-
-impl Rings {
-    fn new() -> Self {
-        Self {
-            data: Box::new(Queue::new()),
-            pos: Box::new(Queue::new()),
-            ins: Box::new(Queue::new()),
-            data_log: Box::new(Queue::new()),
-            pos_log: Box::new(Queue::new()),
-            posmv_log: Box::new(Queue::new()),
-            serial_log: Box::new(Queue::new()),
-        }
-    }
-}
-
 /// Every thread of the rig until the stop: readers, logger, syncer, solver, status, and the
 /// aligner on this thread; then their results.
 fn run_threads(
@@ -749,13 +592,13 @@ fn run_threads(
             &spherecal_hal::clock::SystemClock,
         );
         al.core.set_model(opts.board.lidar_model());
-        let out = Batches {
+        let out = align::Batches {
             tx,
             pool: &pool_rx,
             applied: std::cell::Cell::new(0),
             sh,
         };
-        align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, sh);
+        align::align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, sh);
         al.finish(&mut |i, o| out.emit(i, o));
         for (w, n) in sh.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);
@@ -764,7 +607,9 @@ fn run_threads(
         // The position reader may still hold items; the INS reader ends with its End.
         let skips_pos = pos.join().unwrap_or_default();
         while let Some(p) = pos_c.dequeue() {
-            al.position(&p.bytes[..512]);
+            if let LidarPacket::Position(p) = p.packet() {
+                al.position(&p);
+            }
         }
         al.drain_until_end(&mut ins_c);
         let skips_data = data.join().unwrap_or_default();
@@ -790,94 +635,4 @@ fn run_threads(
         }
         ended
     })
-}
-
-/// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
-/// with the time offset they were collected at; a full channel drops the batch (counted).
-struct Batches<'p, 's, 'a> {
-    tx: crossbeam_channel::Sender<BatchMsg>,
-    pool: &'p crossbeam_channel::Receiver<Vec<Observation>>,
-    applied: std::cell::Cell<i64>,
-    sh: &'s Shared<'a>,
-}
-
-impl Batches<'_, '_, '_> {
-    fn emit(&self, sphere: usize, obs: &[Observation]) {
-        let mut v = self
-            .pool
-            .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
-        v.clear();
-        v.extend_from_slice(obs);
-        if let Err(e) = self.tx.try_send(BatchMsg {
-            sphere,
-            obs: v,
-            offset_ns: self.applied.get(),
-        }) {
-            self.sh
-                .batch_drops
-                .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
-        }
-    }
-}
-
-/// The aligner on the live rings until the data reader's End: position packets and poses as
-/// they come, each data packet aligned (waiting for the INS as [`InsWait::Latency`] allows),
-/// a new time offset from the solver applied between batches, the counters published.
-fn align_until_end(
-    al: &mut RingAligner<'_>,
-    pos_c: &mut Consumer<'_, LidarItem>,
-    ins_c: &mut Consumer<'_, InsItem>,
-    data_c: &mut Consumer<'_, LidarItem>,
-    out: &Batches<'_, '_, '_>,
-    sh: &Shared<'_>,
-) {
-    let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
-    let mut steer = sh.steer.receiver();
-    let mut windows: Option<(Params, f64)> = None;
-    loop {
-        while let Some(p) = pos_c.dequeue() {
-            al.position(&p.bytes[..512]);
-        }
-        al.drain_ins(ins_c);
-        let Some(item) = data_c.dequeue() else {
-            std::thread::sleep(Duration::from_millis(1));
-            continue;
-        };
-        // The solver's word, between batches: the batches so far go at the old offset and
-        // in the old windows.
-        if let Some(s) = steer.changed() {
-            if s.time_offset_ns != out.applied.get() {
-                al.finish(&mut emit);
-                al.core.time_offset_ns = s.time_offset_ns;
-                out.applied.set(s.time_offset_ns);
-            }
-            if let Some((b, margin)) = s.windows.filter(|w| Some(*w) != windows) {
-                al.finish(&mut emit);
-                al.core.set_windows(b.mount(), margin);
-                windows = s.windows;
-            }
-        }
-        match item.kind {
-            LidarKind::End => break,
-            LidarKind::Position => al.position(&item.bytes[..512]),
-            LidarKind::Data => al.data(&item, ins_c, None, &mut emit),
-        }
-        sh.aligned
-            .store(al.core.stats.data_packets, Ordering::Relaxed);
-        if let Some(p) = al.core.pps {
-            sh.pps.store(p.to_byte(), Ordering::Relaxed);
-        }
-        if let Some(l) = al.core.lag_ns {
-            sh.lag_ns.store(l, Ordering::Relaxed);
-        }
-        for (i, w) in sh.windowed.iter().enumerate() {
-            w.store(al.core.windowed_now(i), Ordering::Relaxed);
-        }
-        let w = &al.core.stats.window;
-        sh.without_pose.store(
-            w.before_history + w.after_history + w.in_gap,
-            Ordering::Relaxed,
-        );
-    }
 }

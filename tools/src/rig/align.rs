@@ -1,0 +1,97 @@
+//! The rig's aligner thread: the core aligner on the live rings (position packets, poses,
+//! data packets), the solver's word applied between batches ([`super::watch`]), the batches
+//! to the solver, the counters published for the status line.
+
+use super::*;
+
+/// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
+/// with the time offset they were collected at; a full channel drops the batch (counted).
+pub(super) struct Batches<'p, 's, 'a> {
+    pub(super) tx: crossbeam_channel::Sender<BatchMsg>,
+    pub(super) pool: &'p crossbeam_channel::Receiver<Vec<Observation>>,
+    pub(super) applied: std::cell::Cell<i64>,
+    pub(super) sh: &'s Shared<'a>,
+}
+
+impl Batches<'_, '_, '_> {
+    pub(super) fn emit(&self, sphere: usize, obs: &[Observation]) {
+        let mut v = self
+            .pool
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        v.clear();
+        v.extend_from_slice(obs);
+        if let Err(e) = self.tx.try_send(BatchMsg {
+            sphere,
+            obs: v,
+            offset_ns: self.applied.get(),
+        }) {
+            self.sh
+                .batch_drops
+                .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
+        }
+    }
+}
+
+/// The aligner on the live rings until the data reader's End: position packets and poses as
+/// they come, each data packet aligned (waiting for the INS as [`InsWait::Latency`] allows),
+/// a new time offset from the solver applied between batches, the counters published.
+pub(super) fn align_until_end(
+    al: &mut RingAligner<'_>,
+    pos_c: &mut Consumer<'_, LidarItem>,
+    ins_c: &mut Consumer<'_, InsItem>,
+    data_c: &mut Consumer<'_, LidarItem>,
+    out: &Batches<'_, '_, '_>,
+    sh: &Shared<'_>,
+) {
+    let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
+    let mut steer = sh.steer.receiver();
+    let mut windows: Option<(Params, f64)> = None;
+    loop {
+        while let Some(p) = pos_c.dequeue() {
+            if let LidarPacket::Position(p) = p.packet() {
+                al.position(&p);
+            }
+        }
+        al.drain_ins(ins_c);
+        let Some(item) = data_c.dequeue() else {
+            std::thread::sleep(Duration::from_millis(1));
+            continue;
+        };
+        // The solver's word, between batches: the batches so far go at the old offset and
+        // in the old windows.
+        if let Some(s) = steer.changed() {
+            if s.time_offset_ns != out.applied.get() {
+                al.finish(&mut emit);
+                al.core.time_offset_ns = s.time_offset_ns;
+                out.applied.set(s.time_offset_ns);
+            }
+            if let Some((b, margin)) = s.windows.filter(|w| Some(*w) != windows) {
+                al.finish(&mut emit);
+                al.core.set_windows(b.mount(), margin);
+                windows = s.windows;
+            }
+        }
+        match item.packet() {
+            LidarPacket::End => break,
+            LidarPacket::Position(p) => al.position(&p),
+            LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
+        }
+        sh.aligned
+            .store(al.core.stats.data_packets, Ordering::Relaxed);
+        if let Some(p) = al.core.pps {
+            sh.pps.store(p.to_byte(), Ordering::Relaxed);
+        }
+        if let Some(l) = al.core.lag_ns {
+            sh.lag_ns.store(l, Ordering::Relaxed);
+        }
+        for (i, w) in sh.windowed.iter().enumerate() {
+            w.store(al.core.windowed_now(i), Ordering::Relaxed);
+        }
+        let w = &al.core.stats.window;
+        sh.without_pose.store(
+            w.before_history + w.after_history + w.in_gap,
+            Ordering::Relaxed,
+        );
+    }
+}

@@ -1,0 +1,166 @@
+//! What the rig opens and plans before its threads start: the sockets, the serial port and
+//! the raw logs from the board ([`RigIo`]), the site's targets and the solver's settings
+//! ([`Plan`]), and the rings between the threads ([`Rings`]).
+
+use super::*;
+
+/// The rig's inputs and raw logs, opened from the board (and the command line's overrides).
+pub(super) struct RigIo {
+    pub(super) accept: Accept,
+    pub(super) bind: Ipv4Addr,
+    pub(super) data_sock: UdpSource,
+    pub(super) pos_sock: UdpSource,
+    pub(super) serial: Option<(String, SerialSource)>,
+    /// A POS MV's Real-Time Data Port (`ins.kind = "posmv"`).
+    pub(super) posmv: Option<UdpSource>,
+    pub(super) log_dir: PathBuf,
+    /// The UTC start stamp that names the run's files.
+    pub(super) stamp: String,
+    pub(super) pcap_log: PcapLog,
+    pub(super) serial_log: Option<SerialLog>,
+    /// Bytes that waited in the serial port from before the run (discarded at open).
+    pub(super) stale_serial_bytes: u64,
+}
+
+impl RigIo {
+    pub(super) fn open(opts: &RunOptions) -> Result<Self, String> {
+        let b = &opts.board;
+        let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
+        // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
+        let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
+            .filter(|a| !a.is_unspecified());
+        let ports = Ports {
+            data: b.lidar.data_port,
+            position: b.lidar.position_port,
+        };
+        let bind_port = |port: u16| {
+            UdpSource::bind(bind, port, READ_TIMEOUT).map_err(|e| format!("UDP {bind}:{port}: {e}"))
+        };
+        let (data_sock, pos_sock) = (bind_port(ports.data)?, bind_port(ports.position)?);
+        let mut stale = 0u32;
+        let serial = match b.ins.kind.as_str() {
+            "vn200" => {
+                let dev = opts
+                    .serial
+                    .clone()
+                    .filter(|s| !s.is_empty())
+                    .or_else(|| Some(b.ins.serial.clone()).filter(|s| !s.is_empty()))
+                    .ok_or("board: ins.serial is empty: give --serial DEV")?;
+                let mut src = SerialSource::open(&dev, b.ins.baud, READ_TIMEOUT)
+                    .map_err(|e| format!("serial {dev}: {e}"))?;
+                // What an earlier session left in the port is not this run's stream.
+                stale = src.discard_pending().unwrap_or(0);
+                Some((dev, src))
+            }
+            _ => None,
+        };
+        let posmv = match b.ins.kind.as_str() {
+            "posmv" => Some(bind_port(b.ins.udp_port)?),
+            _ => None,
+        };
+        let log_dir = opts
+            .log_dir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(&b.log.dir));
+        std::fs::create_dir_all(&log_dir).map_err(|e| format!("{}: {e}", log_dir.display()))?;
+        let stamp = stamp_now();
+        let rotate = opts
+            .rotate_bytes
+            .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
+        let pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
+            .map_err(|e| format!("raw log: {e}"))?;
+        let serial_log = match &serial {
+            Some(_) => Some(
+                SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
+                    .map_err(|e| format!("raw log: {e}"))?,
+            ),
+            None => None,
+        };
+        Ok(Self {
+            accept: Accept { ports, sensor },
+            bind,
+            data_sock,
+            pos_sock,
+            serial,
+            posmv,
+            log_dir,
+            stamp,
+            pcap_log,
+            serial_log,
+            stale_serial_bytes: u64::from(stale),
+        })
+    }
+}
+
+/// What the aligner and the solver take from the site and the board.
+pub(super) struct Plan {
+    pub(super) frame: LocalFrame,
+    pub(super) targets: Vec<Target>,
+    pub(super) ids: Vec<String>,
+    pub(super) margin: f64,
+    /// The solver's settings: the site's noise and margin, the board's LiDAR model
+    /// ([`crate::calibrate::settings_for`], as `calibrate` builds them).
+    pub(super) settings: Settings,
+    /// The board's a-priori mounting.
+    pub(super) b0: Params,
+    /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
+    pub(super) expected: Vec<(&'static str, u8)>,
+}
+
+impl Plan {
+    pub(super) fn new(opts: &RunOptions) -> Self {
+        let b = &opts.board;
+        let (frame, targets, ids, margin) = match &opts.site {
+            Some(site) => {
+                let (frame, t) = targets(site);
+                let ids = site.sphere.iter().map(|s| s.id.clone()).collect();
+                (frame, t, ids, site.apriori.window_margin_m)
+            }
+            None => (
+                LocalFrame::new(spherecal::frames::Geodetic::from_deg(0.0, 0.0, 0.0)),
+                Vec::new(),
+                Vec::new(),
+                0.0,
+            ),
+        };
+        let expected = b.ins.common_bits();
+        let settings = match &opts.site {
+            Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
+            None => Settings::default(),
+        };
+        Self {
+            frame,
+            targets,
+            ids,
+            margin,
+            settings,
+            b0: b.mount.deg_m().params(),
+            expected,
+        }
+    }
+}
+
+/// The rings between the threads (boxed: they are large).
+pub(super) struct Rings {
+    pub(super) data: Box<Queue<LidarItem, DATA_RING>>,
+    pub(super) pos: Box<Queue<LidarItem, POSITION_RING>>,
+    pub(super) ins: Box<Queue<InsItem, INS_RING>>,
+    pub(super) data_log: Box<Queue<UdpLogItem, DATA_LOG_RING>>,
+    pub(super) pos_log: Box<Queue<UdpLogItem, POSITION_RING>>,
+    pub(super) posmv_log: Box<Queue<UdpLogItem, POSMV_LOG_RING>>,
+    pub(super) serial_log: Box<Queue<SerialChunk, SERIAL_LOG_RING>>,
+}
+
+impl Rings {
+    pub(super) fn new() -> Self {
+        Self {
+            data: Box::new(Queue::new()),
+            pos: Box::new(Queue::new()),
+            ins: Box::new(Queue::new()),
+            data_log: Box::new(Queue::new()),
+            pos_log: Box::new(Queue::new()),
+            posmv_log: Box::new(Queue::new()),
+            serial_log: Box::new(Queue::new()),
+        }
+    }
+}
