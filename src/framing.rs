@@ -113,11 +113,6 @@ impl<B: UnderlyingBuffer> StreamBuffer<B> {
         }
     }
 
-    /// The buffer's capacity: the longest item a framer over it can accept.
-    pub fn capacity(&self) -> usize {
-        self.buf.max_capacity()
-    }
-
     /// Copy in as many bytes as fit (dropping consumed bytes first if that makes room);
     /// returns how many were taken.
     pub fn push(&mut self, data: &[u8]) -> usize {

@@ -199,9 +199,8 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
     }
 
     /// A checked data packet received at `host` (if known): time it, georeference and window
-    /// its returns;
-    /// `each`, if given, sees every georeferenced return; a batch that is half full goes to
-    /// `emit(sphere, observations)`.
+    /// its returns; `each`, if given, sees every georeferenced return; a batch that is half
+    /// full goes to `emit(sphere, observations)`.
     pub fn data<T: AsRef<[u8]>>(
         &mut self,
         p: &DataPacket<T>,

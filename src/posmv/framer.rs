@@ -111,9 +111,11 @@ impl<const N: usize> Framer<N> {
         }
     }
 
-    fn skip(&mut self, n: usize) {
+    /// Skip `n` bytes (counted); returns where they were.
+    fn skip(&mut self, n: usize) -> core::ops::Range<usize> {
         let r = self.stream.take(n);
         self.stats.skipped_bytes += r.len() as u64;
+        r
     }
 
     /// The next item from the buffered bytes, or `None` when more bytes are needed (or, after
@@ -176,9 +178,7 @@ impl<const N: usize> Framer<N> {
                         Error::Checksum { .. } => self.stats.checksum_failures += 1,
                         _ => self.stats.bad_ends += 1,
                     }
-                    let r = self.stream.take(1);
-                    self.stats.skipped_bytes += 1;
-                    break (r, Some(e));
+                    break (self.skip(1), Some(e));
                 }
             }
         };

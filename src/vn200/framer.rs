@@ -134,13 +134,11 @@ impl<const N: usize> Framer<N> {
         }
     }
 
-    fn skip(&mut self) {
-        self.skip_n(1);
-    }
-
-    fn skip_n(&mut self, n: usize) {
+    /// Skip `n` bytes (counted); returns where they were.
+    fn skip(&mut self, n: usize) -> core::ops::Range<usize> {
         let r = self.stream.take(n);
         self.stats.skipped_bytes += r.len() as u64;
+        r
     }
 
     /// The next item from the buffered bytes, or `None` when more bytes are needed (or, after
@@ -158,22 +156,22 @@ impl<const N: usize> Framer<N> {
                 SYNC => match layout(avail).map(|l| (l.len, l)) {
                     Err(Error::Incomplete) => {
                         if eof || full {
-                            self.skip();
+                            self.skip(1);
                             continue;
                         }
                         return None;
                     }
                     Err(_) => {
                         self.stats.bad_headers += 1;
-                        self.skip();
+                        self.skip(1);
                     }
                     Ok((l, _)) if l > N => {
                         self.stats.too_long += 1;
-                        self.skip();
+                        self.skip(1);
                     }
                     Ok((l, _)) if l > avail.len() => {
                         if eof {
-                            self.skip();
+                            self.skip(1);
                             continue;
                         }
                         return None;
@@ -186,9 +184,7 @@ impl<const N: usize> Framer<N> {
                             break (self.stream.take(l), Found::Binary(lay));
                         }
                         self.stats.crc_failures += 1;
-                        let r = self.stream.take(1);
-                        self.stats.skipped_bytes += 1;
-                        break (r, Found::Rejected(Error::Crc { computed, sent }));
+                        break (self.skip(1), Found::Rejected(Error::Crc { computed, sent }));
                     }
                 },
                 b'$' => {
@@ -209,7 +205,7 @@ impl<const N: usize> Framer<N> {
                         Some(i) => (i, i + 1),
                         // Too long only once the whole window (the longest line, CR, LF) is seen.
                         None if broken || window.len() >= MAX_SENTENCE + 2 => {
-                            self.skip();
+                            self.skip(1);
                             continue;
                         }
                         None if eof => (window.len(), window.len()),
@@ -235,11 +231,11 @@ impl<const N: usize> Framer<N> {
                         }
                         Err(e @ Error::AsciiChecksum { .. }) => {
                             self.stats.ascii_bad_checksum += 1;
-                            let r = self.stream.take(1);
-                            self.stats.skipped_bytes += 1;
-                            break (r, Found::Rejected(e));
+                            break (self.skip(1), Found::Rejected(e));
                         }
-                        Err(_) => self.skip(),
+                        Err(_) => {
+                            self.skip(1);
+                        }
                     }
                 }
                 _ => {
@@ -248,7 +244,7 @@ impl<const N: usize> Framer<N> {
                         .iter()
                         .position(|&b| b == SYNC || b == b'$')
                         .unwrap_or(avail.len());
-                    self.skip_n(n);
+                    self.skip(n);
                 }
             }
         };
