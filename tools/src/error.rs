@@ -48,10 +48,6 @@ impl Error {
     pub fn bad_input(message: impl Into<String>) -> Self {
         Self::new(ErrorKind::BadInput, message)
     }
-    /// Refused.
-    pub fn refused(message: impl Into<String>) -> Self {
-        Self::new(ErrorKind::Refused, message)
-    }
     /// Internal: `what` failed in spherecal itself.
     pub fn internal(what: impl fmt::Display) -> Self {
         Self::new(
@@ -62,13 +58,6 @@ impl Error {
     /// Its kind.
     pub fn kind(&self) -> ErrorKind {
         self.kind
-    }
-    /// The same kind, the message prefixed with where it happened.
-    pub fn context(self, at: impl fmt::Display) -> Self {
-        Self {
-            kind: self.kind,
-            message: format!("{at}: {}", self.message),
-        }
     }
     /// The exit code of the command contract.
     pub fn exit_code(&self) -> ExitCode {
@@ -112,12 +101,12 @@ mod tests {
     fn kinds_map_to_the_contract_and_messages_survive() {
         let e: Error = "no such file".to_string().into();
         assert_eq!((e.kind(), e.kind().exit_code()), (ErrorKind::BadInput, 2));
-        assert_eq!(Error::refused("x").kind().exit_code(), 1);
-        let i = Error::internal("the LiDAR reader panicked").context("lidar.pcap");
+        assert_eq!(Error::new(ErrorKind::Refused, "x").kind().exit_code(), 1);
+        let i = Error::internal("the LiDAR reader panicked");
         assert_eq!(i.kind().exit_code(), 3);
         assert!(i
             .to_string()
-            .starts_with("lidar.pcap: internal error: the LiDAR reader"));
+            .starts_with("internal error: the LiDAR reader panicked"));
         assert_eq!(String::from(Error::bad_input("m")), "m");
     }
 }

@@ -35,10 +35,9 @@ pub mod site;
 pub mod synth;
 pub mod vn200;
 
-/// Exit 2 (bad input) with `spherecal CMD: why` on stderr.
+/// Bad input: [`fail_with`] a plain message (exit 2).
 fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
-    eprintln!("spherecal {cmd}: {why}");
-    ExitCode::from(2)
+    fail_with(cmd, crate::Error::bad_input(why.to_string()))
 }
 
 /// `spherecal CMD: error` on stderr and the exit code of its kind.
@@ -53,7 +52,7 @@ fn outputs_failed(cmd: &str, errors: &[String]) -> Option<ExitCode> {
     for e in errors {
         eprintln!("spherecal {cmd}: the result above stands, but an output was not written: {e}");
     }
-    (!errors.is_empty()).then(|| ExitCode::from(2))
+    (!errors.is_empty()).then(|| ExitCode::from(crate::ErrorKind::BadInput.exit_code()))
 }
 
 /// Print the text and exit 0, or fail (exit 2) with the error.
@@ -67,12 +66,12 @@ fn print_or_fail(cmd: &str, r: Result<String, String>) -> ExitCode {
     }
 }
 
-/// Exit 0 when the result is claimed, else 1.
+/// Exit 0 when the result is claimed, else that of a refusal (1).
 fn claimed(ok: bool) -> ExitCode {
     if ok {
         ExitCode::SUCCESS
     } else {
-        ExitCode::from(1)
+        ExitCode::from(crate::ErrorKind::Refused.exit_code())
     }
 }
 

@@ -126,11 +126,6 @@ impl LidarItem {
         })
     }
 
-    /// What it holds.
-    pub fn kind(&self) -> LidarKind {
-        self.kind
-    }
-
     /// The checked packet it holds (its lengths are fixed: no view can index out of it).
     pub fn packet(&self) -> LidarPacket<'_> {
         match self.kind {

@@ -46,7 +46,7 @@ pub(super) fn align_until_end(
 ) {
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
     let mut steer = sh.steer.receiver();
-    let mut windows: Option<(Params, f64)> = None;
+    let mut windows_moved = 0;
     loop {
         while let Some(p) = pos_c.dequeue() {
             if let LidarPacket::Position(p) = p.packet() {
@@ -66,10 +66,10 @@ pub(super) fn align_until_end(
                 al.core.time_offset_ns = s.time_offset_ns;
                 out.applied.set(s.time_offset_ns);
             }
-            if let Some((b, margin)) = s.windows.filter(|w| Some(*w) != windows) {
+            if let Some((b, margin)) = s.windows.filter(|_| s.windows_moved != windows_moved) {
                 al.finish(&mut emit);
                 al.core.set_windows(b.mount(), margin);
-                windows = s.windows;
+                windows_moved = s.windows_moved;
             }
         }
         match item.packet() {

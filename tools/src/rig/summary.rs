@@ -106,11 +106,12 @@ impl RunSummary {
         }
         let ld = |a: &[AtomicU64; 2]| a.each_ref().map(|x| x.load(Ordering::Relaxed));
         let w = &e.align.window;
+        let steer = sh.steer.get();
         Self {
             seconds: started.elapsed().as_secs_f64(),
             received: ld(&sh.received),
-            windows_moved: sh.steer.get().windows_moved,
-            live_margin_m: sh.steer.get().windows.map(|x| x.1),
+            windows_moved: steer.windows_moved,
+            live_margin_m: steer.windows.map(|x| x.1),
             heard: sh
                 .heard
                 .each_ref()
@@ -131,7 +132,7 @@ impl RunSummary {
             clock_trusted: e.clock.trusted(),
             clock: e.clock,
             ins: e.ins,
-            time_offset_s: sh.steer.get().time_offset_ns as f64 * 1e-9,
+            time_offset_s: steer.time_offset_ns as f64 * 1e-9,
             windowed: sh
                 .windowed
                 .iter()
