@@ -1,0 +1,90 @@
+//! What the rings carry: LiDAR packets classified and checked once ([`LidarItem`], read as
+//! [`LidarPacket`]), and poses ([`InsItem`]).
+
+use super::*;
+
+/// What a LiDAR ring item holds (set once, by its checked constructors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LidarKind {
+    /// A data packet.
+    Data,
+    /// A position packet (its first 512 bytes).
+    Position,
+    /// The stream ended.
+    End,
+}
+
+/// An item on the LiDAR ring: a packet classified and checked once (smoltcp's `iface`: parse
+/// once, pass the typed value down), its payload held in place, so a packet costs one copy
+/// into the ring and no allocation. Read it as [`LidarItem::packet`].
+#[derive(Clone)]
+pub struct LidarItem {
+    kind: LidarKind,
+    /// When the host received it, if known.
+    pub host: Option<HostTime>,
+    /// The payload (data: all 1206 bytes; position: the first 512).
+    bytes: [u8; 1206],
+}
+
+/// The checked packet a [`LidarItem`] holds.
+pub enum LidarPacket<'a> {
+    /// A data packet (1206 bytes).
+    Data(DataPacket<&'a [u8]>),
+    /// A position packet (its first 512 bytes).
+    Position(PositionPacket<&'a [u8]>),
+    /// The stream ended.
+    End,
+}
+
+impl LidarItem {
+    fn holding(kind: LidarKind, host: Option<HostTime>, payload: &[u8]) -> Self {
+        let mut bytes = [0u8; 1206];
+        let n = payload.len().min(bytes.len());
+        bytes[..n].copy_from_slice(&payload[..n]);
+        Self { kind, host, bytes }
+    }
+
+    /// A data packet received at `host`.
+    pub fn data<T: AsRef<[u8]>>(p: DataPacket<T>, host: Option<HostTime>) -> Self {
+        Self::holding(LidarKind::Data, host, p.into_inner().as_ref())
+    }
+
+    /// A position packet received at `host`.
+    pub fn position<T: AsRef<[u8]>>(p: PositionPacket<T>, host: Option<HostTime>) -> Self {
+        Self::holding(LidarKind::Position, host, p.into_inner().as_ref())
+    }
+
+    /// The end of the stream.
+    pub fn end() -> Self {
+        Self::holding(LidarKind::End, None, &[])
+    }
+
+    /// The ring item for a received datagram, or why it is skipped.
+    pub fn classify(d: &Datagram<'_>, ports: Ports) -> Result<Self, SkipReason> {
+        let host = Some(d.time);
+        Ok(match classify(d, ports)? {
+            Vlp16Packet::Data { packet, .. } => Self::data(packet, host),
+            Vlp16Packet::Position { packet, .. } => Self::position(packet, host),
+        })
+    }
+
+    /// The checked packet it holds (its lengths are fixed: no view can index out of it).
+    pub fn packet(&self) -> LidarPacket<'_> {
+        match self.kind {
+            LidarKind::Data => LidarPacket::Data(DataPacket::new_unchecked(&self.bytes[..])),
+            LidarKind::Position => {
+                LidarPacket::Position(PositionPacket::new_unchecked(&self.bytes[..512]))
+            }
+            LidarKind::End => LidarPacket::End,
+        }
+    }
+}
+
+/// An item on the INS ring.
+#[derive(Debug, Clone, Copy)]
+pub enum InsItem {
+    /// A pose in the site frame and when the host received it, if known.
+    Pose(PoseSample, Option<HostTime>),
+    /// The stream ended.
+    End,
+}
