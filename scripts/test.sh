@@ -92,7 +92,7 @@ if [ "$RUNNER" = "cargo test --workspace" ]; then
   fuzz_stage
 else
   say "tests: build"
-  $RUNNER --no-run
+  cargo nextest run --workspace --no-run
   say "tests: the rig tests (real time), beside the fuzzing on the other core"
   fuzz_stage >"$work/fuzz.out" 2>&1 &
   fuzz_pid=$!
