@@ -24,11 +24,19 @@ if cargo nextest --version >/dev/null 2>&1; then
   RUNNER="cargo nextest run --workspace --no-fail-fast"
 fi
 
-# Fuzzing: build every target, run each for FUZZ_SECONDS (10) from the committed corpus, one
-# at a time on one core (-j 1, nice 19; its build on the RAM disk when it has room, so that it
-# does not write to the disk the rig tests log to with fsync).
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
+# The side jobs' builds go to the RAM disk when it has room: they then write nothing to the disk
+# the rig tests log to with fsync.
+# Their own target folder either way: cargo's lock on a shared one would hold the tests' runs.
+SIDE_TARGET=$PWD/target/side
+free_kb=$(df -Pk /dev/shm 2>/dev/null | awk 'NR == 2 { print $4 }')
+if [ -n "$free_kb" ] && [ "$free_kb" -gt 6000000 ]; then
+  SIDE_TARGET=/dev/shm/spherecal-side-target
+fi
+
+# Fuzzing: build every target, run each for FUZZ_SECONDS (10) from the committed corpus, one
+# at a time.
 fuzz_stage() {
   if ! cargo fuzz --version >/dev/null 2>&1; then
     cargo install cargo-fuzz --locked >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
@@ -39,19 +47,15 @@ fuzz_stage() {
   fi
   # cargo-fuzz needs nightly flags; RUSTC_BOOTSTRAP lets the stable toolchain take them.
   export RUSTC_BOOTSTRAP=1
-  local dir=() free_kb
-  free_kb=$(df -Pk /dev/shm 2>/dev/null | awk 'NR == 2 { print $4 }')
-  if [ -n "$free_kb" ] && [ "$free_kb" -gt 4000000 ]; then
-    dir=(--target-dir /dev/shm/spherecal-fuzz-target)
-  fi
+  local dir=(--target-dir "$SIDE_TARGET/fuzz")
   # No sanitizer: the code under test is safe Rust (forbid(unsafe_code)); libFuzzer's
   # coverage guidance and the panics are what find bugs here, 10-30x faster without ASan.
-  (cd fuzz && CARGO_BUILD_JOBS=1 nice -n 19 cargo fuzz build -O -s none "${dir[@]}") || return 1
+  (cd fuzz && cargo fuzz build -O -s none "${dir[@]}") || return 1
   local t failed=0
   for t in $(cd fuzz && cargo fuzz list); do
     mkdir -p "$work/$t"
     # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
-    if (cd fuzz && nice -n 19 cargo fuzz run -O -s none "${dir[@]}" "$t" "$work/$t" "seeds/$t" -- \
+    if (cd fuzz && cargo fuzz run -O -s none "${dir[@]}" "$t" "$work/$t" "seeds/$t" -- \
         -max_total_time="${FUZZ_SECONDS:-10}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
       printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
     else
@@ -64,47 +68,66 @@ fuzz_stage() {
   return "$failed"
 }
 
+# clippy and the bare-metal builds.
+checks() {
+  say "clippy (all targets, warnings are errors)"
+  cargo clippy --workspace --all-targets -- -D warnings || return 1
+  say "core builds as no_std for the bare-metal target"
+  if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
+    cargo build -p spherecal --no-default-features --target "$THUMB" || return 1
+    cargo build -p spherecal --no-default-features --features sim --target "$THUMB" || return 1
+  else
+    echo "warning: $THUMB is not installed: the no_std core is built for this machine instead"
+    cargo build -p spherecal --no-default-features || return 1
+  fi
+}
+
+# One core's work beside the rig tests: the checks and the fuzzing, one job at a time, at
+# nice 19, on the last CPU only (taskset) so that a core stays free for the rig.
+side_jobs() {
+  local pin=()
+  if command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
+    pin=(taskset -c "$(($(nproc) - 1))")
+  fi
+  export CARGO_BUILD_JOBS=1 CARGO_TARGET_DIR="$SIDE_TARGET"
+  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage); $(declare -p work THUMB SIDE_TARGET); checks && fuzz_stage"
+}
+
 say "format"
 cargo fmt --all -- --check
 
-say "clippy (all targets, warnings are errors)"
-cargo clippy --workspace --all-targets -- -D warnings
-
-say "core builds as no_std for the bare-metal target"
-if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
-  cargo build -p spherecal --no-default-features --target "$THUMB"
-  cargo build -p spherecal --no-default-features --features sim --target "$THUMB"
-else
-  echo "warning: $THUMB is not installed: the no_std core is built for this machine instead"
-  cargo build -p spherecal --no-default-features
-fi
-
-say "doc tests (nextest does not run them)"
-cargo test --workspace --doc -q
-
-# The rig tests replay surveys in real time and take one core; measured here, they stall
-# (INS silences through the pseudo-terminal) when both cores are busy, so they run first and
-# alone beside one single-threaded job on the other core: the fuzzing. Then the rest.
+# The rig tests replay surveys in real time; measured here, they stall (INS silences through
+# the pseudo-terminal) when both cores are busy, so they run first, one at a time, beside one
+# single-threaded job on the other core (clippy, the bare-metal builds, the fuzzing). Then the
+# rest, at full width, while the side job finishes.
 RIG='(binary(e2e) & test(/^rig::/)) | test(rig_steady_state)'
 if [ "$RUNNER" = "cargo test --workspace" ]; then
+  checks
+  say "doc tests"
+  cargo test --workspace --doc -q
   say "tests (cargo test: nextest is not installed)"
   $RUNNER
   fuzz_stage
 else
   say "tests: build"
   cargo nextest run --workspace --no-run
-  say "tests: the rig tests (real time), beside the fuzzing on the other core"
-  fuzz_stage >"$work/fuzz.out" 2>&1 &
-  fuzz_pid=$!
+  say "doc tests (nextest does not run them)"
+  cargo test --workspace --doc -q
+  say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
+  side_jobs >"$work/side.out" 2>&1 &
+  side_pid=$!
   rig_rc=0
   $RUNNER -E "$RIG" || rig_rc=$?
-  fuzz_rc=0
-  wait "$fuzz_pid" || fuzz_rc=$?
-  say "fuzzing (ran beside the rig tests)"
-  cat "$work/fuzz.out"
   say "tests: the rest"
-  $RUNNER -E "not ($RIG)"
-  [ "$rig_rc" -eq 0 ] || { echo "error: the rig tests failed (above)" >&2; exit 1; }
-  [ "$fuzz_rc" -eq 0 ] || { echo "error: fuzzing failed (above)" >&2; exit 1; }
+  rest_rc=0
+  $RUNNER -E "not ($RIG)" || rest_rc=$?
+  side_rc=0
+  wait "$side_pid" || side_rc=$?
+  say "clippy, the bare-metal builds and the fuzzing (run beside the tests)"
+  cat "$work/side.out"
+  [ "$rig_rc" -eq 0 ] || echo "error: the rig tests failed (above)" >&2
+  [ "$rest_rc" -eq 0 ] || echo "error: tests failed (above)" >&2
+  [ "$side_rc" -eq 0 ] || echo "error: clippy, a bare-metal build or a fuzz target failed (above)" >&2
+  [ "$rig_rc" -eq 0 ] && [ "$rest_rc" -eq 0 ] && [ "$side_rc" -eq 0 ] || exit 1
 fi
 say "done"
