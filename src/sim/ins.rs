@@ -1,8 +1,9 @@
 //! The VN-200 side of the simulator: binary output frames (Common group: TimeGps,
 //! YawPitchRoll or Quaternion, Position, InsStatus) at a fixed rate, sampled from the truth,
-//! with optional noise, a clock offset, clock steps and corrupted bytes, written through the
-//! VN-200 emit side.
+//! with optional noise (white per sample, and correlated: [`super::nav_error`]), a clock
+//! offset, clock steps and corrupted bytes, written through the VN-200 emit side.
 
+use super::nav_error::{Correlated, GaussMarkov, NavError};
 use super::rng::Rng;
 use super::World;
 use crate::frames::{roll_pitch_heading, rotation};
@@ -20,6 +21,8 @@ pub struct InsConfig {
     pub att_sigma: f64,
     /// Position noise per axis, 1 sigma [m].
     pub pos_sigma: f64,
+    /// Errors that wander (first-order Gauss-Markov per axis), on top of the white noise.
+    pub correlated: Correlated,
     /// INS clock error: reported time = true time + this [ns].
     pub time_offset_ns: i64,
     /// Probability that a byte on the serial line is corrupted.
@@ -51,6 +54,7 @@ impl Default for InsConfig {
             rate_hz: 200.0,
             att_sigma: 0.0,
             pos_sigma: 0.0,
+            correlated: Correlated::default(),
             time_offset_ns: 0,
             corrupt_prob: 0.0,
             margin_s: 1.0,
@@ -109,9 +113,15 @@ pub struct InsSim<'w, 'a> {
     count: u64,
     j: u64,
     rng: Rng,
+    nav: GaussMarkov,
+    /// The correlated error of the last sample made (the truth of what a solver may estimate).
+    pub last_error: NavError,
     /// Counts so far.
     pub stats: InsStats,
 }
+
+/// The correlated errors' own random stream: `seed` ^ this.
+const NAV_ERROR_STREAM: u64 = 0x6e61_765f_6572_7273;
 
 impl<'w, 'a> InsSim<'w, 'a> {
     /// A simulator covering the trajectory plus the margins.
@@ -127,6 +137,12 @@ impl<'w, 'a> InsSim<'w, 'a> {
             count: (span / period_ns) as u64 + 1,
             j: 0,
             rng: Rng::new(cfg.seed),
+            nav: GaussMarkov::new(
+                &cfg.correlated,
+                period_ns as f64 * 1e-9,
+                cfg.seed ^ NAV_ERROR_STREAM,
+            ),
+            last_error: NavError::default(),
             stats: InsStats::default(),
         }
     }
@@ -145,10 +161,13 @@ impl<'w, 'a> InsSim<'w, 'a> {
         let t = self.sample_time(self.j);
         self.j += 1;
         let s = self.world.trajectory.state(self.world.t_of(t));
+        let e = self.nav.step();
+        self.last_error = e;
+        let [en, ee, ed, er, ep, eh] = e.0;
         let noise = Vector3::new(
-            self.rng.gauss(self.cfg.pos_sigma),
-            self.rng.gauss(self.cfg.pos_sigma),
-            self.rng.gauss(self.cfg.pos_sigma),
+            self.rng.gauss(self.cfg.pos_sigma) + en,
+            self.rng.gauss(self.cfg.pos_sigma) + ee,
+            self.rng.gauss(self.cfg.pos_sigma) + ed,
         );
         let g = self.world.site.to_geodetic(&(s.position + noise));
         // Attitude relative to the local-level NED at the vessel, as an INS reports it.
@@ -157,9 +176,9 @@ impl<'w, 'a> InsSim<'w, 'a> {
         let [r, p, h] = roll_pitch_heading(&local);
         let sig = self.cfg.att_sigma;
         let (h, p, r) = (
-            h + self.rng.gauss(sig),
-            p + self.rng.gauss(sig),
-            r + self.rng.gauss(sig),
+            h + self.rng.gauss(sig) + eh,
+            p + self.rng.gauss(sig) + ep,
+            r + self.rng.gauss(sig) + er,
         );
         let stamp = (t.0 + self.cfg.clock_error_ns(t)).max(0);
         Some((t, stamp, [r, p, h], g))
@@ -216,7 +235,7 @@ impl<'w, 'a> InsSim<'w, 'a> {
     /// Applanix POS MV's real-time output (ICD groups, time 1 in UTC seconds of the week as
     /// a POS MV sends by default, time 2 POS time): Group 1 per sample, and at each whole
     /// second Group 3 (GPS week, GPS - UTC), Group 7 (PPS, synchronized) and Group 2 (RMS
-    /// errors: the noise settings). Writes into `out` (at least 512 bytes); the true time and
+    /// errors: the white and correlated noise settings together, per axis). Writes into `out` (at least 512 bytes); the true time and
     /// the length.
     pub fn next_posmv(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
         use crate::posmv::{
@@ -260,16 +279,17 @@ impl<'w, 'a> InsSim<'w, 'a> {
                 sync: TimeSync::Synchronized,
             }
             .emit(&mut out[n..])?;
-            let (ps, at) = (
-                self.cfg.pos_sigma as f32,
-                self.cfg.att_sigma.to_degrees() as f32,
-            );
+            let c = self.cfg.correlated.sigmas();
+            let rms = |white: f64, i: usize| libm::sqrt(white * white + c[i] * c[i]);
+            let pos: [f32; 3] = core::array::from_fn(|i| rms(self.cfg.pos_sigma, i) as f32);
+            let att: [f32; 3] =
+                core::array::from_fn(|i| rms(self.cfg.att_sigma, i + 3).to_degrees() as f32);
             n += Metrics {
                 time,
-                position_rms: [ps; 3],
+                position_rms: pos,
                 velocity_rms: [0.01; 3],
-                attitude_rms: [at; 3],
-                ellipse: [ps, ps, 0.0],
+                attitude_rms: att,
+                ellipse: [pos[0].max(pos[1]), pos[0].min(pos[1]), 0.0],
             }
             .emit(&mut out[n..])?;
         }

@@ -4,6 +4,7 @@
 
 pub mod ins;
 pub mod lidar;
+pub mod nav_error;
 pub mod rng;
 pub mod scene;
 pub mod trajectory;

@@ -1,7 +1,8 @@
 //! `spherecal synth`: run a scenario through the simulator and write what a rig would have
 //! recorded: `lidar.pcap`, `ins.bin` (and the same bytes as `ins.vnlog`, a serial log with
 //! receive times, so that `replay` can pace both streams on one clock), plus `site.toml`,
-//! `truth.json` and, for tests only, `labels.bin`: which object each return came from.
+//! `truth.json`, with `[ins.correlated]` `nav-errors.csv` (the wandering navigation errors the
+//! INS stream carries) and, for tests only, `labels.bin`: which object each return came from.
 //!
 //! `labels.bin` (little-endian): a 16-byte header `SCLABELS`, u32 version = 1, u32 record size
 //! = 12; then one record per return in file order: u32 data packet index (from 0, in file
@@ -245,6 +246,9 @@ pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     if s.ins.kind == "posmv" {
         v.push("ins.posmv");
     }
+    if s.ins_config().correlated.is_on() {
+        v.push(NAV_ERRORS);
+    }
     v.extend(["site.toml", "truth.json"]);
     v
 }
@@ -437,6 +441,11 @@ pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
     None
 }
 
+/// The file of the correlated navigation errors (with `[ins.correlated]`): per INS sample its
+/// GPS time (true) and the error the sample carries, reported minus true.
+pub const NAV_ERRORS: &str = "nav-errors.csv";
+const NAV_ERRORS_HEADER: &str = "gps_time_s,north_m,east_m,down_m,roll_deg,pitch_deg,heading_deg\n";
+
 /// Only the INS files (`ins.bin`, `ins.vnlog`, and `ins.posmv` for a POS MV) of a scenario,
 /// into `dir` (created if needed): the same stream [`synth`] writes.
 pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {
@@ -461,11 +470,36 @@ fn write_ins(
     let mut w = Staged::create(&ins_path)?;
     let mut log =
         LogWriter::new(Staged::create(&log_path)?, SERIAL_BAUD).map_err(|e| io(&log_path, e))?;
-    let mut ins = InsSim::new(world, s.ins_config());
+    let cfg = s.ins_config();
+    let mut ins = InsSim::new(world, cfg);
+    // The correlated navigation errors the stream carries, sample by sample: the truth a
+    // trajectory correction is checked against.
+    let err_path = dir.join(NAV_ERRORS);
+    let mut errs = match cfg.correlated.is_on() {
+        true => {
+            let mut e = Staged::create(&err_path)?;
+            e.write_all(NAV_ERRORS_HEADER.as_bytes())
+                .map_err(|e| io(&err_path, e))?;
+            Some(e)
+        }
+        false => None,
+    };
     let mut buf = [0u8; 128];
     let mut first_wall: Option<i64> = None;
     while let Some((t, n)) = ins.next_frame(&mut buf) {
         w.write_all(&buf[..n]).map_err(|e| io(&ins_path, e))?;
+        if let Some(e) = errs.as_mut() {
+            let [n_, e_, d, r, p, h] = ins.last_error.0;
+            writeln!(
+                e,
+                "{:.4},{n_:.5},{e_:.5},{d:.5},{:.6},{:.6},{:.6}",
+                t.0 as f64 * 1e-9,
+                r.to_degrees(),
+                p.to_degrees(),
+                h.to_degrees()
+            )
+            .map_err(|e| io(&err_path, e))?;
+        }
         let wall = gps_to_unix_ns(t, s.leap_seconds)
             + SERIAL_LATENCY_NS
             + (n as i64 * 10 * 1_000_000_000) / i64::from(SERIAL_BAUD);
@@ -478,6 +512,7 @@ fn write_ins(
     }
     files.push(w);
     files.push(log.into_inner());
+    files.extend(errs);
     if s.ins.kind == "posmv" {
         // The Logging Data Port's byte stream, as a POS MV logs it (.000 files).
         let p = dir.join("ins.posmv");

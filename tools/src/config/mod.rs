@@ -14,6 +14,7 @@ pub mod datum;
 pub mod epsg_tables;
 pub mod geoid;
 pub mod goal;
+pub mod nav_errors;
 pub mod scenario;
 pub mod scenery;
 pub mod site;

@@ -14,6 +14,7 @@ mod datums;
 mod extraction;
 mod georef;
 mod multi_file;
+mod nav_errors;
 mod plan;
 mod posmv;
 mod progress;

@@ -238,6 +238,10 @@ pub struct InsSpec {
     pub att_sigma_deg: f64,
     /// Position noise, 1 sigma [m].
     pub pos_sigma_m: f64,
+    /// Errors that wander, on top of the white noise above (a real GNSS/INS solution's):
+    /// `[ins.correlated]`, a preset and/or the sigmas and correlation time.
+    #[serde(default, skip_serializing_if = "is_default_correlated")]
+    pub correlated: crate::config::nav_errors::CorrelatedSpec,
     /// INS clock error [s].
     pub time_offset_s: f64,
     /// Probability of a corrupted serial byte.
@@ -252,6 +256,10 @@ pub struct InsSpec {
     /// the scan's start on, its time is off by a further `step_s` (negative: it goes back).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub clock_steps: Vec<[f64; 2]>,
+}
+
+fn is_default_correlated(c: &crate::config::nav_errors::CorrelatedSpec) -> bool {
+    *c == crate::config::nav_errors::CorrelatedSpec::default()
 }
 
 fn default_attitude() -> String {
@@ -601,6 +609,12 @@ impl Scenario {
             rate_hz: self.ins.rate_hz,
             att_sigma: self.ins.att_sigma_deg.to_radians(),
             pos_sigma: self.ins.pos_sigma_m,
+            // Checked by `validate`; a scenario built in code with a bad table gets none.
+            correlated: self
+                .ins
+                .correlated
+                .resolve("ins.correlated")
+                .unwrap_or_default(),
             time_offset_ns: (self.ins.time_offset_s * 1e9).round() as i64,
             corrupt_prob: self.ins.corrupt_prob,
             seed: self.seed.wrapping_mul(2).wrapping_add(2),

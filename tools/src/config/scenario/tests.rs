@@ -79,3 +79,29 @@ fn utc_parsing() {
     assert_eq!(parse_utc("2016-01-21 08:18:02"), None);
     assert_eq!(parse_utc("2016-13-21T08:18:02Z"), None);
 }
+
+/// `[ins.correlated]`: a preset reaches the simulator's INS settings in its units; a bad table
+/// is refused naming its key.
+#[test]
+fn correlated_ins_errors_from_the_table() {
+    let text = BUILTIN[0].1.replace(
+        "[trajectory]",
+        "[ins.correlated]\npreset = \"posmv-rtk\"\ncorrelation_s = 15\n\n[trajectory]",
+    );
+    let s = Scenario::from_toml(&text).unwrap();
+    let c = s.ins_config().correlated;
+    assert_eq!((c.position_sigma, c.correlation_s), ([0.03, 0.06], 15.0));
+    assert!((c.attitude_sigma[0] - 0.01f64.to_radians()).abs() < 1e-15);
+    assert!(!Scenario::load("table1")
+        .unwrap()
+        .ins_config()
+        .correlated
+        .is_on());
+    let e = Scenario::from_toml(&text.replace("posmv-rtk", "posmv")).unwrap_err();
+    assert!(e.0.starts_with("ins.correlated.preset: \"posmv\""), "{e}");
+    let e =
+        Scenario::from_toml(&text.replace("correlation_s = 15", "correlation_s = -1")).unwrap_err();
+    assert!(e.0.starts_with("ins.correlated.correlation_s"), "{e}");
+    let e = Scenario::from_toml(&text.replace("correlation_s = 15", "sigma = 1")).unwrap_err();
+    assert!(e.0.contains("unknown field `sigma`"), "{e}");
+}

@@ -204,6 +204,10 @@ impl Scenario {
             "ins.pos_sigma_m",
             "expected 0..10",
         )?;
+        self.ins
+            .correlated
+            .resolve("ins.correlated")
+            .map_err(ScenarioError)?;
         check(
             self.ins.time_offset_s.abs() < 10.0,
             "ins.time_offset_s",
