@@ -184,6 +184,29 @@ impl<'w, 'a> InsSim<'w, 'a> {
         Some((t, stamp, [r, p, h], g))
     }
 
+    /// The next sample as a post-processed trajectory holds it (an SBET record): its GPS time
+    /// (true time plus the clock error), roll, pitch, heading [rad] and position, with the
+    /// same noise as [`Self::next_frame`] for the same seed.
+    pub fn next_pose(&mut self) -> Option<(GpsTime, [f64; 3], crate::frames::Geodetic)> {
+        let (_, stamp, rph, g) = self.next_sample()?;
+        self.stats.frames += 1;
+        Some((GpsTime(stamp), rph, g))
+    }
+
+    /// Per axis 1 sigma of everything the samples carry (white and correlated together):
+    /// north, east, down [m]; roll, pitch, heading [rad] (a POS MV's Group 2, an smrmsg).
+    pub fn stated_sigmas(&self) -> [f64; 6] {
+        let c = self.cfg.correlated.sigmas();
+        core::array::from_fn(|i| {
+            let white = if i < 3 {
+                self.cfg.pos_sigma
+            } else {
+                self.cfg.att_sigma
+            };
+            libm::sqrt(white * white + c[i] * c[i])
+        })
+    }
+
     fn corrupt(&mut self, bytes: &mut [u8]) {
         if self.cfg.corrupt_prob > 0.0 {
             for b in bytes.iter_mut() {
@@ -279,11 +302,9 @@ impl<'w, 'a> InsSim<'w, 'a> {
                 sync: TimeSync::Synchronized,
             }
             .emit(&mut out[n..])?;
-            let c = self.cfg.correlated.sigmas();
-            let rms = |white: f64, i: usize| libm::sqrt(white * white + c[i] * c[i]);
-            let pos: [f32; 3] = core::array::from_fn(|i| rms(self.cfg.pos_sigma, i) as f32);
-            let att: [f32; 3] =
-                core::array::from_fn(|i| rms(self.cfg.att_sigma, i + 3).to_degrees() as f32);
+            let s = self.stated_sigmas();
+            let pos: [f32; 3] = core::array::from_fn(|i| s[i] as f32);
+            let att: [f32; 3] = core::array::from_fn(|i| s[i + 3].to_degrees() as f32);
             n += Metrics {
                 time,
                 position_rms: pos,

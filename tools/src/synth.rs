@@ -244,7 +244,7 @@ fn write_files(
 pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     let mut v = vec!["lidar.pcap", "labels.bin", "ins.bin", "ins.vnlog"];
     if s.ins.kind == "posmv" {
-        v.push("ins.posmv");
+        v.extend(["ins.posmv", SBET, SMRMSG]);
     }
     if s.ins_config().correlated.is_on() {
         v.push(NAV_ERRORS);
@@ -514,6 +514,7 @@ fn write_ins(
     files.push(log.into_inner());
     files.extend(errs);
     if s.ins.kind == "posmv" {
+        files.extend(write_pospac(s, world, dir)?);
         // The Logging Data Port's byte stream, as a POS MV logs it (.000 files).
         let p = dir.join("ins.posmv");
         let mut w = Staged::create(&p)?;
@@ -527,6 +528,53 @@ fn write_ins(
 
     Ok(ins.stats)
 }
+
+/// A POS MV survey's post-processed trajectory, as POSPac writes it: `sbet_ins.out` (one record
+/// per INS sample, the same samples and errors as its real-time groups; wander angle 0) and
+/// `smrmsg_ins.out` (each whole second, the per-axis sigmas the samples carry, as Group 2 states
+/// them).
+fn write_pospac(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Vec<Staged>, String> {
+    use spherecal_hal::sbet::{SbetRecord, SmrmsgRecord};
+    let (sbet_path, rms_path) = (dir.join(SBET), dir.join(SMRMSG));
+    let (mut sbet, mut rms) = (Staged::create(&sbet_path)?, Staged::create(&rms_path)?);
+    let mut sim = InsSim::new(world, s.ins_config());
+    let sig = sim.stated_sigmas();
+    let arcmin = |rad: f64| rad.to_degrees() * 60.0;
+    let mut last_second = None;
+    while let Some((t, [r, p, h], g)) = sim.next_pose() {
+        let (_, tow_ns) = t.week_tow_ns();
+        let tow_s = tow_ns as f64 * 1e-9;
+        let rec = SbetRecord {
+            tow_s,
+            lat: g.lat,
+            lon: g.lon,
+            h: g.h,
+            roll: r,
+            pitch: p,
+            platform_heading: h,
+            wander: 0.0,
+        };
+        sbet.write_all(&rec.emit()).map_err(|e| io(&sbet_path, e))?;
+        let second = tow_ns.div_euclid(1_000_000_000);
+        if last_second != Some(second) {
+            last_second = Some(second);
+            let m = SmrmsgRecord {
+                tow_s,
+                position_m: [sig[0], sig[1], sig[2]],
+                velocity_mps: [0.01; 3],
+                attitude_arcmin: [arcmin(sig[3]), arcmin(sig[4]), arcmin(sig[5])],
+            };
+            rms.write_all(&m.emit()).map_err(|e| io(&rms_path, e))?;
+        }
+    }
+    Ok(vec![sbet, rms])
+}
+
+/// A POS MV survey's SBET and its accuracy file (written by [`synth`] with `[ins] kind =
+/// "posmv"`).
+pub const SBET: &str = "sbet_ins.out";
+/// See [`SBET`].
+pub const SMRMSG: &str = "smrmsg_ins.out";
 
 /// The site file a surveyor would write for the scenario: the spheres' surveyed centres and
 /// the a-priori mounting.
