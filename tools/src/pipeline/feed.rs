@@ -128,11 +128,12 @@ impl<'a> RingAligner<'a> {
 
     /// Discard the ring until its End (so that its reader can finish).
     pub fn drain_until_end(&mut self, ic: &mut Consumer<'_, InsItem>) {
+        let mut backoff = super::Backoff::default();
         while !self.ins_done {
             match ic.dequeue() {
                 Some(InsItem::End) => self.ins_done = true,
-                Some(_) => {}
-                None => std::thread::yield_now(),
+                Some(_) => backoff.reset(),
+                None => backoff.wait(),
             }
         }
     }
@@ -162,11 +163,15 @@ impl<'a> RingAligner<'a> {
                 Some(HostTime(from.0.saturating_add(d)))
             }
         };
+        let mut backoff = super::Backoff::default();
         while !self.ins_done && self.core.wants_poses(p) {
             match ic.dequeue() {
-                Some(it) => self.take(it),
+                Some(it) => {
+                    self.take(it);
+                    backoff.reset();
+                }
                 None => match deadline {
-                    None => std::thread::yield_now(),
+                    None => backoff.wait(),
                     Some(t) if self.time.wall() >= t => break,
                     Some(_) => self.time.sleep(std::time::Duration::from_millis(1)),
                 },
