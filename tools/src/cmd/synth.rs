@@ -19,7 +19,8 @@ pub struct Args {
     #[arg(long, value_parser = super::parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
     /// The INS to simulate, instead of the scenario's `[ins] kind`: `vn200`, or `posmv` (an
-    /// Applanix POS MV: its UDP datagrams in lidar.pcap and its logged stream ins.posmv).
+    /// Applanix POS MV: its UDP datagrams in lidar.pcap, its logged stream ins.posmv, and the
+    /// same samples post-processed: sbet_ins.out with smrmsg_ins.out).
     #[arg(long, value_parser = ["vn200", "posmv"])]
     pub ins: Option<String>,
     /// Print a built-in scenario as TOML (to edit) and exit.
