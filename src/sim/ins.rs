@@ -258,8 +258,8 @@ impl<'w, 'a> InsSim<'w, 'a> {
     /// Applanix POS MV's real-time output (ICD groups, time 1 in UTC seconds of the week as
     /// a POS MV sends by default, time 2 POS time): Group 1 per sample, and at each whole
     /// second Group 3 (GPS week, GPS - UTC), Group 7 (PPS, synchronized) and Group 2 (RMS
-    /// errors: the white and correlated noise settings together, per axis). Writes into `out` (at least 512 bytes); the true time and
-    /// the length.
+    /// errors: the white and correlated noise settings together, per axis). Writes into `out`
+    /// (at least 512 bytes); the true time and the length.
     pub fn next_posmv(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
         use crate::posmv::{
             Alignment, GnssStatus, Metrics, Navigation, PpsTime, TimeFields, TimeSync, TimeType,

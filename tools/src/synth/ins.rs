@@ -18,8 +18,9 @@ use std::path::Path;
 pub const NAV_ERRORS: &str = "nav-errors.csv";
 const NAV_ERRORS_HEADER: &str = "gps_time_s,north_m,east_m,down_m,roll_deg,pitch_deg,heading_deg\n";
 
-/// Only the INS files (`ins.bin`, `ins.vnlog`, and `ins.posmv` for a POS MV) of a scenario,
-/// into `dir` (created if needed): the same stream [`synth`] writes.
+/// Only the INS files of a scenario (`ins.bin`, `ins.vnlog`; for a POS MV `ins.posmv`,
+/// `sbet_ins.out`, `smrmsg_ins.out`; with `[ins.correlated]` `nav-errors.csv`), into `dir`
+/// (created if needed): the same streams [`synth`](super::synth) writes.
 pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| {
@@ -47,15 +48,13 @@ pub(super) fn write_ins(
     // The correlated navigation errors the stream carries, sample by sample: the truth a
     // trajectory correction is checked against.
     let err_path = dir.join(NAV_ERRORS);
-    let mut errs = match cfg.correlated.is_on() {
-        true => {
-            let mut e = Staged::create(&err_path)?;
-            e.write_all(NAV_ERRORS_HEADER.as_bytes())
-                .map_err(|e| io(&err_path, e))?;
-            Some(e)
-        }
-        false => None,
-    };
+    let mut errs = None;
+    if cfg.correlated.is_on() {
+        let mut e = Staged::create(&err_path)?;
+        e.write_all(NAV_ERRORS_HEADER.as_bytes())
+            .map_err(|e| io(&err_path, e))?;
+        errs = Some(e);
+    }
     let mut buf = [0u8; 128];
     let mut first_wall: Option<i64> = None;
     while let Some((t, n)) = ins.next_frame(&mut buf) {
