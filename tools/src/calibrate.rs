@@ -346,7 +346,7 @@ pub fn write_returns(
     ids: &[String],
     obs: &[Vec<Observation>],
     b: &Params,
-) -> Result<(), String> {
+) -> Result<(), crate::Error> {
     use std::io::Write as _;
     let err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = crate::output::Staged::create(path)?;

@@ -76,6 +76,13 @@ impl std::fmt::Display for DecodeError {
     }
 }
 
+/// An unreadable capture or an untrusted model is bad input.
+impl From<DecodeError> for crate::Error {
+    fn from(e: DecodeError) -> Self {
+        Self::bad_input(e.to_string())
+    }
+}
+
 /// The model of a capture could not be trusted: the product byte of the first data packet
 /// (at `offset` in the file) is unknown, or it disagrees with the packet period.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,7 +1,7 @@
 //! The tools' error: a message for people and a kind that decides the exit code of the
-//! command contract (DESIGN.md "Commands"; embedded-io's `ErrorKind` pattern). Library code
-//! still returning `Result<_, String>` converts with `?` (a plain message is bad input, the
-//! kind it always meant).
+//! command contract (DESIGN.md "Commands"; embedded-io's `ErrorKind` pattern). Every library
+//! function of the tools returns it; a plain message converts with `?` or `.into()` as bad
+//! input. Only clap's value parsers, `FromStr` and the rig's check list keep `String`.
 
 use std::fmt;
 use std::process::ExitCode;
@@ -86,7 +86,7 @@ impl From<&str> for Error {
     }
 }
 
-/// Into code not yet converted: the message (the kind is lost there).
+/// The message alone (for lists of messages; the kind is lost there).
 impl From<Error> for String {
     fn from(e: Error) -> Self {
         e.message

@@ -36,7 +36,7 @@ struct ToMap {
 }
 
 impl ToMap {
-    fn for_site(site: &Site, frame: spherecal::frames::LocalFrame) -> Result<Self, String> {
+    fn for_site(site: &Site, frame: spherecal::frames::LocalFrame) -> Result<Self, crate::Error> {
         use crate::config::crs::Undulation;
         let own = match &site.crs {
             Some(c) => Some((Crs::epsg(c.epsg)?, c)).filter(|(crs, _)| !crs.is_geographic()),
@@ -68,7 +68,7 @@ impl ToMap {
         })
     }
 
-    fn xyz(&self, ned: &nalgebra::Vector3<f64>) -> Result<(f64, f64, f64), String> {
+    fn xyz(&self, ned: &nalgebra::Vector3<f64>) -> Result<(f64, f64, f64), crate::Error> {
         let g = self.frame.to_geodetic(ned);
         let (lat, lon, h) = self
             .shift
@@ -172,7 +172,7 @@ pub struct LasOut {
 impl LasOut {
     /// The LAS of `site`'s points can be made in `frame` (its CRS and the datum shift to it
     /// are known): checked before a long run.
-    pub fn check(site: &Site, frame: LasFrame) -> Result<(), String> {
+    pub fn check(site: &Site, frame: LasFrame) -> Result<(), crate::Error> {
         if frame == LasFrame::Projected {
             let (local, _) = crate::pipeline::targets(site);
             ToMap::for_site(site, local).map_err(|e| format!("--las: {e}"))?;
@@ -181,7 +181,7 @@ impl LasOut {
     }
 
     /// Create the file for `site`'s points, in `frame`.
-    pub fn create(path: &Path, site: &Site, frame: LasFrame) -> Result<Self, String> {
+    pub fn create(path: &Path, site: &Site, frame: LasFrame) -> Result<Self, crate::Error> {
         let (local, targets) = crate::pipeline::targets(site);
         let to_map = match frame {
             LasFrame::Projected => Some(ToMap::for_site(site, local)?),
@@ -255,7 +255,7 @@ impl LasOut {
             Some(m) => match m.xyz(&p.ned) {
                 Ok(v) => v,
                 Err(e) => {
-                    self.error = Some(e);
+                    self.error = Some(e.to_string());
                     return;
                 }
             },
@@ -293,11 +293,11 @@ impl LasOut {
     }
 
     /// Finish the file (written whole under its name only now; on an error nothing is left).
-    pub fn close(self) -> Result<u64, String> {
+    pub fn close(self) -> Result<u64, crate::Error> {
         if let Some(e) = self.error {
             // The writer finishes the file as it drops: into nothing.
             self.abandon.abandon();
-            return Err(format!("{}: {e}", self.path.display()));
+            return Err(format!("{}: {e}", self.path.display()).into());
         }
         self.w
             .into_inner()
@@ -312,7 +312,7 @@ pub fn georef(
     inp: &Inputs,
     las: Option<(&Path, LasFrame)>,
     windows: Option<&Path>,
-) -> Result<(RunStats, Vec<u64>, String), String> {
+) -> Result<(RunStats, Vec<u64>, String), crate::Error> {
     let mut las_out = las
         .map(|(p, f)| LasOut::create(p, &inp.site, f))
         .transpose()?;
@@ -368,7 +368,7 @@ pub fn georef(
         (counts, err)
     })?;
     if let Some(e) = werr {
-        return Err(format!("windows CSV: {e}"));
+        return Err(format!("windows CSV: {e}").into());
     }
     if let Some(w) = wfile {
         w.commit()?;

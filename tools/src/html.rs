@@ -47,7 +47,7 @@ th{background:#f2f2f2}td.l,th.l{text-align:left}
 .note{color:#555;font-size:13px}tr.dim td{color:#999}";
 
 /// The page.
-pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, String> {
+pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Error> {
     let mut o = String::new();
     let title = r
         .inputs
@@ -423,7 +423,7 @@ fn search(o: &mut String, r: &Report) {
     o.push_str("</table>\n");
 }
 
-fn figures(o: &mut String, f: &Figures) -> Result<(), String> {
+fn figures(o: &mut String, f: &Figures) -> Result<(), crate::Error> {
     o.push_str("<h2>Figures</h2><p class=\"note\">Per sphere: the kept returns' distance from the surveyed sphere's surface with the starting mounting and with the solution (each histogram on its own axis), the residuals after against time coloured by pass, and cross-sections at 1:1 (horizontal distance from the surveyed centre against height above it; the line is the sphere).</p>\n");
     if f.spheres.is_empty() {
         o.push_str("<p>No sphere returns were kept: nothing to draw.</p>\n");

@@ -19,7 +19,7 @@ pub fn montecarlo(
     lever_m: f64,
     seed: u64,
     progress: bool,
-) -> Result<McReport, String> {
+) -> Result<McReport, crate::Error> {
     let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
     crate::synth::synth(scenario, &dir)?;
     let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
@@ -115,7 +115,7 @@ pub fn montecarlo(
     bar.finish_and_clear();
     let runs: Vec<Trial> = results
         .into_inner()
-        .map_err(|_| "a trial thread panicked".to_string())?
+        .map_err(|_| crate::Error::internal("a trial thread panicked"))?
         .into_iter()
         .flatten()
         .collect();
@@ -151,7 +151,7 @@ pub fn windowed_packets(
     cache: &crate::synth::TraceCache,
     extra: f64,
     neighbours: usize,
-) -> Result<(Vec<bool>, usize), String> {
+) -> Result<(Vec<bool>, usize), crate::Error> {
     let dir = std::env::temp_dir().join(format!(
         "spherecal-windowed-{}-{}-{}",
         std::process::id(),
@@ -176,7 +176,8 @@ pub fn windowed_packets(
                 "windowed return in data packet {} of {} written",
                 o.packet,
                 written.len()
-            ));
+            )
+            .into());
         };
         let k = k as usize;
         let lo = k.saturating_sub(neighbours);

@@ -35,7 +35,7 @@ pub fn partial_path(p: &Path) -> PathBuf {
 
 /// `p` can be written: its folder exists and takes a new file (tried by creating and removing
 /// the temporary), and `p` is not a folder. `flag` names the option in the message.
-pub fn check(flag: &str, p: &Path) -> Result<(), String> {
+pub fn check(flag: &str, p: &Path) -> Result<(), crate::Error> {
     let what = |why: String| {
         if flag.is_empty() {
             format!("{}: {why}", p.display())
@@ -44,14 +44,14 @@ pub fn check(flag: &str, p: &Path) -> Result<(), String> {
         }
     };
     if p.is_dir() {
-        return Err(what("is a folder, not a file".into()));
+        return Err(what("is a folder, not a file".into()).into());
     }
     let dir = match p.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(what(format!("the folder {} does not exist", dir.display())));
+        return Err(what(format!("the folder {} does not exist", dir.display())).into());
     }
     let tmp = partial_path(p);
     match File::create(&tmp) {
@@ -59,10 +59,7 @@ pub fn check(flag: &str, p: &Path) -> Result<(), String> {
             let _ = std::fs::remove_file(&tmp);
             Ok(())
         }
-        Err(e) => Err(what(format!(
-            "cannot write in the folder {}: {e}",
-            dir.display()
-        ))),
+        Err(e) => Err(what(format!("cannot write in the folder {}: {e}", dir.display())).into()),
     }
 }
 
@@ -118,7 +115,7 @@ impl Abandon {
 
 impl Staged {
     /// Start writing `p` (through `.NAME.partial`).
-    pub fn create(p: &Path) -> Result<Self, String> {
+    pub fn create(p: &Path) -> Result<Self, crate::Error> {
         let tmp = partial_path(p);
         pending().push(tmp.clone());
         let f = File::create(&tmp).map_err(|e| {
@@ -170,12 +167,12 @@ impl Staged {
 
     /// Flush, and rename the temporary to the final name (or give the first error; an
     /// abandoned output is not written).
-    pub fn commit(mut self) -> Result<(), String> {
+    pub fn commit(mut self) -> Result<(), crate::Error> {
         if let Some(e) = &self.failed {
-            return Err(format!("{}: {e}", self.path.display()));
+            return Err(format!("{}: {e}", self.path.display()).into());
         }
         if self.abandoned.load(Ordering::Relaxed) {
-            return Err(format!("{}: abandoned", self.path.display()));
+            return Err(format!("{}: abandoned", self.path.display()).into());
         }
         let err = |e: std::io::Error| format!("{}: {e}", self.path.display());
         if let Some(w) = self.w.take() {
@@ -216,7 +213,7 @@ impl Drop for Staged {
 }
 
 /// Write `bytes` to `p` whole or not at all.
-pub fn write(p: &Path, bytes: &[u8]) -> Result<(), String> {
+pub fn write(p: &Path, bytes: &[u8]) -> Result<(), crate::Error> {
     let mut s = Staged::create(p)?;
     s.write_all(bytes)
         .map_err(|e| format!("{}: {e}", p.display()))?;
@@ -224,7 +221,7 @@ pub fn write(p: &Path, bytes: &[u8]) -> Result<(), String> {
 }
 
 /// Commit several staged files together (after all of them were written), in order.
-pub fn commit_all(files: Vec<Staged>) -> Result<(), String> {
+pub fn commit_all(files: Vec<Staged>) -> Result<(), crate::Error> {
     for f in files {
         f.commit()?;
     }
@@ -275,7 +272,7 @@ mod tests {
         s.write_all(b"x").unwrap();
         h.abandon();
         s.write_all(b"y").unwrap();
-        assert!(s.commit().unwrap_err().contains("abandoned"));
+        assert!(s.commit().unwrap_err().to_string().contains("abandoned"));
         assert!(!d.join("b.bin").exists() && !partial_path(&d.join("b.bin")).exists());
     }
 
@@ -284,9 +281,9 @@ mod tests {
         let d = dir("check");
         assert!(check("--las", &d.join("x.las")).is_ok());
         assert!(!partial_path(&d.join("x.las")).exists());
-        let e = check("--las", &d.join("no/x.las")).unwrap_err();
+        let e = check("--las", &d.join("no/x.las")).unwrap_err().to_string();
         assert!(e.contains("does not exist"), "{e}");
-        let e = check("--report", &d).unwrap_err();
+        let e = check("--report", &d).unwrap_err().to_string();
         assert!(e.contains("is a folder"), "{e}");
     }
 }

@@ -163,7 +163,7 @@ fn dots(n: usize) -> String {
     }
 }
 
-type Res<T> = Result<T, String>;
+type Res<T> = Result<T, crate::Error>;
 
 fn e<E: std::fmt::Display>(x: E) -> String {
     x.to_string()

@@ -110,7 +110,7 @@ impl Target {
 pub fn first_times(
     pcap: impl Into<Files>,
     ins: Option<&Files>,
-) -> Result<(Option<HostTime>, Option<HostTime>), String> {
+) -> Result<(Option<HostTime>, Option<HostTime>), crate::Error> {
     let mut src = crate::pipeline::open_captures(&pcap.into())?;
     let mut first_udp = None;
     while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
@@ -141,7 +141,7 @@ pub fn replay_udp(
     pcap: impl Into<Files>,
     host: Ipv4Addr,
     speed: Speed,
-) -> Result<UdpReplay, String> {
+) -> Result<UdpReplay, crate::Error> {
     let pcap = pcap.into();
     let (first, _) = first_times(&pcap, None)?;
     replay_udp_on(
@@ -156,7 +156,7 @@ pub fn replay_udp_on(
     pcap: impl Into<Files>,
     to: Target,
     clock: &Pacer<'_>,
-) -> Result<UdpReplay, String> {
+) -> Result<UdpReplay, crate::Error> {
     let mut src = crate::pipeline::open_captures(&pcap.into())?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
@@ -187,7 +187,7 @@ pub fn replay_serial(
     out: &mut impl Write,
     baud: u32,
     speed: Speed,
-) -> Result<u64, String> {
+) -> Result<u64, crate::Error> {
     let first = first_log_time(file)?;
     replay_serial_on(
         Files::from(file),
@@ -198,7 +198,7 @@ pub fn replay_serial(
 }
 
 /// The first receive time of a serial log (None for raw bytes, which have no times).
-fn first_log_time(file: &Path) -> Result<Option<HostTime>, String> {
+fn first_log_time(file: &Path) -> Result<Option<HostTime>, crate::Error> {
     let f = std::fs::File::open(file).map_err(|e| format!("{}: {e}", file.display()))?;
     match spherecal_hal::serial::LogReader::new(std::io::BufReader::new(f)) {
         Ok(mut r) => Ok(r
@@ -217,7 +217,7 @@ pub fn replay_serial_on(
     out: &mut impl Write,
     baud: u32,
     clock: &Pacer<'_>,
-) -> Result<u64, String> {
+) -> Result<u64, crate::Error> {
     let mut written = 0u64;
     for f in files.into().expand()? {
         written += replay_one_serial(&f, out, baud, clock, written)?;
@@ -233,7 +233,7 @@ fn replay_one_serial(
     baud: u32,
     clock: &Pacer<'_>,
     before: u64,
-) -> Result<u64, String> {
+) -> Result<u64, crate::Error> {
     let (bytes, stamps) = spherecal_hal::serial::read_byte_file(file)
         .map_err(|e| format!("{}: {e}", file.display()))?;
     let write =
@@ -273,7 +273,7 @@ pub fn replay_both(
     to: Target,
     ins: Option<(&Files, &mut (dyn Write + Send), u32)>,
     speed: Speed,
-) -> Result<(UdpReplay, Option<u64>), String> {
+) -> Result<(UdpReplay, Option<u64>), crate::Error> {
     let pcap = pcap.into();
     let (fu, fl) = first_times(&pcap, ins.as_ref().map(|i| i.0))?;
     let t0 = match (fu, fl) {
@@ -291,8 +291,11 @@ pub fn replay_both(
         let udp = replay_udp_on(&pcap, to, &clock);
         let ser = serial
             .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err("serial thread panicked".into()))
+                h.join().unwrap_or_else(|_| {
+                    Err(crate::Error::internal(
+                        "the replay's serial thread panicked",
+                    ))
+                })
             })
             .transpose();
         Ok((udp?, ser?))

@@ -276,7 +276,7 @@ pub struct Report {
 
 impl Report {
     /// Read a report.json (for `--init-from`); its six and time offset must be finite.
-    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let r: Report = serde_json::from_str(&text)
             .map_err(|e| format!("{}: not a spherecal report: {e}", path.display()))?;
@@ -289,7 +289,8 @@ impl Report {
             return Err(format!(
                 "{}: its boresight, lever arm or time offset is not a number",
                 path.display()
-            ));
+            )
+            .into());
         }
         Ok(r)
     }
@@ -323,7 +324,7 @@ pub struct Solved {
 
 impl Solved {
     /// Read `path`.
-    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let v: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| format!("{}: not a spherecal report: {e}", path.display()))?;
@@ -352,7 +353,8 @@ impl Solved {
             return Err(format!(
                 "{}: not a spherecal report: no boresight_deg and lever_arm_m",
                 path.display()
-            ));
+            )
+            .into());
         }
         if !s
             .deg_m
@@ -363,7 +365,8 @@ impl Solved {
             return Err(format!(
                 "{}: its boresight, lever arm or time offset is not a number",
                 path.display()
-            ));
+            )
+            .into());
         }
         Ok(s)
     }
@@ -748,12 +751,12 @@ pub fn render_montecarlo(r: &McReport) -> String {
 }
 /// Write `value` as pretty JSON to `p` through a temporary file and a rename, so that a reader
 /// (a surveyor's viewer polling the rig's report) never sees half of one.
-pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), String> {
+pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), crate::Error> {
     let json = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
     write_atomically(p, (json + "\n").as_bytes())
 }
 
 /// Write `bytes` to `p` whole or not at all ([`crate::output::write`]).
-pub fn write_atomically(p: &Path, bytes: &[u8]) -> Result<(), String> {
-    crate::output::write(p, bytes).map_err(|e| format!("cannot write the report: {e}"))
+pub fn write_atomically(p: &Path, bytes: &[u8]) -> Result<(), crate::Error> {
+    crate::output::write(p, bytes).map_err(|e| format!("cannot write the report: {e}").into())
 }

@@ -71,13 +71,13 @@ pub struct Outputs {
 /// An output file can be created where it is asked for ([`output::check`]: its folder exists
 /// and takes a new file, it is not a folder), checked before a long run so that it does not
 /// fail at the end. `flag` names the option in the message.
-pub fn check_output(flag: &str, p: &std::path::Path) -> Result<(), String> {
+pub fn check_output(flag: &str, p: &std::path::Path) -> Result<(), crate::Error> {
     output::check(flag, p)
 }
 
 impl Outputs {
     /// Every output can be written ([`check_output`]).
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), crate::Error> {
         for (flag, p) in [
             ("--report", &self.report),
             ("--las", &self.las),
@@ -184,10 +184,10 @@ pub fn run_calibrate(
     // full, a mount gone) is said after it, not instead of it.
     let mut wrote = String::new();
     let mut output_errors = Vec::new();
-    let mut put = |r: Result<Option<String>, String>| match r {
+    let mut put = |r: Result<Option<String>, crate::Error>| match r {
         Ok(Some(line)) => wrote.push_str(&line),
         Ok(None) => {}
-        Err(e) => output_errors.push(e),
+        Err(e) => output_errors.push(e.to_string()),
     };
     if let Some(p) = &out.report {
         put(report::write_json_atomically(p, &rep).map(|()| None));

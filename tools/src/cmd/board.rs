@@ -42,14 +42,15 @@ pub fn run(a: Args) -> ExitCode {
     }
 }
 
-fn set_mount(a: &SetMountArgs) -> Result<String, String> {
+fn set_mount(a: &SetMountArgs) -> Result<String, crate::Error> {
     let r = Solved::load(&a.from)?;
     if !r.converged && !a.even_if_refused {
         return Err(format!(
             "{}: the calibration was refused ({}); give --even-if-refused to write it anyway",
             a.from.display(),
             r.reason.as_deref().unwrap_or("no reason recorded")
-        ));
+        )
+        .into());
     }
     let old = Board::load(&a.board)?.mount;
     let d = r.deg_m;

@@ -100,6 +100,6 @@ pub fn run(a: Args) -> ExitCode {
             say!("{}", c.text);
             super::outputs_failed("calibrate", &c.output_errors).unwrap_or(claimed(c.converged))
         }
-        Err(e) => super::fail_with("calibrate", e),
+        Err(e) => super::fail("calibrate", e),
     }
 }

@@ -35,13 +35,10 @@ pub mod site;
 pub mod synth;
 pub mod vn200;
 
-/// Bad input: [`fail_with`] a plain message (exit 2).
-fn fail(cmd: &str, why: impl std::fmt::Display) -> ExitCode {
-    fail_with(cmd, crate::Error::bad_input(why.to_string()))
-}
-
-/// `spherecal CMD: error` on stderr and the exit code of its kind.
-fn fail_with(cmd: &str, e: crate::Error) -> ExitCode {
+/// `spherecal CMD: error` on stderr and the exit code of its kind: a plain message is bad
+/// input (exit 2), a [`crate::Error`] keeps its kind.
+fn fail(cmd: &str, why: impl Into<crate::Error>) -> ExitCode {
+    let e = why.into();
     eprintln!("spherecal {cmd}: {e}");
     e.exit_code()
 }
@@ -56,7 +53,7 @@ fn outputs_failed(cmd: &str, errors: &[String]) -> Option<ExitCode> {
 }
 
 /// Print the text and exit 0, or fail (exit 2) with the error.
-fn print_or_fail(cmd: &str, r: Result<String, String>) -> ExitCode {
+fn print_or_fail(cmd: &str, r: Result<String, crate::Error>) -> ExitCode {
     match r {
         Ok(text) => {
             say!("{text}");

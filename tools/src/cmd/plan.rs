@@ -109,7 +109,12 @@ pub fn run(a: Args) -> ExitCode {
                 "# {} with the plan's recommendation: {}\n{t}",
                 s.name, rec.words
             ),
-            Err(e) => return fail("plan", e),
+            Err(e) => {
+                return fail(
+                    "plan",
+                    crate::Error::internal(format!("the scenario as TOML: {e}")),
+                )
+            }
         };
         if let Err(e) = crate::report::write_atomically(p, text.as_bytes()) {
             return fail("plan", e);

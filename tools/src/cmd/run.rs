@@ -148,6 +148,6 @@ pub fn run(a: Args) -> ExitCode {
             );
             ExitCode::SUCCESS
         }
-        Err(e) => super::fail_with("run", e),
+        Err(e) => super::fail("run", e),
     }
 }

@@ -70,12 +70,9 @@ pub fn run(a: Args) -> ExitCode {
     }
 }
 
-fn import(a: &ImportArgs) -> Result<String, String> {
+fn import(a: &ImportArgs) -> Result<String, crate::Error> {
     if a.out.exists() && !a.force {
-        return Err(format!(
-            "{}: exists (give --force to replace it)",
-            a.out.display()
-        ));
+        return Err(format!("{}: exists (give --force to replace it)", a.out.display()).into());
     }
     let crs = Crs::parse(&a.crs)?;
     let base = a

@@ -177,16 +177,16 @@ impl Board {
     }
 
     /// Parse and check; errors name the key.
-    pub fn from_toml(text: &str) -> Result<Self, String> {
+    pub fn from_toml(text: &str) -> Result<Self, crate::Error> {
         let b: Board = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
         b.check()?;
         Ok(b)
     }
 
     /// Read a board file.
-    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
+        Self::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()).into())
     }
 
     /// `text` (a board file) with its `[mount]` set to `m`, written in full (the shortest
@@ -199,7 +199,7 @@ impl Board {
         text: &str,
         m: &super::MountDegM,
         notes: &[String],
-    ) -> Result<String, String> {
+    ) -> Result<String, crate::Error> {
         if m.boresight_deg
             .iter()
             .chain(&m.lever_arm_m)
@@ -248,7 +248,8 @@ impl Board {
                     if !line[..code_len].contains(']') {
                         return Err(format!(
                             "[mount] {key}: its array spans lines; write it on one line first"
-                        ));
+                        )
+                        .into());
                     }
                     let indent = &line[..line.len() - line.trim_start().len()];
                     let comment = line[code_len..].to_string();
@@ -274,8 +275,8 @@ impl Board {
         Ok(out)
     }
 
-    fn check(&self) -> Result<(), String> {
-        let bad = |k: &str, why: &str| Err(format!("{k}: {why}"));
+    fn check(&self) -> Result<(), crate::Error> {
+        let bad = |k: &str, why: &str| Err(format!("{k}: {why}").into());
         if !(0..=100).contains(&self.leap_seconds) {
             return bad("leap_seconds", "expected 0..=100");
         }
@@ -412,39 +413,50 @@ mod tests {
         assert!(
             Board::from_toml(&t.replace("baud = 921600", "baud = 921600\nparity = 1"))
                 .unwrap_err()
+                .to_string()
                 .contains("unknown field `parity`")
         );
         assert_eq!(
-            Board::from_toml(&t.replace("baud = 921600", "baud = 1000")).unwrap_err(),
+            Board::from_toml(&t.replace("baud = 921600", "baud = 1000"))
+                .unwrap_err()
+                .to_string(),
             "ins.baud: expected a VN-200 rate (9600 .. 921600)"
         );
         assert_eq!(
             Board::from_toml(&t.replace("position_port = 8308", "position_port = 2368"))
-                .unwrap_err(),
+                .unwrap_err()
+                .to_string(),
             "lidar.data_port: ports must be non-zero and differ"
         );
         assert_eq!(
-            Board::from_toml(&t.replace("\"Position\", ", "")).unwrap_err(),
+            Board::from_toml(&t.replace("\"Position\", ", ""))
+                .unwrap_err()
+                .to_string(),
             "ins.fields: Position is needed for a pose"
         );
         assert_eq!(
             Board::from_toml(&t.replace("bind_addr = \"0.0.0.0\"", "bind_addr = \"lidar-host\""))
-                .unwrap_err(),
+                .unwrap_err()
+                .to_string(),
             "lidar.bind_addr: expected an IPv4 address"
         );
         // Without a bind address: any (broadcast and unicast).
         let b = Board::from_toml(&t.replace("bind_addr = \"0.0.0.0\"", "")).unwrap();
         assert_eq!(b.lidar.bind_addr, "0.0.0.0");
         assert_eq!(
-            Board::from_toml(&t.replace("rate_hz = 200", "rate_hz = 300")).unwrap_err(),
+            Board::from_toml(&t.replace("rate_hz = 200", "rate_hz = 300")).unwrap_err().to_string(),
             "ins.rate_hz: the VN-200 divides its 800 Hz: expected 800 / an integer (400, 200, 100, 50, 40 ...)"
         );
         assert_eq!(
-            Board::from_toml(&t.replace("port = 1 ", "port = 3 ")).unwrap_err(),
+            Board::from_toml(&t.replace("port = 1 ", "port = 3 "))
+                .unwrap_err()
+                .to_string(),
             "ins.port: expected the VN-200's serial port 1 or 2"
         );
         assert_eq!(
-            Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\"")).unwrap_err(),
+            Board::from_toml(&t.replace("kind = \"vn200\"", "kind = \"novatel\""))
+                .unwrap_err()
+                .to_string(),
             "ins.kind: expected vn200, posmv or sbet"
         );
     }

@@ -13,6 +13,13 @@ impl std::fmt::Display for ScenarioError {
 
 impl std::error::Error for ScenarioError {}
 
+/// A scenario that cannot be used is bad input.
+impl From<ScenarioError> for crate::Error {
+    fn from(e: ScenarioError) -> Self {
+        Self::bad_input(e.0)
+    }
+}
+
 /// `Err(key: why)` unless `ok`.
 pub(crate) fn check(ok: bool, key: &str, why: &str) -> Result<(), ScenarioError> {
     if ok {

@@ -37,7 +37,7 @@ const WGS84: &str = "+proj=longlat +datum=WGS84 +no_defs";
 
 impl Crs {
     /// `EPSG:n` (or `n`).
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, crate::Error> {
         let t = s.trim();
         let digits = t
             .strip_prefix("EPSG:")
@@ -70,9 +70,9 @@ impl Crs {
     }
 
     /// The CRS with EPSG code `code`.
-    pub fn epsg(code: u16) -> Result<Self, String> {
+    pub fn epsg(code: u16) -> Result<Self, crate::Error> {
         if let Some(why) = Self::not_horizontal(code) {
-            return Err(why);
+            return Err(why.into());
         }
         let def = crs_definitions::from_code(code).ok_or_else(|| {
             format!("EPSG:{code}: not a CRS this build knows (a geographic or projected CRS of the EPSG dataset)")
@@ -82,7 +82,8 @@ impl Crs {
         if proj.is_geocent() {
             return Err(format!(
                 "EPSG:{code}: a geocentric CRS; give a geographic or projected one"
-            ));
+            )
+            .into());
         }
         let wgs84 = Proj::from_proj_string(WGS84).map_err(|e| format!("WGS84: {e}"))?;
         // The same datum, as longitude and latitude: the CRS's datum parameters, nothing else.
@@ -119,9 +120,9 @@ impl Crs {
 
     /// (x, y) in this CRS -> latitude, longitude [deg] on its own datum (no datum shift); `h`
     /// passes through.
-    pub fn to_geographic(&self, x: f64, y: f64, h: f64) -> Result<(f64, f64, f64), String> {
+    pub fn to_geographic(&self, x: f64, y: f64, h: f64) -> Result<(f64, f64, f64), crate::Error> {
         if ![x, y, h].iter().all(|v| v.is_finite()) {
-            return Err(format!("EPSG:{}: ({x}, {y}, {h}) is not finite", self.code));
+            return Err(format!("EPSG:{}: ({x}, {y}, {h}) is not finite", self.code).into());
         }
         if self.is_geographic() {
             return if y.abs() <= 90.0 && x.abs() <= 360.0 {
@@ -130,7 +131,8 @@ impl Crs {
                 Err(format!(
                     "EPSG:{}: ({x}, {y}) is not a longitude, latitude",
                     self.code
-                ))
+                )
+                .into())
             };
         }
         let mut p = (x, y, 0.0);
@@ -141,13 +143,19 @@ impl Crs {
             return Err(format!(
                 "EPSG:{}: ({x}, {y}) is outside the projection's domain",
                 self.code
-            ));
+            )
+            .into());
         }
         Ok((lat, lon, h))
     }
 
     /// Latitude, longitude [deg] on this CRS's datum -> (x, y) in it; `h` passes through.
-    pub fn from_geographic(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), String> {
+    pub fn from_geographic(
+        &self,
+        lat: f64,
+        lon: f64,
+        h: f64,
+    ) -> Result<(f64, f64, f64), crate::Error> {
         if self.is_geographic() {
             return Ok((lon, lat, h));
         }
@@ -164,9 +172,9 @@ impl Crs {
 
     /// (x, y) in this CRS and an ellipsoidal height on its datum -> WGS84 latitude, longitude
     /// [deg] and ellipsoidal height [m].
-    pub fn to_wgs84(&self, x: f64, y: f64, h: f64) -> Result<(f64, f64, f64), String> {
+    pub fn to_wgs84(&self, x: f64, y: f64, h: f64) -> Result<(f64, f64, f64), crate::Error> {
         if ![x, y, h].iter().all(|v| v.is_finite()) {
-            return Err(format!("EPSG:{}: ({x}, {y}, {h}) is not finite", self.code));
+            return Err(format!("EPSG:{}: ({x}, {y}, {h}) is not finite", self.code).into());
         }
         let mut p = if self.is_geographic() {
             (x.to_radians(), y.to_radians(), h)
@@ -180,14 +188,15 @@ impl Crs {
             return Err(format!(
                 "EPSG:{}: ({x}, {y}) is outside the projection's domain",
                 self.code
-            ));
+            )
+            .into());
         }
         Ok((lat, lon, h))
     }
 
     /// WGS84 latitude, longitude [deg], ellipsoidal height [m] -> (x, y) in this CRS and the
     /// ellipsoidal height on its datum.
-    pub fn from_wgs84(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), String> {
+    pub fn from_wgs84(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), crate::Error> {
         let mut p = (lon.to_radians(), lat.to_radians(), h);
         proj4rs::transform::transform(&self.wgs84, &self.proj, &mut p)
             .map_err(|e| format!("EPSG:{}: ({lat}, {lon}): {e}", self.code))?;
@@ -260,7 +269,7 @@ pub enum Undulation {
 
 impl Undulation {
     /// N at latitude, longitude [deg] on the CRS's datum.
-    pub fn at(&self, lat: f64, lon: f64) -> Result<f64, String> {
+    pub fn at(&self, lat: f64, lon: f64) -> Result<f64, crate::Error> {
         match self {
             Undulation::None => Ok(0.0),
             Undulation::Constant(n) => Ok(*n),
@@ -269,6 +278,7 @@ impl Undulation {
                     "({lat:.6}, {lon:.6}) is outside the geoid grid {} (or beside its holes)",
                     g.path.display()
                 )
+                .into()
             }),
         }
     }
@@ -277,7 +287,7 @@ impl Undulation {
 impl SiteCrs {
     /// The heights' undulation, the grid read from `base` (the site file's folder); refused:
     /// orthometric heights without a geoid, a geoid with ellipsoidal heights, both N and a grid.
-    pub fn undulation(&self, base: &std::path::Path) -> Result<Undulation, String> {
+    pub fn undulation(&self, base: &std::path::Path) -> Result<Undulation, crate::Error> {
         match (self.height, self.geoid_undulation_m, &self.geoid_grid) {
             (HeightSystem::Ellipsoidal, None, None) => Ok(Undulation::None),
             (HeightSystem::Ellipsoidal, _, _) => Err(
@@ -294,7 +304,7 @@ impl SiteCrs {
                 let path = base.join(g);
                 super::geoid::Geoid::load(&path)
                     .map(|g| Undulation::Grid(Box::new(g)))
-                    .map_err(|e| format!("crs.geoid_grid: {e}"))
+                    .map_err(|e| format!("crs.geoid_grid: {e}").into())
             }
             (HeightSystem::Orthometric, Some(_), Some(_)) => {
                 Err("crs: give geoid_undulation_m or geoid_grid, not both".into())
@@ -314,7 +324,7 @@ impl SiteCrs {
         x: f64,
         y: f64,
         height: f64,
-    ) -> Result<(f64, f64, f64), String> {
+    ) -> Result<(f64, f64, f64), crate::Error> {
         let (lat, lon, _) = crs.to_geographic(x, y, 0.0)?;
         Ok((lat, lon, height + n.at(lat, lon)?))
     }
@@ -346,9 +356,18 @@ mod tests {
         assert!(c.is_geographic());
         let (lat, lon, _) = c.to_wgs84(-4.49, 48.38, 0.0).unwrap();
         assert!((lat - 48.38).abs() < 1e-12 && (lon + 4.49).abs() < 1e-12);
-        assert!(Crs::parse("EPSG:1").unwrap_err().contains("EPSG:1"));
-        assert!(Crs::parse("UTM30").unwrap_err().contains("EPSG:<code>"));
-        assert!(Crs::parse("EPSG:4978").unwrap_err().contains("geocentric"));
+        assert!(Crs::parse("EPSG:1")
+            .unwrap_err()
+            .to_string()
+            .contains("EPSG:1"));
+        assert!(Crs::parse("UTM30")
+            .unwrap_err()
+            .to_string()
+            .contains("EPSG:<code>"));
+        assert!(Crs::parse("EPSG:4978")
+            .unwrap_err()
+            .to_string()
+            .contains("geocentric"));
         assert!(c.to_wgs84(f64::NAN, 0.0, 0.0).is_err());
     }
 
@@ -383,12 +402,17 @@ mod tests {
         assert!(none
             .undulation(here)
             .unwrap_err()
+            .to_string()
             .contains("N = 0 is never assumed"));
         let both = SiteCrs {
             geoid_grid: Some("x.gtx".into()),
             ..s.clone()
         };
-        assert!(both.undulation(here).unwrap_err().contains("not both"));
+        assert!(both
+            .undulation(here)
+            .unwrap_err()
+            .to_string()
+            .contains("not both"));
         let stray = SiteCrs {
             height: HeightSystem::Ellipsoidal,
             ..s

@@ -118,7 +118,7 @@ impl Datum {
 
     /// The datum of the EPSG CRS `code` (geographic or projected); its link to WGS 84 may be
     /// unknown.
-    pub fn of_crs(code: u16) -> Result<Self, String> {
+    pub fn of_crs(code: u16) -> Result<Self, crate::Error> {
         let def = crs_definitions::from_code(code)
             .ok_or_else(|| format!("EPSG:{code}: not a CRS this build knows"))?;
         let (dcode, name) = datum_of_wkt(def.wkt)
@@ -137,11 +137,12 @@ impl Datum {
 
     /// By name (`WGS84`, `ETRS89`, `NAD83(CSRS)`, `ITRF2014`, ...), `EPSG:n` of a CRS (its
     /// datum) or `datum:n` (an EPSG datum code).
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, crate::Error> {
         let t = s.trim();
         let known: Vec<&str> = ALIASES.iter().map(|a| a.0).collect();
         if let Some(&(_, code)) = ALIASES.iter().find(|a| a.0.eq_ignore_ascii_case(t)) {
-            return Self::by_code(code).ok_or_else(|| format!("datum {t:?}: not in this build"));
+            return Self::by_code(code)
+                .ok_or_else(|| format!("datum {t:?}: not in this build").into());
         }
         if let Some(n) = t
             .strip_prefix("EPSG:")
@@ -152,16 +153,18 @@ impl Datum {
         }
         if let Some(n) = t.strip_prefix("datum:").and_then(|n| n.parse::<u16>().ok()) {
             return Self::by_code(n).ok_or_else(|| {
-                format!("datum:{n}: no EPSG datum with a transformation to WGS 84")
+                format!("datum:{n}: no EPSG datum with a transformation to WGS 84").into()
             });
         }
         if let Some(d) = DATUMS.iter().find(|d| d.name.eq_ignore_ascii_case(t)) {
-            return Self::by_code(d.datum).ok_or_else(|| format!("datum {t:?}: not in this build"));
+            return Self::by_code(d.datum)
+                .ok_or_else(|| format!("datum {t:?}: not in this build").into());
         }
         Err(format!(
             "datum {t:?}: expected one of {}, EPSG:<CRS code> or datum:<EPSG datum code>",
             known.join(", ")
-        ))
+        )
+        .into())
     }
 
     /// `NAD83(CSRS) (EPSG datum 6140)`.
@@ -170,14 +173,14 @@ impl Datum {
     }
 
     /// Geographic coordinates on this datum, with its transformation to WGS 84.
-    fn proj(&self) -> Result<Proj, String> {
+    fn proj(&self) -> Result<Proj, crate::Error> {
         let link = self.link.ok_or_else(|| self.unknown())?;
         let p = link.towgs84;
         let def = format!(
             "+proj=longlat {} +towgs84={},{},{},{},{},{},{} +no_defs",
             self.ellps, p[0], p[1], p[2], p[3], p[4], p[5], p[6]
         );
-        Proj::from_proj_string(&def).map_err(|e| format!("{}: {def}: {e}", self.label()))
+        Proj::from_proj_string(&def).map_err(|e| format!("{}: {def}: {e}", self.label()).into())
     }
 
     fn unknown(&self) -> String {
@@ -228,7 +231,7 @@ fn link_text(l: &DatumLink) -> String {
 impl DatumShift {
     /// From `from` to `to`: none when they are one datum, else through WGS 84 by each one's
     /// EPSG transformation; refused when either has none.
-    pub fn between(from: &Datum, to: &Datum) -> Result<Self, String> {
+    pub fn between(from: &Datum, to: &Datum) -> Result<Self, crate::Error> {
         if from.code == to.code {
             return Ok(Self {
                 from: from.clone(),
@@ -254,7 +257,7 @@ impl DatumShift {
     }
 
     /// Latitude, longitude [deg], ellipsoidal height [m] on `from` -> on `to`.
-    pub fn apply(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), String> {
+    pub fn apply(&self, lat: f64, lon: f64, h: f64) -> Result<(f64, f64, f64), crate::Error> {
         let Some((a, b)) = &self.projs else {
             return Ok((lat, lon, h));
         };

@@ -27,10 +27,10 @@ const NO_DATA: f32 = -88.8888;
 
 impl Geoid {
     /// Read a GTX file; errors name the file and what is wrong.
-    pub fn load(path: &Path) -> Result<Self, String> {
+    pub fn load(path: &Path) -> Result<Self, crate::Error> {
         let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
         Self::parse(&b)
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|e| format!("{}: {e}", path.display()).into())
             .map(|mut g| {
                 g.path = path.to_path_buf();
                 g
@@ -38,12 +38,11 @@ impl Geoid {
     }
 
     /// A GTX file's bytes.
-    pub fn parse(b: &[u8]) -> Result<Self, String> {
+    pub fn parse(b: &[u8]) -> Result<Self, crate::Error> {
         if b.len() < 40 {
-            return Err(format!(
-                "{} bytes: not a GTX geoid grid (its header is 40)",
-                b.len()
-            ));
+            return Err(
+                format!("{} bytes: not a GTX geoid grid (its header is 40)", b.len()).into(),
+            );
         }
         let f = |i: usize| f64::from_be_bytes(b[i..i + 8].try_into().unwrap_or([0; 8]));
         let n = |i: usize| i32::from_be_bytes(b[i..i + 4].try_into().unwrap_or([0; 4]));
@@ -59,7 +58,7 @@ impl Geoid {
         if !ok {
             return Err(format!(
                 "not a GTX geoid grid (header: south {south}, west {west}, steps {dlat} x {dlon} deg, {rows} x {cols})"
-            ));
+            ).into());
         }
         let (rows, cols) = (rows as usize, cols as usize);
         let need = 40 + 4 * rows * cols;
@@ -67,7 +66,8 @@ impl Geoid {
             return Err(format!(
                 "a GTX header for {rows} x {cols} values needs {need} bytes, the file has {}",
                 b.len()
-            ));
+            )
+            .into());
         }
         let n = b[40..]
             .chunks_exact(4)
@@ -166,6 +166,9 @@ mod tests {
         assert!(Geoid::parse(&[0u8; 12]).is_err());
         let mut bad = gtx_bytes(46.0, 288.0, [0.5, 1.0], 3, &n);
         bad.pop();
-        assert!(Geoid::parse(&bad).unwrap_err().contains("needs 88 bytes"));
+        assert!(Geoid::parse(&bad)
+            .unwrap_err()
+            .to_string()
+            .contains("needs 88 bytes"));
     }
 }

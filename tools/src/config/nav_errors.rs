@@ -121,7 +121,7 @@ pub struct CorrelatedSpec {
 impl CorrelatedSpec {
     /// The model in the core's units, checked: `Err(key: why)`. `key` is the table's path
     /// (`ins.correlated`).
-    pub fn resolve(&self, key: &str) -> Result<Correlated, String> {
+    pub fn resolve(&self, key: &str) -> Result<Correlated, crate::Error> {
         let base = match &self.preset {
             Some(k) => Some(*preset(k).ok_or_else(|| {
                 let known: Vec<&str> = PRESETS.iter().map(|p| p.key).collect();
@@ -141,7 +141,7 @@ impl CorrelatedSpec {
             .correlation_s
             .or(base.map(|b| b.correlation_s))
             .unwrap_or(0.0);
-        let bad = |k: &str, why: &str| Err(format!("{key}.{k}: {why}"));
+        let bad = |k: &str, why: &str| Err(format!("{key}.{k}: {why}").into());
         if !pos
             .iter()
             .all(|v| v.is_finite() && (0.0..100.0).contains(v))
@@ -218,7 +218,10 @@ mod tests {
             ("position_sigma_m = [0.02, 0.05]", "correlation_s"),
             ("preset = \"apx15\"\ncorrelation_s = 0", "correlation_s"),
         ] {
-            let e = spec(text).resolve("ins.correlated").unwrap_err();
+            let e = spec(text)
+                .resolve("ins.correlated")
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(says), "{text}: {e}");
         }
         assert!(toml::from_str::<CorrelatedSpec>("sigma = 1").is_err());

@@ -150,7 +150,7 @@ pub struct Site {
 
 impl Site {
     /// Read and check a site file; errors name the file and the key.
-    pub fn load(path: &std::path::Path) -> Result<Self, String> {
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut s: Site = toml::from_str(&text)
             .map_err(|e| format!("{}: {}", path.display(), e.to_string().trim()))?;
@@ -177,7 +177,7 @@ impl Site {
     pub fn in_datum(
         &self,
         to: &super::datum::Datum,
-    ) -> Result<(Site, super::datum::DatumShift), String> {
+    ) -> Result<(Site, super::datum::DatumShift), crate::Error> {
         let shift = super::datum::DatumShift::between(&self.datum(), to)?;
         let mut s = self.clone();
         let o = &mut s.origin;
@@ -194,7 +194,7 @@ impl Site {
     /// Compute each sphere's centre on the datum of `[crs]` from its surveyed coordinates
     /// (checking any latitude, longitude, height also given against them); without `[crs]`,
     /// surveyed coordinates are refused. Resolves the site's datum.
-    pub fn resolve(&mut self) -> Result<(), String> {
+    pub fn resolve(&mut self) -> Result<(), crate::Error> {
         let crs = match &self.crs {
             Some(c) => Some((c, Crs::epsg(c.epsg).map_err(|e| format!("crs.epsg: {e}"))?)),
             None => None,
@@ -213,7 +213,7 @@ impl Site {
                         n.label(),
                         c.epsg,
                         own.label()
-                    ));
+                    ).into());
                 }
                 Some(own)
             }
@@ -232,9 +232,10 @@ impl Site {
                 (_, None) => {
                     return Err(format!(
                         "{key}: easting/northing/height_m need a [crs] section (epsg, height)"
-                    ))
+                    )
+                    .into())
                 }
-                _ => return Err(format!("{key}: give all of easting, northing, height_m")),
+                _ => return Err(format!("{key}: give all of easting, northing, height_m").into()),
             };
             let (lat, lon, h) = c
                 .to_geographic(crs, &undulation, x, y, z)
@@ -247,7 +248,7 @@ impl Site {
                     return Err(format!(
                         "{key}: lat_deg/lon_deg/h_m are {d:.3} m from easting/northing/height_m in EPSG:{}; give one or the other",
                         c.epsg
-                    ));
+                    ).into());
                 }
             }
             (sp.lat_deg, sp.lon_deg, sp.h_m) = (lat, lon, h);
@@ -256,7 +257,7 @@ impl Site {
     }
 
     /// Values a calibration can use: every number finite and in its range, named by its key.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), crate::Error> {
         let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let need = |ok: bool, key: String, why: &str| {
             if ok {
@@ -297,7 +298,8 @@ impl Site {
                 return Err(format!(
                     "sphere[{i}].id: {:?} is also sphere[{k}]'s: every sphere needs its own id",
                     s.id
-                ));
+                )
+                .into());
             }
             need(
                 s.radius_m.is_finite() && s.radius_m > 0.0 && s.radius_m < 5.0,
@@ -401,7 +403,7 @@ mod tests {
             ),
         ] {
             let s: Site = toml::from_str(&GOOD.replacen(from, to, 1)).unwrap();
-            let e = s.check().unwrap_err();
+            let e = s.check().unwrap_err().to_string();
             assert!(e.starts_with(&format!("{key}: ")), "{to}: {e}");
         }
     }
@@ -414,7 +416,7 @@ mod tests {
         let s: Site = toml::from_str(&two).unwrap();
         assert_eq!(s.check(), Ok(()));
         let s: Site = toml::from_str(&two.replacen("id = \"S2\"", "id = \"S1\"", 1)).unwrap();
-        let e = s.check().unwrap_err();
+        let e = s.check().unwrap_err().to_string();
         assert!(
             e.starts_with("sphere[1].id: \"S1\" is also sphere[0]'s"),
             "{e}"
@@ -423,6 +425,7 @@ mod tests {
         assert!(s
             .check()
             .unwrap_err()
+            .to_string()
             .starts_with("sphere[1].id: expected a name"));
     }
 
@@ -448,18 +451,23 @@ mod tests {
         // A WGS84 height 1 cm off the surveyed one is refused.
         let mut off = s.clone();
         off.sphere[0].h_m += 0.01;
-        let e = off.resolve().unwrap_err();
+        let e = off.resolve().unwrap_err().to_string();
         assert!(e.contains("sphere[0] (S1)") && e.contains("0.010 m"), "{e}");
         let mut no_crs: Site = toml::from_str(&base).unwrap();
         assert!(no_crs
             .resolve()
             .unwrap_err()
+            .to_string()
             .contains("need a [crs] section"));
         let partial = with_crs.replace("height_m = 3.5\n", "");
         let mut p: Site = toml::from_str(&partial).unwrap();
-        assert!(p.resolve().unwrap_err().contains("give all of"));
+        assert!(p.resolve().unwrap_err().to_string().contains("give all of"));
         let bad = with_crs.replace("epsg = 32630", "epsg = 1");
         let mut b: Site = toml::from_str(&bad).unwrap();
-        assert!(b.resolve().unwrap_err().starts_with("crs.epsg: EPSG:1"));
+        assert!(b
+            .resolve()
+            .unwrap_err()
+            .to_string()
+            .starts_with("crs.epsg: EPSG:1"));
     }
 }

@@ -50,7 +50,7 @@ fn column_of(word: &str) -> Option<(Col, bool)> {
 
 /// The columns a header names, in order; `None` when the line is not a header (its second
 /// field is a number).
-fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col>, String>> {
+fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col>, crate::Error>> {
     if fields.get(1).is_some_and(|s| s.parse::<f64>().is_ok()) {
         return None;
     }
@@ -61,17 +61,18 @@ fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col
                 if geo && !geographic {
                     return Some(Err(format!(
                         "the header says {f:?} but EPSG:{epsg} is projected (easting, northing): give the geographic CRS of the survey (e.g. EPSG:4326) or its projected coordinates"
-                    )));
+                    ).into()));
                 }
                 if cols.contains(&c) {
-                    return Some(Err(format!("the header names {f:?}'s column twice")));
+                    return Some(Err(format!("the header names {f:?}'s column twice").into()));
                 }
                 cols.push(c);
             }
             None => {
                 return Some(Err(format!(
                 "header column {f:?}: expected id, easting/northing (or lon/lat), height, radius"
-            )))
+            )
+                .into()))
             }
         }
     }
@@ -85,7 +86,8 @@ fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col
                     Col::Y => "northing (or latitude)",
                     _ => "height",
                 }
-            )));
+            )
+            .into()));
         }
     }
     Some(Ok(cols))
@@ -99,7 +101,11 @@ pub const SITE_EXTENT_M: f64 = 2_000.0;
 /// a header that names unknown, missing or geographic columns for a projected CRS; a point
 /// outside the CRS's area of use (a wrong CRS, swapped columns); a sphere farther than
 /// [`SITE_EXTENT_M`] from the others' middle; fewer than two spheres.
-pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, String), String> {
+pub fn import_csv(
+    text: &str,
+    name: &str,
+    o: &ImportOptions,
+) -> Result<(Site, String), crate::Error> {
     let crs = Crs::epsg(o.crs.epsg)?;
     let undulation = o.crs.undulation(&o.base)?;
     let area = super::datum::area_of_use(crs.code);
@@ -116,7 +122,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
         (Col::Radius, _) => "radius",
     };
     for (i, raw) in text.lines().enumerate() {
-        let at = |why: String| format!("{name}:{}: {why}", i + 1);
+        let at = |why: String| crate::Error::bad_input(format!("{name}:{}: {why}", i + 1));
         let line = raw.split('#').next().unwrap_or("").trim();
         if line.is_empty() {
             continue;
@@ -128,7 +134,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
                     cols = Some(c);
                     continue;
                 }
-                Some(Err(e)) => return Err(at(e)),
+                Some(Err(e)) => return Err(at(e.to_string())),
                 None => {
                     let mut c = vec![Col::Id, Col::X, Col::Y, Col::Height];
                     if f.len() == 5 {
@@ -149,7 +155,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
             )));
         }
         let get = |k: Col| c.iter().position(|x| *x == k).map(|p| f[p]);
-        let num = |k: Col| -> Result<Option<f64>, String> {
+        let num = |k: Col| -> Result<Option<f64>, crate::Error> {
             match get(k) {
                 None => Ok(None),
                 Some(s) => s
@@ -178,7 +184,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
         let (lat, lon, h_ell) = o
             .crs
             .to_geographic(&crs, &undulation, x, y, h)
-            .map_err(at)?;
+            .map_err(|e| at(e.to_string()))?;
         if let Some([w, so, e, n]) = area {
             // A little beyond the edge is fine (a quay on a zone's border).
             let tol = 0.5;
@@ -203,7 +209,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
         return Err(format!(
             "{name}: {} sphere row(s): a calibration needs at least two spheres (one cannot fix the rotation about the line to it)",
             spheres.len()
-        ));
+        ).into());
     }
     // The middle (median latitude and longitude) and each sphere's distance from it.
     let median = |mut v: Vec<f64>| {
@@ -227,7 +233,7 @@ pub fn import_csv(text: &str, name: &str, o: &ImportOptions) -> Result<(Site, St
                 s.id,
                 far / 1e3,
                 SITE_EXTENT_M / 1e3
-            ));
+            ).into());
         }
     }
     let n = spheres.len() as f64;
@@ -307,7 +313,9 @@ mod tests {
             radius_m: None,
             ..o
         };
-        let e = import_csv(csv, "q.csv", &no_default).unwrap_err();
+        let e = import_csv(csv, "q.csv", &no_default)
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("q.csv:1: no radius column"), "{e}");
     }
 
@@ -337,7 +345,9 @@ mod tests {
             (c.sphere[0].lat_deg - 46.8).abs() < 1e-12
                 && (c.sphere[0].lon_deg + 71.2).abs() < 1e-12
         );
-        let e = import_csv("id,lat,lon,h\nS1,46.8,-71.2,10\n", "q", &o).unwrap_err();
+        let e = import_csv("id,lat,lon,h\nS1,46.8,-71.2,10\n", "q", &o)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("EPSG:32630 is projected"), "{e}");
     }
 
@@ -376,7 +386,7 @@ mod tests {
                 "outside EPSG:32630's area of use",
             ),
         ] {
-            let e = import_csv(csv, "q.csv", &o).unwrap_err();
+            let e = import_csv(csv, "q.csv", &o).unwrap_err().to_string();
             assert!(e.contains(want), "{csv:?}: {e}");
         }
     }

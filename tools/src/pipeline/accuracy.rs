@@ -55,7 +55,7 @@ pub struct AccuracyReport {
 impl Accuracy {
     /// Read an smrmsg file whose times are seconds of GPS week `week` (a rollover to the next
     /// week within the file is followed).
-    pub fn load(path: &Path, week: u16) -> Result<Self, String> {
+    pub fn load(path: &Path, week: u16) -> Result<Self, crate::Error> {
         let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
         let f = std::fs::File::open(path).map_err(|e| err(&e))?;
         let mut rd = SmrmsgReader::new(std::io::BufReader::new(f));
@@ -83,7 +83,8 @@ impl Accuracy {
             return Err(err(&format_args!(
                 "no valid smrmsg record in {} records ({} bytes left over)",
                 rd.records, rd.trailing
-            )));
+            ))
+            .into());
         }
         Ok(out)
     }

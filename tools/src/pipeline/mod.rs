@@ -138,7 +138,7 @@ impl Inputs {
 /// The model to decode the captures of `inp` as: the one given, else what the first capture's
 /// data packets say (product byte checked against period: [`crate::decode::identify_file`]);
 /// Err, naming the file, byte and `--model`, when they cannot be trusted. None: no data packet.
-pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, String> {
+pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
     if let Some(m) = inp.model {
         return Ok(Some((m, "given with --model".into())));
     }
@@ -146,7 +146,7 @@ pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, String> {
     let Some(first) = files.first() else {
         return Ok(None);
     };
-    crate::decode::identify_file(first, inp.ports).map_err(|e| e.to_string())
+    crate::decode::identify_file(first, inp.ports).map_err(|e| e.to_string().into())
 }
 
 /// A batch of one sphere's observations.
@@ -350,7 +350,7 @@ impl RunStats {
 pub fn trajectory_datum(
     ins: &InsInput,
     declared: Option<&str>,
-) -> Result<(crate::config::datum::Datum, &'static str), String> {
+) -> Result<(crate::config::datum::Datum, &'static str), crate::Error> {
     use crate::config::datum::Datum;
     if let Some(d) = declared {
         return Ok((Datum::parse(d)?, "--trajectory-datum"));
@@ -373,7 +373,7 @@ pub fn site_in_trajectory_datum(
     site: &Site,
     ins: &InsInput,
     declared: Option<&str>,
-) -> Result<(Site, String), String> {
+) -> Result<(Site, String), crate::Error> {
     let (to, why) = trajectory_datum(ins, declared)?;
     let (s, shift) = site.in_datum(&to)?;
     let mut line = if shift.is_identity() {

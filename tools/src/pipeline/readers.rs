@@ -105,24 +105,26 @@ pub enum InsFile {
 
 impl InsFile {
     /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
-    pub fn open(ins: &InsInput, pcap: &Files, leap: i64) -> Result<Self, String> {
+    pub fn open(ins: &InsInput, pcap: &Files, leap: i64) -> Result<Self, crate::Error> {
         match ins {
             InsInput::Vn200(p) => {
                 if let Some(d) = p.0.iter().find(|p| p.is_dir()) {
                     return Err(format!(
                         "{}: a folder; give the INS file or a pattern (e.g. DIR/*-ins-*.vnlog)",
                         d.display()
-                    ));
+                    )
+                    .into());
                 }
                 FileChain::open(p.expand()?)
                     .map(Self::Vn200)
-                    .map_err(|e| e.to_string())
+                    .map_err(|e| e.to_string().into())
             }
             InsInput::Posmv(p, week, group) => {
                 if ![1, 102, 103].contains(group) {
                     return Err(format!(
                         "POS MV group {group}: poses come from group 1, 102 or 103"
-                    ));
+                    )
+                    .into());
                 }
                 let week = week.or_else(|| week_from_capture(pcap, leap));
                 Ok(Self::Posmv(p.expand()?, week, *group))
@@ -143,7 +145,7 @@ impl InsFile {
 }
 
 /// The first valid record's time of week of an SBET file (+inf when it has none).
-fn first_tow(p: &Path) -> Result<f64, String> {
+fn first_tow(p: &Path) -> Result<f64, crate::Error> {
     let f = std::fs::File::open(p).map_err(|e| format!("{}: {e}", p.display()))?;
     let mut rd = SbetReader::new(std::io::BufReader::new(f));
     Ok(rd
@@ -154,7 +156,7 @@ fn first_tow(p: &Path) -> Result<f64, String> {
 
 /// The GPS week of a POSPac file (SBET, smrmsg: their times are seconds of week): `week` if
 /// given, else the capture's RMC date.
-pub fn sbet_week(week: Option<u16>, pcap: &Files, leap: i64) -> Result<u16, String> {
+pub fn sbet_week(week: Option<u16>, pcap: &Files, leap: i64) -> Result<u16, crate::Error> {
     match week {
         Some(w) => Ok(w),
         None => week_from_capture(pcap, leap).ok_or_else(|| {
@@ -162,6 +164,7 @@ pub fn sbet_week(week: Option<u16>, pcap: &Files, leap: i64) -> Result<u16, Stri
                 "{}: no RMC date in the capture to date the SBET; give --gps-week",
                 pcap.display()
             )
+            .into()
         }),
     }
 }
@@ -214,7 +217,7 @@ pub fn ins_file_reader(
     max_gap_ns: i64,
     leap_seconds: i64,
     out: &mut InsRing<'_, '_>,
-) -> Result<(InsState, Vec<u8>), String> {
+) -> Result<(InsState, Vec<u8>), crate::Error> {
     match src {
         InsFile::Vn200(mut file) => {
             let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap_ns);
@@ -494,7 +497,7 @@ pub struct Files(pub Vec<PathBuf>);
 impl Files {
     /// Every file named: each entry through [`expand_files`], in the order given, each file
     /// once.
-    pub fn expand(&self) -> Result<Vec<PathBuf>, String> {
+    pub fn expand(&self) -> Result<Vec<PathBuf>, crate::Error> {
         let mut out: Vec<PathBuf> = Vec::new();
         for p in &self.0 {
             for f in expand_files(p)? {
@@ -552,7 +555,7 @@ impl From<Vec<PathBuf>> for Files {
 /// The files `path` names: itself; a folder's `.pcap`/`.pcapng` files; or, with `*` or `?` in
 /// its file name, the files of its folder that match (the rig's rotated logs:
 /// `logs/20261122T084638Z-lidar-*.pcap`). Sorted by name; none is an error.
-pub fn expand_files(path: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn expand_files(path: &Path) -> Result<Vec<PathBuf>, crate::Error> {
     let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
     let (dir, pattern) = if name.contains(['*', '?']) {
         (path.parent().unwrap_or(Path::new(".")), Some(name))
@@ -580,7 +583,7 @@ pub fn expand_files(path: &Path) -> Result<Vec<PathBuf>, String> {
         .collect();
     out.sort();
     if out.is_empty() {
-        return Err(format!("{}: no file matches", path.display()));
+        return Err(format!("{}: no file matches", path.display()).into());
     }
     Ok(out)
 }
@@ -599,8 +602,8 @@ fn glob_match(pat: &[u8], name: &[u8]) -> bool {
 }
 
 /// The capture(s) `path` names (see [`expand_files`]) as one source in time order.
-pub fn open_captures(files: &Files) -> Result<PcapChain, String> {
-    PcapChain::open(&files.expand()?).map_err(|e| e.to_string())
+pub fn open_captures(files: &Files) -> Result<PcapChain, crate::Error> {
+    PcapChain::open(&files.expand()?).map_err(|e| e.to_string().into())
 }
 
 /// The GPS week of the first RMC date in a capture (for SBET times).

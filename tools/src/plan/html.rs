@@ -22,7 +22,7 @@ fn heat(share: f64) -> RGBColor {
 }
 
 /// The plan from above: east to the right, north up, 1:1.
-pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
+pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
     let segs = segments(s);
     // Each segment's path, sampled every 0.5 s.
     let paths: Vec<(Segment, Vec<(f64, f64)>)> = s
@@ -173,7 +173,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, String> {
 }
 
 /// The predicted sigma of each parameter over its target (1: the target).
-pub fn sigma_svg(r: &PlanReport) -> Result<String, String> {
+pub fn sigma_svg(r: &PlanReport) -> Result<String, crate::Error> {
     let ratio: Vec<f64> = (0..P)
         .map(|i| {
             let t = if i < 3 {
@@ -237,7 +237,7 @@ fn fmt(v: Option<f64>, i: usize) -> String {
 }
 
 /// The page.
-pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, String> {
+pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
     let mut o = String::new();
     let _ = write!(
         o,

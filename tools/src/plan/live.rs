@@ -50,7 +50,7 @@ impl Live {
         rpm: f64,
         ins_rate_hz: f64,
         settings: &spherecal::calib::Settings,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, crate::Error> {
         let mut s = Scenario::load("table1-bare").map_err(|e| e.to_string())?;
         s.name = "the survey under way".into();
         s.sphere = targets
@@ -88,7 +88,11 @@ impl Live {
     /// The passes flown so far (one per span of the solution's passes, from their kept
     /// returns' platform positions and velocities) and the latest solution into the scenario;
     /// the candidates traced again when the solution moved.
-    pub fn update(&mut self, sol: &Solution, store: &[Vec<Observation>]) -> Result<(), String> {
+    pub fn update(
+        &mut self,
+        sol: &Solution,
+        store: &[Vec<Observation>],
+    ) -> Result<(), crate::Error> {
         let mut flown: Vec<(i64, i64, PassSpec)> = Vec::new();
         for p in &sol.passes {
             let v = match store.get(usize::from(p.sphere)) {

@@ -270,7 +270,7 @@ pub fn weakest_words(w: &[f64; P + 1]) -> String {
 }
 
 /// Predict a scenario's accuracy (and, with `recommend`, the changes that meet the goal).
-pub fn plan(s: &Scenario, goal: &Goal, recommend: bool) -> Result<PlanReport, String> {
+pub fn plan(s: &Scenario, goal: &Goal, recommend: bool) -> Result<PlanReport, crate::Error> {
     let t0 = std::time::Instant::now();
     let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
     let noise = PlanNoise::of(s);

@@ -83,7 +83,10 @@ impl Geometry {
 /// The returns of sphere(s) of a scenario as the pipeline would observe them (true poses,
 /// rates by central differences over 0.4 s): `(trajectory time, sphere, observation)` in time
 /// order. Traced on `threads` threads, each over its share of the packets.
-pub fn observe(s: &Scenario, threads: usize) -> Result<Vec<(f64, usize, Observation)>, String> {
+pub fn observe(
+    s: &Scenario,
+    threads: usize,
+) -> Result<Vec<(f64, usize, Observation)>, crate::Error> {
     let cfg = {
         let mut c = s.lidar_config();
         // The geometry: ideal beams, nothing lost (drops scale the information instead).
@@ -102,7 +105,6 @@ pub fn observe(s: &Scenario, threads: usize) -> Result<Vec<(f64, usize, Observat
         let (first, end) = (0, probe.packet_at(world.trajectory.duration()));
         let threads = threads.clamp(1, 8);
         let step = (end.saturating_sub(first)).div_ceil(threads as u64).max(1);
-        let mut parts: Vec<Vec<(f64, usize, Observation)>> = Vec::new();
         std::thread::scope(|sc| {
             let handles: Vec<_> = (0..threads as u64)
                 .map(|k| {
@@ -110,13 +112,12 @@ pub fn observe(s: &Scenario, threads: usize) -> Result<Vec<(f64, usize, Observat
                     sc.spawn(move || observe_packets(world, cfg, a, b, n_spheres))
                 })
                 .collect();
-            for h in handles {
-                parts.push(h.join().unwrap_or_default());
-            }
-        });
-        parts.concat()
-    })
-    .map_err(|e| e.to_string())
+            let parts: Option<Vec<_>> = handles.into_iter().map(|h| h.join().ok()).collect();
+            parts
+                .map(|p| p.concat())
+                .ok_or_else(|| crate::Error::internal("a planner's tracing thread panicked"))
+        })
+    })?
 }
 
 /// The sphere returns of data packets `first..end`.
@@ -192,7 +193,7 @@ pub fn targets_of_scenario(s: &Scenario) -> Vec<Target> {
 }
 
 /// Trace a scenario into per-segment, per-sphere information.
-pub fn geometry(s: &Scenario, noise: &PlanNoise, threads: usize) -> Result<Geometry, String> {
+pub fn geometry(s: &Scenario, noise: &PlanNoise, threads: usize) -> Result<Geometry, crate::Error> {
     let obs = observe(s, threads)?;
     Ok(geometry_of(s, noise, &obs, segments(s)))
 }

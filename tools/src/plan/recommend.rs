@@ -238,7 +238,7 @@ fn pass_info(
     noise: &PlanNoise,
     p: &PassSpec,
     threads: usize,
-) -> Result<(Info, Vec<i64>), String> {
+) -> Result<(Info, Vec<i64>), crate::Error> {
     let t = with_passes(s, vec![p.clone()]);
     let obs = observe(&t, threads)?;
     let g = geometry_of(&t, noise, &obs, segments(&t));
@@ -321,7 +321,7 @@ pub fn candidate_pass_infos(
     s: &Scenario,
     noise: &PlanNoise,
     threads: usize,
-) -> Result<Vec<PassCandidate>, String> {
+) -> Result<Vec<PassCandidate>, crate::Error> {
     let turn = s.trajectory.turn_s;
     let mut out = Vec::new();
     for p in candidate_passes(s) {
@@ -352,7 +352,7 @@ pub fn recommend(
     g: &Geometry,
     goal: &Goal,
     threads: usize,
-) -> Result<Vec<Recommendation>, String> {
+) -> Result<Vec<Recommendation>, crate::Error> {
     if s.trajectory.file.is_some() {
         return Ok(Vec::new());
     }

@@ -11,7 +11,7 @@ pub(super) fn final_from_logs(
     site: &Site,
     files: &[PathBuf],
     plan: &Plan,
-) -> Result<Option<Report>, String> {
+) -> Result<Option<Report>, crate::Error> {
     let of = |ext: &str| -> Vec<PathBuf> {
         files
             .iter()

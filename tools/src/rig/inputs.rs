@@ -23,7 +23,7 @@ pub(super) struct RigIo {
 }
 
 impl RigIo {
-    pub(super) fn open(opts: &RunOptions) -> Result<Self, String> {
+    pub(super) fn open(opts: &RunOptions) -> Result<Self, crate::Error> {
         let b = &opts.board;
         let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
         // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.

@@ -242,6 +242,19 @@ fn spawn<'s, 'e, T: Send + 's>(
         .unwrap_or_else(|e| panic!("cannot start the {name} thread: {e}"))
 }
 
+/// A worker's result; a worker that panicked is named in `panicked` (the run then fails as
+/// an internal error instead of ending with that worker's counts silently zero).
+fn joined<T: Default>(
+    h: std::thread::ScopedJoinHandle<'_, T>,
+    name: &'static str,
+    panicked: &mut Vec<&'static str>,
+) -> T {
+    h.join().unwrap_or_else(|_| {
+        panicked.push(name);
+        T::default()
+    })
+}
+
 /// Counts a reader out however it ends (the logger runs until every reader is out).
 struct ReaderGuard<'s, 'a>(&'s Shared<'a>);
 
@@ -365,9 +378,9 @@ pub fn stamp_now() -> String {
     )
 }
 
-fn parse_addr(s: &str, key: &str) -> Result<Ipv4Addr, String> {
+fn parse_addr(s: &str, key: &str) -> Result<Ipv4Addr, crate::Error> {
     s.parse()
-        .map_err(|_| format!("board: {key} = {s:?} is not an IPv4 address"))
+        .map_err(|_| format!("board: {key} = {s:?} is not an IPv4 address").into())
 }
 
 /// Run the rig until `stop` is set (by a signal) or the duration has passed. Status lines go
@@ -387,7 +400,6 @@ pub fn run(
             .map_err(|e| crate::Error::internal(format!("the rig thread: {e}")))?
             .join()
             .map_err(|_| crate::Error::internal("the rig thread panicked"))?
-            .map_err(crate::Error::from)
     })
 }
 
@@ -395,7 +407,7 @@ fn run_rig(
     opts: &RunOptions,
     console: &mut Console,
     stop: &AtomicBool,
-) -> Result<RunSummary, String> {
+) -> Result<RunSummary, crate::Error> {
     let mut io = RigIo::open(opts)?;
     // The VN-200 set up as the board says, before anything reads the port.
     if let (true, Some((dev, src))) = (opts.board.ins.configure, io.serial.as_mut()) {
@@ -425,7 +437,7 @@ fn run_rig(
         .store(io.stale_serial_bytes, Ordering::Relaxed);
     let started = Instant::now();
     let path = io.log_dir.join(format!("{}-run.json", io.stamp));
-    let mut ended = run_threads(opts, console, io, &plan, &sh, started);
+    let mut ended = run_threads(opts, console, io, &plan, &sh, started)?;
     // The final answer: the file engine over the rig's own logs, what `calibrate` gives on
     // them (the live solves work on a store pruned and rebased as the data came).
     if let Some(site) = &opts.site {
@@ -445,7 +457,7 @@ fn run_rig(
                 }
                 if let Some(p) = &opts.report {
                     if let Err(e) = crate::report::write_json_atomically(p, &rep) {
-                        sh.error(e);
+                        sh.error(e.to_string());
                     }
                 }
                 ended.calibration = Some(rep);
@@ -471,7 +483,7 @@ fn run_threads(
     plan: &Plan,
     sh: &Shared<'_>,
     started: Instant,
-) -> Ended {
+) -> Result<Ended, crate::Error> {
     let mut rings = Rings::new();
     let (data_p, mut data_c) = rings.data.split();
     let (pos_p, mut pos_c) = rings.pos.split();
@@ -605,34 +617,45 @@ fn run_threads(
         }
         drop(out);
         // The position reader may still hold items; the INS reader ends with its End.
-        let skips_pos = pos.join().unwrap_or_default();
+        let mut panicked = Vec::new();
+        let skips_pos = joined(pos, "position reader", &mut panicked);
         while let Some(p) = pos_c.dequeue() {
             if let LidarPacket::Position(p) = p.packet() {
                 al.position(&p);
             }
         }
         al.drain_until_end(&mut ins_c);
-        let skips_data = data.join().unwrap_or_default();
-        let ins = ins.map(|h| h.join().unwrap_or_default());
-        let logged = logger.join().unwrap_or_default();
-        let _ = syncer.join();
+        let skips_data = joined(data, "data reader", &mut panicked);
+        let ins = ins.map(|h| joined(h, "INS reader", &mut panicked));
+        let logged = joined(logger, "logger", &mut panicked);
+        joined(syncer, "log syncer", &mut panicked);
         let ended = Ended {
             skips: [skips_data, skips_pos],
             ins: ins.unwrap_or_default(),
             logged,
-            calibration: solver.join().unwrap_or_default(),
+            calibration: joined(solver, "solver", &mut panicked),
             align: al.core.stats,
             clock: al.clock_state(),
         };
         // The last line, with the final counts and calibration.
         sh.aligned
             .store(al.core.stats.data_packets, Ordering::Relaxed);
-        if let Ok(c) = status.join() {
-            let mut last = [u64::MAX; 2];
-            if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
-                sh.error(format!("console: {e}"));
+        match status.join() {
+            Ok(c) => {
+                let mut last = [u64::MAX; 2];
+                if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
+                    sh.error(format!("console: {e}"));
+                }
             }
+            Err(_) => panicked.push("status"),
         }
-        ended
+        if panicked.is_empty() {
+            Ok(ended)
+        } else {
+            Err(crate::Error::internal(format!(
+                "the rig's {} thread panicked",
+                panicked.join(", ")
+            )))
+        }
     })
 }

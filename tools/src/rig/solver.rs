@@ -110,7 +110,7 @@ pub(super) fn solver(
         }
         if let Some(p) = report {
             if let Err(e) = crate::report::write_json_atomically(p, &rep) {
-                sh.error(e);
+                sh.error(e.to_string());
             }
         }
         rep

@@ -21,7 +21,7 @@ const NAV_ERRORS_HEADER: &str = "gps_time_s,north_m,east_m,down_m,roll_deg,pitch
 /// Only the INS files of a scenario (`ins.bin`, `ins.vnlog`; for a POS MV `ins.posmv`,
 /// `sbet_ins.out`, `smrmsg_ins.out`; with `[ins.correlated]` `nav-errors.csv`), into `dir`
 /// (created if needed): the same streams [`synth`](super::synth) writes.
-pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, String> {
+pub fn synth_ins(s: &Scenario, dir: &Path) -> Result<InsStats, crate::Error> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| {
         let mut files = Vec::new();
@@ -37,7 +37,7 @@ pub(super) fn write_ins(
     world: &World<'_>,
     dir: &Path,
     files: &mut Vec<Staged>,
-) -> Result<InsStats, String> {
+) -> Result<InsStats, crate::Error> {
     let ins_path = dir.join("ins.bin");
     let log_path = dir.join("ins.vnlog");
     let mut w = Staged::create(&ins_path)?;
@@ -104,7 +104,7 @@ pub(super) fn write_ins(
 /// per INS sample, the same samples and errors as its real-time groups; wander angle 0) and
 /// `smrmsg_ins.out` (each whole second, the per-axis sigmas the samples carry, as Group 2 states
 /// them).
-fn write_pospac(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Vec<Staged>, String> {
+fn write_pospac(s: &Scenario, world: &World<'_>, dir: &Path) -> Result<Vec<Staged>, crate::Error> {
     use spherecal_hal::sbet::{SbetRecord, SmrmsgRecord};
     let (sbet_path, rms_path) = (dir.join(SBET), dir.join(SMRMSG));
     let (mut sbet, mut rms) = (Staged::create(&sbet_path)?, Staged::create(&rms_path)?);

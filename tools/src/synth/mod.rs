@@ -92,10 +92,10 @@ pub struct Label {
 pub const LABELS_MAGIC: &[u8; 8] = b"SCLABELS";
 
 /// Read a `labels.bin`.
-pub fn read_labels(path: &Path) -> Result<Vec<Label>, String> {
+pub fn read_labels(path: &Path) -> Result<Vec<Label>, crate::Error> {
     let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     if b.len() < 16 || &b[..8] != LABELS_MAGIC || b[8..12] != 1u32.to_le_bytes() {
-        return Err(format!("{}: not a labels.bin (version 1)", path.display()));
+        return Err(format!("{}: not a labels.bin (version 1)", path.display()).into());
     }
     let body = &b[16..];
     if body.len() % 12 != 0 {
@@ -103,7 +103,8 @@ pub fn read_labels(path: &Path) -> Result<Vec<Label>, String> {
             "{}: cut inside a record at byte {}",
             path.display(),
             16 + body.len() / 12 * 12
-        ));
+        )
+        .into());
     }
     Ok(body
         .chunks_exact(12)
@@ -138,7 +139,7 @@ const SERIAL_BAUD: u32 = 921_600;
 const SERIAL_LATENCY_NS: i64 = 1_000_000;
 
 /// Simulate and write the files into `dir` (created if needed).
-pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, String> {
+pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, crate::Error> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir, None))
         .map_err(|e| e.to_string())?
@@ -184,7 +185,7 @@ impl TraceCache {
 }
 
 /// Trace a scenario's scene once (no files).
-pub fn trace(s: &Scenario) -> Result<TraceCache, String> {
+pub fn trace(s: &Scenario) -> Result<TraceCache, crate::Error> {
     s.with_world(|world| {
         let mut lidar = LidarSim::new(world, s.lidar_config());
         let mut cache = TraceCache {
@@ -201,12 +202,12 @@ pub fn trace(s: &Scenario) -> Result<TraceCache, String> {
         }
         cache
     })
-    .map_err(|e| e.to_string())
+    .map_err(crate::Error::from)
 }
 
 /// As [`synth`], with the LiDAR's echoes from `cache` (a [`trace`] of a scenario that differs
 /// from `s` at most in its seed and noise settings); the noise is `s`'s.
-pub fn synth_traced(s: &Scenario, dir: &Path, cache: &TraceCache) -> Result<Truth, String> {
+pub fn synth_traced(s: &Scenario, dir: &Path, cache: &TraceCache) -> Result<Truth, crate::Error> {
     synth_traced_written(s, dir, cache).map(|(t, _)| t)
 }
 
@@ -216,7 +217,7 @@ pub fn synth_traced_written(
     s: &Scenario,
     dir: &Path,
     cache: &TraceCache,
-) -> Result<(Truth, Vec<u32>), String> {
+) -> Result<(Truth, Vec<u32>), crate::Error> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir, Some(cache)))
         .map_err(|e| e.to_string())?
@@ -227,7 +228,7 @@ fn write_files(
     world: &World<'_>,
     dir: &Path,
     cache: Option<&TraceCache>,
-) -> Result<(Truth, Vec<u32>), String> {
+) -> Result<(Truth, Vec<u32>), crate::Error> {
     // Every file goes to its temporary first and all are renamed at the end: an interrupted
     // or failed synth leaves no file of this run, none half-written ([`crate::output`]).
     let mut files = Vec::new();
@@ -256,7 +257,7 @@ pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     v
 }
 
-fn staged_bytes(p: &Path, bytes: &[u8]) -> Result<Staged, String> {
+fn staged_bytes(p: &Path, bytes: &[u8]) -> Result<Staged, crate::Error> {
     let mut f = Staged::create(p)?;
     f.write_all(bytes).map_err(|e| io(p, e))?;
     Ok(f)
@@ -274,7 +275,7 @@ fn write_lidar(
     dir: &Path,
     cache: Option<&TraceCache>,
     files: &mut Vec<Staged>,
-) -> Result<(LidarStats, Vec<u32>), String> {
+) -> Result<(LidarStats, Vec<u32>), crate::Error> {
     let pcap_path = dir.join("lidar.pcap");
     let mut pcap = PcapWriter::new(Staged::create(&pcap_path)?)
         .map_err(|e| format!("{}: {e}", pcap_path.display()))?;
@@ -286,7 +287,8 @@ fn write_lidar(
                 s.name,
                 c.offsets.len().saturating_sub(1),
                 lidar.packet_count()
-            ));
+            )
+            .into());
         }
     }
     let mut data_k = 0usize;
@@ -319,7 +321,7 @@ fn write_lidar(
                                  next: &mut Option<(HostTime, Vec<u8>)>,
                                  pcap: &mut PcapWriter<_>,
                                  frame: &mut Vec<u8>|
-     -> Result<(), String> {
+     -> Result<(), crate::Error> {
         while let Some((h, bytes)) = next.take() {
             if until.is_some_and(|u| h > u) {
                 *next = Some((h, bytes));

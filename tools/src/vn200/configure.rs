@@ -51,13 +51,14 @@ pub struct Configured {
 }
 
 /// The binary output register 75 the board asks for.
-pub fn binary_output(ins: &InsLink) -> Result<BinaryOutput, String> {
+pub fn binary_output(ins: &InsLink) -> Result<BinaryOutput, crate::Error> {
     let bits = ins.common_bits();
     if bits.len() != ins.fields.len() {
         return Err(format!(
             "ins.fields {:?}: not all are Common-group fields",
             ins.fields
-        ));
+        )
+        .into());
     }
     let masks = bits
         .iter()
@@ -74,18 +75,18 @@ pub fn binary_output(ins: &InsLink) -> Result<BinaryOutput, String> {
 /// The port's side of a configuration: bytes both ways and the baud.
 pub trait Port: Read + Write {
     /// Change the local baud.
-    fn set_baud(&mut self, baud: u32) -> Result<(), String>;
+    fn set_baud(&mut self, baud: u32) -> Result<(), crate::Error>;
 }
 
 impl Port for Box<dyn serialport::SerialPort> {
-    fn set_baud(&mut self, baud: u32) -> Result<(), String> {
-        self.set_baud_rate(baud).map_err(|e| e.to_string())
+    fn set_baud(&mut self, baud: u32) -> Result<(), crate::Error> {
+        self.set_baud_rate(baud).map_err(|e| e.to_string().into())
     }
 }
 
 impl Port for serialport::TTYPort {
-    fn set_baud(&mut self, baud: u32) -> Result<(), String> {
-        serialport::SerialPort::set_baud_rate(self, baud).map_err(|e| e.to_string())
+    fn set_baud(&mut self, baud: u32) -> Result<(), crate::Error> {
+        serialport::SerialPort::set_baud_rate(self, baud).map_err(|e| e.to_string().into())
     }
 }
 
@@ -111,7 +112,13 @@ struct Session<'p, P: Port> {
 impl<P: Port> Session<'_, P> {
     /// Send `cmd` (`what` in words) and wait for the reply to `name` (`VNWRG`, `VNWNV`) and
     /// register `id`, skipping the unit's other output.
-    fn ask(&mut self, what: &str, cmd: &[u8], name: &str, id: Option<u8>) -> Result<Reply, String> {
+    fn ask(
+        &mut self,
+        what: &str,
+        cmd: &[u8],
+        name: &str,
+        id: Option<u8>,
+    ) -> Result<Reply, crate::Error> {
         let mut last = String::from("no answer");
         for attempt in 0..self.opts.tries.max(1) {
             if attempt > 0 {
@@ -139,11 +146,12 @@ impl<P: Port> Session<'_, P> {
             } else {
                 ""
             }
-        ))
+        )
+        .into())
     }
 
     /// The reply to `name`/`id`, or `None` after the timeout.
-    fn reply(&mut self, name: &str, id: Option<u8>) -> Result<Option<Reply>, String> {
+    fn reply(&mut self, name: &str, id: Option<u8>) -> Result<Option<Reply>, crate::Error> {
         let end = Instant::now() + self.opts.timeout;
         let mut buf = [0u8; 512];
         while Instant::now() < end {
@@ -159,7 +167,7 @@ impl<P: Port> Session<'_, P> {
                 {
                     0
                 }
-                Err(e) => return Err(format!("serial {}: {e}", self.dev)),
+                Err(e) => return Err(format!("serial {}: {e}", self.dev).into()),
             };
             let mut data = &buf[..n];
             loop {
@@ -200,19 +208,21 @@ impl<P: Port> Session<'_, P> {
         cmd: &[u8],
         id: u8,
         same: impl Fn(&str) -> bool,
-    ) -> Result<String, String> {
+    ) -> Result<String, crate::Error> {
         match self.ask(what, cmd, "VNWRG", Some(id))? {
             Reply::Register(v) if same(&v) => Ok(v),
             Reply::Register(v) => Err(format!(
                 "serial {}: {what}: the VN-200 echoed {v:?}, not what was written",
                 self.dev
-            )),
+            )
+            .into()),
             Reply::Error(code) => Err(format!(
                 "serial {}: {what}: the VN-200 refused it: $VNERR,{code:02X} ({})",
                 self.dev,
                 command::error_name(code)
-            )),
-            Reply::Saved => Err(format!("serial {}: {what}: unexpected reply", self.dev)),
+            )
+            .into()),
+            Reply::Saved => Err(format!("serial {}: {what}: unexpected reply", self.dev).into()),
         }
     }
 }
@@ -223,7 +233,7 @@ pub fn configure<P: Port>(
     dev: &str,
     ins: &InsLink,
     opts: Options,
-) -> Result<Configured, String> {
+) -> Result<Configured, crate::Error> {
     let want = binary_output(ins)?;
     let mut s = Session {
         port,
@@ -275,7 +285,8 @@ pub fn configure<P: Port>(
                 return Err(format!(
                     "serial {dev}: saving to flash: $VNERR,{code:02X} ({})",
                     command::error_name(code)
-                ))
+                )
+                .into())
             }
             Reply::Register(_) => {}
         }
@@ -294,7 +305,7 @@ pub fn configure<P: Port>(
 fn first_frames<P: Port>(
     s: &mut Session<'_, P>,
     want: &BinaryOutput,
-) -> Result<(f64, u32), String> {
+) -> Result<(f64, u32), crate::Error> {
     let end = Instant::now() + s.opts.frames_timeout;
     let mut buf = [0u8; 1024];
     let (mut n, mut t0, mut t1) = (0u32, None, None);
@@ -317,7 +328,7 @@ fn first_frames<P: Port>(
                         "serial {}: the VN-200 sends binary frames with {} after the configuration, not the board's fields (another binary output register is on?)",
                         s.dev,
                         names.join(", ")
-                    ));
+                    ).into());
                 }
                 let now = Instant::now();
                 t0.get_or_insert(now);
@@ -337,7 +348,8 @@ fn first_frames<P: Port>(
             "serial {}: no binary frame within {:.1} s of the configuration",
             s.dev,
             s.opts.frames_timeout.as_secs_f64()
-        ));
+        )
+        .into());
     }
     let secs = t1
         .zip(t0)
@@ -349,7 +361,8 @@ fn first_frames<P: Port>(
             "serial {}: binary frames at {rate:.1} Hz, the board asks {} Hz",
             s.dev,
             want.rate_hz()
-        ));
+        )
+        .into());
     }
     Ok((rate, n))
 }

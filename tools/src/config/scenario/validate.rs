@@ -207,7 +207,7 @@ impl Scenario {
         self.ins
             .correlated
             .resolve("ins.correlated")
-            .map_err(ScenarioError)?;
+            .map_err(|e| ScenarioError(e.into()))?;
         check(
             self.ins.time_offset_s.abs() < 10.0,
             "ins.time_offset_s",
