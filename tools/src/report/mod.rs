@@ -1,12 +1,14 @@
 //! The reports: a calibration's (`calibrate`, the rig after every solve, the demo) and a Monte
-//! Carlo run's, their human summaries, and writing a report file atomically (a reader never sees
-//! half of one).
+//! Carlo run's, and writing a report file atomically (a reader never sees half of one); their
+//! human summaries are in [`text`].
+
+mod text;
+pub use text::{render, render_montecarlo, termination_words, utc};
 
 use crate::pipeline::{Inputs, RunStats};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::{NAMES, P};
+use spherecal::calib::P;
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// The report's three-angle / three-axis groups.
@@ -372,14 +374,6 @@ impl Solved {
     }
 }
 
-/// A report's `termination` in words ("the rounds ended: ...").
-pub fn termination_words(name: &str) -> String {
-    spherecal::calib::Termination::from_name(name).map_or_else(
-        || format!("ended: {name}"),
-        |t| format!("ended: {}", t.words()),
-    )
-}
-
 /// One start of the time offset search.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
 pub struct SearchCandidate {
@@ -391,230 +385,6 @@ pub struct SearchCandidate {
     pub kept: usize,
     /// Their residual RMS [m].
     pub rms_m: Option<f64>,
-}
-
-/// GPS seconds as UTC, `YYYY-MM-DD hh:mm:ss UTC` (`leap`: GPS - UTC [s]).
-pub fn utc(gps_s: f64, leap: i64) -> String {
-    let unix = spherecal::time::gps_to_unix_ns(
-        spherecal::time::GpsTime((gps_s * 1e9).round() as i64),
-        leap,
-    );
-    let t = spherecal::time::UtcDateTime::from_unix_ns(unix);
-    format!(
-        "{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC",
-        t.year, t.month, t.day, t.hour, t.minute, t.second
-    )
-}
-
-/// `v` with `prec` decimals, or `-` when it is not a number (no sigma without least squares).
-fn num(v: f64, prec: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.prec$}")
-    } else {
-        "-".into()
-    }
-}
-
-/// The human summary.
-/// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
-pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
-    let mut o = String::new();
-    // A refusal comes first: the numbers below it are where the solver stopped, not a result.
-    if let Some(why) = &r.reason {
-        let _ = writeln!(
-            o,
-            "NOT CONVERGED: {why}\n(the values below are where the solver stopped, not a calibration)"
-        );
-    }
-    let (b, s) = (r.deg_m(), r.sigma.deg_m());
-    let _ = writeln!(
-        o,
-        "{:<10}{:>14}{:>12}{:>14}{}",
-        "parameter",
-        "start",
-        "solution",
-        "1-sigma",
-        if truth.is_some() {
-            "         truth      error"
-        } else {
-            ""
-        }
-    );
-    for i in 0..P {
-        let unit = if i < 3 { "deg" } else { "m" };
-        let _ = write!(
-            o,
-            "{:<10}{:>14.4}{:>12}{:>10} {unit:<3}",
-            NAMES[i],
-            r.start[NAMES[i]],
-            num(b[i], 5),
-            num(s[i], 5)
-        );
-        if let Some(t) = truth {
-            let _ = write!(o, "{:>14.4}{:>11.2e}", t[i], b[i] - t[i]);
-        }
-        let _ = writeln!(o);
-    }
-    // The time offset: INS time = LiDAR time + dt.
-    let start = r.start.get("time_offset").copied().unwrap_or(0.0);
-    if r.time_offset_estimated {
-        let _ = write!(
-            o,
-            "{:<10}{:>14.4}{:>12}{:>10} {:<3}",
-            "dt",
-            start,
-            num(r.time_offset_s, 6),
-            num(r.sigma.time_offset_s, 6),
-            "s"
-        );
-    } else {
-        let _ = write!(
-            o,
-            "{:<10}{:>14.4}{:>12.6}{:>10} {:<3}",
-            "dt", start, r.time_offset_s, "held", "s"
-        );
-    }
-    if let Some(t) = truth {
-        let _ = write!(o, "{:>14.4}{:>11.2e}", t[P], r.time_offset_s - t[P]);
-    }
-    let _ = writeln!(o);
-    let _ = writeln!(
-        o,
-        "residual RMS {} mm, L1 {} m, condition number {}, centre RMS {}",
-        num(r.rms_m * 1e3, 2),
-        num(r.objective_l1_m, 4),
-        if r.condition_number.is_finite() {
-            format!("{:.3e}", r.condition_number)
-        } else {
-            "-".into()
-        },
-        r.sphere_centre_rms_m
-            .map_or("-".into(), |c| format!("{:.2} mm", c * 1e3))
-    );
-    let c = &r.consistency;
-    // Without least squares there is no consistency test to report.
-    if c.dispersion.is_finite() {
-        let _ = writeln!(
-        o,
-        "consistency: RMS {:.2}x the {:.1} mm the noise model predicts (limit 2); worst pass chi-square {:.1} (limit 25){}",
-        c.dispersion,
-        c.predicted_rms_m * 1e3,
-        c.worst_pass_chi2,
-        c.free_time_offset_s.map_or(String::new(), |[d, sg]| format!(
-            "; time offset held, the data give {d:+.6} +- {sg:.6} s more"
-        ))
-    );
-    }
-    if let (Some(a), Some(b)) = (r.time_offset_search.first(), r.time_offset_search.last()) {
-        let found = r
-            .time_offset_search
-            .iter()
-            .filter(|c| c.found_s.is_some())
-            .count();
-        let _ = writeln!(
-            o,
-            "time offset searched from {:+.2} to {:+.2} s in 0.25 s steps ({} starts, {found} converged; a search is kept to offsets that leave half the LiDAR data within the INS's)",
-            a.start_s,
-            b.start_s,
-            r.time_offset_search.len()
-        );
-    }
-    if let Some(a) = r.inputs.as_ref().and_then(|i| i.accuracy.as_ref()) {
-        let _ = writeln!(
-            o,
-            "trajectory accuracy {}: {} returns weighted by their own INS sigma (position {:.1}-{:.1} mm, attitude {:.4}-{:.4} deg){}",
-            a.file,
-            a.returns_given,
-            a.position_sigma_m[0] * 1e3,
-            a.position_sigma_m[1] * 1e3,
-            a.attitude_sigma_deg[0],
-            a.attitude_sigma_deg[1],
-            if a.returns_outside > 0 {
-                format!("; {} outside its records use the site's noise", a.returns_outside)
-            } else {
-                String::new()
-            }
-        );
-    }
-    for p in &r.per_sphere {
-        let v = &p.verdicts;
-        if !p.found {
-            let why = match p.lost.as_deref() {
-                Some("no_returns") => "no returns in its window".to_string(),
-                Some("not_detected") => "nothing sphere-like in its window".to_string(),
-                Some("stopped") => {
-                    let _ = writeln!(
-                        o,
-                        "  {}: {} windowed returns, found by the consensus in {} of {} slices; not solved (the reason above)",
-                        p.id, p.windowed, p.agreed_slices, p.slices
-                    );
-                    continue;
-                }
-                Some("disagrees") => format!(
-                    "sphere-like returns in {} of {} slices, none where the mounting the other spheres agree on puts it (clutter, a decoy, or the sphere hidden or moved)",
-                    p.detected, p.slices
-                ),
-                _ => format!(
-                    "detected in {} of {} slices, too few returns kept",
-                    p.detected, p.slices
-                ),
-            };
-            let _ = writeln!(
-                o,
-                "  {}: NOT FOUND among {} windowed returns: {why}; left out",
-                p.id, p.windowed
-            );
-            continue;
-        }
-        let mut why = format!(
-            "{} off the sphere, {} in slices without it",
-            v.outside_shell, v.undetected
-        );
-        for (n, what) in [
-            (v.plane, "on a plane"),
-            (v.pole, "on a pole or stand"),
-            (v.hidden_side, "behind it"),
-        ] {
-            if n > 0 {
-                let _ = write!(why, ", {n} {what}");
-            }
-        }
-        let _ = writeln!(
-            o,
-            "  {}: kept {} of {} windowed returns, seen in {} of {} slices; rejected {} ({why}); RMS {:.2} mm",
-            p.id,
-            p.points,
-            p.windowed,
-            p.detected,
-            p.slices,
-            v.rejected(),
-            p.rms_after_m * 1e3
-        );
-    }
-    let _ = writeln!(
-        o,
-        "clutter rejected: {} of {} windowed returns; kept: within {:.1} mm of a sphere",
-        r.clutter_rejected,
-        r.per_sphere.iter().map(|p| p.windowed).sum::<usize>(),
-        r.shell_m * 1e3
-    );
-    if r.batch_overflow > 0 {
-        let _ = writeln!(
-            o,
-            "WARNING: {} windowed returns lost to full batches",
-            r.batch_overflow
-        );
-    }
-    let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds ({}), LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, termination_words(&r.termination), r.lm_iterations, r.solve_ms);
-    match &r.reason {
-        None => {
-            let _ = writeln!(o, "converged");
-        }
-        Some(why) => {
-            let _ = writeln!(o, "NOT CONVERGED: {why}");
-        }
-    }
-    o
 }
 
 /// What the inputs held, in the report.
@@ -727,28 +497,6 @@ pub struct McReport {
     pub runs: Vec<Trial>,
 }
 
-/// Monte Carlo in words.
-pub fn render_montecarlo(r: &McReport) -> String {
-    let mut o = format!(
-        "{}: {} trials from starts within +-{} deg / +-{} m of the truth (seed {})\nwithin 1e-3 deg / 1e-3 m: {:.1} %   claimed converged: {:.1} %   {:.1} ms per trial\nworst |error|:",
-        r.scenario,
-        r.trials,
-        r.angle_noise_deg,
-        r.lever_noise_m,
-        r.seed,
-        100.0 * r.fraction_within,
-        100.0 * r.fraction_converged,
-        r.ms_per_trial
-    );
-    for (i, (name, w)) in NAMES.iter().zip(&r.worst_error).enumerate() {
-        o.push_str(&format!(
-            " {name} {w:.2e}{}",
-            if i < 3 { " deg" } else { " m" }
-        ));
-    }
-    o.push('\n');
-    o
-}
 /// Write `value` as pretty JSON to `p` through a temporary file and a rename, so that a reader
 /// (a surveyor's viewer polling the rig's report) never sees half of one.
 pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), crate::Error> {
