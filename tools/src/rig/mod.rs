@@ -31,12 +31,14 @@ mod inputs;
 pub mod ins_watch;
 mod logger;
 mod readers;
+mod shared;
 mod solver;
 pub mod status;
 mod summary;
 pub mod watch;
 
 use inputs::{Plan, RigIo, Rings};
+use shared::{ins_name, pps_name, AlignerGuard, ReaderGuard, Shared};
 
 use heapless::spsc::{Consumer, Producer, Queue};
 use logger::{logger, syncer};
@@ -46,22 +48,20 @@ use solver::solver;
 use spherecal::calib::Params;
 use spherecal::calib::Settings;
 use spherecal::frames::LocalFrame;
-use spherecal::velodyne::PpsStatus;
 use spherecal::vn200::binary::Masks;
 use spherecal::vn200::fields::Group;
-use spherecal::vn200::pose::{ins_mode, InsMode};
 use spherecal::vn200::Item;
 use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::rawlog::{PcapLog, SerialLog};
 use spherecal_hal::serial::{RxStamp, SerialSource};
-use spherecal_hal::udp::{DropProbe, UdpSource};
+use spherecal_hal::udp::UdpSource;
 use spherecal_hal::velodyne::{Ports, SkipStats};
 use status::{show, snapshot, status_loop};
 use std::net::Ipv4Addr;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicU8, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use summary::Ended;
@@ -156,79 +156,6 @@ struct SerialChunk {
     bytes: [u8; SERIAL_CHUNK],
 }
 
-const NONE_U8: u8 = u8::MAX;
-
-/// Items dropped because a ring was full, per ring (the readers never block).
-#[derive(Default)]
-struct RingDrops {
-    data: AtomicU64,
-    position: AtomicU64,
-    ins: AtomicU64,
-    datagram_log: AtomicU64,
-    serial_log: AtomicU64,
-}
-
-impl RingDrops {
-    /// The LiDAR ring of this port's reader.
-    fn lidar(&self, port: LidarPort) -> &AtomicU64 {
-        match port {
-            LidarPort::Data => &self.data,
-            LidarPort::Position => &self.position,
-        }
-    }
-
-    /// data, position, INS, datagram log, serial log (the summary's order).
-    fn snapshot(&self) -> [u64; 5] {
-        [
-            &self.data,
-            &self.position,
-            &self.ins,
-            &self.datagram_log,
-            &self.serial_log,
-        ]
-        .map(|a| a.load(Ordering::Relaxed))
-    }
-}
-
-/// What the threads share (counters only: no locks on the packet path).
-struct Shared<'a> {
-    stop: &'a AtomicBool,
-    readers: AtomicUsize,
-    aligner_gone: AtomicBool,
-    logger_done: AtomicBool,
-    received: [AtomicU64; 2],
-    enqueued: [AtomicU64; 2],
-    kernel_drops: [AtomicU64; 2],
-    drop_probes: [DropProbe; 2],
-    ring_drops: RingDrops,
-    ins_bytes: AtomicU64,
-    pps: AtomicU8,
-    ins_mode: AtomicU8,
-    lag_ns: AtomicI64,
-    aligned: AtomicU64,
-    windowed: Vec<AtomicU64>,
-    batch_drops: AtomicU64,
-    solves: AtomicU64,
-    /// The solve under way (`r<N>`: its round N) or how the last one ended (`<how>:<rounds>`).
-    solve_state: Mutex<String>,
-    calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
-    /// The back-edge: the time offset and windows the solver tells the aligner to use.
-    steer: watch::Watch<watch::Steer>,
-    /// The latest estimate of the time offset and its sigma [s].
-    time_offset: Mutex<Option<(f64, f64)>>,
-    errors: Mutex<Vec<String>>,
-    /// What each port hears: data, position.
-    heard: [Mutex<hearing::Heard>; 2],
-    /// The verdict after the latest solve.
-    verdict: Mutex<Option<crate::verdict::Verdict>>,
-    /// Whether the INS speaks.
-    ins_watch: ins_watch::InsWatch,
-    /// Returns that got no pose so far.
-    without_pose: AtomicU64,
-    /// Warnings said on the console (run.json keeps them).
-    warnings: Mutex<Vec<String>>,
-}
-
 /// A named scoped thread (names show in `top -H` and in panics). Spawning fails only when the
 /// OS has no threads left, which ends the program as `std::thread::spawn` would.
 fn spawn<'s, 'e, T: Send + 's>(
@@ -253,120 +180,6 @@ fn joined<T: Default>(
         panicked.push(name);
         T::default()
     })
-}
-
-/// Counts a reader out however it ends (the logger runs until every reader is out).
-struct ReaderGuard<'s, 'a>(&'s Shared<'a>);
-
-impl Drop for ReaderGuard<'_, '_> {
-    fn drop(&mut self) {
-        self.0.readers.fetch_sub(1, Ordering::Release);
-    }
-}
-
-/// Set when the aligner's loop is left, by its end or by a panic: readers stop waiting to
-/// hand it their End, and (on a panic) everything stops.
-struct AlignerGuard<'s, 'a>(&'s Shared<'a>);
-
-impl Drop for AlignerGuard<'_, '_> {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            self.0.error("the aligner failed; stopping".into());
-            self.0.stop.store(true, Ordering::Relaxed);
-        }
-        self.0.aligner_gone.store(true, Ordering::Release);
-    }
-}
-
-impl<'a> Shared<'a> {
-    /// Nothing counted yet; `readers` threads to wait for, `spheres` windows, the two sockets'
-    /// kernel drop counts read through `drop_probes`.
-    fn new(
-        stop: &'a AtomicBool,
-        readers: usize,
-        spheres: usize,
-        drop_probes: [DropProbe; 2],
-        ports: Ports,
-    ) -> Self {
-        Self {
-            stop,
-            readers: AtomicUsize::new(readers),
-            aligner_gone: AtomicBool::new(false),
-            logger_done: AtomicBool::new(false),
-            received: Default::default(),
-            enqueued: Default::default(),
-            kernel_drops: Default::default(),
-            drop_probes,
-            ring_drops: Default::default(),
-            ins_bytes: AtomicU64::new(0),
-            pps: AtomicU8::new(NONE_U8),
-            ins_mode: AtomicU8::new(NONE_U8),
-            lag_ns: AtomicI64::new(i64::MIN),
-            aligned: AtomicU64::new(0),
-            windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
-            batch_drops: AtomicU64::new(0),
-            solves: AtomicU64::new(0),
-            solve_state: Mutex::new(String::new()),
-            calibration: Mutex::new(None),
-            steer: watch::Watch::new(),
-            time_offset: Mutex::new(None),
-            errors: Mutex::new(Vec::new()),
-            heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
-            verdict: Mutex::new(None),
-            ins_watch: ins_watch::InsWatch::default(),
-            without_pose: AtomicU64::new(0),
-            warnings: Mutex::new(Vec::new()),
-        }
-    }
-
-    /// Read the sockets' kernel drop counts (a closed socket keeps its last count).
-    fn poll_kernel_drops(&self) {
-        for (p, k) in self.drop_probes.iter().zip(&self.kernel_drops) {
-            if let Some(n) = p.read() {
-                k.store(n, Ordering::Relaxed);
-            }
-        }
-    }
-
-    fn error(&self, e: String) {
-        if let Ok(mut v) = self.errors.lock() {
-            v.push(e);
-        }
-    }
-
-    /// A warning said on the console, kept for run.json (the first 200).
-    fn warn(&self, w: String) {
-        if let Ok(mut v) = self.warnings.lock() {
-            if v.len() < 200 {
-                v.push(w);
-            }
-        }
-    }
-}
-
-pub(super) fn pps_name(b: u8) -> &'static str {
-    match b {
-        NONE_U8 => "none",
-        b => match PpsStatus::from(b) {
-            PpsStatus::Absent => "absent",
-            PpsStatus::Synchronizing => "syncing",
-            PpsStatus::Locked => "locked",
-            PpsStatus::Error => "error",
-            PpsStatus::Unknown(_) => "unknown",
-        },
-    }
-}
-
-fn ins_name(b: u8) -> &'static str {
-    match b {
-        NONE_U8 => "none",
-        b => match ins_mode(u16::from(b)) {
-            InsMode::NotTracking => "not-tracking",
-            InsMode::Aligning => "aligning",
-            InsMode::Tracking => "tracking",
-            InsMode::GnssLost => "gnss-lost",
-        },
-    }
 }
 
 /// The UTC start stamp that names a run's files, e.g. `20261122T084638Z`.
