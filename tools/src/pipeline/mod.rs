@@ -17,16 +17,17 @@
 
 pub mod accuracy;
 mod feed;
+mod files;
 mod items;
 pub mod posmv;
 mod readers;
 
 pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
+pub use files::{expand_files, open_captures, week_from_capture, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
 pub use readers::{
-    end_lidar, expand_files, ins_file_reader, ins_reader, lidar_reader, open_captures, sbet_week,
-    vn200_pose, week_from_capture, Accept, Files, InsEnd, InsFile, InsOutcome, InsRing, LidarRing,
-    Vn200Feed,
+    end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose, Accept, InsEnd,
+    InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 
 use crate::config::site::Site;

@@ -1,0 +1,140 @@
+//! The input files as the user named them (files, folders, patterns) and what is read from
+//! them before the readers start: the captures in order, the GPS week of their RMC dates.
+
+use super::*;
+use spherecal_hal::pcap::PcapChain;
+use std::path::Path;
+
+/// Input files as the user named them: files, folders, patterns, several of each (the shell
+/// expands an unquoted `logs/*.pcap` into several).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Files(pub Vec<PathBuf>);
+
+impl Files {
+    /// Every file named: each entry through [`expand_files`], in the order given, each file
+    /// once.
+    pub fn expand(&self) -> Result<Vec<PathBuf>, crate::Error> {
+        let mut out: Vec<PathBuf> = Vec::new();
+        for p in &self.0 {
+            for f in expand_files(p)? {
+                if !out.contains(&f) {
+                    out.push(f);
+                }
+            }
+        }
+        if out.is_empty() {
+            return Err("no input file given".into());
+        }
+        Ok(out)
+    }
+
+    /// The names as given, for messages.
+    pub fn display(&self) -> String {
+        self.0
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+impl From<PathBuf> for Files {
+    fn from(p: PathBuf) -> Self {
+        Self(vec![p])
+    }
+}
+
+impl From<&Path> for Files {
+    fn from(p: &Path) -> Self {
+        Self(vec![p.to_path_buf()])
+    }
+}
+
+impl From<&PathBuf> for Files {
+    fn from(p: &PathBuf) -> Self {
+        Self(vec![p.clone()])
+    }
+}
+
+impl From<&Files> for Files {
+    fn from(f: &Files) -> Self {
+        f.clone()
+    }
+}
+
+impl From<Vec<PathBuf>> for Files {
+    fn from(v: Vec<PathBuf>) -> Self {
+        Self(v)
+    }
+}
+
+/// The files `path` names: itself; a folder's `.pcap`/`.pcapng` files; or, with `*` or `?` in
+/// its file name, the files of its folder that match (the rig's rotated logs:
+/// `logs/20261122T084638Z-lidar-*.pcap`). Sorted by name; none is an error.
+pub fn expand_files(path: &Path) -> Result<Vec<PathBuf>, crate::Error> {
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let (dir, pattern) = if name.contains(['*', '?']) {
+        (path.parent().unwrap_or(Path::new(".")), Some(name))
+    } else if path.is_dir() {
+        (path, None)
+    } else {
+        return Ok(vec![path.to_path_buf()]);
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .filter(|p| {
+            let n = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            match pattern {
+                Some(pat) => glob_match(pat.as_bytes(), n.as_bytes()),
+                None => n.ends_with(".pcap") || n.ends_with(".pcapng"),
+            }
+        })
+        .collect();
+    out.sort();
+    if out.is_empty() {
+        return Err(format!("{}: no file matches", path.display()).into());
+    }
+    Ok(out)
+}
+
+/// `*` (any run) and `?` (any one byte) against a file name.
+fn glob_match(pat: &[u8], name: &[u8]) -> bool {
+    match (pat.first(), name.first()) {
+        (None, None) => true,
+        (Some(b'*'), _) => {
+            glob_match(&pat[1..], name) || (!name.is_empty() && glob_match(pat, &name[1..]))
+        }
+        (Some(b'?'), Some(_)) => glob_match(&pat[1..], &name[1..]),
+        (Some(a), Some(b)) if a == b => glob_match(&pat[1..], &name[1..]),
+        _ => false,
+    }
+}
+
+/// The capture(s) `path` names (see [`expand_files`]) as one source in time order.
+pub fn open_captures(files: &Files) -> Result<PcapChain, crate::Error> {
+    PcapChain::open(&files.expand()?).map_err(|e| e.to_string().into())
+}
+
+/// The GPS week of the first RMC date in a capture (for SBET times).
+pub fn week_from_capture(pcap: &Files, leap: i64) -> Option<u16> {
+    let mut src = open_captures(pcap).ok()?;
+    while let Ok(Some(rec)) = src.next_record() {
+        if let Record::Udp(d) = rec {
+            if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {
+                if let Some(utc) = packet.nmea_time().ok().and_then(|t| t.utc()) {
+                    let g =
+                        spherecal::time::unix_ns_to_gps(utc.unix_seconds() * 1_000_000_000, leap);
+                    return u16::try_from(g.week_tow_ns().0).ok();
+                }
+            }
+        }
+    }
+    None
+}
