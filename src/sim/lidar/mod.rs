@@ -98,6 +98,18 @@ pub struct LidarConfig {
     pub incidence_noise: bool,
     /// Range walk: the bias of a zero-intensity return relative to a full one [m].
     pub range_walk: f64,
+    /// The receiver's gain: a return's calibrated intensity is `100 gain E` (E: its echo's
+    /// energy, reflectivity x cos(incidence) over the footprint), capped at 100, the top of
+    /// the diffuse scale (Velodyne's calibrated reflectivity: 0-100 diffuse, 101-255
+    /// retro-reflectors). 1: a white surface at normal incidence reads its reflectivity.
+    pub intensity_gain: f64,
+    /// Per-return intensity scatter: a log-normal factor of this sigma (speckle and the
+    /// receiver's gain control: real neighbours differ by 20 and more); 0: none.
+    pub intensity_scatter: f64,
+    /// Probability that an arc over a target sphere (one laser's run of returns in one
+    /// rotation) starts weak and loses its second firing: the leading edge's partial
+    /// footprint returns little, and the receiver recovers only a firing later. 0: never.
+    pub edge_dropout: f64,
     /// Probability that a return off anything but a target sphere is reported (1: all; less
     /// thins the scenery uniformly, for clutter-density sweeps).
     pub clutter_keep: f64,
@@ -137,6 +149,9 @@ impl Default for LidarConfig {
             merge_distance: 1.0,
             incidence_noise: false,
             range_walk: 0.0,
+            intensity_gain: 1.0,
+            intensity_scatter: 0.0,
+            edge_dropout: 0.0,
             clutter_keep: 1.0,
             cull: true,
             targets_only: false,
@@ -201,6 +216,27 @@ pub struct LidarStats {
     pub too_weak: u64,
     /// Beams absorbed by the water.
     pub water: u64,
+    /// Arcs over a target sphere that started weak and lost their second firing.
+    pub edge_dropouts: u64,
+}
+
+/// One laser's run of returns on a target: where it was last and the firing it will lose.
+#[derive(Debug, Clone, Copy)]
+struct Arc {
+    /// The object of its last return.
+    obj: u16,
+    /// The firing time of its last return [ns].
+    last_ns: i64,
+    /// The firing to lose [ns] (`i64::MIN`: none).
+    drop_ns: i64,
+}
+
+impl Arc {
+    const NONE: Self = Self {
+        obj: u16::MAX,
+        last_ns: i64::MIN,
+        drop_ns: i64::MIN,
+    };
 }
 
 /// One return of the last data packet, before range noise and quantization.
@@ -317,6 +353,8 @@ pub struct LidarSim<'w, 'a> {
     /// The last data packet's echoes before noise (traced, or replayed).
     pub traced: heapless::Vec<Traced, 384>,
     trace_rng: Rng,
+    /// Each laser's arc on a target (the leading-edge dropout).
+    arcs: [Arc; MAX_LASERS],
 }
 
 /// Packet period [ns]: 12 firing cycles (single) or 6 pairs (dual) of the model's.
@@ -405,6 +443,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             hits: heapless::Vec::new(),
             traced: heapless::Vec::new(),
             trace_rng: Rng::new(cfg.trace_seed),
+            arcs: [Arc::NONE; MAX_LASERS],
         }
         .with_body_tables()
     }

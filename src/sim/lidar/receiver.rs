@@ -125,7 +125,28 @@ impl LidarSim<'_, '_> {
             let tf = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, fb, ch)));
             let energy = f64::from(e.energy);
             let cos = f64::from(e.cos);
-            let intensity = (100.0 * energy).clamp(0.0, 100.0);
+            let mut weak = 1.0;
+            if target.is_some() {
+                let laser = ch % model.lasers();
+                match self.arc_step(laser, e.obj, tf.0) {
+                    ArcStep::Lost => continue,
+                    ArcStep::Leading
+                        if self.cfg.edge_dropout > 0.0
+                            && self.rng.chance(self.cfg.edge_dropout) =>
+                    {
+                        self.arcs[laser].drop_ns = tf.0 + i64::from(model.laser_period_ns());
+                        weak = self.rng.range(0.1, 0.35);
+                        self.stats.edge_dropouts += 1;
+                    }
+                    _ => {}
+                }
+            }
+            let mut intensity = 100.0 * energy * self.cfg.intensity_gain * weak;
+            if self.cfg.intensity_scatter > 0.0 {
+                let s = self.cfg.intensity_scatter;
+                intensity *= libm::exp(s * self.rng.normal() - 0.5 * s * s);
+            }
+            let intensity = intensity.clamp(0.0, 100.0);
             let mut sigma = self.cfg.range_sigma;
             if self.cfg.incidence_noise {
                 let tan = (libm::sqrt((1.0 - cos * cos).max(0.0)) / cos.max(1e-6)).min(10.0);
@@ -154,4 +175,30 @@ impl LidarSim<'_, '_> {
             }
         }
     }
+
+    /// Where a target return of `laser` on `obj` fired at `t_ns` stands in its arc: its
+    /// leading edge (the laser's previous firing was not on it), a firing the arc loses, or
+    /// on along it.
+    fn arc_step(&mut self, laser: usize, obj: u16, t_ns: i64) -> ArcStep {
+        let period = i64::from(self.cfg.model.laser_period_ns());
+        let arc = &mut self.arcs[laser % MAX_LASERS];
+        let along = arc.obj == obj && t_ns.saturating_sub(arc.last_ns) <= period + period / 2;
+        (arc.obj, arc.last_ns) = (obj, t_ns);
+        if !along {
+            arc.drop_ns = i64::MIN;
+            return ArcStep::Leading;
+        }
+        if arc.drop_ns != i64::MIN && (t_ns - arc.drop_ns).abs() <= period / 2 {
+            arc.drop_ns = i64::MIN;
+            return ArcStep::Lost;
+        }
+        ArcStep::Along
+    }
+}
+
+/// See [`LidarSim::arc_step`].
+enum ArcStep {
+    Leading,
+    Lost,
+    Along,
 }

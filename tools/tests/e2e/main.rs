@@ -21,6 +21,7 @@ mod progress;
 mod replay;
 mod report_html;
 mod rig;
+mod sensor_stats;
 mod sim;
 mod site_import;
 mod velodyne_models;

@@ -34,6 +34,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "table1-noisy",
         include_str!("../../../scenarios/table1-noisy.toml"),
     ),
+    (
+        "table1-real",
+        include_str!("../../../scenarios/table1-real.toml"),
+    ),
 ];
 
 /// A scenario file.
@@ -175,6 +179,17 @@ pub struct LidarSpec {
     /// Range walk: the bias of a zero-intensity return [m] (default 0).
     #[serde(default)]
     pub range_walk_m: f64,
+    /// The receiver's gain on the calibrated intensity (default 1: a white surface at normal
+    /// incidence reads its reflectivity x 100; more saturates bright returns at 100).
+    #[serde(default = "default_one", skip_serializing_if = "is_one")]
+    pub intensity_gain: f64,
+    /// Per-return intensity scatter, the sigma of a log-normal factor (default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub intensity_scatter: f64,
+    /// Probability that an arc over a sphere starts weak and loses its second firing (the
+    /// leading-edge dropout of real VLP-16 returns; default 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub edge_dropout: f64,
     /// Probability that a return off the scenery (anything but the target spheres) is
     /// reported (default 1); less thins the scene uniformly, for clutter-density sweeps.
     #[serde(default = "default_keep")]
@@ -197,6 +212,14 @@ pub struct LidarSpec {
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
 }
 
 fn default_ins_kind() -> String {
@@ -593,6 +616,9 @@ impl Scenario {
             merge_distance: self.lidar.merge_distance_m,
             incidence_noise: self.lidar.incidence_noise,
             range_walk: self.lidar.range_walk_m,
+            intensity_gain: self.lidar.intensity_gain,
+            intensity_scatter: self.lidar.intensity_scatter,
+            edge_dropout: self.lidar.edge_dropout,
             clutter_keep: self.lidar.clutter_keep,
             clock_offset_ns: (self.lidar.clock_offset_s * 1e9).round() as i64,
             clock_drift_ppm: self.lidar.clock_drift_ppm,

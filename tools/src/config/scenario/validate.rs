@@ -172,6 +172,21 @@ impl Scenario {
             "lidar.range_walk_m",
             "expected |walk| < 1 m",
         )?;
+        check(
+            self.lidar.intensity_gain > 0.0 && self.lidar.intensity_gain <= 100.0,
+            "lidar.intensity_gain",
+            "expected 0 < gain <= 100",
+        )?;
+        check(
+            (0.0..=2.0).contains(&self.lidar.intensity_scatter),
+            "lidar.intensity_scatter",
+            "expected 0..2 (the sigma of a log-normal factor)",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.lidar.edge_dropout),
+            "lidar.edge_dropout",
+            "expected a probability 0..1",
+        )?;
         Ok(())
     }
 
