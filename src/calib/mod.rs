@@ -14,6 +14,7 @@
 pub mod consensus;
 pub mod extract;
 pub mod lm;
+pub mod nav;
 pub mod nelder_mead;
 pub mod objective;
 pub mod predict;

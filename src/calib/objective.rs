@@ -267,6 +267,29 @@ impl Problem<'_> {
     }
 }
 
+/// A pose's navigation error and a sphere centre's correction, taken out of a residual
+/// ([`Linearised::row_corrected`]): the reported position is the true one plus `position`,
+/// the reported attitude the true one turned by the small rotation `rotation` (site NED
+/// axes) [m, rad].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavCorrection {
+    /// Position error [m, NED].
+    pub position: Vector3<f64>,
+    /// Attitude error as a rotation vector [rad, NED axes].
+    pub rotation: Vector3<f64>,
+    /// The sphere centre's correction from the surveyed one [m, NED].
+    pub centre: Vector3<f64>,
+}
+
+impl NavCorrection {
+    /// No correction.
+    pub const NONE: Self = Self {
+        position: Vector3::new(0.0, 0.0, 0.0),
+        rotation: Vector3::new(0.0, 0.0, 0.0),
+        centre: Vector3::new(0.0, 0.0, 0.0),
+    };
+}
+
 /// The mounting's rotation, its derivatives and the lever arm: what every residual's
 /// gradient at `b` needs (six trig calls, once).
 #[derive(Debug, Clone, Copy)]
@@ -307,12 +330,29 @@ impl Linearised {
     /// (`None` at the centre itself).
     #[inline]
     pub fn row(&self, o: &Observation, target: &Target, dt: f64) -> Option<Row> {
-        let (q, rot) = (o.q(), o.rot());
+        self.row_corrected(o, target, dt, &NavCorrection::NONE)
+    }
+
+    /// As [`Self::row`] with the pose corrected by `c` (its navigation error taken out: the
+    /// position less `c.position`, the attitude turned back by `c.rotation`) and the centre
+    /// moved by `c.centre`.
+    #[inline]
+    pub fn row_corrected(
+        &self,
+        o: &Observation,
+        target: &Target,
+        dt: f64,
+        c: &NavCorrection,
+    ) -> Option<Row> {
+        let (q, reported) = (o.q(), o.rot());
+        // R_true = (I - [eps]x) R_reported: the arm loses eps x arm (the mounting's gradient
+        // with the same rotation, so that the Jacobian is the residual's).
+        let rot = reported - skew(&c.rotation) * reported;
         let y = self.r_li * q;
         let w = rot * (self.a + y);
         let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
         let moved = v + om.cross(&w);
-        let dx = (o.position - target.center) + w + moved * dt;
+        let dx = (o.position - c.position - (target.center + c.centre)) + w + moved * dt;
         let norm = dx.norm();
         if norm == 0.0 {
             return None;

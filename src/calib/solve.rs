@@ -10,6 +10,7 @@ use super::consensus::{
 use super::extract::{self, Directions, ExtractSettings, ReturnClass};
 use super::lm::Clock;
 use super::lm::{refine, LmResult};
+use super::nav::{NavFit, NavModel};
 use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
@@ -177,6 +178,9 @@ pub struct Workspace<'a> {
     pub cands: &'a mut [Candidate],
     /// Candidate indices, as long as `cands`.
     pub idx: &'a mut [usize],
+    /// The navigation model's pieces of the time line (128 suit a survey of a few minutes at
+    /// a correlation time of seconds; with fewer the pieces are made longer).
+    pub nav: &'a mut [crate::calib::nav::Piece],
 }
 
 /// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
@@ -432,7 +436,7 @@ fn solve_data(
     sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
     // 3. Least squares on the kept returns: the answer and its uncertainty.
-    r.final_fit(&d, &used[..n], found, &mut sol);
+    r.final_fit(&mut d, &used[..n], found, &mut sol);
     let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {

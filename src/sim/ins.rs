@@ -162,8 +162,7 @@ impl<'w, 'a> InsSim<'w, 'a> {
         self.j += 1;
         let s = self.world.trajectory.state(self.world.t_of(t));
         let e = self.nav.step();
-        self.last_error = e;
-        let [en, ee, ed, er, ep, eh] = e.0;
+        let [en, ee, ed, psi_n, psi_e, psi_d] = e.0;
         let noise = Vector3::new(
             self.rng.gauss(self.cfg.pos_sigma) + en,
             self.rng.gauss(self.cfg.pos_sigma) + ee,
@@ -173,7 +172,16 @@ impl<'w, 'a> InsSim<'w, 'a> {
         // Attitude relative to the local-level NED at the vessel, as an INS reports it.
         let c = self.world.site.from_local_level(g.lat, g.lon);
         let local = c.transpose() * rotation(s.rph[0], s.rph[1], s.rph[2]);
-        let [r, p, h] = roll_pitch_heading(&local);
+        // The correlated attitude error is the navigation frame's misalignment (an INS's tilt
+        // and heading errors, the psi angles: they stay put in the level frame as the vessel
+        // turns): the reported attitude is the true one turned by it; its roll, pitch and
+        // heading differences are what the outputs carry.
+        let [r0, p0, h0] = roll_pitch_heading(&local);
+        let [r1, p1, h1] = roll_pitch_heading(&(rotation(psi_n, psi_e, psi_d) * local));
+        let wrap = |a: f64| libm::remainder(a, core::f64::consts::TAU);
+        let (er, ep, eh) = (wrap(r1 - r0), p1 - p0, wrap(h1 - h0));
+        self.last_error = NavError([en, ee, ed, er, ep, eh]);
+        let (r, p, h) = (r0, p0, h0);
         let sig = self.cfg.att_sigma;
         let (h, p, r) = (
             h + self.rng.gauss(sig) + eh,

@@ -5,6 +5,10 @@
 //! Brown & Hwang, *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed.,
 //! sec. 2.9): `x(k+1) = phi x(k) + sqrt(1 - phi^2) sigma w(k)`, `phi = exp(-dt / tau)`,
 //! autocorrelation `sigma^2 exp(-|lag| / tau)`, started in its stationary distribution.
+//! The attitude's processes are the navigation frame's misalignment about north, east and down
+//! (an INS's tilt and heading errors, the psi angles of its error model: Titterton & Weston,
+//! *Strapdown Inertial Navigation Technology*, 2nd ed., sec. 12.3): they stay put in the level
+//! frame while the vessel turns, so its roll and pitch errors trade places with the heading.
 
 use super::rng::Rng;
 
@@ -30,7 +34,8 @@ impl Correlated {
                 .any(|s| *s > 0.0)
     }
 
-    /// Per axis sigma in [`NavError`] order: north, east, down [m], roll, pitch, heading [rad].
+    /// Per axis sigma of the processes: north, east, down [m]; the misalignment about north,
+    /// east (roll and pitch's sigma) and down (heading's) [rad].
     pub fn sigmas(&self) -> [f64; 6] {
         let [h, v] = self.position_sigma;
         let [rp, hd] = self.attitude_sigma;
@@ -39,7 +44,9 @@ impl Correlated {
 }
 
 /// One sample of the navigation error: position north, east, down [m] (the reported position
-/// minus the true one) and roll, pitch, heading [rad] (reported minus true).
+/// minus the true one) and roll, pitch, heading [rad] (reported minus true; from
+/// [`GaussMarkov::step`]: the misalignment about north, east, down, which the INS turns into
+/// those).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct NavError(pub [f64; 6]);
 

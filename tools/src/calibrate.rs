@@ -135,7 +135,11 @@ pub struct Scratch {
     keys: Vec<(f32, u32)>,
     cands: Vec<Candidate>,
     idx: Vec<usize>,
+    nav: Vec<spherecal::calib::nav::Piece>,
 }
+
+/// Pieces of the navigation model's time line (each ~6 kB).
+pub const NAV_PIECES: usize = 128;
 
 impl Default for Scratch {
     fn default() -> Self {
@@ -145,6 +149,7 @@ impl Default for Scratch {
             keys: vec![(0.0, 0); SLICE_CAPACITY],
             cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
             idx: vec![0; CANDIDATE_CAPACITY],
+            nav: vec![spherecal::calib::nav::Piece::EMPTY; NAV_PIECES],
         }
     }
 }
@@ -158,6 +163,7 @@ impl Scratch {
             keys: &mut self.keys,
             cands: &mut self.cands,
             idx: &mut self.idx,
+            nav: &mut self.nav,
         }
     }
 }
@@ -199,6 +205,24 @@ pub fn solve_report_in(
         watch,
     );
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if std::env::var("SPHERECAL_NAV_DEBUG").is_ok() {
+        if let Some(f) = &sol.nav {
+            eprintln!(
+                "nav: factor {} centres {:?}",
+                f.variance_factor,
+                &f.centre[..targets.len()]
+            );
+            for p in &scratch.nav[..f.pieces] {
+                eprintln!(
+                    "piece {:.3} {:.3} n {} e {:?}",
+                    p.start.0 as f64 * 1e-9,
+                    p.end.0 as f64 * 1e-9,
+                    p.n,
+                    p.error
+                );
+            }
+        }
+    }
     let b = sol.b.0;
     let lm = sol.lm;
     let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);

@@ -4,7 +4,7 @@
 //! windowed returns with the time offset it was aligned at, and one claim rule.
 
 use crate::calibrate::{solve_report_in, Report, Scratch};
-use crate::config::site::Site;
+use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
 use spherecal::calib::solve::{ClockFacts, Observe};
 use spherecal::calib::{Params, Settings, Solution};
 use spherecal::window::{Observation, Target};
@@ -26,15 +26,29 @@ pub fn settings_for(
     estimate_dt: bool,
     margin: f64,
 ) -> Settings {
-    let noise = site.noise.unwrap_or_default();
+    // Under a navigation model the INS's errors are in the model: the white noise left is the
+    // LiDAR's unless the site says more.
+    let nav = site.nav_model().ok().flatten();
+    let noise = site.noise.unwrap_or(match nav {
+        Some(_) => SiteNoise {
+            attitude_deg: 0.0,
+            position_m: 0.0,
+            ..SiteNoise::default()
+        },
+        None => SiteNoise::default(),
+    });
     let mut s = Settings {
         estimate_dt,
         range_noise: noise.range_m,
         attitude_noise: noise.attitude_deg.to_radians(),
         position_noise: noise.position_m,
         margin,
+        nav,
         ..Default::default()
     };
+    for (c, sp) in s.centre_sigma.iter_mut().zip(&site.sphere) {
+        *c = sp.sigma_m.unwrap_or(DEFAULT_CENTRE_SIGMA_M);
+    }
     if let Some(m) = model {
         s.extract.firing_ns = i64::from(m.laser_period_ns());
     }

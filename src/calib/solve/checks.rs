@@ -4,6 +4,7 @@
 
 #[allow(unused_imports)]
 use super::*;
+use nalgebra::Matrix3;
 
 /// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range
 /// noise, INS attitude noise times the range, INS position noise, the 2 mm range quantisation;
@@ -71,7 +72,20 @@ pub(super) fn consistency(
         }
         let inflate = n as f64 / clusters.max(1) as f64;
         let s2 = rms.max(1e-3) * rms.max(1e-3) * inflate;
-        let chi2 = d.dot(&(jtj * d)) / s2;
+        let chi2 = match &s.nav {
+            // Under the navigation model the pass's centre is also off by the pass's
+            // navigation error and the survey's: its covariance adds theirs.
+            Some(m) => {
+                let arm = t.center - mean_position(v[..used[j]].iter(), p);
+                let extra = nav_offset_covariance(m, &arm)
+                    + Matrix3::identity() * s.centre_sigma[j] * s.centre_sigma[j];
+                jtj.try_inverse()
+                    .map(|inv| inv * s2 + extra)
+                    .and_then(|c| c.try_inverse())
+                    .map_or(f64::INFINITY, |ci| d.dot(&(ci * d)))
+            }
+            None => d.dot(&(jtj * d)) / s2,
+        };
         // Along the pass's course (its kept returns' mean horizontal velocity, unit or zero).
         let along = d.x * f64::from(p.course[0]) + d.y * f64::from(p.course[1]);
         p.centre_offset = [d.x as f32, d.y as f32, d.z as f32];
@@ -158,7 +172,12 @@ pub(super) fn pass_clocks(
             (srr - 2.0 * c * sr - 2.0 * kk * sjr + n * c * c + 2.0 * c * kk * sj + kk * kk * sjj)
                 / (n - 2.0).max(1.0);
         let s2 = e2.max(1e-6) * n / clusters.max(1) as f64;
-        let sigma = libm::sqrt(s2 / vjj);
+        let mut sigma = libm::sqrt(s2 / vjj);
+        if let Some(m) = &s.nav {
+            // The pass's navigation error along the track looks like a clock shift of that
+            // distance over the speed.
+            sigma = libm::sqrt(sigma * sigma + nav_shift_variance(m, v[..used[j]].iter(), p));
+        }
         let shift = -kk;
         p.dt_shift = shift as f32;
         p.dt_sigma = sigma as f32;
@@ -185,6 +204,57 @@ pub(super) fn pass_clocks(
         }
     }
     worst.map(|(_, r)| r)
+}
+
+/// The returns' mean INS position over pass `p`.
+fn mean_position<'a>(obs: impl Iterator<Item = &'a Observation>, p: &PassReport) -> Vector3<f64> {
+    let (mut sum, mut n) = (Vector3::zeros(), 0.0);
+    for o in obs.filter(|o| o.time >= p.start && o.time <= p.end) {
+        sum += o.position;
+        n += 1.0;
+    }
+    if n > 0.0 {
+        sum / n
+    } else {
+        sum
+    }
+}
+
+/// The covariance a navigation error puts on a sphere centre seen along `arm` (INS to centre,
+/// NED): the position's, and each rotation's `e_a x arm` (first order).
+fn nav_offset_covariance(m: &NavModel, arm: &Vector3<f64>) -> Matrix3<f64> {
+    let sg = m.sigmas();
+    let mut c = Matrix3::from_diagonal(&Vector3::new(sg[0] * sg[0], sg[1] * sg[1], sg[2] * sg[2]));
+    for (a, s) in sg[3..].iter().enumerate() {
+        let mut e = Vector3::zeros();
+        e[a] = 1.0;
+        let d = e.cross(arm);
+        c += d * d.transpose() * (s * s);
+    }
+    c
+}
+
+/// The variance [s^2] a navigation error puts on a pass's own clock shift: its displacement
+/// along the track (the position's horizontal sigma, the rotations' at the pass's mean range)
+/// over the pass's mean speed.
+fn nav_shift_variance<'a>(
+    m: &NavModel,
+    obs: impl Iterator<Item = &'a Observation>,
+    p: &PassReport,
+) -> f64 {
+    let (mut speed, mut range, mut n) = (0.0, 0.0, 0.0);
+    for o in obs.filter(|o| o.time >= p.start && o.time <= p.end) {
+        speed += f64::from(o.velocity.norm());
+        range += f64::from(o.range);
+        n += 1.0;
+    }
+    if n == 0.0 {
+        return 0.0;
+    }
+    let (speed, range) = ((speed / n).max(0.1), range / n);
+    let sg = m.sigmas();
+    let along = sg[0] * sg[0] + range * range * (sg[3] * sg[3] + sg[5] * sg[5]);
+    along / (speed * speed)
 }
 
 /// Why each sphere not found was lost.

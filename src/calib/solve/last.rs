@@ -3,6 +3,7 @@
 
 #[allow(unused_imports)]
 use super::*;
+use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
 
 impl Rounds {
     /// The last extraction: around the surveyed spheres, in the slices where the sphere is
@@ -85,17 +86,39 @@ impl Rounds {
     /// the same returns with it free test the held value. Sets the answer and eq. 6 at it.
     pub(super) fn final_fit(
         &mut self,
-        d: &Data<'_, '_, '_>,
+        d: &mut Data<'_, '_, '_>,
         used: &[usize],
         found: usize,
         sol: &mut Solution,
     ) {
         let (targets, s, obs) = (d.targets, d.s, &*d.obs);
-        let w = weights(obs, used, s);
+        let nav = &mut *d.ws.nav;
+        // Under the navigation model the weights are the white noise's, absolute (the priors
+        // are in metres and radians).
+        let w = match s.nav {
+            Some(_) => Some(s.noise()),
+            None => weights(obs, used, s),
+        };
+        let fit =
+            |pb: &Problem<'_>, b: &[f64; P], iter: usize, clock: Clock, nav: &mut [Piece]| match &s
+                .nav
+            {
+                Some(model) => {
+                    let m = cut_for(pb, model, nav);
+                    let (l, f) =
+                        refine_nav(pb, b, model, &s.centre_sigma, &mut nav[..m], iter, clock);
+                    (l, Some(f))
+                }
+                None => (refine(pb, b, iter, s.cluster_ns, clock), None),
+            };
         let lm = (found >= 2).then(|| {
             with_problem(targets, obs, used, 1, self.time, w, |pb| {
-                refine(pb, &self.b, s.lm_iter, s.cluster_ns, s.clock())
+                fit(pb, &self.b, s.lm_iter, s.clock(), nav)
             })
+        });
+        let lm = lm.map(|(l, f)| {
+            sol.nav = f;
+            l
         });
         if let Some(l) = &lm {
             self.b = l.b;
@@ -114,8 +137,8 @@ impl Rounds {
             };
             let (free, at_held) = with_problem(targets, obs, used, 1, self.time, w, |pb| {
                 (
-                    refine(pb, &l.b, s.lm_iter, s.cluster_ns, free_clock),
-                    refine(pb, &l.b, 0, s.cluster_ns, free_clock),
+                    fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
+                    fit(pb, &l.b, 0, free_clock, nav).0,
                 )
             });
             let sigma = at_held.sigma_dt;

@@ -294,6 +294,8 @@ pub struct Solution {
     pub nm: NmResult<P>,
     /// The LM stage (covariance, correlation, conditioning).
     pub lm: Option<LmResult>,
+    /// Under the navigation model: the centres and pieces it estimated.
+    pub nav: Option<NavFit>,
     /// Eq. 6 at the solution over the kept returns [m].
     pub l1: f64,
     /// Detect-and-solve rounds.
@@ -353,6 +355,7 @@ impl Solution {
                 converged: false,
             },
             lm: None,
+            nav: None,
             l1: f64::INFINITY,
             rounds: 0,
             termination: Termination::NotStarted,

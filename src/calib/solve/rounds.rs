@@ -554,12 +554,14 @@ mod tests {
         let (mut grid, mut kept, mut keys) =
             ([0u16; 8], [Observation::default(); 4], [(0f32, 0u32); 4]);
         let (mut cands, mut idx) = ([Candidate::default(); 4], [0usize; 4]);
+        let mut nav = [crate::calib::nav::Piece::EMPTY; 1];
         let mut ws = Workspace {
             grid: &mut grid,
             kept: &mut kept,
             keys: &mut keys,
             cands: &mut cands,
             idx: &mut idx,
+            nav: &mut nav,
         };
         let s = Settings::default();
         let mut d = Data {

@@ -67,6 +67,13 @@ pub struct Settings {
     /// What the streams say of the clocks (the core sees no packets): the checks refuse on
     /// it as on the returns.
     pub clocks: ClockFacts,
+    /// The navigation errors that wander ([`crate::calib::nav`]): with a model the least
+    /// squares estimate them with the mounting, the sphere centres become parameters with
+    /// their survey's sigma, and the passes are tested against both; `None`: white per sample
+    /// (the paper's model).
+    pub nav: Option<NavModel>,
+    /// Each sphere's surveyed centre's 1 sigma [m] under the navigation model (0: held).
+    pub centre_sigma: [f64; MAX_TARGETS],
 }
 
 /// What the caller read of the clocks in the streams.
@@ -150,6 +157,8 @@ impl Default for Settings {
             consensus: ConsensusSettings::default(),
             margin: 3.0,
             clocks: ClockFacts::default(),
+            nav: None,
+            centre_sigma: [0.0; MAX_TARGETS],
         }
     }
 }

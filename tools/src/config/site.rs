@@ -45,6 +45,25 @@ pub struct SiteSphere {
     pub height_m: Option<f64>,
     /// Radius [m].
     pub radius_m: f64,
+    /// The surveyed centre's 1 sigma [m] (optional): under a navigation model
+    /// (`[ins.correlated]`) the centre is a parameter with this prior (default
+    /// [`DEFAULT_CENTRE_SIGMA_M`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_m: Option<f64>,
+}
+
+/// A surveyed centre's 1 sigma when the site gives none [m]: an RTK survey of a sphere's
+/// centre (1-2 cm).
+pub const DEFAULT_CENTRE_SIGMA_M: f64 = 0.02;
+
+/// What the INS delivers, as the scenario's `[ins]` says it (optional).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SiteIns {
+    /// Its errors that wander: `[ins.correlated]` (a preset and/or the sigmas and correlation
+    /// time; see `spherecal synth --print-scenario`).
+    #[serde(default)]
+    pub correlated: super::nav_errors::CorrelatedSpec,
 }
 
 fn nan() -> f64 {
@@ -67,6 +86,7 @@ impl SiteSphere {
             northing: None,
             height_m: None,
             radius_m,
+            sigma_m: None,
         }
     }
 }
@@ -146,6 +166,10 @@ pub struct Site {
     /// The sensors' noise (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<SiteNoise>,
+    /// What the INS delivers (optional): with `[ins.correlated]` the calibration estimates
+    /// the navigation errors with the mounting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ins: Option<SiteIns>,
 }
 
 impl Site {
@@ -256,8 +280,23 @@ impl Site {
         Ok(())
     }
 
+    /// The navigation errors' model `[ins.correlated]` declares (`None`: none declared, or
+    /// all zero).
+    pub fn nav_model(&self) -> Result<Option<spherecal::calib::nav::NavModel>, crate::Error> {
+        let Some(ins) = &self.ins else {
+            return Ok(None);
+        };
+        let c = ins.correlated.resolve("ins.correlated")?;
+        Ok(c.is_on().then_some(spherecal::calib::nav::NavModel {
+            position_sigma: c.position_sigma,
+            attitude_sigma: c.attitude_sigma,
+            correlation_s: c.correlation_s,
+        }))
+    }
+
     /// Values a calibration can use: every number finite and in its range, named by its key.
     pub fn check(&self) -> Result<(), crate::Error> {
+        self.nav_model()?;
         let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let need = |ok: bool, key: String, why: &str| {
             if ok {
@@ -294,6 +333,13 @@ impl Site {
                 format!("sphere[{i}].id"),
                 "expected a name (reports and the rig name spheres by it)",
             )?;
+            if let Some(sg) = s.sigma_m {
+                need(
+                    sg.is_finite() && sg > 0.0 && sg < 10.0,
+                    format!("{key}.sigma_m"),
+                    "expected a centre sigma 0 < s < 10 m",
+                )?;
+            }
             if let Some(k) = self.sphere[..i].iter().position(|o| o.id == s.id) {
                 return Err(format!(
                     "sphere[{i}].id: {:?} is also sphere[{k}]'s: every sphere needs its own id",

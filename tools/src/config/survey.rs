@@ -252,6 +252,7 @@ pub fn import_csv(
         sphere: spheres,
         apriori: o.apriori.clone(),
         noise: None,
+        ins: None,
     };
     site.resolve().map_err(|e| format!("{name}: {e}"))?;
     site.check().map_err(|e| format!("{name}: {e}"))?;

@@ -12,7 +12,7 @@
 //! it.
 
 use crate::config::scenario::Scenario;
-use crate::config::site::{Origin, Site, SiteApriori, SiteSphere};
+use crate::config::site::{Origin, Site, SiteApriori, SiteIns, SiteNoise, SiteSphere};
 use crate::output::Staged;
 use serde::{Deserialize, Serialize};
 use spherecal::sim::ins::InsStats;
@@ -450,6 +450,11 @@ pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
 /// the a-priori mounting.
 fn site_of(s: &Scenario) -> Site {
     let site_frame = s.site();
+    let correlated = s
+        .ins
+        .correlated
+        .resolve("ins.correlated")
+        .is_ok_and(|c| c.is_on());
     Site {
         datum: None,
         geodetic: None,
@@ -480,7 +485,16 @@ fn site_of(s: &Scenario) -> Site {
             lever_arm_m: s.mount.apriori.lever_arm_m,
             window_margin_m: s.mount.apriori.window_margin_m,
         },
-        noise: None,
+        // A survey whose INS errors wander declares them, with the white noise on top (what
+        // a surveyor reads off the INS's and the LiDAR's sheets).
+        noise: correlated.then(|| SiteNoise {
+            range_m: s.lidar.range_sigma_m.max(0.005),
+            attitude_deg: s.ins.att_sigma_deg,
+            position_m: s.ins.pos_sigma_m,
+        }),
+        ins: correlated.then(|| SiteIns {
+            correlated: s.ins.correlated.clone(),
+        }),
     }
 }
 
