@@ -6,7 +6,7 @@ reported sigma. Usage: nav-honesty.py SCENARIO TAU_S SEEDS [FIRST_SEED] [--white
 Prints converged, per parameter RMS z-score, fraction within 3 sigma, RMS error."""
 import json, os, re, subprocess, sys, tempfile, math
 
-exe = os.path.join(os.path.dirname(__file__), "..", "target", "release", "spherecal")
+exe = os.environ.get("SPHERECAL") or os.path.join(os.path.dirname(__file__), "..", "target", "release", "spherecal")
 scen, tau, seeds = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
 first = int(sys.argv[4]) if len(sys.argv) > 4 and not sys.argv[4].startswith("--") else 1
 white = "--white" in sys.argv

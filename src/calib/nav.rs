@@ -710,10 +710,10 @@ fn iterate(at: &mut Joint<'_, '_>, pieces: &mut [Piece], max_iter: usize) -> (Su
                 // No step lowers the cost (the Jacobian holds the grazing factor and the
                 // corrected attitude fixed, so at the minimum the gradient is not quite zero):
                 // a minimum if the Gauss-Newton step left moves the mounting (and the clock)
-                // by under a quarter of its sigma, else a stall.
+                // by under half its sigma (its spread grows by at most 12 % in quadrature), else a stall.
                 converged = match (at.step(&sums, pieces, 0.0), at.reduced(&sums, pieces)) {
                     (Some(dz), Some(h)) => h.try_inverse().is_some_and(|c| {
-                        (0..=P).all(|k| dz[k].abs() <= 0.25 * libm::sqrt(c[(k, k)].max(0.0)))
+                        (0..=P).all(|k| dz[k].abs() <= 0.5 * libm::sqrt(c[(k, k)].max(0.0)))
                     }),
                     _ => false,
                 };

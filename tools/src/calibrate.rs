@@ -138,8 +138,9 @@ pub struct Scratch {
     nav: Vec<spherecal::calib::nav::Piece>,
 }
 
-/// Pieces of the navigation model's time line (each ~6 kB).
-pub const NAV_PIECES: usize = 128;
+/// Pieces of the navigation model's time line (each ~6 kB; 0.25-0.5 s each: 1,024 hold
+/// 4-8 minutes of sphere returns).
+pub const NAV_PIECES: usize = 1024;
 
 impl Default for Scratch {
     fn default() -> Self {
@@ -165,6 +166,37 @@ impl Scratch {
             idx: &mut self.idx,
             nav: &mut self.nav,
         }
+    }
+}
+
+/// The navigation model's part of the report.
+fn navigation_report(
+    m: &spherecal::calib::nav::NavModel,
+    fit: Option<&spherecal::calib::nav::NavFit>,
+    s: &Settings,
+    ids: &[String],
+) -> crate::report::NavigationReport {
+    crate::report::NavigationReport {
+        source: "site [ins.correlated]".into(),
+        position_sigma_m: m.position_sigma,
+        attitude_sigma_deg: m.attitude_sigma.map(f64::to_degrees),
+        correlation_s: m.correlation_s,
+        pieces: fit.map_or(0, |f| f.pieces),
+        white_noise_factor: fit.map_or(f64::NAN, |f| f.variance_factor),
+        centres: ids
+            .iter()
+            .enumerate()
+            .map(|(j, id)| crate::report::CentreCorrection {
+                sphere: id.clone(),
+                prior_sigma_m: s.centre_sigma.get(j).copied().unwrap_or(0.0),
+                correction_m: fit
+                    .and_then(|f| f.centre.get(j).copied())
+                    .unwrap_or([f64::NAN; 3]),
+                sigma_m: fit
+                    .and_then(|f| f.centre_sigma.get(j).copied())
+                    .unwrap_or([f64::NAN; 3]),
+            })
+            .collect(),
     }
 }
 
@@ -205,24 +237,6 @@ pub fn solve_report_in(
         watch,
     );
     let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
-    if std::env::var("SPHERECAL_NAV_DEBUG").is_ok() {
-        if let Some(f) = &sol.nav {
-            eprintln!(
-                "nav: factor {} centres {:?}",
-                f.variance_factor,
-                &f.centre[..targets.len()]
-            );
-            for p in &scratch.nav[..f.pieces] {
-                eprintln!(
-                    "piece {:.3} {:.3} n {} e {:?}",
-                    p.start.0 as f64 * 1e-9,
-                    p.end.0 as f64 * 1e-9,
-                    p.n,
-                    p.error
-                );
-            }
-        }
-    }
     let b = sol.b.0;
     let lm = sol.lm;
     let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
@@ -326,6 +340,9 @@ pub fn solve_report_in(
         },
         batch_overflow: 0,
         inputs: None,
+        navigation: s
+            .nav
+            .map(|m| navigation_report(&m, sol.nav.as_ref(), s, ids)),
         clutter_rejected: sol
             .spheres
             .iter()

@@ -30,6 +30,8 @@ enum Col {
     Y,
     Height,
     Radius,
+    /// The centre's 1 sigma [m] (optional: the navigation model's prior on it).
+    Sigma,
 }
 
 /// A header word's column, and whether it names a geographic coordinate.
@@ -44,6 +46,7 @@ fn column_of(word: &str) -> Option<(Col, bool)> {
         "height" | "h" | "z" | "elevation" | "elev" | "alt" | "altitude" | "height_m" | "h_m"
         | "ellipsoidal_height" | "orthometric_height" => (Col::Height, false),
         "radius" | "r" | "radius_m" => (Col::Radius, false),
+        "sigma" | "sigma_m" | "sd" | "std" | "precision" | "accuracy" => (Col::Sigma, false),
         _ => return None,
     })
 }
@@ -70,7 +73,7 @@ fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col
             }
             None => {
                 return Some(Err(format!(
-                "header column {f:?}: expected id, easting/northing (or lon/lat), height, radius"
+                "header column {f:?}: expected id, easting/northing (or lon/lat), height, radius, sigma"
             )
                 .into()))
             }
@@ -120,6 +123,7 @@ pub fn import_csv(
         (Col::Y, true) => "latitude",
         (Col::Height, _) => "height",
         (Col::Radius, _) => "radius",
+        (Col::Sigma, _) => "sigma",
     };
     for (i, raw) in text.lines().enumerate() {
         let at = |why: String| crate::Error::bad_input(format!("{name}:{}: {why}", i + 1));
@@ -200,8 +204,15 @@ pub fn import_csv(
                 )));
             }
         }
+        let sigma_m = num(Col::Sigma)?;
+        if sigma_m.is_some_and(|v| !(v > 0.0 && v < 10.0)) {
+            return Err(at(format!(
+                "sphere {id}: sigma {sigma_m:?} m: expected 0 < s < 10"
+            )));
+        }
         let mut s = SiteSphere::wgs84(id, lat, lon, h_ell, radius_m);
         (s.easting, s.northing, s.height_m) = (Some(x), Some(y), Some(h));
+        s.sigma_m = sigma_m;
         spheres.push(s);
         lines.push(i + 1);
     }
@@ -284,6 +295,21 @@ mod tests {
             },
             base: std::path::PathBuf::new(),
         }
+    }
+
+    #[test]
+    fn a_sigma_column_gives_each_centre_its_prior() {
+        let csv = "id,easting,northing,height,radius,sigma\nS1,500000,5360000,3.5,0.2,0.015\nS2,500010,5360000,4.0,0.2,0.03\n";
+        let o = opts(32630, HeightSystem::Orthometric, Some(50.0));
+        let (s, cols) = import_csv(csv, "q.csv", &o).unwrap();
+        assert_eq!(cols, "id,easting,northing,height,radius,sigma");
+        assert_eq!(
+            (s.sphere[0].sigma_m, s.sphere[1].sigma_m),
+            (Some(0.015), Some(0.03))
+        );
+        let bad = csv.replace("0.03\n", "-1\n");
+        let e = import_csv(&bad, "q.csv", &o).unwrap_err().to_string();
+        assert!(e.contains("q.csv:3") && e.contains("sigma"), "{e}");
     }
 
     #[test]

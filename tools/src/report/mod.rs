@@ -274,6 +274,42 @@ pub struct Report {
     /// The coarse search of the time offset, when one ran: each start tried.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub time_offset_search: Vec<SearchCandidate>,
+    /// The navigation model the least squares estimated under, when one was declared.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub navigation: Option<NavigationReport>,
+}
+
+/// The navigation errors' model and what the solve found under it (DESIGN.md "Navigation
+/// errors that wander").
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct NavigationReport {
+    /// Where the model came from (`site [ins.correlated]`).
+    pub source: String,
+    /// Position 1 sigma: horizontal, vertical [m].
+    pub position_sigma_m: [f64; 2],
+    /// Attitude 1 sigma: roll and pitch, heading [deg].
+    pub attitude_sigma_deg: [f64; 2],
+    /// Correlation time [s].
+    pub correlation_s: f64,
+    /// Pieces of the time line, each with its own error.
+    pub pieces: usize,
+    /// The white noise's variance found against the declared one.
+    pub white_noise_factor: f64,
+    /// Each sphere's centre correction from its surveyed one with its 1 sigma.
+    pub centres: Vec<CentreCorrection>,
+}
+
+/// A sphere centre under the navigation model.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct CentreCorrection {
+    /// The sphere.
+    pub sphere: String,
+    /// Its survey's 1 sigma (the prior) [m].
+    pub prior_sigma_m: f64,
+    /// Estimated minus surveyed centre, north, east, down [m].
+    pub correction_m: [f64; 3],
+    /// Its 1 sigma [m].
+    pub sigma_m: [f64; 3],
 }
 
 impl Report {

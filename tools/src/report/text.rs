@@ -125,6 +125,30 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         ))
     );
     }
+    if let Some(n) = &r.navigation {
+        let _ = writeln!(
+            o,
+            "navigation errors: estimated with the mounting ({}: {:.1} / {:.1} cm, {:.3} / {:.3} deg, wandering over {} s) in {} pieces; white noise x{:.2} the declared",
+            n.source,
+            n.position_sigma_m[0] * 1e2,
+            n.position_sigma_m[1] * 1e2,
+            n.attitude_sigma_deg[0],
+            n.attitude_sigma_deg[1],
+            n.correlation_s,
+            n.pieces,
+            n.white_noise_factor.sqrt()
+        );
+        for c in &n.centres {
+            let [x, y, z] = c.correction_m.map(|v| v * 1e3);
+            let [sx, sy, sz] = c.sigma_m.map(|v| v * 1e3);
+            let _ = writeln!(
+                o,
+                "  {}: centre moved N {x:+.1} E {y:+.1} D {z:+.1} mm (+- {sx:.1} {sy:.1} {sz:.1}) from the survey (its sigma {:.1} mm)",
+                c.sphere,
+                c.prior_sigma_m * 1e3
+            );
+        }
+    }
     if let (Some(a), Some(b)) = (r.time_offset_search.first(), r.time_offset_search.last()) {
         let found = r
             .time_offset_search

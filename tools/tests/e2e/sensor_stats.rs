@@ -356,7 +356,10 @@ fn table1_real_navigation_errors_are_the_smrmsgs_and_wander() {
             rms[k],
             want[k]
         );
-        // Slowly: nearly the same a second later (exp(-1/30) = 0.967).
-        assert!(rho[k] > 0.9, "axis {k}: correlation at 1 s {}", rho[k]);
+        // Slowly: nearly the same a second later (exp(-1/30) = 0.967); roll's and pitch's
+        // less (0.87): the misalignment stays in the level frame, so at the turns the two
+        // trade places.
+        let floor = if k == 3 || k == 4 { 0.8 } else { 0.9 };
+        assert!(rho[k] > floor, "axis {k}: correlation at 1 s {}", rho[k]);
     }
 }
