@@ -475,7 +475,8 @@ impl Joint<'_, '_> {
 /// clock as `clock` says), the nuisance terms, the sphere centres (prior sigma `centre_sigma`
 /// per sphere [m]; 0: held at the survey) and the pieces' errors (`pieces`: at least one; cut
 /// with [`cut_for`]). At most `max_iter` iterations per pass; the white noise's variance
-/// factor is re-estimated between passes (at most four). The covariance is the inverse of the
+/// factor is re-estimated between passes (at most four), with the design effect of returns
+/// within `cluster_ns` of each other on one sphere. The covariance is the inverse of the
 /// mounting's information with every other parameter marginalised.
 pub fn refine(
     pb: &Problem<'_>,
@@ -484,6 +485,7 @@ pub fn refine(
     centre_sigma: &[f64],
     pieces: &mut [Piece],
     max_iter: usize,
+    cluster_ns: i64,
     clock: Clock,
 ) -> (LmResult, NavFit) {
     let clock = Clock {
@@ -514,12 +516,24 @@ pub fn refine(
     for _pass in 0..4 {
         (sums, iterations, converged) = iterate(&mut at, pieces, max_iter);
         // The white noise's variance factor: the weighted residuals' mean square over their
-        // degrees of freedom (the priors' own terms left out).
-        let dof = sums
-            .n
-            .saturating_sub(Q + 3 * pb.spheres.len() + 6 * pieces.len())
-            .max(1);
-        let mut wss = 0.0;
+        // degrees of freedom (the pieces count by what the data, not their priors, fix of
+        // them: trace D (D + prior)^-1), times the design effect of returns that share a
+        // cluster (one sphere within `cluster_ns`: the beam's footprint and the sphere's cap
+        // give neighbours alike errors) `sum_g (sum_k sqrt(w) r)^2 / sum w r^2`, at least 1.
+        let mut p_eff = (Q + 3 * pb.spheres.len()) as f64;
+        for i in 0..pieces.len() {
+            let (own, _) = at.chain(pieces, i);
+            let mut full = pieces[i].d;
+            for k in 0..6 {
+                full[(k, k)] += own[k];
+            }
+            if let Some(inv) = full.try_inverse() {
+                p_eff += (pieces[i].d * inv).trace().clamp(0.0, 6.0);
+            }
+        }
+        let dof = (sums.n as f64 - p_eff).max(1.0);
+        let (mut wss, mut clustered, mut cluster_sum) = (0.0, 0.0, 0.0);
+        let mut key: Option<(usize, i64)> = None;
         let pbz = at.problem();
         let lin = Linearised::at(&at.b());
         let (nu0, nu1) = (at.z[P + 1], at.z[P + 2]);
@@ -536,11 +550,25 @@ pub fn refine(
                 if let Some(r) = lin.row_corrected(o, &sp.target, pbz.dt_at(o), &c) {
                     let res = r.residual - nu0 - nu1 * r.grazing;
                     let i = piece_of(pieces, o.time);
-                    wss += at.weight(&pbz, o, pieces[i].len_s()) * res * res;
+                    let w = at.weight(&pbz, o, pieces[i].len_s());
+                    wss += w * res * res;
+                    let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
+                    if key != Some(k) {
+                        clustered += cluster_sum * cluster_sum;
+                        cluster_sum = 0.0;
+                        key = Some(k);
+                    }
+                    cluster_sum += libm::sqrt(w) * res;
                 }
             }
         }
-        let s2 = wss / dof as f64;
+        clustered += cluster_sum * cluster_sum;
+        let design = if wss > 0.0 {
+            (clustered / wss).max(1.0)
+        } else {
+            1.0
+        };
+        let s2 = wss / dof * design;
         if !(s2.is_finite() && s2 > 0.0) || (s2 - 1.0).abs() < 0.05 {
             break;
         }
@@ -960,6 +988,7 @@ mod honesty {
                 &[0.02, 0.02],
                 &mut pieces[..m],
                 100,
+                20_000_000,
                 clock,
             );
             assert!(l.converged, "seed {seed}: {l:?}");

@@ -105,8 +105,16 @@ impl Rounds {
             {
                 Some(model) => {
                     let m = cut_for(pb, model, nav);
-                    let (l, f) =
-                        refine_nav(pb, b, model, &s.centre_sigma, &mut nav[..m], iter, clock);
+                    let (l, f) = refine_nav(
+                        pb,
+                        b,
+                        model,
+                        &s.centre_sigma,
+                        &mut nav[..m],
+                        iter,
+                        s.cluster_ns,
+                        clock,
+                    );
                     (l, Some(f))
                 }
                 None => (refine(pb, b, iter, s.cluster_ns, clock), None),
