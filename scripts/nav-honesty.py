@@ -17,6 +17,7 @@ names = ["roll", "pitch", "heading", "x", "y", "z"]
 z2 = {n: [] for n in names}
 err = {n: [] for n in names}
 conv = 0
+centre_rms = []
 work = tempfile.mkdtemp(prefix="nav-honesty-")
 for k in range(first, first + seeds):
     t = re.sub(r"(?m)^seed = \d+", f"seed = {k}", base)
@@ -41,6 +42,8 @@ for k in range(first, first + seeds):
     r = json.load(open(rep))
     ok = r["converged"]
     conv += ok
+    if r.get("sphere_centre_rms_m") is not None:
+        centre_rms.append(r["sphere_centre_rms_m"])
     for n in names:
         g = "boresight_deg" if n in names[:3] else "lever_arm_m"
         e = r[g][n] - truth[g][n]
@@ -51,6 +54,10 @@ for k in range(first, first + seeds):
     print(f"seed {k}: {'converged' if ok else 'refused: ' + str(r.get('reason'))[:90]} "
           + " ".join(f"{n} {err[n][-1]:+.4f}" for n in names), flush=True)
 print(f"{scen} tau {tau} s, {seeds} seeds{' (white solve)' if white else ''}: converged {conv}/{seeds}")
+if centre_rms:
+    cr = sorted(centre_rms)
+    print(f"  sphere centre RMS (the passes' fitted centres against the survey): median "
+          f"{1e3 * cr[len(cr) // 2]:.1f} mm, {1e3 * cr[0]:.1f}-{1e3 * cr[-1]:.1f} mm (the paper's real survey: 36 mm)")
 for n in names:
     zs = z2[n]
     rmsz = math.sqrt(sum(z * z for z in zs) / len(zs)) if zs else float("nan")

@@ -478,6 +478,7 @@ impl Joint<'_, '_> {
 /// factor is re-estimated between passes (at most four), with the design effect of returns
 /// within `cluster_ns` of each other on one sphere. The covariance is the inverse of the
 /// mounting's information with every other parameter marginalised.
+#[allow(clippy::too_many_arguments)]
 pub fn refine(
     pb: &Problem<'_>,
     b0: &[f64; P],
