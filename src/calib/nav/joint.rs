@@ -1,0 +1,421 @@
+//! The joint least squares' state and its steps: the sums of one evaluation (the globals'
+//! normal matrix, each piece's blocks), the chain prior, the damped step with the pieces
+//! eliminated by the block-tridiagonal recursion, and Levenberg-Marquardt over it.
+
+use super::*;
+use nalgebra::Cholesky;
+
+/// The state of the joint least squares: the global parameters and every piece's error.
+pub(super) struct Joint<'a, 'p> {
+    pub(super) pb: &'a Problem<'p>,
+    pub(super) z: [f64; G],
+    pub(super) clock: Clock,
+    /// Each sphere's centre prior's information (1 / sigma^2; 0: free; the slots past the
+    /// spheres are held).
+    pub(super) centre_info: [f64; MAX_TARGETS],
+    /// The chain prior: per piece the diagonal information of its own error, and of its link
+    /// to the next (negative).
+    pub(super) model: NavModel,
+    /// The white noise's variance factor the weights are divided by.
+    pub(super) factor: f64,
+}
+
+/// Sums of one evaluation.
+pub(super) struct Sums {
+    pub(super) a: MatG,
+    pub(super) g: VecG,
+    pub(super) cost: f64,
+    pub(super) n: usize,
+    pub(super) raw: f64,
+}
+
+impl Joint<'_, '_> {
+    pub(super) fn b(&self) -> [f64; P] {
+        core::array::from_fn(|i| self.z[i])
+    }
+
+    pub(super) fn problem(&self) -> Problem<'_> {
+        Problem {
+            dt: self.z[P],
+            drift: self.z[DRIFT],
+            ..*self.pb
+        }
+    }
+
+    /// The absolute weight of a residual in a piece of `len_s`: 1 / (its white variance x the
+    /// factor + the process's wander within the piece, `len / 3 tau` of the navigation
+    /// error's variance along a beam: the position's and the rotations' at the return's
+    /// range, each over a direction averaged over the sphere's cap, so that the weights do
+    /// not move with the parameters).
+    pub(super) fn weight(
+        &self,
+        pb: &Problem<'_>,
+        o: &crate::window::Observation,
+        len_s: f64,
+    ) -> f64 {
+        let v = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);
+        let sg = self.model.sigmas();
+        let r = f64::from(o.range);
+        let pos = (sg[0] * sg[0] + sg[1] * sg[1] + sg[2] * sg[2]) / 3.0;
+        let rot = r * r * 2.0 / 3.0 * (sg[3] * sg[3] + sg[4] * sg[4] + sg[5] * sg[5]) / 3.0;
+        let wander = (pos + rot) * len_s / (3.0 * self.model.correlation_s);
+        1.0 / (v * self.factor + wander)
+    }
+
+    /// The chain prior's diagonal information per axis of piece `i` (`own`) and the link to
+    /// piece `i + 1` (`link`, negative), for the axes with a sigma.
+    pub(super) fn chain(&self, pieces: &[Piece], i: usize) -> ([f64; 6], [f64; 6]) {
+        let sig = self.model.sigmas();
+        let tau = self.model.correlation_s;
+        let phi =
+            |a: usize, b: usize| libm::exp(-(pieces[b].mid_s() - pieces[a].mid_s()).abs() / tau);
+        let mut own = [0.0; 6];
+        let mut link = [0.0; 6];
+        for k in 0..6 {
+            let s2 = sig[k] * sig[k];
+            if s2 <= 0.0 {
+                own[k] = 1e12;
+                continue;
+            }
+            // Own: the first piece's marginal, or the step from the previous one; plus the
+            // next piece's step's phi^2 q.
+            own[k] = if i == 0 {
+                1.0 / s2
+            } else {
+                let f = phi(i - 1, i);
+                1.0 / ((1.0 - f * f).max(1e-9) * s2)
+            };
+            if i + 1 < pieces.len() {
+                let f = phi(i, i + 1);
+                let q = 1.0 / ((1.0 - f * f).max(1e-9) * s2);
+                own[k] += f * f * q;
+                link[k] = -f * q;
+            }
+        }
+        (own, link)
+    }
+
+    /// Evaluate at the state: the measurement sums into `pieces` (d, b, g) and the global
+    /// ones, priors included.
+    pub(super) fn evaluate(&self, pieces: &mut [Piece]) -> Sums {
+        let mut s = Sums {
+            a: MatG::zeros(),
+            g: VecG::zeros(),
+            cost: 0.0,
+            n: 0,
+            raw: 0.0,
+        };
+        for p in pieces.iter_mut() {
+            p.d = Mat6::zeros();
+            p.b = MatG6::zeros();
+            p.g = Vec6::zeros();
+        }
+        let pb = self.problem();
+        let lin = Linearised::at(&self.b());
+        let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
+        for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
+            let cj = Q + 3 * j;
+            let centre = Vector3::new(self.z[cj], self.z[cj + 1], self.z[cj + 2]);
+            for o in sp.obs {
+                let i = piece_of(pieces, o.time);
+                let e = pieces[i].error;
+                let c = NavCorrection {
+                    position: Vector3::new(e[0], e[1], e[2]),
+                    rotation: Vector3::new(e[3], e[4], e[5]),
+                    centre,
+                };
+                let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &c) else {
+                    continue;
+                };
+                let jq = row_q(&r.row, r.grazing, self.clock, pb.since_ref(o));
+                let n = r.normal;
+                let nw = n.cross(&r.arm);
+                let je = Vec6::new(-n.x, -n.y, -n.z, nw.x, nw.y, nw.z);
+                let res = r.residual - nu0 - nu1 * r.grazing;
+                let w = self.weight(&pb, o, pieces[i].len_s());
+                // The global row: the Q entries and the sphere's centre (-n).
+                let jc = [-n.x, -n.y, -n.z];
+                for a in 0..Q {
+                    for b in 0..=a {
+                        s.a[(a, b)] += jq[a] * jq[b] * w;
+                    }
+                    for (k, jck) in jc.iter().enumerate() {
+                        s.a[(cj + k, a)] += jck * jq[a] * w;
+                    }
+                    s.g[a] += jq[a] * res * w;
+                }
+                for k in 0..3 {
+                    for l in 0..=k {
+                        s.a[(cj + k, cj + l)] += jc[k] * jc[l] * w;
+                    }
+                    s.g[cj + k] += jc[k] * res * w;
+                }
+                let p = &mut pieces[i];
+                for a in 0..6 {
+                    for b in 0..6 {
+                        p.d[(a, b)] += je[a] * je[b] * w;
+                    }
+                    for q in 0..Q {
+                        p.b[(q, a)] += jq[q] * je[a] * w;
+                    }
+                    for (k, jck) in jc.iter().enumerate() {
+                        p.b[(cj + k, a)] += jck * je[a] * w;
+                    }
+                    p.g[a] += je[a] * res * w;
+                }
+                s.cost += w * res * res;
+                s.raw += res * res;
+                s.n += 1;
+            }
+        }
+        // The lower triangle to the full matrix.
+        for a in 0..G {
+            for b in 0..a {
+                s.a[(b, a)] = s.a[(a, b)];
+            }
+        }
+        // Held parameters: their equation is x = x.
+        if !self.clock.dt {
+            s.a[(P, P)] = 1.0;
+        }
+        if !self.clock.drift {
+            s.a[(DRIFT, DRIFT)] = 1.0;
+        }
+        // The centres' priors (held past the spheres).
+        for j in 0..MAX_TARGETS {
+            let cj = Q + 3 * j;
+            for k in 0..3 {
+                if j < pb.spheres.len() {
+                    let info = self.centre_info[j];
+                    s.a[(cj + k, cj + k)] += info;
+                    s.g[cj + k] += info * self.z[cj + k];
+                    s.cost += info * self.z[cj + k] * self.z[cj + k];
+                } else {
+                    s.a[(cj + k, cj + k)] = 1.0;
+                }
+            }
+        }
+        // The chain prior's gradient and cost: e^T L e.
+        let m = pieces.len();
+        for i in 0..m {
+            let (own, link) = self.chain(pieces, i);
+            for k in 0..6 {
+                let mut le = own[k] * pieces[i].error[k];
+                if i + 1 < m {
+                    le += link[k] * pieces[i + 1].error[k];
+                }
+                if i > 0 {
+                    let (_, prev) = self.chain(pieces, i - 1);
+                    le += prev[k] * pieces[i - 1].error[k];
+                }
+                pieces[i].g[k] += le;
+                s.cost += pieces[i].error[k] * le;
+            }
+        }
+        s
+    }
+
+    /// The step `(dz, de)` of the damped normal equations (damping `lambda` on every
+    /// diagonal, Marquardt's scaling): the pieces eliminated by the block-tridiagonal
+    /// recursion. `None` when a block is singular.
+    pub(super) fn step(&self, s: &Sums, pieces: &mut [Piece], lambda: f64) -> Option<VecG> {
+        let m = pieces.len();
+        // Forward: C_i = M_ii - L_(i-1) C_(i-1)^-1 L_(i-1); Y'_i = R_i - L_(i-1) C_(i-1)^-1 Y'_(i-1).
+        let mut prev_link = [0.0; 6];
+        for i in 0..m {
+            let (own, link) = self.chain(pieces, i);
+            let mut c = pieces[i].d;
+            for k in 0..6 {
+                c[(k, k)] += own[k];
+                c[(k, k)] *= 1.0 + lambda;
+            }
+            let mut y = Mat6G1::zeros();
+            for a in 0..6 {
+                for q in 0..G {
+                    y[(a, q)] = pieces[i].b[(q, a)];
+                }
+                y[(a, G)] = pieces[i].g[a];
+            }
+            if i > 0 {
+                let ch = Cholesky::new(pieces[i - 1].c)?;
+                let l = Mat6::from_diagonal(&Vec6::from(prev_link));
+                let inv_l = ch.solve(&l);
+                c -= l * inv_l;
+                y -= l * ch.solve(&pieces[i - 1].y);
+            }
+            pieces[i].c = c;
+            pieces[i].y = y;
+            prev_link = link;
+        }
+        // Backward: Y_i = C_i^-1 (Y'_i - L_i Y_(i+1)).
+        for i in (0..m).rev() {
+            let (_, link) = self.chain(pieces, i);
+            let mut y = pieces[i].y;
+            if i + 1 < m {
+                y -= Mat6::from_diagonal(&Vec6::from(link)) * pieces[i + 1].y;
+            }
+            pieces[i].y = Cholesky::new(pieces[i].c)?.solve(&y);
+        }
+        // The reduced system: (A - B Y_B) dz = -(g - B Y_g).
+        let mut h = s.a;
+        for k in 0..G {
+            h[(k, k)] *= 1.0 + lambda;
+        }
+        let mut rhs = s.g;
+        for p in pieces.iter() {
+            let yb = p.y.fixed_view::<6, G>(0, 0);
+            h -= p.b * yb;
+            rhs -= p.b * p.y.column(G);
+        }
+        let dz = Cholesky::new(h)?.solve(&(-rhs));
+        // The pieces: de_i = -(Y_g)_i - (Y_B)_i dz.
+        for p in pieces.iter_mut() {
+            let de = -(p.y.column(G)) - p.y.fixed_view::<6, G>(0, 0) * dz;
+            p.sigma = core::array::from_fn(|k| de[k]);
+        }
+        Some(dz)
+    }
+
+    /// The reduced information matrix of the global parameters (every piece eliminated), at
+    /// the last evaluation's sums.
+    pub(super) fn reduced(&self, s: &Sums, pieces: &mut [Piece]) -> Option<MatG> {
+        self.step(s, pieces, 0.0)?;
+        let mut h = s.a;
+        for p in pieces.iter() {
+            h -= p.b * p.y.fixed_view::<6, G>(0, 0);
+        }
+        Some(h)
+    }
+}
+
+/// Levenberg-Marquardt steps on the joint state (as [`super::lm`]'s): the last sums, the
+/// iterations and whether a negligible step or decrease ended them.
+pub(super) fn iterate(
+    at: &mut Joint<'_, '_>,
+    pieces: &mut [Piece],
+    max_iter: usize,
+) -> (Sums, usize, bool) {
+    let mut sums = at.evaluate(pieces);
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut tried_gn = false;
+    while iterations < max_iter {
+        iterations += 1;
+        let Some(dz) = at.step(&sums, pieces, lambda) else {
+            lambda *= 10.0;
+            if lambda > 1e12 {
+                break;
+            }
+            continue;
+        };
+        // Try the step (the pieces' steps are in their `sigma` scratch).
+        let old_z = at.z;
+        for k in 0..G {
+            at.z[k] += dz[k];
+        }
+        for p in pieces.iter_mut() {
+            for k in 0..6 {
+                p.error[k] += p.sigma[k];
+            }
+        }
+        let trial = at.evaluate(pieces);
+        if trial.cost <= sums.cost && trial.cost.is_finite() {
+            let small = dz.iter().all(|d| d.abs() < 1e-11)
+                || (sums.cost - trial.cost) <= 1e-12 * sums.cost.max(1e-30);
+            sums = trial;
+            lambda = (lambda / 10.0).max(1e-12);
+            if small {
+                converged = true;
+                break;
+            }
+        } else {
+            at.z = old_z;
+            for p in pieces.iter_mut() {
+                for k in 0..6 {
+                    p.error[k] -= p.sigma[k];
+                }
+            }
+            lambda *= 10.0;
+            sums = at.evaluate(pieces);
+            if lambda > 1e8 && !tried_gn {
+                // Marquardt's steps fail: one undamped Gauss-Newton step before giving up.
+                tried_gn = true;
+                if let Some(dz) = at.step(&sums, pieces, 0.0) {
+                    let old_z = at.z;
+                    for k in 0..G {
+                        at.z[k] += dz[k];
+                    }
+                    for p in pieces.iter_mut() {
+                        for k in 0..6 {
+                            p.error[k] += p.sigma[k];
+                        }
+                    }
+                    let trial = at.evaluate(pieces);
+                    if trial.cost.is_finite() && trial.cost < sums.cost {
+                        sums = trial;
+                        lambda = 1e-6;
+                        continue;
+                    }
+                    at.z = old_z;
+                    for p in pieces.iter_mut() {
+                        for k in 0..6 {
+                            p.error[k] -= p.sigma[k];
+                        }
+                    }
+                    sums = at.evaluate(pieces);
+                }
+            }
+            if lambda > 1e8 {
+                // No step lowers the cost (the Jacobian holds the grazing factor and the
+                // corrected attitude fixed, so at the minimum the gradient is not quite zero):
+                // a minimum if the Gauss-Newton step left moves the mounting (and the clock)
+                // by under half its sigma (its spread grows by at most 12 % in quadrature), else a stall.
+                converged = match (at.step(&sums, pieces, 0.0), at.reduced(&sums, pieces)) {
+                    (Some(dz), Some(h)) => h.try_inverse().is_some_and(|c| {
+                        (0..=P).all(|k| dz[k].abs() <= 0.5 * libm::sqrt(c[(k, k)].max(0.0)))
+                    }),
+                    _ => false,
+                };
+                break;
+            }
+        }
+    }
+    // Gauss-Newton to the end: the pieces' and centres' directions are nearly linear and
+    // weakly damped by their priors alone, where Marquardt's steps crawl.
+    if converged {
+        for _ in 0..20 {
+            let Some(dz) = at.step(&sums, pieces, 0.0) else {
+                break;
+            };
+            let old_z = at.z;
+            for k in 0..G {
+                at.z[k] += dz[k];
+            }
+            for p in pieces.iter_mut() {
+                for k in 0..6 {
+                    p.error[k] += p.sigma[k];
+                }
+            }
+            let trial = at.evaluate(pieces);
+            if trial.cost.is_finite() && trial.cost <= sums.cost {
+                let gain = sums.cost - trial.cost;
+                sums = trial;
+                iterations += 1;
+                if gain <= 1e-9 * sums.cost.max(1e-30) {
+                    break;
+                }
+            } else {
+                at.z = old_z;
+                for p in pieces.iter_mut() {
+                    for k in 0..6 {
+                        p.error[k] -= p.sigma[k];
+                    }
+                }
+                sums = at.evaluate(pieces);
+                break;
+            }
+        }
+    }
+    (sums, iterations, converged)
+}

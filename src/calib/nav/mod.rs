@@ -1,0 +1,390 @@
+//! The navigation errors that wander (DESIGN.md "Navigation errors that wander"): a real GNSS/INS
+//! solution is off by centimetres that stay for tens of seconds, first-order Gauss-Markov per
+//! axis. The least squares estimate them with the mounting: the survey's time line is cut into
+//! pieces of a sixth of the correlation time, each with its own error `e_i` (position N, E, D
+//! and a small rotation about N, E, D) and the process's prior — `e_0 ~ N(0, S)`,
+//! `e_i | e_(i-1) ~ N(phi e_(i-1), (1 - phi^2) S)`, `phi = exp(-gap / tau)` — and the sphere
+//! centres with their survey's sigma. The answer maximises the likelihood of the returns
+//! (white noise: range, the INS's own white noise, quantisation) and those priors; the
+//! covariance of the mounting is the inverse of its information with every nuisance
+//! marginalised (the pieces eliminated by the block-tridiagonal Schur complement, the centres
+//! with the rest). A parameter the data no longer pin (all centres free over flat water: the
+//! vertical lever arm) shows as a condition number no survey passes.
+
+use super::lm::{conditioning, row_q, Clock, LmResult, Mat6, MatQ, Vec6, DRIFT, Q};
+use super::objective::{Linearised, NavCorrection, Problem};
+use super::P;
+use crate::time::GpsTime;
+use crate::window::MAX_TARGETS;
+use nalgebra::{SMatrix, SVector, Vector3};
+
+mod joint;
+#[cfg(test)]
+mod tests;
+
+use joint::{iterate, Joint};
+
+/// The navigation errors' model: per axis a first-order Gauss-Markov process.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavModel {
+    /// Position 1 sigma: horizontal, vertical [m].
+    pub position_sigma: [f64; 2],
+    /// Attitude 1 sigma: roll and pitch, heading [rad].
+    pub attitude_sigma: [f64; 2],
+    /// Correlation time [s].
+    pub correlation_s: f64,
+}
+
+impl NavModel {
+    /// The six sigmas: N, E, D [m]; rotation about N, E, D [rad] (roll and pitch share one
+    /// sigma, so about any horizontal axis; heading is about down).
+    pub fn sigmas(&self) -> [f64; 6] {
+        let [h, v] = self.position_sigma;
+        let [rp, hd] = self.attitude_sigma;
+        [h, h, v, rp, rp, hd]
+    }
+
+    /// The pieces' length [s]: a thirtieth of the correlation time, 0.25-0.5 s. A first-order
+    /// process is rough: within a piece of length L it wanders by `sigma^2 L / 3 tau` about
+    /// the piece's mean, shared by every return of the piece; what matters is that wander
+    /// times the piece's returns against the white noise, so the length is short in seconds
+    /// whatever tau (the Monte Carlo `honesty::sigmas_are_honest_on_exact_returns`: at
+    /// tau / 6 the pitch's and the vertical lever arm's RMS z-scores were 3.1 and 3.2; at
+    /// 2 s with tau = 60 s 1.8 and 1.6; at 0.5 s 1.3 and 1.05). The wander left in a piece is
+    /// added to each return's variance ([`Joint::weight`]).
+    pub fn piece_s(&self) -> f64 {
+        (self.correlation_s / 30.0).clamp(0.25, 0.5)
+    }
+
+    /// Usable: finite, non-negative sigmas and a positive correlation time.
+    pub fn is_valid(&self) -> bool {
+        self.sigmas().iter().all(|s| s.is_finite() && *s >= 0.0)
+            && self.correlation_s.is_finite()
+            && self.correlation_s > 0.0
+    }
+}
+
+/// The global parameters: the lm's `Q` (the six, the time offset, the two nuisance terms, the
+/// drift) and three per sphere centre.
+pub const G: usize = Q + 3 * MAX_TARGETS;
+type MatG = SMatrix<f64, G, G>;
+type VecG = SVector<f64, G>;
+/// G x 6.
+type MatG6 = SMatrix<f64, G, 6>;
+/// 6 x (G + 1): a piece's rows of `M^-1 [B^T | g]`.
+type Mat6G1 = SMatrix<f64, 6, { G + 1 }>;
+
+/// One piece of the time line: its span, its navigation error (the estimate) and the
+/// elimination's scratch.
+#[derive(Debug, Clone, Copy)]
+pub struct Piece {
+    /// First and last return's time.
+    pub start: GpsTime,
+    /// See `start`.
+    pub end: GpsTime,
+    /// Returns in it.
+    pub n: usize,
+    /// The estimated navigation error: N, E, D [m], rotation about N, E, D [rad].
+    pub error: [f64; 6],
+    /// Its 1 sigma (posterior).
+    pub sigma: [f64; 6],
+    d: Mat6,
+    b: MatG6,
+    g: Vec6,
+    c: Mat6,
+    y: Mat6G1,
+}
+
+impl Piece {
+    /// An empty piece.
+    pub const EMPTY: Self = Self {
+        start: GpsTime(0),
+        end: GpsTime(0),
+        n: 0,
+        error: [0.0; 6],
+        sigma: [0.0; 6],
+        d: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
+        b: MatG6::from_array_storage(nalgebra::ArrayStorage([[0.0; G]; 6])),
+        g: Vec6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 1])),
+        c: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
+        y: Mat6G1::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; G + 1])),
+    };
+
+    /// Its span [s].
+    fn len_s(&self) -> f64 {
+        (self.end.0 - self.start.0) as f64 * 1e-9
+    }
+
+    fn mid_s(&self) -> f64 {
+        (self.start.0 as f64 + self.end.0 as f64) * 0.5e-9
+    }
+}
+
+/// Cut the returns' time line into pieces of at most `len_s` (a gap over 1 s ends one too)
+/// into `out`; the number made, or `None` when more would be needed than `out` holds.
+pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
+    let len_ns = (len_s * 1e9) as i64;
+    let gap_ns = 1_000_000_000i64.min(len_ns);
+    // A k-way merge of the spheres' returns (each in time order).
+    let mut at = [0usize; MAX_TARGETS];
+    let mut m = 0usize;
+    let mut cur: Option<(i64, i64, usize)> = None;
+    loop {
+        let mut best: Option<(usize, i64)> = None;
+        for (j, s) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
+            if let Some(o) = s.obs.get(at[j]) {
+                if best.is_none_or(|(_, t)| o.time.0 < t) {
+                    best = Some((j, o.time.0));
+                }
+            }
+        }
+        let Some((j, t)) = best else { break };
+        at[j] += 1;
+        cur = match cur {
+            Some((s, e, n)) if t - s <= len_ns && t - e <= gap_ns => Some((s, t, n + 1)),
+            Some((s, e, n)) => {
+                *out.get_mut(m)? = Piece {
+                    start: GpsTime(s),
+                    end: GpsTime(e),
+                    n,
+                    ..Piece::EMPTY
+                };
+                m += 1;
+                Some((t, t, 1))
+            }
+            None => Some((t, t, 1)),
+        };
+    }
+    if let Some((s, e, n)) = cur {
+        *out.get_mut(m)? = Piece {
+            start: GpsTime(s),
+            end: GpsTime(e),
+            n,
+            ..Piece::EMPTY
+        };
+        m += 1;
+    }
+    Some(m)
+}
+
+/// Cut into at most `out.len()` pieces: `model`'s length, doubled until they fit.
+pub fn cut_for(pb: &Problem<'_>, model: &NavModel, out: &mut [Piece]) -> usize {
+    let mut len = model.piece_s();
+    for _ in 0..20 {
+        if let Some(m) = cut(pb, len, out) {
+            return m;
+        }
+        len *= 2.0;
+    }
+    0
+}
+
+/// The piece of a return at `t` (the pieces cover every return, in order).
+fn piece_of(pieces: &[Piece], t: GpsTime) -> usize {
+    pieces
+        .partition_point(|p| p.end.0 < t.0)
+        .min(pieces.len().saturating_sub(1))
+}
+
+/// What the navigation model's least squares found besides [`LmResult`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavFit {
+    /// Pieces used.
+    pub pieces: usize,
+    /// Each sphere's centre correction from its surveyed one [m, NED] and its 1 sigma.
+    pub centre: [[f64; 3]; MAX_TARGETS],
+    /// See `centre`.
+    pub centre_sigma: [[f64; 3]; MAX_TARGETS],
+    /// The white noise's variance factor found (1: as the noise model says).
+    pub variance_factor: f64,
+}
+
+/// Refine `b0` under the navigation model by Levenberg-Marquardt over the mounting (and the
+/// clock as `clock` says), the nuisance terms, the sphere centres (prior sigma `centre_sigma`
+/// per sphere [m]; 0: held at the survey) and the pieces' errors (`pieces`: at least one; cut
+/// with [`cut_for`]). At most `max_iter` iterations per pass; the white noise's variance
+/// factor is re-estimated between passes (at most four), with the design effect of returns
+/// within `cluster_ns` of each other on one sphere. The covariance is the inverse of the
+/// mounting's information with every other parameter marginalised.
+#[allow(clippy::too_many_arguments)]
+pub fn refine(
+    pb: &Problem<'_>,
+    b0: &[f64; P],
+    model: &NavModel,
+    centre_sigma: &[f64],
+    pieces: &mut [Piece],
+    max_iter: usize,
+    cluster_ns: i64,
+    clock: Clock,
+) -> (LmResult, NavFit) {
+    let clock = Clock {
+        dt: clock.dt,
+        drift: clock.dt && clock.drift,
+    };
+    let mut z = [0.0; G];
+    z[..P].copy_from_slice(b0);
+    z[P] = pb.dt;
+    z[DRIFT] = pb.drift;
+    let centre_info = core::array::from_fn(|j| match centre_sigma.get(j) {
+        Some(&s) if s > 0.0 && s.is_finite() => 1.0 / (s * s),
+        _ => 1e12,
+    });
+    for p in pieces.iter_mut() {
+        p.error = [0.0; 6];
+    }
+    let mut at = Joint {
+        pb,
+        z,
+        clock,
+        centre_info,
+        model: *model,
+        factor: 1.0,
+    };
+    let (mut iterations, mut converged) = (0, false);
+    let mut sums = at.evaluate(pieces);
+    for _pass in 0..4 {
+        (sums, iterations, converged) = iterate(&mut at, pieces, max_iter);
+        // The white noise's variance factor: the weighted residuals' mean square over their
+        // degrees of freedom (the pieces count by what the data, not their priors, fix of
+        // them: trace D (D + prior)^-1), times the design effect of returns that share a
+        // cluster (one sphere within `cluster_ns`: the beam's footprint and the sphere's cap
+        // give neighbours alike errors) `sum_g (sum_k sqrt(w) r)^2 / sum w r^2`, at least 1.
+        let mut p_eff = (Q + 3 * pb.spheres.len()) as f64;
+        for i in 0..pieces.len() {
+            let (own, _) = at.chain(pieces, i);
+            let mut full = pieces[i].d;
+            for k in 0..6 {
+                full[(k, k)] += own[k];
+            }
+            if let Some(inv) = full.try_inverse() {
+                p_eff += (pieces[i].d * inv).trace().clamp(0.0, 6.0);
+            }
+        }
+        let dof = (sums.n as f64 - p_eff).max(1.0);
+        let (mut wss, mut clustered, mut cluster_sum) = (0.0, 0.0, 0.0);
+        let mut key: Option<(usize, i64)> = None;
+        let pbz = at.problem();
+        let lin = Linearised::at(&at.b());
+        let (nu0, nu1) = (at.z[P + 1], at.z[P + 2]);
+        for (j, sp) in pbz.spheres.iter().enumerate() {
+            let cj = Q + 3 * j;
+            let centre = Vector3::new(at.z[cj], at.z[cj + 1], at.z[cj + 2]);
+            for o in sp.obs {
+                let e = pieces[piece_of(pieces, o.time)].error;
+                let c = NavCorrection {
+                    position: Vector3::new(e[0], e[1], e[2]),
+                    rotation: Vector3::new(e[3], e[4], e[5]),
+                    centre,
+                };
+                if let Some(r) = lin.row_corrected(o, &sp.target, pbz.dt_at(o), &c) {
+                    let res = r.residual - nu0 - nu1 * r.grazing;
+                    let i = piece_of(pieces, o.time);
+                    let w = at.weight(&pbz, o, pieces[i].len_s());
+                    wss += w * res * res;
+                    let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
+                    if key != Some(k) {
+                        clustered += cluster_sum * cluster_sum;
+                        cluster_sum = 0.0;
+                        key = Some(k);
+                    }
+                    cluster_sum += libm::sqrt(w) * res;
+                }
+            }
+        }
+        clustered += cluster_sum * cluster_sum;
+        let design = if wss > 0.0 {
+            (clustered / wss).max(1.0)
+        } else {
+            1.0
+        };
+        let s2 = wss / dof * design;
+        if !(s2.is_finite() && s2 > 0.0) || (s2 - 1.0).abs() < 0.05 {
+            break;
+        }
+        at.factor *= s2;
+        sums = at.evaluate(pieces);
+    }
+    let converged = converged && sums.cost.is_finite() && at.z.iter().all(|x| x.is_finite());
+    let h = at.reduced(&sums, pieces);
+    let cov = h.and_then(|h| h.try_inverse());
+    let nan = f64::NAN;
+    let var = |i: usize| cov.map_or(nan, |c| c[(i, i)].max(0.0));
+    let sigma: [f64; P] = core::array::from_fn(|i| libm::sqrt(var(i)));
+    let sigma_dt = if clock.dt { libm::sqrt(var(P)) } else { 0.0 };
+    let covariance: Mat6 = cov.map_or(Mat6::from_element(nan), |c| {
+        c.fixed_view::<P, P>(0, 0).into_owned()
+    });
+    let mut correlation = Mat6::zeros();
+    let mut dt_correlation = [0.0; P];
+    for i in 0..P {
+        for j in 0..P {
+            correlation[(i, j)] = covariance[(i, j)] / (sigma[i] * sigma[j]);
+        }
+        if clock.dt {
+            dt_correlation[i] = cov.map_or(nan, |c| c[(i, P)]) / (sigma[i] * sigma_dt);
+        }
+    }
+    // The mounting's (and clock's) information with everything else marginalised: what the
+    // data and priors leave to pin it.
+    let info_q: MatQ = cov.map_or(MatQ::from_element(nan), |c| {
+        let block = c.fixed_view::<Q, Q>(0, 0).into_owned();
+        let mut keep = block;
+        if !clock.dt {
+            keep[(P, P)] = 1.0;
+        }
+        if !clock.drift {
+            keep[(DRIFT, DRIFT)] = 1.0;
+        }
+        keep.try_inverse().unwrap_or(MatQ::from_element(nan))
+    });
+    let (condition, weakest) = conditioning(&info_q, clock.dt);
+    let sigma_drift = if clock.drift {
+        libm::sqrt(var(DRIFT))
+    } else {
+        0.0
+    };
+    // The pieces' posterior sigmas: the step's scratch holds M^-1 rows; the diagonal blocks of
+    // the full inverse are approximated by the pieces' own information (a lower bound).
+    for p in pieces.iter_mut() {
+        let info = p.c;
+        p.sigma = match info.try_inverse() {
+            Some(inv) => core::array::from_fn(|k| libm::sqrt(inv[(k, k)].max(0.0))),
+            None => [nan; 6],
+        };
+    }
+    let mut fit = NavFit {
+        pieces: pieces.len(),
+        centre: [[0.0; 3]; MAX_TARGETS],
+        centre_sigma: [[0.0; 3]; MAX_TARGETS],
+        variance_factor: at.factor,
+    };
+    for j in 0..pb.spheres.len().min(MAX_TARGETS) {
+        let cj = Q + 3 * j;
+        fit.centre[j] = [at.z[cj], at.z[cj + 1], at.z[cj + 2]];
+        fit.centre_sigma[j] = core::array::from_fn(|k| libm::sqrt(var(cj + k)));
+    }
+    let lm = LmResult {
+        b: at.b(),
+        dt: at.z[P],
+        estimated_dt: clock.dt,
+        drift: at.z[DRIFT],
+        sigma_drift,
+        estimated_drift: clock.drift,
+        radius_offset: at.z[P + 1],
+        iterations,
+        converged,
+        n: sums.n,
+        rms: libm::sqrt(sums.raw / sums.n.max(1) as f64),
+        normal: info_q.fixed_view::<P, P>(0, 0).into_owned(),
+        covariance,
+        sigma,
+        sigma_dt,
+        sigma_classic: sigma,
+        clusters: pieces.len(),
+        correlation,
+        dt_correlation,
+        condition,
+        weakest,
+    };
+    (lm, fit)
+}
