@@ -94,6 +94,18 @@ pub fn refusal_text_clock(
             found - held,
             (found - held).abs() / sigma.max(1e-12)
         ),
+        Refusal::SurveyDisagrees { sphere, moved, chi2, sigma } => {
+            let d = (moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]).sqrt();
+            format!(
+                "sphere {}'s surveyed centre disagrees with the other spheres and the navigation model: the returns move it N {:+.1} E {:+.1} D {:+.1} mm ({:.1} mm; chi-square {chi2:.0} with 3 degrees of freedom against its survey sigma {:.1} mm): check its survey, or whether it was moved",
+                ids.get(*sphere).map_or("?", |s| s.as_str()),
+                moved[0] * 1e3,
+                moved[1] * 1e3,
+                moved[2] * 1e3,
+                d * 1e3,
+                sigma * 1e3
+            )
+        }
         Refusal::Inconsistent { sphere, pass, offset, along_track, chi2 } => {
             let d = (offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]).sqrt();
             format!(

@@ -331,8 +331,42 @@ pub(super) fn checks(
             predicted,
         })
     } else {
-        worst
+        // A sphere's survey the others contradict is the cause of its passes' disagreement.
+        survey_check(s, sol, targets.len()).or(worst)
     }
+}
+
+/// Under the navigation model, the sphere whose estimated centre moved furthest from its
+/// survey, when beyond `max_pass_chi2`: each axis's correction against what its prior leaves
+/// unexplained (prior variance less posterior, at least a tenth of the prior: a correction
+/// `c ~ N(0, sigma_p^2 - sigma_post^2)` when the survey is right).
+fn survey_check(s: &Settings, sol: &Solution, n: usize) -> Option<Refusal> {
+    let f = sol.nav.as_ref()?;
+    let mut worst: Option<(f64, Refusal)> = None;
+    for j in 0..n.min(MAX_TARGETS) {
+        let sp = s.centre_sigma[j];
+        if !(sp > 0.0) {
+            continue;
+        }
+        let chi2: f64 = (0..3)
+            .map(|k| {
+                let v = (sp * sp - f.centre_sigma[j][k] * f.centre_sigma[j][k]).max(0.1 * sp * sp);
+                f.centre[j][k] * f.centre[j][k] / v
+            })
+            .sum();
+        if chi2 > s.max_pass_chi2 && worst.as_ref().is_none_or(|(c, _)| chi2 > *c) {
+            worst = Some((
+                chi2,
+                Refusal::SurveyDisagrees {
+                    sphere: j,
+                    moved: f.centre[j],
+                    chi2,
+                    sigma: sp,
+                },
+            ));
+        }
+    }
+    worst.map(|(_, r)| r)
 }
 
 /// The clocks' verdict over the solve's (`found`): an INS clock step within the data is the

@@ -106,6 +106,19 @@ pub enum Refusal {
         /// The stamps minus the RMC time [s], if known.
         rmc_offset_s: Option<f64>,
     },
+    /// Under the navigation model: the returns move one sphere's centre from its surveyed one
+    /// beyond what its survey's sigma allows, against the other spheres (a centre surveyed
+    /// wrong, a sphere moved or swapped since).
+    SurveyDisagrees {
+        /// Sphere index.
+        sphere: usize,
+        /// The estimated minus surveyed centre [m, NED].
+        moved: [f64; 3],
+        /// Its chi-square (3 degrees of freedom) against what the prior leaves unexplained.
+        chi2: f64,
+        /// The survey's sigma [m].
+        sigma: f64,
+    },
     /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
     /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
     TimeOffsetContradicted {

@@ -299,7 +299,7 @@ fn six_and_sigmas(r: &serde_json::Value) -> ([f64; 6], [f64; 6]) {
 /// wandering over 30 s): the site declares them (`[ins.correlated]`), the calibration
 /// estimates them with the mounting and claims a solution within 3 sigma of the truth, names
 /// the model in its report; the same survey without the declaration (the white-noise model)
-/// is refused by its own consistency tests.
+/// is refused by its own consistency tests; a sphere surveyed 20 cm off is refused, named.
 #[test]
 fn table1_real_calibrates_under_the_navigation_model() {
     let s = Scenario::load("table1-real").unwrap();
@@ -365,5 +365,35 @@ fn table1_real_calibrates_under_the_navigation_model() {
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["converged"], false, "{}", r["reason"]);
     assert!(r["navigation"].is_null(), "{}", r["navigation"]);
+    // S1 surveyed 20 cm north of where it stands: refused, S1 named with its disagreement.
+    let lat = |t: &str| -> f64 {
+        let after = t.split("id = \"S1\"").nth(1).unwrap();
+        let l = after.lines().find(|l| l.starts_with("lat_deg")).unwrap();
+        l.split('=').nth(1).unwrap().trim().parse().unwrap()
+    };
+    let moved = site.replacen(
+        &format!("lat_deg = {}", lat(&site)),
+        &format!("lat_deg = {}", lat(&site) + 0.2 / 111_200.0),
+        1,
+    );
+    assert_ne!(moved, site);
+    let off = dir.join("site-off.toml");
+    std::fs::write(&off, moved).unwrap();
+    let out = common::spherecal()
+        .arg("calibrate")
+        .arg("--pcap")
+        .arg(dir.join("lidar.pcap"))
+        .arg("--ins")
+        .arg(dir.join("ins.bin"))
+        .arg("--site")
+        .arg(&off)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("sphere S1's surveyed centre disagrees"),
+        "{text}"
+    );
     std::fs::remove_dir_all(dir).unwrap();
 }
