@@ -345,7 +345,7 @@ fn survey_check(s: &Settings, sol: &Solution, n: usize) -> Option<Refusal> {
     let mut worst: Option<(f64, Refusal)> = None;
     for j in 0..n.min(MAX_TARGETS) {
         let sp = s.centre_sigma[j];
-        if !(sp > 0.0) {
+        if sp.is_nan() || sp <= 0.0 {
             continue;
         }
         let chi2: f64 = (0..3)
