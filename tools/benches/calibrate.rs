@@ -7,7 +7,9 @@
 //! - `calibrate_from_files`: the whole `calibrate`: the pipeline (windows only) and the solve
 //!   (sphere extraction, detect-and-solve rounds, LM, covariance, per-sphere and per-pass
 //!   reports);
-//! - `solve`: the solve alone on the collected windows.
+//! - `solve`: the solve alone on the collected windows;
+//! - `calibrate_from_files_table1_real`, `solve_table1_real`: the same on `table1-real` under
+//!   its site's navigation model (issue 28: within 2x of table1's).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use spherecal::calib::{solve, Settings};
@@ -68,6 +70,38 @@ fn bench(c: &mut Criterion) {
                     &mut scratch.workspace(),
                 )
                 .b
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    // table1-real: the site declares the navigation model; the settings come from it.
+    let real = dir.join("real");
+    spherecal_tools::synth::synth(&Scenario::load("table1-real").unwrap(), &real).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&real.join("site.toml")).unwrap();
+    let settings = spherecal_tools::session::settings_for(&site, None, true, 3.0);
+    assert!(settings.nav.is_some());
+    let inp = Inputs::apriori(
+        real.join("lidar.pcap").into(),
+        InsInput::Vn200(real.join("ins.bin").into()),
+        site,
+    );
+    let (_, obs) = collect(&inp).unwrap();
+    let (targets, ids) = site_targets(&inp);
+    g.bench_function("calibrate_from_files_table1_real", |b| {
+        b.iter(|| {
+            let (_, mut obs) = collect(&inp).unwrap();
+            let (_, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
+            assert!(rep.converged);
+            rep.boresight_deg.pitch
+        })
+    });
+    g.bench_function("solve_table1_real", |b| {
+        b.iter_batched(
+            || obs.clone(),
+            |mut o| {
+                let mut s: Vec<&mut [spherecal::window::Observation]> =
+                    o.iter_mut().map(|v| v.as_mut_slice()).collect();
+                solve(&targets, &mut s, &b0, &settings, &mut scratch.workspace()).b
             },
             BatchSize::LargeInput,
         )
