@@ -173,9 +173,22 @@ impl Scratch {
 fn navigation_report(
     m: &spherecal::calib::nav::NavModel,
     fit: Option<&spherecal::calib::nav::NavFit>,
+    pieces: &[spherecal::calib::nav::Piece],
     s: &Settings,
     ids: &[String],
 ) -> crate::report::NavigationReport {
+    let corrections = pieces
+        .iter()
+        .map(|p| crate::report::NavCorrectionReport {
+            start_gps_s: p.start.0 as f64 * 1e-9,
+            end_gps_s: p.end.0 as f64 * 1e-9,
+            returns: p.n,
+            position_m: [p.error[0], p.error[1], p.error[2]],
+            position_sigma_m: [p.sigma[0], p.sigma[1], p.sigma[2]],
+            rotation_deg: [p.error[3], p.error[4], p.error[5]].map(f64::to_degrees),
+            rotation_sigma_deg: [p.sigma[3], p.sigma[4], p.sigma[5]].map(f64::to_degrees),
+        })
+        .collect();
     crate::report::NavigationReport {
         source: "site [ins.correlated]".into(),
         position_sigma_m: m.position_sigma,
@@ -197,6 +210,7 @@ fn navigation_report(
                     .unwrap_or([f64::NAN; 3]),
             })
             .collect(),
+        corrections,
     }
 }
 
@@ -340,9 +354,10 @@ pub fn solve_report_in(
         },
         batch_overflow: 0,
         inputs: None,
-        navigation: s
-            .nav
-            .map(|m| navigation_report(&m, sol.nav.as_ref(), s, ids)),
+        navigation: s.nav.map(|m| {
+            let pieces = sol.nav.map_or(&[][..], |f| &scratch.nav[..f.pieces]);
+            navigation_report(&m, sol.nav.as_ref(), pieces, s, ids)
+        }),
         clutter_rejected: sol
             .spheres
             .iter()

@@ -343,14 +343,34 @@ pub fn refine(
     } else {
         0.0
     };
-    // The pieces' posterior sigmas: the step's scratch holds M^-1 rows; the diagonal blocks of
-    // the full inverse are approximated by the pieces' own information (a lower bound).
-    for p in pieces.iter_mut() {
-        let info = p.c;
-        p.sigma = match info.try_inverse() {
-            Some(inv) => core::array::from_fn(|k| libm::sqrt(inv[(k, k)].max(0.0))),
-            None => [nan; 6],
+    // The pieces' posterior sigmas: the diagonal blocks of the inverse of the chain's matrix
+    // M (backward from the forward recursion's C_i: S_i = C_i^-1 + C_i^-1 L_i S_(i+1) L_i
+    // C_i^-1) plus what the globals' uncertainty adds, (M^-1 B^T)_i H^-1 (B M^-1)_i.
+    let mut next: Option<Mat6> = None;
+    for i in (0..pieces.len()).rev() {
+        let (_, link) = at.chain(pieces, i);
+        let p = &mut pieces[i];
+        let Some(cinv) = p.c.try_inverse() else {
+            p.sigma = [nan; 6];
+            next = None;
+            continue;
         };
+        let own = match next {
+            Some(sn) => {
+                let a = cinv * Mat6::from_diagonal(&Vec6::from(link));
+                cinv + a * sn * a.transpose()
+            }
+            None => cinv,
+        };
+        let total = match &cov {
+            Some(c) => {
+                let yb = p.y.fixed_view::<6, G>(0, 0);
+                own + yb * c * yb.transpose()
+            }
+            None => own,
+        };
+        p.sigma = core::array::from_fn(|k| libm::sqrt(total[(k, k)].max(0.0)));
+        next = Some(own);
     }
     let mut fit = NavFit {
         pieces: pieces.len(),

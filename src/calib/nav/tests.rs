@@ -85,11 +85,16 @@ mod honesty {
     /// A survey of four passes (north and south at 9, 12, 21 and 30 m) sampled every 5 ms;
     /// at each sample, returns on the spheres within +-0.38 x range along the track, exact
     /// for the true pose and reported with the navigation error (the error's truth kept).
-    fn survey(seed: u64, c: &Correlated, range_sigma: f64) -> Vec<Vec<Observation>> {
+    /// The returns on each sphere, and the navigation error's truth at each sample (time [ns],
+    /// N, E, D, rotation about N, E, D).
+    type Truth = Vec<(i64, [f64; 6])>;
+
+    fn survey(seed: u64, c: &Correlated, range_sigma: f64) -> (Vec<Vec<Observation>>, Truth) {
         let mount = crate::georef::Mount::from_params(&crate::georef::Params(TRUTH));
         let mut gm = GaussMarkov::new(c, 0.005, seed);
         let mut rng = crate::sim::Rng::new(seed ^ 0x55);
         let mut out = std::vec![Vec::new(), Vec::new()];
+        let mut truth = Vec::new();
         let passes: [(f64, f64, f64); 4] = [
             (9.0, 0.0, 1.3),
             (12.0, 180.0, 1.8),
@@ -107,6 +112,7 @@ mod honesty {
             let mut s = 0.0;
             while s < dur {
                 let e = gm.step().0;
+                truth.push(((t * 1e9) as i64, e));
                 let north = n0 + (n1 - n0) * s / dur;
                 let roll = 0.026 * libm::sin(s * 1.05);
                 let pitch = 0.014 * libm::sin(s * 1.4);
@@ -148,13 +154,15 @@ mod honesty {
             }
             t += 2.5;
         }
-        out
+        (out, truth)
     }
 
     /// Over `runs` surveys with errors of correlation time `tau`: each parameter's RMS
     /// z-score and the fraction within 3 sigma under the navigation model, and the RMS
     /// z-score of the white-noise solve (`lm::refine`, cluster-robust) on the same returns.
-    fn monte_carlo(tau: f64, runs: u64) -> ([f64; P], [f64; P], [f64; P]) {
+    /// With the pieces' RMS z-scores per axis (estimate against the truth's mean over the
+    /// piece).
+    fn monte_carlo(tau: f64, runs: u64) -> ([f64; P], [f64; P], [f64; P], [f64; 6]) {
         let c = Correlated {
             position_sigma: [0.016, 0.033],
             attitude_sigma: [0.011f64.to_radians(), 0.037f64.to_radians()],
@@ -171,9 +179,10 @@ mod honesty {
             position: 0.0,
         };
         let (mut z2, mut within, mut white) = ([0.0; P], [0.0; P], [0.0; P]);
+        let (mut pz2, mut pn) = ([0.0; 6], 0.0);
         let mut pieces = std::vec![Piece::EMPTY; 256];
         for seed in 0..runs {
-            let obs = survey(seed + 1, &c, 0.009);
+            let (obs, truth) = survey(seed + 1, &c, 0.009);
             let s = [
                 SphereObs {
                     target: SPHERES[0],
@@ -205,6 +214,22 @@ mod honesty {
                 clock,
             );
             assert!(l.converged, "seed {seed}: {l:?}");
+            for p in &pieces[..m] {
+                let inside: Vec<&[f64; 6]> = truth
+                    .iter()
+                    .filter(|(t, _)| *t >= p.start.0 && *t <= p.end.0)
+                    .map(|(_, e)| e)
+                    .collect();
+                if inside.is_empty() {
+                    continue;
+                }
+                for k in 0..6 {
+                    let mean = inside.iter().map(|e| e[k]).sum::<f64>() / inside.len() as f64;
+                    let z = (p.error[k] - mean) / p.sigma[k];
+                    pz2[k] += z * z;
+                }
+                pn += 1.0;
+            }
             let w = crate::calib::lm::refine(&pb, &TRUTH, 100, 20_000_000, clock);
             for i in 0..P {
                 let z = (l.b[i] - TRUTH[i]) / l.sigma[i];
@@ -214,20 +239,30 @@ mod honesty {
                 white[i] += zw * zw / runs as f64;
             }
         }
-        (z2.map(libm::sqrt), within, white.map(libm::sqrt))
+        (
+            z2.map(libm::sqrt),
+            within,
+            white.map(libm::sqrt),
+            pz2.map(|v| libm::sqrt(v / pn)),
+        )
     }
 
     /// The model's sigmas are honest, both bounds, on returns exact but for the range noise
     /// and the navigation errors (first-order Gauss-Markov at the paper's smrmsg levels) at
-    /// 15 s and 60 s; the white-noise solve on the same returns is not.
+    /// 15 s and 60 s, the mounting's and each piece's navigation correction's; the
+    /// white-noise solve on the same returns is not.
     #[test]
     fn sigmas_are_honest_on_exact_returns() {
         for tau in [15.0, 60.0] {
-            let (rms, within, white) = monte_carlo(tau, 60);
-            std::eprintln!("tau {tau} s: RMS z {rms:.2?}, within 3 sigma {within:.2?}; white solve RMS z {white:.1?}");
+            let (rms, within, white, pieces) = monte_carlo(tau, 60);
+            std::eprintln!("tau {tau} s: RMS z {rms:.2?}, within 3 sigma {within:.2?}; white solve RMS z {white:.1?}; the pieces' errors RMS z {pieces:.2?}");
             for i in 0..P {
                 assert!((0.7..1.4).contains(&rms[i]), "tau {tau}: {rms:?}");
                 assert!(within[i] >= 0.95, "tau {tau}: {within:?}");
+            }
+            // The navigation corrections (an output) with their sigmas, against the truth.
+            for z in pieces {
+                assert!((0.6..1.4).contains(&z), "tau {tau}: the pieces {pieces:?}");
             }
             assert!(
                 white.iter().any(|z| *z > 3.0),

@@ -297,6 +297,30 @@ pub struct NavigationReport {
     pub white_noise_factor: f64,
     /// Each sphere's centre correction from its surveyed one with its 1 sigma.
     pub centres: Vec<CentreCorrection>,
+    /// The navigation corrections found: each piece of the time line's error (reported minus
+    /// true) with its 1 sigma, in time order.
+    #[serde(default)]
+    pub corrections: Vec<NavCorrectionReport>,
+}
+
+/// One piece's navigation error as the calibration estimated it.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct NavCorrectionReport {
+    /// Its first and last return [GPS s].
+    pub start_gps_s: f64,
+    /// See `start_gps_s`.
+    pub end_gps_s: f64,
+    /// Returns in it.
+    pub returns: usize,
+    /// Position error north, east, down [m] (subtract it from the INS's position).
+    pub position_m: [f64; 3],
+    /// Its 1 sigma [m].
+    pub position_sigma_m: [f64; 3],
+    /// Attitude error as a small rotation about north, east, down [deg] (about down: the
+    /// heading's).
+    pub rotation_deg: [f64; 3],
+    /// Its 1 sigma [deg].
+    pub rotation_sigma_deg: [f64; 3],
 }
 
 /// A sphere centre under the navigation model.

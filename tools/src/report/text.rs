@@ -138,6 +138,39 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             n.pieces,
             n.white_noise_factor.sqrt()
         );
+        // The corrections over each stretch of the survey (pieces less than 2 s apart; seconds
+        // from the first), as means with the pieces' mean sigma (report.json has every piece).
+        let t0 = n.corrections.first().map_or(0.0, |c| c.start_gps_s);
+        let mut k = 0;
+        while k < n.corrections.len() {
+            let mut e = k + 1;
+            while e < n.corrections.len()
+                && n.corrections[e].start_gps_s - n.corrections[e - 1].end_gps_s < 2.0
+            {
+                e += 1;
+            }
+            let part = &n.corrections[k..e];
+            let m = part.len() as f64;
+            let mean = |f: &dyn Fn(&super::NavCorrectionReport) -> f64| {
+                part.iter().map(f).sum::<f64>() / m
+            };
+            let _ = writeln!(
+                o,
+                "  {:.1} to {:.1} s ({} pieces): INS position off by N {:+.1} E {:+.1} D {:+.1} mm (+- {:.1} {:.1} {:.1}), heading {:+.4} deg (+- {:.4})",
+                part[0].start_gps_s - t0,
+                part[part.len() - 1].end_gps_s - t0,
+                part.len(),
+                mean(&|c| c.position_m[0]) * 1e3,
+                mean(&|c| c.position_m[1]) * 1e3,
+                mean(&|c| c.position_m[2]) * 1e3,
+                mean(&|c| c.position_sigma_m[0]) * 1e3,
+                mean(&|c| c.position_sigma_m[1]) * 1e3,
+                mean(&|c| c.position_sigma_m[2]) * 1e3,
+                mean(&|c| c.rotation_deg[2]),
+                mean(&|c| c.rotation_sigma_deg[2]),
+            );
+            k = e;
+        }
         for c in &n.centres {
             let [x, y, z] = c.correction_m.map(|v| v * 1e3);
             let [sx, sy, sz] = c.sigma_m.map(|v| v * 1e3);

@@ -332,6 +332,15 @@ fn table1_real_calibrates_under_the_navigation_model() {
         r["navigation"]
     );
     assert!(out.contains("navigation errors:"), "{out}");
+    // The corrections are an output: every piece with a finite sigma, within 1-25 mm.
+    let c = r["navigation"]["corrections"].as_array().unwrap();
+    assert!(c.len() > 20, "{} pieces", c.len());
+    for p in c {
+        for s in p["position_sigma_m"].as_array().unwrap() {
+            let s = s.as_f64().unwrap();
+            assert!((0.001..0.025).contains(&s), "{p}");
+        }
+    }
     let (got, sigma) = six_and_sigmas(&r);
     let t = s.mount.truth.deg_m().0;
     for i in 0..6 {
