@@ -276,6 +276,19 @@ impl Joint<'_, '_> {
         Some(dz)
     }
 
+    /// Move the state by the step: the globals by `sign dz`, each piece by `sign` its step
+    /// (in its `sigma` scratch, where [`Self::step`] leaves it).
+    pub(super) fn apply(&mut self, dz: &VecG, pieces: &mut [Piece], sign: f64) {
+        for k in 0..G {
+            self.z[k] += sign * dz[k];
+        }
+        for p in pieces.iter_mut() {
+            for k in 0..6 {
+                p.error[k] += sign * p.sigma[k];
+            }
+        }
+    }
+
     /// The reduced information matrix of the global parameters (every piece eliminated), at
     /// the last evaluation's sums.
     pub(super) fn reduced(&self, s: &Sums, pieces: &mut [Piece]) -> Option<MatG> {
@@ -310,15 +323,7 @@ pub(super) fn iterate(
             continue;
         };
         // Try the step (the pieces' steps are in their `sigma` scratch).
-        let old_z = at.z;
-        for k in 0..G {
-            at.z[k] += dz[k];
-        }
-        for p in pieces.iter_mut() {
-            for k in 0..6 {
-                p.error[k] += p.sigma[k];
-            }
-        }
+        at.apply(&dz, pieces, 1.0);
         let trial = at.evaluate(pieces);
         if trial.cost <= sums.cost && trial.cost.is_finite() {
             let small = dz.iter().all(|d| d.abs() < 1e-11)
@@ -330,39 +335,21 @@ pub(super) fn iterate(
                 break;
             }
         } else {
-            at.z = old_z;
-            for p in pieces.iter_mut() {
-                for k in 0..6 {
-                    p.error[k] -= p.sigma[k];
-                }
-            }
+            at.apply(&dz, pieces, -1.0);
             lambda *= 10.0;
             sums = at.evaluate(pieces);
             if lambda > 1e8 && !tried_gn {
                 // Marquardt's steps fail: one undamped Gauss-Newton step before giving up.
                 tried_gn = true;
                 if let Some(dz) = at.step(&sums, pieces, 0.0) {
-                    let old_z = at.z;
-                    for k in 0..G {
-                        at.z[k] += dz[k];
-                    }
-                    for p in pieces.iter_mut() {
-                        for k in 0..6 {
-                            p.error[k] += p.sigma[k];
-                        }
-                    }
+                    at.apply(&dz, pieces, 1.0);
                     let trial = at.evaluate(pieces);
                     if trial.cost.is_finite() && trial.cost < sums.cost {
                         sums = trial;
                         lambda = 1e-6;
                         continue;
                     }
-                    at.z = old_z;
-                    for p in pieces.iter_mut() {
-                        for k in 0..6 {
-                            p.error[k] -= p.sigma[k];
-                        }
-                    }
+                    at.apply(&dz, pieces, -1.0);
                     sums = at.evaluate(pieces);
                 }
             }
@@ -388,15 +375,7 @@ pub(super) fn iterate(
             let Some(dz) = at.step(&sums, pieces, 0.0) else {
                 break;
             };
-            let old_z = at.z;
-            for k in 0..G {
-                at.z[k] += dz[k];
-            }
-            for p in pieces.iter_mut() {
-                for k in 0..6 {
-                    p.error[k] += p.sigma[k];
-                }
-            }
+            at.apply(&dz, pieces, 1.0);
             let trial = at.evaluate(pieces);
             if trial.cost.is_finite() && trial.cost <= sums.cost {
                 let gain = sums.cost - trial.cost;
@@ -406,12 +385,7 @@ pub(super) fn iterate(
                     break;
                 }
             } else {
-                at.z = old_z;
-                for p in pieces.iter_mut() {
-                    for k in 0..6 {
-                        p.error[k] -= p.sigma[k];
-                    }
-                }
+                at.apply(&dz, pieces, -1.0);
                 sums = at.evaluate(pieces);
                 break;
             }

@@ -307,22 +307,28 @@ fn table1_real_calibrates_under_the_navigation_model() {
     spherecal_tools::synth::synth(&s, &dir).unwrap();
     let site = std::fs::read_to_string(dir.join("site.toml")).unwrap();
     assert!(site.contains("[ins.correlated]"), "{site}");
+    // `calibrate` with `site`, its report to `report`: exit code and printed result.
     let calibrate = |site: &Path, report: &Path| {
-        common::stdout_of(
-            common::spherecal()
-                .arg("calibrate")
-                .arg("--pcap")
-                .arg(dir.join("lidar.pcap"))
-                .arg("--ins")
-                .arg(dir.join("ins.bin"))
-                .arg("--site")
-                .arg(site)
-                .arg("--report")
-                .arg(report),
+        let out = common::spherecal()
+            .arg("calibrate")
+            .arg("--pcap")
+            .arg(dir.join("lidar.pcap"))
+            .arg("--ins")
+            .arg(dir.join("ins.bin"))
+            .arg("--site")
+            .arg(site)
+            .arg("--report")
+            .arg(report)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
         )
     };
     let report = dir.join("report.json");
-    let out = calibrate(&dir.join("site.toml"), &report);
+    let (code, out) = calibrate(&dir.join("site.toml"), &report);
+    assert_eq!(code, Some(0), "{out}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["converged"], true, "{out}");
@@ -357,19 +363,8 @@ fn table1_real_calibrates_under_the_navigation_model() {
     let plain = site.split("\n[noise]").next().unwrap();
     std::fs::write(&white, plain).unwrap();
     let report = dir.join("report-white.json");
-    let st = common::spherecal()
-        .arg("calibrate")
-        .arg("--pcap")
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(&white)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    assert_eq!(st.status.code(), Some(1), "a refusal exits 1");
+    let (code, out) = calibrate(&white, &report);
+    assert_eq!(code, Some(1), "a refusal exits 1: {out}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["converged"], false, "{}", r["reason"]);
@@ -388,18 +383,8 @@ fn table1_real_calibrates_under_the_navigation_model() {
     assert_ne!(moved, site);
     let off = dir.join("site-off.toml");
     std::fs::write(&off, moved).unwrap();
-    let out = common::spherecal()
-        .arg("calibrate")
-        .arg("--pcap")
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(&off)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(1), "{text}");
+    let (code, text) = calibrate(&off, &dir.join("report-off.json"));
+    assert_eq!(code, Some(1), "{text}");
     assert!(
         text.contains("sphere S1's surveyed centre disagrees"),
         "{text}"
