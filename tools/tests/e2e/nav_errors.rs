@@ -256,18 +256,8 @@ fn the_synthesised_sbet_calibrates() {
         "{}",
         r["inputs"]
     );
-    let got = common::report_deg_m(&r);
+    let (got, sigma) = six_and_sigmas(&r);
     let t = s.mount.truth.deg_m().0;
-    let sig = &r["sigma"];
-    let sigma: Vec<f64> = ["roll", "pitch", "heading"]
-        .iter()
-        .map(|k| sig["boresight_deg"][k].as_f64().unwrap())
-        .chain(
-            ["x", "y", "z"]
-                .iter()
-                .map(|k| sig["lever_arm_m"][k].as_f64().unwrap()),
-        )
-        .collect();
     for i in 0..6 {
         assert!(
             (got[i] - t[i]).abs() < 3.0 * sigma[i] + 1e-4,
