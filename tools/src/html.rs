@@ -72,6 +72,7 @@ pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Er
     checks(&mut o, r);
     inputs(&mut o, r, leap);
     spheres(&mut o, r);
+    navigation(&mut o, r, leap);
     correlation(&mut o, r);
     search(&mut o, r);
     figures(&mut o, figs)?;
@@ -362,6 +363,67 @@ fn spheres(o: &mut String, r: &Report) {
         );
     }
     o.push_str("</table><p class=\"note\">Pass: numbered per sphere in time order, as in the figures. Start: seconds after the first pass. Centre offset: the sphere fitted to the pass's own returns with the solution, minus the surveyed centre (zero under 10 returns). A glimpse (greyed): the sphere seen for under 1.5 s or in fewer than 3 scan slices, in a turn or at the edge of the view: its returns count in the calibration, but it is too short to judge as a pass.</p>\n");
+}
+
+/// The navigation model's section: the model, each centre's correction, and the corrections
+/// to the INS along the survey (one row a second of pieces: report.json has every piece).
+fn navigation(o: &mut String, r: &Report, leap: i64) {
+    let Some(n) = &r.navigation else {
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "<h2>Navigation errors</h2><p class=\"note\">Estimated with the mounting under {} (position {} / {} cm, attitude {} / {} deg, correlation {} s) in {} pieces; the white noise found {}x the declared. Reported minus true: subtract from the INS.</p>",
+        escape(&n.source),
+        num(n.position_sigma_m[0] * 1e2, 1),
+        num(n.position_sigma_m[1] * 1e2, 1),
+        num(n.attitude_sigma_deg[0], 3),
+        num(n.attitude_sigma_deg[1], 3),
+        num(n.correlation_s, 0),
+        n.pieces,
+        num(n.white_noise_factor.sqrt(), 2)
+    );
+    o.push_str("<table><tr><th class=\"l\">sphere</th><th>survey sigma [mm]</th><th>centre moved N, E, D [mm]</th><th>1-sigma N, E, D [mm]</th></tr>\n");
+    for c in &n.centres {
+        let mm = |v: [f64; 3]| v.map(|x| num(x * 1e3, 1)).join(", ");
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(&c.sphere),
+            num(c.prior_sigma_m * 1e3, 1),
+            mm(c.correction_m),
+            mm(c.sigma_m)
+        );
+    }
+    o.push_str("</table>\n<table><tr><th class=\"l\">time</th><th>pieces</th><th>position N, E, D [mm]</th><th>1-sigma [mm]</th><th>heading [deg]</th><th>1-sigma [deg]</th></tr>\n");
+    let mut k = 0;
+    while k < n.corrections.len() {
+        let second = n.corrections[k].start_gps_s.floor();
+        let mut e = k + 1;
+        while e < n.corrections.len() && n.corrections[e].start_gps_s.floor() == second {
+            e += 1;
+        }
+        let part = &n.corrections[k..e];
+        let mean = |f: &dyn Fn(&crate::report::NavCorrectionReport) -> f64| {
+            part.iter().map(f).sum::<f64>() / part.len() as f64
+        };
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}, {}, {}</td><td>{}, {}, {}</td><td>{}</td><td>{}</td></tr>",
+            utc(part[0].start_gps_s, leap),
+            part.len(),
+            num(mean(&|c| c.position_m[0]) * 1e3, 1),
+            num(mean(&|c| c.position_m[1]) * 1e3, 1),
+            num(mean(&|c| c.position_m[2]) * 1e3, 1),
+            num(mean(&|c| c.position_sigma_m[0]) * 1e3, 1),
+            num(mean(&|c| c.position_sigma_m[1]) * 1e3, 1),
+            num(mean(&|c| c.position_sigma_m[2]) * 1e3, 1),
+            num(mean(&|c| c.rotation_deg[2]), 4),
+            num(mean(&|c| c.rotation_sigma_deg[2]), 4)
+        );
+        k = e;
+    }
+    o.push_str("</table>\n");
 }
 
 fn correlation(o: &mut String, r: &Report) {

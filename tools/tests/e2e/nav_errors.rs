@@ -309,6 +309,8 @@ fn table1_real_calibrates_under_the_navigation_model() {
             .arg(site)
             .arg("--report")
             .arg(report)
+            .arg("--html")
+            .arg(report.with_extension("html"))
             .output()
             .unwrap();
         (
@@ -328,6 +330,11 @@ fn table1_real_calibrates_under_the_navigation_model() {
         r["navigation"]
     );
     assert!(out.contains("navigation errors:"), "{out}");
+    let html = std::fs::read_to_string(report.with_extension("html")).unwrap();
+    assert!(
+        html.contains("<h2>Navigation errors</h2>") && html.contains("centre moved N, E, D"),
+        "the HTML page has no navigation section"
+    );
     // The corrections are an output: every piece with a finite sigma, within 1-25 mm.
     let c = r["navigation"]["corrections"].as_array().unwrap();
     assert!(c.len() > 20, "{} pieces", c.len());
