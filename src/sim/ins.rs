@@ -36,6 +36,10 @@ pub struct InsConfig {
     /// Steps of the INS clock: from true time `.0` [ns since the GPS epoch] on, the reported
     /// time is off by a further `.1` [ns] (a receiver's clock jump; negative: time goes back).
     pub time_steps: [(i64, i64); 4],
+    /// Jumps of the reported position: from true time `.0` [ns since the GPS epoch] on, it is
+    /// off by a further `.1` (north, east, down [m]): a GNSS solution that loses its fix and
+    /// its filter that follows (a fault beyond any declared noise model).
+    pub position_jumps: [(i64, [f64; 3]); 4],
 }
 
 /// Which attitude field the simulated VN-200 sends (VN-200 manual, Common group bits 3, 4).
@@ -61,6 +65,7 @@ impl Default for InsConfig {
             seed: 2,
             attitude: AttitudeOutput::YawPitchRoll,
             time_steps: [(i64::MAX, 0); 4],
+            position_jumps: [(i64::MAX, [0.0; 3]); 4],
         }
     }
 }
@@ -168,7 +173,14 @@ impl<'w, 'a> InsSim<'w, 'a> {
             self.rng.gauss(self.cfg.pos_sigma) + ee,
             self.rng.gauss(self.cfg.pos_sigma) + ed,
         );
-        let g = self.world.site.to_geodetic(&(s.position + noise));
+        let jumped: Vector3<f64> = self
+            .cfg
+            .position_jumps
+            .iter()
+            .filter(|(at, _)| t.0 >= *at)
+            .map(|(_, d)| Vector3::from(*d))
+            .sum();
+        let g = self.world.site.to_geodetic(&(s.position + noise + jumped));
         // Attitude relative to the local-level NED at the vessel, as an INS reports it.
         let c = self.world.site.from_local_level(g.lat, g.lon);
         let local = c.transpose() * rotation(s.rph[0], s.rph[1], s.rph[2]);

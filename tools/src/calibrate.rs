@@ -211,6 +211,8 @@ fn navigation_report(
             })
             .collect(),
         corrections,
+        worst_step_sigmas: fit.map_or(f64::NAN, |f| f.worst_step.0),
+        worst_step_gps_s: fit.map_or(f64::NAN, |f| f.worst_step.1 .0 as f64 * 1e-9),
     }
 }
 

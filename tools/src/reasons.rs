@@ -94,6 +94,14 @@ pub fn refusal_text_clock(
             found - held,
             (found - held).abs() / sigma.max(1e-12)
         ),
+        Refusal::NavigationJump { at, step, sigmas } => format!(
+            "the navigation jumps at GPS {:.1} s: N {:+.1} E {:+.1} D {:+.1} mm, heading {:+.4} deg between consecutive pieces of the survey, {sigmas:.0} times what the declared model ([ins.correlated]) lets it move: an INS that lost its fix or a trajectory edited; cut the survey there or calibrate the stretches apart",
+            at.0 as f64 * 1e-9,
+            step[0] * 1e3,
+            step[1] * 1e3,
+            step[2] * 1e3,
+            step[5].to_degrees()
+        ),
         Refusal::SurveyDisagrees { sphere, moved, chi2, sigma } => {
             let d = (moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]).sqrt();
             format!(

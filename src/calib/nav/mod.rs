@@ -197,6 +197,10 @@ pub struct NavFit {
     pub centre_sigma: [[f64; 3]; MAX_TARGETS],
     /// The white noise's variance factor found (1: as the noise model says).
     pub variance_factor: f64,
+    /// The largest step between consecutive pieces against the model's: `|e_i - phi e_(i-1)|`
+    /// over `sigma sqrt(1 - phi^2)` on the worst axis (an INS jump shows as tens), the piece
+    /// it happened at and the step (N, E, D [m], rotation [rad]).
+    pub worst_step: (f64, GpsTime, [f64; 6]),
 }
 
 /// Refine `b0` under the navigation model by Levenberg-Marquardt over the mounting (and the
@@ -372,11 +376,26 @@ pub fn refine(
         p.sigma = core::array::from_fn(|k| libm::sqrt(total[(k, k)].max(0.0)));
         next = Some(own);
     }
+    let mut worst_step = (0.0, GpsTime(0), [0.0; 6]);
+    let sg = model.sigmas();
+    for i in 1..pieces.len() {
+        let phi =
+            libm::exp(-(pieces[i].mid_s() - pieces[i - 1].mid_s()).abs() / model.correlation_s);
+        let step: [f64; 6] =
+            core::array::from_fn(|k| pieces[i].error[k] - phi * pieces[i - 1].error[k]);
+        for k in 0..6 {
+            let sd = sg[k] * libm::sqrt((1.0 - phi * phi).max(1e-12));
+            if sd > 0.0 && step[k].abs() / sd > worst_step.0 {
+                worst_step = (step[k].abs() / sd, pieces[i].start, step);
+            }
+        }
+    }
     let mut fit = NavFit {
         pieces: pieces.len(),
         centre: [[0.0; 3]; MAX_TARGETS],
         centre_sigma: [[0.0; 3]; MAX_TARGETS],
         variance_factor: at.factor,
+        worst_step,
     };
     for j in 0..pb.spheres.len().min(MAX_TARGETS) {
         let cj = Q + 3 * j;

@@ -331,9 +331,19 @@ pub(super) fn checks(
             predicted,
         })
     } else {
-        // A sphere's survey the others contradict is the cause of its passes' disagreement.
-        survey_check(s, sol, targets.len()).or(worst)
+        // A jump of the navigation, then a sphere's survey the others contradict, are the
+        // causes of the passes' disagreement.
+        jump_check(s, sol)
+            .or_else(|| survey_check(s, sol, targets.len()))
+            .or(worst)
     }
+}
+
+/// Under the navigation model, the largest step between consecutive pieces when beyond
+/// `max_nav_step_sigmas`.
+fn jump_check(s: &Settings, sol: &Solution) -> Option<Refusal> {
+    let (sigmas, at, step) = sol.nav.as_ref()?.worst_step;
+    (sigmas > s.max_nav_step_sigmas).then_some(Refusal::NavigationJump { at, step, sigmas })
 }
 
 /// Under the navigation model, the sphere whose estimated centre moved furthest from its

@@ -106,6 +106,17 @@ pub enum Refusal {
         /// The stamps minus the RMC time [s], if known.
         rmc_offset_s: Option<f64>,
     },
+    /// Under the navigation model: the navigation error steps between two consecutive pieces
+    /// of the survey far beyond what the declared model lets it move (an INS that lost its fix
+    /// and jumped, a trajectory edited by hand).
+    NavigationJump {
+        /// The first return after the step.
+        at: GpsTime,
+        /// The step: N, E, D [m], rotation about N, E, D [rad].
+        step: [f64; 6],
+        /// Its size in the model's sigmas on its worst axis.
+        sigmas: f64,
+    },
     /// Under the navigation model: the returns move one sphere's centre from its surveyed one
     /// beyond what its survey's sigma allows, against the other spheres (a centre surveyed
     /// wrong, a sphere moved or swapped since).

@@ -74,6 +74,10 @@ pub struct Settings {
     pub nav: Option<NavModel>,
     /// Each sphere's surveyed centre's 1 sigma [m] under the navigation model (0: held).
     pub centre_sigma: [f64; MAX_TARGETS],
+    /// Under the navigation model, the largest step between consecutive pieces, in the
+    /// model's sigmas, that is not a jump (surveys with the declared errors: 1.7-2.3; a 5 cm
+    /// jump within a pass: 10).
+    pub max_nav_step_sigmas: f64,
 }
 
 /// What the caller read of the clocks in the streams.
@@ -159,6 +163,7 @@ impl Default for Settings {
             clocks: ClockFacts::default(),
             nav: None,
             centre_sigma: [0.0; MAX_TARGETS],
+            max_nav_step_sigmas: 5.0,
         }
     }
 }

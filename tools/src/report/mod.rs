@@ -301,6 +301,13 @@ pub struct NavigationReport {
     /// true) with its 1 sigma, in time order.
     #[serde(default)]
     pub corrections: Vec<NavCorrectionReport>,
+    /// The largest step between consecutive pieces in the model's sigmas (an INS jump shows
+    /// as tens), and when [GPS s].
+    #[serde(default)]
+    pub worst_step_sigmas: f64,
+    /// See `worst_step_sigmas`.
+    #[serde(default)]
+    pub worst_step_gps_s: f64,
 }
 
 /// One piece's navigation error as the calibration estimated it.

@@ -388,3 +388,23 @@ fn table1_real_calibrates_under_the_navigation_model() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// A fault beyond the declared model: table1-real's INS jumps 20 cm down 3.5 s into the scan
+/// (during the first pass, spheres in view) and stays there: refused, the jump named with
+/// its time and size, instead of a lever arm bent by 10 cm.
+#[test]
+fn an_ins_jump_beyond_the_model_is_refused() {
+    let mut s = Scenario::load("table1-real").unwrap();
+    s.ins.position_jumps = vec![[3.5, 0.0, 0.0, 0.2]];
+    let dir = common::tmp("nav-errors", "jump");
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let out = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(&dir))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("the navigation jumps at GPS"), "{text}");
+    std::fs::remove_dir_all(dir).unwrap();
+}

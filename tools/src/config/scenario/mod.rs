@@ -279,6 +279,11 @@ pub struct InsSpec {
     /// the scan's start on, its time is off by a further `step_s` (negative: it goes back).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub clock_steps: Vec<[f64; 2]>,
+    /// Jumps of the reported position: `[[at_s, north_m, east_m, down_m], ...]`, at most four:
+    /// from `at_s` seconds after the scan's start on, the INS's position is off by a further
+    /// (north, east, down) (a lost fix: a fault, not noise).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub position_jumps: Vec<[f64; 4]>,
 }
 
 fn is_default_correlated(c: &crate::config::nav_errors::CorrelatedSpec) -> bool {
@@ -658,6 +663,13 @@ impl Scenario {
                     );
                 }
                 steps
+            },
+            position_jumps: {
+                let mut jumps = [(i64::MAX, [0.0; 3]); 4];
+                for (k, [at, n, e, d]) in self.ins.position_jumps.iter().take(4).enumerate() {
+                    jumps[k] = (self.start().0 + (at * 1e9).round() as i64, [*n, *e, *d]);
+                }
+                jumps
             },
             ..InsConfig::default()
         }

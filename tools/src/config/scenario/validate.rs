@@ -253,6 +253,14 @@ impl Scenario {
             "ins.clock_steps",
             "expected at most 4 [at_s >= 0, |step_s| < 10]",
         )?;
+        check(
+            self.ins.position_jumps.len() <= 4
+                && self.ins.position_jumps.iter().all(|[a, n, e, d]| {
+                    a.is_finite() && *a >= 0.0 && [n, e, d].iter().all(|v| v.abs() < 100.0)
+                }),
+            "ins.position_jumps",
+            "expected at most 4 [at_s >= 0, north_m, east_m, down_m], each |jump| < 100 m",
+        )?;
         Ok(())
     }
 
