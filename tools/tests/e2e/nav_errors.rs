@@ -408,3 +408,44 @@ fn an_ins_jump_beyond_the_model_is_refused() {
     assert!(text.contains("the navigation jumps at GPS"), "{text}");
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// A held clock offset the data contradict is refused under the navigation model too (the
+/// INS 20 ms late on table1-real); free, the offset is found within 3 sigma.
+#[test]
+fn a_held_clock_the_data_contradict_is_refused_under_the_model() {
+    let mut s = Scenario::load("table1-real").unwrap();
+    s.ins.time_offset_s = 0.02;
+    let dir = common::tmp("nav-errors", "held-clock");
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let run = |hold: bool| {
+        let report = dir.join(format!("r-{hold}.json"));
+        let mut c = common::spherecal();
+        c.arg("calibrate")
+            .args(common::survey_args(&dir))
+            .arg("--report")
+            .arg(&report);
+        if hold {
+            c.arg("--hold-time-offset");
+        }
+        let out = c.output().unwrap();
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            r,
+        )
+    };
+    let (code, text, _) = run(true);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("the time offset held is contradicted"),
+        "{text}"
+    );
+    let (code, text, r) = run(false);
+    assert_eq!(code, Some(0), "{text}");
+    let dt = r["time_offset_s"].as_f64().unwrap();
+    let sigma = r["sigma"]["time_offset_s"].as_f64().unwrap();
+    assert!((dt - 0.02).abs() < 3.0 * sigma, "{dt} +- {sigma}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
