@@ -34,6 +34,12 @@ impl Joint<'_, '_> {
         core::array::from_fn(|i| self.z[i])
     }
 
+    /// Sphere `j`'s centre correction.
+    pub(super) fn centre(&self, j: usize) -> Vector3<f64> {
+        let cj = Q + 3 * j;
+        Vector3::new(self.z[cj], self.z[cj + 1], self.z[cj + 2])
+    }
+
     pub(super) fn problem(&self) -> Problem<'_> {
         Problem {
             dt: self.z[P],
@@ -66,9 +72,7 @@ impl Joint<'_, '_> {
     /// piece `i + 1` (`link`, negative), for the axes with a sigma.
     pub(super) fn chain(&self, pieces: &[Piece], i: usize) -> ([f64; 6], [f64; 6]) {
         let sig = self.model.sigmas();
-        let tau = self.model.correlation_s;
-        let phi =
-            |a: usize, b: usize| libm::exp(-(pieces[b].mid_s() - pieces[a].mid_s()).abs() / tau);
+        let phi = |a: usize, b: usize| self.model.phi(&pieces[a], &pieces[b]);
         let mut own = [0.0; 6];
         let mut link = [0.0; 6];
         for k in 0..6 {
@@ -115,15 +119,10 @@ impl Joint<'_, '_> {
         let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
         for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
             let cj = Q + 3 * j;
-            let centre = Vector3::new(self.z[cj], self.z[cj + 1], self.z[cj + 2]);
+            let centre = self.centre(j);
             for o in sp.obs {
                 let i = piece_of(pieces, o.time);
-                let e = pieces[i].error;
-                let c = NavCorrection {
-                    position: Vector3::new(e[0], e[1], e[2]),
-                    rotation: Vector3::new(e[3], e[4], e[5]),
-                    centre,
-                };
+                let c = pieces[i].correction(centre);
                 let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &c) else {
                     continue;
                 };

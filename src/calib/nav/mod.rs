@@ -1,7 +1,7 @@
 //! The navigation errors that wander (DESIGN.md "Navigation errors that wander"): a real GNSS/INS
 //! solution is off by centimetres that stay for tens of seconds, first-order Gauss-Markov per
 //! axis. The least squares estimate them with the mounting: the survey's time line is cut into
-//! pieces of a sixth of the correlation time, each with its own error `e_i` (position N, E, D
+//! pieces of 0.25-0.5 s ([`NavModel::piece_s`]), each with its own error `e_i` (position N, E, D
 //! and a small rotation about N, E, D) and the process's prior — `e_0 ~ N(0, S)`,
 //! `e_i | e_(i-1) ~ N(phi e_(i-1), (1 - phi^2) S)`, `phi = exp(-gap / tau)` — and the sphere
 //! centres with their survey's sigma. The answer maximises the likelihood of the returns
@@ -56,11 +56,9 @@ impl NavModel {
         (self.correlation_s / 30.0).clamp(0.25, 0.5)
     }
 
-    /// Usable: finite, non-negative sigmas and a positive correlation time.
-    pub fn is_valid(&self) -> bool {
-        self.sigmas().iter().all(|s| s.is_finite() && *s >= 0.0)
-            && self.correlation_s.is_finite()
-            && self.correlation_s > 0.0
+    /// The process's correlation between two pieces, `exp(-gap / tau)` of their middles.
+    fn phi(&self, a: &Piece, b: &Piece) -> f64 {
+        libm::exp(-(b.mid_s() - a.mid_s()).abs() / self.correlation_s)
     }
 }
 
@@ -86,7 +84,8 @@ pub struct Piece {
     pub n: usize,
     /// The estimated navigation error: N, E, D [m], rotation about N, E, D [rad].
     pub error: [f64; 6],
-    /// Its 1 sigma (posterior).
+    /// Its 1 sigma (posterior) once [`refine`] returns; during the iterations the step
+    /// [`Joint::step`] last computed for it.
     pub sigma: [f64; 6],
     d: Mat6,
     b: MatG6,
@@ -117,6 +116,16 @@ impl Piece {
 
     fn mid_s(&self) -> f64 {
         (self.start.0 as f64 + self.end.0 as f64) * 0.5e-9
+    }
+
+    /// Its error taken out of a return on a sphere whose centre moved by `centre`.
+    fn correction(&self, centre: Vector3<f64>) -> NavCorrection {
+        let e = self.error;
+        NavCorrection {
+            position: Vector3::new(e[0], e[1], e[2]),
+            rotation: Vector3::new(e[3], e[4], e[5]),
+            centre,
+        }
     }
 }
 
@@ -248,60 +257,7 @@ pub fn refine(
     let mut sums = at.evaluate(pieces);
     for _pass in 0..4 {
         (sums, iterations, converged) = iterate(&mut at, pieces, max_iter);
-        // The white noise's variance factor: the weighted residuals' mean square over their
-        // degrees of freedom (the pieces count by what the data, not their priors, fix of
-        // them: trace D (D + prior)^-1), times the design effect of returns that share a
-        // cluster (one sphere within `cluster_ns`: the beam's footprint and the sphere's cap
-        // give neighbours alike errors) `sum_g (sum_k sqrt(w) r)^2 / sum w r^2`, at least 1.
-        let mut p_eff = (Q + 3 * pb.spheres.len()) as f64;
-        for i in 0..pieces.len() {
-            let (own, _) = at.chain(pieces, i);
-            let mut full = pieces[i].d;
-            for k in 0..6 {
-                full[(k, k)] += own[k];
-            }
-            if let Some(inv) = full.try_inverse() {
-                p_eff += (pieces[i].d * inv).trace().clamp(0.0, 6.0);
-            }
-        }
-        let dof = (sums.n as f64 - p_eff).max(1.0);
-        let (mut wss, mut clustered, mut cluster_sum) = (0.0, 0.0, 0.0);
-        let mut key: Option<(usize, i64)> = None;
-        let pbz = at.problem();
-        let lin = Linearised::at(&at.b());
-        let (nu0, nu1) = (at.z[P + 1], at.z[P + 2]);
-        for (j, sp) in pbz.spheres.iter().enumerate() {
-            let cj = Q + 3 * j;
-            let centre = Vector3::new(at.z[cj], at.z[cj + 1], at.z[cj + 2]);
-            for o in sp.obs {
-                let e = pieces[piece_of(pieces, o.time)].error;
-                let c = NavCorrection {
-                    position: Vector3::new(e[0], e[1], e[2]),
-                    rotation: Vector3::new(e[3], e[4], e[5]),
-                    centre,
-                };
-                if let Some(r) = lin.row_corrected(o, &sp.target, pbz.dt_at(o), &c) {
-                    let res = r.residual - nu0 - nu1 * r.grazing;
-                    let i = piece_of(pieces, o.time);
-                    let w = at.weight(&pbz, o, pieces[i].len_s());
-                    wss += w * res * res;
-                    let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
-                    if key != Some(k) {
-                        clustered += cluster_sum * cluster_sum;
-                        cluster_sum = 0.0;
-                        key = Some(k);
-                    }
-                    cluster_sum += libm::sqrt(w) * res;
-                }
-            }
-        }
-        clustered += cluster_sum * cluster_sum;
-        let design = if wss > 0.0 {
-            (clustered / wss).max(1.0)
-        } else {
-            1.0
-        };
-        let s2 = wss / dof * design;
+        let s2 = white_noise_factor(&at, pieces, &sums, cluster_ns);
         if !(s2.is_finite() && s2 > 0.0) || (s2 - 1.0).abs() < 0.05 {
             break;
         }
@@ -347,55 +303,13 @@ pub fn refine(
     } else {
         0.0
     };
-    // The pieces' posterior sigmas: the diagonal blocks of the inverse of the chain's matrix
-    // M (backward from the forward recursion's C_i: S_i = C_i^-1 + C_i^-1 L_i S_(i+1) L_i
-    // C_i^-1) plus what the globals' uncertainty adds, (M^-1 B^T)_i H^-1 (B M^-1)_i.
-    let mut next: Option<Mat6> = None;
-    for i in (0..pieces.len()).rev() {
-        let (_, link) = at.chain(pieces, i);
-        let p = &mut pieces[i];
-        let Some(cinv) = p.c.try_inverse() else {
-            p.sigma = [nan; 6];
-            next = None;
-            continue;
-        };
-        let own = match next {
-            Some(sn) => {
-                let a = cinv * Mat6::from_diagonal(&Vec6::from(link));
-                cinv + a * sn * a.transpose()
-            }
-            None => cinv,
-        };
-        let total = match &cov {
-            Some(c) => {
-                let yb = p.y.fixed_view::<6, G>(0, 0);
-                own + yb * c * yb.transpose()
-            }
-            None => own,
-        };
-        p.sigma = core::array::from_fn(|k| libm::sqrt(total[(k, k)].max(0.0)));
-        next = Some(own);
-    }
-    let mut worst_step = (0.0, GpsTime(0), [0.0; 6]);
-    let sg = model.sigmas();
-    for i in 1..pieces.len() {
-        let phi =
-            libm::exp(-(pieces[i].mid_s() - pieces[i - 1].mid_s()).abs() / model.correlation_s);
-        let step: [f64; 6] =
-            core::array::from_fn(|k| pieces[i].error[k] - phi * pieces[i - 1].error[k]);
-        for k in 0..6 {
-            let sd = sg[k] * libm::sqrt((1.0 - phi * phi).max(1e-12));
-            if sd > 0.0 && step[k].abs() / sd > worst_step.0 {
-                worst_step = (step[k].abs() / sd, pieces[i].start, step);
-            }
-        }
-    }
+    posterior_sigmas(&at, pieces, cov.as_ref());
     let mut fit = NavFit {
         pieces: pieces.len(),
         centre: [[0.0; 3]; MAX_TARGETS],
         centre_sigma: [[0.0; 3]; MAX_TARGETS],
         variance_factor: at.factor,
-        worst_step,
+        worst_step: worst_step(model, pieces),
     };
     for j in 0..pb.spheres.len().min(MAX_TARGETS) {
         let cj = Q + 3 * j;
@@ -426,4 +340,111 @@ pub fn refine(
         weakest,
     };
     (lm, fit)
+}
+
+/// The white noise's variance factor at the state: the weighted residuals' mean square over
+/// their degrees of freedom (the pieces count by what the data, not their priors, fix of them:
+/// trace D (D + prior)^-1), times the design effect of returns that share a cluster (one
+/// sphere within `cluster_ns`: the beam's footprint and the sphere's cap give neighbours alike
+/// errors) `sum_g (sum_k sqrt(w) r)^2 / sum w r^2`, at least 1.
+fn white_noise_factor(
+    at: &Joint<'_, '_>,
+    pieces: &[Piece],
+    sums: &joint::Sums,
+    cluster_ns: i64,
+) -> f64 {
+    let mut p_eff = (Q + 3 * at.pb.spheres.len()) as f64;
+    for (i, p) in pieces.iter().enumerate() {
+        let (own, _) = at.chain(pieces, i);
+        let mut full = p.d;
+        for k in 0..6 {
+            full[(k, k)] += own[k];
+        }
+        if let Some(inv) = full.try_inverse() {
+            p_eff += (p.d * inv).trace().clamp(0.0, 6.0);
+        }
+    }
+    let dof = (sums.n as f64 - p_eff).max(1.0);
+    let (mut wss, mut clustered, mut cluster_sum) = (0.0, 0.0, 0.0);
+    let mut key: Option<(usize, i64)> = None;
+    let pb = at.problem();
+    let lin = Linearised::at(&at.b());
+    let (nu0, nu1) = (at.z[P + 1], at.z[P + 2]);
+    for (j, sp) in pb.spheres.iter().enumerate() {
+        let centre = at.centre(j);
+        for o in sp.obs {
+            let p = &pieces[piece_of(pieces, o.time)];
+            let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &p.correction(centre))
+            else {
+                continue;
+            };
+            let res = r.residual - nu0 - nu1 * r.grazing;
+            let w = at.weight(&pb, o, p.len_s());
+            wss += w * res * res;
+            let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
+            if key != Some(k) {
+                clustered += cluster_sum * cluster_sum;
+                cluster_sum = 0.0;
+                key = Some(k);
+            }
+            cluster_sum += libm::sqrt(w) * res;
+        }
+    }
+    clustered += cluster_sum * cluster_sum;
+    let design = if wss > 0.0 {
+        (clustered / wss).max(1.0)
+    } else {
+        1.0
+    };
+    wss / dof * design
+}
+
+/// Each piece's posterior sigma into its `sigma`: the diagonal blocks of the inverse of the
+/// chain's matrix M (backward from the forward recursion's C_i, left by the last
+/// [`Joint::reduced`]: `S_i = C_i^-1 + C_i^-1 L_i S_(i+1) L_i C_i^-1`) plus what the globals'
+/// uncertainty `cov` adds, `(M^-1 B^T)_i cov (B M^-1)_i`.
+fn posterior_sigmas(at: &Joint<'_, '_>, pieces: &mut [Piece], cov: Option<&MatG>) {
+    let mut next: Option<Mat6> = None;
+    for i in (0..pieces.len()).rev() {
+        let (_, link) = at.chain(pieces, i);
+        let p = &mut pieces[i];
+        let Some(cinv) = p.c.try_inverse() else {
+            p.sigma = [f64::NAN; 6];
+            next = None;
+            continue;
+        };
+        let own = match next {
+            Some(sn) => {
+                let a = cinv * Mat6::from_diagonal(&Vec6::from(link));
+                cinv + a * sn * a.transpose()
+            }
+            None => cinv,
+        };
+        let total = match cov {
+            Some(c) => {
+                let yb = p.y.fixed_view::<6, G>(0, 0);
+                own + yb * c * yb.transpose()
+            }
+            None => own,
+        };
+        p.sigma = core::array::from_fn(|k| libm::sqrt(total[(k, k)].max(0.0)));
+        next = Some(own);
+    }
+}
+
+/// The largest step between consecutive pieces in the model's sigmas ([`NavFit::worst_step`]).
+fn worst_step(model: &NavModel, pieces: &[Piece]) -> (f64, GpsTime, [f64; 6]) {
+    let mut worst = (0.0, GpsTime(0), [0.0; 6]);
+    let sg = model.sigmas();
+    for w in pieces.windows(2) {
+        let phi = model.phi(&w[0], &w[1]);
+        let step: [f64; 6] = core::array::from_fn(|k| w[1].error[k] - phi * w[0].error[k]);
+        for k in 0..6 {
+            let sd = sg[k] * libm::sqrt((1.0 - phi * phi).max(1e-12));
+            if sd > 0.0 && step[k].abs() / sd > worst.0 {
+                worst = (step[k].abs() / sd, w[1].start, step);
+            }
+        }
+    }
+    worst
 }
