@@ -3,7 +3,9 @@
 synthesised and calibrated with the release binary, each parameter's error against its
 reported sigma. Usage: nav-honesty.py SCENARIO TAU_S SEEDS [FIRST_SEED] [--white]
 (--white: the site without [ins.correlated], the white-noise solve, for comparison).
-Prints converged, per parameter RMS z-score, fraction within 3 sigma, RMS error."""
+Prints converged, per parameter RMS z-score, fraction within 3 sigma, RMS error, and the
+error's standard deviation against what `spherecal plan` predicts for the same scenario
+(issue 28 item 6: within 20 %)."""
 import json, os, re, subprocess, sys, tempfile, math
 
 exe = os.environ.get("SPHERECAL") or os.path.join(os.path.dirname(__file__), "..", "target", "release", "spherecal")
@@ -58,9 +60,21 @@ if centre_rms:
     cr = sorted(centre_rms)
     print(f"  sphere centre RMS (the passes' fitted centres against the survey): median "
           f"{1e3 * cr[len(cr) // 2]:.1f} mm, {1e3 * cr[0]:.1f}-{1e3 * cr[-1]:.1f} mm (the paper's real survey: 36 mm)")
-for n in names:
+# The plan's prediction for the scenario (the first seed's file: the noise and model are the
+# same for every seed).
+t = re.sub(r"(?m)^\[ins\.correlated\]\n", f"[ins.correlated]\ncorrelation_s = {tau}\n" + "".join(f"{k} = {v}\n" for k, v in sets), base)
+sp = os.path.join(work, "plan.toml")
+open(sp, "w").write(t)
+pr = os.path.join(work, "plan.json")
+subprocess.run([exe, "plan", "--scenario", sp, "--report", pr], capture_output=True)
+pred = json.load(open(pr))["predicted"]["sigma_deg_m"] if os.path.exists(pr) else [None] * 6
+for i, n in enumerate(names):
     zs = z2[n]
     rmsz = math.sqrt(sum(z * z for z in zs) / len(zs)) if zs else float("nan")
     w3 = sum(abs(z) <= 3 for z in zs) / len(zs) if zs else float("nan")
     rmse = math.sqrt(sum(e * e for e in err[n]) / len(err[n])) if err[n] else float("nan")
-    print(f"  {n:8s} RMS z {rmsz:5.2f}  within 3 sigma {100*w3:5.1f} %  RMS error {rmse:.5f}")
+    m = sum(err[n]) / len(err[n]) if err[n] else float("nan")
+    sd = math.sqrt(sum((e - m) ** 2 for e in err[n]) / max(len(err[n]) - 1, 1)) if err[n] else float("nan")
+    p = pred[i] if not white else None
+    vs = f"  sd {sd:.5f} / plan {p:.5f} = {sd / p:.2f}" if p else ""
+    print(f"  {n:8s} RMS z {rmsz:5.2f}  within 3 sigma {100*w3:5.1f} %  RMS error {rmse:.5f}{vs}")

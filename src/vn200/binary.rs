@@ -412,6 +412,21 @@ impl<'a> Frame<'a> {
         Some(out)
     }
 
+    /// The INS filter's own attitude 1-sigma: Attitude.YprU, yaw, pitch, roll [deg]
+    /// (PROTOCOLS.md, Attitude group bit 8); `None` when absent or not finite and >= 0.
+    pub fn ypr_uncertainty_deg(&self) -> Option<[f32; 3]> {
+        self.f32s::<3>(Group::Attitude, 8)
+            .filter(|v| v.iter().all(|x| x.is_finite() && *x >= 0.0))
+    }
+
+    /// The INS filter's own position 1-sigma: Ins.PosU [m] (one number; PROTOCOLS.md, INS group
+    /// bit 9); `None` when absent or not finite and >= 0.
+    pub fn position_uncertainty_m(&self) -> Option<f32> {
+        self.f32s::<1>(Group::Ins, 9)
+            .map(|v| v[0])
+            .filter(|x| x.is_finite() && *x >= 0.0)
+    }
+
     /// INS status word from Common or Ins.
     pub fn ins_status(&self) -> Option<u16> {
         let b = self
@@ -532,6 +547,31 @@ mod tests {
         let fields: heapless::Vec<_, 4> = f.fields().map(|x| (x.def.name, x.bytes.len())).collect();
         assert_eq!(&fields[..], &[("Status", 2), ("AltMsl", 8)]);
         assert_eq!(f.field(Group::Gnss1, 18), Some(&payload[2..]));
+    }
+
+    #[test]
+    fn the_ins_stated_uncertainties() {
+        // Attitude YprU (bit 8, 3 x f32) and Ins PosU (bit 9, f32): group byte 0x30 (Attitude,
+        // Ins), masks 0x0100 and 0x0200, the fields in group order.
+        let masks = Masks::default()
+            .with(Group::Attitude, 8)
+            .with(Group::Ins, 9);
+        let mut payload = [0u8; 16];
+        for (i, v) in [0.2f32, 0.03, 0.025, 0.021].iter().enumerate() {
+            payload[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        let mut out = [0u8; 64];
+        let n = emit(&mut out, &masks, &payload).unwrap();
+        assert_eq!(&out[..6], &[0xFA, 0x30, 0x00, 0x01, 0x00, 0x02]);
+        let f = Frame::parse(&out[..n]).unwrap();
+        assert_eq!(f.ypr_uncertainty_deg(), Some([0.2, 0.03, 0.025]));
+        assert_eq!(f.position_uncertainty_m(), Some(0.021));
+        payload[12..16].copy_from_slice(&f32::NAN.to_le_bytes());
+        let n = emit(&mut out, &masks, &payload).unwrap();
+        assert_eq!(
+            Frame::parse(&out[..n]).unwrap().position_uncertainty_m(),
+            None
+        );
     }
 
     #[test]

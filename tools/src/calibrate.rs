@@ -1,6 +1,7 @@
 //! `spherecal calibrate`: the pipeline, then the solver, then the report (JSON, a human
 //! summary, optionally the calibrated cloud as LAS and the residual plots as SVG).
 
+use crate::nav_source::InsKind;
 use crate::pipeline::accuracy::Accuracy;
 use crate::pipeline::Closest;
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
@@ -476,6 +477,16 @@ pub fn calibrate(
         (None, _) => None,
     };
     let mut used_accuracy = None;
+    // The navigation model: the site's, else what the INS stated in the data, else its kind's
+    // default (`nav_source`), chosen at the first collection.
+    let kind = match &inp.ins {
+        crate::pipeline::InsInput::Vn200(_) => InsKind::Vn200,
+        crate::pipeline::InsInput::Sbet(..) => InsKind::Sbet,
+        crate::pipeline::InsInput::Posmv(..) => InsKind::PosmvRealTime,
+    };
+    let site_spec = inp.site.ins.as_ref().map(|i| i.correlated.clone());
+    let site_noise = inp.site.noise;
+    let mut chosen = false;
     // A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
     let drift = std::cell::Cell::new(false);
     // The rounds on a spinner (on a terminal only).
@@ -483,8 +494,22 @@ pub fn calibrate(
     let mut attempt = |applied: f64| -> Result<_, crate::Error> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let (stats, mut obs) = collect(inp)?;
+        if !chosen {
+            let stated = accuracy
+                .as_ref()
+                .map(|a| &a.stated)
+                .filter(|s| s.samples > 0)
+                .unwrap_or(&stats.ins.stated);
+            let c = crate::nav_source::choose(site_spec.as_ref(), None, Some(stated), kind)?;
+            session.set_nav(&c, site_noise);
+            chosen = true;
+        }
+        // The accuracy file's sigmas weigh each return, unless a navigation model holds them.
         if let Some(a) = &accuracy {
-            used_accuracy = Some(a.apply(&mut obs));
+            used_accuracy = Some(match session.nav() {
+                None => a.apply(&mut obs),
+                Some(_) => a.unapplied(),
+            });
         }
         session.estimate_drift(drift.get());
         session.replace(obs, inp.time_offset_ns);

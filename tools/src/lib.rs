@@ -12,6 +12,7 @@ pub mod georef;
 pub mod html;
 pub mod ins;
 pub mod montecarlo;
+pub mod nav_source;
 pub mod output;
 pub mod pipeline;
 pub mod plan;

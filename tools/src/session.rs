@@ -5,6 +5,7 @@
 
 use crate::calibrate::{solve_report_in, Report, Scratch};
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
+use spherecal::calib::nav::NavModel;
 use spherecal::calib::solve::{ClockFacts, Observe};
 use spherecal::calib::{Params, Settings, Solution};
 use spherecal::window::{Observation, Target};
@@ -26,26 +27,12 @@ pub fn settings_for(
     estimate_dt: bool,
     margin: f64,
 ) -> Settings {
-    // Under a navigation model the INS's errors are in the model: the white noise left is the
-    // LiDAR's unless the site says more.
-    let nav = site.nav_model().ok().flatten();
-    let noise = site.noise.unwrap_or(match nav {
-        Some(_) => SiteNoise {
-            attitude_deg: 0.0,
-            position_m: 0.0,
-            ..SiteNoise::default()
-        },
-        None => SiteNoise::default(),
-    });
     let mut s = Settings {
         estimate_dt,
-        range_noise: noise.range_m,
-        attitude_noise: noise.attitude_deg.to_radians(),
-        position_noise: noise.position_m,
         margin,
-        nav,
         ..Default::default()
     };
+    with_nav(&mut s, site.noise, site.nav_model().ok().flatten());
     for (c, sp) in s.centre_sigma.iter_mut().zip(&site.sphere) {
         *c = sp.sigma_m.unwrap_or(DEFAULT_CENTRE_SIGMA_M);
     }
@@ -53,6 +40,24 @@ pub fn settings_for(
         s.extract.firing_ns = i64::from(m.laser_period_ns());
     }
     s
+}
+
+/// Put the navigation model `nav` into `s` with the white noise that goes with it: the site's
+/// `[noise]` if it has one; else, under a model, the INS's errors are in the model and the
+/// white noise left is the LiDAR's; without one, the sensors' specified values.
+pub fn with_nav(s: &mut Settings, noise: Option<SiteNoise>, nav: Option<NavModel>) {
+    let noise = noise.unwrap_or(match nav {
+        Some(_) => SiteNoise {
+            attitude_deg: 0.0,
+            position_m: 0.0,
+            ..SiteNoise::default()
+        },
+        None => SiteNoise::default(),
+    });
+    s.range_noise = noise.range_m;
+    s.attitude_noise = noise.attitude_deg.to_radians();
+    s.position_noise = noise.position_m;
+    s.nav = nav;
 }
 
 /// A calibration under way.
@@ -66,6 +71,8 @@ pub struct Session {
     offset_ns: i64,
     /// Most returns kept per sphere (`add` drops the rest, counted).
     capacity: usize,
+    /// Where the navigation model came from (the report's `navigation.source`).
+    nav_source: String,
 }
 
 impl Session {
@@ -80,7 +87,26 @@ impl Session {
             store: vec![Vec::new(); n],
             offset_ns: 0,
             capacity: usize::MAX,
+            nav_source: "site [ins.correlated]".into(),
         }
+    }
+
+    /// Name the source of the navigation model in the settings (the rig's plan chose it).
+    pub fn with_nav_source(mut self, source: &str) -> Self {
+        self.nav_source = source.to_string();
+        self
+    }
+
+    /// Solve under `choice`'s navigation model (the site's `noise` with it: [`with_nav`]) and
+    /// name its source in the reports.
+    pub fn set_nav(&mut self, choice: &crate::nav_source::NavChoice, noise: Option<SiteNoise>) {
+        with_nav(&mut self.settings, noise, choice.model);
+        self.nav_source = choice.source.clone();
+    }
+
+    /// The navigation model the session solves under (`None`: white INS errors).
+    pub fn nav(&self) -> Option<NavModel> {
+        self.settings.nav
     }
 
     /// At most `n` returns kept per sphere.
@@ -164,6 +190,9 @@ impl Session {
             watch,
         );
         rep.time_offset_s += self.offset_ns as f64 * 1e-9;
+        if let Some(n) = rep.navigation.as_mut() {
+            n.source = self.nav_source.clone();
+        }
         (sol, rep)
     }
 

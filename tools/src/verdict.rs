@@ -10,7 +10,7 @@ pub use crate::config::goal::Targets;
 use crate::report::Report;
 use serde::{Deserialize, Serialize};
 use spherecal::calib::solve::Solution;
-use spherecal::calib::NAMES;
+use spherecal::calib::{NAMES, P};
 use spherecal::window::Observation;
 
 /// A pass counts when it holds this many kept returns.
@@ -144,6 +144,26 @@ pub fn data_info(
     (info, returns)
 }
 
+/// The returns kept so far under the solver's navigation model (`None`: it has none), for the
+/// planner's predictions on them ([`crate::plan::nav`]).
+pub fn nav_plan(
+    targets: &[spherecal::window::Target],
+    obs: &[Vec<Observation>],
+    sol: &Solution,
+    settings: &spherecal::calib::Settings,
+) -> Option<crate::plan::nav::NavPlan> {
+    let model = settings.nav?;
+    let used: Vec<usize> = sol.spheres.iter().map(|s| s.used).collect();
+    Some(crate::plan::nav::NavPlan::of_returns(
+        model,
+        settings.noise(),
+        targets,
+        obs,
+        &used,
+        sol.b.0,
+    ))
+}
+
 /// The sigmas the planner's predictor gives the returns kept so far ([`data_info`]): the six
 /// [deg, m] and the time offset [s] (infinite where the geometry cannot determine them).
 pub fn predicted_sigma(
@@ -154,7 +174,10 @@ pub fn predicted_sigma(
     ins_rate_hz: f64,
 ) -> [f64; 7] {
     let (info, _) = data_info(targets, obs, sol, settings, ins_rate_hz);
-    let p = spherecal::calib::predict::Predicted::of(&info);
+    let mut p = spherecal::calib::predict::Predicted::of(&info);
+    if let Some(n) = nav_plan(targets, obs, sol, settings) {
+        p.sigma = n.sigma(|_, _| true).unwrap_or([f64::INFINITY; P + 1]);
+    }
     let d = spherecal::calib::Params(core::array::from_fn(|i| p.sigma[i]))
         .deg_m()
         .0;

@@ -29,6 +29,39 @@ pub(super) struct Sums {
     pub(super) raw: f64,
 }
 
+impl<'a, 'p> Joint<'a, 'p> {
+    /// At the mounting `b0` (the problem's clock), the centres at their survey and every
+    /// piece's error zero.
+    pub(super) fn start(
+        pb: &'a Problem<'p>,
+        b0: &[f64; P],
+        model: &NavModel,
+        centre_sigma: &[f64],
+        pieces: &mut [Piece],
+        clock: Clock,
+    ) -> Self {
+        let mut z = [0.0; G];
+        z[..P].copy_from_slice(b0);
+        z[P] = pb.dt;
+        z[DRIFT] = pb.drift;
+        let centre_info = core::array::from_fn(|j| match centre_sigma.get(j) {
+            Some(&s) if s > 0.0 && s.is_finite() => 1.0 / (s * s),
+            _ => 1e12,
+        });
+        for p in pieces.iter_mut() {
+            p.error = [0.0; 6];
+        }
+        Self {
+            pb,
+            z,
+            clock,
+            centre_info,
+            model: *model,
+            factor: 1.0,
+        }
+    }
+}
+
 impl Joint<'_, '_> {
     pub(super) fn b(&self) -> [f64; P] {
         core::array::from_fn(|i| self.z[i])

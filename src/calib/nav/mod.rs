@@ -44,16 +44,17 @@ impl NavModel {
         [h, h, v, rp, rp, hd]
     }
 
-    /// The pieces' length [s]: a thirtieth of the correlation time, 0.25-0.5 s. A first-order
+    /// The pieces' length [s]: a 240th of the correlation time, 0.25-0.5 s. A first-order
     /// process is rough: within a piece of length L it wanders by `sigma^2 L / 3 tau` about
     /// the piece's mean, shared by every return of the piece; what matters is that wander
     /// times the piece's returns against the white noise, so the length is short in seconds
     /// whatever tau (the Monte Carlo `honesty::sigmas_are_honest_on_exact_returns`: at
     /// tau / 6 the pitch's and the vertical lever arm's RMS z-scores were 3.1 and 3.2; at
-    /// 2 s with tau = 60 s 1.8 and 1.6; at 0.5 s 1.3 and 1.05). The wander left in a piece is
-    /// added to each return's variance ([`Joint::weight`]).
+    /// 2 s with tau = 60 s 1.8 and 1.6; at 0.5 s 1.25 (tau 15 s) and 1.14 (60 s) for pitch;
+    /// at 0.25 s 1.10 and 1.09). The wander left in a piece is added to each return's
+    /// variance ([`Joint::weight`]). Too many for the workspace: doubled ([`cut_for`]).
     pub fn piece_s(&self) -> f64 {
-        (self.correlation_s / 30.0).clamp(0.25, 0.5)
+        (self.correlation_s / 240.0).clamp(0.25, 0.5)
     }
 
     /// The process's correlation between two pieces, `exp(-gap / tau)` of their middles.
@@ -234,25 +235,7 @@ pub fn refine(
         dt: clock.dt,
         drift: clock.dt && clock.drift,
     };
-    let mut z = [0.0; G];
-    z[..P].copy_from_slice(b0);
-    z[P] = pb.dt;
-    z[DRIFT] = pb.drift;
-    let centre_info = core::array::from_fn(|j| match centre_sigma.get(j) {
-        Some(&s) if s > 0.0 && s.is_finite() => 1.0 / (s * s),
-        _ => 1e12,
-    });
-    for p in pieces.iter_mut() {
-        p.error = [0.0; 6];
-    }
-    let mut at = Joint {
-        pb,
-        z,
-        clock,
-        centre_info,
-        model: *model,
-        factor: 1.0,
-    };
+    let mut at = Joint::start(pb, b0, model, centre_sigma, pieces, clock);
     let (mut iterations, mut converged) = (0, false);
     let mut sums = at.evaluate(pieces);
     for _pass in 0..4 {
@@ -340,6 +323,35 @@ pub fn refine(
         weakest,
     };
     (lm, fit)
+}
+
+/// The sigmas [`refine`] would give the six and the time offset (0 when held) on these returns
+/// at `b`, with the white noise as the weights say (variance factor 1) and no data noise: the
+/// planner's prediction and the rig's on the data so far. `None` where the information is
+/// singular. `pieces` as for [`refine`] ([`cut_for`]).
+pub fn predict(
+    pb: &Problem<'_>,
+    b: &[f64; P],
+    model: &NavModel,
+    centre_sigma: &[f64],
+    pieces: &mut [Piece],
+    clock: Clock,
+) -> Option<[f64; P + 1]> {
+    let clock = Clock {
+        dt: clock.dt,
+        drift: clock.dt && clock.drift,
+    };
+    let at = Joint::start(pb, b, model, centre_sigma, pieces, clock);
+    let sums = at.evaluate(pieces);
+    let cov = at.reduced(&sums, pieces)?.try_inverse()?;
+    let s: [f64; P + 1] = core::array::from_fn(|i| {
+        if i < P || clock.dt {
+            libm::sqrt(cov[(i, i)].max(0.0))
+        } else {
+            0.0
+        }
+    });
+    s.iter().all(|v| v.is_finite()).then_some(s)
 }
 
 /// The white noise's variance factor at the state: the weighted residuals' mean square over

@@ -162,7 +162,10 @@ mod honesty {
     /// z-score of the white-noise solve (`lm::refine`, cluster-robust) on the same returns.
     /// With the pieces' RMS z-scores per axis (estimate against the truth's mean over the
     /// piece).
-    fn monte_carlo(tau: f64, runs: u64) -> ([f64; P], [f64; P], [f64; P], [f64; 6]) {
+    /// Per parameter (and per piece axis) figures of a Monte Carlo.
+    type Figures = ([f64; P], [f64; P], [f64; P], [f64; 6], [f64; P]);
+
+    fn monte_carlo(tau: f64, runs: u64) -> Figures {
         let c = Correlated {
             position_sigma: [0.016, 0.033],
             attitude_sigma: [0.011f64.to_radians(), 0.037f64.to_radians()],
@@ -180,6 +183,7 @@ mod honesty {
         };
         let (mut z2, mut within, mut white) = ([0.0; P], [0.0; P], [0.0; P]);
         let (mut pz2, mut pn) = ([0.0; 6], 0.0);
+        let (mut err2, mut pred) = ([0.0; P], [0.0; P]);
         let mut pieces = std::vec![Piece::EMPTY; 256];
         for seed in 0..runs {
             let (obs, truth) = survey(seed + 1, &c, 0.009);
@@ -203,6 +207,8 @@ mod honesty {
             };
             let m = cut_for(&pb, &model, &mut pieces);
             let clock = Clock::default();
+            let p = predict(&pb, &TRUTH, &model, &[0.02, 0.02], &mut pieces[..m], clock)
+                .expect("a prediction");
             let (l, _) = refine(
                 &pb,
                 &TRUTH,
@@ -234,6 +240,8 @@ mod honesty {
             for i in 0..P {
                 let z = (l.b[i] - TRUTH[i]) / l.sigma[i];
                 z2[i] += z * z / runs as f64;
+                err2[i] += (l.b[i] - TRUTH[i]).powi(2) / runs as f64;
+                pred[i] += p[i] * p[i] / runs as f64;
                 within[i] += f64::from(u8::from(z.abs() <= 3.0)) / runs as f64;
                 let zw = (w.b[i] - TRUTH[i]) / w.sigma[i];
                 white[i] += zw * zw / runs as f64;
@@ -244,21 +252,27 @@ mod honesty {
             within,
             white.map(libm::sqrt),
             pz2.map(|v| libm::sqrt(v / pn)),
+            core::array::from_fn(|i| libm::sqrt(err2[i] / pred[i])),
         )
     }
 
     /// The model's sigmas are honest, both bounds, on returns exact but for the range noise
     /// and the navigation errors (first-order Gauss-Markov at the paper's smrmsg levels) at
-    /// 15 s and 60 s, the mounting's and each piece's navigation correction's; the
-    /// white-noise solve on the same returns is not.
+    /// 15 s and 60 s, the mounting's and each piece's navigation correction's, and the
+    /// planner's prediction of them; the white-noise solve on the same returns is not.
     #[test]
     fn sigmas_are_honest_on_exact_returns() {
         for tau in [15.0, 60.0] {
-            let (rms, within, white, pieces) = monte_carlo(tau, 60);
-            std::eprintln!("tau {tau} s: RMS z {rms:.2?}, within 3 sigma {within:.2?}; white solve RMS z {white:.1?}; the pieces' errors RMS z {pieces:.2?}");
+            let (rms, within, white, pieces, predicted) = monte_carlo(tau, 60);
+            std::eprintln!("tau {tau} s: RMS z {rms:.2?}, within 3 sigma {within:.2?}; white solve RMS z {white:.1?}; the pieces' errors RMS z {pieces:.2?}; RMS error / predicted sigma {predicted:.2?}");
             for i in 0..P {
                 assert!((0.7..1.4).contains(&rms[i]), "tau {tau}: {rms:?}");
                 assert!(within[i] >= 0.95, "tau {tau}: {within:?}");
+            }
+            // The planner's prediction (`predict`: the same covariance without data) against
+            // the spread of the estimates: within 20 %.
+            for r in predicted {
+                assert!((0.8..1.2).contains(&r), "tau {tau}: predicted {predicted:?}");
             }
             // The navigation corrections (an output) with their sigmas, against the truth.
             for z in pieces {

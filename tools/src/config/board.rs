@@ -65,6 +65,11 @@ pub struct InsLink {
     /// corrections come from another datum's base): the site is transformed into it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub datum: Option<String>,
+    /// Its errors that wander (`[ins.correlated]`, as in the site; the site's wins): the
+    /// rig's solves estimate under this model. Absent: the default for `kind`
+    /// (`nav_source::InsKind::default_preset`).
+    #[serde(default, skip_serializing_if = "is_undeclared")]
+    pub correlated: super::nav_errors::CorrelatedSpec,
 }
 
 fn posmv_port() -> u16 {
@@ -141,6 +146,21 @@ pub struct Board {
     /// (`target_sigma_deg`, `target_sigma_m`; defaults 0.01 deg, 5 mm).
     #[serde(default)]
     pub calibration: crate::verdict::Targets,
+}
+
+fn is_undeclared(c: &super::nav_errors::CorrelatedSpec) -> bool {
+    !c.is_declared()
+}
+
+impl InsLink {
+    /// The kind of INS, for its default navigation model.
+    pub fn nav_kind(&self) -> crate::nav_source::InsKind {
+        match self.kind.as_str() {
+            "posmv" => crate::nav_source::InsKind::PosmvRealTime,
+            "sbet" => crate::nav_source::InsKind::Sbet,
+            _ => crate::nav_source::InsKind::Vn200,
+        }
+    }
 }
 
 /// Standard serial rates (VN-200 register 5 allows these).
@@ -354,6 +374,7 @@ impl Board {
         if !(1.0..=400.0).contains(&self.ins.rate_hz) {
             return bad("ins.rate_hz", "expected 1..=400");
         }
+        self.ins.correlated.resolve("ins.correlated")?;
         if self.console.device != "stdout" && !BAUDS.contains(&self.console.baud) {
             return bad(
                 "console.baud",

@@ -29,7 +29,7 @@ pub struct Preset {
 }
 
 /// The presets. Sigmas per the data sheets named in `source`.
-pub const PRESETS: [Preset; 7] = [
+pub const PRESETS: [Preset; 8] = [
     Preset {
         key: "posmv-rtk",
         name: "Applanix POS MV (OceanMaster class), real time with RTK",
@@ -93,6 +93,15 @@ pub const PRESETS: [Preset; 7] = [
         source: "VN-200 data sheet: position 2.5 m horizontal (vertical taken as 2x), \
                  pitch/roll 0.03 deg, heading 0.2 deg RMS",
     },
+    Preset {
+        key: "white",
+        name: "No wandering errors: each sample's error independent (no real INS)",
+        position_sigma_m: [0.0, 0.0],
+        attitude_sigma_deg: [0.0, 0.0],
+        correlation_s: 0.0,
+        source: "the simulator's idealisation (its [ins] pos_sigma_m / att_sigma_deg alone): \
+                 declares that the solver is to treat the INS's errors as white",
+    },
 ];
 
 /// The preset of `key`.
@@ -119,6 +128,20 @@ pub struct CorrelatedSpec {
 }
 
 impl CorrelatedSpec {
+    /// `preset = "key"` alone.
+    pub fn preset_only(key: &str) -> Self {
+        Self {
+            preset: Some(key.to_string()),
+            ..Self::default()
+        }
+    }
+
+    /// Whether the table says anything (an empty or absent table declares nothing: the
+    /// calibration then takes the model from elsewhere, `nav_source`).
+    pub fn is_declared(&self) -> bool {
+        *self != Self::default()
+    }
+
     /// The model in the core's units, checked: `Err(key: why)`. `key` is the table's path
     /// (`ins.correlated`).
     pub fn resolve(&self, key: &str) -> Result<Correlated, crate::Error> {
@@ -236,7 +259,9 @@ mod tests {
             }
             .resolve("ins.correlated")
             .unwrap();
-            assert!(c.is_on() && !p.source.is_empty(), "{}", p.key);
+            // Every preset a model, but "white", which declares none.
+            assert_eq!(c.is_on(), p.key != "white", "{}", p.key);
+            assert!(!p.source.is_empty(), "{}", p.key);
         }
     }
 }

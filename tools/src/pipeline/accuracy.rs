@@ -31,6 +31,9 @@ pub struct Accuracy {
     pub records: u64,
     /// Records skipped as invalid.
     pub invalid: u64,
+    /// The file's sigmas per axis over all its records: the navigation model's source when
+    /// the site declares none (`nav_source`).
+    pub stated: crate::nav_source::Stated,
 }
 
 /// What the accuracy file gave a calibration, in the report.
@@ -74,6 +77,11 @@ impl Accuracy {
                 continue;
             };
             out.time.push(t.0);
+            out.stated.add(
+                "POSPac smrmsg",
+                r.position_m,
+                r.attitude_arcmin.map(|a| a / 60.0),
+            );
             out.sigma
                 .push([r.position_sigma_m() as f32, r.attitude_sigma_rad() as f32]);
         }
@@ -113,6 +121,16 @@ impl Accuracy {
             (Some(a), None) => (t.0 - self.time[a] <= gap).then_some(self.sigma[a]),
             (None, Some(&tb)) => (tb - t.0 <= gap).then_some(self.sigma[0]),
             (None, None) => None,
+        }
+    }
+
+    /// The tally when no return takes the file's sigmas (a navigation model holds them).
+    pub fn unapplied(&self) -> AccuracyReport {
+        AccuracyReport {
+            file: self.path.display().to_string(),
+            records: self.records,
+            invalid: self.invalid,
+            ..AccuracyReport::default()
         }
     }
 

@@ -6,7 +6,8 @@
 use super::*;
 use crate::state::PosmvState;
 use spherecal::posmv::{
-    self, Alignment, GnssStatus, Navigation, PoseError, PpsTime, SensorNavigation, TimeSync,
+    self, Alignment, GnssStatus, Metrics, Navigation, PoseError, PpsTime, SensorNavigation,
+    TimeSync,
 };
 
 /// The group a pose comes from.
@@ -109,6 +110,16 @@ impl PosmvFeed {
                         self.leap_seconds = s.utc_offset.round() as i64;
                         self.pm.utc_offset_s = Some(s.utc_offset);
                     }
+                }
+                return;
+            }
+            Metrics::ID => {
+                if let Ok(m) = Metrics::parse(g) {
+                    self.st.stated.add(
+                        "POS MV Group 2",
+                        m.position_rms.map(f64::from),
+                        m.attitude_rms.map(f64::from),
+                    );
                 }
                 return;
             }

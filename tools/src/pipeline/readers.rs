@@ -375,6 +375,27 @@ pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
     }
 }
 
+/// What a VN-200 states of its errors, in a navigation model's source.
+const VN200_STATED: &str = "VN-200 Ins.PosU and Attitude.YprU";
+
+/// The errors a VN-200 item states: a binary frame's Ins.PosU (one number, taken for each
+/// axis) with its Attitude.YprU, or a $VNINS sentence's PosU and AttU; north, east, down [m],
+/// roll, pitch, heading [deg].
+fn vn200_stated(item: &Item<'_>) -> Option<([f64; 3], [f64; 3])> {
+    match item {
+        Item::Binary(f) => {
+            let p = f64::from(f.position_uncertainty_m()?);
+            let [y, pi, r] = f.ypr_uncertainty_deg()?.map(f64::from);
+            Some(([p; 3], [r, pi, y]))
+        }
+        Item::Ascii(a) => match a.decode() {
+            Ok(spherecal::vn200::ascii::Vn::Ins(i)) => Some(([i.pos_u; 3], [i.att_u; 3])),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
 /// The VN-200 stream into poses, the same for a file and the live port: framing, pose
 /// extraction, InsStatus gating (left-out poses counted with their spans unless kept), onto the
 /// INS ring with the given overflow policy.
@@ -428,6 +449,9 @@ impl PoseGate {
                     None => {}
                 }
                 st.used(s.time, self.max_gap_ns);
+                if let Some((ned, rph)) = vn200_stated(&it.item) {
+                    st.stated.add(VN200_STATED, ned, rph);
+                }
                 enqueue(out.ring, InsItem::Pose(s, host), out.policy, out.full);
             }
             InsOutcome::NoPose => st.without_pose += 1,

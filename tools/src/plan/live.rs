@@ -6,6 +6,7 @@
 //! without targets from the board, the survey is done when no candidate pass would improve any
 //! parameter's sigma by more than [`ENOUGH_GAIN`].
 
+use super::nav::NavPlan;
 use super::recommend::{candidate_pass_infos, PassCandidate};
 use super::{Goal, PlanNoise, Prediction};
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
@@ -71,6 +72,16 @@ impl Live {
         s.lidar.range_sigma_m = settings.range_noise;
         s.ins.att_sigma_deg = settings.attitude_noise.to_degrees();
         s.ins.pos_sigma_m = settings.position_noise;
+        // The solver's navigation model: the candidates' returns are kept for it.
+        s.ins.correlated = settings.nav.map_or_else(
+            || crate::config::nav_errors::CorrelatedSpec::preset_only("white"),
+            |m| crate::config::nav_errors::CorrelatedSpec {
+                preset: None,
+                position_sigma_m: Some(m.position_sigma),
+                attitude_sigma_deg: Some(m.attitude_sigma.map(f64::to_degrees)),
+                correlation_s: Some(m.correlation_s),
+            },
+        );
         s.trajectory.pass.clear();
         s.trajectory.roll = [0.0, 6.0];
         s.trajectory.pitch = [0.0, 4.5];
@@ -151,8 +162,37 @@ impl Live {
     /// The advice for the data's information `data` and returns per sphere `returns`: the best
     /// next pass, how much it gains, and (with `goal`: the board's targets) whether up to four
     /// more passes can meet them.
-    pub fn advise(&self, data: &Info, returns: &[i64], goal: Option<&Goal>) -> LiveAdvice {
-        let now = Predicted::of(data);
+    pub fn advise(
+        &self,
+        data: &Info,
+        returns: &[i64],
+        goal: Option<&Goal>,
+        nav: Option<&NavPlan>,
+    ) -> LiveAdvice {
+        // Under the navigation model the sigmas are its solver's: the data so far, with the
+        // candidate passes' returns after them (each its own errors).
+        let under = |white: Predicted, adds: &[&PassCandidate]| match nav {
+            Some(n) => {
+                let end = n.span_ns().map_or(0, |s| s.1);
+                let plans: Vec<(&NavPlan, i64)> = adds
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, c)| {
+                        let p = c.nav.as_ref()?;
+                        let first = p.span_ns().map_or(0, |s| s.0);
+                        Some((
+                            p,
+                            end - first + ((30.0 + 600.0 * (k + 1) as f64) * 1e9) as i64,
+                        ))
+                    })
+                    .collect();
+                let mut p = white;
+                p.sigma = n.sigma_with(&plans, &[]).unwrap_or([f64::INFINITY; P + 1]);
+                p
+            }
+            None => white,
+        };
+        let now = under(Predicted::of(data), &[]);
         let gain_of = |p: &Predicted| {
             (0..P)
                 .map(|i| {
@@ -190,7 +230,7 @@ impl Live {
             .iter()
             .enumerate()
             .map(|(k, c)| {
-                let p = Predicted::of(&with(data, c));
+                let p = under(Predicted::of(&with(data, c)), &[c]);
                 let g = gain_of(&p);
                 (k, p, g)
             })
@@ -216,20 +256,27 @@ impl Live {
                 return None;
             }
             let (mut info, mut rs) = (*data, returns.to_vec());
+            let mut taken: Vec<&PassCandidate> = Vec::new();
             for _ in 0..4 {
                 let (k, _) = self
                     .cands
                     .iter()
                     .enumerate()
-                    .map(|(k, c)| (k, Prediction::of(&Predicted::of(&with(&info, c))).worst_ratio(g)))
+                    .map(|(k, c)| {
+                        let mut t = taken.clone();
+                        t.push(c);
+                        let p = under(Predicted::of(&with(&info, c)), &t);
+                        (k, Prediction::of(&p).worst_ratio(g))
+                    })
                     .min_by(|a, b| a.1.total_cmp(&b.1))?;
                 info = with(&info, &self.cands[k]);
                 rs = plus(&rs, &self.cands[k]);
-                if meets(&Predicted::of(&info), &rs, g) {
+                taken.push(&self.cands[k]);
+                if meets(&under(Predicted::of(&info), &taken), &rs, g) {
                     return None;
                 }
             }
-            let p = Prediction::of(&Predicted::of(&info));
+            let p = Prediction::of(&under(Predicted::of(&info), &taken));
             let worst = (0..P)
                 .max_by(|&a, &b| {
                     let r = |i: usize| {

@@ -10,6 +10,7 @@
 
 pub mod html;
 pub mod live;
+pub mod nav;
 pub mod observe;
 pub mod recommend;
 
@@ -168,6 +169,10 @@ pub struct PlanReport {
     pub noise: PlanNoise,
     /// The accuracy wanted.
     pub goal: Goal,
+    /// The navigation errors that wander the prediction is under (`[ins.correlated]`), in
+    /// words (`None`: white per sample).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub navigation: Option<String>,
     /// The prediction.
     pub predicted: Prediction,
     /// Correlations of the six and the time offset (row-major 7x7).
@@ -287,7 +292,22 @@ pub fn plan(s: &Scenario, goal: &Goal, recommend: bool) -> Result<PlanReport, cr
 /// The report of a traced plan (no recommendations).
 pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> PlanReport {
     let total = g.total();
-    let p = Predicted::of(&total);
+    let white = Predicted::of(&total);
+    // Under a navigation model the sigmas are its solver's on the whole survey (information
+    // no longer adds: each share is the survey solved again without it).
+    let under = |sigma: Option<[f64; P + 1]>| {
+        let mut p = white;
+        p.sigma = sigma.unwrap_or([f64::INFINITY; P + 1]);
+        p
+    };
+    let without = |k: Option<usize>, j: Option<usize>| match &g.nav {
+        Some(nav) => under(nav.sigma_without(&g.segments, k, j)),
+        None => Predicted::of(&g.sum(|kk, jj| Some(kk) != k && Some(jj) != j)),
+    };
+    let p = match &g.nav {
+        Some(nav) => under(nav.sigma(|_, _| true)),
+        None => white,
+    };
     let pred = Prediction::of(&p);
     let ids: Vec<String> = s.sphere.iter().map(|x| x.id.clone()).collect();
     let per_sphere: Vec<u32> = (0..ids.len())
@@ -322,7 +342,7 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
         if n == 0 && !matches!(seg, Segment::Pass(_)) {
             continue;
         }
-        let without = Predicted::of(&g.sum(|kk, _| kk != k));
+        let without = without(Some(k), None);
         passes.push(Share {
             what: segment_name(s, *seg),
             returns: n,
@@ -335,7 +355,7 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
         .iter()
         .enumerate()
         .map(|(j, id)| {
-            let without = Predicted::of(&g.sum(|_, jj| jj != j));
+            let without = without(None, Some(j));
             Share {
                 what: id.clone(),
                 returns: per_sphere[j],
@@ -349,6 +369,7 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
         scenario: s.name.clone(),
         noise: *noise,
         goal: *goal,
+        navigation: g.nav.as_ref().map(|n| n.words()),
         correlation: (0..=P)
             .map(|i| (0..=P).map(|j| p.correlation[(i, j)]).collect())
             .collect(),
@@ -409,6 +430,9 @@ pub fn render(r: &PlanReport) -> String {
         n.position_m,
         n.ins_rate_hz
     );
+    if let Some(nav) = &r.navigation {
+        let _ = writeln!(o, "navigation errors that wander: {nav}");
+    }
     let fmt = |v: Option<f64>, i: usize| sigma_text(v, i, true).unwrap_or_else(|| "-".into());
     let _ = writeln!(
         o,

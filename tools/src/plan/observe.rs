@@ -58,6 +58,8 @@ pub struct Geometry {
     pub segments: Vec<(Segment, f64, f64)>,
     /// `cells[segment][sphere]`.
     pub cells: Vec<Vec<Cell>>,
+    /// The returns under the scenario's navigation model (`None`: it declares none).
+    pub nav: Option<super::nav::NavPlan>,
 }
 
 impl Geometry {
@@ -242,6 +244,7 @@ pub fn geometry_of(
     let keep = 1.0 - s.lidar.drop_prob;
     let mut cells = vec![vec![Cell::default(); targets.len()]; segs.len()];
     let detectable = detectable(obs, targets.len());
+    let nav = super::nav::NavPlan::of(s, noise, &targets, obs, &detectable);
     // Per segment, its returns in time order (all spheres: they share the INS samples).
     let mut buckets: Vec<Vec<(usize, Observation)>> = vec![Vec::new(); segs.len()];
     for ((t, j, o), _) in obs.iter().zip(&detectable).filter(|(_, d)| **d) {
@@ -290,5 +293,6 @@ pub fn geometry_of(
     Geometry {
         segments: segs,
         cells,
+        nav,
     }
 }

@@ -5,10 +5,12 @@
 //! meets the goal wins, else the one that gains most per second of survey is taken and the
 //! search goes on (at most [`MAX_STEPS`] changes).
 
+use super::nav::NavPlan;
 use super::{geometry_of, observe, segments, Geometry, Goal, PlanNoise, Prediction, Segment};
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use serde::{Deserialize, Serialize};
 use spherecal::calib::predict::{Info, Predicted};
+use spherecal::calib::P;
 
 /// Most changes proposed in a row.
 pub const MAX_STEPS: usize = 4;
@@ -59,17 +61,56 @@ struct Candidate {
     /// Returns it adds (or takes away) per sphere; a new sphere's count is one more entry.
     returns: Vec<i64>,
     words: String,
+    /// Under the navigation model: its returns, and the span of the survey it replaces [s].
+    nav: Option<NavPlan>,
+    drop: Option<(f64, f64)>,
 }
 
-/// A plan as the search sees it: its information and its returns per sphere.
+/// A plan as the search sees it: its information, its returns per sphere and the candidates
+/// taken.
 #[derive(Clone)]
 struct State {
     info: Info,
     returns: Vec<i64>,
+    taken: Vec<usize>,
+}
+
+/// What scores a state under the navigation model: the plan's returns and the candidates'.
+struct NavScore<'a> {
+    base: Option<&'a NavPlan>,
+    cands: &'a [Candidate],
+}
+
+/// Where a candidate pass is put in time under the navigation model: after the survey, each
+/// its own [`PASS_APART_S`] further (its navigation errors its own).
+const PASS_APART_S: f64 = 600.0;
+
+impl NavScore<'_> {
+    /// The sigmas of a state under the model (`None`: no model).
+    fn sigma(&self, st: &State) -> Option<Option<[f64; P + 1]>> {
+        let base = self.base?;
+        let end = base.span_ns().map_or(0, |s| s.1);
+        let mut adds = Vec::new();
+        let mut drop = Vec::new();
+        for (n, &k) in st.taken.iter().enumerate() {
+            let c = &self.cands[k];
+            if let Some(p) = &c.nav {
+                let shift = if base.same_spheres(p) {
+                    let first = p.span_ns().map_or(0, |s| s.0);
+                    end - first + ((30.0 + PASS_APART_S * (n + 1) as f64) * 1e9) as i64
+                } else {
+                    0
+                };
+                adds.push((p, shift));
+            }
+            drop.extend(c.drop);
+        }
+        Some(base.sigma_with(&adds, &drop))
+    }
 }
 
 impl State {
-    fn with(&self, c: &Candidate) -> Self {
+    fn with(&self, k: usize, c: &Candidate) -> Self {
         let mut info = self.info;
         info += &c.add;
         info.a -= c.remove.a;
@@ -80,14 +121,24 @@ impl State {
         for (r, d) in returns.iter_mut().zip(&c.returns) {
             *r += d;
         }
-        Self { info, returns }
+        let mut taken = self.taken.clone();
+        taken.push(k);
+        Self {
+            info,
+            returns,
+            taken,
+        }
     }
 
     /// How far it is from the goal: the worst sigma over its target, the condition number
     /// over its limit, or the returns the solver needs over a sphere's fewest, whichever is
-    /// worst (1 or less: met, as [`super::assess`] judges).
-    fn score(&self, goal: &Goal) -> (f64, Predicted) {
-        let p = Predicted::of(&self.info);
+    /// worst (1 or less: met, as [`super::assess`] judges). Under the navigation model the
+    /// sigmas are its solver's.
+    fn score(&self, goal: &Goal, nav: &NavScore<'_>) -> (f64, Predicted) {
+        let mut p = Predicted::of(&self.info);
+        if let Some(sigma) = nav.sigma(self) {
+            p.sigma = sigma.unwrap_or([f64::INFINITY; P + 1]);
+        }
         let pred = Prediction::of(&p);
         let c = pred
             .condition
@@ -232,17 +283,19 @@ fn with_passes(s: &Scenario, passes: Vec<PassSpec>) -> Scenario {
     t
 }
 
-/// The information of one pass alone over the scenario's spheres.
+/// The information of one pass alone over the scenario's spheres (and its returns under the
+/// navigation model).
 fn pass_info(
     s: &Scenario,
     noise: &PlanNoise,
     p: &PassSpec,
     threads: usize,
-) -> Result<(Info, Vec<i64>), crate::Error> {
+) -> Result<(Info, Vec<i64>, Option<NavPlan>), crate::Error> {
     let t = with_passes(s, vec![p.clone()]);
     let obs = observe(&t, threads)?;
     let g = geometry_of(&t, noise, &obs, segments(&t));
-    Ok((g.total(), returns_per_sphere(&g, |_| true)))
+    let returns = returns_per_sphere(&g, |_| true);
+    Ok((g.total(), returns, g.nav))
 }
 
 /// Each sphere's returns in the segments `keep` says.
@@ -314,6 +367,8 @@ pub struct PassCandidate {
     pub info: Info,
     /// Its returns per sphere.
     pub returns: Vec<i64>,
+    /// Its returns under the navigation model (`None`: the scenario declares none).
+    pub nav: Option<NavPlan>,
 }
 
 /// Every candidate pass of a plan ([`candidate_passes`]), traced.
@@ -325,7 +380,7 @@ pub fn candidate_pass_infos(
     let turn = s.trajectory.turn_s;
     let mut out = Vec::new();
     for p in candidate_passes(s) {
-        let (info, returns) = pass_info(s, noise, &p, threads)?;
+        let (info, returns, nav) = pass_info(s, noise, &p, threads)?;
         out.push(PassCandidate {
             words: format!(
                 "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, course {:03.0} deg, start {})",
@@ -339,6 +394,7 @@ pub fn candidate_pass_infos(
             cost_s: p.duration_s + turn,
             info,
             returns,
+            nav,
             pass: p,
         });
     }
@@ -365,6 +421,8 @@ pub fn recommend(
             cost_s: c.cost_s,
             words: c.words,
             change: Change::AddPass(c.pass),
+            nav: c.nav,
+            drop: None,
         })
         .collect();
     for (i, p) in s.trajectory.pass.iter().enumerate() {
@@ -375,7 +433,7 @@ pub fn recommend(
             .segments
             .iter()
             .position(|(seg, _, _)| *seg == Segment::Pass(i));
-        let (add, mut returns) = pass_info(s, noise, &slow, threads)?;
+        let (add, mut returns, nav) = pass_info(s, noise, &slow, threads)?;
         let old = returns_per_sphere(g, |kk| Some(kk) == k);
         for (r, o) in returns.iter_mut().zip(old) {
             *r -= o;
@@ -395,6 +453,8 @@ pub fn recommend(
                 index: i,
                 speed_mps: speed,
             },
+            nav,
+            drop: k.map(|k| (g.segments[k].1, g.segments[k].2)),
         });
     }
     if s.sphere.len() < spherecal::sim::lidar::MAX_TARGETS {
@@ -402,7 +462,8 @@ pub fn recommend(
             let mut t = s.clone();
             t.sphere = vec![sp.clone()];
             let obs = observe(&t, threads)?;
-            let add = geometry_of(&t, noise, &obs, segments(&t)).total();
+            let sg = geometry_of(&t, noise, &obs, segments(&t));
+            let add = sg.total();
             let mut returns = vec![0; s.sphere.len()];
             returns.push(i64::from(add.n));
             cands.push(Candidate {
@@ -415,20 +476,27 @@ pub fn recommend(
                     sp.ned_m[0], sp.ned_m[1], -sp.ned_m[2], sp.id
                 ),
                 change: Change::AddSphere(sp),
+                nav: sg.nav,
+                drop: None,
             });
         }
     }
     let base = State {
         info: g.total(),
         returns: returns_per_sphere(g, |_| true),
+        taken: Vec::new(),
     };
-    let before = Prediction::of(&Predicted::of(&base.info));
+    let nav = NavScore {
+        base: g.nav.as_ref(),
+        cands: &cands,
+    };
+    let before = Prediction::of(&base.score(goal, &nav).1);
     let mut out = Vec::new();
     // Single changes that meet the goal, cheapest first (up to three).
     let mut singles: Vec<(f64, usize, Predicted)> = cands
         .iter()
         .enumerate()
-        .map(|(k, c)| (c.cost_s, k, base.with(c).score(goal)))
+        .map(|(k, c)| (c.cost_s, k, base.with(k, c).score(goal, &nav)))
         .filter(|(_, _, (sc, _))| *sc <= 1.0)
         .map(|(cost, k, (_, p))| (cost, k, p))
         .collect();
@@ -452,7 +520,7 @@ pub fn recommend(
     let mut taken: Vec<usize> = Vec::new();
     let mut words = Vec::new();
     let mut cost = 0.0;
-    let mut now = state.score(goal).0;
+    let mut now = state.score(goal, &nav).0;
     let mut last = before.clone();
     for _ in 0..MAX_STEPS {
         let best = cands
@@ -464,7 +532,7 @@ pub fn recommend(
                 !taken.contains(k) && !slowed_again
             })
             .map(|(k, c)| {
-                let (sc, p) = state.with(c).score(goal);
+                let (sc, p) = state.with(k, c).score(goal, &nav);
                 let gain = (now.max(1e-300).ln() - sc.max(1e-300).ln()) / c.cost_s.max(1.0);
                 // A change that meets the goal now beats every partial gain, cheapest first.
                 let key = if sc <= 1.0 { 1e9 - c.cost_s } else { gain };
@@ -473,7 +541,7 @@ pub fn recommend(
             .filter(|(_, _, sc, _)| sc.is_finite() && *sc < now)
             .max_by(|a, b| a.3.total_cmp(&b.3));
         let Some((k, p, sc, _)) = best else { break };
-        state = state.with(&cands[k]);
+        state = state.with(k, &cands[k]);
         taken.push(k);
         cost += cands[k].cost_s;
         let after = Prediction::of(&p);

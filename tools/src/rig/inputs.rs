@@ -101,6 +101,8 @@ pub(super) struct Plan {
     /// The solver's settings: the site's noise and margin, the board's LiDAR model
     /// ([`crate::calibrate::settings_for`], as `calibrate` builds them).
     pub(super) settings: Settings,
+    /// Where the navigation model in `settings` came from.
+    pub(super) nav_source: String,
     /// The board's a-priori mounting.
     pub(super) b0: Params,
     /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
@@ -124,16 +126,33 @@ impl Plan {
             ),
         };
         let expected = b.ins.common_bits();
-        let settings = match &opts.site {
+        let mut settings = match &opts.site {
             Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
             None => Settings::default(),
         };
+        // The navigation model: the site's, else the board's, else the INS kind's default
+        // (both checked when loaded).
+        let site_spec = opts
+            .site
+            .as_ref()
+            .and_then(|s| s.ins.as_ref())
+            .map(|i| &i.correlated);
+        let nav =
+            crate::nav_source::choose(site_spec, Some(&b.ins.correlated), None, b.ins.nav_kind())
+                .unwrap_or_else(|e| crate::nav_source::NavChoice {
+                    model: None,
+                    source: e.to_string(),
+                });
+        if let Some(site) = &opts.site {
+            crate::session::with_nav(&mut settings, site.noise, nav.model);
+        }
         Self {
             frame,
             targets,
             ids,
             margin,
             settings,
+            nav_source: nav.source,
             b0: b.mount.deg_m().params(),
             expected,
         }

@@ -385,6 +385,7 @@ fn run_threads(
                 ids,
                 &plan.b0,
                 &plan.settings,
+                &plan.nav_source,
                 opts.board.ins.rate_hz,
                 goal.as_ref(),
                 opts.board.lidar_model().unwrap_or_default(),

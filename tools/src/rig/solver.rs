@@ -15,6 +15,7 @@ pub(super) fn solver(
     ids: &[String],
     b0: &Params,
     settings: &Settings,
+    nav_source: &str,
     ins_rate_hz: f64,
     goal: Option<&crate::config::goal::Goal>,
     model: spherecal::velodyne::Model,
@@ -26,7 +27,8 @@ pub(super) fn solver(
     // The calibration session: the same settings, workspace and offset rule as `calibrate`.
     let mut session =
         crate::session::Session::with_settings(targets.to_vec(), ids.to_vec(), *settings)
-            .with_capacity(MAX_OBS_PER_SPHERE);
+            .with_capacity(MAX_OBS_PER_SPHERE)
+            .with_nav_source(nav_source);
     let mut last_total = 0usize;
     let mut last_solve: Option<Instant> = None;
     let mut latest: Option<Report> = None;
@@ -55,7 +57,9 @@ pub(super) fn solver(
                 sh.error(format!("the live planner: {e}"));
                 return None;
             }
-            l.has_candidates().then(|| l.advise(&info, &returns, goal))
+            let nav = crate::verdict::nav_plan(targets, store, &sol, settings);
+            l.has_candidates()
+                .then(|| l.advise(&info, &returns, goal, nav.as_ref()))
         });
         let verdict = session.claim(&sol, &rep, goal, Some(&predicted), advice.as_ref());
         if let Ok(mut v) = sh.verdict.lock() {

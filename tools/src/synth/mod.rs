@@ -492,8 +492,14 @@ fn site_of(s: &Scenario) -> Site {
             attitude_deg: s.ins.att_sigma_deg,
             position_m: s.ins.pos_sigma_m,
         }),
-        ins: correlated.then(|| SiteIns {
-            correlated: s.ins.correlated.clone(),
+        // ... and one whose errors are white says so (else the calibration would take a model
+        // from the INS's kind).
+        ins: Some(SiteIns {
+            correlated: if correlated {
+                s.ins.correlated.clone()
+            } else {
+                crate::config::nav_errors::CorrelatedSpec::preset_only("white")
+            },
         }),
     }
 }

@@ -183,7 +183,8 @@ fn a_vn200_survey_calibrates_against_a_nad83_csrs_site() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // The imported site needs the a-priori values and margin of the synthetic one.
+    // The imported site needs the a-priori values and margin of the synthetic one, and its
+    // INS's declaration (white: else a VN-200's metre-level default).
     let text = std::fs::read_to_string(sdir.join("site.toml")).unwrap();
     let i = text.find("[apriori]").unwrap();
     let j = text[i..].find("\n\n").map_or(text.len(), |k| i + k);
@@ -193,7 +194,12 @@ fn a_vn200_survey_calibrates_against_a_nad83_csrs_site() {
     let site = sdir.join("site.toml");
     std::fs::write(
         &site,
-        format!("{}{}{}", &text[..i], &apriori[a..b], &text[j..]),
+        format!(
+            "{}{}{}\n[ins.correlated]\npreset = \"white\"\n",
+            &text[..i],
+            &apriori[a..b],
+            &text[j..]
+        ),
     )
     .unwrap();
     let las = dir.join("cloud.las");

@@ -172,7 +172,7 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
         let (info, returns) = data_info(&targets, &obs, &sol, &settings, s.ins.rate_hz);
         live.update(&sol, &obs).unwrap();
         assert!(live.has_candidates());
-        let a = live.advise(&info, &returns, None);
+        let a = live.advise(&info, &returns, None, None);
         let next = a.next.clone().unwrap().0;
         assert!(
             next.starts_with("add a ") && next.contains("m off the spheres' line"),
@@ -191,7 +191,7 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
         gains.push(a.gain);
         // Out of reach: the targets, the parameter, the sensors' noise.
         let g = tight.goal();
-        let a = live.advise(&info, &returns, g.as_ref());
+        let a = live.advise(&info, &returns, g.as_ref(), None);
         let o = a.out_of_reach.clone().expect("0.002 deg is out of reach");
         assert!(
             o.starts_with(
