@@ -272,7 +272,10 @@ mod honesty {
             // The planner's prediction (`predict`: the same covariance without data) against
             // the spread of the estimates: within 20 %.
             for r in predicted {
-                assert!((0.8..1.2).contains(&r), "tau {tau}: predicted {predicted:?}");
+                assert!(
+                    (0.8..1.2).contains(&r),
+                    "tau {tau}: predicted {predicted:?}"
+                );
             }
             // The navigation corrections (an output) with their sigmas, against the truth.
             for z in pieces {

@@ -92,7 +92,10 @@ fn agrees_with_monte_carlo(name: &str) {
         }
     });
     if name.ends_with("-real") {
-        assert!(g.nav.is_some(), "{name}: the plan under its navigation model");
+        assert!(
+            g.nav.is_some(),
+            "{name}: the plan under its navigation model"
+        );
     }
     eprintln!("{name}: predicted in {:?}: {sigma_pred:?}", t0.elapsed());
     // The trials simulate only the data packets that hold windowed returns (and their

@@ -208,3 +208,103 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
     assert!(gains[1] < gains[0], "{gains:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The rig under navigation errors that wander (table1-real, the site's `[ins.correlated]`):
+/// its predicted sigma on the data so far is the solver's covariance under the model (not
+/// the per-sample white prediction, ~10 times smaller), the live planner advises under it
+/// (each candidate pass brings its own navigation errors), and the verdict says `ready` only
+/// on targets the model's sigmas meet.
+#[test]
+fn under_the_navigation_model_the_rig_predicts_and_advises_with_it() {
+    let dir = common::tmp("verdict", "table1-real");
+    let s = Scenario::load("table1-real").unwrap();
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
+    let inp = Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
+        site,
+    );
+    let (targets, ids) = site_targets(&inp);
+    let (_, mut obs) = collect(&inp).unwrap();
+    let b0 = inp.site.apriori_deg_m().params();
+    let settings = spherecal_tools::calibrate::settings_for(
+        &inp.site,
+        Some(spherecal::velodyne::Model::Vlp16),
+        true,
+        inp.margin,
+    );
+    assert!(settings.nav.is_some());
+    let (sol, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
+    assert!(rep.converged, "{:?}", rep.reason);
+    let solver = rep.sigma.deg_m();
+    let predicted = predicted_sigma(&targets, &obs, &sol, &settings, s.ins.rate_hz);
+    let white = {
+        let mut w = settings;
+        w.nav = None;
+        predicted_sigma(&targets, &obs, &sol, &w, s.ins.rate_hz)
+    };
+    for i in 0..6 {
+        let r = predicted[i] / solver[i];
+        eprintln!(
+            "{i}: predicted {:.3e}, the solver's {:.3e} (ratio {r:.2}), white {:.3e}",
+            predicted[i], solver[i], white[i]
+        );
+        assert!((0.75..1.25).contains(&r), "{i}: {r}");
+    }
+    // The white prediction is the idealisation the model replaces: far smaller on z.
+    assert!(white[5] < 0.3 * predicted[5], "{white:?} {predicted:?}");
+    // The live planner under the model: a next pass, predicted to improve on now.
+    let mut live = spherecal_tools::plan::live::Live::new(
+        &targets,
+        &ids,
+        spherecal::velodyne::Model::Vlp16,
+        600.0,
+        s.ins.rate_hz,
+        &settings,
+    )
+    .unwrap();
+    live.update(&sol, &obs).unwrap();
+    assert!(live.has_candidates());
+    let (info, returns) = data_info(&targets, &obs, &sol, &settings, s.ins.rate_hz);
+    let nav = spherecal_tools::verdict::nav_plan(&targets, &obs, &sol, &settings);
+    assert!(nav.is_some());
+    let a = live.advise(&info, &returns, None, nav.as_ref());
+    let (next, with) = a.next.clone().unwrap();
+    eprintln!("gain {:.3}: {next}: {:?}", a.gain, with.sigma_deg_m);
+    assert!(a.gain > 0.0 && a.gain < 1.0, "{}", a.gain);
+    let best = (0..6)
+        .map(|i| 1.0 - with.sigma_deg_m[i].unwrap() / predicted[i])
+        .fold(0.0, f64::max);
+    assert!((best - a.gain).abs() < 1e-6, "{best} vs {}", a.gain);
+    // Ready only on what the model's sigmas meet.
+    let cov = coverage(&ids, &obs, &sol);
+    let loose = Targets {
+        target_sigma_deg: Some(0.1),
+        target_sigma_m: Some(0.07),
+    };
+    let tight = Targets {
+        target_sigma_deg: Some(0.01),
+        target_sigma_m: Some(0.005),
+    };
+    let v = assess(
+        &rep,
+        &cov,
+        loose.goal().as_ref(),
+        Some(&predicted),
+        Some(&a),
+    );
+    assert!(v.ready, "{v:?}");
+    let v = assess(
+        &rep,
+        &cov,
+        tight.goal().as_ref(),
+        Some(&predicted),
+        Some(&a),
+    );
+    assert!(
+        !v.ready && v.missing.iter().any(|m| m.contains("heading")),
+        "{v:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
