@@ -480,6 +480,22 @@ mod tests {
                 .to_string(),
             "ins.kind: expected vn200, posmv or sbet"
         );
+        // The navigation model: the vessel's board declares one; a bad one is named.
+        let v = Board::from_toml(&board("vessel-posmv")).unwrap();
+        assert!(v.ins.correlated.is_declared());
+        let c = crate::nav_source::choose(None, Some(&v.ins.correlated), None, v.ins.nav_kind())
+            .unwrap();
+        assert_eq!(c.model.unwrap().correlation_s, 30.0);
+        assert!(
+            c.source.starts_with("board [ins.correlated]"),
+            "{}",
+            c.source
+        );
+        let bad = format!("{t}\n[ins.correlated]\npreset = \"posmv-rtk\"\ncorrelation_s = -3\n");
+        assert_eq!(
+            Board::from_toml(&bad).unwrap_err().to_string(),
+            "ins.correlated.correlation_s: expected a correlation time > 0 s (at most a day) with any sigma"
+        );
     }
 
     /// Only the two values change; comments, other sections and order stay.
