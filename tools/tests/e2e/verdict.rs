@@ -12,17 +12,23 @@ use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::verdict::{assess, coverage, data_info, predicted_sigma, Targets};
 
+/// Scenario `s` synthesised into `dir`: the inputs of its capture and VN-200 stream with its
+/// site.
+fn synthesised(s: &Scenario, dir: &std::path::Path) -> Inputs {
+    spherecal_tools::synth::synth(s, dir).unwrap();
+    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
+    Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        InsInput::Vn200(dir.join("ins.bin").into()),
+        site,
+    )
+}
+
 #[test]
 fn verdict_turns_ready_with_the_passes_that_make_it() {
     let dir = common::tmp("verdict", "table1-noisy");
     let s = Scenario::load("table1-noisy").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
-    let inp = Inputs::apriori(
-        dir.join("lidar.pcap").into(),
-        InsInput::Vn200(dir.join("ins.bin").into()),
-        site,
-    );
+    let inp = synthesised(&s, &dir);
     let (targets, ids) = site_targets(&inp);
     let (_, all) = collect(&inp).unwrap();
     let t0 = s.start().0;
@@ -124,13 +130,7 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
 fn the_live_planner_advises_and_says_what_is_out_of_reach() {
     let dir = common::tmp("verdict", "live");
     let s = Scenario::load("table1-noisy").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
-    let inp = Inputs::apriori(
-        dir.join("lidar.pcap").into(),
-        InsInput::Vn200(dir.join("ins.bin").into()),
-        site,
-    );
+    let inp = synthesised(&s, &dir);
     let (targets, ids) = site_targets(&inp);
     let (_, all) = collect(&inp).unwrap();
     let t0 = s.start().0;
@@ -218,13 +218,7 @@ fn the_live_planner_advises_and_says_what_is_out_of_reach() {
 fn under_the_navigation_model_the_rig_predicts_and_advises_with_it() {
     let dir = common::tmp("verdict", "table1-real");
     let s = Scenario::load("table1-real").unwrap();
-    spherecal_tools::synth::synth(&s, &dir).unwrap();
-    let site = spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap();
-    let inp = Inputs::apriori(
-        dir.join("lidar.pcap").into(),
-        InsInput::Vn200(dir.join("ins.bin").into()),
-        site,
-    );
+    let inp = synthesised(&s, &dir);
     let (targets, ids) = site_targets(&inp);
     let (_, mut obs) = collect(&inp).unwrap();
     let b0 = inp.site.apriori_deg_m().params();
