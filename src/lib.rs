@@ -17,6 +17,7 @@ pub mod frames;
 pub mod framing;
 pub mod georef;
 pub mod posmv;
+pub mod ros2;
 #[cfg(any(test, feature = "sim"))]
 pub mod sim;
 pub mod time;

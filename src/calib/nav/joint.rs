@@ -294,9 +294,9 @@ impl Joint<'_, '_> {
             h[(k, k)] *= 1.0 + lambda;
         }
         let mut rhs = s.g;
+        let na = self.active();
         for p in pieces.iter() {
-            let yb = p.y.fixed_view::<6, G>(0, 0);
-            h -= p.b * yb;
+            less_piece(&mut h, p, na);
             rhs -= p.b * p.y.column(G);
         }
         let dz = Cholesky::new(h)?.solve(&(-rhs));
@@ -326,10 +326,31 @@ impl Joint<'_, '_> {
     pub(super) fn reduced(&self, s: &Sums, pieces: &mut [Piece]) -> Option<MatG> {
         self.step(s, pieces, 0.0)?;
         let mut h = s.a;
+        let na = self.active();
         for p in pieces.iter() {
-            h -= p.b * p.y.fixed_view::<6, G>(0, 0);
+            less_piece(&mut h, p, na);
         }
         Some(h)
+    }
+
+    /// The globals in use: the lm's `Q` and three per sphere (past them `B` is zero).
+    fn active(&self) -> usize {
+        Q + 3 * self.pb.spheres.len().min(MAX_TARGETS)
+    }
+}
+
+/// `h -= B_p (Y_B)_p` over the first `na` rows and columns (the rest of `B_p` is zero: a
+/// sphere slot past the survey's), the Schur complement's share of one piece.
+fn less_piece(h: &mut MatG, p: &Piece, na: usize) {
+    for c in 0..na {
+        let y: [f64; 6] = core::array::from_fn(|k| p.y[(k, c)]);
+        for r in 0..na {
+            let mut acc = 0.0;
+            for (k, yk) in y.iter().enumerate() {
+                acc += p.b[(r, k)] * yk;
+            }
+            h[(r, c)] -= acc;
+        }
     }
 }
 

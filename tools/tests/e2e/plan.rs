@@ -78,6 +78,7 @@ fn calibrate(
 /// reported sigma honest (errors within 3 reported sigmas in 97 % of the runs, RMS z-score
 /// 0.7-1.4).
 fn agrees_with_monte_carlo(name: &str) {
+    let trials = TRIALS;
     let s = plan::with_planning_noise(&Scenario::load(name).unwrap());
     let t0 = std::time::Instant::now();
     let noise = PlanNoise::of(&s);
@@ -106,7 +107,7 @@ fn agrees_with_monte_carlo(name: &str) {
     eprintln!("{name}: trials simulate {n} of {} data packets", keep.len());
     cache.keep_only(keep);
     let results = std::sync::Mutex::new(Vec::new());
-    let seeds: Vec<u64> = (1000..1000 + TRIALS).collect();
+    let seeds: Vec<u64> = (1000..1000 + trials).collect();
     std::thread::scope(|sc| {
         for chunk in seeds.chunks(seeds.len() / 2) {
             let (s, results, cache) = (&s, &results, &cache);
@@ -127,7 +128,7 @@ fn agrees_with_monte_carlo(name: &str) {
     });
     let results = results.into_inner().unwrap();
     let n = results.len() as f64;
-    assert_eq!(results.len() as u64, TRIALS);
+    assert_eq!(results.len() as u64, trials);
     let refused: Vec<(u64, &String)> = results
         .iter()
         .filter_map(|r| r.1 .2.as_ref().map(|w| (r.0, w)))
@@ -162,7 +163,7 @@ fn agrees_with_monte_carlo(name: &str) {
             .sqrt();
         let mean_reported = results.iter().map(|r| r.1 .1[i]).sum::<f64>() / n;
         eprintln!(
-            "{name}: {:<11} predicted {:.3e} MC sd {:.3e} (ratio {ratio:.3}) mean {:+.1e}; reported mean {:.3e}, {inside}/{TRIALS} within 3 reported sigma, RMS z {rms_z:.2}",
+            "{name}: {:<11} predicted {:.3e} MC sd {:.3e} (ratio {ratio:.3}) mean {:+.1e}; reported mean {:.3e}, {inside}/{trials} within 3 reported sigma, RMS z {rms_z:.2}",
             NAMES[i], sigma_pred[i], sd, mean, mean_reported
         );
         if (ratio - 1.0).abs() > 0.2 {
@@ -175,7 +176,7 @@ fn agrees_with_monte_carlo(name: &str) {
             ));
         }
     }
-    eprintln!("{name}: {TRIALS} trials in {:?}", t0.elapsed());
+    eprintln!("{name}: {trials} trials in {:?}", t0.elapsed());
     assert!(bad.is_empty(), "{name}: {bad:?}");
 }
 

@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Test vectors for the core's ROS 2 message views (src/ros2): messages of the ROS 2 Velodyne
+and VectorNav drivers serialised to CDR by an independent writer, the PyPI `rosbags` library
+(0.11.9), from the drivers' own message definitions (ros-drivers/velodyne branch ros2,
+velodyne_msgs; dawonn/vectornav branch ros2, vectornav_msgs). Writes tests/data/ros2/*.cdr
+and expected.json (the values put in). Usage: python3 scripts/ros2-vectors.py (with rosbags
+installed: pip install rosbags==0.11.9)."""
+import json, os
+import numpy as np
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+OUT = os.path.join(os.path.dirname(__file__), "..", "tests", "data", "ros2")
+ts = get_typestore(Stores.ROS2_HUMBLE)
+defs = {
+    "velodyne_msgs/msg/VelodynePacket": "builtin_interfaces/Time stamp\nuint8[1206] data\n",
+    "velodyne_msgs/msg/VelodyneScan": "std_msgs/Header header\nvelodyne_msgs/VelodynePacket[] packets\n",
+    "vectornav_msgs/msg/InsStatus": "uint8 mode\nbool gps_fix\nbool time_error\nbool imu_error\nbool mag_pres_error\nbool gps_error\nbool gps_heading_ins\nbool gps_compass\n",
+    "vectornav_msgs/msg/CommonGroup": """std_msgs/Header header
+uint16 group_fields
+uint64 timestartup
+uint64 timegps
+uint64 timesyncin
+geometry_msgs/Vector3 yawpitchroll
+geometry_msgs/Quaternion quaternion
+geometry_msgs/Vector3 angularrate
+geometry_msgs/Point position
+geometry_msgs/Vector3 velocity
+geometry_msgs/Vector3 accel
+geometry_msgs/Vector3 imu_accel
+geometry_msgs/Vector3 imu_rate
+geometry_msgs/Vector3 magpres_mag
+float32 magpres_temp
+float32 magpres_pres
+float32 deltatheta_dtime
+geometry_msgs/Vector3 deltatheta_dtheta
+geometry_msgs/Vector3 deltatheta_dvel
+vectornav_msgs/InsStatus insstatus
+uint32 syncincnt
+uint16 timegpspps
+""",
+    "vectornav_msgs/msg/InsGroup": """std_msgs/Header header
+uint16 group_fields
+vectornav_msgs/InsStatus insstatus
+geometry_msgs/Point poslla
+geometry_msgs/Point posecef
+geometry_msgs/Vector3 velbody
+geometry_msgs/Vector3 velned
+geometry_msgs/Vector3 velecef
+geometry_msgs/Vector3 magecef
+geometry_msgs/Vector3 accelecef
+geometry_msgs/Vector3 linearaccelecef
+float32 posu
+float32 velu
+""",
+}
+types = {}
+for name, text in defs.items():
+    types.update(get_types_from_msg(text, name))
+ts.register(types)
+T = lambda n: ts.types[n]
+Time = T("builtin_interfaces/msg/Time")
+Header = T("std_msgs/msg/Header")
+V3 = T("geometry_msgs/msg/Vector3")
+P3 = T("geometry_msgs/msg/Point")
+Q = T("geometry_msgs/msg/Quaternion")
+expected = {}
+
+# A scan of three packets, each 1206 bytes of a known pattern.
+pk = []
+for k in range(3):
+    data = np.array([(k * 31 + i * 7) % 256 for i in range(1206)], dtype=np.uint8)
+    pk.append(T("velodyne_msgs/msg/VelodynePacket")(stamp=Time(sec=1700000000 + k, nanosec=123456789 + k), data=data))
+scan = T("velodyne_msgs/msg/VelodyneScan")(header=Header(stamp=Time(sec=1700000002, nanosec=5), frame_id="velodyne"), packets=pk)
+open(os.path.join(OUT, "velodyne_scan.cdr"), "wb").write(ts.serialize_cdr(scan, "velodyne_msgs/msg/VelodyneScan"))
+expected["velodyne_scan"] = {"header": [1700000002, 5, "velodyne"], "packets": [[1700000000 + k, 123456789 + k, k * 31 % 256] for k in range(3)]}
+empty = T("velodyne_msgs/msg/VelodyneScan")(header=Header(stamp=Time(sec=1, nanosec=2), frame_id=""), packets=[])
+open(os.path.join(OUT, "velodyne_scan_empty.cdr"), "wb").write(ts.serialize_cdr(empty, "velodyne_msgs/msg/VelodyneScan"))
+
+status = T("vectornav_msgs/msg/InsStatus")(mode=2, gps_fix=True, time_error=False, imu_error=False, mag_pres_error=False, gps_error=False, gps_heading_ins=True, gps_compass=False)
+common = T("vectornav_msgs/msg/CommonGroup")(
+    header=Header(stamp=Time(sec=1700000003, nanosec=250000000), frame_id="vectornav"),
+    group_fields=0x1000 | 0x0040 | 0x0008 | 0x0002,
+    timestartup=123456789012, timegps=1384000000123456789, timesyncin=0,
+    yawpitchroll=V3(x=12.5, y=-1.25, z=0.75), quaternion=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+    angularrate=V3(x=0.01, y=0.02, z=0.03), position=P3(x=48.38, y=-4.49, z=52.25),
+    velocity=V3(x=1.5, y=-0.25, z=0.0), accel=V3(x=0.0, y=0.0, z=-9.8),
+    imu_accel=V3(x=0.0, y=0.0, z=0.0), imu_rate=V3(x=0.0, y=0.0, z=0.0), magpres_mag=V3(x=0.0, y=0.0, z=0.0),
+    magpres_temp=21.5, magpres_pres=101.3, deltatheta_dtime=0.005,
+    deltatheta_dtheta=V3(x=0.0, y=0.0, z=0.0), deltatheta_dvel=V3(x=0.0, y=0.0, z=0.0),
+    insstatus=status, syncincnt=42, timegpspps=7)
+open(os.path.join(OUT, "common_group.cdr"), "wb").write(ts.serialize_cdr(common, "vectornav_msgs/msg/CommonGroup"))
+expected["common_group"] = {"header": [1700000003, 250000000, "vectornav"], "group_fields": 0x104A,
+    "timegps": 1384000000123456789, "yawpitchroll": [12.5, -1.25, 0.75], "position": [48.38, -4.49, 52.25],
+    "velocity": [1.5, -0.25, 0.0], "mode": 2, "gps_fix": True, "syncincnt": 42, "timegpspps": 7}
+
+ins = T("vectornav_msgs/msg/InsGroup")(
+    header=Header(stamp=Time(sec=1700000004, nanosec=0), frame_id="vectornav"), group_fields=0x0200 | 0x0002 | 0x0001,
+    insstatus=T("vectornav_msgs/msg/InsStatus")(mode=3, gps_fix=False, time_error=False, imu_error=False, mag_pres_error=False, gps_error=True, gps_heading_ins=False, gps_compass=False),
+    poslla=P3(x=48.38, y=-4.49, z=52.25), posecef=P3(x=0.0, y=0.0, z=0.0), velbody=V3(x=0.0, y=0.0, z=0.0),
+    velned=V3(x=0.0, y=0.0, z=0.0), velecef=V3(x=0.0, y=0.0, z=0.0), magecef=V3(x=0.0, y=0.0, z=0.0),
+    accelecef=V3(x=0.0, y=0.0, z=0.0), linearaccelecef=V3(x=0.0, y=0.0, z=0.0), posu=0.021, velu=0.05)
+open(os.path.join(OUT, "ins_group.cdr"), "wb").write(ts.serialize_cdr(ins, "vectornav_msgs/msg/InsGroup"))
+expected["ins_group"] = {"group_fields": 0x0203, "mode": 3, "gps_fix": False, "poslla": [48.38, -4.49, 52.25], "posu": 0.021}
+json.dump(expected, open(os.path.join(OUT, "expected.json"), "w"), indent=1)
+print("written", sorted(os.listdir(OUT)))
