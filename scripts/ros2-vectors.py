@@ -38,6 +38,21 @@ vectornav_msgs/InsStatus insstatus
 uint32 syncincnt
 uint16 timegpspps
 """,
+    "vectornav_msgs/msg/TimeUTC": "uint8 year\nuint8 month\nuint8 day\nuint8 hour\nuint8 min\nuint8 sec\nuint16 ms\n",
+    "vectornav_msgs/msg/TimeStatus": "bool time_ok\nbool date_ok\nbool utctime_ok\n",
+    "vectornav_msgs/msg/TimeGroup": """std_msgs/Header header
+uint16 group_fields
+uint64 timestartup
+uint64 timegps
+uint64 gpstow
+uint16 gpsweek
+uint64 timesyncin
+uint64 timegpspps
+vectornav_msgs/TimeUTC timeutc
+uint32 syncincnt
+uint32 syncoutcnt
+vectornav_msgs/TimeStatus timestatus
+""",
     "vectornav_msgs/msg/InsGroup": """std_msgs/Header header
 uint16 group_fields
 vectornav_msgs/InsStatus insstatus
@@ -101,5 +116,13 @@ ins = T("vectornav_msgs/msg/InsGroup")(
     accelecef=V3(x=0.0, y=0.0, z=0.0), linearaccelecef=V3(x=0.0, y=0.0, z=0.0), posu=0.021, velu=0.05)
 open(os.path.join(OUT, "ins_group.cdr"), "wb").write(ts.serialize_cdr(ins, "vectornav_msgs/msg/InsGroup"))
 expected["ins_group"] = {"group_fields": 0x0203, "mode": 3, "gps_fix": False, "poslla": [48.38, -4.49, 52.25], "posu": 0.021}
+tg = T("vectornav_msgs/msg/TimeGroup")(
+    header=Header(stamp=Time(sec=1700000005, nanosec=1), frame_id="vectornav"), group_fields=0x0002 | 0x0004 | 0x0008 | 0x0020 | 0x0200,
+    timestartup=5, timegps=1384000000123456789, gpstow=345600123456789, gpsweek=2288, timesyncin=0, timegpspps=250000000,
+    timeutc=T("vectornav_msgs/msg/TimeUTC")(year=23, month=11, day=14, hour=22, min=13, sec=20, ms=123),
+    syncincnt=3, syncoutcnt=4, timestatus=T("vectornav_msgs/msg/TimeStatus")(time_ok=True, date_ok=True, utctime_ok=False))
+open(os.path.join(OUT, "time_group.cdr"), "wb").write(ts.serialize_cdr(tg, "vectornav_msgs/msg/TimeGroup"))
+expected["time_group"] = {"group_fields": 0x022E, "timegps": 1384000000123456789, "gpstow": 345600123456789, "gpsweek": 2288,
+    "timegpspps": 250000000, "timeutc": [23, 11, 14, 22, 13, 20, 123], "timestatus": [True, True, False]}
 json.dump(expected, open(os.path.join(OUT, "expected.json"), "w"), indent=1)
 print("written", sorted(os.listdir(OUT)))

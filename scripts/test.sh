@@ -50,6 +50,8 @@ fuzz_stage() {
   local dir=(--target-dir "$SIDE_TARGET/fuzz")
   # No sanitizer: the code under test is safe Rust (forbid(unsafe_code)); libFuzzer's
   # coverage guidance and the panics are what find bugs here, 10-30x faster without ASan.
+  # 16 codegen units: the build takes ~130 s of CPU instead of ~390 (one unit), for 10 s runs.
+  dir+=(--codegen-units 16)
   (cd fuzz && cargo fuzz build -O -s none "${dir[@]}") || return 1
   local t failed=0
   for t in $(cd fuzz && cargo fuzz list); do

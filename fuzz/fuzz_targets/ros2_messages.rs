@@ -1,9 +1,9 @@
-//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, InsGroup): an error
+//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup): an error
 //! or a message, never a panic; a scan's packets are all there when it parses.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal::ros2::{CommonGroup, InsGroup, VelodyneScan};
+use spherecal::ros2::{CommonGroup, InsGroup, TimeGroup, VelodyneScan};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(s) = VelodyneScan::parse(data) {
@@ -13,4 +13,5 @@ fuzz_target!(|data: &[u8]| {
         let _ = c.insstatus.word();
     }
     let _ = InsGroup::parse(data);
+    let _ = TimeGroup::parse(data);
 });

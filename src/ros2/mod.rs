@@ -1,7 +1,7 @@
 //! ROS 2 messages of the sensors' drivers, as a rosbag2 stores them (CDR, [`cdr`]): the
 //! Velodyne driver's raw packets (`velodyne_msgs/msg/VelodyneScan`, ros-drivers/velodyne branch
 //! `ros2`) and the VectorNav driver's parsed groups (`vectornav_msgs/msg/CommonGroup`,
-//! `InsGroup`, dawonn/vectornav branch `ros2`). Views over borrowed bytes, parsed once and
+//! `TimeGroup`, `InsGroup`, dawonn/vectornav branch `ros2`). Views over borrowed bytes, parsed once and
 //! checked: a truncated or malformed message is an [`cdr::Error`] with its offset, never a
 //! panic (PROTOCOLS.md "ROS 2 messages").
 
@@ -274,6 +274,77 @@ impl<'a> InsGroup<'a> {
             velned,
             posu,
             velu,
+        })
+    }
+
+    /// Whether the fields of `bits` all hold data.
+    pub fn has(&self, bits: u16) -> bool {
+        self.group_fields & bits == bits
+    }
+}
+
+/// `vectornav_msgs/msg/TimeGroup`: the Time group the driver parsed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeGroup<'a> {
+    /// Header.
+    pub header: Header<'a>,
+    /// Which fields hold data ([`TimeGroup::TIMEGPS`] ...).
+    pub group_fields: u16,
+    /// GPS time [ns since 1980-01-06].
+    pub timegps: u64,
+    /// GPS time of week [ns].
+    pub gpstow: u64,
+    /// GPS week.
+    pub gpsweek: u16,
+    /// Time since the last PPS [ns].
+    pub timegpspps: u64,
+    /// UTC: year (since 2000), month, day, hour, minute, second, and milliseconds.
+    pub timeutc: ([u8; 6], u16),
+    /// Time, date and UTC time valid (UM001 4.7.1).
+    pub timestatus: [bool; 3],
+}
+
+impl<'a> TimeGroup<'a> {
+    /// `group_fields` bit: TimeGps.
+    pub const TIMEGPS: u16 = 0x0002;
+    /// ... GpsTow.
+    pub const GPSTOW: u16 = 0x0004;
+    /// ... GpsWeek.
+    pub const GPSWEEK: u16 = 0x0008;
+    /// ... TimeGpsPps.
+    pub const TIMEGPSPPS: u16 = 0x0020;
+    /// ... TimeStatus.
+    pub const TIMESTATUS: u16 = 0x0200;
+
+    /// Parse a CDR message.
+    pub fn parse(b: &'a [u8]) -> Result<Self, Error> {
+        let mut r = Reader::new(b)?;
+        let header = Header::read(&mut r)?;
+        let group_fields = r.u16("group_fields")?;
+        r.u64("timestartup")?;
+        let timegps = r.u64("timegps")?;
+        let gpstow = r.u64("gpstow")?;
+        let gpsweek = r.u16("gpsweek")?;
+        r.u64("timesyncin")?;
+        let timegpspps = r.u64("timegpspps")?;
+        let mut utc = [0u8; 6];
+        for u in utc.iter_mut() {
+            *u = r.u8("timeutc")?;
+        }
+        let ms = r.u16("timeutc.ms")?;
+        r.u32("syncincnt")?;
+        r.u32("syncoutcnt")?;
+        let e = "timestatus";
+        let timestatus = [r.bool(e)?, r.bool(e)?, r.bool(e)?];
+        Ok(Self {
+            header,
+            group_fields,
+            timegps,
+            gpstow,
+            gpsweek,
+            timegpspps,
+            timeutc: (utc, ms),
+            timestatus,
         })
     }
 

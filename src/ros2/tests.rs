@@ -8,6 +8,7 @@ const SCAN: &[u8] = include_bytes!("../../tests/data/ros2/velodyne_scan.cdr");
 const EMPTY: &[u8] = include_bytes!("../../tests/data/ros2/velodyne_scan_empty.cdr");
 const COMMON: &[u8] = include_bytes!("../../tests/data/ros2/common_group.cdr");
 const INS: &[u8] = include_bytes!("../../tests/data/ros2/ins_group.cdr");
+const TIME: &[u8] = include_bytes!("../../tests/data/ros2/time_group.cdr");
 
 #[test]
 fn a_velodyne_scan_and_its_packets() {
@@ -70,6 +71,21 @@ fn an_ins_group() {
     assert!(!g.insstatus.gps_fix && g.insstatus.errors[3]);
     assert_eq!(g.poslla, [48.38, -4.49, 52.25]);
     assert_eq!(g.posu, 0.021);
+}
+
+#[test]
+fn a_time_group() {
+    let t = TimeGroup::parse(TIME).unwrap();
+    assert_eq!(t.group_fields, 0x022E);
+    assert!(t.has(TimeGroup::TIMEGPS | TimeGroup::GPSWEEK | TimeGroup::TIMESTATUS));
+    assert_eq!(t.timegps, 1_384_000_000_123_456_789);
+    assert_eq!((t.gpstow, t.gpsweek), (345_600_123_456_789, 2288));
+    assert_eq!(t.timegpspps, 250_000_000);
+    assert_eq!(t.timeutc, ([23, 11, 14, 22, 13, 20], 123));
+    assert_eq!(t.timestatus, [true, true, false]);
+    for n in 0..TIME.len() {
+        assert!(TimeGroup::parse(&TIME[..n]).is_err(), "{n}");
+    }
 }
 
 #[test]

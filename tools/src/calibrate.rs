@@ -170,53 +170,6 @@ impl Scratch {
     }
 }
 
-/// The navigation model's part of the report.
-fn navigation_report(
-    m: &spherecal::calib::nav::NavModel,
-    fit: Option<&spherecal::calib::nav::NavFit>,
-    pieces: &[spherecal::calib::nav::Piece],
-    s: &Settings,
-    ids: &[String],
-) -> crate::report::NavigationReport {
-    let corrections = pieces
-        .iter()
-        .map(|p| crate::report::NavCorrectionReport {
-            start_gps_s: p.start.0 as f64 * 1e-9,
-            end_gps_s: p.end.0 as f64 * 1e-9,
-            returns: p.n,
-            position_m: [p.error[0], p.error[1], p.error[2]],
-            position_sigma_m: [p.sigma[0], p.sigma[1], p.sigma[2]],
-            rotation_deg: [p.error[3], p.error[4], p.error[5]].map(f64::to_degrees),
-            rotation_sigma_deg: [p.sigma[3], p.sigma[4], p.sigma[5]].map(f64::to_degrees),
-        })
-        .collect();
-    crate::report::NavigationReport {
-        source: "site [ins.correlated]".into(),
-        position_sigma_m: m.position_sigma,
-        attitude_sigma_deg: m.attitude_sigma.map(f64::to_degrees),
-        correlation_s: m.correlation_s,
-        pieces: fit.map_or(0, |f| f.pieces),
-        white_noise_factor: fit.map_or(f64::NAN, |f| f.variance_factor),
-        centres: ids
-            .iter()
-            .enumerate()
-            .map(|(j, id)| crate::report::CentreCorrection {
-                sphere: id.clone(),
-                prior_sigma_m: s.centre_sigma.get(j).copied().unwrap_or(0.0),
-                correction_m: fit
-                    .and_then(|f| f.centre.get(j).copied())
-                    .unwrap_or([f64::NAN; 3]),
-                sigma_m: fit
-                    .and_then(|f| f.centre_sigma.get(j).copied())
-                    .unwrap_or([f64::NAN; 3]),
-            })
-            .collect(),
-        corrections,
-        worst_step_sigmas: fit.map_or(f64::NAN, |f| f.worst_step.0),
-        worst_step_gps_s: fit.map_or(f64::NAN, |f| f.worst_step.1 .0 as f64 * 1e-9),
-    }
-}
-
 pub use crate::reasons::{empty_windows, lost_name, refusal_text, refusal_text_clock};
 pub use crate::session::settings_for;
 
@@ -359,7 +312,7 @@ pub fn solve_report_in(
         inputs: None,
         navigation: s.nav.map(|m| {
             let pieces = sol.nav.map_or(&[][..], |f| &scratch.nav[..f.pieces]);
-            navigation_report(&m, sol.nav.as_ref(), pieces, s, ids)
+            crate::report::NavigationReport::of(&m, sol.nav.as_ref(), pieces, s, ids)
         }),
         clutter_rejected: sol
             .spheres

@@ -4,6 +4,7 @@
 
 mod text;
 pub use text::{render, render_montecarlo, termination_words, utc};
+mod nav;
 
 use crate::pipeline::{Inputs, RunStats};
 use serde::{Deserialize, Serialize};
