@@ -173,19 +173,7 @@ impl Live {
         // candidate passes' returns after them (each its own errors).
         let under = |white: Predicted, adds: &[&PassCandidate]| match nav {
             Some(n) => {
-                let end = n.span_ns().map_or(0, |s| s.1);
-                let plans: Vec<(&NavPlan, i64)> = adds
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(k, c)| {
-                        let p = c.nav.as_ref()?;
-                        let first = p.span_ns().map_or(0, |s| s.0);
-                        Some((
-                            p,
-                            end - first + ((30.0 + 600.0 * (k + 1) as f64) * 1e9) as i64,
-                        ))
-                    })
-                    .collect();
+                let plans: Vec<&NavPlan> = adds.iter().filter_map(|c| c.nav.as_ref()).collect();
                 let mut p = white;
                 p.sigma = n.sigma_with(&plans, &[]).unwrap_or([f64::INFINITY; P + 1]);
                 p

@@ -15,6 +15,10 @@ use spherecal::calib::objective::{Noise, Problem, SphereObs};
 use spherecal::calib::P;
 use spherecal::window::{Observation, Target};
 
+/// How far apart in time candidate passes are driven after the survey [s] (beyond a few
+/// correlation times: each brings its own navigation errors).
+pub const PASS_APART_S: f64 = 600.0;
+
 /// Most pieces a planned survey is cut into (the file command's [`crate::calibrate::Scratch`]
 /// holds as many).
 const PIECES: usize = 1024;
@@ -139,15 +143,30 @@ impl NavPlan {
         self.solve(&self.targets, &kept)
     }
 
-    /// The sigmas with the returns of other plans added (a candidate pass's: the same spheres,
-    /// its times moved by the shift [ns] to after this survey; a candidate sphere's: a new
-    /// sphere over the same trajectory, shift 0) and the returns within `drop` spans [s]
-    /// taken out (a pass driven again slower).
-    pub fn sigma_with(
-        &self,
-        adds: &[(&NavPlan, i64)],
-        drop: &[(f64, f64)],
-    ) -> Option<[f64; P + 1]> {
+    /// The sigmas with the returns of candidate plans added and the returns within `drop`
+    /// spans [s] taken out (a pass driven again slower). A candidate pass (the same spheres)
+    /// is driven after this survey, each [`PASS_APART_S`] after the one before (its navigation
+    /// errors its own); a candidate sphere's returns are over the same trajectory.
+    pub fn sigma_with(&self, adds: &[&NavPlan], drop: &[(f64, f64)]) -> Option<[f64; P + 1]> {
+        let end = self.span_ns().map_or(0, |s| s.1);
+        let mut passes = 0;
+        let adds: Vec<(&NavPlan, i64)> = adds
+            .iter()
+            .map(|p| {
+                if !self.same_spheres(p) {
+                    return (*p, 0);
+                }
+                passes += 1;
+                let first = p.span_ns().map_or(0, |s| s.0);
+                let after = (PASS_APART_S * f64::from(passes) * 1e9) as i64;
+                (*p, end - first + after)
+            })
+            .collect();
+        self.sigma_shifted(&adds, drop)
+    }
+
+    /// [`Self::sigma_with`] with each plan's times moved by its shift [ns].
+    fn sigma_shifted(&self, adds: &[(&NavPlan, i64)], drop: &[(f64, f64)]) -> Option<[f64; P + 1]> {
         let mut targets = self.targets.clone();
         let mut kept: Vec<Vec<Observation>> = self
             .obs

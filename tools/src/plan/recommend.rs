@@ -81,30 +81,13 @@ struct NavScore<'a> {
     cands: &'a [Candidate],
 }
 
-/// Where a candidate pass is put in time under the navigation model: after the survey, each
-/// its own [`PASS_APART_S`] further (its navigation errors its own).
-const PASS_APART_S: f64 = 600.0;
-
 impl NavScore<'_> {
     /// The sigmas of a state under the model (`None`: no model).
     fn sigma(&self, st: &State) -> Option<Option<[f64; P + 1]>> {
         let base = self.base?;
-        let end = base.span_ns().map_or(0, |s| s.1);
-        let mut adds = Vec::new();
-        let mut drop = Vec::new();
-        for (n, &k) in st.taken.iter().enumerate() {
-            let c = &self.cands[k];
-            if let Some(p) = &c.nav {
-                let shift = if base.same_spheres(p) {
-                    let first = p.span_ns().map_or(0, |s| s.0);
-                    end - first + ((30.0 + PASS_APART_S * (n + 1) as f64) * 1e9) as i64
-                } else {
-                    0
-                };
-                adds.push((p, shift));
-            }
-            drop.extend(c.drop);
-        }
+        let taken = st.taken.iter().map(|&k| &self.cands[k]);
+        let adds: Vec<&NavPlan> = taken.clone().filter_map(|c| c.nav.as_ref()).collect();
+        let drop: Vec<(f64, f64)> = taken.filter_map(|c| c.drop).collect();
         Some(base.sigma_with(&adds, &drop))
     }
 }
