@@ -53,6 +53,19 @@ uint32 syncincnt
 uint32 syncoutcnt
 vectornav_msgs/TimeStatus timestatus
 """,
+    "vectornav_msgs/msg/VpeStatus": "uint8 attitude_quality\nbool gyro_saturation\nbool gyro_saturation_recovery\nuint8 mag_disturbance\nbool mag_saturation\nuint8 acc_disturbance\nbool acc_saturation\nbool known_mag_disturbance\nbool known_accel_disturbance\n",
+    "vectornav_msgs/msg/AttitudeGroup": """std_msgs/Header header
+uint16 group_fields
+vectornav_msgs/VpeStatus vpestatus
+geometry_msgs/Vector3 yawpitchroll
+geometry_msgs/Quaternion quaternion
+float32[9] dcm
+geometry_msgs/Vector3 magned
+geometry_msgs/Vector3 accelned
+geometry_msgs/Vector3 linearaccelbody
+geometry_msgs/Vector3 linearaccelned
+geometry_msgs/Vector3 ypru
+""",
     "vectornav_msgs/msg/InsGroup": """std_msgs/Header header
 uint16 group_fields
 vectornav_msgs/InsStatus insstatus
@@ -124,5 +137,15 @@ tg = T("vectornav_msgs/msg/TimeGroup")(
 open(os.path.join(OUT, "time_group.cdr"), "wb").write(ts.serialize_cdr(tg, "vectornav_msgs/msg/TimeGroup"))
 expected["time_group"] = {"group_fields": 0x022E, "timegps": 1384000000123456789, "gpstow": 345600123456789, "gpsweek": 2288,
     "timegpspps": 250000000, "timeutc": [23, 11, 14, 22, 13, 20, 123], "timestatus": [True, True, False]}
+att = T("vectornav_msgs/msg/AttitudeGroup")(
+    header=Header(stamp=Time(sec=1700000006, nanosec=7), frame_id="vectornav"), group_fields=0x0100 | 0x0002,
+    vpestatus=T("vectornav_msgs/msg/VpeStatus")(attitude_quality=1, gyro_saturation=False, gyro_saturation_recovery=False,
+        mag_disturbance=2, mag_saturation=False, acc_disturbance=0, acc_saturation=True, known_mag_disturbance=False, known_accel_disturbance=True),
+    yawpitchroll=V3(x=271.5, y=2.25, z=-3.5), quaternion=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+    dcm=np.array([1, 0, 0, 0, 1, 0, 0, 0, 1], dtype=np.float32), magned=V3(x=0.0, y=0.0, z=0.0),
+    accelned=V3(x=0.0, y=0.0, z=0.0), linearaccelbody=V3(x=0.0, y=0.0, z=0.0), linearaccelned=V3(x=0.0, y=0.0, z=0.0),
+    ypru=V3(x=0.35, y=0.04, z=0.045))
+open(os.path.join(OUT, "attitude_group.cdr"), "wb").write(ts.serialize_cdr(att, "vectornav_msgs/msg/AttitudeGroup"))
+expected["attitude_group"] = {"group_fields": 0x0102, "yawpitchroll": [271.5, 2.25, -3.5], "ypru": [0.35, 0.04, 0.045]}
 json.dump(expected, open(os.path.join(OUT, "expected.json"), "w"), indent=1)
 print("written", sorted(os.listdir(OUT)))

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use spherecal::ros2::{CommonGroup, InsGroup, TimeGroup, VelodyneScan};
+use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, TimeGroup, VelodyneScan};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(s) = VelodyneScan::parse(data) {
@@ -14,4 +14,5 @@ fuzz_target!(|data: &[u8]| {
     }
     let _ = InsGroup::parse(data);
     let _ = TimeGroup::parse(data);
+    let _ = AttitudeGroup::parse(data);
 });

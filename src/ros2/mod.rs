@@ -1,7 +1,7 @@
 //! ROS 2 messages of the sensors' drivers, as a rosbag2 stores them (CDR, [`cdr`]): the
 //! Velodyne driver's raw packets (`velodyne_msgs/msg/VelodyneScan`, ros-drivers/velodyne branch
 //! `ros2`) and the VectorNav driver's parsed groups (`vectornav_msgs/msg/CommonGroup`,
-//! `TimeGroup`, `InsGroup`, dawonn/vectornav branch `ros2`). Views over borrowed bytes, parsed once and
+//! `TimeGroup`, `InsGroup`, `AttitudeGroup`, dawonn/vectornav branch `ros2`). Views over borrowed bytes, parsed once and
 //! checked: a truncated or malformed message is an [`cdr::Error`] with its offset, never a
 //! panic (PROTOCOLS.md "ROS 2 messages").
 
@@ -274,6 +274,59 @@ impl<'a> InsGroup<'a> {
             velned,
             posu,
             velu,
+        })
+    }
+
+    /// Whether the fields of `bits` all hold data.
+    pub fn has(&self, bits: u16) -> bool {
+        self.group_fields & bits == bits
+    }
+}
+
+/// `vectornav_msgs/msg/AttitudeGroup`: the Attitude group the driver parsed (its YprU is what
+/// the filter states of its attitude errors).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeGroup<'a> {
+    /// Header.
+    pub header: Header<'a>,
+    /// Which fields hold data ([`AttitudeGroup::YPRU`] ...).
+    pub group_fields: u16,
+    /// Yaw, pitch, roll [deg].
+    pub yawpitchroll: [f64; 3],
+    /// The filter's yaw, pitch, roll 1-sigma [deg].
+    pub ypru: [f64; 3],
+}
+
+impl<'a> AttitudeGroup<'a> {
+    /// `group_fields` bit: YawPitchRoll.
+    pub const YAWPITCHROLL: u16 = 0x0002;
+    /// ... YprU.
+    pub const YPRU: u16 = 0x0100;
+
+    /// Parse a CDR message.
+    pub fn parse(b: &'a [u8]) -> Result<Self, Error> {
+        let mut r = Reader::new(b)?;
+        let header = Header::read(&mut r)?;
+        let group_fields = r.u16("group_fields")?;
+        // VpeStatus: u8, bool, bool, u8, bool, u8, bool, bool, bool (UM001 4.7.1).
+        for _ in 0..9 {
+            r.u8("vpestatus")?;
+        }
+        let yawpitchroll = r.f64x3("yawpitchroll")?;
+        r.f64x3("quaternion")?;
+        r.f64("quaternion")?;
+        for _ in 0..9 {
+            r.f32("dcm")?;
+        }
+        for k in ["magned", "accelned", "linearaccelbody", "linearaccelned"] {
+            r.f64x3(k)?;
+        }
+        let ypru = r.f64x3("ypru")?;
+        Ok(Self {
+            header,
+            group_fields,
+            yawpitchroll,
+            ypru,
         })
     }
 

@@ -9,6 +9,7 @@ const EMPTY: &[u8] = include_bytes!("../../tests/data/ros2/velodyne_scan_empty.c
 const COMMON: &[u8] = include_bytes!("../../tests/data/ros2/common_group.cdr");
 const INS: &[u8] = include_bytes!("../../tests/data/ros2/ins_group.cdr");
 const TIME: &[u8] = include_bytes!("../../tests/data/ros2/time_group.cdr");
+const ATT: &[u8] = include_bytes!("../../tests/data/ros2/attitude_group.cdr");
 
 #[test]
 fn a_velodyne_scan_and_its_packets() {
@@ -71,6 +72,19 @@ fn an_ins_group() {
     assert!(!g.insstatus.gps_fix && g.insstatus.errors[3]);
     assert_eq!(g.poslla, [48.38, -4.49, 52.25]);
     assert_eq!(g.posu, 0.021);
+}
+
+#[test]
+fn an_attitude_group() {
+    let a = AttitudeGroup::parse(ATT).unwrap();
+    assert_eq!(a.header.stamp.ns(), 1_700_000_006_000_000_007);
+    assert_eq!(a.group_fields, 0x0102);
+    assert!(a.has(AttitudeGroup::YPRU | AttitudeGroup::YAWPITCHROLL));
+    assert_eq!(a.yawpitchroll, [271.5, 2.25, -3.5]);
+    assert_eq!(a.ypru, [0.35, 0.04, 0.045]);
+    for n in 0..ATT.len() {
+        assert!(AttitudeGroup::parse(&ATT[..n]).is_err(), "{n}");
+    }
 }
 
 #[test]
