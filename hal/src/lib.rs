@@ -11,6 +11,7 @@ pub mod console;
 pub mod packet;
 pub mod pcap;
 pub mod rawlog;
+pub mod rosbag;
 pub mod sbet;
 pub mod serial;
 pub mod udp;

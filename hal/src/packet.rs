@@ -60,6 +60,8 @@ pub enum SkipReason {
     },
     /// The bytes have the right length but are not a valid VLP-16 packet.
     Vlp16(spherecal::velodyne::Error),
+    /// A ROS 2 message (a bag's `VelodyneScan`) that does not parse as its type.
+    BadMessage(spherecal::ros2::cdr::Error),
 }
 
 impl SkipReason {
@@ -75,6 +77,7 @@ impl SkipReason {
             SkipReason::OtherSender(_) => "other sender",
             SkipReason::WrongPayloadLength { .. } => "wrong payload length",
             SkipReason::Vlp16(e) => e.reason(),
+            SkipReason::BadMessage(_) => "ROS message not parsed",
         }
     }
 }
@@ -107,6 +110,7 @@ impl fmt::Display for SkipReason {
                 )
             }
             SkipReason::Vlp16(e) => write!(f, "{e}"),
+            SkipReason::BadMessage(e) => write!(f, "ROS 2 message: {e}"),
         }
     }
 }

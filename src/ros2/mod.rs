@@ -224,6 +224,73 @@ impl<'a> CommonGroup<'a> {
     }
 }
 
+/// The longest frame [`CommonGroup::vn200_frame`] writes (header 8, payload 79, CRC 2).
+pub const VN200_FRAME_MAX: usize = 96;
+
+impl CommonGroup<'_> {
+    /// The VN-200 binary frame this group was parsed from, as far as the group keeps it: the
+    /// Common group's TimeGps, YawPitchRoll, Quaternion, Position and InsStatus (those whose
+    /// bit is set), with the filter's own sigmas when given (Attitude.YprU [deg], Ins.PosU
+    /// [m]: another message of the driver's). Attitudes go back to the sensor's f32. Returns
+    /// the frame's length; `None` when the group holds none of those fields.
+    pub fn vn200_frame(
+        &self,
+        ypru: Option<[f32; 3]>,
+        posu: Option<f32>,
+        out: &mut [u8; VN200_FRAME_MAX],
+    ) -> Option<usize> {
+        use crate::vn200::binary::{emit, Masks};
+        use crate::vn200::fields::Group;
+        let mut masks = Masks::default();
+        let mut p = [0u8; 80];
+        let mut at = 0;
+        let mut put = |b: &[u8]| {
+            p[at..at + b.len()].copy_from_slice(b);
+            at += b.len();
+        };
+        if self.has(Self::TIMEGPS) {
+            masks = masks.with(Group::Common, 1);
+            put(&self.timegps.to_le_bytes());
+        }
+        if self.has(Self::YAWPITCHROLL) {
+            masks = masks.with(Group::Common, 3);
+            for v in self.yawpitchroll {
+                put(&(v as f32).to_le_bytes());
+            }
+        }
+        if self.has(Self::QUATERNION) {
+            masks = masks.with(Group::Common, 4);
+            for v in self.quaternion {
+                put(&(v as f32).to_le_bytes());
+            }
+        }
+        if self.has(Self::POSITION) {
+            masks = masks.with(Group::Common, 6);
+            for v in self.position {
+                put(&v.to_le_bytes());
+            }
+        }
+        if self.has(Self::INSSTATUS) {
+            masks = masks.with(Group::Common, 12);
+            put(&self.insstatus.word().to_le_bytes());
+        }
+        if masks == Masks::default() {
+            return None;
+        }
+        if let Some(u) = ypru {
+            masks = masks.with(Group::Attitude, 8);
+            for v in u {
+                put(&v.to_le_bytes());
+            }
+        }
+        if let Some(u) = posu {
+            masks = masks.with(Group::Ins, 9);
+            put(&u.to_le_bytes());
+        }
+        emit(out, &masks, &p[..at]).ok()
+    }
+}
+
 /// `vectornav_msgs/msg/InsGroup`: the INS group the driver parsed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InsGroup<'a> {

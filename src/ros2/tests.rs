@@ -137,3 +137,35 @@ fn every_cut_of_a_message_is_an_error_not_a_panic() {
     assert!(CommonGroup::parse(&COMMON[..COMMON.len() - 1]).is_err());
     assert!(InsGroup::parse(&INS[..INS.len() - 1]).is_err());
 }
+
+#[test]
+fn a_common_group_back_into_the_vn200_frame() {
+    use crate::vn200::binary::Frame;
+    use crate::vn200::pose::{Attitude, Pose};
+    let c = CommonGroup::parse(COMMON).unwrap();
+    let mut out = [0u8; VN200_FRAME_MAX];
+    let n = c
+        .vn200_frame(Some([0.35, 0.04, 0.045]), Some(0.021), &mut out)
+        .unwrap();
+    let f = Frame::parse(&out[..n]).unwrap();
+    assert_eq!(f.bytes().len(), n);
+    // The values rosbags put in, as the VN-200 sends them (f32 attitudes).
+    let p = Pose::from_frame(&f).unwrap();
+    assert_eq!(p.time.0, 1_384_000_000_123_456_789);
+    assert_eq!((p.lat.to_degrees(), p.lon.to_degrees(), p.h), (48.38, -4.49, 52.25));
+    let Attitude::YawPitchRoll(y) = p.attitude else {
+        panic!("{:?}", p.attitude)
+    };
+    for (got, want) in y.iter().zip([12.5f32, -1.25, 0.75]) {
+        assert_eq!(*got, f64::from(want).to_radians());
+    }
+    assert_eq!(p.ins_status, Some(0b1_0000_0110));
+    assert_eq!(f.position_uncertainty_m(), Some(0.021));
+    assert_eq!(f.ypr_uncertainty_deg(), Some([0.35, 0.04, 0.045]));
+    // Without the sigmas, and a group with none of the fields: nothing.
+    let n2 = c.vn200_frame(None, None, &mut out).unwrap();
+    assert_eq!(n2, n - 2 * 2 - 12 - 4);
+    let mut none = c;
+    none.group_fields = 0x0001;
+    assert_eq!(none.vn200_frame(None, None, &mut out), None);
+}

@@ -155,7 +155,15 @@ pub fn identify_file(path: &Path, ports: Ports) -> Result<Option<(Model, String)
         path: path.display().to_string(),
         error,
     };
-    let mut src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
+    let src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
+    identify_source(src, ports).map_err(|e| err(DecodeFailure::Model(e)))
+}
+
+/// [`identify_file`] over any packet source (a capture, a bag's scans).
+pub fn identify_source<S: PacketSource>(
+    mut src: S,
+    ports: Ports,
+) -> Result<Option<(Model, String)>, ModelError> {
     let mut det = Detector::new();
     let mut first: Option<u64> = None;
     let mut id = det.identity();
@@ -191,7 +199,7 @@ pub fn identify_file(path: &Path, ports: Ports) -> Result<Option<(Model, String)
             ),
         ))),
         Identity::Pending(None) => Ok(None),
-        identity => Err(err(DecodeFailure::Model(ModelError { identity, offset }))),
+        identity => Err(ModelError { identity, offset }),
     }
 }
 

@@ -2,6 +2,7 @@
 //! and benchmarks call exactly what the command runs.
 #![forbid(unsafe_code)]
 
+pub mod bag;
 pub mod calibrate;
 pub mod cmd;
 pub mod config;

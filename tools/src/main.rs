@@ -46,6 +46,8 @@ enum Cmd {
     Board(cmd::board::Args),
     /// Site files from survey data: `site import SURVEY.csv --crs EPSG:n -o site.toml`.
     Site(cmd::site::Args),
+    /// ROS 2 bags: `bag info BAG` lists the topics and what spherecal reads of them.
+    Bag(cmd::bag::Args),
     /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
     /// optionally list the binary frames' fields.
     Ins(cmd::ins::Args),
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         Some(Cmd::Run(a)) => cmd::run::run(a),
         Some(Cmd::Ins(a)) => cmd::ins::run(a),
         Some(Cmd::Site(a)) => cmd::site::run(a),
+        Some(Cmd::Bag(a)) => cmd::bag::run(a),
         Some(Cmd::Board(a)) => cmd::board::run(a),
         Some(Cmd::Vn200(a)) => cmd::vn200::run(a),
     }

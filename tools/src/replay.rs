@@ -111,7 +111,7 @@ pub fn first_times(
     pcap: impl Into<Files>,
     ins: Option<&Files>,
 ) -> Result<(Option<HostTime>, Option<HostTime>), crate::Error> {
-    let mut src = crate::pipeline::open_captures(&pcap.into())?;
+    let mut src = crate::pipeline::open_captures(&pcap.into(), None)?;
     let mut first_udp = None;
     while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
         if let Record::Udp(d) = rec {
@@ -157,7 +157,7 @@ pub fn replay_udp_on(
     to: Target,
     clock: &Pacer<'_>,
 ) -> Result<UdpReplay, crate::Error> {
-    let mut src = crate::pipeline::open_captures(&pcap.into())?;
+    let mut src = crate::pipeline::open_captures(&pcap.into(), None)?;
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
     let host = to.host;

@@ -30,6 +30,10 @@ pub struct ClockState {
     /// Where the LiDAR's hour came from: `RMC` (a valid one) or `INS` (the nearest hour to the
     /// INS time); empty if never.
     pub hour_from: String,
+    /// The packets came from a ROS 2 bag: its driver records no position packet, so the PPS
+    /// state is unknown rather than absent.
+    #[serde(default)]
+    pub bag: bool,
 }
 
 /// PPS state names, in [`ClockState::pps`] order.
@@ -89,6 +93,15 @@ impl ClockState {
     /// One line for people.
     pub fn describe(&self) -> String {
         let n = self.packets();
+        if n == 0 && self.bag {
+            let mut o = String::from(
+                "PPS unknown (ROS 2 bag: the driver records no position packet, so the LiDAR clock cannot be checked); the time offset is estimated",
+            );
+            if !self.hour_from.is_empty() {
+                let _ = write!(o, "; hour from {}", self.hour_from);
+            }
+            return o;
+        }
         if n == 0 {
             return "no position packets (no PPS, no RMC: the LiDAR clock cannot be checked)"
                 .into();
@@ -176,6 +189,9 @@ pub struct InsState {
     /// What a POS MV stream gave (None: not a POS MV stream).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub posmv: Option<PosmvState>,
+    /// What a ROS 2 bag's VectorNav groups gave, in words (None: not a bag).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bag: Option<String>,
 }
 
 /// The INS clock between samples: the last sample's time, the output period learnt from the
@@ -301,6 +317,8 @@ impl InsState {
                 self.skipped_bytes,
                 self.poses
             )
+        } else if let Some(b) = &self.bag {
+            format!("{b}; {} poses used", self.poses)
         } else if self.sbet_records > 0 {
             format!(
                 "SBET: {} bytes, {} records; {} poses used",

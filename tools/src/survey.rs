@@ -9,8 +9,12 @@ use std::path::PathBuf;
 /// What `spherecal calibrate` reads.
 #[derive(Debug, Clone)]
 pub struct Survey {
-    /// The Velodyne capture(s).
+    /// The Velodyne capture(s), or a ROS 2 bag.
     pub pcap: pipeline::Files,
+    /// When `pcap` is a bag: its topic of scans (None: the only one).
+    pub lidar_topic: Option<String>,
+    /// A ROS 2 bag as the INS and its topic of CommonGroups (None: the only one).
+    pub bag: Option<(pipeline::Files, Option<String>)>,
     /// The LiDAR model (None: as the packets say, checked against their period).
     pub model: Option<spherecal::velodyne::Model>,
     /// VN-200 serial bytes (raw or serial logs) ...
@@ -38,6 +42,8 @@ impl Survey {
     pub fn synth_dir(dir: &std::path::Path) -> Self {
         Self {
             pcap: dir.join("lidar.pcap").into(),
+            lidar_topic: None,
+            bag: None,
             model: None,
             ins: Some(dir.join("ins.bin").into()),
             sbet: None,
@@ -147,6 +153,10 @@ pub fn run_calibrate(
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = start.params();
     let (ins, accuracy) = match (survey.ins, survey.sbet, survey.posmv) {
+        _ if survey.bag.is_some() => {
+            let (b, t) = survey.bag.unwrap_or_default();
+            (InsInput::Bag(b, t), None)
+        }
         (Some(i), _, _) => (InsInput::Vn200(i), None),
         (None, None, Some((f, g))) => (InsInput::Posmv(f, survey.gps_week, g), None),
         (None, Some(s), _) => {
@@ -167,6 +177,7 @@ pub fn run_calibrate(
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
     inp.ports = survey.ports;
+    inp.lidar_topic = survey.lidar_topic;
     inp.accuracy = accuracy;
     inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;

@@ -60,8 +60,12 @@ pub struct Args {
 pub fn run(a: Args) -> ExitCode {
     let s = a.survey;
     let ports = s.ports();
+    let (pcap, lidar_topic) = s.lidar();
+    let bag = s.ins_bag();
     let survey = crate::Survey {
-        pcap: s.pcap.into(),
+        pcap,
+        lidar_topic,
+        bag,
         model: s.model,
         ins: (!s.ins.is_empty()).then(|| s.ins.into()),
         sbet: (!s.sbet.is_empty()).then(|| s.sbet.into()),

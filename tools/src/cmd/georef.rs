@@ -41,8 +41,9 @@ pub struct Args {
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
     let ports = a.survey.ports();
+    let (pcap, lidar_topic) = a.survey.lidar();
+    let ins_bag = a.survey.ins_bag();
     let SurveyArgs {
-        pcap,
         model,
         ins,
         sbet,
@@ -67,6 +68,10 @@ pub fn run(a: Args) -> ExitCode {
     let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
     let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
     let ins = match (ins.is_empty(), sbet.is_empty(), posmv.is_empty()) {
+        _ if ins_bag.is_some() => {
+            let (b, t) = ins_bag.unwrap_or_default();
+            InsInput::Bag(b, t)
+        }
         (false, _, _) => InsInput::Vn200(ins.into()),
         (true, false, _) => InsInput::Sbet(sbet.into(), gps_week),
         (true, true, false) => InsInput::Posmv(posmv.into(), gps_week, posmv_group),
@@ -79,7 +84,8 @@ pub fn run(a: Args) -> ExitCode {
         };
     sayln!("{datums}");
     let inp = Inputs {
-        pcap: pcap.into(),
+        pcap,
+        lidar_topic,
         model,
         ins,
         mount: spherecal::georef::Mount::new(b.map(f64::to_radians), l),

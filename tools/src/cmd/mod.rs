@@ -21,6 +21,7 @@ macro_rules! sayln {
     }};
 }
 
+pub mod bag;
 pub mod board;
 pub mod calibrate;
 pub mod decode;
@@ -77,8 +78,20 @@ fn claimed(ok: bool) -> ExitCode {
 pub struct SurveyArgs {
     /// The Velodyne capture: files, folders of captures or patterns
     /// (`'logs/*-lidar-*.pcap'`), one or several, taken in the order of their first datagram.
-    #[arg(long, num_args = 1.., required = true)]
+    #[arg(long, num_args = 1.., required_unless_present = "bag")]
     pub pcap: Vec<PathBuf>,
+    /// A ROS 2 bag (a rosbag2 folder, a `.mcap` or a `.db3`): the LiDAR from its
+    /// velodyne_msgs/VelodyneScan topic unless --pcap is given, the INS from its
+    /// vectornav_msgs/CommonGroup topic unless --ins, --sbet or --posmv is (`spherecal bag
+    /// info` shows what is read).
+    #[arg(long)]
+    pub bag: Option<PathBuf>,
+    /// The bag's topic of VelodyneScan messages (default: the only one).
+    #[arg(long, requires = "bag")]
+    pub lidar_topic: Option<String>,
+    /// The bag's topic of CommonGroup messages (default: the only one).
+    #[arg(long, requires = "bag")]
+    pub ins_topic: Option<String>,
     /// The LiDAR model (vlp16, puck-hires, hdl32e, vlp32c); by default the packets' product
     /// byte, checked against their period.
     #[arg(long, value_parser = parse_model)]
@@ -87,7 +100,7 @@ pub struct SurveyArgs {
     #[arg(
         long,
         num_args = 1..,
-        required_unless_present_any = ["sbet", "posmv"],
+        required_unless_present_any = ["sbet", "posmv", "bag"],
         conflicts_with_all = ["sbet", "posmv"]
     )]
     pub ins: Vec<PathBuf>,
@@ -127,6 +140,23 @@ pub struct SurveyArgs {
 }
 
 impl SurveyArgs {
+    /// The LiDAR's files and, for a bag, its topic: `--pcap`, else `--bag`.
+    fn lidar(&self) -> (crate::pipeline::Files, Option<String>) {
+        match (&self.bag, self.pcap.is_empty()) {
+            (Some(b), true) => (b.into(), self.lidar_topic.clone()),
+            _ => (self.pcap.clone().into(), None),
+        }
+    }
+
+    /// The bag as the INS, when no other trajectory is given.
+    fn ins_bag(&self) -> Option<(crate::pipeline::Files, Option<String>)> {
+        let other = !(self.ins.is_empty() && self.sbet.is_empty() && self.posmv.is_empty());
+        match &self.bag {
+            Some(b) if !other => Some((b.into(), self.ins_topic.clone())),
+            _ => None,
+        }
+    }
+
     /// The ports as the pipeline takes them.
     fn ports(&self) -> spherecal_hal::velodyne::Ports {
         self.lidar_ports

@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// Input files as the user named them: files, folders, patterns, several of each (the shell
 /// expands an unquoted `logs/*.pcap` into several).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Files(pub Vec<PathBuf>);
 
 impl Files {
@@ -117,14 +117,60 @@ fn glob_match(pat: &[u8], name: &[u8]) -> bool {
     }
 }
 
-/// The capture(s) `path` names (see [`expand_files`]) as one source in time order.
-pub fn open_captures(files: &Files) -> Result<PcapChain, crate::Error> {
-    PcapChain::open(&files.expand()?).map_err(|e| e.to_string().into())
+/// The LiDAR's packets: captures, or a ROS 2 bag's `VelodyneScan` topic.
+pub enum Captures {
+    /// Capture files in time order.
+    Pcap(PcapChain),
+    /// A bag's scans.
+    Bag(Box<spherecal_hal::rosbag::sources::ScanPackets>),
+}
+
+/// Why a capture or a bag stopped being read.
+#[derive(Debug)]
+pub struct CaptureError(String);
+
+impl std::fmt::Display for CaptureError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for CaptureError {}
+
+impl PacketSource for Captures {
+    type Error = CaptureError;
+
+    fn next_record(&mut self) -> Result<Option<Record<'_>>, CaptureError> {
+        match self {
+            Captures::Pcap(c) => c.next_record().map_err(|e| CaptureError(e.to_string())),
+            Captures::Bag(b) => b.next_record().map_err(|e| CaptureError(e.to_string())),
+        }
+    }
+}
+
+/// The bag `files` names, if it names one (a single `.mcap`, `.db3` or bag folder).
+pub fn as_bag(files: &Files) -> Option<&Path> {
+    match files.0.as_slice() {
+        [one] if spherecal_hal::rosbag::is_bag(one) => Some(one),
+        _ => None,
+    }
+}
+
+/// The capture(s) `files` names (see [`expand_files`]) as one source in time order; or a
+/// ROS 2 bag's scans (`lidar_topic`, else the only `VelodyneScan` topic).
+pub fn open_captures(files: &Files, lidar_topic: Option<&str>) -> Result<Captures, crate::Error> {
+    if let Some(bag) = as_bag(files) {
+        let b = crate::bag::open(bag, lidar_topic, None, false)?;
+        return Ok(Captures::Bag(Box::new(b.packets()?)));
+    }
+    PcapChain::open(&files.expand()?)
+        .map(Captures::Pcap)
+        .map_err(|e| e.to_string().into())
 }
 
 /// The GPS week of the first RMC date in a capture (for SBET times).
 pub fn week_from_capture(pcap: &Files, leap: i64) -> Option<u16> {
-    let mut src = open_captures(pcap).ok()?;
+    let mut src = open_captures(pcap, None).ok()?;
     while let Ok(Some(rec)) = src.next_record() {
         if let Record::Udp(d) = rec {
             if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {

@@ -23,7 +23,7 @@ pub mod posmv;
 mod readers;
 
 pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
-pub use files::{expand_files, open_captures, week_from_capture, Files};
+pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
 pub use readers::{
     end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose, Accept, InsEnd,
@@ -76,6 +76,9 @@ pub enum InsInput {
     /// datagrams; the GPS week (None: from its Group 3, else the capture's RMC date) and the
     /// group the poses come from (1, 102 or 103).
     Posmv(Files, Option<u16>, u16),
+    /// A ROS 2 bag's VectorNav groups (`--ins-topic`, else the only `CommonGroup` topic), as
+    /// the VN-200 frames they were parsed from.
+    Bag(Files, Option<String>),
 }
 
 /// Inputs of a georeferencing run.
@@ -107,13 +110,18 @@ pub struct Inputs {
     /// The UDP ports the capture's LiDAR datagrams went to (a sensor or a rig's board set to
     /// other ports than 2368 / 8308).
     pub ports: Ports,
+    /// When `pcap` names a ROS 2 bag: its topic of scans (None: the only one).
+    pub lidar_topic: Option<String>,
 }
 
 impl Inputs {
     /// The trajectory's files.
     pub fn ins_files(&self) -> &Files {
         match &self.ins {
-            InsInput::Vn200(p) | InsInput::Sbet(p, _) | InsInput::Posmv(p, _, _) => p,
+            InsInput::Vn200(p)
+            | InsInput::Sbet(p, _)
+            | InsInput::Posmv(p, _, _)
+            | InsInput::Bag(p, _) => p,
         }
     }
 
@@ -131,6 +139,7 @@ impl Inputs {
             accuracy: None,
             model: None,
             ports: Ports::default(),
+            lidar_topic: None,
             site,
         }
     }
@@ -142,6 +151,11 @@ impl Inputs {
 pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
     if let Some(m) = inp.model {
         return Ok(Some((m, "given with --model".into())));
+    }
+    if crate::pipeline::as_bag(&inp.pcap).is_some() {
+        let src = open_captures(&inp.pcap, inp.lidar_topic.as_deref())?;
+        return crate::decode::identify_source(src, inp.ports)
+            .map_err(|e| format!("{}: {e}", inp.pcap.display()).into());
     }
     let files = inp.pcap.expand()?;
     let Some(first) = files.first() else {
@@ -259,7 +273,7 @@ impl RunStats {
         offset_ns: i64,
     ) -> Option<String> {
         let (sbet, ins) = match ins {
-            InsInput::Vn200(f) | InsInput::Posmv(f, _, _) => (false, f),
+            InsInput::Vn200(f) | InsInput::Posmv(f, _, _) | InsInput::Bag(f, _) => (false, f),
             InsInput::Sbet(f, _) => (true, f),
         };
         if let Some(why) = self.model_problem() {
@@ -357,7 +371,7 @@ pub fn trajectory_datum(
         return Ok((Datum::parse(d)?, "--trajectory-datum"));
     }
     match ins {
-        InsInput::Vn200(_) => Ok((Datum::wgs84(), "the VN-200's")),
+        InsInput::Vn200(_) | InsInput::Bag(..) => Ok((Datum::wgs84(), "the VN-200's")),
         InsInput::Posmv(..) => Ok((
             Datum::wgs84(),
             "a POS MV's real-time output, unless its GNSS corrections come from another datum: --trajectory-datum",
@@ -485,7 +499,8 @@ pub fn run<C: Send>(
     let full = [AtomicU64::new(0), AtomicU64::new(0)];
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let model = resolve_model(inp)?.map(|m| m.0);
-    let mut pcap = open_captures(&inp.pcap)?;
+    let mut pcap = open_captures(&inp.pcap, inp.lidar_topic.as_deref())?;
+    let from_bag = matches!(pcap, Captures::Bag(_));
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
     std::thread::scope(|sc| {
@@ -572,7 +587,8 @@ pub fn run<C: Send>(
             full[0].load(Ordering::Relaxed),
             full[1].load(Ordering::Relaxed),
         ];
-        let stats = al.run_stats(skips, ins, ring_full);
+        let mut stats = al.run_stats(skips, ins, ring_full);
+        stats.clock.bag = from_bag;
         let c = consumer
             .join()
             .map_err(|_| crate::Error::internal("the batch consumer thread panicked"))?;

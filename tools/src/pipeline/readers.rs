@@ -100,12 +100,21 @@ pub enum InsFile {
     /// POS MV streams (raw `.000` files or captures of its datagrams) in name order, the week
     /// that dates them until their Group 3 does, and the pose group.
     Posmv(Vec<PathBuf>, Option<u16>, u16),
+    /// A ROS 2 bag's VectorNav groups as VN-200 frames.
+    Bag(Box<spherecal_hal::rosbag::sources::Vn200Bytes>),
 }
 
 impl InsFile {
     /// Open what `ins` names; an SBET without a week is dated from the capture's RMC.
     pub fn open(ins: &InsInput, pcap: &Files, leap: i64) -> Result<Self, crate::Error> {
         match ins {
+            InsInput::Bag(p, topic) => {
+                let path = super::as_bag(p).ok_or_else(|| {
+                    format!("{}: not a ROS 2 bag (a .mcap, a .db3 or a bag folder)", p.display())
+                })?;
+                let b = crate::bag::open(path, None, topic.as_deref(), false)?;
+                Ok(Self::Bag(Box::new(b.vn200()?)))
+            }
             InsInput::Vn200(p) => {
                 if let Some(d) = p.0.iter().find(|p| p.is_dir()) {
                     return Err(format!(
@@ -236,6 +245,39 @@ pub fn ins_file_reader(
             )
             .map_err(|e| e.to_string())?;
             Ok((feed.state(), head))
+        }
+        InsFile::Bag(mut bag) => {
+            let mut feed = Vn200Feed::new(frame, keep_untracked, max_gap_ns);
+            ins_reader(
+                &mut *bag,
+                &mut [0u8; 4096],
+                &mut feed,
+                out,
+                &AtomicBool::new(false),
+                &mut |_, _| {},
+                &mut |_, _| {},
+            )
+            .map_err(|e| e.to_string())?;
+            let mut st = feed.state();
+            let b = &bag.stats;
+            let mut said = format!(
+                "ROS 2 bag: {} CommonGroup messages -> {} VN-200 frames ({} with the filter's PosU and YprU)",
+                b.common, b.frames, b.with_sigmas
+            );
+            if b.empty > 0 {
+                said.push_str(&format!(
+                    ", {} without any pose field",
+                    b.empty
+                ));
+            }
+            if let Some(first) = &b.first_bad {
+                said.push_str(&format!(
+                    ", {} messages not parsed (first: {first})",
+                    b.bad
+                ));
+            }
+            st.bag = Some(said);
+            Ok((st, Vec::new()))
         }
         InsFile::Posmv(files, week, group) => {
             let mut feed = super::posmv::PosmvFeed::new(

@@ -1,0 +1,220 @@
+//! A bag's messages as the sources the pipeline reads: the Velodyne driver's scans as UDP
+//! datagrams ([`ScanPackets`], a [`PacketSource`]: each packet's 1206 bytes to the data port,
+//! at the packet's stamp), and the VectorNav driver's groups as the VN-200 binary frames they
+//! were parsed from ([`Vn200Bytes`], a [`ByteSource`]: the core's
+//! [`CommonGroup::vn200_frame`], stamped with the message's header time), so that a bag goes
+//! through the same framing, gating and alignment as a capture and a serial log.
+
+use super::{BagError, Messages};
+use crate::packet::{Datagram, HostTime, PacketSource, Record, SkipReason};
+use crate::serial::{ByteSource, ReadOutcome, RxStamp};
+use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, VelodyneScan, VN200_FRAME_MAX};
+use std::net::Ipv4Addr;
+
+/// The address a bag's packets are said to come from (the sensor's factory default; a bag
+/// does not keep it).
+pub const SENSOR_ADDR: Ipv4Addr = Ipv4Addr::new(192, 168, 1, 201);
+
+/// The packets of a topic of `velodyne_msgs/msg/VelodyneScan`, in order.
+pub struct ScanPackets {
+    msgs: Messages,
+    /// The current scan's bytes.
+    buf: Vec<u8>,
+    /// Its packets: stamp and offset in `buf`.
+    packets: Vec<(HostTime, usize)>,
+    next: usize,
+    /// Where the current scan is in its file.
+    at: u64,
+    /// Scans read.
+    pub scans: u64,
+}
+
+impl ScanPackets {
+    /// Over `msgs` (one topic of scans).
+    pub fn new(msgs: Messages) -> Self {
+        Self {
+            msgs,
+            buf: Vec::new(),
+            packets: Vec::new(),
+            next: 0,
+            at: 0,
+            scans: 0,
+        }
+    }
+}
+
+impl PacketSource for ScanPackets {
+    type Error = BagError;
+
+    fn next_record(&mut self) -> Result<Option<Record<'_>>, BagError> {
+        loop {
+            if let Some(&(time, off)) = self.packets.get(self.next) {
+                self.next += 1;
+                return Ok(Some(Record::Udp(Datagram {
+                    time,
+                    src_addr: SENSOR_ADDR,
+                    src_port: spherecal::velodyne::DATA_PORT,
+                    dst_port: spherecal::velodyne::DATA_PORT,
+                    payload: &self.buf[off..off + spherecal::ros2::PACKET],
+                    offset: self.at,
+                })));
+            }
+            let Some(m) = self.msgs.next()? else {
+                return Ok(None);
+            };
+            self.buf.clear();
+            self.buf.extend_from_slice(m.data);
+            self.at = m.at;
+            self.packets.clear();
+            self.next = 0;
+            self.scans += 1;
+            match VelodyneScan::parse(&self.buf) {
+                Ok(s) => {
+                    let base = self.buf.as_ptr() as usize;
+                    for (t, d) in s.packets() {
+                        let off = d.as_ptr() as usize - base;
+                        self.packets.push((HostTime(t.ns()), off));
+                    }
+                }
+                Err(e) => {
+                    return Ok(Some(Record::Skipped {
+                        offset: self.at,
+                        reason: SkipReason::BadMessage(e),
+                    }))
+                }
+            }
+        }
+    }
+}
+
+/// What a [`Vn200Bytes`] met.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct InsBagStats {
+    /// CommonGroup messages.
+    pub common: u64,
+    /// Frames made from them.
+    pub frames: u64,
+    /// CommonGroups with none of the fields a pose needs.
+    pub empty: u64,
+    /// Messages that did not parse as their type: count, and the first (where, why).
+    pub bad: u64,
+    /// The first bad message: its topic, where, and why.
+    pub first_bad: Option<String>,
+    /// Frames that carried the filter's YprU / PosU (from the Attitude / INS groups).
+    pub with_sigmas: u64,
+}
+
+/// The VN-200 bytes a bag's VectorNav groups were parsed from: each `CommonGroup` as one
+/// binary frame, with the YprU of the latest `AttitudeGroup` and the PosU of the latest
+/// `InsGroup` (the driver publishes every group of a frame with the same stamp) when they are
+/// within [`SIGMA_AGE_NS`] of it.
+pub struct Vn200Bytes {
+    msgs: Messages,
+    common: String,
+    ins: Option<String>,
+    attitude: Option<String>,
+    ypru: Option<(i64, [f32; 3])>,
+    posu: Option<(i64, f32)>,
+    /// What was met.
+    pub stats: InsBagStats,
+}
+
+/// How far apart a sigma's message may be from the CommonGroup it is joined to [ns].
+pub const SIGMA_AGE_NS: i64 = 1_000_000_000;
+
+impl Vn200Bytes {
+    /// Over `msgs`, which holds the topics `common` (CommonGroup) and, if given, `ins`
+    /// (InsGroup) and `attitude` (AttitudeGroup).
+    pub fn new(
+        msgs: Messages,
+        common: &str,
+        ins: Option<&str>,
+        attitude: Option<&str>,
+    ) -> Self {
+        Self {
+            msgs,
+            common: common.into(),
+            ins: ins.map(Into::into),
+            attitude: attitude.map(Into::into),
+            ypru: None,
+            posu: None,
+            stats: InsBagStats::default(),
+        }
+    }
+
+    fn bad(&mut self, topic: &str, file: &std::path::Path, at: u64, e: impl std::fmt::Display) {
+        self.stats.bad += 1;
+        if self.stats.first_bad.is_none() {
+            self.stats.first_bad = Some(format!("{topic} in {} at {at}: {e}", file.display()));
+        }
+    }
+}
+
+impl ByteSource for Vn200Bytes {
+    type Error = BagError;
+
+    fn read_chunk(&mut self, buf: &mut [u8]) -> Result<ReadOutcome, BagError> {
+        loop {
+            let Some(m) = self.msgs.next()? else {
+                return Ok(ReadOutcome::End);
+            };
+            let (topic, file, at) = (m.topic.name.clone(), m.file.to_path_buf(), m.at);
+            if self.attitude.as_deref() == Some(&topic) {
+                match AttitudeGroup::parse(m.data) {
+                    Ok(a) if a.has(AttitudeGroup::YPRU) => {
+                        self.ypru = Some((a.header.stamp.ns(), a.ypru.map(|v| v as f32)))
+                    }
+                    Ok(_) => {}
+                    Err(e) => self.bad(&topic, &file, at, e),
+                }
+                continue;
+            }
+            if self.ins.as_deref() == Some(&topic) {
+                match InsGroup::parse(m.data) {
+                    Ok(g) if g.has(InsGroup::POSU) => {
+                        self.posu = Some((g.header.stamp.ns(), g.posu))
+                    }
+                    Ok(_) => {}
+                    Err(e) => self.bad(&topic, &file, at, e),
+                }
+                continue;
+            }
+            if topic != self.common {
+                continue;
+            }
+            let c = match CommonGroup::parse(m.data) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.bad(&topic, &file, at, e);
+                    continue;
+                }
+            };
+            self.stats.common += 1;
+            let t = c.header.stamp.ns();
+            let near = |s: i64| (s - t).abs() <= SIGMA_AGE_NS;
+            let ypru = self.ypru.filter(|u| near(u.0)).map(|u| u.1);
+            let posu = self.posu.filter(|u| near(u.0)).map(|u| u.1);
+            let mut frame = [0u8; VN200_FRAME_MAX];
+            let Some(n) = c.vn200_frame(ypru, posu, &mut frame) else {
+                self.stats.empty += 1;
+                continue;
+            };
+            if n > buf.len() {
+                return Ok(ReadOutcome::End);
+            }
+            self.stats.frames += 1;
+            if ypru.is_some() && posu.is_some() {
+                self.stats.with_sigmas += 1;
+            }
+            buf[..n].copy_from_slice(&frame[..n]);
+            let wall = HostTime(t);
+            return Ok(ReadOutcome::Data {
+                len: n,
+                stamp: Some(RxStamp {
+                    mono_ns: t.max(0) as u64,
+                    wall,
+                }),
+            });
+        }
+    }
+}

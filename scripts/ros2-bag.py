@@ -1,0 +1,234 @@
+#!/usr/bin/env python3
+"""A rosbag2 recording of a survey as the ROS 2 drivers would have made it, written by
+independent writers: PyPI `rosbags` 0.11.9 (CDR, the rosbag2 folder with metadata.yaml, MCAP or
+sqlite3 storage) and, for chunk-compressed MCAP, PyPI `mcap` (Foxglove's writer).
+
+From a survey folder (`spherecal synth`: lidar.pcap + ins.bin, a VN-200 binary stream):
+- every Velodyne data packet (UDP 2368) into `velodyne_msgs/msg/VelodyneScan` messages of
+  --scan-packets packets (the driver's npackets: 76 for a VLP-16 at 600 rpm), each packet
+  stamped with its capture time (the driver's host time); the position packets are dropped
+  (the driver does not record them);
+- every VN-200 binary frame with a valid CRC (Common group only) into a
+  `vectornav_msgs/msg/CommonGroup`, stamped with its GPS time as Unix time plus --ins-lag;
+  with --sigmas also an `InsGroup` (posu) and `AttitudeGroup` (ypru) per frame.
+The frames are parsed here, independently of spherecal (VN-200 user manual, binary output).
+
+Usage: ros2-bag.py SURVEY OUT [--storage mcap|sqlite3|mcap-zstd|mcap-lz4] [--humble] [--extra]
+       [--sigmas] [--scan-packets N] [--lidar-topic T] [--ins-topic T] [--max-scans N]
+OUT is a bag folder for mcap/sqlite3 (rosbags) and a single .mcap file for mcap-zstd/-lz4.
+--humble rewrites the sqlite3 tables to Humble's schema (no type_description_hash, no
+message_definitions). --extra adds unrelated topics (/rosout-like strings, a TimeGroup)."""
+import argparse, os, sqlite3, struct, sys
+import numpy as np
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+sys.path.insert(0, os.path.dirname(__file__))
+exec(open(os.path.join(os.path.dirname(__file__), "ros2-vectors.py")).read().split("types = {}")[0])  # defs
+ts = get_typestore(Stores.ROS2_HUMBLE)
+types = {}
+for name, text in defs.items():
+    types.update(get_types_from_msg(text, name))
+ts.register(types)
+T = lambda n: ts.types[n]
+Time, Header = T("builtin_interfaces/msg/Time"), T("std_msgs/msg/Header")
+V3, P3, Q = T("geometry_msgs/msg/Vector3"), T("geometry_msgs/msg/Point"), T("geometry_msgs/msg/Quaternion")
+GPS_UNIX = 315964800
+LEAP = 18
+
+
+def stamp(ns):
+    return Time(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000))
+
+
+def pcap_packets(path):
+    """(time ns, payload) of every UDP datagram to port 2368 (classic pcap, Ethernet)."""
+    b = open(path, "rb").read()
+    magic = b[:4]
+    if magic in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1"):
+        e = "<"
+    elif magic in (b"\xa1\xb2\xc3\xd4", b"\xa1\xb2\x3c\x4d"):
+        e = ">"
+    else:
+        sys.exit(f"{path}: not a classic pcap")
+    nano = magic in (b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d")
+    link = struct.unpack(e + "I", b[20:24])[0]
+    at = 24
+    while at + 16 <= len(b):
+        sec, frac, incl, _ = struct.unpack(e + "IIII", b[at:at + 16])
+        rec = b[at + 16:at + 16 + incl]
+        at += 16 + incl
+        if len(rec) < incl:
+            break
+        ip = rec[14:] if link == 1 else rec
+        if link == 1 and rec[12:14] != b"\x08\x00":
+            continue
+        ihl = (ip[0] & 15) * 4
+        if ip[9] != 17:
+            continue
+        udp = ip[ihl:]
+        dport, ulen = struct.unpack(">HH", udp[2:6])
+        if dport != 2368:
+            continue
+        t = sec * 1_000_000_000 + (frac if nano else frac * 1000)
+        yield t, udp[8:ulen]
+
+
+COMMON_SIZES = [8, 8, 8, 12, 16, 12, 24, 12, 12, 24, 20, 28, 2, 4, 8]
+
+
+def crc16(data):
+    crc = 0
+    for c in data:
+        crc = ((crc >> 8) | (crc << 8)) & 0xFFFF
+        crc ^= c
+        crc ^= (crc & 0xFF) >> 4
+        crc ^= (crc << 12) & 0xFFFF
+        crc ^= ((crc & 0xFF) << 5) & 0xFFFF
+    return crc
+
+
+def vn200_frames(path):
+    """Dicts of the Common-group fields of every VN-200 binary frame with a good CRC."""
+    b = open(path, "rb").read()
+    i = 0
+    while i < len(b) - 4:
+        if b[i] != 0xFA or b[i + 1] != 0x01:
+            i += 1
+            continue
+        mask = struct.unpack("<H", b[i + 2:i + 4])[0]
+        if mask & 0x8000:
+            i += 1
+            continue
+        n = sum(COMMON_SIZES[k] for k in range(15) if mask >> k & 1)
+        end = i + 4 + n + 2
+        if end > len(b) or crc16(b[i + 1:end]) != 0:
+            i += 1
+            continue
+        f, at = {"mask": mask}, i + 4
+        for k in range(15):
+            if mask >> k & 1:
+                f[k] = b[at:at + COMMON_SIZES[k]]
+                at += COMMON_SIZES[k]
+        yield f
+        i = end
+
+
+def common_group(f, lag_ns):
+    m = f["mask"]
+    tg = struct.unpack("<Q", f[1])[0] if 1 in f else 0
+    ypr = struct.unpack("<3f", f[3]) if 3 in f else (0.0, 0.0, 0.0)
+    q = struct.unpack("<4f", f[4]) if 4 in f else (0.0, 0.0, 0.0, 1.0)
+    lla = struct.unpack("<3d", f[6]) if 6 in f else (0.0, 0.0, 0.0)
+    st = struct.unpack("<H", f[12])[0] if 12 in f else 0
+    host = tg + (GPS_UNIX - LEAP) * 1_000_000_000 + lag_ns
+    fields = sum(1 << k for k in (1, 3, 4, 6, 12) if m >> k & 1)
+    status = T("vectornav_msgs/msg/InsStatus")(mode=st & 3, gps_fix=bool(st & 4), time_error=bool(st & 16),
+        imu_error=bool(st & 32), mag_pres_error=bool(st & 64), gps_error=bool(st & 128),
+        gps_heading_ins=bool(st & 256), gps_compass=bool(st & 512))
+    z = V3(x=0.0, y=0.0, z=0.0)
+    msg = T("vectornav_msgs/msg/CommonGroup")(header=Header(stamp=stamp(host), frame_id="vectornav"),
+        group_fields=fields, timestartup=0, timegps=tg, timesyncin=0,
+        yawpitchroll=V3(x=float(ypr[0]), y=float(ypr[1]), z=float(ypr[2])),
+        quaternion=Q(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])), angularrate=z,
+        position=P3(x=lla[0], y=lla[1], z=lla[2]), velocity=z, accel=z, imu_accel=z, imu_rate=z, magpres_mag=z,
+        magpres_temp=0.0, magpres_pres=0.0, deltatheta_dtime=0.0, deltatheta_dtheta=z, deltatheta_dvel=z,
+        insstatus=status, syncincnt=0, timegpspps=0)
+    return host, msg, status
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("survey")
+    ap.add_argument("out")
+    ap.add_argument("--storage", default="mcap", choices=["mcap", "sqlite3", "mcap-zstd", "mcap-lz4"])
+    ap.add_argument("--humble", action="store_true")
+    ap.add_argument("--extra", action="store_true")
+    ap.add_argument("--sigmas", action="store_true")
+    ap.add_argument("--scan-packets", type=int, default=76)
+    ap.add_argument("--lidar-topic", default="/velodyne_packets")
+    ap.add_argument("--ins-topic", default="/vectornav/raw/common")
+    ap.add_argument("--ins-lag", type=float, default=0.002)
+    ap.add_argument("--max-scans", type=int, default=0)
+    a = ap.parse_args()
+
+    msgs = []  # (log time, topic, type, cdr)
+    pk, scans = [], 0
+    Pkt, Scan = T("velodyne_msgs/msg/VelodynePacket"), T("velodyne_msgs/msg/VelodyneScan")
+
+    def flush():
+        nonlocal pk, scans
+        if pk:
+            s = Scan(header=Header(stamp=pk[-1].stamp, frame_id="velodyne"), packets=pk)
+            t = pk[-1].stamp.sec * 1_000_000_000 + pk[-1].stamp.nanosec
+            msgs.append((t, a.lidar_topic, "velodyne_msgs/msg/VelodyneScan", ts.serialize_cdr(s, "velodyne_msgs/msg/VelodyneScan")))
+            scans += 1
+        pk = []
+
+    for t, payload in pcap_packets(os.path.join(a.survey, "lidar.pcap")):
+        if a.max_scans and scans >= a.max_scans:
+            break
+        pk.append(Pkt(stamp=stamp(t), data=np.frombuffer(payload, dtype=np.uint8)))
+        if len(pk) == a.scan_packets:
+            flush()
+    flush()
+    first, last = msgs[0][0], msgs[-1][0]
+    n_ins = 0
+    for f in vn200_frames(os.path.join(a.survey, "ins.bin")):
+        host, msg, status = common_group(f, int(a.ins_lag * 1e9))
+        if a.max_scans and not (first - 2e9 <= host <= last + 2e9):
+            continue
+        msgs.append((host, a.ins_topic, "vectornav_msgs/msg/CommonGroup", ts.serialize_cdr(msg, "vectornav_msgs/msg/CommonGroup")))
+        n_ins += 1
+        if a.sigmas:
+            z, zp = V3(x=0.0, y=0.0, z=0.0), P3(x=0.0, y=0.0, z=0.0)
+            ig = T("vectornav_msgs/msg/InsGroup")(header=msg.header, group_fields=0x0200, insstatus=status,
+                poslla=zp, posecef=zp, velbody=z, velned=z, velecef=z, magecef=z, accelecef=z, linearaccelecef=z,
+                posu=0.03, velu=0.05)
+            msgs.append((host, "/vectornav/raw/ins", "vectornav_msgs/msg/InsGroup", ts.serialize_cdr(ig, "vectornav_msgs/msg/InsGroup")))
+            ag = T("vectornav_msgs/msg/AttitudeGroup")(header=msg.header, group_fields=0x0100,
+                vpestatus=T("vectornav_msgs/msg/VpeStatus")(attitude_quality=0, gyro_saturation=False, gyro_saturation_recovery=False,
+                    mag_disturbance=0, mag_saturation=False, acc_disturbance=0, acc_saturation=False, known_mag_disturbance=False,
+                    known_accel_disturbance=False),
+                yawpitchroll=z, quaternion=Q(x=0.0, y=0.0, z=0.0, w=1.0), dcm=np.zeros(9, dtype=np.float32),
+                magned=z, accelned=z, linearaccelbody=z, linearaccelned=z, ypru=V3(x=0.2, y=0.02, z=0.02))
+            msgs.append((host, "/vectornav/raw/attitude", "vectornav_msgs/msg/AttitudeGroup", ts.serialize_cdr(ag, "vectornav_msgs/msg/AttitudeGroup")))
+    if a.extra:
+        S = T("std_msgs/msg/String")
+        for k in range(0, 50):
+            t = first + k * 100_000_000
+            msgs.append((t, "/chatter", "std_msgs/msg/String", ts.serialize_cdr(S(data=f"hello {k}"), "std_msgs/msg/String")))
+    msgs.sort(key=lambda m: m[0])
+
+    if a.storage in ("mcap", "sqlite3"):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        plugin = StoragePlugin.MCAP if a.storage == "mcap" else StoragePlugin.SQLITE3
+        with Writer(a.out, version=9, storage_plugin=plugin) as w:
+            conns = {}
+            for t, topic, typ, data in msgs:
+                if topic not in conns:
+                    conns[topic] = w.add_connection(topic, typ, typestore=ts)
+                w.write(conns[topic], t, data)
+        if a.humble and a.storage == "sqlite3":
+            db = [os.path.join(a.out, f) for f in os.listdir(a.out) if f.endswith(".db3")][0]
+            c = sqlite3.connect(db)
+            c.execute("ALTER TABLE topics DROP COLUMN type_description_hash")
+            c.execute("DROP TABLE IF EXISTS message_definitions")
+            c.commit()
+            c.close()
+    else:
+        from mcap.writer import CompressionType, Writer
+        comp = CompressionType.ZSTD if a.storage == "mcap-zstd" else CompressionType.LZ4
+        with open(a.out, "wb") as fh:
+            w = Writer(fh, compression=comp, chunk_size=1 << 20)
+            w.start(profile="ros2", library="mcap-python (spherecal test bag)")
+            chans = {}
+            for t, topic, typ, data in msgs:
+                if topic not in chans:
+                    sid = w.register_schema(name=typ, encoding="ros2msg", data=defs.get(typ, "").encode())
+                    chans[topic] = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
+                w.add_message(chans[topic], log_time=t, data=data, publish_time=t)
+            w.finish()
+    print(f"{a.out}: {scans} scans, {n_ins} CommonGroup messages, {len(msgs)} messages ({a.storage})")
+
+
+main()

@@ -1,0 +1,312 @@
+//! ROS 2 bags as a survey's input (`--bag`, `spherecal bag info`): which topics spherecal
+//! reads and why, found by message type ([`choose`]), and the sources over them
+//! (spherecal_hal::rosbag): the Velodyne driver's `VelodyneScan` packets as the LiDAR capture,
+//! the VectorNav driver's `CommonGroup` (with `InsGroup` PosU and `AttitudeGroup` YprU) as the
+//! VN-200 stream (DESIGN.md "ROS 2 bags").
+
+use spherecal_hal::rosbag::{Bag, TopicStats};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The Velodyne driver's raw packets.
+pub const SCAN: &str = "velodyne_msgs/msg/VelodyneScan";
+/// The VectorNav driver's Common group.
+pub const COMMON: &str = "vectornav_msgs/msg/CommonGroup";
+/// ... its INS group (PosU).
+pub const INS: &str = "vectornav_msgs/msg/InsGroup";
+/// ... its Attitude group (YprU).
+pub const ATTITUDE: &str = "vectornav_msgs/msg/AttitudeGroup";
+
+/// Why a topic of a known type is not read.
+fn not_read(type_name: &str) -> Option<&'static str> {
+    Some(match type_name {
+        "sensor_msgs/msg/PointCloud2" => {
+            "points computed by the driver, not its packets: not read (record the raw packets, velodyne_msgs/msg/VelodyneScan, e.g. /velodyne_packets)"
+        }
+        "sensor_msgs/msg/Imu" | "sensor_msgs/msg/NavSatFix" | "sensor_msgs/msg/TimeReference" | "geometry_msgs/msg/PoseWithCovarianceStamped" => {
+            "no GPS time of the solution and no INS mode: refused as a trajectory (record the VectorNav driver's vectornav_msgs/msg/CommonGroup, e.g. /vectornav/raw/common)"
+        }
+        "vectornav_msgs/msg/TimeGroup" | "vectornav_msgs/msg/GpsGroup" | "vectornav_msgs/msg/ImuGroup" => {
+            "not needed (the CommonGroup holds the GPS time, attitude, position and INS status)"
+        }
+        "velodyne_msgs/msg/VelodynePacket" => "single packets without their scan: not read",
+        _ => return None,
+    })
+}
+
+/// The topics a calibration reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Chosen {
+    /// The LiDAR's scans, and why this topic.
+    pub lidar: Option<(String, String)>,
+    /// The INS's Common group, and why.
+    pub common: Option<(String, String)>,
+    /// Its INS group (PosU), if recorded.
+    pub ins: Option<String>,
+    /// Its Attitude group (YprU), if recorded.
+    pub attitude: Option<String>,
+}
+
+/// The topic of `type_name`: the one named (checked to be of that type), else the only one of
+/// that type. Err names what is there.
+fn pick(
+    topics: &[TopicStats],
+    type_name: &str,
+    named: Option<&str>,
+    flag: &str,
+) -> Result<Option<(String, String)>, crate::Error> {
+    let listing = || {
+        topics
+            .iter()
+            .map(|t| format!("{} ({})", t.topic.name, t.topic.type_name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if let Some(n) = named {
+        let Some(t) = topics.iter().find(|t| t.topic.name == n) else {
+            return Err(format!("{flag} {n}: no such topic in the bag; it has {}", listing()).into());
+        };
+        if t.topic.type_name != type_name {
+            return Err(format!(
+                "{flag} {n}: its messages are {}, not {type_name}",
+                t.topic.type_name
+            )
+            .into());
+        }
+        return Ok(Some((n.to_string(), format!("named with {flag}"))));
+    }
+    let of: Vec<&TopicStats> = topics
+        .iter()
+        .filter(|t| t.topic.type_name == type_name)
+        .collect();
+    match of.as_slice() {
+        [] => Ok(None),
+        [one] => Ok(Some((
+            one.topic.name.clone(),
+            format!("the only {type_name} topic"),
+        ))),
+        many => Err(format!(
+            "{} topics are {type_name} ({}): say which with {flag}",
+            many.len(),
+            many.iter()
+                .map(|t| t.topic.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+        .into()),
+    }
+}
+
+/// The topics to read from a bag's `topics`: by type, or as named.
+pub fn choose(
+    topics: &[TopicStats],
+    lidar_topic: Option<&str>,
+    ins_topic: Option<&str>,
+) -> Result<Chosen, crate::Error> {
+    let only = |ty: &str| {
+        let v: Vec<&TopicStats> = topics.iter().filter(|t| t.topic.type_name == ty).collect();
+        (v.len() == 1).then(|| v[0].topic.name.clone())
+    };
+    Ok(Chosen {
+        lidar: pick(topics, SCAN, lidar_topic, "--lidar-topic")?,
+        common: pick(topics, COMMON, ins_topic, "--ins-topic")?,
+        ins: only(INS),
+        attitude: only(ATTITUDE),
+    })
+}
+
+/// A bag, opened, with its topics counted and the choice made.
+pub struct Opened {
+    /// The bag.
+    pub bag: Bag,
+    /// Its topics.
+    pub topics: Vec<TopicStats>,
+    /// What is read.
+    pub chosen: Chosen,
+}
+
+/// Open `path` and choose its topics; `full` counts every topic's messages and span by
+/// reading the whole bag (`bag info`), else only what the storage says without reading them.
+pub fn open(
+    path: &Path,
+    lidar_topic: Option<&str>,
+    ins_topic: Option<&str>,
+    full: bool,
+) -> Result<Opened, crate::Error> {
+    let bag = Bag::open(path).map_err(|e| e.to_string())?;
+    let topics = if full { bag.topics() } else { bag.topic_list() }.map_err(|e| e.to_string())?;
+    let chosen = choose(&topics, lidar_topic, ins_topic)?;
+    Ok(Opened {
+        bag,
+        topics,
+        chosen,
+    })
+}
+
+impl Opened {
+    /// The LiDAR topic, or why there is none.
+    pub fn lidar(&self) -> Result<&str, crate::Error> {
+        self.chosen
+            .lidar
+            .as_ref()
+            .map(|l| l.0.as_str())
+            .ok_or_else(|| self.missing("LiDAR", SCAN).into())
+    }
+
+    /// The INS topic, or why there is none.
+    pub fn common(&self) -> Result<&str, crate::Error> {
+        self.chosen
+            .common
+            .as_ref()
+            .map(|l| l.0.as_str())
+            .ok_or_else(|| self.missing("INS", COMMON).into())
+    }
+
+    fn missing(&self, what: &str, ty: &str) -> String {
+        let mut o = format!(
+            "{}: no {what} topic: no {ty} message in the bag",
+            self.bag.path.display()
+        );
+        let why: Vec<String> = self
+            .topics
+            .iter()
+            .filter_map(|t| {
+                not_read(&t.topic.type_name).map(|w| format!("{} is {}: {w}", t.topic.name, t.topic.type_name))
+            })
+            .collect();
+        if self.topics.is_empty() {
+            o.push_str(" (it has no topic at all)");
+        } else if !why.is_empty() {
+            let _ = write!(o, "; {}", why.join("; "));
+        } else {
+            let _ = write!(
+                o,
+                "; its topics: {}",
+                self.topics
+                    .iter()
+                    .map(|t| format!("{} ({})", t.topic.name, t.topic.type_name))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        o
+    }
+
+    /// The LiDAR source: the scans' packets.
+    pub fn packets(&self) -> Result<spherecal_hal::rosbag::sources::ScanPackets, crate::Error> {
+        let t = self.lidar()?;
+        Ok(spherecal_hal::rosbag::sources::ScanPackets::new(
+            self.bag.messages(&[t]),
+        ))
+    }
+
+    /// The INS source: the VN-200 frames the groups came from.
+    pub fn vn200(&self) -> Result<spherecal_hal::rosbag::sources::Vn200Bytes, crate::Error> {
+        let c = self.common()?;
+        let mut want = vec![c];
+        want.extend(self.chosen.ins.as_deref());
+        want.extend(self.chosen.attitude.as_deref());
+        Ok(spherecal_hal::rosbag::sources::Vn200Bytes::new(
+            self.bag.messages(&want),
+            c,
+            self.chosen.ins.as_deref(),
+            self.chosen.attitude.as_deref(),
+        ))
+    }
+
+    /// `spherecal bag info`: the storage and files, each topic (type, messages, span, rate)
+    /// and what spherecal reads of it and why.
+    pub fn describe(&self) -> String {
+        let mut o = String::new();
+        let _ = writeln!(
+            o,
+            "{}: rosbag2, {} storage, {} file(s){}",
+            self.bag.path.display(),
+            self.bag.storage(),
+            self.bag.files.len(),
+            if self.bag.metadata.is_some() {
+                " (from its metadata.yaml)"
+            } else {
+                ""
+            }
+        );
+        for (f, _) in &self.bag.files {
+            let _ = writeln!(o, "  {}", f.display());
+        }
+        let span = self.topics.iter().filter_map(|t| t.span).fold(None, |a: Option<(i64, i64)>, b| {
+            Some(a.map_or(b, |a| (a.0.min(b.0), a.1.max(b.1))))
+        });
+        if let Some((a, b)) = span {
+            let _ = writeln!(
+                o,
+                "span: {:.3} s, from {} (log time, the recorder's clock)",
+                (b - a) as f64 * 1e-9,
+                utc(a)
+            );
+        }
+        let _ = writeln!(o, "topics:");
+        for t in &self.topics {
+            let rate = t.span.filter(|s| s.1 > s.0 && t.count > 1).map(|s| {
+                format!(", {:.1} Hz", (t.count - 1) as f64 / ((s.1 - s.0) as f64 * 1e-9))
+            });
+            let role = self.role(&t.topic.name, &t.topic.type_name);
+            let _ = writeln!(
+                o,
+                "  {} ({}): {} messages{}\n    -> {role}",
+                t.topic.name,
+                t.topic.type_name,
+                t.count,
+                rate.unwrap_or_default()
+            );
+        }
+        let _ = writeln!(
+            o,
+            "LiDAR: {}",
+            match &self.chosen.lidar {
+                Some((t, why)) => format!("{t} ({why}); clock: PPS unknown (ROS 2 bag: the driver does not record the position packets), the hour from the INS's GPS time, the time offset estimated"),
+                None => "none".into(),
+            }
+        );
+        let _ = writeln!(
+            o,
+            "INS: {}",
+            match &self.chosen.common {
+                Some((t, why)) => format!(
+                    "{t} ({why}), as VN-200 binary frames{}",
+                    match (&self.chosen.ins, &self.chosen.attitude) {
+                        (Some(i), Some(a)) => format!("; the filter's sigmas from {i} (PosU) and {a} (YprU)"),
+                        _ => "; no InsGroup PosU with AttitudeGroup YprU: the navigation model is the site's, else the VN-200's default".into(),
+                    }
+                ),
+                None => "none".into(),
+            }
+        );
+        o
+    }
+
+    fn role(&self, name: &str, type_name: &str) -> String {
+        let is = |c: &Option<(String, String)>| c.as_ref().is_some_and(|c| c.0 == name);
+        if is(&self.chosen.lidar) {
+            return "read: the LiDAR's packets".into();
+        }
+        if is(&self.chosen.common) {
+            return "read: the INS's time, attitude, position and status".into();
+        }
+        if self.chosen.ins.as_deref() == Some(name) {
+            return "read: the filter's position sigma (PosU)".into();
+        }
+        if self.chosen.attitude.as_deref() == Some(name) {
+            return "read: the filter's attitude sigmas (YprU)".into();
+        }
+        if type_name == SCAN || type_name == COMMON {
+            return "not read: another topic of this type was chosen".into();
+        }
+        not_read(type_name).map_or_else(|| "not read: not a sensor spherecal uses".into(), String::from)
+    }
+}
+
+/// A log time [ns since the Unix epoch] as UTC.
+fn utc(ns: i64) -> String {
+    chrono::DateTime::from_timestamp(ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000) as u32)
+        .map_or_else(|| format!("{ns} ns"), |t| t.format("%Y-%m-%d %H:%M:%S%.3f UTC").to_string())
+}
