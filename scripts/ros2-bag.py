@@ -149,7 +149,13 @@ def main():
     ap.add_argument("--ins-topic", default="/vectornav/raw/common")
     ap.add_argument("--ins-lag", type=float, default=0.002)
     ap.add_argument("--max-scans", type=int, default=0)
+    ap.add_argument("--ins-margin", type=float, default=2.0, help="with --max-scans: INS this long [s] around the scans")
+    ap.add_argument("--no-ins", action="store_true", help="leave the INS out")
+    ap.add_argument("--ins-as-imu", action="store_true",
+                    help="the INS as sensor_msgs Imu + NavSatFix only (no GPS time, no INS mode)")
+    ap.add_argument("--expect", help="write what was put in (packets, first INS samples) as JSON here")
     a = ap.parse_args()
+    expect = {"packets": [], "ins": []}
 
     msgs = []  # (log time, topic, type, cdr)
     pk, scans = [], 0
@@ -168,6 +174,7 @@ def main():
         if a.max_scans and scans >= a.max_scans:
             break
         pk.append(Pkt(stamp=stamp(t), data=np.frombuffer(payload, dtype=np.uint8)))
+        expect["packets"].append([t, sum(payload) % (1 << 32), payload[:8].hex()])
         if len(pk) == a.scan_packets:
             flush()
     flush()
@@ -175,8 +182,27 @@ def main():
     n_ins = 0
     for f in vn200_frames(os.path.join(a.survey, "ins.bin")):
         host, msg, status = common_group(f, int(a.ins_lag * 1e9))
-        if a.max_scans and not (first - 2e9 <= host <= last + 2e9):
+        if a.max_scans and not (first - a.ins_margin * 1e9 <= host <= last + a.ins_margin * 1e9):
             continue
+        if a.no_ins:
+            continue
+        if a.ins_as_imu:
+            ypr = [float(v) for v in struct.unpack("<3f", f[3])] if 3 in f else [0.0, 0.0, 0.0]
+            imu = T("sensor_msgs/msg/Imu")(header=msg.header, orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.zeros(9), angular_velocity=V3(x=0.0, y=0.0, z=0.0),
+                angular_velocity_covariance=np.zeros(9), linear_acceleration=V3(x=0.0, y=0.0, z=9.8),
+                linear_acceleration_covariance=np.zeros(9))
+            msgs.append((host, "/vectornav/imu", "sensor_msgs/msg/Imu", ts.serialize_cdr(imu, "sensor_msgs/msg/Imu")))
+            fix = T("sensor_msgs/msg/NavSatFix")(header=msg.header,
+                status=T("sensor_msgs/msg/NavSatStatus")(status=0, service=1),
+                latitude=msg.position.x, longitude=msg.position.y, altitude=msg.position.z,
+                position_covariance=np.zeros(9), position_covariance_type=0)
+            msgs.append((host, "/vectornav/gnss", "sensor_msgs/msg/NavSatFix", ts.serialize_cdr(fix, "sensor_msgs/msg/NavSatFix")))
+            continue
+        if len(expect["ins"]) < 5:
+            expect["ins"].append({"host": host, "timegps": msg.timegps,
+                "ypr": [msg.yawpitchroll.x, msg.yawpitchroll.y, msg.yawpitchroll.z],
+                "lla": [msg.position.x, msg.position.y, msg.position.z], "status": msg.insstatus.mode})
         msgs.append((host, a.ins_topic, "vectornav_msgs/msg/CommonGroup", ts.serialize_cdr(msg, "vectornav_msgs/msg/CommonGroup")))
         n_ins += 1
         if a.sigmas:
@@ -198,6 +224,10 @@ def main():
             t = first + k * 100_000_000
             msgs.append((t, "/chatter", "std_msgs/msg/String", ts.serialize_cdr(S(data=f"hello {k}"), "std_msgs/msg/String")))
     msgs.sort(key=lambda m: m[0])
+    if a.expect:
+        import json
+        expect["scans"], expect["ins_messages"], expect["messages"] = scans, n_ins, len(msgs)
+        json.dump(expect, open(a.expect, "w"), indent=0)
 
     if a.storage in ("mcap", "sqlite3"):
         from rosbags.rosbag2 import StoragePlugin, Writer

@@ -378,3 +378,6 @@ impl Messages {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

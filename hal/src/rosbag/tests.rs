@@ -1,0 +1,181 @@
+//! Against bags written by independent writers (PyPI `rosbags` 0.11.9: MCAP and sqlite3 bag
+//! folders, the sqlite3 one also rewritten to Humble's schema; PyPI `mcap` 1.6: zstd and lz4
+//! chunks) from a synthetic survey by `scripts/ros2-bag.py`; what was put in is in
+//! tests/data/ros2/bags/expected.json (computed by the script from the capture and the VN-200
+//! stream, not by spherecal).
+
+use super::sources::{ScanPackets, Vn200Bytes};
+use super::*;
+use crate::packet::{PacketSource, Record};
+use crate::serial::{ByteSource, ReadOutcome};
+
+fn data(rel: &str) -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/data/ros2/bags")
+        .join(rel);
+    assert!(p.exists(), "missing test data {}", p.display());
+    p
+}
+
+fn expected() -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(data("expected.json")).unwrap()).unwrap()
+}
+
+const BAGS: [(&str, &str); 5] = [
+    ("small_mcap", "mcap"),
+    ("small_jazzy", "sqlite3"),
+    ("small_humble", "sqlite3"),
+    ("small_zstd.mcap", "mcap"),
+    ("small_lz4.mcap", "mcap"),
+];
+
+#[test]
+fn every_storage_lists_its_topics() {
+    let e = expected();
+    let ins = e["ins_messages"].as_u64().unwrap();
+    for (name, storage) in BAGS {
+        let bag = Bag::open(&data(name)).unwrap();
+        assert_eq!(bag.storage(), storage, "{name}");
+        assert_eq!(bag.metadata.is_some(), !name.ends_with(".mcap"), "{name}");
+        for topics in [bag.topics().unwrap(), bag.topic_list().unwrap()] {
+            let count = |n: &str, ty: &str| {
+                let t = topics.iter().find(|t| t.topic.name == n).unwrap_or_else(|| panic!("{name}: {n}"));
+                assert_eq!(t.topic.type_name, ty, "{name} {n}");
+                assert_eq!(t.topic.encoding, "cdr");
+                t.count
+            };
+            assert_eq!(topics.len(), 5, "{name}: {topics:?}");
+            assert_eq!(count("/velodyne_packets", "velodyne_msgs/msg/VelodyneScan"), e["scans"].as_u64().unwrap());
+            assert_eq!(count("/vectornav/raw/common", "vectornav_msgs/msg/CommonGroup"), ins);
+            assert_eq!(count("/vectornav/raw/ins", "vectornav_msgs/msg/InsGroup"), ins);
+            assert_eq!(count("/vectornav/raw/attitude", "vectornav_msgs/msg/AttitudeGroup"), ins);
+            assert_eq!(count("/chatter", "std_msgs/msg/String"), 50);
+        }
+        // The full count knows each topic's span.
+        let full = bag.topics().unwrap();
+        assert!(full.iter().all(|t| t.span.is_some_and(|s| s.1 >= s.0)), "{name}");
+    }
+}
+
+#[test]
+fn the_scans_packets_are_the_captures() {
+    let e = expected();
+    let want = e["packets"].as_array().unwrap();
+    for (name, _) in BAGS {
+        let bag = Bag::open(&data(name)).unwrap();
+        let mut src = ScanPackets::new(bag.messages(&["/velodyne_packets"]));
+        let mut n = 0;
+        while let Some(r) = src.next_record().unwrap() {
+            let Record::Udp(d) = r else {
+                panic!("{name}: a skip")
+            };
+            let w = &want[n];
+            assert_eq!(d.time.0, w[0].as_i64().unwrap(), "{name} packet {n}");
+            let sum = d.payload.iter().map(|&b| u64::from(b)).sum::<u64>() % (1 << 32);
+            assert_eq!(sum, w[1].as_u64().unwrap(), "{name} packet {n}");
+            let head: String = d.payload[..8].iter().map(|b| format!("{b:02x}")).collect();
+            assert_eq!(head, w[2].as_str().unwrap());
+            assert_eq!((d.dst_port, d.payload.len()), (2368, 1206));
+            n += 1;
+        }
+        assert_eq!(n, want.len(), "{name}");
+        assert_eq!(src.scans, 3);
+    }
+}
+
+#[test]
+fn the_vectornav_groups_become_the_vn200_frames() {
+    use spherecal::vn200::binary::Frame;
+    use spherecal::vn200::pose::{Attitude, Pose};
+    let e = expected();
+    let want = e["ins"].as_array().unwrap();
+    for (name, _) in BAGS {
+        let bag = Bag::open(&data(name)).unwrap();
+        let topics = ["/vectornav/raw/common", "/vectornav/raw/ins", "/vectornav/raw/attitude"];
+        let mut src = Vn200Bytes::new(bag.messages(&topics), topics[0], Some(topics[1]), Some(topics[2]));
+        let mut buf = [0u8; 4096];
+        let mut k = 0;
+        loop {
+            match src.read_chunk(&mut buf).unwrap() {
+                ReadOutcome::End => break,
+                ReadOutcome::Idle => panic!("a file is never idle"),
+                ReadOutcome::Data { len, stamp } => {
+                    let f = Frame::parse(&buf[..len]).unwrap();
+                    if let Some(w) = want.get(k) {
+                        let p = Pose::from_frame(&f).unwrap();
+                        assert_eq!(stamp.unwrap().wall.0, w["host"].as_i64().unwrap());
+                        assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap());
+                        let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
+                        for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
+                            assert!((g - x.as_f64().unwrap()).abs() < 1e-9, "{name} {k}: {lla:?}");
+                        }
+                        let Attitude::YawPitchRoll(y) = p.attitude else { panic!() };
+                        for (g, x) in y.iter().zip(w["ypr"].as_array().unwrap()) {
+                            // f32 degrees as sent: the same number, to the last bits of radians.
+                            assert!((g - x.as_f64().unwrap().to_radians()).abs() < 1e-15, "{name} {k}");
+                        }
+                        assert_eq!(u64::from(p.ins_status.unwrap() & 3), w["status"].as_u64().unwrap());
+                    }
+                    // The script states PosU 0.03 m, YprU 0.2 / 0.02 / 0.02 deg after the first.
+                    if k > 0 {
+                        assert_eq!(f.position_uncertainty_m(), Some(0.03), "{name} {k}");
+                        assert_eq!(f.ypr_uncertainty_deg(), Some([0.2, 0.02, 0.02]));
+                    }
+                    k += 1;
+                }
+            }
+        }
+        assert_eq!(k as u64, e["ins_messages"].as_u64().unwrap(), "{name}");
+        assert_eq!(src.stats.frames, k as u64);
+        assert_eq!(src.stats.bad, 0);
+        assert!(src.stats.with_sigmas >= k as u64 - 1, "{name}: {:?}", src.stats);
+    }
+}
+
+/// A copy of `bytes` as a file in the temporary folder.
+fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("spherecal-rosbag-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let p = d.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn a_cut_or_foreign_file_is_an_error_naming_it() {
+    let whole = std::fs::read(data("small_zstd.mcap")).unwrap();
+    for cut in [9, 100, whole.len() / 3, whole.len() / 2, whole.len() - 20, whole.len() - 1] {
+        let p = scratch("cut.mcap", &whole[..cut]);
+        let bag = Bag::open(&p).unwrap();
+        let mut m = bag.messages(&[]);
+        let err = loop {
+            match m.next() {
+                Ok(Some(_)) => {}
+                Ok(None) => panic!("cut at {cut}: read to the end"),
+                Err(e) => break e,
+            }
+        };
+        assert!(err.to_string().contains("cut.mcap") && err.what.contains("not a complete MCAP"), "{cut}: {err}");
+        // Its topics cannot be had from a summary: counted from what is there, then the error.
+        assert!(bag.topic_list().is_err());
+    }
+    let db = std::fs::read(data("small_jazzy/small_jazzy.db3")).unwrap();
+    let p = scratch("cut.db3", &db[..db.len() / 2]);
+    let bag = Bag::open(&p).unwrap();
+    let mut m = bag.messages(&[]);
+    let mut r = Ok(None);
+    for _ in 0..10_000 {
+        r = m.next().map(|o| o.map(|_| ()));
+        if !matches!(r, Ok(Some(()))) {
+            break;
+        }
+    }
+    assert!(r.is_err() || bag.topics().is_err(), "a half sqlite file read as whole");
+    for (name, bytes) in [("empty.mcap", &b""[..]), ("text.db3", b"hello, world\n")] {
+        let e = Bag::open(&scratch(name, bytes)).unwrap_err();
+        assert!(e.what.contains("neither MCAP nor SQLite 3"), "{e}");
+    }
+    let d = std::env::temp_dir().join(format!("spherecal-rosbag-empty-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    assert!(Bag::open(&d).unwrap_err().what.contains("no bag file"));
+}
