@@ -13,11 +13,13 @@ if ! rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
   rustup target add "$THUMB" >/dev/null 2>&1 || echo "warning: target $THUMB cannot be fetched here: the bare-metal build is skipped"
 fi
 # laspy (+ numpy): an independent LAS reader for the georef test; pyproj (PROJ 9): an
-# independent coordinate transform for the site import test.
-if ! python3 -c "import laspy, numpy, pyproj" >/dev/null 2>&1; then
-  python3 -m pip install --quiet laspy numpy pyproj 2>/dev/null \
-    || python3 -m pip install --quiet --break-system-packages laspy numpy pyproj \
-    || echo "warning: could not install laspy/pyproj: the LAS and site import tests will fail"
+# independent coordinate transform for the site import test; rosbags and mcap: independent
+# rosbag2 / MCAP writers for the ROS 2 bag tests (scripts/ros2-bag.py).
+PY_TEST_PACKAGES="laspy numpy pyproj rosbags==0.11.9 mcap==1.6.0"
+if ! python3 -c "import laspy, numpy, pyproj, rosbags, mcap" >/dev/null 2>&1; then
+  python3 -m pip install --quiet $PY_TEST_PACKAGES 2>/dev/null \
+    || python3 -m pip install --quiet --break-system-packages $PY_TEST_PACKAGES \
+    || echo "warning: could not install $PY_TEST_PACKAGES: the LAS, site import and ROS 2 bag tests will fail"
 fi
 RUNNER="cargo test --workspace"
 if cargo nextest --version >/dev/null 2>&1; then

@@ -152,7 +152,10 @@ fn a_common_group_back_into_the_vn200_frame() {
     // The values rosbags put in, as the VN-200 sends them (f32 attitudes).
     let p = Pose::from_frame(&f).unwrap();
     assert_eq!(p.time.0, 1_384_000_000_123_456_789);
-    assert_eq!((p.lat.to_degrees(), p.lon.to_degrees(), p.h), (48.38, -4.49, 52.25));
+    assert_eq!(
+        (p.lat.to_degrees(), p.lon.to_degrees(), p.h),
+        (48.38, -4.49, 52.25)
+    );
     let Attitude::YawPitchRoll(y) = p.attitude else {
         panic!("{:?}", p.attitude)
     };

@@ -64,7 +64,9 @@ fn pick(
     };
     if let Some(n) = named {
         let Some(t) = topics.iter().find(|t| t.topic.name == n) else {
-            return Err(format!("{flag} {n}: no such topic in the bag; it has {}", listing()).into());
+            return Err(
+                format!("{flag} {n}: no such topic in the bag; it has {}", listing()).into(),
+            );
         };
         if t.topic.type_name != type_name {
             return Err(format!(
@@ -171,7 +173,8 @@ impl Opened {
             .topics
             .iter()
             .filter_map(|t| {
-                not_read(&t.topic.type_name).map(|w| format!("{} is {}: {w}", t.topic.name, t.topic.type_name))
+                not_read(&t.topic.type_name)
+                    .map(|w| format!("{} is {}: {w}", t.topic.name, t.topic.type_name))
             })
             .collect();
         if self.topics.is_empty() {
@@ -233,9 +236,13 @@ impl Opened {
         for (f, _) in &self.bag.files {
             let _ = writeln!(o, "  {}", f.display());
         }
-        let span = self.topics.iter().filter_map(|t| t.span).fold(None, |a: Option<(i64, i64)>, b| {
-            Some(a.map_or(b, |a| (a.0.min(b.0), a.1.max(b.1))))
-        });
+        let span = self
+            .topics
+            .iter()
+            .filter_map(|t| t.span)
+            .fold(None, |a: Option<(i64, i64)>, b| {
+                Some(a.map_or(b, |a| (a.0.min(b.0), a.1.max(b.1))))
+            });
         if let Some((a, b)) = span {
             let _ = writeln!(
                 o,
@@ -247,7 +254,10 @@ impl Opened {
         let _ = writeln!(o, "topics:");
         for t in &self.topics {
             let rate = t.span.filter(|s| s.1 > s.0 && t.count > 1).map(|s| {
-                format!(", {:.1} Hz", (t.count - 1) as f64 / ((s.1 - s.0) as f64 * 1e-9))
+                format!(
+                    ", {:.1} Hz",
+                    (t.count - 1) as f64 / ((s.1 - s.0) as f64 * 1e-9)
+                )
             });
             let role = self.role(&t.topic.name, &t.topic.type_name);
             let _ = writeln!(
@@ -301,12 +311,21 @@ impl Opened {
         if type_name == SCAN || type_name == COMMON {
             return "not read: another topic of this type was chosen".into();
         }
-        not_read(type_name).map_or_else(|| "not read: not a sensor spherecal uses".into(), String::from)
+        not_read(type_name).map_or_else(
+            || "not read: not a sensor spherecal uses".into(),
+            String::from,
+        )
     }
 }
 
 /// A log time [ns since the Unix epoch] as UTC.
 fn utc(ns: i64) -> String {
-    chrono::DateTime::from_timestamp(ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000) as u32)
-        .map_or_else(|| format!("{ns} ns"), |t| t.format("%Y-%m-%d %H:%M:%S%.3f UTC").to_string())
+    chrono::DateTime::from_timestamp(
+        ns.div_euclid(1_000_000_000),
+        ns.rem_euclid(1_000_000_000) as u32,
+    )
+    .map_or_else(
+        || format!("{ns} ns"),
+        |t| t.format("%Y-%m-%d %H:%M:%S%.3f UTC").to_string(),
+    )
 }

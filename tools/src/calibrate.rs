@@ -433,9 +433,7 @@ pub fn calibrate(
     // The navigation model: the site's, else what the INS stated in the data, else its kind's
     // default (`nav_source`), chosen at the first collection.
     let kind = match &inp.ins {
-        crate::pipeline::InsInput::Vn200(_) | crate::pipeline::InsInput::Bag(..) => {
-            InsKind::Vn200
-        }
+        crate::pipeline::InsInput::Vn200(_) | crate::pipeline::InsInput::Bag(..) => InsKind::Vn200,
         crate::pipeline::InsInput::Sbet(..) => InsKind::Sbet,
         crate::pipeline::InsInput::Posmv(..) => InsKind::PosmvRealTime,
     };

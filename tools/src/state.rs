@@ -95,7 +95,7 @@ impl ClockState {
         let n = self.packets();
         if n == 0 && self.bag {
             let mut o = String::from(
-                "PPS unknown (ROS 2 bag: the driver records no position packet, so the LiDAR clock cannot be checked); the time offset is estimated",
+                "PPS unknown (ROS 2 bag: the driver records no position packet, so the LiDAR clock cannot be checked)",
             );
             if !self.hour_from.is_empty() {
                 let _ = write!(o, "; hour from {}", self.hour_from);

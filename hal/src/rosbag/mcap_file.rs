@@ -94,7 +94,8 @@ impl Reader {
                             self.schemas.insert(header.id, header.name);
                         }
                         Record::Channel(c) => {
-                            let type_name = self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                            let type_name =
+                                self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
                             let i = match self.topics.iter().position(|t| t.name == c.topic) {
                                 Some(i) => i,
                                 None => {
@@ -145,7 +146,11 @@ impl Reader {
 
     /// `advance` then `current`.
     pub(super) fn next(&mut self) -> Result<Option<Message<'_>>, BagError> {
-        Ok(if self.advance()? { self.current() } else { None })
+        Ok(if self.advance()? {
+            self.current()
+        } else {
+            None
+        })
     }
 }
 
@@ -186,7 +191,11 @@ pub(super) fn summary_topics(path: &Path) -> Result<Option<Vec<super::TopicStats
         let count = stats.channel_message_counts.get(id).copied().unwrap_or(0);
         let topic = Topic {
             name: c.topic.clone(),
-            type_name: c.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+            type_name: c
+                .schema
+                .as_ref()
+                .map(|s| s.name.clone())
+                .unwrap_or_default(),
             encoding: c.message_encoding.clone(),
         };
         match out.iter_mut().find(|t| t.topic.name == topic.name) {

@@ -141,12 +141,7 @@ pub struct Bag {
 /// Whether `path` names a bag: a `.mcap` or `.db3` file, or a folder with a `metadata.yaml`
 /// or such files.
 pub fn is_bag(path: &Path) -> bool {
-    let suffix = |p: &Path| {
-        matches!(
-            p.extension().and_then(|e| e.to_str()),
-            Some("mcap" | "db3")
-        )
-    };
+    let suffix = |p: &Path| matches!(p.extension().and_then(|e| e.to_str()), Some("mcap" | "db3"));
     if path.is_dir() {
         path.join("metadata.yaml").is_file()
             || std::fs::read_dir(path).is_ok_and(|d| {
@@ -166,8 +161,7 @@ impl Bag {
         let names: Vec<PathBuf> = if path.is_dir() {
             let meta = path.join("metadata.yaml");
             if meta.is_file() {
-                let text =
-                    std::fs::read_to_string(&meta).map_err(|e| BagError::io(&meta, e))?;
+                let text = std::fs::read_to_string(&meta).map_err(|e| BagError::io(&meta, e))?;
                 let m = Metadata::parse(&text).map_err(|w| BagError::new(&meta, w))?;
                 if let Some(mode) = m.compression_mode.as_deref().filter(|c| !c.is_empty()) {
                     return Err(BagError::new(

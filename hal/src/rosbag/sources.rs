@@ -125,12 +125,7 @@ pub const SIGMA_AGE_NS: i64 = 1_000_000_000;
 impl Vn200Bytes {
     /// Over `msgs`, which holds the topics `common` (CommonGroup) and, if given, `ins`
     /// (InsGroup) and `attitude` (AttitudeGroup).
-    pub fn new(
-        msgs: Messages,
-        common: &str,
-        ins: Option<&str>,
-        attitude: Option<&str>,
-    ) -> Self {
+    pub fn new(msgs: Messages, common: &str, ins: Option<&str>, attitude: Option<&str>) -> Self {
         Self {
             msgs,
             common: common.into(),

@@ -39,21 +39,42 @@ fn every_storage_lists_its_topics() {
         assert_eq!(bag.metadata.is_some(), !name.ends_with(".mcap"), "{name}");
         for topics in [bag.topics().unwrap(), bag.topic_list().unwrap()] {
             let count = |n: &str, ty: &str| {
-                let t = topics.iter().find(|t| t.topic.name == n).unwrap_or_else(|| panic!("{name}: {n}"));
+                let t = topics
+                    .iter()
+                    .find(|t| t.topic.name == n)
+                    .unwrap_or_else(|| panic!("{name}: {n}"));
                 assert_eq!(t.topic.type_name, ty, "{name} {n}");
                 assert_eq!(t.topic.encoding, "cdr");
                 t.count
             };
             assert_eq!(topics.len(), 5, "{name}: {topics:?}");
-            assert_eq!(count("/velodyne_packets", "velodyne_msgs/msg/VelodyneScan"), e["scans"].as_u64().unwrap());
-            assert_eq!(count("/vectornav/raw/common", "vectornav_msgs/msg/CommonGroup"), ins);
-            assert_eq!(count("/vectornav/raw/ins", "vectornav_msgs/msg/InsGroup"), ins);
-            assert_eq!(count("/vectornav/raw/attitude", "vectornav_msgs/msg/AttitudeGroup"), ins);
+            assert_eq!(
+                count("/velodyne_packets", "velodyne_msgs/msg/VelodyneScan"),
+                e["scans"].as_u64().unwrap()
+            );
+            assert_eq!(
+                count("/vectornav/raw/common", "vectornav_msgs/msg/CommonGroup"),
+                ins
+            );
+            assert_eq!(
+                count("/vectornav/raw/ins", "vectornav_msgs/msg/InsGroup"),
+                ins
+            );
+            assert_eq!(
+                count(
+                    "/vectornav/raw/attitude",
+                    "vectornav_msgs/msg/AttitudeGroup"
+                ),
+                ins
+            );
             assert_eq!(count("/chatter", "std_msgs/msg/String"), 50);
         }
         // The full count knows each topic's span.
         let full = bag.topics().unwrap();
-        assert!(full.iter().all(|t| t.span.is_some_and(|s| s.1 >= s.0)), "{name}");
+        assert!(
+            full.iter().all(|t| t.span.is_some_and(|s| s.1 >= s.0)),
+            "{name}"
+        );
     }
 }
 
@@ -91,8 +112,17 @@ fn the_vectornav_groups_become_the_vn200_frames() {
     let want = e["ins"].as_array().unwrap();
     for (name, _) in BAGS {
         let bag = Bag::open(&data(name)).unwrap();
-        let topics = ["/vectornav/raw/common", "/vectornav/raw/ins", "/vectornav/raw/attitude"];
-        let mut src = Vn200Bytes::new(bag.messages(&topics), topics[0], Some(topics[1]), Some(topics[2]));
+        let topics = [
+            "/vectornav/raw/common",
+            "/vectornav/raw/ins",
+            "/vectornav/raw/attitude",
+        ];
+        let mut src = Vn200Bytes::new(
+            bag.messages(&topics),
+            topics[0],
+            Some(topics[1]),
+            Some(topics[2]),
+        );
         let mut buf = [0u8; 4096];
         let mut k = 0;
         loop {
@@ -107,14 +137,25 @@ fn the_vectornav_groups_become_the_vn200_frames() {
                         assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap());
                         let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
                         for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
-                            assert!((g - x.as_f64().unwrap()).abs() < 1e-9, "{name} {k}: {lla:?}");
+                            assert!(
+                                (g - x.as_f64().unwrap()).abs() < 1e-9,
+                                "{name} {k}: {lla:?}"
+                            );
                         }
-                        let Attitude::YawPitchRoll(y) = p.attitude else { panic!() };
+                        let Attitude::YawPitchRoll(y) = p.attitude else {
+                            panic!()
+                        };
                         for (g, x) in y.iter().zip(w["ypr"].as_array().unwrap()) {
                             // f32 degrees as sent: the same number, to the last bits of radians.
-                            assert!((g - x.as_f64().unwrap().to_radians()).abs() < 1e-15, "{name} {k}");
+                            assert!(
+                                (g - x.as_f64().unwrap().to_radians()).abs() < 1e-15,
+                                "{name} {k}"
+                            );
                         }
-                        assert_eq!(u64::from(p.ins_status.unwrap() & 3), w["status"].as_u64().unwrap());
+                        assert_eq!(
+                            u64::from(p.ins_status.unwrap() & 3),
+                            w["status"].as_u64().unwrap()
+                        );
                     }
                     // The script states PosU 0.03 m, YprU 0.2 / 0.02 / 0.02 deg after the first.
                     if k > 0 {
@@ -128,7 +169,11 @@ fn the_vectornav_groups_become_the_vn200_frames() {
         assert_eq!(k as u64, e["ins_messages"].as_u64().unwrap(), "{name}");
         assert_eq!(src.stats.frames, k as u64);
         assert_eq!(src.stats.bad, 0);
-        assert!(src.stats.with_sigmas >= k as u64 - 1, "{name}: {:?}", src.stats);
+        assert!(
+            src.stats.with_sigmas >= k as u64 - 1,
+            "{name}: {:?}",
+            src.stats
+        );
     }
 }
 
@@ -144,7 +189,14 @@ fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
 #[test]
 fn a_cut_or_foreign_file_is_an_error_naming_it() {
     let whole = std::fs::read(data("small_zstd.mcap")).unwrap();
-    for cut in [9, 100, whole.len() / 3, whole.len() / 2, whole.len() - 20, whole.len() - 1] {
+    for cut in [
+        9,
+        100,
+        whole.len() / 3,
+        whole.len() / 2,
+        whole.len() - 20,
+        whole.len() - 1,
+    ] {
         let p = scratch("cut.mcap", &whole[..cut]);
         let bag = Bag::open(&p).unwrap();
         let mut m = bag.messages(&[]);
@@ -155,7 +207,10 @@ fn a_cut_or_foreign_file_is_an_error_naming_it() {
                 Err(e) => break e,
             }
         };
-        assert!(err.to_string().contains("cut.mcap") && err.what.contains("not a complete MCAP"), "{cut}: {err}");
+        assert!(
+            err.to_string().contains("cut.mcap") && err.what.contains("not a complete MCAP"),
+            "{cut}: {err}"
+        );
         // Its topics cannot be had from a summary: counted from what is there, then the error.
         assert!(bag.topic_list().is_err());
     }
@@ -170,7 +225,10 @@ fn a_cut_or_foreign_file_is_an_error_naming_it() {
             break;
         }
     }
-    assert!(r.is_err() || bag.topics().is_err(), "a half sqlite file read as whole");
+    assert!(
+        r.is_err() || bag.topics().is_err(),
+        "a half sqlite file read as whole"
+    );
     for (name, bytes) in [("empty.mcap", &b""[..]), ("text.db3", b"hello, world\n")] {
         let e = Bag::open(&scratch(name, bytes)).unwrap_err();
         assert!(e.what.contains("neither MCAP nor SQLite 3"), "{e}");

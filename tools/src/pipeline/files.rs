@@ -120,7 +120,7 @@ fn glob_match(pat: &[u8], name: &[u8]) -> bool {
 /// The LiDAR's packets: captures, or a ROS 2 bag's `VelodyneScan` topic.
 pub enum Captures {
     /// Capture files in time order.
-    Pcap(PcapChain),
+    Pcap(Box<PcapChain>),
     /// A bag's scans.
     Bag(Box<spherecal_hal::rosbag::sources::ScanPackets>),
 }
@@ -164,7 +164,7 @@ pub fn open_captures(files: &Files, lidar_topic: Option<&str>) -> Result<Capture
         return Ok(Captures::Bag(Box::new(b.packets()?)));
     }
     PcapChain::open(&files.expand()?)
-        .map(Captures::Pcap)
+        .map(|c| Captures::Pcap(Box::new(c)))
         .map_err(|e| e.to_string().into())
 }
 

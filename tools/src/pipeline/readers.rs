@@ -110,7 +110,10 @@ impl InsFile {
         match ins {
             InsInput::Bag(p, topic) => {
                 let path = super::as_bag(p).ok_or_else(|| {
-                    format!("{}: not a ROS 2 bag (a .mcap, a .db3 or a bag folder)", p.display())
+                    format!(
+                        "{}: not a ROS 2 bag (a .mcap, a .db3 or a bag folder)",
+                        p.display()
+                    )
                 })?;
                 let b = crate::bag::open(path, None, topic.as_deref(), false)?;
                 Ok(Self::Bag(Box::new(b.vn200()?)))
@@ -265,16 +268,10 @@ pub fn ins_file_reader(
                 b.common, b.frames, b.with_sigmas
             );
             if b.empty > 0 {
-                said.push_str(&format!(
-                    ", {} without any pose field",
-                    b.empty
-                ));
+                said.push_str(&format!(", {} without any pose field", b.empty));
             }
             if let Some(first) = &b.first_bad {
-                said.push_str(&format!(
-                    ", {} messages not parsed (first: {first})",
-                    b.bad
-                ));
+                said.push_str(&format!(", {} messages not parsed (first: {first})", b.bad));
             }
             st.bag = Some(said);
             Ok((st, Vec::new()))

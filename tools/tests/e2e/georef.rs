@@ -50,6 +50,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         keep_untracked_ins: false,
         accuracy: None,
         ports: Default::default(),
+        lidar_topic: None,
     }
 }
 

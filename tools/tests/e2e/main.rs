@@ -21,6 +21,7 @@ mod progress;
 mod replay;
 mod report_html;
 mod rig;
+mod ros2_bags;
 mod sensor_stats;
 mod sim;
 mod site_import;

@@ -1,0 +1,286 @@
+//! ROS 2 bags in (issue 29): a synthetic survey written as a rosbag2 recording by an
+//! independent writer (PyPI `rosbags`, via scripts/ros2-bag.py, which parses the capture and
+//! the VN-200 frames itself), in MCAP and in sqlite3 (Humble's schema), calibrates as the
+//! capture and serial stream it was made from; `bag info` lists it; bad bags exit 2 naming
+//! what is missing.
+
+use crate::common;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+fn dir(name: &str) -> PathBuf {
+    common::tmp("ros2-bags", name)
+}
+
+/// Write a bag of the survey in `survey` with scripts/ros2-bag.py (python3 with rosbags and
+/// mcap: scripts/test.sh installs them).
+fn write_bag(survey: &Path, out: &Path, args: &[&str]) {
+    let _ = std::fs::remove_dir_all(out);
+    let _ = std::fs::remove_file(out);
+    let o = std::process::Command::new("python3")
+        .arg(common::repo_root().join("scripts/ros2-bag.py"))
+        .arg(survey)
+        .arg(out)
+        .args(args)
+        .output()
+        .expect("python3");
+    assert!(
+        o.status.success(),
+        "scripts/ros2-bag.py needs python3 with rosbags==0.11.9 and mcap (scripts/test.sh installs them): {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Every one of the six and the time offset of `r` within `k` of its 1-sigma from `of`'s (the
+/// bag's run and the capture's end their iterations at slightly different points: the LiDAR
+/// clock is trusted in one and not in the other).
+fn same_solution(r: &serde_json::Value, of: &serde_json::Value, k: f64, what: &str) {
+    let (a, b) = (common::report_deg_m(r), common::report_deg_m(of));
+    let sg = &r["sigma"];
+    let s = [
+        &sg["boresight_deg"]["roll"],
+        &sg["boresight_deg"]["pitch"],
+        &sg["boresight_deg"]["heading"],
+        &sg["lever_arm_m"]["x"],
+        &sg["lever_arm_m"]["y"],
+        &sg["lever_arm_m"]["z"],
+    ]
+    .map(|v| v.as_f64().unwrap());
+    for i in 0..6 {
+        assert!(
+            (a[i] - b[i]).abs() <= k * s[i],
+            "{what}: parameter {i}: {} vs {} (sigma {})",
+            a[i],
+            b[i],
+            s[i]
+        );
+    }
+    let dt = |r: &serde_json::Value| r["time_offset_s"].as_f64().unwrap();
+    let sdt = sg["time_offset_s"].as_f64().unwrap();
+    assert!(
+        (dt(r) - dt(of)).abs() <= k * sdt,
+        "{what}: dt {} vs {} (sigma {sdt})",
+        dt(r),
+        dt(of)
+    );
+}
+
+fn calibrate(args: &[&std::ffi::OsStr], report: &Path) -> (Output, serde_json::Value) {
+    let _ = std::fs::remove_file(report);
+    let o = common::spherecal()
+        .arg("calibrate")
+        .args(args)
+        .arg("--report")
+        .arg(report)
+        .output()
+        .unwrap();
+    let r = std::fs::read_to_string(report).unwrap_or_else(|_| panic!("no report: {}", text(&o)));
+    (o, serde_json::from_str(&r).unwrap())
+}
+
+#[test]
+fn table1_from_a_bag_calibrates_as_from_its_capture_and_serial_stream() {
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let d = dir("table1");
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    let truth = s.mount.truth.deg_m().0;
+    let site = d.join("site.toml");
+    let (mcap, db3) = (d.join("rec_mcap"), d.join("rec_db3"));
+    write_bag(&d, &mcap, &["--storage", "mcap", "--extra"]);
+    write_bag(&d, &db3, &["--storage", "sqlite3", "--humble"]);
+
+    // The capture and the serial stream, searched as a bag's clock is.
+    let mut a: Vec<std::ffi::OsString> = common::survey_args(&d);
+    a.extend(["--search-time-offset".into(), "2".into()]);
+    let a: Vec<&std::ffi::OsStr> = a.iter().map(|s| s.as_os_str()).collect();
+    let (o, from_pcap) = calibrate(&a, &d.join("pcap.json"));
+    assert!(o.status.success(), "{}", text(&o));
+    let six = |r: &serde_json::Value| common::report_deg_m(r);
+    common::assert_within(&six(&from_pcap), &truth, 1e-3, "from the capture");
+
+    // MCAP: the LiDAR clock is unknown, so the claim waits for --allow-unlocked-clock; the
+    // solution is the capture's.
+    let (o, r) = calibrate(
+        &[
+            "--bag".as_ref(),
+            mcap.as_os_str(),
+            "--site".as_ref(),
+            site.as_os_str(),
+        ],
+        &d.join("mcap.json"),
+    );
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("PPS unknown (ROS 2 bag") && t.contains("--allow-unlocked-clock"),
+        "{t}"
+    );
+    assert!(
+        t.contains("12901 CommonGroup messages -> 12901 VN-200 frames"),
+        "{t}"
+    );
+    assert!(t.contains("47095 data packets"), "{t}");
+    same_solution(&r, &from_pcap, 0.5, "MCAP bag against the capture");
+    common::assert_within(&six(&r), &truth, 1e-3, "MCAP bag");
+
+    // sqlite3 (Humble's schema), allowed: claimed, the same solution.
+    let (o, r) = calibrate(
+        &[
+            "--bag".as_ref(),
+            db3.as_os_str(),
+            "--site".as_ref(),
+            site.as_os_str(),
+            "--allow-unlocked-clock".as_ref(),
+        ],
+        &d.join("db3.json"),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    same_solution(&r, &from_pcap, 0.5, "sqlite3 bag against the capture");
+    common::assert_within(&six(&r), &truth, 1e-3, "sqlite3 bag");
+    assert_eq!(r["converged"], true);
+
+    // bag info: the topics, their counts and what is read.
+    let info = common::stdout_of(common::spherecal().args(["bag", "info"]).arg(&mcap));
+    for want in [
+        "mcap storage",
+        "/velodyne_packets (velodyne_msgs/msg/VelodyneScan): 620 messages",
+        "/vectornav/raw/common (vectornav_msgs/msg/CommonGroup): 12901 messages, 200.0 Hz",
+        "/chatter (std_msgs/msg/String): 50 messages",
+        "read: the LiDAR's packets",
+        "not read: not a sensor spherecal uses",
+    ] {
+        assert!(info.contains(want), "{want:?} in\n{info}");
+    }
+
+    // georef --bag: the same returns as from the capture.
+    let g = |args: &[&std::ffi::OsStr]| {
+        common::stdout_of(common::spherecal().arg("georef").args(args))
+            .lines()
+            .filter(|l| l.starts_with("points:") || l.starts_with("window "))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let mut pa: Vec<std::ffi::OsString> = common::survey_args(&d);
+    let pa: Vec<&std::ffi::OsStr> = pa.iter_mut().map(|s| s.as_os_str()).collect();
+    let from_bag = g(&[
+        "--bag".as_ref(),
+        db3.as_os_str(),
+        "--site".as_ref(),
+        site.as_os_str(),
+    ]);
+    assert_eq!(from_bag, g(&pa));
+    assert!(
+        from_bag.contains("points: 2065833 georeferenced: 2065833"),
+        "{from_bag}"
+    );
+}
+
+#[test]
+fn bad_bags_exit_2_naming_what_is_missing() {
+    let d = dir("bad");
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    let site = d.join("site.toml");
+    let small = ["--max-scans", "20"];
+    let run = |args: &[&std::ffi::OsStr]| {
+        let o = common::spherecal()
+            .arg("calibrate")
+            .args(args)
+            .arg("--site")
+            .arg(&site)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+        text(&o)
+    };
+    // No INS in the bag.
+    let lidar_only = d.join("lidar_only.mcap");
+    write_bag(
+        &d,
+        &lidar_only,
+        &[&["--storage", "mcap-zstd", "--no-ins"][..], &small].concat(),
+    );
+    let t = run(&["--bag".as_ref(), lidar_only.as_os_str()]);
+    assert!(
+        t.contains("no INS topic") && t.contains("vectornav_msgs/msg/CommonGroup"),
+        "{t}"
+    );
+    // Only sensor_msgs Imu + NavSatFix: refused with the reason.
+    let imu = d.join("imu.mcap");
+    write_bag(
+        &d,
+        &imu,
+        &[&["--storage", "mcap-lz4", "--ins-as-imu"][..], &small].concat(),
+    );
+    let t = run(&["--bag".as_ref(), imu.as_os_str()]);
+    assert!(
+        t.contains("sensor_msgs/msg/Imu") && t.contains("no GPS time"),
+        "{t}"
+    );
+    // The wrong type named, a topic that is not there.
+    let full = d.join("full");
+    write_bag(
+        &d,
+        &full,
+        &[&["--storage", "mcap", "--extra"][..], &small].concat(),
+    );
+    let t = run(&[
+        "--bag".as_ref(),
+        full.as_os_str(),
+        "--lidar-topic".as_ref(),
+        "/chatter".as_ref(),
+    ]);
+    assert!(
+        t.contains(
+            "/chatter: its messages are std_msgs/msg/String, not velodyne_msgs/msg/VelodyneScan"
+        ),
+        "{t}"
+    );
+    let t = run(&[
+        "--bag".as_ref(),
+        full.as_os_str(),
+        "--ins-topic".as_ref(),
+        "/nav".as_ref(),
+    ]);
+    assert!(
+        t.contains("--ins-topic /nav: no such topic in the bag"),
+        "{t}"
+    );
+    // A truncated MCAP: the file and where it ends.
+    let mcap_file = std::fs::read_dir(&full)
+        .unwrap()
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .unwrap();
+    let bytes = std::fs::read(&mcap_file).unwrap();
+    let cut = d.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let t = run(&["--bag".as_ref(), cut.as_os_str()]);
+    assert!(
+        t.contains("cut.mcap") && t.contains("not a complete MCAP file"),
+        "{t}"
+    );
+    // Empty: a file of nothing, a folder without a bag.
+    let empty = d.join("empty.mcap");
+    std::fs::write(&empty, b"").unwrap();
+    let t = run(&["--bag".as_ref(), empty.as_os_str()]);
+    assert!(t.contains("neither MCAP nor SQLite 3"), "{t}");
+    let none = d.join("no_bag");
+    std::fs::create_dir_all(&none).unwrap();
+    std::fs::write(
+        none.join("metadata.yaml"),
+        "rosbag2_bagfile_information:\n  relative_file_paths:\n    - none_0.db3\n",
+    )
+    .unwrap();
+    let t = run(&["--bag".as_ref(), none.as_os_str()]);
+    assert!(t.contains("none_0.db3") && t.contains("not there"), "{t}");
+}
