@@ -153,6 +153,7 @@ def main():
     ap.add_argument("--no-ins", action="store_true", help="leave the INS out")
     ap.add_argument("--ins-as-imu", action="store_true",
                     help="the INS as sensor_msgs Imu + NavSatFix only (no GPS time, no INS mode)")
+    ap.add_argument("--pcap", help="the capture (default: SURVEY/lidar.pcap)")
     ap.add_argument("--expect", help="write what was put in (packets, first INS samples) as JSON here")
     a = ap.parse_args()
     expect = {"packets": [], "ins": []}
@@ -170,7 +171,7 @@ def main():
             scans += 1
         pk = []
 
-    for t, payload in pcap_packets(os.path.join(a.survey, "lidar.pcap")):
+    for t, payload in pcap_packets(a.pcap or os.path.join(a.survey, "lidar.pcap")):
         if a.max_scans and scans >= a.max_scans:
             break
         pk.append(Pkt(stamp=stamp(t), data=np.frombuffer(payload, dtype=np.uint8)))
@@ -180,7 +181,8 @@ def main():
     flush()
     first, last = msgs[0][0], msgs[-1][0]
     n_ins = 0
-    for f in vn200_frames(os.path.join(a.survey, "ins.bin")):
+    ins_bin = os.path.join(a.survey, "ins.bin")
+    for f in ([] if a.no_ins and not os.path.exists(ins_bin) else vn200_frames(ins_bin)):
         host, msg, status = common_group(f, int(a.ins_lag * 1e9))
         if a.max_scans and not (first - a.ins_margin * 1e9 <= host <= last + a.ins_margin * 1e9):
             continue

@@ -54,6 +54,19 @@ fn bench(c: &mut Criterion) {
                 .points
         })
     });
+    // The same packets from a ROS 2 bag (rosbags' MCAP of this capture): the MCAP reader,
+    // the CDR scans and the decoding (issue 29: at least half the capture's speed).
+    let bag = format!(
+        "{}/../tests/data/ros2/bags/mrpt_vlp16",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    g.bench_function("mrpt_decode_command_no_csv_from_bag", |b| {
+        b.iter(|| {
+            spherecal_tools::decode::decode_bag(std::path::Path::new(&bag), None, None, None)
+                .unwrap()
+                .points
+        })
+    });
     g.finish();
 }
 

@@ -65,6 +65,8 @@ pub enum DecodeFailure {
     Pcap(PcapError),
     /// The LiDAR model is unknown or its product byte disagrees with the packet period.
     Model(ModelError),
+    /// A ROS 2 bag could not be opened, or has no scans to read.
+    Bag(String),
 }
 
 impl std::fmt::Display for DecodeError {
@@ -72,6 +74,7 @@ impl std::fmt::Display for DecodeError {
         match &self.error {
             DecodeFailure::Pcap(e) => write!(f, "{}: {e}", self.path),
             DecodeFailure::Model(e) => write!(f, "{}: {e}", self.path),
+            DecodeFailure::Bag(e) => f.write_str(e),
         }
     }
 }
@@ -246,10 +249,52 @@ pub fn decode_file(
 /// data packet to judge by, so each is decoded as its product byte names, unknown ones
 /// skipped and counted).
 pub fn decode_source<R: Read>(
-    mut src: PcapSource<R>,
-    mut csv: Option<&mut dyn Write>,
+    src: PcapSource<R>,
+    csv: Option<&mut dyn Write>,
     model: Option<(Model, String)>,
 ) -> Result<DecodeSummary, PcapError> {
+    decode_packets(src, csv, model, |e| match e {
+        e @ PcapError::Corrupt { .. } => Ok(e.to_string()),
+        e => Err(e),
+    })
+}
+
+/// Decode a ROS 2 bag's scans (`lidar_topic`, else the only `VelodyneScan` topic) as `model`
+/// (None: as the packets say, checked against their period); with `csv`, one row per point.
+/// A bag that fails while read (cut short) stops the decoding ([`DecodeSummary::stopped`]).
+pub fn decode_bag(
+    path: &Path,
+    lidar_topic: Option<&str>,
+    csv: Option<&mut dyn Write>,
+    model: Option<Model>,
+) -> Result<DecodeSummary, DecodeError> {
+    let err = |error| DecodeError {
+        path: path.display().to_string(),
+        error,
+    };
+    let files = crate::pipeline::Files::from(path);
+    let open = || {
+        crate::pipeline::open_captures(&files, lidar_topic)
+            .map_err(|e| err(DecodeFailure::Bag(e.to_string())))
+    };
+    let chosen = match model {
+        Some(m) => Some((m, "given with --model".into())),
+        None => {
+            identify_source(open()?, Ports::default()).map_err(|e| err(DecodeFailure::Model(e)))?
+        }
+    };
+    decode_packets(open()?, csv, chosen, |e| Ok::<_, io::Error>(e.to_string()))
+        .map_err(|e| err(DecodeFailure::Pcap(PcapError::from(e))))
+}
+
+/// [`decode_source`] over any packet source: `soft` says which of its errors stop the
+/// decoding with what was decoded so far (`Ok(why)`) and which fail it.
+fn decode_packets<S: PacketSource, E: From<io::Error>>(
+    mut src: S,
+    mut csv: Option<&mut dyn Write>,
+    model: Option<(Model, String)>,
+    soft: impl Fn(S::Error) -> Result<String, E>,
+) -> Result<DecodeSummary, E> {
     let mut s = DecodeSummary {
         model: model.clone(),
         ..Default::default()
@@ -266,11 +311,10 @@ pub fn decode_source<R: Read>(
         let rec = match src.next_record() {
             Ok(Some(r)) => r,
             Ok(None) => break,
-            Err(e @ PcapError::Corrupt { .. }) => {
-                s.stopped = Some(e.to_string());
+            Err(e) => {
+                s.stopped = Some(soft(e)?);
                 break;
             }
-            Err(e) => return Err(e),
         };
         let d = match rec {
             Record::Skipped { offset, reason } => {

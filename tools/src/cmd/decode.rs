@@ -1,15 +1,22 @@
-//! `spherecal decode FILE [--csv OUT]`.
+//! `spherecal decode FILE [--csv OUT]`, `spherecal decode --bag BAG [--lidar-topic T]`.
 
 use super::{create_csv, fail};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Decode Velodyne packets (VLP-16, Puck Hi-Res, HDL-32E, VLP-32C) from a pcap/pcapng
-/// capture; print counts, optionally list points.
+/// capture or a ROS 2 bag's VelodyneScan topic; print counts, optionally list points.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Capture file (classic pcap or pcapng).
-    pub file: PathBuf,
+    #[arg(required_unless_present = "bag", conflicts_with = "bag")]
+    pub file: Option<PathBuf>,
+    /// A ROS 2 bag (a rosbag2 folder, a `.mcap` or a `.db3`): its VelodyneScan packets.
+    #[arg(long)]
+    pub bag: Option<PathBuf>,
+    /// The bag's topic of VelodyneScan messages (default: the only one).
+    #[arg(long, requires = "bag")]
+    pub lidar_topic: Option<String>,
     /// Write one row per returned point to this CSV file.
     #[arg(long)]
     pub csv: Option<PathBuf>,
@@ -27,9 +34,20 @@ pub fn run(a: Args) -> ExitCode {
     };
     crate::output::remove_partial_on_interrupt();
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
-    match crate::decode::decode_file(&a.file, w, a.model) {
+    let (path, decoded) = match (&a.bag, &a.file) {
+        (Some(b), _) => (
+            b,
+            crate::decode::decode_bag(b, a.lidar_topic.as_deref(), w, a.model),
+        ),
+        (None, Some(f)) if spherecal_hal::rosbag::is_bag(f) => {
+            (f, crate::decode::decode_bag(f, None, w, a.model))
+        }
+        (None, Some(f)) => (f, crate::decode::decode_file(f, w, a.model)),
+        (None, None) => return fail("decode", "give a capture file or --bag"),
+    };
+    match decoded {
         Ok(s) => {
-            let path = a.file.display().to_string();
+            let path = path.display().to_string();
             say!("{}", s.render(&path));
             if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
                 return fail("decode", e);

@@ -170,3 +170,48 @@ fn truncated_capture_is_a_counted_skip() {
         "{stdout}"
     );
 }
+
+/// The real MRPT capture's data packets as a ROS 2 bag (written by rosbags from the capture:
+/// tests/data/ros2/README.md): `decode --bag` writes the very CSV the capture gives (the
+/// capture's is checked against an independent decoding above); a cut bag stops with the file
+/// named, exit 2.
+#[test]
+fn a_bag_of_the_mrpt_capture_decodes_as_the_capture() {
+    let bag = common::test_data("ros2/bags/mrpt_vlp16");
+    let (from_bag, from_pcap) = (tmp("mrpt-bag.csv"), tmp("mrpt-pcap.csv"));
+    let out = common::stdout_of(
+        common::spherecal()
+            .args(["decode", "--bag"])
+            .arg(&bag)
+            .arg("--csv")
+            .arg(&from_bag),
+    );
+    assert!(out.contains("data packets: 293 (strongest: 293)"), "{out}");
+    assert!(
+        out.contains("product byte 0x22, packet period agrees"),
+        "{out}"
+    );
+    assert!(out.contains("points: 73486"), "{out}");
+    common::stdout_of(
+        common::spherecal()
+            .arg("decode")
+            .arg(common::test_data("vlp16/mrpt_vlp16_gps.pcap"))
+            .arg("--csv")
+            .arg(&from_pcap),
+    );
+    assert!(std::fs::read(&from_bag).unwrap() == std::fs::read(&from_pcap).unwrap());
+    let whole = std::fs::read(bag.join("mrpt_vlp16.mcap")).unwrap();
+    let cut = tmp("cut.mcap");
+    std::fs::write(&cut, &whole[..whole.len() / 2]).unwrap();
+    let o = common::spherecal()
+        .arg("decode")
+        .arg(&cut)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cut.mcap") && err.contains("not a complete MCAP file"),
+        "{err}"
+    );
+}
