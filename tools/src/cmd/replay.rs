@@ -18,6 +18,16 @@ pub struct Args {
     /// The serial bytes or logs (instead of DIR): files or patterns.
     #[arg(long, num_args = 1..)]
     pub ins: Vec<PathBuf>,
+    /// A ROS 2 bag (instead of DIR): its VelodyneScan packets as datagrams, its VectorNav
+    /// CommonGroups as the VN-200 binary frames they came from (to --serial).
+    #[arg(long, conflicts_with_all = ["dir", "pcap", "ins"])]
+    pub bag: Option<PathBuf>,
+    /// The bag's topic of VelodyneScan messages (default: the only one).
+    #[arg(long, requires = "bag")]
+    pub lidar_topic: Option<String>,
+    /// The bag's topic of CommonGroup messages (default: the only one).
+    #[arg(long, requires = "bag")]
+    pub ins_topic: Option<String>,
     /// Host to send the datagrams to.
     #[arg(long, default_value = "127.0.0.1")]
     pub udp: std::net::Ipv4Addr,
@@ -57,10 +67,29 @@ fn folder(d: &std::path::Path) -> (Files, Option<Files>) {
 
 /// Run it.
 pub fn run(a: Args) -> ExitCode {
+    let to = target(&a);
+    if let Some(bag) = &a.bag {
+        let mut port = match &a.serial {
+            Some(dev) => match serialport::new(dev.as_str(), a.baud).open() {
+                Ok(p) => Some(p),
+                Err(e) => return fail("replay", format!("{dev}: {e}")),
+            },
+            None => None,
+        };
+        let topics = crate::replay::BagReplay {
+            lidar_topic: a.lidar_topic.clone(),
+            ins_topic: a.ins_topic.clone(),
+        };
+        let serial = port.as_mut().map(|p| p as &mut (dyn std::io::Write + Send));
+        return match crate::replay::replay_bag(bag, &topics, to, serial, a.speed) {
+            Ok((u, s)) => report(&a, u, s),
+            Err(e) => fail("replay", e),
+        };
+    }
     let (pcap, ins) = match (&a.dir, a.pcap.is_empty()) {
         (_, false) => (
-            Files::from(a.pcap),
-            (!a.ins.is_empty()).then(|| Files::from(a.ins)),
+            Files::from(a.pcap.clone()),
+            (!a.ins.is_empty()).then(|| Files::from(a.ins.clone())),
         ),
         (Some(d), true) => {
             let (p, i) = folder(d);
@@ -69,20 +98,12 @@ pub fn run(a: Args) -> ExitCode {
                 if a.ins.is_empty() {
                     i
                 } else {
-                    Some(Files::from(a.ins))
+                    Some(Files::from(a.ins.clone()))
                 },
             )
         }
         (None, true) => return fail("replay", "give DIR or --pcap"),
     };
-    let mut to = Target::host(a.udp);
-    if let Some([d, p]) = a.ports {
-        to.ports[0] = (2368, d);
-        to.ports[1] = (8308, p);
-    }
-    if let Some(i) = a.posmv_port {
-        to.ports[2] = (spherecal::posmv::REALTIME_PORT, i);
-    }
     let mut port = match &a.serial {
         Some(dev) => match serialport::new(dev.as_str(), a.baud).open() {
             Ok(p) => Some(p),
@@ -95,18 +116,37 @@ pub fn run(a: Args) -> ExitCode {
         _ => None,
     };
     match replay_both(&pcap, to, serial_job, a.speed) {
-        Ok((u, s)) => {
-            sayln!(
-                "sent {} datagrams to {} ({} records skipped)",
-                u.sent,
-                a.udp,
-                u.skipped
-            );
-            if let Some(n) = s {
-                sayln!("wrote {n} bytes to {}", a.serial.unwrap_or_default());
-            }
-            ExitCode::SUCCESS
-        }
+        Ok((u, s)) => report(&a, u, s),
         Err(e) => fail("replay", e),
     }
+}
+
+/// Where the datagrams go: the host, the ports mapped.
+fn target(a: &Args) -> Target {
+    let mut to = Target::host(a.udp);
+    if let Some([d, p]) = a.ports {
+        to.ports[0] = (2368, d);
+        to.ports[1] = (8308, p);
+    }
+    if let Some(i) = a.posmv_port {
+        to.ports[2] = (spherecal::posmv::REALTIME_PORT, i);
+    }
+    to
+}
+
+/// What was sent, said; exit 0.
+fn report(a: &Args, u: crate::replay::UdpReplay, s: Option<u64>) -> ExitCode {
+    sayln!(
+        "sent {} datagrams to {} ({} records skipped)",
+        u.sent,
+        a.udp,
+        u.skipped
+    );
+    if let Some(n) = s {
+        sayln!(
+            "wrote {n} bytes to {}",
+            a.serial.as_deref().unwrap_or_default()
+        );
+    }
+    ExitCode::SUCCESS
 }

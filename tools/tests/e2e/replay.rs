@@ -240,3 +240,88 @@ fn replay_pacing_on_the_mock_clock() {
     let all: Vec<u8> = out.writes.into_iter().flat_map(|w| w.1).collect();
     assert_eq!(all, bytes);
 }
+
+/// `replay --bag`: the real MRPT capture's bag sends the capture's very data packets, in order;
+/// a bag with the VectorNav groups writes one VN-200 binary frame per CommonGroup (the core's
+/// emitter), each with its time, position and the filter's sigmas, framed by the rig's framer.
+#[test]
+fn a_bag_replayed_sends_the_packets_and_writes_the_vn200_frames() {
+    use spherecal::vn200::{Framer, Item};
+    use spherecal_tools::replay::{replay_bag, BagReplay, Target};
+    let sock = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
+    sock.set_read_timeout(Some(Duration::from_millis(500)))
+        .unwrap();
+    let port = sock.local_addr().unwrap().port();
+    let mut to = Target::host(Ipv4Addr::LOCALHOST);
+    to.ports[0] = (2368, port);
+    let mut want = Vec::new();
+    let mut src = PcapSource::open(common::test_data("vlp16/mrpt_vlp16_gps.pcap")).unwrap();
+    while let Some(Record::Udp(d)) = src.next_record().unwrap() {
+        if d.dst_port == 2368 {
+            want.push(d.payload.to_vec());
+        }
+    }
+    let rx = std::thread::spawn(move || {
+        let mut got = Vec::new();
+        let mut buf = [0u8; 2048];
+        while let Ok(n) = sock.recv(&mut buf) {
+            got.push(buf[..n].to_vec());
+        }
+        got
+    });
+    let bag = common::test_data("ros2/bags/mrpt_vlp16");
+    let (sent, wrote) =
+        replay_bag(&bag, &BagReplay::default(), to, None, Speed::Factor(2.0)).unwrap();
+    let got = rx.join().unwrap();
+    assert_eq!((sent.sent as usize, wrote), (want.len(), None));
+    assert!(
+        got == want,
+        "{} of {} arrive, in order and whole",
+        got.len(),
+        want.len()
+    );
+
+    let bag = common::test_data("ros2/bags/small_zstd.mcap");
+    let expected: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(common::test_data("ros2/bags/expected.json")).unwrap(),
+    )
+    .unwrap();
+    let mut serial: Vec<u8> = Vec::new();
+    let mut to = Target::host(Ipv4Addr::LOCALHOST);
+    to.ports[0] = (2368, port);
+    let (sent, wrote) = replay_bag(
+        &bag,
+        &BagReplay::default(),
+        to,
+        Some(&mut serial),
+        Speed::Max,
+    )
+    .unwrap();
+    assert_eq!(sent.sent, 12);
+    assert_eq!(wrote, Some(serial.len() as u64));
+    let mut framer: Box<Framer> = Box::default();
+    let mut frames = Vec::new();
+    framer.consume(&serial, |it| {
+        if let Item::Binary(f) = it.item {
+            frames.push((
+                f.gps_time().map(|t| t.0),
+                f.position_lla(),
+                f.position_uncertainty_m(),
+            ));
+        }
+    });
+    assert_eq!(
+        frames.len() as u64,
+        expected["ins_messages"].as_u64().unwrap()
+    );
+    assert_eq!(framer.stats().crc_failures, 0);
+    for (k, w) in expected["ins"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(frames[k].0, w["timegps"].as_i64(), "{k}");
+        let lla = frames[k].1.unwrap();
+        assert!(
+            (lla[0] - w["lla"][0].as_f64().unwrap()).abs() < 1e-12,
+            "{k}"
+        );
+    }
+    assert!(frames[1..].iter().all(|f| f.2 == Some(0.03)));
+}

@@ -11,6 +11,9 @@ use std::net::{Ipv4Addr, SocketAddrV4, UdpSocket};
 use std::path::Path;
 use std::time::Duration;
 
+mod bag;
+pub use bag::{replay_bag, BagReplay};
+
 /// How fast.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Speed {
@@ -157,7 +160,19 @@ pub fn replay_udp_on(
     to: Target,
     clock: &Pacer<'_>,
 ) -> Result<UdpReplay, crate::Error> {
-    let mut src = crate::pipeline::open_captures(&pcap.into(), None)?;
+    send_all(
+        crate::pipeline::open_captures(&pcap.into(), None)?,
+        to,
+        clock,
+    )
+}
+
+/// Every datagram of `src` to `to`, each when `clock` says its time is due.
+fn send_all<S: PacketSource>(
+    mut src: S,
+    to: Target,
+    clock: &Pacer<'_>,
+) -> Result<UdpReplay, crate::Error> {
     let sock =
         UdpSocket::bind((Ipv4Addr::UNSPECIFIED, 0)).map_err(|e| format!("UDP socket: {e}"))?;
     let host = to.host;
