@@ -11,7 +11,13 @@
 mod mcap_file;
 mod metadata;
 pub mod sources;
+#[cfg(feature = "sqlite")]
 mod sqlite_file;
+#[cfg(not(feature = "sqlite"))]
+#[path = "no_sqlite.rs"]
+mod sqlite_file;
+
+pub use mcap_file::messages_in as mcap_messages_in;
 
 pub use metadata::Metadata;
 

@@ -237,3 +237,27 @@ fn a_cut_or_foreign_file_is_an_error_naming_it() {
     std::fs::create_dir_all(&d).unwrap();
     assert!(Bag::open(&d).unwrap_err().what.contains("no bag file"));
 }
+
+/// Found by the fuzz target `rosbag_mcap`: a record length of ~1e15 bytes in a 1 kB file made
+/// the reader reserve it (an abort). Now an error.
+/// And a damaged chunk whose reader asked for 2.3 GB at once, and one whose reader kept asking
+/// for more past the end of the bytes (a hang: mcap 0.24; 0.26 says the decompressor made no
+/// progress), and an attachment shorter than its CRC (a panic in mcap 0.26's parser).
+#[test]
+fn a_huge_record_length_is_an_error_not_an_allocation() {
+    for f in [
+        "regression-huge-record-length.mcap",
+        "regression-huge-read-request.mcap",
+        "regression-endless-read-requests.mcap",
+        "regression-short-attachment.mcap",
+    ] {
+        let b = std::fs::read(
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("../fuzz/seeds/rosbag_mcap")
+                .join(f),
+        )
+        .unwrap();
+        let e = mcap_messages_in(&b, |_, _, _, _| {}).unwrap_err();
+        assert!(e.what.contains("not a complete MCAP file"), "{f}: {e}");
+    }
+}

@@ -1,0 +1,29 @@
+//! Any bytes as a bag's MCAP file (the `mcap` crate's reader under spherecal's, zstd and lz4
+//! chunks decompressed), and every message through the ROS 2 view its type names, the
+//! VectorNav groups on into VN-200 frames: an error or messages, never a panic.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, VelodyneScan, VN200_FRAME_MAX};
+
+fuzz_target!(|data: &[u8]| {
+    let _ = spherecal_hal::rosbag::mcap_messages_in(data, |_, ty, _, msg| match ty {
+        "velodyne_msgs/msg/VelodyneScan" => {
+            if let Ok(s) = VelodyneScan::parse(msg) {
+                assert_eq!(s.packets().count(), s.count as usize);
+            }
+        }
+        "vectornav_msgs/msg/CommonGroup" => {
+            if let Ok(c) = CommonGroup::parse(msg) {
+                let _ = c.vn200_frame(Some([0.1; 3]), Some(0.1), &mut [0u8; VN200_FRAME_MAX]);
+            }
+        }
+        "vectornav_msgs/msg/InsGroup" => {
+            let _ = InsGroup::parse(msg);
+        }
+        "vectornav_msgs/msg/AttitudeGroup" => {
+            let _ = AttitudeGroup::parse(msg);
+        }
+        _ => {}
+    });
+});
