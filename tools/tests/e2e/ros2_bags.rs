@@ -97,9 +97,8 @@ fn table1_from_a_bag_calibrates_as_from_its_capture_and_serial_stream() {
     write_bag(&d, &mcap, &["--storage", "mcap", "--extra"]);
     write_bag(&d, &db3, &["--storage", "sqlite3", "--humble"]);
 
-    // The capture and the serial stream, searched as a bag's clock is.
-    let mut a: Vec<std::ffi::OsString> = common::survey_args(&d);
-    a.extend(["--search-time-offset".into(), "2".into()]);
+    // The capture and the serial stream (its LiDAR clock PPS-locked: not searched).
+    let a: Vec<std::ffi::OsString> = common::survey_args(&d);
     let a: Vec<&std::ffi::OsStr> = a.iter().map(|s| s.as_os_str()).collect();
     let (o, from_pcap) = calibrate(&a, &d.join("pcap.json"));
     assert!(o.status.success(), "{}", text(&o));
@@ -186,10 +185,13 @@ fn table1_from_a_bag_calibrates_as_from_its_capture_and_serial_stream() {
 #[test]
 fn bad_bags_exit_2_naming_what_is_missing() {
     let d = dir("bad");
-    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
-    spherecal_tools::synth::synth(&s, &d).unwrap();
+    std::fs::create_dir_all(&d).unwrap();
     let site = d.join("site.toml");
-    let small = ["--max-scans", "20"];
+    std::fs::write(
+        &site,
+        "leap_seconds = 18\n\n[origin]\nlat_deg = 48.0\nlon_deg = -4.0\nh_m = 50.0\n\n[[sphere]]\nid = \"S1\"\nlat_deg = 48.0\nlon_deg = -4.0\nh_m = 51.0\nradius_m = 0.1\n\n[apriori]\nboresight_deg = [0.0, 0.0, 0.0]\nlever_arm_m = [0.0, 0.0, 0.0]\nwindow_margin_m = 3.0\n",
+    )
+    .unwrap();
     let run = |args: &[&std::ffi::OsStr]| {
         let o = common::spherecal()
             .arg("calibrate")
@@ -201,37 +203,21 @@ fn bad_bags_exit_2_naming_what_is_missing() {
         assert_eq!(o.status.code(), Some(2), "{}", text(&o));
         text(&o)
     };
-    // No INS in the bag.
-    let lidar_only = d.join("lidar_only.mcap");
-    write_bag(
-        &d,
-        &lidar_only,
-        &[&["--storage", "mcap-zstd", "--no-ins"][..], &small].concat(),
-    );
-    let t = run(&["--bag".as_ref(), lidar_only.as_os_str()]);
+    let data = |rel: &str| common::test_data(&format!("ros2/bags/{rel}"));
+    // No INS in the bag (the MRPT capture's packets only).
+    let t = run(&["--bag".as_ref(), data("mrpt_vlp16").as_os_str()]);
     assert!(
         t.contains("no INS topic") && t.contains("vectornav_msgs/msg/CommonGroup"),
         "{t}"
     );
     // Only sensor_msgs Imu + NavSatFix: refused with the reason.
-    let imu = d.join("imu.mcap");
-    write_bag(
-        &d,
-        &imu,
-        &[&["--storage", "mcap-lz4", "--ins-as-imu"][..], &small].concat(),
-    );
-    let t = run(&["--bag".as_ref(), imu.as_os_str()]);
+    let t = run(&["--bag".as_ref(), data("small_imu.mcap").as_os_str()]);
     assert!(
         t.contains("sensor_msgs/msg/Imu") && t.contains("no GPS time"),
         "{t}"
     );
     // The wrong type named, a topic that is not there.
-    let full = d.join("full");
-    write_bag(
-        &d,
-        &full,
-        &[&["--storage", "mcap", "--extra"][..], &small].concat(),
-    );
+    let full = data("small_jazzy");
     let t = run(&[
         "--bag".as_ref(),
         full.as_os_str(),
@@ -255,13 +241,7 @@ fn bad_bags_exit_2_naming_what_is_missing() {
         "{t}"
     );
     // A truncated MCAP: the file and where it ends.
-    let mcap_file = std::fs::read_dir(&full)
-        .unwrap()
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
-        .unwrap();
-    let bytes = std::fs::read(&mcap_file).unwrap();
+    let bytes = std::fs::read(data("small_mcap/small_mcap.mcap")).unwrap();
     let cut = d.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
     let t = run(&["--bag".as_ref(), cut.as_os_str()]);
@@ -269,7 +249,7 @@ fn bad_bags_exit_2_naming_what_is_missing() {
         t.contains("cut.mcap") && t.contains("not a complete MCAP file"),
         "{t}"
     );
-    // Empty: a file of nothing, a folder without a bag.
+    // Empty: a file of nothing, a folder whose metadata names a file that is not there.
     let empty = d.join("empty.mcap");
     std::fs::write(&empty, b"").unwrap();
     let t = run(&["--bag".as_ref(), empty.as_os_str()]);
