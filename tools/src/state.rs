@@ -34,6 +34,31 @@ pub struct ClockState {
     /// state is unknown rather than absent.
     #[serde(default)]
     pub bag: bool,
+    /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
+    /// them, wrapped into the hour [s], the smallest and largest. A PPS-synchronised LiDAR and
+    /// an NTP-synchronised recorder keep it at minus a few ms, constant; a free-running LiDAR
+    /// clock is anywhere in the hour and drifts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stamp_minus_host_s: Option<(f64, f64)>,
+}
+
+/// The range of a LiDAR packet's stamp minus its host time, wrapped into the hour
+/// ([`ClockState::stamp_minus_host_s`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Spread(Option<(f64, f64)>);
+
+impl Spread {
+    /// A packet stamped `toh_us` past the hour, received at `host`.
+    pub fn add(&mut self, toh_us: u32, host: spherecal::time::HostTime) {
+        let host_s = host.0.rem_euclid(3_600_000_000_000) as f64 * 1e-9;
+        let d = (f64::from(toh_us) * 1e-6 - host_s + 1800.0).rem_euclid(3600.0) - 1800.0;
+        self.0 = Some(self.0.map_or((d, d), |(a, b)| (a.min(d), b.max(d))));
+    }
+
+    /// Smallest and largest.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        self.0
+    }
 }
 
 /// PPS state names, in [`ClockState::pps`] order.
@@ -97,6 +122,19 @@ impl ClockState {
             let mut o = String::from(
                 "PPS unknown (ROS 2 bag: the driver records no position packet, so the LiDAR clock cannot be checked)",
             );
+            if let Some((a, b)) = self.stamp_minus_host_s {
+                let _ = write!(
+                    o,
+                    "; packet stamps minus the recorder's {:+.4} .. {:+.4} s ({})",
+                    a,
+                    b,
+                    if a > -1.0 && b < 1.0 && b - a < 0.1 {
+                        "within a second and steady: consistent with a PPS-synchronised LiDAR and a synchronised recorder"
+                    } else {
+                        "not within a second of each other, or not steady: the LiDAR clock or the recorder's is not synchronised"
+                    }
+                );
+            }
             if !self.hour_from.is_empty() {
                 let _ = write!(o, "; hour from {}", self.hour_from);
             }

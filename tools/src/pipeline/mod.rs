@@ -559,6 +559,7 @@ pub fn run<C: Send>(
             });
         };
         let mut backoff = Backoff::default();
+        let mut stamp_minus_host = crate::state::Spread::default();
         loop {
             let Some(item) = lc.dequeue() else {
                 backoff.wait();
@@ -569,6 +570,9 @@ pub fn run<C: Send>(
                 LidarPacket::End => break,
                 LidarPacket::Position(p) => al.position(&p),
                 LidarPacket::Data(p) => {
+                    if let (true, Some(h)) = (from_bag, item.host) {
+                        stamp_minus_host.add(p.timestamp_us(), h);
+                    }
                     al.data(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
             }
@@ -589,6 +593,7 @@ pub fn run<C: Send>(
         ];
         let mut stats = al.run_stats(skips, ins, ring_full);
         stats.clock.bag = from_bag;
+        stats.clock.stamp_minus_host_s = stamp_minus_host.range();
         let c = consumer
             .join()
             .map_err(|_| crate::Error::internal("the batch consumer thread panicked"))?;
