@@ -250,6 +250,14 @@ fn bad_bags_exit_2_naming_what_is_missing() {
         t.contains("--ins-topic /nav: no such topic in the bag"),
         "{t}"
     );
+    // rosbag2's own talker bag: no sensor at all, its topics named.
+    let talker = common::test_data("ros2/rosbag2/sqlite3/talker");
+    let t = run(&["--bag".as_ref(), talker.as_os_str()]);
+    assert!(
+        t.contains("no LiDAR topic: no velodyne_msgs/msg/VelodyneScan message in the bag")
+            && t.contains("/topic (std_msgs/msg/String)"),
+        "{t}"
+    );
     // A truncated MCAP: the file and where it ends.
     let bytes = std::fs::read(data("small_mcap/small_mcap.mcap")).unwrap();
     let cut = d.join("cut.mcap");
