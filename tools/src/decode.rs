@@ -79,6 +79,16 @@ impl std::fmt::Display for DecodeError {
     }
 }
 
+impl DecodeError {
+    /// What failed with the file at `path`.
+    fn at(path: &Path) -> impl Fn(DecodeFailure) -> DecodeError + '_ {
+        move |error| DecodeError {
+            path: path.display().to_string(),
+            error,
+        }
+    }
+}
+
 /// An unreadable capture or an untrusted model is bad input.
 impl From<DecodeError> for crate::Error {
     fn from(e: DecodeError) -> Self {
@@ -154,10 +164,7 @@ pub fn model_keys() -> String {
 /// byte checked against their period (a file with too few packets to check keeps the byte's
 /// model). Err when the byte is unknown or disagrees.
 pub fn identify_file(path: &Path, ports: Ports) -> Result<Option<(Model, String)>, DecodeError> {
-    let err = |error| DecodeError {
-        path: path.display().to_string(),
-        error,
-    };
+    let err = DecodeError::at(path);
     let src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
     identify_source(src, ports).map_err(|e| err(DecodeFailure::Model(e)))
 }
@@ -236,10 +243,7 @@ pub fn decode_file(
     csv: Option<&mut dyn Write>,
     model: Option<Model>,
 ) -> Result<DecodeSummary, DecodeError> {
-    let err = |error| DecodeError {
-        path: path.display().to_string(),
-        error,
-    };
+    let err = DecodeError::at(path);
     let chosen = choose_model(path, Ports::default(), model)?;
     let src = PcapSource::open(path).map_err(|e| err(DecodeFailure::Pcap(e)))?;
     decode_source(src, csv, chosen).map_err(|e| err(DecodeFailure::Pcap(e)))
@@ -268,10 +272,7 @@ pub fn decode_bag(
     csv: Option<&mut dyn Write>,
     model: Option<Model>,
 ) -> Result<DecodeSummary, DecodeError> {
-    let err = |error| DecodeError {
-        path: path.display().to_string(),
-        error,
-    };
+    let err = DecodeError::at(path);
     let files = crate::pipeline::Files::from(path);
     let open = || {
         crate::pipeline::open_captures(&files, lidar_topic)

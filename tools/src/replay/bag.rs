@@ -3,7 +3,7 @@
 //! were parsed from (the core's emitter: [`spherecal::ros2::CommonGroup::vn200_frame`]) to a
 //! serial device at their header stamps, both on one [`Pacer`].
 
-use super::{send_all, Pacer, Speed, Target, UdpReplay};
+use super::{joined, send_all, Pacer, Speed, Target, UdpReplay};
 use crate::pipeline::Files;
 use spherecal_hal::clock::SystemClock;
 use spherecal_hal::serial::{ByteSource, ReadOutcome};
@@ -86,15 +86,7 @@ pub fn replay_bag(
             _ => None,
         };
         let udp = send_all(lidar()?, to, &clock);
-        let ser = ser
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(crate::Error::internal(
-                        "the replay's serial thread panicked",
-                    ))
-                })
-            })
-            .transpose();
+        let ser = joined(ser);
         Ok((udp?, ser?))
     })
 }

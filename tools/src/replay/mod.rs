@@ -304,15 +304,22 @@ pub fn replay_both(
             })
         });
         let udp = replay_udp_on(&pcap, to, &clock);
-        let ser = serial
-            .map(|h| {
-                h.join().unwrap_or_else(|_| {
-                    Err(crate::Error::internal(
-                        "the replay's serial thread panicked",
-                    ))
-                })
-            })
-            .transpose();
+        let ser = joined(serial);
         Ok((udp?, ser?))
     })
+}
+
+/// The bytes a replay's serial thread wrote, once it ends (None: there was none).
+fn joined(
+    serial: Option<std::thread::ScopedJoinHandle<'_, Result<u64, crate::Error>>>,
+) -> Result<Option<u64>, crate::Error> {
+    serial
+        .map(|h| {
+            h.join().unwrap_or_else(|_| {
+                Err(crate::Error::internal(
+                    "the replay's serial thread panicked",
+                ))
+            })
+        })
+        .transpose()
 }
