@@ -62,7 +62,7 @@ fn bench(c: &mut Criterion) {
     );
     g.bench_function("mrpt_decode_command_no_csv_from_bag", |b| {
         b.iter(|| {
-            spherecal_tools::decode::decode_bag(std::path::Path::new(&bag), None, None, None)
+            spherecal_tools::bag::decode_bag(std::path::Path::new(&bag), None, None, None)
                 .unwrap()
                 .points
         })

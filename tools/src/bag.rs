@@ -329,3 +329,33 @@ fn utc(ns: i64) -> String {
         |t| t.format("%Y-%m-%d %H:%M:%S%.3f UTC").to_string(),
     )
 }
+
+/// Decode a ROS 2 bag's scans (`lidar_topic`, else the only `VelodyneScan` topic) as `model`
+/// (None: as the packets say, checked against their period); with `csv`, one row per point.
+/// A bag that fails while read (cut short) stops the decoding ([`crate::decode::DecodeSummary::stopped`]).
+pub fn decode_bag(
+    path: &Path,
+    lidar_topic: Option<&str>,
+    csv: Option<&mut dyn std::io::Write>,
+    model: Option<spherecal::velodyne::Model>,
+) -> Result<crate::decode::DecodeSummary, crate::decode::DecodeError> {
+    let err = crate::decode::DecodeError::at(path);
+    let files = crate::pipeline::Files::from(path);
+    let open = || {
+        crate::pipeline::open_captures(&files, lidar_topic)
+            .map_err(|e| err(crate::decode::DecodeFailure::Bag(e.to_string())))
+    };
+    let chosen = match model {
+        Some(m) => Some((m, "given with --model".into())),
+        None => crate::decode::identify_source(open()?, spherecal_hal::velodyne::Ports::default())
+            .map_err(|e| err(crate::decode::DecodeFailure::Model(e)))?,
+    };
+    crate::decode::decode_packets(open()?, csv, chosen, |e| {
+        Ok::<_, std::io::Error>(e.to_string())
+    })
+    .map_err(|e| {
+        err(crate::decode::DecodeFailure::Pcap(
+            spherecal_hal::pcap::PcapError::from(e),
+        ))
+    })
+}

@@ -81,7 +81,7 @@ impl std::fmt::Display for DecodeError {
 
 impl DecodeError {
     /// What failed with the file at `path`.
-    fn at(path: &Path) -> impl Fn(DecodeFailure) -> DecodeError + '_ {
+    pub(crate) fn at(path: &Path) -> impl Fn(DecodeFailure) -> DecodeError + '_ {
         move |error| DecodeError {
             path: path.display().to_string(),
             error,
@@ -263,34 +263,9 @@ pub fn decode_source<R: Read>(
     })
 }
 
-/// Decode a ROS 2 bag's scans (`lidar_topic`, else the only `VelodyneScan` topic) as `model`
-/// (None: as the packets say, checked against their period); with `csv`, one row per point.
-/// A bag that fails while read (cut short) stops the decoding ([`DecodeSummary::stopped`]).
-pub fn decode_bag(
-    path: &Path,
-    lidar_topic: Option<&str>,
-    csv: Option<&mut dyn Write>,
-    model: Option<Model>,
-) -> Result<DecodeSummary, DecodeError> {
-    let err = DecodeError::at(path);
-    let files = crate::pipeline::Files::from(path);
-    let open = || {
-        crate::pipeline::open_captures(&files, lidar_topic)
-            .map_err(|e| err(DecodeFailure::Bag(e.to_string())))
-    };
-    let chosen = match model {
-        Some(m) => Some((m, "given with --model".into())),
-        None => {
-            identify_source(open()?, Ports::default()).map_err(|e| err(DecodeFailure::Model(e)))?
-        }
-    };
-    decode_packets(open()?, csv, chosen, |e| Ok::<_, io::Error>(e.to_string()))
-        .map_err(|e| err(DecodeFailure::Pcap(PcapError::from(e))))
-}
-
 /// [`decode_source`] over any packet source: `soft` says which of its errors stop the
 /// decoding with what was decoded so far (`Ok(why)`) and which fail it.
-fn decode_packets<S: PacketSource, E: From<io::Error>>(
+pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
     mut src: S,
     mut csv: Option<&mut dyn Write>,
     model: Option<(Model, String)>,

@@ -37,10 +37,10 @@ pub fn run(a: Args) -> ExitCode {
     let (path, decoded) = match (&a.bag, &a.file) {
         (Some(b), _) => (
             b,
-            crate::decode::decode_bag(b, a.lidar_topic.as_deref(), w, a.model),
+            crate::bag::decode_bag(b, a.lidar_topic.as_deref(), w, a.model),
         ),
         (None, Some(f)) if spherecal_hal::rosbag::is_bag(f) => {
-            (f, crate::decode::decode_bag(f, None, w, a.model))
+            (f, crate::bag::decode_bag(f, None, w, a.model))
         }
         (None, Some(f)) => (f, crate::decode::decode_file(f, w, a.model)),
         (None, None) => return fail("decode", "give a capture file or --bag"),
