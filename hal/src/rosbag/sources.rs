@@ -137,10 +137,16 @@ impl Vn200Bytes {
         }
     }
 
-    fn bad(&mut self, topic: &str, file: &std::path::Path, at: u64, e: impl std::fmt::Display) {
-        self.stats.bad += 1;
-        if self.stats.first_bad.is_none() {
-            self.stats.first_bad = Some(format!("{topic} in {} at {at}: {e}", file.display()));
+    /// Count a message that did not parse (the first one said in full).
+    fn bad(stats: &mut InsBagStats, m: &super::Message<'_>, e: impl std::fmt::Display) {
+        stats.bad += 1;
+        if stats.first_bad.is_none() {
+            stats.first_bad = Some(format!(
+                "{} in {} at {}: {e}",
+                m.topic.name,
+                m.file.display(),
+                m.at
+            ));
         }
     }
 }
@@ -153,24 +159,25 @@ impl ByteSource for Vn200Bytes {
             let Some(m) = self.msgs.next()? else {
                 return Ok(ReadOutcome::End);
             };
-            let (topic, file, at) = (m.topic.name.clone(), m.file.to_path_buf(), m.at);
-            if self.attitude.as_deref() == Some(&topic) {
+            // No copy of the topic or file per message: `m` borrows only `self.msgs`.
+            let topic = m.topic.name.as_str();
+            if self.attitude.as_deref() == Some(topic) {
                 match AttitudeGroup::parse(m.data) {
                     Ok(a) if a.has(AttitudeGroup::YPRU) => {
                         self.ypru = Some((a.header.stamp.ns(), a.ypru.map(|v| v as f32)))
                     }
                     Ok(_) => {}
-                    Err(e) => self.bad(&topic, &file, at, e),
+                    Err(e) => Self::bad(&mut self.stats, &m, e),
                 }
                 continue;
             }
-            if self.ins.as_deref() == Some(&topic) {
+            if self.ins.as_deref() == Some(topic) {
                 match InsGroup::parse(m.data) {
                     Ok(g) if g.has(InsGroup::POSU) => {
                         self.posu = Some((g.header.stamp.ns(), g.posu))
                     }
                     Ok(_) => {}
-                    Err(e) => self.bad(&topic, &file, at, e),
+                    Err(e) => Self::bad(&mut self.stats, &m, e),
                 }
                 continue;
             }
@@ -180,7 +187,7 @@ impl ByteSource for Vn200Bytes {
             let c = match CommonGroup::parse(m.data) {
                 Ok(c) => c,
                 Err(e) => {
-                    self.bad(&topic, &file, at, e);
+                    Self::bad(&mut self.stats, &m, e);
                     continue;
                 }
             };
@@ -195,7 +202,14 @@ impl ByteSource for Vn200Bytes {
                 continue;
             };
             if n > buf.len() {
-                return Ok(ReadOutcome::End);
+                // A caller's buffer smaller than one frame: an error, not a silent end.
+                return Err(BagError::new(
+                    m.file,
+                    format!(
+                        "a {n}-byte VN-200 frame does not fit the reader's {}-byte buffer",
+                        buf.len()
+                    ),
+                ));
             }
             self.stats.frames += 1;
             if ypru.is_some() && posu.is_some() {

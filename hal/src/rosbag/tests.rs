@@ -363,3 +363,20 @@ fn rosbag2s_own_test_bags() {
     );
     assert_eq!(span("/parameter_events"), None);
 }
+
+/// A reader's buffer smaller than one VN-200 frame is an error naming the sizes, not an end.
+#[test]
+fn a_buffer_smaller_than_a_frame_is_an_error() {
+    let bag = Bag::open(&data("small_zstd.mcap")).unwrap();
+    let mut src = Vn200Bytes::new(
+        bag.messages(&["/vectornav/raw/common"]),
+        "/vectornav/raw/common",
+        None,
+        None,
+    );
+    let e = src.read_chunk(&mut [0u8; 10]).unwrap_err();
+    assert!(
+        e.what.contains("does not fit the reader's 10-byte buffer"),
+        "{e}"
+    );
+}
