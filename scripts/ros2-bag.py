@@ -13,6 +13,13 @@ From a survey folder (`spherecal synth`: lidar.pcap + ins.bin, a VN-200 binary s
   with --sigmas also an `InsGroup` (posu) and `AttitudeGroup` (ypru) per frame.
 The frames are parsed here, independently of spherecal (VN-200 user manual, binary output).
 
+With --clouds the scans are written instead as velodyne_pointcloud would publish them:
+`sensor_msgs/msg/PointCloud2` (PointcloudXYZIRT: x y z intensity float32, ring uint16, time
+float32 after the cloud's stamp), decoded here from the VLP-16 manual (section 9, single return)
+with the driver's conventions (VLP16db.yaml's vertical offsets): the ROS frame (x forward, y left), the azimuth interpolated per
+firing and rounded to 0.01 deg, ring in order of elevation, returns inside min_range 0.9 m or
+beyond 130 m dropped, each point's time = its packet's stamp + its firing offset - the stamp.
+
 Usage: ros2-bag.py SURVEY OUT [--storage mcap|sqlite3|mcap-zstd|mcap-lz4] [--humble] [--extra]
        [--sigmas] [--scan-packets N] [--lidar-topic T] [--ins-topic T] [--max-scans N]
 OUT is a bag folder for mcap/sqlite3 (rosbags) and a single .mcap file for mcap-zstd/-lz4.
@@ -136,6 +143,54 @@ def common_group(f, lag_ns):
     return host, msg, status
 
 
+VLP16_ELEV = [-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15]
+VLP16_VERT_OFFSET = [0.0112, -0.0007, 0.0097, -0.0022, 0.0081, -0.0037, 0.0066, -0.0051,
+                     0.0051, -0.0066, 0.0037, -0.0081, 0.0022, -0.0097, 0.0007, -0.0112]  # VLP16db.yaml
+VLP16_RING = [(l // 2) if l % 2 == 0 else 8 + l // 2 for l in range(16)]
+
+
+def cloud_of(packets, stamp_ns, min_range=0.9, max_range=130.0):
+    """A PointCloud2 (XYZIRT) of VLP-16 data packets [(stamp ns, 1206 bytes)], stamped stamp_ns."""
+    raw = np.frombuffer(b"".join(p for _, p in packets), dtype=np.uint8).reshape(len(packets), 1206)
+    blocks = raw[:, :1200].reshape(-1, 12, 100)
+    if not (blocks[:, :, 0:2] == [0xFF, 0xEE]).all():
+        sys.exit("--clouds: a data block without its 0xFFEE flag (only single-return VLP-16 packets are converted)")
+    if not (raw[:, 1205] == 0x22).all() or not (raw[:, 1204] == 0x37).all():
+        sys.exit("--clouds: only VLP-16 (product 0x22) packets in strongest-return mode are converted")
+    az = blocks[:, :, 2].astype(np.int64) | (blocks[:, :, 3].astype(np.int64) << 8)
+    diff = (np.roll(az, -1, axis=1) - az + 36000) % 36000
+    diff[:, 11] = diff[:, 10]  # the last block: the previous block's step
+    ch = blocks[:, :, 4:].reshape(-1, 12, 32, 3)
+    dist = (ch[..., 0].astype(np.int64) | (ch[..., 1].astype(np.int64) << 8)) * 0.002
+    inten = ch[..., 2].astype(np.float32)
+    c = np.arange(32)
+    firing, dsr = c // 16, c % 16
+    frac = (dsr * 2.304 + firing * 55.296) / 110.592
+    azc = np.round(az[:, :, None] + diff[:, :, None] * frac[None, None, :]).astype(np.int64) % 36000
+    rot = np.radians(azc * 0.01)
+    vert = np.radians(np.array(VLP16_ELEV, dtype=np.float64))[dsr]
+    off = np.array(VLP16_VERT_OFFSET)[dsr]
+    xy = dist * np.cos(vert) - off * np.sin(vert)
+    x = (xy * np.cos(rot)).astype(np.float32)       # ROS x = the manual's y (forward)
+    y = (-(xy * np.sin(rot))).astype(np.float32)    # ROS y = -the manual's x (left)
+    z = (dist * np.sin(vert) + off * np.cos(vert)).astype(np.float32)
+    ring = np.array(VLP16_RING, dtype=np.uint16)[dsr] * np.ones_like(dist, dtype=np.uint16)
+    stamps = np.array([t for t, _ in packets], dtype=np.int64)
+    toff = (np.arange(12)[:, None] * 110.592 + firing[None, :] * 55.296 + dsr[None, :] * 2.304) * 1e-6
+    t = ((stamps - stamp_ns)[:, None, None] * 1e-9 + toff[None, :, :]).astype(np.float32)
+    keep = (dist >= min_range) & (dist <= max_range)
+    n = int(keep.sum())
+    rec = np.zeros(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("ring", "<u2"), ("time", "<f4")])
+    for k, v in [("x", x), ("y", y), ("z", z), ("intensity", inten), ("ring", ring), ("time", t)]:
+        rec[k] = v[keep]
+    PF = T("sensor_msgs/msg/PointField")
+    fields = [PF(name=k, offset=o, datatype=d, count=1) for k, o, d in
+              [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 18, 7)]]
+    return T("sensor_msgs/msg/PointCloud2")(header=Header(stamp=stamp(stamp_ns), frame_id="velodyne"),
+        height=1, width=n, fields=fields, is_bigendian=False, point_step=22, row_step=22 * n,
+        data=np.frombuffer(rec.tobytes(), dtype=np.uint8), is_dense=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("survey")
@@ -153,6 +208,8 @@ def main():
     ap.add_argument("--no-ins", action="store_true", help="leave the INS out")
     ap.add_argument("--ins-as-imu", action="store_true",
                     help="the INS as sensor_msgs Imu + NavSatFix only (no GPS time, no INS mode)")
+    ap.add_argument("--clouds", action="store_true",
+                    help="the LiDAR as velodyne_pointcloud's PointCloud2 (XYZIRT) on /velodyne_points")
     ap.add_argument("--pcap", help="the capture (default: SURVEY/lidar.pcap)")
     ap.add_argument("--expect", help="write what was put in (packets, first INS samples) as JSON here")
     a = ap.parse_args()
@@ -165,9 +222,14 @@ def main():
     def flush():
         nonlocal pk, scans
         if pk:
-            s = Scan(header=Header(stamp=pk[-1].stamp, frame_id="velodyne"), packets=pk)
             t = pk[-1].stamp.sec * 1_000_000_000 + pk[-1].stamp.nanosec
-            msgs.append((t, a.lidar_topic, "velodyne_msgs/msg/VelodyneScan", ts.serialize_cdr(s, "velodyne_msgs/msg/VelodyneScan")))
+            if a.clouds:
+                c = cloud_of([(p.stamp.sec * 1_000_000_000 + p.stamp.nanosec, p.data.tobytes()) for p in pk], t)
+                msgs.append((t, "/velodyne_points" if a.lidar_topic == "/velodyne_packets" else a.lidar_topic,
+                             "sensor_msgs/msg/PointCloud2", ts.serialize_cdr(c, "sensor_msgs/msg/PointCloud2")))
+            else:
+                s = Scan(header=Header(stamp=pk[-1].stamp, frame_id="velodyne"), packets=pk)
+                msgs.append((t, a.lidar_topic, "velodyne_msgs/msg/VelodyneScan", ts.serialize_cdr(s, "velodyne_msgs/msg/VelodyneScan")))
             scans += 1
         pk = []
 

@@ -5,7 +5,7 @@ and VectorNav drivers serialised to CDR by an independent writer, the PyPI `rosb
 velodyne_msgs; dawonn/vectornav branch ros2, vectornav_msgs). Writes tests/data/ros2/*.cdr
 and expected.json (the values put in). Usage: python3 scripts/ros2-vectors.py (with rosbags
 installed: pip install rosbags==0.11.9)."""
-import json, os
+import struct, json, os
 import numpy as np
 from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
@@ -147,5 +147,38 @@ att = T("vectornav_msgs/msg/AttitudeGroup")(
     ypru=V3(x=0.35, y=0.04, z=0.045))
 open(os.path.join(OUT, "attitude_group.cdr"), "wb").write(ts.serialize_cdr(att, "vectornav_msgs/msg/AttitudeGroup"))
 expected["attitude_group"] = {"group_fields": 0x0102, "yawpitchroll": [271.5, 2.25, -3.5], "ypru": [0.35, 0.04, 0.045]}
+
+# velodyne_pointcloud's XYZIRT clouds (PointcloudXYZIRT: x y z intensity float32, ring uint16,
+# time float32): an unorganised little-endian one with a NaN cell, and the same points
+# big-endian and organised in 2 rows with 4 bytes of padding per row and float64 time.
+PF = T("sensor_msgs/msg/PointField")
+pts = [  # x, y, z, intensity, ring, time
+    (10.0, 0.0, -2.679492, 7.0, 0, -0.05),        # ring 0 (VLP-16: -15 deg), 10 m ahead
+    (0.0, -5.0, 0.0874887, 100.0, 8, -0.0251),     # ring 8 (+1 deg), 5 m to the right
+    (float("nan"), float("nan"), float("nan"), 0.0, 3, 0.0),
+    (-3.0, 4.0, 1.339746, 255.0, 15, 0.001234),     # ring 15 (+15 deg), behind-left
+]
+def cloud(big, organised):
+    e = ">" if big else "<"
+    if organised:
+        fields = [PF(name=n, offset=o, datatype=d, count=1) for n, o, d in
+                  [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 20, 8)]]
+        step, fmt = 28, e + "ffffHxxd"
+    else:
+        fields = [PF(name=n, offset=o, datatype=d, count=1) for n, o, d in
+                  [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 18, 7)]]
+        step, fmt = 22, e + "ffffHf"
+    rows = [pts[:2], pts[2:]] if organised else [pts]
+    data = b""
+    for r in rows:
+        data += b"".join(struct.pack(fmt, *p) for p in r) + (b"\xee" * 4 if organised else b"")
+    return T("sensor_msgs/msg/PointCloud2")(
+        header=Header(stamp=Time(sec=1700000010, nanosec=500000000), frame_id="velodyne"),
+        height=len(rows), width=len(rows[0]), fields=fields, is_bigendian=big, point_step=step,
+        row_step=step * len(rows[0]) + (4 if organised else 0),
+        data=np.frombuffer(data, dtype=np.uint8), is_dense=False)
+for name, big, org in [("cloud_xyzirt", False, False), ("cloud_xyzirt_big_organised", True, True)]:
+    open(os.path.join(OUT, name + ".cdr"), "wb").write(ts.serialize_cdr(cloud(big, org), "sensor_msgs/msg/PointCloud2"))
+expected["cloud_xyzirt"] = {"stamp": [1700000010, 500000000], "points": [list(p) for p in pts]}
 json.dump(expected, open(os.path.join(OUT, "expected.json"), "w"), indent=1)
 print("written", sorted(os.listdir(OUT)))

@@ -62,6 +62,12 @@ pub enum SkipReason {
     Vlp16(spherecal::velodyne::Error),
     /// A ROS 2 message (a bag's `VelodyneScan`) that does not parse as its type.
     BadMessage(spherecal::ros2::cdr::Error),
+    /// A bag's `PointCloud2` that does not parse, or whose fields are not the ones read.
+    BadCloud(spherecal::ros2::cloud::CloudError),
+    /// A cell of a point cloud that is no return (NaN: an organised cloud's empty cell).
+    EmptyCell,
+    /// A point cloud's return that is not used: why.
+    CloudPoint(&'static str),
 }
 
 impl SkipReason {
@@ -78,6 +84,9 @@ impl SkipReason {
             SkipReason::WrongPayloadLength { .. } => "wrong payload length",
             SkipReason::Vlp16(e) => e.reason(),
             SkipReason::BadMessage(_) => "ROS message not parsed",
+            SkipReason::BadCloud(_) => "point cloud not read",
+            SkipReason::EmptyCell => "empty cell of a point cloud",
+            SkipReason::CloudPoint(why) => why,
         }
     }
 }
@@ -111,6 +120,9 @@ impl fmt::Display for SkipReason {
             }
             SkipReason::Vlp16(e) => write!(f, "{e}"),
             SkipReason::BadMessage(e) => write!(f, "ROS 2 message: {e}"),
+            SkipReason::BadCloud(e) => write!(f, "ROS 2 PointCloud2: {e}"),
+            SkipReason::EmptyCell => write!(f, "a cell with no return (NaN)"),
+            SkipReason::CloudPoint(why) => write!(f, "{why}"),
         }
     }
 }

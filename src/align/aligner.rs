@@ -9,12 +9,17 @@
 use super::history::{PoseHistory, PoseSample};
 use crate::georef::Mount;
 use crate::time::{GpsTime, HostTime, LidarClock};
-use crate::velodyne::{self, DataPacket, Identity, Model, PointBuf, PositionPacket, PpsStatus};
+use crate::velodyne::{
+    self, DataPacket, Identity, Model, Point, PointBuf, PositionPacket, PpsStatus,
+};
 use crate::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS};
 
 /// A packet's 24 firing sequences span 1.33 ms: the history must reach this far past its
 /// first firing.
 const PACKET_SPAN_NS: i64 = 1_400_000;
+/// How fast the host-to-GPS bound of [`Aligner::points`] may fall [ns per s of GPS time]: a
+/// host clock 100 ppm slow (NTP-disciplined clocks stay within tens of ppm).
+pub const HOST_DRIFT_NS_PER_S: i64 = 100_000;
 
 /// Where the LiDAR clock's hour came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,6 +69,10 @@ pub struct Aligner<'a, const H: usize, const B: usize> {
     lookahead_ns: i64,
     /// Newest pose's GPS time minus its host receive time [ns], if that time is known.
     ins_offset_ns: Option<i64>,
+    /// The upper envelope of the poses' GPS time minus host time [ns], leaking
+    /// [`HOST_DRIFT_NS_PER_S`], and the GPS time it was last raised or leaked at: host time to
+    /// GPS time for returns timed by the host ([`Aligner::points`]).
+    host_to_gps: Option<(i64, GpsTime)>,
     data_seen: u32,
     model: Option<Model>,
     detector: velodyne::Detector,
@@ -106,6 +115,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             points: PointBuf::new(),
             lookahead_ns,
             ins_offset_ns: None,
+            host_to_gps: None,
             data_seen: 0,
             model: None,
             detector: velodyne::Detector::new(),
@@ -155,6 +165,18 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         let ok = self.history.push(s);
         if ok {
             self.ins_offset_ns = host.map(|h| s.time.0.saturating_sub(h.0));
+            if let Some(o) = self.ins_offset_ns {
+                // The least-delayed pose bounds the host clock's offset; a host clock that
+                // drifts is followed by letting the bound leak.
+                let e = match self.host_to_gps {
+                    Some((e, at)) => {
+                        let dt = (s.time.0 - at.0).max(0);
+                        o.max(e - (i128::from(dt) * i128::from(HOST_DRIFT_NS_PER_S) / 1_000_000_000) as i64)
+                    }
+                    None => o,
+                };
+                self.host_to_gps = Some((e, s.time));
+            }
         }
         ok
     }
@@ -245,6 +267,59 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         if velodyne::decode_as(p, model, &mut self.points).is_err() {
             return;
         }
+        self.window(index, t0, None, host, each, emit);
+    }
+
+    /// Whether more poses are needed before returns timed `t0_host` + `span_ns` on the host's
+    /// clock can be aligned (see [`Self::wants_poses`]).
+    pub fn wants_poses_at_host(&self, t0_host: HostTime, span_ns: i64) -> bool {
+        let Some((_, newest)) = self.history.span() else {
+            return true;
+        };
+        match self.host_to_gps {
+            Some((o, _)) => {
+                newest.0 <= t0_host.0.saturating_add(o + span_ns + self.lookahead_ns)
+            }
+            None => true,
+        }
+    }
+
+    /// Returns already decoded and timed on the host's clock (a ROS 2 `PointCloud2`): `points`
+    /// fired their `offset_ns` after `t0_host`. The INS poses' host stamps map host time to GPS
+    /// time (the upper envelope of GPS minus host time: the least-delayed pose); without them
+    /// the returns are counted as without time.
+    pub fn points(
+        &mut self,
+        t0_host: HostTime,
+        points: &[Point],
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let index = self.data_seen;
+        self.data_seen = self.data_seen.wrapping_add(1);
+        let Some((o, _)) = self.host_to_gps else {
+            self.stats.packets_without_time += 1;
+            return;
+        };
+        let t0 = GpsTime(t0_host.0.saturating_add(o));
+        let s = t0.as_secs_f64();
+        self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
+        let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
+        self.window(index, t0, Some(points), Some(t0_host), each, emit);
+    }
+
+    /// Georeference and window `points` (None: the packet just decoded) fired after `t0` (INS
+    /// clock), received at `host`.
+    fn window(
+        &mut self,
+        index: u32,
+        t0: GpsTime,
+        points: Option<&[Point]>,
+        host: Option<HostTime>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let points = points.unwrap_or(self.points.as_slice());
         self.stats.data_packets += 1;
         if let (Some(o), Some(h)) = (self.ins_offset_ns, host) {
             self.lag_ns = Some(t0.0.saturating_sub(h.0).saturating_sub(o));
@@ -256,7 +331,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             batches: self.batches,
             stats: self.stats.window,
         };
-        win.add_packet(index, t0, &self.points, self.history, each);
+        win.add_packet(index, t0, points, self.history, each);
         self.stats.window = win.stats;
         self.stats.rollovers = self.clock.rollovers;
         for (i, b) in self.batches.iter_mut().enumerate() {

@@ -17,7 +17,7 @@
 use crate::align::{AlignError, Motion, PoseHistory};
 use crate::georef::{Mount, PlatformPose};
 use crate::time::GpsTime;
-use crate::velodyne::PointBuf;
+use crate::velodyne::Point;
 use nalgebra::{Matrix3, Vector3};
 
 /// Most targets the core handles.
@@ -290,7 +290,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
         &mut self,
         packet: u32,
         t0: GpsTime,
-        points: &PointBuf,
+        points: &[Point],
         history: &PoseHistory<N>,
         mut each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
     ) {
@@ -314,7 +314,7 @@ impl<const CAP: usize> Windowing<'_, CAP> {
                     })
             })
         };
-        for p in points.as_slice() {
+        for p in points {
             self.stats.points += 1;
             let t = GpsTime(t0.0 + i64::from(p.offset_ns));
             let fresh = seq.as_ref().is_some_and(|s| {

@@ -6,6 +6,7 @@
 //! panic (PROTOCOLS.md "ROS 2 messages").
 
 pub mod cdr;
+pub mod cloud;
 
 use cdr::{Error, Reader};
 

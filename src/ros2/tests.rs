@@ -172,3 +172,111 @@ fn a_common_group_back_into_the_vn200_frame() {
     none.group_fields = 0x0001;
     assert_eq!(none.vn200_frame(None, None, &mut out), None);
 }
+
+const CLOUD: &[u8] = include_bytes!("../../tests/data/ros2/cloud_xyzirt.cdr");
+const CLOUD_BIG: &[u8] = include_bytes!("../../tests/data/ros2/cloud_xyzirt_big_organised.cdr");
+
+#[test]
+fn a_velodyne_pointcloud_cloud_little_and_big_endian_organised_or_not() {
+    use cloud::*;
+    // Written by rosbags (scripts/ros2-vectors.py): x, y, z, intensity, ring, time [s].
+    let want = [
+        (10.0, 0.0, -2.679492, 7.0, 0, -0.05),
+        (0.0, -5.0, 0.0874887, 100.0, 8, -0.0251),
+        (f32::NAN, f32::NAN, f32::NAN, 0.0, 3, 0.0),
+        (-3.0, 4.0, 1.339746, 255.0, 15, 0.001234),
+    ];
+    for (b, height, width) in [(CLOUD, 1, 4), (CLOUD_BIG, 2, 2)] {
+        let c = PointCloud2::parse(b).unwrap();
+        assert_eq!(c.header.stamp, Time { sec: 1_700_000_010, nanosec: 500_000_000 });
+        assert_eq!(c.header.frame_id, "velodyne");
+        assert_eq!((c.height, c.layout.width, c.len()), (height, width, 4));
+        assert_eq!(c.layout.big, height == 2);
+        for (i, w) in want.iter().enumerate() {
+            let Some(p) = c.point(i) else {
+                assert!(w.0.is_nan(), "point {i} is a return");
+                continue;
+            };
+            assert_eq!((p.x, p.y, p.z), (w.0, w.1, w.2), "point {i}");
+            assert_eq!((p.intensity, p.ring), (w.3, w.4));
+            // float32 time (the little-endian cloud) is within a nanosecond of the float64.
+            let t = (w.5 * 1e9_f64).round() as i64;
+            assert!((p.time_ns - t).abs() <= 1, "point {i}: {} ns, want {t}", p.time_ns);
+        }
+        assert_eq!(c.point(4), None);
+    }
+}
+
+#[test]
+fn a_clouds_points_in_the_lidar_frame_with_the_laser_ids() {
+    use crate::velodyne::Model;
+    use cloud::*;
+    let c = PointCloud2::parse(CLOUD).unwrap();
+    let l = Lasers::new(Model::Vlp16);
+    // VLP-16 (manual table 9-1): ring r is laser 2r below the horizon, 2(r - 8) + 1 above.
+    let ids: std::vec::Vec<u8> = (0..16).map(|r| l.laser(r).unwrap()).collect();
+    assert_eq!(ids, [0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15]);
+    assert_eq!(l.laser(16), None);
+    let p0 = l.point(&c.point(0).unwrap(), 7).unwrap();
+    // 10 m ahead on the -15 deg laser (beam-origin offset 11.2 mm, manual table 9-1): the
+    // LiDAR's y (forward), azimuth 0; the driver's offset across the beam (horizontal
+    // d cos v - o sin v, z d sin v + o cos v) back to the manual's (z + o).
+    let (v, o) = ((-15f64).to_radians(), 0.0112);
+    let (h, z) = (10.0 + o * v.sin(), -2.679492 + o * (1.0 - v.cos()));
+    let d = (h * h + (z - o) * (z - o)).sqrt();
+    assert_eq!((p0.x, p0.laser, p0.offset_ns), (0.0, 0, 7));
+    assert!((f64::from(p0.y) - h).abs() < 2e-6, "{}", p0.y);
+    assert!((f64::from(p0.z) - z).abs() < 2e-6, "{}", p0.z);
+    assert!((f64::from(p0.range) - d).abs() < 2e-6 && p0.azimuth.abs() < 1e-6);
+    assert_eq!(p0.distance_raw, (d / 0.002).round() as u16);
+    let p1 = l.point(&c.point(1).unwrap(), 0).unwrap();
+    // 5 m to the right (ROS y = -5): LiDAR x = 5, azimuth 90 deg clockwise from forward.
+    assert_eq!((p1.y, p1.laser, p1.intensity), (0.0, 1, 100));
+    assert!((p1.x - 5.0).abs() < 1e-4, "{}", p1.x);
+    assert!((p1.azimuth - core::f32::consts::FRAC_PI_2).abs() < 1e-6);
+    let p3 = l.point(&c.point(3).unwrap(), 0).unwrap();
+    assert!((p3.azimuth.to_degrees() - 233.130_1).abs() < 1e-3, "{}", p3.azimuth.to_degrees());
+    // A point off its ring's cone (a cloud in another frame), a ring the model has not.
+    let mut off = c.point(0).unwrap();
+    off.z = 0.0;
+    assert_eq!(l.point(&off, 0), Err(PointSkip::Elevation));
+    off.ring = 16;
+    assert_eq!(l.point(&off, 0), Err(PointSkip::Ring));
+    // 32-laser models: the rings are in order of elevation too.
+    for m in [Model::Hdl32e, Model::Vlp32c, Model::PuckHiRes] {
+        let l = Lasers::new(m);
+        let e: std::vec::Vec<f64> = (0..m.lasers() as u16)
+            .map(|r| m.beam(usize::from(l.laser(r).unwrap())).elevation_deg)
+            .collect();
+        assert!(e.windows(2).all(|w| w[0] <= w[1]), "{m:?}: {e:?}");
+    }
+}
+
+#[test]
+fn clouds_spherecal_cannot_read_say_why() {
+    use cloud::*;
+    // The field named "ring" renamed: the layout names what is missing.
+    let mut b = CLOUD.to_vec();
+    let at = b.windows(5).position(|w| w == b"ring\0").unwrap();
+    b[at + 3] = b'x';
+    assert_eq!(
+        PointCloud2::parse(&b).unwrap_err(),
+        CloudError::Layout(LayoutError::Missing("ring"))
+    );
+    assert!(PointCloud2::parse(&b).unwrap_err().to_string().contains("no 'ring' field"));
+    // Cut anywhere: a CDR error with the offset, never a panic.
+    for n in 0..CLOUD.len() {
+        assert!(PointCloud2::parse(&CLOUD[..n]).is_err(), "cut at {n}");
+    }
+    // width claimed larger than the data.
+    let mut b = CLOUD.to_vec();
+    let c = PointCloud2::parse(CLOUD).unwrap();
+    let _ = c;
+    let at = 4 + 8 + 4 + 9 + 3 + 4; // encapsulation, stamp, frame_id (len + "velodyne\0" + pad), height
+    assert_eq!(u32::from_le_bytes(b[at..at + 4].try_into().unwrap()), 4, "width's offset");
+    b[at] = 40;
+    assert!(matches!(
+        PointCloud2::parse(&b).unwrap_err(),
+        CloudError::Layout(LayoutError::Size { data: 88, needed: 880 })
+    ));
+}

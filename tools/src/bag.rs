@@ -10,6 +10,8 @@ use std::path::Path;
 
 /// The Velodyne driver's raw packets.
 pub const SCAN: &str = "velodyne_msgs/msg/VelodyneScan";
+/// velodyne_pointcloud's points (read when no raw packets were recorded).
+pub const CLOUD: &str = "sensor_msgs/msg/PointCloud2";
 /// The VectorNav driver's Common group.
 pub const COMMON: &str = "vectornav_msgs/msg/CommonGroup";
 /// ... its INS group (PosU).
@@ -20,8 +22,8 @@ pub const ATTITUDE: &str = "vectornav_msgs/msg/AttitudeGroup";
 /// Why a topic of a known type is not read.
 fn not_read(type_name: &str) -> Option<&'static str> {
     Some(match type_name {
-        "sensor_msgs/msg/PointCloud2" => {
-            "points computed by the driver, not its packets: not read (record the raw packets, velodyne_msgs/msg/VelodyneScan, e.g. /velodyne_packets)"
+        CLOUD => {
+            "points computed by the driver: read only when no VelodyneScan topic was recorded (the raw packets keep the sensor's clock and full precision)"
         }
         "sensor_msgs/msg/Imu" | "sensor_msgs/msg/NavSatFix" | "sensor_msgs/msg/TimeReference" | "geometry_msgs/msg/PoseWithCovarianceStamped" => {
             "no GPS time of the solution and no INS mode: refused as a trajectory (record the VectorNav driver's vectornav_msgs/msg/CommonGroup, e.g. /vectornav/raw/common)"
@@ -37,8 +39,10 @@ fn not_read(type_name: &str) -> Option<&'static str> {
 /// The topics a calibration reads.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Chosen {
-    /// The LiDAR's scans, and why this topic.
+    /// The LiDAR's scans (or point clouds), and why this topic.
     pub lidar: Option<(String, String)>,
+    /// The LiDAR topic holds point clouds, not packets.
+    pub lidar_cloud: bool,
     /// The INS's Common group, and why.
     pub common: Option<(String, String)>,
     /// Its INS group (PosU), if recorded.
@@ -109,8 +113,21 @@ pub fn choose(
         let v: Vec<&TopicStats> = topics.iter().filter(|t| t.topic.type_name == ty).collect();
         (v.len() == 1).then(|| v[0].topic.name.clone())
     };
+    let type_of = |n: &str| {
+        topics
+            .iter()
+            .find(|t| t.topic.name == n)
+            .map(|t| t.topic.type_name.as_str())
+    };
+    // Raw packets first; a named topic may be either.
+    let lidar_cloud = match lidar_topic {
+        Some(n) => type_of(n) == Some(CLOUD),
+        None => pick(topics, SCAN, None, "--lidar-topic")?.is_none(),
+    };
+    let lidar_type = if lidar_cloud { CLOUD } else { SCAN };
     Ok(Chosen {
-        lidar: pick(topics, SCAN, lidar_topic, "--lidar-topic")?,
+        lidar: pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
+        lidar_cloud,
         common: pick(topics, COMMON, ins_topic, "--ins-topic")?,
         ins: only(INS),
         attitude: only(ATTITUDE),
@@ -152,7 +169,24 @@ impl Opened {
             .lidar
             .as_ref()
             .map(|l| l.0.as_str())
-            .ok_or_else(|| self.missing("LiDAR", SCAN).into())
+            .ok_or_else(|| self.missing("LiDAR", &format!("{SCAN} or {CLOUD}")).into())
+    }
+
+    /// Whether the LiDAR topic holds point clouds.
+    pub fn lidar_is_cloud(&self) -> bool {
+        self.chosen.lidar.is_some() && self.chosen.lidar_cloud
+    }
+
+    /// The LiDAR source of a topic of point clouds: their returns, the rings read as `model`'s.
+    pub fn clouds(
+        &self,
+        model: spherecal::velodyne::Model,
+    ) -> Result<spherecal_hal::rosbag::clouds::CloudChunks, crate::Error> {
+        let t = self.lidar()?;
+        Ok(spherecal_hal::rosbag::clouds::CloudChunks::new(
+            self.bag.messages(&[t]),
+            model,
+        ))
     }
 
     /// The INS topic, or why there is none.
@@ -273,6 +307,7 @@ impl Opened {
             o,
             "LiDAR: {}",
             match &self.chosen.lidar {
+                Some((t, why)) if self.chosen.lidar_cloud => format!("{t} ({why}), velodyne_pointcloud's returns (x y z ring time); clock: the host's (the cloud's stamp plus each point's time), mapped to GPS time by the INS messages' stamps, the time offset estimated; lost against packets: the sensor's clock, the azimuth's precision (0.01 deg), returns inside the driver's min_range"),
                 Some((t, why)) => format!("{t} ({why}); clock: PPS unknown (ROS 2 bag: the driver does not record the position packets), the hour from the INS's GPS time, the time offset estimated"),
                 None => "none".into(),
             }
@@ -297,7 +332,11 @@ impl Opened {
     fn role(&self, name: &str, type_name: &str) -> String {
         let is = |c: &Option<(String, String)>| c.as_ref().is_some_and(|c| c.0 == name);
         if is(&self.chosen.lidar) {
-            return "read: the LiDAR's packets".into();
+            return if self.chosen.lidar_cloud {
+                "read: the LiDAR's returns (point clouds)".into()
+            } else {
+                "read: the LiDAR's packets".into()
+            };
         }
         if is(&self.chosen.common) {
             return "read: the INS's time, attitude, position and status".into();
@@ -308,7 +347,7 @@ impl Opened {
         if self.chosen.attitude.as_deref() == Some(name) {
             return "read: the filter's attitude sigmas (YprU)".into();
         }
-        if type_name == SCAN || type_name == COMMON {
+        if type_name == SCAN || type_name == COMMON || (type_name == CLOUD && self.chosen.lidar_cloud) {
             return "not read: another topic of this type was chosen".into();
         }
         not_read(type_name).map_or_else(
@@ -342,9 +381,17 @@ pub fn decode_bag(
     let err = crate::decode::DecodeError::at(path);
     let files = crate::pipeline::Files::from(path);
     let open = || {
-        crate::pipeline::open_captures(&files, lidar_topic)
+        crate::pipeline::open_captures(&files, lidar_topic, model)
             .map_err(|e| err(crate::decode::DecodeFailure::Bag(e.to_string())))
     };
+    if let crate::pipeline::Captures::Clouds(mut c) = open()? {
+        let how = match model {
+            Some(_) => "given with --model",
+            None => "a point cloud's rings read as a VLP-16's (say --model otherwise)",
+        };
+        return decode_clouds(&mut c, csv, how)
+            .map_err(|e| err(crate::decode::DecodeFailure::Bag(e)));
+    }
     let chosen = match model {
         Some(m) => Some((m, "given with --model".into())),
         None => crate::decode::identify_source(open()?, spherecal_hal::velodyne::Ports::default())
@@ -358,4 +405,48 @@ pub fn decode_bag(
             spherecal_hal::pcap::PcapError::from(e),
         ))
     })
+}
+
+/// Decode a bag's point clouds: their returns (CSV rows as for packets, the packet column
+/// numbering chunks of returns, the time the host's in the hour).
+fn decode_clouds(
+    c: &mut spherecal_hal::rosbag::clouds::CloudChunks,
+    mut csv: Option<&mut dyn std::io::Write>,
+    how: &str,
+) -> Result<crate::decode::DecodeSummary, String> {
+    let model = c.model();
+    let mut s = crate::decode::DecodeSummary {
+        model: Some((model, how.into())),
+        ..Default::default()
+    };
+    let io = |e: std::io::Error| e.to_string();
+    if let Some(w) = csv.as_deref_mut() {
+        writeln!(w, "{}", crate::decode::CSV_HEADER).map_err(io)?;
+    }
+    let mut chunk = spherecal_hal::rosbag::clouds::Chunk::default();
+    let mut line = Vec::with_capacity(64 * 96);
+    const HOUR_NS: i64 = 3_600_000_000_000;
+    loop {
+        match c.next_chunk(&mut chunk) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => {
+                s.stopped = Some(e.to_string());
+                break;
+            }
+        }
+        if let Some(w) = csv.as_deref_mut() {
+            let ts = chunk.t0.0.rem_euclid(HOUR_NS) as u64;
+            crate::decode::write_rows(w, &mut line, s.data_packets, ts, model, chunk.points())
+                .map_err(io)?;
+        }
+        s.points += chunk.points().len() as u64;
+        s.data_packets += 1;
+    }
+    if let Some(w) = csv {
+        w.flush().map_err(io)?;
+    }
+    s.clouds = Some(c.stats.clouds);
+    s.skips = c.stats.skips.clone();
+    Ok(s)
 }

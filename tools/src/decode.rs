@@ -4,7 +4,7 @@
 
 use spherecal::time::UtcDateTime;
 use spherecal::velodyne::{
-    self, DataPacket, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode,
+    self, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode,
 };
 use spherecal_hal::pcap::{PcapError, PcapSource};
 use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
@@ -47,6 +47,8 @@ pub struct DecodeSummary {
     pub skips: SkipStats,
     /// A file that stopped early: where and why.
     pub stopped: Option<String>,
+    /// A bag of point clouds: how many were read (its returns are not in packets).
+    pub clouds: Option<u64>,
 }
 
 /// Why decoding could not start.
@@ -312,7 +314,8 @@ pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
                     Ok(n) => {
                         if let Some(w) = csv.as_deref_mut() {
                             let m = model.unwrap_or_default();
-                            write_rows(w, &mut line, s.data_packets, &packet, m, &points)?;
+                            let ts_ns = u64::from(packet.timestamp_us()) * 1000;
+                            write_rows(w, &mut line, s.data_packets, ts_ns, m, points.as_slice())?;
                         }
                         s.points += n as u64;
                         if let Ok(m) = packet.return_mode() {
@@ -357,20 +360,20 @@ pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
     Ok(s)
 }
 
-/// One CSV row per point of the packet, written at once. Numbers are formatted by hand
-/// ([`push_u64`], [`push_fixed`]): the float formatter costs ~100 ns a number, five times the
-/// budget of a row at 5 M rows/s.
-fn write_rows(
+/// One CSV row per point of packet (or cloud chunk) `index`, whose returns fired after
+/// `ts_ns` [ns in the hour], written at once. Numbers are formatted by hand ([`push_u64`],
+/// [`push_fixed`]): the float formatter costs ~100 ns a number, five times the budget of a row
+/// at 5 M rows/s.
+pub(crate) fn write_rows(
     w: &mut dyn Write,
     line: &mut Vec<u8>,
     index: u64,
-    packet: &DataPacket<&[u8]>,
+    ts_ns: u64,
     model: Model,
-    points: &PointBuf,
+    points: &[velodyne::Point],
 ) -> io::Result<()> {
-    let ts_ns = u64::from(packet.timestamp_us()) * 1000;
     line.clear();
-    for p in points.as_slice() {
+    for p in points {
         let t = ts_ns + u64::from(p.offset_ns);
         let mm = u64::from(p.distance_raw) * (model.distance_unit_m() * 1000.0) as u64;
         for v in [
@@ -493,6 +496,13 @@ impl DecodeSummary {
         let _ = writeln!(o, "file: {path}");
         if let Some(w) = self.truncation(path) {
             let _ = writeln!(o, "{w}");
+        }
+        if let Some(n) = self.clouds {
+            let _ = writeln!(
+                o,
+                "point clouds: {n} (returns the driver computed, timed on the host's clock; the packet column counts chunks of up to {} returns)",
+                spherecal_hal::rosbag::clouds::CHUNK
+            );
         }
         let _ = write!(o, "data packets: {}", self.data_packets);
         for (m, n) in &self.return_modes {

@@ -116,7 +116,7 @@ impl CorePath {
                 continue;
             };
             if decode(&p, points).is_ok() {
-                win.add_packet(0, t0, points, &self.history, None);
+                win.add_packet(0, t0, points.as_slice(), &self.history, None);
             }
         }
         for b in win.batches.iter_mut() {

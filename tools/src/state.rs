@@ -34,6 +34,9 @@ pub struct ClockState {
     /// state is unknown rather than absent.
     #[serde(default)]
     pub bag: bool,
+    /// The bag's LiDAR topic holds point clouds: returns timed on the host's clock.
+    #[serde(default)]
+    pub clouds: bool,
     /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
     /// them, wrapped into the hour [s], the smallest and largest. A PPS-synchronised LiDAR and
     /// an NTP-synchronised recorder keep it at minus a few ms, constant; a free-running LiDAR
@@ -118,6 +121,9 @@ impl ClockState {
     /// One line for people.
     pub fn describe(&self) -> String {
         let n = self.packets();
+        if self.clouds {
+            return "host clock (ROS 2 point clouds: each return at its cloud's stamp plus its time; no LiDAR clock or PPS is recorded), mapped to GPS time by the INS messages' stamps (the least-delayed); the rest is the estimated time offset".into();
+        }
         if n == 0 && self.bag {
             let mut o = String::from(
                 "PPS unknown (ROS 2 bag: the driver records no position packet, so the LiDAR clock cannot be checked)",

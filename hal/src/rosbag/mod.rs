@@ -10,6 +10,7 @@
 
 mod mcap_file;
 mod metadata;
+pub mod clouds;
 pub mod sources;
 #[cfg(feature = "sqlite")]
 mod sqlite_file;

@@ -155,6 +155,34 @@ impl<'a> RingAligner<'a> {
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
+        self.pull_poses(host, ic, |core| core.wants_poses(p));
+        self.core.data(p, host, each, emit);
+    }
+
+    /// Returns of a point cloud, timed on the host's clock: poses are pulled as for
+    /// [`Self::data`], then the core aligns them ([`CoreAligner::points`]).
+    pub fn points(
+        &mut self,
+        c: &spherecal_hal::rosbag::clouds::Chunk,
+        ic: &mut Consumer<'_, InsItem>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let span = c.span_ns();
+        self.pull_poses(Some(c.t0), ic, |core| {
+            core.wants_poses_at_host(c.t0, span)
+        });
+        self.core.points(c.t0, c.points(), each, emit);
+    }
+
+    /// Pull poses while `wants` says so, the INS has not ended and (live) the deadline after
+    /// `host` has not passed.
+    fn pull_poses(
+        &mut self,
+        host: Option<HostTime>,
+        ic: &mut Consumer<'_, InsItem>,
+        wants: impl Fn(&CoreAligner<'a, HISTORY, BATCH>) -> bool,
+    ) {
         let deadline = match self.wait {
             InsWait::UntilEnd => None,
             InsWait::Latency(d) => {
@@ -164,7 +192,7 @@ impl<'a> RingAligner<'a> {
             }
         };
         let mut backoff = super::Backoff::default();
-        while !self.ins_done && self.core.wants_poses(p) {
+        while !self.ins_done && wants(&self.core) {
             match ic.dequeue() {
                 Some(it) => {
                     self.take(it);
@@ -177,7 +205,6 @@ impl<'a> RingAligner<'a> {
                 },
             }
         }
-        self.core.data(p, host, each, emit);
     }
 
     /// Hand on what the batches still hold.

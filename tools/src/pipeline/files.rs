@@ -123,7 +123,12 @@ pub enum Captures {
     Pcap(Box<PcapChain>),
     /// A bag's scans.
     Bag(Box<spherecal_hal::rosbag::sources::ScanPackets>),
+    /// A bag's point clouds (returns, not packets).
+    Clouds(Box<spherecal_hal::rosbag::clouds::CloudChunks>),
 }
+
+/// What a bag of point clouds cannot give.
+pub const CLOUDS_HOLD_NO_PACKETS: &str = "this bag's LiDAR topic is sensor_msgs/msg/PointCloud2: points the driver computed, not its packets; it can be decoded, georeferenced and calibrated from, not replayed as packets (record velodyne_msgs/msg/VelodyneScan, e.g. /velodyne_packets, for that)";
 
 /// Why a capture or a bag stopped being read.
 #[derive(Debug)]
@@ -144,6 +149,7 @@ impl PacketSource for Captures {
         match self {
             Captures::Pcap(c) => c.next_record().map_err(|e| CaptureError(e.to_string())),
             Captures::Bag(b) => b.next_record().map_err(|e| CaptureError(e.to_string())),
+            Captures::Clouds(_) => Err(CaptureError(CLOUDS_HOLD_NO_PACKETS.into())),
         }
     }
 }
@@ -157,10 +163,20 @@ pub fn as_bag(files: &Files) -> Option<&Path> {
 }
 
 /// The capture(s) `files` names (see [`expand_files`]) as one source in time order; or a
-/// ROS 2 bag's scans (`lidar_topic`, else the only `VelodyneScan` topic).
-pub fn open_captures(files: &Files, lidar_topic: Option<&str>) -> Result<Captures, crate::Error> {
+/// ROS 2 bag's scans or point clouds (`lidar_topic`, else the only `VelodyneScan` topic, else
+/// the only `PointCloud2` one; a cloud's rings are read as `model`'s, by default a VLP-16's).
+pub fn open_captures(
+    files: &Files,
+    lidar_topic: Option<&str>,
+    model: Option<Model>,
+) -> Result<Captures, crate::Error> {
     if let Some(bag) = as_bag(files) {
         let b = crate::bag::open(bag, lidar_topic, None, false)?;
+        if b.lidar_is_cloud() {
+            return Ok(Captures::Clouds(Box::new(
+                b.clouds(model.unwrap_or(Model::Vlp16))?,
+            )));
+        }
         return Ok(Captures::Bag(Box::new(b.packets()?)));
     }
     PcapChain::open(&files.expand()?)
@@ -170,7 +186,7 @@ pub fn open_captures(files: &Files, lidar_topic: Option<&str>) -> Result<Capture
 
 /// The GPS week of the first RMC date in a capture (for SBET times).
 pub fn week_from_capture(pcap: &Files, leap: i64) -> Option<u16> {
-    let mut src = open_captures(pcap, None).ok()?;
+    let mut src = open_captures(pcap, None, None).ok()?;
     while let Ok(Some(rec)) = src.next_record() {
         if let Record::Udp(d) = rec {
             if let Ok(Vlp16Packet::Position { packet, .. }) = classify(&d, Ports::default()) {

@@ -2,6 +2,7 @@
 //! [`LidarPacket`]), and poses ([`InsItem`]).
 
 use super::*;
+use spherecal_hal::rosbag::clouds::Chunk;
 
 /// What a LiDAR ring item holds (set once, by its checked constructors).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -10,6 +11,8 @@ pub enum LidarKind {
     Data,
     /// A position packet (its first 512 bytes).
     Position,
+    /// Returns of a point cloud.
+    Points,
     /// The stream ended.
     End,
 }
@@ -22,8 +25,15 @@ pub struct LidarItem {
     kind: LidarKind,
     /// When the host received it, if known.
     pub host: Option<HostTime>,
-    /// The payload (data: all 1206 bytes; position: the first 512).
-    bytes: [u8; 1206],
+    payload: Payload,
+}
+
+/// What an item holds: a packet's bytes (data: all 1206; position: the first 512), or a
+/// cloud's returns (about as many bytes).
+#[derive(Clone)]
+enum Payload {
+    Bytes([u8; 1206]),
+    Points(Chunk),
 }
 
 /// The checked packet a [`LidarItem`] holds.
@@ -32,6 +42,8 @@ pub enum LidarPacket<'a> {
     Data(DataPacket<&'a [u8]>),
     /// A position packet (its first 512 bytes).
     Position(PositionPacket<&'a [u8]>),
+    /// Returns of a point cloud, timed on the host's clock.
+    Points(&'a Chunk),
     /// The stream ended.
     End,
 }
@@ -41,7 +53,20 @@ impl LidarItem {
         let mut bytes = [0u8; 1206];
         let n = payload.len().min(bytes.len());
         bytes[..n].copy_from_slice(&payload[..n]);
-        Self { kind, host, bytes }
+        Self {
+            kind,
+            host,
+            payload: Payload::Bytes(bytes),
+        }
+    }
+
+    /// Returns of a point cloud.
+    pub fn points(c: &Chunk) -> Self {
+        Self {
+            kind: LidarKind::Points,
+            host: Some(c.t0),
+            payload: Payload::Points(*c),
+        }
     }
 
     /// A data packet received at `host`.
@@ -70,12 +95,15 @@ impl LidarItem {
 
     /// The checked packet it holds (its lengths are fixed: no view can index out of it).
     pub fn packet(&self) -> LidarPacket<'_> {
-        match self.kind {
-            LidarKind::Data => LidarPacket::Data(DataPacket::new_unchecked(&self.bytes[..])),
-            LidarKind::Position => {
-                LidarPacket::Position(PositionPacket::new_unchecked(&self.bytes[..512]))
+        match (&self.payload, self.kind) {
+            (Payload::Bytes(b), LidarKind::Data) => {
+                LidarPacket::Data(DataPacket::new_unchecked(&b[..]))
             }
-            LidarKind::End => LidarPacket::End,
+            (Payload::Bytes(b), LidarKind::Position) => {
+                LidarPacket::Position(PositionPacket::new_unchecked(&b[..512]))
+            }
+            (Payload::Points(c), _) => LidarPacket::Points(c),
+            _ => LidarPacket::End,
         }
     }
 }

@@ -27,7 +27,7 @@ pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
 pub use readers::{
-    end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose, Accept, InsEnd,
+    cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose, Accept, InsEnd,
     InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 pub use stats::RunStats;
@@ -155,7 +155,13 @@ pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Err
         return Ok(Some((m, "given with --model".into())));
     }
     if crate::pipeline::as_bag(&inp.pcap).is_some() {
-        let src = open_captures(&inp.pcap, inp.lidar_topic.as_deref())?;
+        let src = open_captures(&inp.pcap, inp.lidar_topic.as_deref(), None)?;
+        if matches!(src, Captures::Clouds(_)) {
+            return Ok(Some((
+                Model::Vlp16,
+                "a point cloud's rings read as a VLP-16's (say --model otherwise)".into(),
+            )));
+        }
         return crate::decode::identify_source(src, inp.ports)
             .map_err(|e| format!("{}: {e}", inp.pcap.display()).into());
     }
@@ -316,8 +322,9 @@ pub fn run<C: Send>(
     let full = [AtomicU64::new(0), AtomicU64::new(0)];
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let model = resolve_model(inp)?.map(|m| m.0);
-    let mut pcap = open_captures(&inp.pcap, inp.lidar_topic.as_deref())?;
-    let from_bag = matches!(pcap, Captures::Bag(_));
+    let mut pcap = open_captures(&inp.pcap, inp.lidar_topic.as_deref(), model)?;
+    let from_bag = matches!(pcap, Captures::Bag(_) | Captures::Clouds(_));
+    let clouds = matches!(pcap, Captures::Clouds(_));
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
     std::thread::scope(|sc| {
@@ -335,9 +342,15 @@ pub fn run<C: Send>(
                 ports: inp.ports,
                 sensor: None,
             };
-            let (skips, r) = lidar_reader(&mut pcap, &mut out, accept, &never);
+            let (skips, r) = match &mut pcap {
+                Captures::Clouds(c) => cloud_reader(c, &mut out),
+                src => {
+                    let (skips, r) = lidar_reader(src, &mut out, accept, &never);
+                    (skips, r.map_err(|e| e.to_string()))
+                }
+            };
             end_lidar(out.ring, &never);
-            r.map(|()| skips).map_err(|e| e.to_string())
+            r.map(|()| skips)
         });
         let (max_gap, keep_untracked) = (inp.max_gap_ns, inp.keep_untracked_ins);
         let ins = sc.spawn(move || {
@@ -392,6 +405,7 @@ pub fn run<C: Send>(
                     }
                     al.data(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
+                LidarPacket::Points(c) => al.points(c, &mut ic, each.as_deref_mut(), &mut emit),
             }
         }
         al.finish(&mut emit);
@@ -410,6 +424,7 @@ pub fn run<C: Send>(
         ];
         let mut stats = al.run_stats(skips, ins, ring_full);
         stats.clock.bag = from_bag;
+        stats.clock.clouds = clouds;
         stats.clock.stamp_minus_host_s = stamp_minus_host.range();
         let c = consumer
             .join()

@@ -77,6 +77,40 @@ pub fn lidar_reader<S: PacketSource>(
     (skips, Ok(()))
 }
 
+/// Every return of a bag's point clouds onto the ring in chunks (a file: waits for room); the
+/// cells and clouds not used are counted by reason. A topic whose returns mostly lie off their
+/// ring's elevation is not in the LiDAR's own frame: an error naming its frame_id.
+pub fn cloud_reader(
+    src: &mut spherecal_hal::rosbag::clouds::CloudChunks,
+    out: &mut LidarRing<'_, '_>,
+) -> (SkipStats, Result<(), String>) {
+    let mut chunk = spherecal_hal::rosbag::clouds::Chunk::default();
+    let r = loop {
+        match src.next_chunk(&mut chunk) {
+            Ok(true) => {
+                if enqueue(out.ring, LidarItem::points(&chunk), out.policy, out.full) {
+                    out.queued.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+            Ok(false) => break Ok(()),
+            Err(e) => break Err(e.to_string()),
+        }
+    };
+    let st = &src.stats;
+    let r = r.and_then(|()| {
+        if st.off_elevation() > 0.5 {
+            return Err(format!(
+                "{:.0} % of the point clouds' returns are not on their ring's elevation for a {}: the clouds are not in the LiDAR's own frame (frame_id '{}'; record velodyne_pointcloud without a target_frame) or the LiDAR is another model (say --model)",
+                100.0 * st.off_elevation(),
+                src.model().name(),
+                st.frame_id.as_deref().unwrap_or("")
+            ));
+        }
+        Ok(())
+    });
+    (st.skips.clone(), r)
+}
+
 /// End the LiDAR ring: wait for room for the End, unless the aligner is `gone`.
 pub fn end_lidar(ring: &mut heapless::spsc::Producer<'_, LidarItem>, gone: &AtomicBool) {
     let mut end = LidarItem::end();

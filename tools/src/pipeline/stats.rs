@@ -33,9 +33,14 @@ impl RunStats {
         let mut o = String::new();
         let _ = write!(
             o,
-            "LiDAR: {}: {} data packets",
+            "LiDAR: {}: {} {}",
             pcap.display(),
-            self.align.data_packets
+            self.align.data_packets,
+            if self.clock.clouds {
+                "chunks of point-cloud returns"
+            } else {
+                "data packets"
+            }
         );
         if let Some(m) = self.model {
             let _ = write!(o, " ({m})");
@@ -109,6 +114,14 @@ impl RunStats {
         };
         if let Some(why) = self.model_problem() {
             return Some(format!("{}: {why}", pcap.display()));
+        }
+        if self.align.data_packets == 0 && self.clock.clouds {
+            return Some(format!(
+                "{}: no point-cloud return could be timed ({} chunks without a time): a cloud's returns are timed on the recording host's clock, and only an INS recorded in the same bag (its messages' stamps) maps that clock to GPS time; {} gives none",
+                pcap.display(),
+                self.align.packets_without_time,
+                ins.display()
+            ));
         }
         if self.align.data_packets == 0 {
             return Some(format!(

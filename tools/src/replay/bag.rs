@@ -31,7 +31,7 @@ pub fn replay_bag(
     speed: Speed,
 ) -> Result<(UdpReplay, Option<u64>), crate::Error> {
     let files = Files::from(bag);
-    let lidar = || crate::pipeline::open_captures(&files, topics.lidar_topic.as_deref());
+    let lidar = || crate::pipeline::open_captures(&files, topics.lidar_topic.as_deref(), None);
     let mut first = None;
     let mut src = lidar()?;
     while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {

@@ -114,7 +114,7 @@ pub fn first_times(
     pcap: impl Into<Files>,
     ins: Option<&Files>,
 ) -> Result<(Option<HostTime>, Option<HostTime>), crate::Error> {
-    let mut src = crate::pipeline::open_captures(&pcap.into(), None)?;
+    let mut src = crate::pipeline::open_captures(&pcap.into(), None, None)?;
     let mut first_udp = None;
     while let Some(rec) = src.next_record().map_err(|e| e.to_string())? {
         if let Record::Udp(d) = rec {
@@ -161,7 +161,7 @@ pub fn replay_udp_on(
     clock: &Pacer<'_>,
 ) -> Result<UdpReplay, crate::Error> {
     send_all(
-        crate::pipeline::open_captures(&pcap.into(), None)?,
+        crate::pipeline::open_captures(&pcap.into(), None, None)?,
         to,
         clock,
     )

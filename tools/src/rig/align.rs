@@ -76,6 +76,7 @@ pub(super) fn align_until_end(
             LidarPacket::End => break,
             LidarPacket::Position(p) => al.position(&p),
             LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
+            LidarPacket::Points(c) => al.points(c, ins_c, None, &mut emit),
         }
         sh.aligned
             .store(al.core.stats.data_packets, Ordering::Relaxed);
