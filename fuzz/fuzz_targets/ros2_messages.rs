@@ -1,9 +1,13 @@
-//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup): an error
-//! or a message, never a panic; a scan's packets are all there when it parses.
+//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup,
+//! AttitudeGroup, PointCloud2): an error or a message, never a panic; a scan's packets are all
+//! there when it parses; every cell of a cloud that parses reads, and becomes a return or a
+//! reason.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use spherecal::ros2::cloud::{Lasers, PointCloud2};
 use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, TimeGroup, VelodyneScan};
+use spherecal::velodyne::Model;
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(s) = VelodyneScan::parse(data) {
@@ -15,4 +19,13 @@ fuzz_target!(|data: &[u8]| {
     let _ = InsGroup::parse(data);
     let _ = TimeGroup::parse(data);
     let _ = AttitudeGroup::parse(data);
+    if let Ok(c) = PointCloud2::parse(data) {
+        let l = Lasers::new(Model::Vlp16);
+        // A cloud claims up to 2^64 cells; its data bounds the ones that can be read.
+        for i in 0..c.len().min(4096) {
+            if let Some(p) = c.point(i) {
+                let _ = l.point(&p, 0);
+            }
+        }
+    }
 });

@@ -18,6 +18,14 @@ fuzz_target!(|data: &[u8]| {
                 let _ = c.vn200_frame(Some([0.1; 3]), Some(0.1), &mut [0u8; VN200_FRAME_MAX]);
             }
         }
+        "sensor_msgs/msg/PointCloud2" => {
+            if let Ok(c) = spherecal::ros2::cloud::PointCloud2::parse(msg) {
+                let l = spherecal::ros2::cloud::Lasers::new(spherecal::velodyne::Model::Vlp16);
+                for p in (0..c.len().min(4096)).filter_map(|i| c.point(i)) {
+                    let _ = l.point(&p, 0);
+                }
+            }
+        }
         "vectornav_msgs/msg/InsGroup" => {
             let _ = InsGroup::parse(msg);
         }

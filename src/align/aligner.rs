@@ -171,7 +171,10 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
                 let e = match self.host_to_gps {
                     Some((e, at)) => {
                         let dt = (s.time.0 - at.0).max(0);
-                        o.max(e - (i128::from(dt) * i128::from(HOST_DRIFT_NS_PER_S) / 1_000_000_000) as i64)
+                        o.max(
+                            e - (i128::from(dt) * i128::from(HOST_DRIFT_NS_PER_S) / 1_000_000_000)
+                                as i64,
+                        )
                     }
                     None => o,
                 };
@@ -270,6 +273,11 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         self.window(index, t0, None, host, each, emit);
     }
 
+    /// GPS time minus host time as the poses' host stamps bound it [ns] (see [`Self::points`]).
+    pub fn host_to_gps_ns(&self) -> Option<i64> {
+        self.host_to_gps.map(|h| h.0)
+    }
+
     /// Whether more poses are needed before returns timed `t0_host` + `span_ns` on the host's
     /// clock can be aligned (see [`Self::wants_poses`]).
     pub fn wants_poses_at_host(&self, t0_host: HostTime, span_ns: i64) -> bool {
@@ -277,9 +285,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             return true;
         };
         match self.host_to_gps {
-            Some((o, _)) => {
-                newest.0 <= t0_host.0.saturating_add(o + span_ns + self.lookahead_ns)
-            }
+            Some((o, _)) => newest.0 <= t0_host.0.saturating_add(o + span_ns + self.lookahead_ns),
             None => true,
         }
     }
@@ -555,6 +561,78 @@ mod tests {
             assert_eq!(stats.position_packets, u64::from(rmc));
             let s = t_packet().as_secs_f64();
             assert_eq!(stats.lidar_span, Some((s, s)));
+        }
+    }
+
+    /// A point cloud's returns on the host's clock: GPS time is the host's plus the upper
+    /// envelope of the poses' GPS minus host stamps (the least-delayed pose), not their mean;
+    /// the bound follows a drifting host clock; without host-stamped poses nothing is timed.
+    #[test]
+    fn host_timed_returns_are_mapped_by_the_least_delayed_pose() {
+        let targets = [Target {
+            center: expected(),
+            radius: 0.1,
+        }];
+        let mut batches = [Batch::<8>::default()];
+        let mut history = PoseHistory::<1024>::new(50_000_000);
+        let mut al = level_aligner(&targets, &mut batches, &mut history);
+        let mut buf = PointBuf::new();
+        velodyne::decode_as(
+            &DataPacket::new_checked(data_packet()).unwrap(),
+            Model::Vlp16,
+            &mut buf,
+        )
+        .unwrap();
+        let t0 = t_packet().0;
+        al.points(HostTime(t0), buf.as_slice(), None, &mut |_, _| {});
+        assert_eq!(
+            (al.stats.packets_without_time, al.stats.data_packets),
+            (1, 0)
+        );
+        // Received 2 ms after their time plus 0 to 1.5 ms of jitter.
+        let jitter = [700_000, 0, 300_000, 1_500_000];
+        for (i, p) in poses(-1.0, 1.0).enumerate() {
+            assert!(al.push_pose(p, Some(HostTime(p.time.0 + 2_000_000 + jitter[i % 4]))));
+        }
+        // The least-delayed pose (3 poses back: the bound has leaked 3 x 5 ms x 100 ppm).
+        let b = al.host_to_gps_ns().unwrap();
+        assert_eq!(b, -2_000_000 - 1_500);
+        assert!(!al.wants_poses_at_host(HostTime(t0 + 2_000_000), 0));
+        let mut seen = Vec::new();
+        al.points(
+            HostTime(t0 + 2_000_000),
+            buf.as_slice(),
+            Some(&mut |g: &GeoPoint| seen.push(*g)),
+            &mut |_, _| {},
+        );
+        assert_eq!(seen.len(), 1);
+        // The firing 2.304 us after the first, on the GPS clock.
+        assert_eq!(seen[0].time.0, t0 + 2_000_000 + b + 2_304);
+        assert!(
+            (seen[0].ned - expected()).norm() < 1e-5,
+            "{:?}",
+            seen[0].ned
+        );
+        assert_eq!(al.stats.data_packets, 1);
+
+        // A host clock gaining 50 ppm (less than the 100 ppm the bound may fall) over 100 s:
+        // the bound keeps within the jitter-free offset's 100 us.
+        let mut history = PoseHistory::<1024>::new(200_000_000);
+        let mut batches = [Batch::<8>::default()];
+        let mut al = level_aligner(&targets, &mut batches, &mut history);
+        for k in 0..1000i64 {
+            let t = t0 + k * 100_000_000;
+            let host = t + 2_000_000 + (k * 100_000_000) / 20_000 + jitter[k as usize % 4];
+            let s = PoseSample::new(GpsTime(t), Vector3::zeros(), &Matrix3::identity());
+            assert!(al.push_pose(s, Some(HostTime(host))));
+            let exact = -2_000_000 - (k * 100_000_000) / 20_000;
+            let b = al.host_to_gps_ns().unwrap();
+            if k >= 4 {
+                assert!(
+                    b <= exact && exact - b <= 100_000,
+                    "pose {k}: {b} vs {exact}"
+                );
+            }
         }
     }
 

@@ -186,22 +186,23 @@ impl Layout {
             return None;
         }
         let t = self.value(data, at, self.time);
-        let time_ns = if self.time.datatype == datatype::FLOAT32
-            || self.time.datatype == datatype::FLOAT64
-        {
-            let ns = t * 1e9;
-            if !ns.is_finite() || ns.abs() > 1e12 {
-                return None;
-            }
-            libm::round(ns) as i64
-        } else {
-            t as i64
-        };
+        let time_ns =
+            if self.time.datatype == datatype::FLOAT32 || self.time.datatype == datatype::FLOAT64 {
+                let ns = t * 1e9;
+                if !ns.is_finite() || ns.abs() > 1e12 {
+                    return None;
+                }
+                libm::round(ns) as i64
+            } else {
+                t as i64
+            };
         Some(CloudPoint {
             x,
             y,
             z,
-            intensity: self.intensity.map_or(0.0, |f| self.value(data, at, f) as f32),
+            intensity: self
+                .intensity
+                .map_or(0.0, |f| self.value(data, at, f) as f32),
             ring: self.value(data, at, self.ring) as u16,
             time_ns,
         })
@@ -290,8 +291,7 @@ impl<'a> PointCloud2<'a> {
         let needed = if height == 0 || width == 0 {
             0
         } else {
-            u64::from(height - 1) * u64::from(row_step)
-                + u64::from(width) * u64::from(point_step)
+            u64::from(height - 1) * u64::from(row_step) + u64::from(width) * u64::from(point_step)
         };
         if u64::from(row_step) < u64::from(width) * u64::from(point_step) && height > 1
             || needed > data.len() as u64
@@ -415,7 +415,7 @@ impl Lasers {
         let (mut x, mut y, z) = (-p.y, p.x, p.z);
         let h = libm::sqrtf(x * x + y * y);
         let r = libm::sqrtf(h * h + z * z);
-        if !(r > 0.0) {
+        if r.is_nan() || r <= 0.0 {
             return Err(PointSkip::NoRange);
         }
         if libm::fabsf(z / r - self.sin_elevation[ring]) > ELEVATION_TOLERANCE_SIN {

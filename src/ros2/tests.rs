@@ -188,7 +188,13 @@ fn a_velodyne_pointcloud_cloud_little_and_big_endian_organised_or_not() {
     ];
     for (b, height, width) in [(CLOUD, 1, 4), (CLOUD_BIG, 2, 2)] {
         let c = PointCloud2::parse(b).unwrap();
-        assert_eq!(c.header.stamp, Time { sec: 1_700_000_010, nanosec: 500_000_000 });
+        assert_eq!(
+            c.header.stamp,
+            Time {
+                sec: 1_700_000_010,
+                nanosec: 500_000_000
+            }
+        );
         assert_eq!(c.header.frame_id, "velodyne");
         assert_eq!((c.height, c.layout.width, c.len()), (height, width, 4));
         assert_eq!(c.layout.big, height == 2);
@@ -201,7 +207,11 @@ fn a_velodyne_pointcloud_cloud_little_and_big_endian_organised_or_not() {
             assert_eq!((p.intensity, p.ring), (w.3, w.4));
             // float32 time (the little-endian cloud) is within a nanosecond of the float64.
             let t = (w.5 * 1e9_f64).round() as i64;
-            assert!((p.time_ns - t).abs() <= 1, "point {i}: {} ns, want {t}", p.time_ns);
+            assert!(
+                (p.time_ns - t).abs() <= 1,
+                "point {i}: {} ns, want {t}",
+                p.time_ns
+            );
         }
         assert_eq!(c.point(4), None);
     }
@@ -235,7 +245,11 @@ fn a_clouds_points_in_the_lidar_frame_with_the_laser_ids() {
     assert!((p1.x - 5.0).abs() < 1e-4, "{}", p1.x);
     assert!((p1.azimuth - core::f32::consts::FRAC_PI_2).abs() < 1e-6);
     let p3 = l.point(&c.point(3).unwrap(), 0).unwrap();
-    assert!((p3.azimuth.to_degrees() - 233.130_1).abs() < 1e-3, "{}", p3.azimuth.to_degrees());
+    assert!(
+        (p3.azimuth.to_degrees() - 233.130_1).abs() < 1e-3,
+        "{}",
+        p3.azimuth.to_degrees()
+    );
     // A point off its ring's cone (a cloud in another frame), a ring the model has not.
     let mut off = c.point(0).unwrap();
     off.z = 0.0;
@@ -263,7 +277,10 @@ fn clouds_spherecal_cannot_read_say_why() {
         PointCloud2::parse(&b).unwrap_err(),
         CloudError::Layout(LayoutError::Missing("ring"))
     );
-    assert!(PointCloud2::parse(&b).unwrap_err().to_string().contains("no 'ring' field"));
+    assert!(PointCloud2::parse(&b)
+        .unwrap_err()
+        .to_string()
+        .contains("no 'ring' field"));
     // Cut anywhere: a CDR error with the offset, never a panic.
     for n in 0..CLOUD.len() {
         assert!(PointCloud2::parse(&CLOUD[..n]).is_err(), "cut at {n}");
@@ -273,10 +290,17 @@ fn clouds_spherecal_cannot_read_say_why() {
     let c = PointCloud2::parse(CLOUD).unwrap();
     let _ = c;
     let at = 4 + 8 + 4 + 9 + 3 + 4; // encapsulation, stamp, frame_id (len + "velodyne\0" + pad), height
-    assert_eq!(u32::from_le_bytes(b[at..at + 4].try_into().unwrap()), 4, "width's offset");
+    assert_eq!(
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap()),
+        4,
+        "width's offset"
+    );
     b[at] = 40;
     assert!(matches!(
         PointCloud2::parse(&b).unwrap_err(),
-        CloudError::Layout(LayoutError::Size { data: 88, needed: 880 })
+        CloudError::Layout(LayoutError::Size {
+            data: 88,
+            needed: 880
+        })
     ));
 }

@@ -347,7 +347,10 @@ impl Opened {
         if self.chosen.attitude.as_deref() == Some(name) {
             return "read: the filter's attitude sigmas (YprU)".into();
         }
-        if type_name == SCAN || type_name == COMMON || (type_name == CLOUD && self.chosen.lidar_cloud) {
+        if type_name == SCAN
+            || type_name == COMMON
+            || (type_name == CLOUD && self.chosen.lidar_cloud)
+        {
             return "not read: another topic of this type was chosen".into();
         }
         not_read(type_name).map_or_else(

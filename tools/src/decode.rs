@@ -3,9 +3,7 @@
 //! its packet period: [`identify_file`]) or as the one given.
 
 use spherecal::time::UtcDateTime;
-use spherecal::velodyne::{
-    self, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode,
-};
+use spherecal::velodyne::{self, Detector, Identity, Model, PointBuf, PpsStatus, ReturnMode};
 use spherecal_hal::pcap::{PcapError, PcapSource};
 use spherecal_hal::velodyne::{classify, Ports, SkipStats, Vlp16Packet};
 use spherecal_hal::{PacketSource, Record};

@@ -113,7 +113,7 @@ fn steady_state() {
         }
         let t0 = clock.to_gps(dp.timestamp_us()).unwrap();
         decode(&dp, &mut points).unwrap();
-        win.add_packet(0, t0, &points, &history, None);
+        win.add_packet(0, t0, points.as_slice(), &history, None);
         n += 1;
     }
     let after = ALLOCS.load(Ordering::Relaxed);

@@ -9,7 +9,7 @@
 use super::{BagError, Messages};
 use crate::packet::{HostTime, SkipReason};
 use crate::velodyne::SkipStats;
-use spherecal::ros2::cloud::{Layout, Lasers, PointCloud2, PointSkip};
+use spherecal::ros2::cloud::{Lasers, Layout, PointCloud2, PointSkip};
 use spherecal::velodyne::{Model, Point};
 
 /// Returns per chunk (a chunk is one LiDAR ring item, about a packet's bytes).

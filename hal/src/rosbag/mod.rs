@@ -8,9 +8,9 @@
 //! zstd- or lz4-compressed. A bag compressed as a whole by rosbag2 (`compression_mode: FILE`
 //! or `MESSAGE`) is refused with how to decompress it.
 
+pub mod clouds;
 mod mcap_file;
 mod metadata;
-pub mod clouds;
 pub mod sources;
 #[cfg(feature = "sqlite")]
 mod sqlite_file;

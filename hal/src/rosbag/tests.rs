@@ -380,3 +380,60 @@ fn a_buffer_smaller_than_a_frame_is_an_error() {
         "{e}"
     );
 }
+
+/// The MRPT capture's first two clouds (velodyne_pointcloud's XYZIRT, by scripts/ros2-bag.py
+/// --clouds, zstd MCAP): every return in chunks of at most CHUNK, each at its cloud's stamp
+/// plus its own time (read here through the view, independently of the chunking).
+#[test]
+fn clouds_come_in_chunks_at_their_points_times() {
+    use super::clouds::{Chunk, CloudChunks, CHUNK};
+    use spherecal::ros2::cloud::PointCloud2;
+    let bag = Bag::open(&data("mrpt_vlp16_clouds.mcap")).unwrap();
+    // Every return's absolute time [host ns], in order, straight from the messages.
+    let (mut times, mut want_chunks) = (Vec::new(), 0);
+    let mut msgs = bag.messages(&["/velodyne_points"]);
+    while let Some(m) = msgs.next().unwrap() {
+        let c = PointCloud2::parse(m.data).unwrap();
+        let stamp = c.header.stamp.ns();
+        let before = times.len();
+        times.extend(
+            (0..c.len())
+                .filter_map(|i| c.point(i))
+                .map(|p| stamp + p.time_ns),
+        );
+        want_chunks += (times.len() - before).div_ceil(CHUNK);
+    }
+    assert_eq!(times.len(), 28_556);
+    let mut src = CloudChunks::new(
+        bag.messages(&["/velodyne_points"]),
+        spherecal::velodyne::Model::Vlp16,
+    );
+    let mut chunk = Chunk::default();
+    let (mut n, mut chunks) = (0usize, 0);
+    while src.next_chunk(&mut chunk).unwrap() {
+        chunks += 1;
+        assert!(!chunk.points().is_empty() && chunk.points().len() <= CHUNK);
+        for p in chunk.points() {
+            assert_eq!(chunk.t0.0 + i64::from(p.offset_ns), times[n], "return {n}");
+            n += 1;
+        }
+    }
+    assert_eq!(
+        (n, src.stats.returns, src.stats.clouds),
+        (28_556, 28_556, 2)
+    );
+    assert_eq!(chunks, want_chunks, "a chunk ends with its cloud");
+    assert_eq!(src.stats.skips.total(), 0);
+    assert_eq!(src.stats.frame_id.as_deref(), Some("velodyne"));
+    // Read as a 32-laser model's rings, the VLP-16's points are off their rings' elevations.
+    let mut src = CloudChunks::new(
+        bag.messages(&["/velodyne_points"]),
+        spherecal::velodyne::Model::Hdl32e,
+    );
+    while src.next_chunk(&mut chunk).unwrap() {}
+    assert!(
+        src.stats.off_elevation() > 0.5,
+        "{}",
+        src.stats.off_elevation()
+    );
+}

@@ -169,9 +169,7 @@ impl<'a> RingAligner<'a> {
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
         let span = c.span_ns();
-        self.pull_poses(Some(c.t0), ic, |core| {
-            core.wants_poses_at_host(c.t0, span)
-        });
+        self.pull_poses(Some(c.t0), ic, |core| core.wants_poses_at_host(c.t0, span));
         self.core.points(c.t0, c.points(), each, emit);
     }
 

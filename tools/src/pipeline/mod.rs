@@ -27,8 +27,8 @@ pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
 pub use readers::{
-    cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose, Accept, InsEnd,
-    InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
+    cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose,
+    Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
 };
 pub use stats::RunStats;
 

@@ -215,3 +215,87 @@ fn a_bag_of_the_mrpt_capture_decodes_as_the_capture() {
         "{err}"
     );
 }
+
+/// velodyne_pointcloud's clouds of the MRPT capture (written by scripts/ros2-bag.py --clouds,
+/// which decodes the packets itself with the driver's conventions): every return is one the
+/// capture's decoding has (same laser and distance), where the capture puts it up to the
+/// driver's 0.01 deg azimuth rounding; the returns inside its 0.9 m min_range are the only
+/// ones missing.
+#[test]
+fn a_bag_of_point_clouds_decodes_to_the_captures_returns() {
+    let bag = common::test_data("ros2/bags/mrpt_vlp16_clouds.mcap");
+    let (from_bag, from_pcap) = (tmp("mrpt-clouds.csv"), tmp("mrpt-pcap-2.csv"));
+    let out = common::stdout_of(
+        common::spherecal()
+            .args(["decode", "--bag"])
+            .arg(&bag)
+            .arg("--csv")
+            .arg(&from_bag),
+    );
+    assert!(out.contains("point clouds: 2"), "{out}");
+    assert!(out.contains("skipped: 0"), "{out}");
+    common::stdout_of(
+        common::spherecal()
+            .arg("decode")
+            .arg(common::test_data("vlp16/mrpt_vlp16_gps.pcap"))
+            .arg("--csv")
+            .arg(&from_pcap),
+    );
+    let rows = |p: &std::path::Path| -> Vec<Vec<String>> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect()
+    };
+    let f = |r: &[String], i: usize| r[i].parse::<f64>().unwrap();
+    // Columns: packet, block, sequence, laser, return, time, azimuth, elevation, distance,
+    // intensity, x, y, z. The two clouds hold the first 2 x 76 packets.
+    let pcap: Vec<Vec<String>> = rows(&from_pcap)
+        .into_iter()
+        .filter(|r| f(r, 0) < 152.0)
+        .collect();
+    let mut by_key: std::collections::HashMap<(String, String), Vec<&Vec<String>>> =
+        Default::default();
+    for r in &pcap {
+        by_key
+            .entry((r[3].clone(), r[8].clone()))
+            .or_default()
+            .push(r);
+    }
+    let clouds = rows(&from_bag);
+    let in_range = pcap
+        .iter()
+        .filter(|r| (0.9..=130.0).contains(&f(r, 8)))
+        .count();
+    assert_eq!(clouds.len(), in_range, "returns within the driver's range");
+    assert!(out.contains(&format!("points: {in_range}")), "{out}");
+    let mut worst = 0f64;
+    for c in &clouds {
+        let d = f(c, 8);
+        let bound = d * 0.005f64.to_radians() + 2e-6 * d + 1e-6;
+        let near = by_key
+            .get(&(c[3].clone(), c[8].clone()))
+            .into_iter()
+            .flatten()
+            .map(|p| {
+                let da = (f(p, 6) - f(c, 6)).abs();
+                let da = da.min(360.0 - da);
+                let e = ((f(p, 10) - f(c, 10)).powi(2)
+                    + (f(p, 11) - f(c, 11)).powi(2)
+                    + (f(p, 12) - f(c, 12)).powi(2))
+                .sqrt();
+                (da, e)
+            })
+            .filter(|(da, _)| *da <= 0.0051)
+            .map(|(_, e)| e / bound)
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            near <= 1.0,
+            "cloud return {c:?}: nearest capture return {near} x the bound"
+        );
+        worst = worst.max(near);
+    }
+    assert!(worst > 0.5, "the rounding shows ({worst})");
+}
