@@ -149,6 +149,24 @@ VLP16_VERT_OFFSET = [0.0112, -0.0007, 0.0097, -0.0022, 0.0081, -0.0037, 0.0066, 
 VLP16_RING = [(l // 2) if l % 2 == 0 else 8 + l // 2 for l in range(16)]
 
 
+def qmul(a, b):
+    """Hamilton product, quaternions as (x, y, z, w) (tf2's)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def quat_ypr(yaw, pitch, roll):
+    """The FRD-to-NED quaternion (x, y, z, w) of a 3-2-1 yaw, pitch, roll [deg]."""
+    import math
+    h = [math.radians(v) / 2 for v in (yaw, pitch, roll)]
+    qz = (0.0, 0.0, math.sin(h[0]), math.cos(h[0]))
+    qy = (0.0, math.sin(h[1]), 0.0, math.cos(h[1]))
+    qx = (math.sin(h[2]), 0.0, 0.0, math.cos(h[2]))
+    return qmul(qmul(qz, qy), qx)
+
+
 def cloud_of(packets, stamp_ns, min_range=0.9, max_range=130.0):
     """A PointCloud2 (XYZIRT) of VLP-16 data packets [(stamp ns, 1206 bytes)], stamped stamp_ns."""
     raw = np.frombuffer(b"".join(p for _, p in packets), dtype=np.uint8).reshape(len(packets), 1206)
@@ -210,6 +228,10 @@ def main():
                     help="the INS as sensor_msgs Imu + NavSatFix only (no GPS time, no INS mode)")
     ap.add_argument("--clouds", action="store_true",
                     help="the LiDAR as velodyne_pointcloud's PointCloud2 (XYZIRT) on /velodyne_points")
+    ap.add_argument("--time-ref", action="store_true",
+                    help="with --ins-as-imu: also the driver's TimeReference topics (time_gps, time_startup) and imu_uncompensated")
+    ap.add_argument("--imu-ned", action="store_true",
+                    help="with --ins-as-imu: the driver's use_enu false (the sensor's FRD/NED quaternion and force)")
     ap.add_argument("--pcap", help="the capture (default: SURVEY/lidar.pcap)")
     ap.add_argument("--expect", help="write what was put in (packets, first INS samples) as JSON here")
     a = ap.parse_args()
@@ -251,17 +273,38 @@ def main():
         if a.no_ins:
             continue
         if a.ins_as_imu:
+            # As dawonn/vectornav's vn_sensor_msgs publishes them from the group (the same
+            # header): Imu (the attitude quaternion; with its default use_enu, RFU body to ENU:
+            # q_ned2enu * q_frd2ned * q_rfu2frd, the specific force in RFU), NavSatFix (the INS
+            # position, status from the fix), TimeReference vectornav/time_gps (time_ref = the
+            # group's GPS time). The quaternion is made here from the frame's yaw, pitch, roll.
             ypr = [float(v) for v in struct.unpack("<3f", f[3])] if 3 in f else [0.0, 0.0, 0.0]
-            imu = T("sensor_msgs/msg/Imu")(header=msg.header, orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+            q = quat_ypr(*ypr)
+            if a.imu_ned:
+                orient, acc = q, V3(x=0.0, y=0.0, z=-9.81)
+            else:
+                c = (2 ** -0.5, 2 ** -0.5, 0.0, 0.0)
+                orient, acc = qmul(qmul(c, q), c), V3(x=0.0, y=0.0, z=9.81)
+            imu = T("sensor_msgs/msg/Imu")(header=msg.header,
+                orientation=Q(x=orient[0], y=orient[1], z=orient[2], w=orient[3]),
                 orientation_covariance=np.zeros(9), angular_velocity=V3(x=0.0, y=0.0, z=0.0),
-                angular_velocity_covariance=np.zeros(9), linear_acceleration=V3(x=0.0, y=0.0, z=9.8),
+                angular_velocity_covariance=np.zeros(9), linear_acceleration=acc,
                 linear_acceleration_covariance=np.zeros(9))
             msgs.append((host, "/vectornav/imu", "sensor_msgs/msg/Imu", ts.serialize_cdr(imu, "sensor_msgs/msg/Imu")))
+            if a.time_ref:
+                # The uncompensated IMU (another Imu topic, spherecal must choose */imu).
+                msgs.append((host, "/vectornav/imu_uncompensated", "sensor_msgs/msg/Imu", ts.serialize_cdr(imu, "sensor_msgs/msg/Imu")))
             fix = T("sensor_msgs/msg/NavSatFix")(header=msg.header,
-                status=T("sensor_msgs/msg/NavSatStatus")(status=0, service=1),
+                status=T("sensor_msgs/msg/NavSatStatus")(status=0 if msg.insstatus.gps_fix else -1, service=1),
                 latitude=msg.position.x, longitude=msg.position.y, altitude=msg.position.z,
-                position_covariance=np.zeros(9), position_covariance_type=0)
+                position_covariance=np.zeros(9), position_covariance_type=2)
             msgs.append((host, "/vectornav/gnss", "sensor_msgs/msg/NavSatFix", ts.serialize_cdr(fix, "sensor_msgs/msg/NavSatFix")))
+            if a.time_ref:
+                TR = T("sensor_msgs/msg/TimeReference")
+                for topic, ref, src in [("/vectornav/time_gps", msg.timegps, "gps"), ("/vectornav/time_startup", 12345, "startup")]:
+                    tr = TR(header=msg.header, time_ref=stamp(ref), source=src)
+                    msgs.append((host, topic, "sensor_msgs/msg/TimeReference", ts.serialize_cdr(tr, "sensor_msgs/msg/TimeReference")))
+            n_ins += 1
             continue
         if len(expect["ins"]) < 5:
             expect["ins"].append({"host": host, "timegps": msg.timegps,

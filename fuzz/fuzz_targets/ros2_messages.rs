@@ -1,11 +1,12 @@
 //! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup,
-//! AttitudeGroup, PointCloud2): an error or a message, never a panic; a scan's packets are all
+//! AttitudeGroup, PointCloud2, Imu, NavSatFix, TimeReference): an error or a message, never a panic; a scan's packets are all
 //! there when it parses; every cell of a cloud that parses reads, and becomes a return or a
 //! reason.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use spherecal::ros2::cloud::{Lasers, PointCloud2};
+use spherecal::ros2::nav::{Imu, NavSatFix, TimeReference};
 use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, TimeGroup, VelodyneScan};
 use spherecal::velodyne::Model;
 
@@ -19,6 +20,13 @@ fuzz_target!(|data: &[u8]| {
     let _ = InsGroup::parse(data);
     let _ = TimeGroup::parse(data);
     let _ = AttitudeGroup::parse(data);
+    if let Ok(i) = Imu::parse(data) {
+        let _ = (i.enu(), i.vn_quaternion(true));
+    }
+    let _ = NavSatFix::parse(data);
+    if let Ok(r) = TimeReference::parse(data) {
+        let _ = r.gps_minus_host_ns(18);
+    }
     if let Ok(c) = PointCloud2::parse(data) {
         let l = Lasers::new(Model::Vlp16);
         // A cloud claims up to 2^64 cells; its data bounds the ones that can be read.

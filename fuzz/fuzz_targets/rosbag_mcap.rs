@@ -26,6 +26,19 @@ fuzz_target!(|data: &[u8]| {
                 }
             }
         }
+        "sensor_msgs/msg/Imu" => {
+            if let Ok(i) = spherecal::ros2::nav::Imu::parse(msg) {
+                let _ = (i.enu(), i.vn_quaternion(true));
+            }
+        }
+        "sensor_msgs/msg/NavSatFix" => {
+            let _ = spherecal::ros2::nav::NavSatFix::parse(msg);
+        }
+        "sensor_msgs/msg/TimeReference" => {
+            if let Ok(r) = spherecal::ros2::nav::TimeReference::parse(msg) {
+                let _ = r.gps_minus_host_ns(18);
+            }
+        }
         "vectornav_msgs/msg/InsGroup" => {
             let _ = InsGroup::parse(msg);
         }

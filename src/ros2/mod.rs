@@ -7,6 +7,7 @@
 
 pub mod cdr;
 pub mod cloud;
+pub mod nav;
 
 use cdr::{Error, Reader};
 

@@ -11,6 +11,7 @@
 pub mod clouds;
 mod mcap_file;
 mod metadata;
+pub mod nav;
 pub mod sources;
 #[cfg(feature = "sqlite")]
 mod sqlite_file;

@@ -437,3 +437,114 @@ fn clouds_come_in_chunks_at_their_points_times() {
         src.stats.off_elevation()
     );
 }
+
+/// The VectorNav driver's `sensor_msgs` topics (Imu, NavSatFix, TimeReference time_gps of one
+/// stamp; written by scripts/ros2-bag.py --ins-as-imu --time-ref as vn_sensor_msgs publishes
+/// them, with its default use_enu and without) become frames with the groups' GPS time,
+/// position and attitude: the quaternion turned back from RFU/ENU gives the yaw, pitch and
+/// roll the group had (expected.json), to float32 precision.
+#[test]
+fn imu_navsatfix_and_time_reference_become_the_vn200_frames() {
+    use super::nav::NavBytes;
+    use spherecal::align::history::body_to_ned;
+    use spherecal::vn200::binary::Frame;
+    use spherecal::vn200::pose::{Attitude, Pose};
+    let e = expected();
+    let want = e["ins"].as_array().unwrap();
+    for (name, enu) in [
+        ("small_imu_time_ref.mcap", true),
+        ("small_imu_ned_time_ref.mcap", false),
+    ] {
+        let bag = Bag::open(&data(name)).unwrap();
+        let t = ["/vectornav/imu", "/vectornav/gnss", "/vectornav/time_gps"];
+        let mut src = NavBytes::new(bag.messages(&t), t[0], t[1], t[2], 18);
+        let mut buf = [0u8; 4096];
+        let mut k = 0;
+        while let ReadOutcome::Data { len, stamp } = src.read_chunk(&mut buf).unwrap() {
+            let p = Pose::from_frame(&Frame::parse(&buf[..len]).unwrap()).unwrap();
+            if let Some(w) = want.get(k) {
+                assert_eq!(stamp.unwrap().wall.0, w["host"].as_i64().unwrap());
+                assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap());
+                let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
+                for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
+                    assert!(
+                        (g - x.as_f64().unwrap()).abs() < 1e-9,
+                        "{name} {k}: {lla:?}"
+                    );
+                }
+                assert!(matches!(p.attitude, Attitude::Quaternion(_)));
+                let ypr: Vec<f64> = w["ypr"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap().to_radians())
+                    .collect();
+                let from_ypr =
+                    body_to_ned(&Attitude::YawPitchRoll([ypr[0], ypr[1], ypr[2]])).unwrap();
+                let from_q = body_to_ned(&p.attitude).unwrap();
+                assert!(
+                    (from_q - from_ypr).abs().max() < 2e-6,
+                    "{name} {k}: {from_q} vs {from_ypr}"
+                );
+                assert_eq!(
+                    p.ins_status.map(|s| s & 7),
+                    Some(2 | 4),
+                    "tracking with a fix"
+                );
+            }
+            k += 1;
+        }
+        let s = &src.stats;
+        assert_eq!(k as u64, s.frames);
+        assert_eq!(s.messages, [s.frames; 3], "{name}");
+        assert_eq!(
+            s.frames_enu_ned,
+            if enu { [s.frames, 0] } else { [0, s.frames] }
+        );
+        assert_eq!(
+            (s.other_reference, s.no_time, s.incomplete, s.bad),
+            (0, 0, 0, 0)
+        );
+    }
+    // Without the time reference: nothing can be timed.
+    let bag = Bag::open(&data("small_imu.mcap")).unwrap();
+    let t = ["/vectornav/imu", "/vectornav/gnss", "/vectornav/time_gps"];
+    let mut src = NavBytes::new(bag.messages(&t), t[0], t[1], t[2], 18);
+    assert!(matches!(
+        src.read_chunk(&mut [0u8; 256]).unwrap(),
+        ReadOutcome::End
+    ));
+    assert!(src.stats.no_time > 0 && src.stats.frames == 0);
+}
+
+/// A time reference read as GPS time (the VectorNav driver's) or UTC (an NMEA driver's), by
+/// which lies near the host's clock; neither: refused.
+#[test]
+fn a_time_reference_is_gps_or_utc_by_the_hosts_clock() {
+    use spherecal::ros2::nav::TimeReference;
+    use spherecal::ros2::{Header, Time};
+    let host = Time {
+        sec: 1_718_189_965,
+        nanosec: 0,
+    };
+    let r = |sec: i32| TimeReference {
+        header: Header {
+            stamp: host,
+            frame_id: "",
+        },
+        time_ref: Time { sec, nanosec: 500 },
+        source: "gps",
+    };
+    // GPS time 18 s ahead of UTC: Unix = GPS + 315964800 - 18.
+    let gps = 1_718_189_965 - 315_964_800 + 18 + 2;
+    assert_eq!(
+        r(gps).gps_minus_host_ns(18),
+        Some((gps as i64 - 1_718_189_965) * 1_000_000_000 + 500)
+    );
+    let utc = 1_718_189_965 + 2;
+    assert_eq!(
+        r(utc).gps_minus_host_ns(18),
+        Some((utc as i64 - 315_964_800 + 18 - 1_718_189_965) * 1_000_000_000 + 500)
+    );
+    assert_eq!(r(12_345).gps_minus_host_ns(18), None);
+}

@@ -135,7 +135,7 @@ pub enum InsFile {
     /// that dates them until their Group 3 does, and the pose group.
     Posmv(Vec<PathBuf>, Option<u16>, u16),
     /// A ROS 2 bag's VectorNav groups as VN-200 frames.
-    Bag(Box<spherecal_hal::rosbag::sources::Vn200Bytes>),
+    Bag(Box<crate::bag::BagIns>),
 }
 
 impl InsFile {
@@ -150,7 +150,7 @@ impl InsFile {
                     )
                 })?;
                 let b = crate::bag::open(path, None, topic.as_deref(), false)?;
-                Ok(Self::Bag(Box::new(b.vn200()?)))
+                Ok(Self::Bag(Box::new(b.ins(leap)?)))
             }
             InsInput::Vn200(p) => {
                 if let Some(d) = p.0.iter().find(|p| p.is_dir()) {
@@ -296,17 +296,7 @@ pub fn ins_file_reader(
             )
             .map_err(|e| e.to_string())?;
             let mut st = feed.state();
-            let b = &bag.stats;
-            let mut said = format!(
-                "ROS 2 bag: {} CommonGroup messages -> {} VN-200 frames ({} with the filter's PosU and YprU)",
-                b.common, b.frames, b.with_sigmas
-            );
-            if b.empty > 0 {
-                said.push_str(&format!(", {} without any pose field", b.empty));
-            }
-            if let Some(first) = &b.first_bad {
-                said.push_str(&format!(", {} messages not parsed (first: {first})", b.bad));
-            }
+            let said = bag.describe();
             st.bag = Some(said);
             Ok((st, Vec::new()))
         }

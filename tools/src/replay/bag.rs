@@ -49,10 +49,11 @@ pub fn replay_bag(
         )?),
         None => None,
     };
-    let mut ins = opened.as_ref().map(|o| o.vn200()).transpose()?;
+    // The leap seconds turn a UTC time reference into GPS time (18 since 2017).
+    let mut ins = opened.as_ref().map(|o| o.ins(18)).transpose()?;
     // The first INS stamp: a second source over the same messages.
     if let Some(o) = &opened {
-        let mut probe = o.vn200()?;
+        let mut probe = o.ins(18)?;
         if let ReadOutcome::Data { stamp: Some(s), .. } = probe
             .read_chunk(&mut [0u8; 256])
             .map_err(|e| e.to_string())?

@@ -192,20 +192,32 @@ fn table1_from_a_bag_calibrates_as_from_its_capture_and_serial_stream() {
     );
 }
 
-/// velodyne_pointcloud's clouds instead of the packets (scripts/ros2-bag.py --clouds decodes
-/// them itself with the driver's conventions: 0.01 deg azimuths, its beam-origin model, the
-/// ROS frame, times on the host's clock): the calibration is within 1e-3 of the truth, the
-/// clock said to be the host's; an INS without host stamps cannot time them; clouds are not
-/// replayed as packets.
+/// The standard topics only, as many ROS 2 rigs record them: velodyne_pointcloud's clouds
+/// instead of the packets (scripts/ros2-bag.py --clouds decodes them itself with the driver's
+/// conventions: 0.01 deg azimuths, its beam-origin model, the ROS frame, times on the host's
+/// clock) and the VectorNav driver's `sensor_msgs` Imu (RFU/ENU quaternion) + NavSatFix +
+/// TimeReference time_gps instead of its groups: the calibration is within 1e-3 of the truth,
+/// the clock said to be the host's; an INS without host stamps cannot time the clouds; clouds
+/// are not replayed as packets.
 #[test]
-fn table1_from_point_clouds_calibrates_within_1e_3() {
+fn table1_from_point_clouds_and_sensor_msgs_calibrates_within_1e_3() {
     let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
     let d = dir("table1-clouds");
     spherecal_tools::synth::synth(&s, &d).unwrap();
     let truth = s.mount.truth.deg_m().0;
     let site = d.join("site.toml");
     let bag = d.join("clouds");
-    write_bag(&d, &bag, &["--storage", "mcap", "--clouds"]);
+    write_bag(
+        &d,
+        &bag,
+        &[
+            "--storage",
+            "mcap",
+            "--clouds",
+            "--ins-as-imu",
+            "--time-ref",
+        ],
+    );
     let (o, r) = calibrate(
         &[
             "--bag".as_ref(),
@@ -220,6 +232,12 @@ fn table1_from_point_clouds_calibrates_within_1e_3() {
     assert!(o.status.success(), "{t}");
     assert!(t.contains("chunks of point-cloud returns"), "{t}");
     assert!(t.contains("host clock (ROS 2 point clouds"), "{t}");
+    assert!(
+        t.contains(
+            "12901 Imu + 12901 NavSatFix + 12901 TimeReference messages -> 12901 VN-200 frames"
+        ),
+        "{t}"
+    );
     common::assert_within(&common::report_deg_m(&r), &truth, 1e-3, "from the clouds");
     assert_eq!(r["converged"], true);
     // The bag's INS stamps are the GPS time + 2 ms (the script's --ins-lag), the clouds' the
@@ -234,7 +252,8 @@ fn table1_from_point_clouds_calibrates_within_1e_3() {
     let info = common::stdout_of(common::spherecal().args(["bag", "info"]).arg(&bag));
     assert!(
         info.contains("/velodyne_points (sensor_msgs/msg/PointCloud2): 620 messages")
-            && info.contains("read: the LiDAR's returns (point clouds)"),
+            && info.contains("read: the LiDAR's returns (point clouds)")
+            && info.contains("INS: /vectornav/imu + /vectornav/gnss + /vectornav/time_gps"),
         "{info}"
     );
     // An INS without the recording host's stamps cannot time a cloud.

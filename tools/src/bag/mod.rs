@@ -4,6 +4,9 @@
 //! the VectorNav driver's `CommonGroup` (with `InsGroup` PosU and `AttitudeGroup` YprU) as the
 //! VN-200 stream (DESIGN.md "ROS 2 bags").
 
+mod ins;
+
+pub use ins::BagIns;
 use spherecal_hal::rosbag::{Bag, TopicStats};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -16,6 +19,12 @@ pub const CLOUD: &str = "sensor_msgs/msg/PointCloud2";
 pub const COMMON: &str = "vectornav_msgs/msg/CommonGroup";
 /// ... its INS group (PosU).
 pub const INS: &str = "vectornav_msgs/msg/InsGroup";
+/// The standard messages the VectorNav driver also publishes: the attitude quaternion ...
+pub const IMU: &str = "sensor_msgs/msg/Imu";
+/// ... the INS position and GNSS fix ...
+pub const NAVSATFIX: &str = "sensor_msgs/msg/NavSatFix";
+/// ... and the GPS time (`vectornav/time_gps`).
+pub const TIMEREF: &str = "sensor_msgs/msg/TimeReference";
 /// ... its Attitude group (YprU).
 pub const ATTITUDE: &str = "vectornav_msgs/msg/AttitudeGroup";
 
@@ -25,7 +34,10 @@ fn not_read(type_name: &str) -> Option<&'static str> {
         CLOUD => {
             "points computed by the driver: read only when no VelodyneScan topic was recorded (the raw packets keep the sensor's clock and full precision)"
         }
-        "sensor_msgs/msg/Imu" | "sensor_msgs/msg/NavSatFix" | "sensor_msgs/msg/TimeReference" | "geometry_msgs/msg/PoseWithCovarianceStamped" => {
+        IMU | NAVSATFIX | TIMEREF => {
+            "read as the trajectory only as Imu + NavSatFix + a TimeReference of GPS time (the VectorNav driver's /vectornav/imu, /vectornav/gnss, /vectornav/time_gps) and no CommonGroup; without the time reference there is no GPS time of the solution: refused (record vectornav_msgs/msg/CommonGroup, e.g. /vectornav/raw/common, or the time reference)"
+        }
+        "geometry_msgs/msg/PoseWithCovarianceStamped" => {
             "no GPS time of the solution and no INS mode: refused as a trajectory (record the VectorNav driver's vectornav_msgs/msg/CommonGroup, e.g. /vectornav/raw/common)"
         }
         "vectornav_msgs/msg/TimeGroup" | "vectornav_msgs/msg/GpsGroup" | "vectornav_msgs/msg/ImuGroup" => {
@@ -49,6 +61,25 @@ pub struct Chosen {
     pub ins: Option<String>,
     /// Its Attitude group (YprU), if recorded.
     pub attitude: Option<String>,
+    /// Without a CommonGroup: the Imu, NavSatFix and TimeReference topics, when all three are
+    /// there (one of each, or the VectorNav driver's `*/imu`, `*/time_gps`).
+    pub nav: Option<[String; 3]>,
+}
+
+/// The one topic of `ty`, or the one of that type whose name ends with `/suffix`.
+fn one_of(topics: &[TopicStats], ty: &str, suffix: &str) -> Option<String> {
+    let v: Vec<&str> = topics
+        .iter()
+        .filter(|t| t.topic.type_name == ty)
+        .map(|t| t.topic.name.as_str())
+        .collect();
+    match v.as_slice() {
+        [one] => Some(one.to_string()),
+        many => many
+            .iter()
+            .find(|n| n.ends_with(&format!("/{suffix}")))
+            .map(|n| n.to_string()),
+    }
 }
 
 /// The topic of `type_name`: the one named (checked to be of that type), else the only one of
@@ -125,12 +156,33 @@ pub fn choose(
         None => pick(topics, SCAN, None, "--lidar-topic")?.is_none(),
     };
     let lidar_type = if lidar_cloud { CLOUD } else { SCAN };
+    let common = match ins_topic.map(type_of) {
+        Some(Some(IMU)) => None,
+        _ => pick(topics, COMMON, ins_topic, "--ins-topic")?,
+    };
+    let nav = match (&common, ins_topic) {
+        (Some(_), _) => None,
+        (None, named) => {
+            let imu = named
+                .map(String::from)
+                .or_else(|| one_of(topics, IMU, "imu"));
+            match (
+                imu,
+                one_of(topics, NAVSATFIX, "gnss"),
+                one_of(topics, TIMEREF, "time_gps"),
+            ) {
+                (Some(i), Some(f), Some(r)) => Some([i, f, r]),
+                _ => None,
+            }
+        }
+    };
     Ok(Chosen {
         lidar: pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
         lidar_cloud,
-        common: pick(topics, COMMON, ins_topic, "--ins-topic")?,
+        common,
         ins: only(INS),
         attitude: only(ATTITUDE),
+        nav,
     })
 }
 
@@ -237,7 +289,22 @@ impl Opened {
         ))
     }
 
-    /// The INS source: the VN-200 frames the groups came from.
+    /// The INS source: the VN-200 frames the groups (or the Imu + NavSatFix + TimeReference)
+    /// came from; `leap_seconds` turns a UTC time reference into GPS time.
+    pub fn ins(&self, leap_seconds: i64) -> Result<BagIns, crate::Error> {
+        if let (None, Some([i, f, r])) = (&self.chosen.common, &self.chosen.nav) {
+            return Ok(BagIns::Nav(spherecal_hal::rosbag::nav::NavBytes::new(
+                self.bag.messages(&[i, f, r]),
+                i,
+                f,
+                r,
+                leap_seconds,
+            )));
+        }
+        Ok(BagIns::Groups(self.vn200()?))
+    }
+
+    /// The VectorNav groups' source: the VN-200 frames they came from.
     pub fn vn200(&self) -> Result<spherecal_hal::rosbag::sources::Vn200Bytes, crate::Error> {
         let c = self.common()?;
         let mut want = vec![c];
@@ -323,7 +390,10 @@ impl Opened {
                         _ => "; no InsGroup PosU with AttitudeGroup YprU: the navigation model is the site's, else the VN-200's default".into(),
                     }
                 ),
-                None => "none".into(),
+                None => match &self.chosen.nav {
+                    Some([i, f, r]) => format!("{i} + {f} + {r} (sensor_msgs Imu + NavSatFix + TimeReference of GPS time, no CommonGroup), as VN-200 frames: quaternion, position, GPS time; no INS mode (tracking taken as the GNSS fix), no filter sigmas"),
+                    None => "none".into(),
+                },
             }
         );
         o
@@ -346,6 +416,19 @@ impl Opened {
         }
         if self.chosen.attitude.as_deref() == Some(name) {
             return "read: the filter's attitude sigmas (YprU)".into();
+        }
+        if let Some(k) = self
+            .chosen
+            .nav
+            .as_ref()
+            .and_then(|n| n.iter().position(|t| t == name))
+        {
+            return [
+                "read: the INS attitude (quaternion)",
+                "read: the INS position and the GNSS fix",
+                "read: the GPS time of each stamp",
+            ][k]
+                .into();
         }
         if type_name == SCAN
             || type_name == COMMON
