@@ -8,6 +8,7 @@
 pub mod cdr;
 pub mod cloud;
 pub mod nav;
+pub mod raw;
 
 use cdr::{Error, Reader};
 

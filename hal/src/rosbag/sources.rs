@@ -18,6 +18,8 @@ pub const SENSOR_ADDR: Ipv4Addr = Ipv4Addr::new(192, 168, 1, 201);
 /// The packets of a topic of `velodyne_msgs/msg/VelodyneScan`, in order.
 pub struct ScanPackets {
     msgs: Messages,
+    /// A topic of `spherecal_msgs/msg/Datagram` read too (an MCAP raw log's position packets).
+    datagrams: Option<String>,
     /// The current scan's bytes.
     buf: Vec<u8>,
     /// Its packets: stamp and offset in `buf`.
@@ -32,8 +34,14 @@ pub struct ScanPackets {
 impl ScanPackets {
     /// Over `msgs` (one topic of scans).
     pub fn new(msgs: Messages) -> Self {
+        Self::with_datagrams(msgs, None)
+    }
+
+    /// Over `msgs`: scans, and the raw datagrams of topic `datagrams` (an MCAP raw log's).
+    pub fn with_datagrams(msgs: Messages, datagrams: Option<&str>) -> Self {
         Self {
             msgs,
+            datagrams: datagrams.map(Into::into),
             buf: Vec::new(),
             packets: Vec::new(),
             next: 0,
@@ -67,6 +75,24 @@ impl PacketSource for ScanPackets {
             self.at = m.at;
             self.packets.clear();
             self.next = 0;
+            if self.datagrams.as_deref() == Some(m.topic.name.as_str()) {
+                return Ok(Some(
+                    match spherecal::ros2::raw::Datagram::parse(&self.buf) {
+                        Ok(d) => Record::Udp(Datagram {
+                            time: HostTime(d.stamp.ns()),
+                            src_addr: Ipv4Addr::from(d.src_addr),
+                            src_port: d.src_port,
+                            dst_port: d.dst_port,
+                            payload: d.payload,
+                            offset: self.at,
+                        }),
+                        Err(e) => Record::Skipped {
+                            offset: self.at,
+                            reason: SkipReason::BadMessage(e),
+                        },
+                    },
+                ));
+            }
             self.scans += 1;
             match VelodyneScan::parse(&self.buf) {
                 Ok(s) => {
@@ -224,6 +250,75 @@ impl ByteSource for Vn200Bytes {
                     wall,
                 }),
             });
+        }
+    }
+}
+
+/// The serial reads of an MCAP raw log (`spherecal_msgs/msg/SerialChunk`), as they were read.
+pub struct SerialBytes {
+    msgs: Messages,
+    /// Reads that did not parse, and the first's place and reason.
+    pub bad: (u64, Option<String>),
+    /// Reads, and the baud rate of the first.
+    pub reads: (u64, Option<u32>),
+    pending: Vec<u8>,
+    pending_stamp: Option<RxStamp>,
+}
+
+impl SerialBytes {
+    /// Over `msgs` (one topic of serial reads).
+    pub fn new(msgs: Messages) -> Self {
+        Self {
+            msgs,
+            bad: (0, None),
+            reads: (0, None),
+            pending: Vec::new(),
+            pending_stamp: None,
+        }
+    }
+}
+
+impl ByteSource for SerialBytes {
+    type Error = BagError;
+
+    fn read_chunk(&mut self, buf: &mut [u8]) -> Result<ReadOutcome, BagError> {
+        loop {
+            // A read longer than the caller's buffer is handed on in pieces, each with its
+            // stamp.
+            if !self.pending.is_empty() {
+                let n = self.pending.len().min(buf.len());
+                buf[..n].copy_from_slice(&self.pending[..n]);
+                self.pending.drain(..n);
+                return Ok(ReadOutcome::Data {
+                    len: n,
+                    stamp: self.pending_stamp,
+                });
+            }
+            let Some(m) = self.msgs.next()? else {
+                return Ok(ReadOutcome::End);
+            };
+            match spherecal::ros2::raw::SerialChunk::parse(m.data) {
+                Ok(c) => {
+                    self.reads.0 += 1;
+                    self.reads.1.get_or_insert(c.baud);
+                    self.pending.extend_from_slice(c.data);
+                    self.pending_stamp = Some(RxStamp {
+                        mono_ns: c.mono_ns,
+                        wall: HostTime(c.stamp.ns()),
+                    });
+                }
+                Err(e) => {
+                    self.bad.0 += 1;
+                    if self.bad.1.is_none() {
+                        self.bad.1 = Some(format!(
+                            "{} in {} at {}: {e}",
+                            m.topic.name,
+                            m.file.display(),
+                            m.at
+                        ));
+                    }
+                }
+            }
         }
     }
 }

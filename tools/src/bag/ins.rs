@@ -3,7 +3,7 @@
 //! `TimeReference` of GPS time), whichever was recorded.
 
 use spherecal_hal::rosbag::nav::NavBytes;
-use spherecal_hal::rosbag::sources::Vn200Bytes;
+use spherecal_hal::rosbag::sources::{SerialBytes, Vn200Bytes};
 use spherecal_hal::rosbag::BagError;
 use spherecal_hal::serial::{ByteSource, ReadOutcome};
 
@@ -13,6 +13,8 @@ pub enum BagIns {
     Groups(Vn200Bytes),
     /// `sensor_msgs` Imu + NavSatFix + TimeReference.
     Nav(NavBytes),
+    /// An MCAP raw log's serial reads.
+    Serial(SerialBytes),
 }
 
 impl ByteSource for BagIns {
@@ -22,6 +24,7 @@ impl ByteSource for BagIns {
         match self {
             BagIns::Groups(g) => g.read_chunk(buf),
             BagIns::Nav(n) => n.read_chunk(buf),
+            BagIns::Serial(s) => s.read_chunk(buf),
         }
     }
 }
@@ -41,6 +44,20 @@ impl BagIns {
                 }
                 if let Some(first) = &b.first_bad {
                     said.push_str(&format!(", {} messages not parsed (first: {first})", b.bad));
+                }
+                said
+            }
+            BagIns::Serial(s) => {
+                let mut said = format!(
+                    "MCAP raw log: {} serial reads{}",
+                    s.reads.0,
+                    s.reads
+                        .1
+                        .map(|b| format!(" at {b} baud"))
+                        .unwrap_or_default()
+                );
+                if let (n, Some(first)) = &s.bad {
+                    said.push_str(&format!(", {n} not parsed (first: {first})"));
                 }
                 said
             }

@@ -15,6 +15,10 @@ use std::path::Path;
 pub const SCAN: &str = "velodyne_msgs/msg/VelodyneScan";
 /// velodyne_pointcloud's points (read when no raw packets were recorded).
 pub const CLOUD: &str = "sensor_msgs/msg/PointCloud2";
+/// spherecal's MCAP raw log: the datagrams that are not data packets ...
+pub const DATAGRAM: &str = spherecal_hal::rawlog::mcap_log::DATAGRAM_TYPE;
+/// ... and the serial reads.
+pub const SERIAL: &str = spherecal_hal::rawlog::mcap_log::SERIAL_TYPE;
 /// The VectorNav driver's Common group.
 pub const COMMON: &str = "vectornav_msgs/msg/CommonGroup";
 /// ... its INS group (PosU).
@@ -61,6 +65,10 @@ pub struct Chosen {
     pub ins: Option<String>,
     /// Its Attitude group (YprU), if recorded.
     pub attitude: Option<String>,
+    /// An MCAP raw log's other datagrams (position packets ...), read with the scans.
+    pub datagrams: Option<String>,
+    /// An MCAP raw log's serial reads (the VN-200's own bytes): the INS, before any group.
+    pub serial: Option<String>,
     /// Without a CommonGroup: the Imu, NavSatFix and TimeReference topics, when all three are
     /// there (one of each, or the VectorNav driver's `*/imu`, `*/time_gps`).
     pub nav: Option<[String; 3]>,
@@ -156,11 +164,17 @@ pub fn choose(
         None => pick(topics, SCAN, None, "--lidar-topic")?.is_none(),
     };
     let lidar_type = if lidar_cloud { CLOUD } else { SCAN };
+    let serial = match ins_topic {
+        Some(n) => (type_of(n) == Some(SERIAL)).then(|| n.to_string()),
+        None => only(SERIAL),
+    };
     let common = match ins_topic.map(type_of) {
+        _ if serial.is_some() => None,
         Some(Some(IMU)) => None,
         _ => pick(topics, COMMON, ins_topic, "--ins-topic")?,
     };
     let nav = match (&common, ins_topic) {
+        _ if serial.is_some() => None,
         (Some(_), _) => None,
         (None, named) => {
             let imu = named
@@ -179,6 +193,8 @@ pub fn choose(
     Ok(Chosen {
         lidar: pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
         lidar_cloud,
+        datagrams: (!lidar_cloud).then(|| only(DATAGRAM)).flatten(),
+        serial,
         common,
         ins: only(INS),
         attitude: only(ATTITUDE),
@@ -284,14 +300,23 @@ impl Opened {
     /// The LiDAR source: the scans' packets.
     pub fn packets(&self) -> Result<spherecal_hal::rosbag::sources::ScanPackets, crate::Error> {
         let t = self.lidar()?;
-        Ok(spherecal_hal::rosbag::sources::ScanPackets::new(
-            self.bag.messages(&[t]),
-        ))
+        Ok(match &self.chosen.datagrams {
+            Some(d) => spherecal_hal::rosbag::sources::ScanPackets::with_datagrams(
+                self.bag.messages(&[t, d]),
+                Some(d),
+            ),
+            None => spherecal_hal::rosbag::sources::ScanPackets::new(self.bag.messages(&[t])),
+        })
     }
 
     /// The INS source: the VN-200 frames the groups (or the Imu + NavSatFix + TimeReference)
     /// came from; `leap_seconds` turns a UTC time reference into GPS time.
     pub fn ins(&self, leap_seconds: i64) -> Result<BagIns, crate::Error> {
+        if let Some(t) = &self.chosen.serial {
+            return Ok(BagIns::Serial(
+                spherecal_hal::rosbag::sources::SerialBytes::new(self.bag.messages(&[t])),
+            ));
+        }
         if let (None, Some([i, f, r])) = (&self.chosen.common, &self.chosen.nav) {
             return Ok(BagIns::Nav(spherecal_hal::rosbag::nav::NavBytes::new(
                 self.bag.messages(&[i, f, r]),
@@ -383,6 +408,10 @@ impl Opened {
             o,
             "INS: {}",
             match &self.chosen.common {
+                _ if self.chosen.serial.is_some() => format!(
+                    "{} (spherecal's MCAP raw log: the serial reads as received, read as a serial log)",
+                    self.chosen.serial.as_deref().unwrap_or("")
+                ),
                 Some((t, why)) => format!(
                     "{t} ({why}), as VN-200 binary frames{}",
                     match (&self.chosen.ins, &self.chosen.attitude) {
@@ -416,6 +445,12 @@ impl Opened {
         }
         if self.chosen.attitude.as_deref() == Some(name) {
             return "read: the filter's attitude sigmas (YprU)".into();
+        }
+        if self.chosen.serial.as_deref() == Some(name) {
+            return "read: the INS's serial bytes (VN-200 frames)".into();
+        }
+        if self.chosen.datagrams.as_deref() == Some(name) {
+            return "read: the LiDAR's other datagrams (position packets: PPS, RMC)".into();
         }
         if let Some(k) = self
             .chosen

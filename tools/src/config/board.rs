@@ -122,6 +122,22 @@ pub struct Log {
     pub dir: String,
     /// Rotate files at this size [MB].
     pub rotate_mb: u64,
+    /// `pcap` (default: a pcap of the datagrams and a serial log) or `mcap` (one rosbag2
+    /// folder of MCAP files: the data packets as VelodyneScan, the other datagrams and the
+    /// serial reads as spherecal_msgs; Foxglove and `spherecal --bag` open it).
+    #[serde(default)]
+    pub format: LogFormat,
+}
+
+/// The raw log's file format.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    /// pcap + serial log.
+    #[default]
+    Pcap,
+    /// A rosbag2 folder of MCAP files.
+    Mcap,
 }
 
 /// A board file.

@@ -19,15 +19,30 @@ pub(super) fn final_from_logs(
             .cloned()
             .collect()
     };
-    let pcaps = of("pcap");
     let b = &opts.board;
-    let ins = match b.ins.kind.as_str() {
-        "posmv" => crate::pipeline::InsInput::Posmv(
-            crate::pipeline::Files(pcaps.clone()),
-            None,
-            b.ins.posmv_group,
-        ),
-        _ => crate::pipeline::InsInput::Vn200(crate::pipeline::Files(of("vnlog"))),
+    // An MCAP raw log: one bag folder holds the LiDAR and the serial INS.
+    let bag = files.iter().find(|p| p.is_dir()).cloned();
+    let pcaps = match &bag {
+        Some(d) => vec![d.clone()],
+        None => of("pcap"),
+    };
+    let ins = match (b.ins.kind.as_str(), &bag) {
+        ("posmv", Some(d)) => {
+            return Err(format!(
+                "{}: the POS MV's datagrams in an MCAP raw log are not read back yet: log as pcap (board [log] format = \"pcap\") with a POS MV",
+                d.display()
+            )
+            .into())
+        }
+        (_, Some(d)) => crate::pipeline::InsInput::Bag(crate::pipeline::Files(vec![d.clone()]), None),
+        _ => match b.ins.kind.as_str() {
+            "posmv" => crate::pipeline::InsInput::Posmv(
+                crate::pipeline::Files(pcaps.clone()),
+                None,
+                b.ins.posmv_group,
+            ),
+            _ => crate::pipeline::InsInput::Vn200(crate::pipeline::Files(of("vnlog"))),
+        },
     };
     if pcaps.is_empty() || plan.targets.len() < 2 {
         return Ok(None);
@@ -36,7 +51,11 @@ pub(super) fn final_from_logs(
         crate::pipeline::Inputs::apriori(crate::pipeline::Files(pcaps), ins, site.clone());
     inp.model = b.lidar_model();
     inp.ports = Ports {
-        data: b.lidar.data_port,
+        // In an MCAP log the data packets are the scans, which stand for the default port.
+        data: match bag {
+            Some(_) => spherecal::velodyne::DATA_PORT,
+            None => b.lidar.data_port,
+        },
         position: b.lidar.position_port,
     };
     inp.keep_untracked_ins = opts.keep_untracked_ins;

@@ -16,8 +16,7 @@ pub(super) struct RigIo {
     pub(super) log_dir: PathBuf,
     /// The UTC start stamp that names the run's files.
     pub(super) stamp: String,
-    pub(super) pcap_log: PcapLog,
-    pub(super) serial_log: Option<SerialLog>,
+    pub(super) raw_log: RawLog,
     /// Bytes that waited in the serial port from before the run (discarded at open).
     pub(super) stale_serial_bytes: u64,
 }
@@ -67,14 +66,36 @@ impl RigIo {
         let rotate = opts
             .rotate_bytes
             .unwrap_or(b.log.rotate_mb.saturating_mul(1 << 20));
-        let pcap_log = PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
-            .map_err(|e| format!("raw log: {e}"))?;
-        let serial_log = match &serial {
-            Some(_) => Some(
-                SerialLog::create_vnlog(&log_dir, &format!("{stamp}-ins"), rotate, b.ins.baud)
-                    .map_err(|e| format!("raw log: {e}"))?,
-            ),
-            None => None,
+        let raw = |e: std::io::Error| format!("raw log: {e}");
+        let raw_log = match b.log.format {
+            crate::config::board::LogFormat::Mcap => RawLog::Mcap(Box::new(
+                McapLog::create(
+                    &log_dir,
+                    &format!("{stamp}-log"),
+                    rotate,
+                    b.lidar.data_port,
+                    b.ins.baud,
+                )
+                .map_err(raw)?,
+            )),
+            crate::config::board::LogFormat::Pcap => RawLog::Files {
+                pcap: Box::new(
+                    PcapLog::create_pcap(&log_dir, &format!("{stamp}-lidar"), rotate)
+                        .map_err(raw)?,
+                ),
+                serial: match &serial {
+                    Some(_) => Some(Box::new(
+                        SerialLog::create_vnlog(
+                            &log_dir,
+                            &format!("{stamp}-ins"),
+                            rotate,
+                            b.ins.baud,
+                        )
+                        .map_err(raw)?,
+                    )),
+                    None => None,
+                },
+            },
         };
         Ok(Self {
             accept: Accept { ports, sensor },
@@ -85,8 +106,7 @@ impl RigIo {
             posmv,
             log_dir,
             stamp,
-            pcap_log,
-            serial_log,
+            raw_log,
             stale_serial_bytes: u64::from(stale),
         })
     }

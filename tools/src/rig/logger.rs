@@ -1,11 +1,84 @@
-//! The raw logger (every datagram and serial read into rotating files) and the thread that syncs them to disk twice a second.
+//! The raw logger (every datagram and serial read into rotating files: pcap + serial log, or
+//! MCAP) and the thread that syncs them to disk twice a second.
 
 use super::*;
 
+/// The raw logs of a run.
+pub(super) enum RawLog {
+    /// A pcap of the datagrams and, with a serial INS, a serial log.
+    Files {
+        pcap: Box<PcapLog>,
+        serial: Option<Box<SerialLog>>,
+    },
+    /// One rosbag2 folder of MCAP files.
+    Mcap(Box<McapLog>),
+}
+
+impl RawLog {
+    fn datagram(
+        &mut self,
+        time: HostTime,
+        src: (Ipv4Addr, u16),
+        dst: (Ipv4Addr, u16),
+        payload: &[u8],
+    ) -> std::io::Result<()> {
+        match self {
+            RawLog::Files { pcap, .. } => pcap.write(time, src, dst, payload),
+            RawLog::Mcap(m) => m.write_datagram(time, src, dst, payload),
+        }
+    }
+
+    /// Log a serial read; false when there is no serial log.
+    fn serial(&mut self, stamp: RxStamp, bytes: &[u8]) -> Option<std::io::Result<()>> {
+        match self {
+            RawLog::Files { serial, .. } => serial.as_mut().map(|s| s.write(stamp, bytes)),
+            RawLog::Mcap(m) => Some(m.write_serial(stamp, bytes)),
+        }
+    }
+
+    /// To the OS; the handles to sync.
+    fn flush(&mut self) -> std::io::Result<Vec<std::fs::File>> {
+        match self {
+            RawLog::Files { pcap, serial } => {
+                let mut v = vec![pcap.flush()?];
+                if let Some(s) = serial {
+                    v.push(s.flush()?);
+                }
+                Ok(v)
+            }
+            RawLog::Mcap(m) => Ok(vec![m.flush()?]),
+        }
+    }
+
+    /// The end of the run: an MCAP file's summary and footer, and the bag's metadata.yaml.
+    fn finish(&mut self) -> std::io::Result<()> {
+        match self {
+            RawLog::Files { .. } => Ok(()),
+            RawLog::Mcap(m) => m.finish(),
+        }
+    }
+
+    /// What was written: the files (an MCAP log: its bag folder), and the datagrams and
+    /// serial reads.
+    pub(super) fn written(&self) -> (Vec<PathBuf>, [u64; 2]) {
+        match self {
+            RawLog::Files { pcap, serial } => {
+                let mut files = pcap.files().to_vec();
+                let mut n = [pcap.records, 0];
+                if let Some(s) = serial {
+                    files.extend_from_slice(s.files());
+                    n[1] = s.records;
+                }
+                (files, n)
+            }
+            RawLog::Mcap(m) => (vec![m.bag().to_path_buf()], [m.datagrams, m.reads]),
+        }
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 pub(super) fn logger(
-    pcap: &mut PcapLog,
-    mut serial: Option<&mut SerialLog>,
+    log: &mut RawLog,
     [mut data, mut pos, mut posmv]: [Consumer<'_, UdpLogItem>; 3],
     mut ser: Consumer<'_, SerialChunk>,
     dst: Ipv4Addr,
@@ -43,7 +116,7 @@ pub(super) fn logger(
                 sh.ring_drops.datagram_log.fetch_add(1, Ordering::Relaxed);
                 continue;
             }
-            if let Err(e) = pcap.write(
+            if let Err(e) = log.datagram(
                 it.time,
                 it.src,
                 (dst, it.dst_port),
@@ -54,12 +127,9 @@ pub(super) fn logger(
         }
         while let Some(c) = ser.dequeue() {
             n += 1;
-            match serial.as_deref_mut() {
-                Some(s) if !failed => {
-                    if let Err(e) = s.write(c.stamp, &c.bytes[..usize::from(c.len)]) {
-                        fail(e, &mut failed);
-                    }
-                }
+            match (failed, log.serial(c.stamp, &c.bytes[..usize::from(c.len)])) {
+                (false, Some(Err(e))) => fail(e, &mut failed),
+                (false, Some(Ok(()))) => {}
                 _ => {
                     sh.ring_drops.serial_log.fetch_add(1, Ordering::Relaxed);
                 }
@@ -69,18 +139,14 @@ pub(super) fn logger(
             synced = Instant::now();
             if !failed {
                 // To the OS now; to the disk on the syncer thread.
-                let mut handles = Vec::with_capacity(2);
-                match pcap.flush() {
-                    Ok(f) => handles.push(f),
-                    Err(e) => fail(e, &mut failed),
-                }
-                if let Some(s) = serial.as_deref_mut() {
-                    match s.flush() {
-                        Ok(f) => handles.push(f),
-                        Err(e) => fail(e, &mut failed),
-                    }
-                }
+                let handles = log.flush().unwrap_or_else(|e| {
+                    fail(e, &mut failed);
+                    Vec::new()
+                });
                 if done && n == 0 {
+                    if let Err(e) = log.finish() {
+                        fail(e, &mut failed);
+                    }
                     for f in &handles {
                         if let Err(e) = f.sync_data() {
                             fail(e, &mut failed);

@@ -41,7 +41,7 @@ use inputs::{Plan, RigIo, Rings};
 use shared::{ins_name, pps_name, AlignerGuard, ReaderGuard, Shared};
 
 use heapless::spsc::{Consumer, Producer, Queue};
-use logger::{logger, syncer};
+use logger::{logger, syncer, RawLog};
 use readers::{posmv_reader, serial_reader, udp_reader, LidarPort};
 use serde::Serialize;
 use solver::solver;
@@ -54,7 +54,7 @@ use spherecal::vn200::Item;
 use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{Datagram, HostTime};
-use spherecal_hal::rawlog::{PcapLog, SerialLog};
+use spherecal_hal::rawlog::{McapLog, PcapLog, SerialLog};
 use spherecal_hal::serial::{RxStamp, SerialSource};
 use spherecal_hal::udp::UdpSource;
 use spherecal_hal::velodyne::{Ports, SkipStats};
@@ -318,8 +318,7 @@ fn run_threads(
         pos_sock,
         serial,
         posmv,
-        mut pcap_log,
-        mut serial_log,
+        mut raw_log,
         ..
     } = io;
     std::thread::scope(|sc| {
@@ -356,23 +355,15 @@ fn run_threads(
         let to_sync = &to_sync;
         let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh));
         let logger = spawn(sc, "logger", move || {
-            let sl = serial_log.as_mut();
             logger(
-                &mut pcap_log,
-                sl,
+                &mut raw_log,
                 [dlog_c, plog_c, ilog_c],
                 slog_c,
                 bind,
                 to_sync,
                 sh,
             );
-            let mut files = pcap_log.files().to_vec();
-            let mut n = [pcap_log.records, 0];
-            if let Some(s) = &serial_log {
-                files.extend_from_slice(s.files());
-                n[1] = s.records;
-            }
-            (files, n)
+            raw_log.written()
         });
         let solver = spawn(sc, "solver", move || {
             let (tg, ids) = (&plan.targets, &plan.ids);

@@ -248,6 +248,36 @@ fn same_as_calibrate_on_the_logs(
     b
 }
 
+/// As [`same_as_calibrate_on_the_logs`], on an MCAP raw log's bag folder (its scans are the
+/// data port's datagrams; the position packets keep the board's port `pp`).
+fn same_as_calibrate_on_the_bag(
+    rep: &serde_json::Value,
+    dir: &Path,
+    bag: &Path,
+    pp: u16,
+) -> [f64; 6] {
+    let from_logs = dir.join("from-bag.json");
+    let mut cal = common::spherecal();
+    cal.arg("calibrate").arg("--bag").arg(bag);
+    cal.arg("--site")
+        .arg(dir.join("site.toml"))
+        .arg("--report")
+        .arg(&from_logs)
+        .arg("--lidar-ports")
+        .arg(format!("2368,{pp}"));
+    common::stdout_of(&mut cal);
+    let again: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&from_logs).unwrap()).unwrap();
+    let (a, b) = (common::report_deg_m(rep), common::report_deg_m(&again));
+    let z: Vec<f64> = (0..6)
+        .map(|i| (a[i] - b[i]) / sigma_deg_m(rep)[i])
+        .collect();
+    eprintln!("rig minus calibrate on its MCAP log, in sigmas: {z:.3?}");
+    assert!(z.iter().all(|z| z.abs() <= 0.1), "{z:?}: {a:?} vs {b:?}");
+    assert_eq!(again["converged"], true, "{again}");
+    b
+}
+
 /// A report's sigmas [deg, m].
 fn sigma_deg_m(rep: &serde_json::Value) -> [f64; 6] {
     let s = &rep["sigma"];
@@ -294,6 +324,9 @@ fn serial_rig(
 /// table1-noisy (range and INS noise, clutter) through the whole rig at twice real time, its
 /// INS 20 ms late: the rig's final answer is `calibrate`'s on its own logs (within a tenth of
 /// a sigma) and within three sigmas of the truth, the time offset too.
+/// table1-noisy through the rig at twice real time, its raw log as MCAP (`[log] format =
+/// "mcap"`): the live answer within 3 sigma of the truth, and the same as `calibrate --bag` on
+/// the logged bag folder.
 #[test]
 fn table1_noisy_through_the_rig() {
     let mut s = spherecal_tools::config::scenario::Scenario::load("table1-noisy").unwrap();
@@ -307,7 +340,7 @@ fn table1_noisy_through_the_rig() {
         ..
     } = setup("rig-noisy", &s, dp, pp);
     let slave_name = slave.name().unwrap();
-    let board = board(&dir, dp, pp);
+    let board = board_with(&dir, dp, pp, &[("[log]\n", "[log]\nformat = \"mcap\"\n")]);
     let logs = dir.join("logs");
     let report = dir.join("run-report.json");
     let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
@@ -323,7 +356,12 @@ fn table1_noisy_through_the_rig() {
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
-    let got = same_as_calibrate_on_the_logs(&rep, &dir, &logs, dp, pp);
+    // One bag folder: its metadata.yaml and MCAP files, no pcap, no serial log.
+    let bags = files(&logs, "-log");
+    assert_eq!(bags.len(), 1, "{bags:?}");
+    assert!(bags[0].join("metadata.yaml").exists());
+    assert!(files(&logs, "-lidar-").is_empty() && files(&logs, "-ins-").is_empty());
+    let got = same_as_calibrate_on_the_bag(&rep, &dir, &bags[0], pp);
     let (truth, sig) = (s.mount.truth.deg_m().0, sigma_deg_m(&rep));
     for i in 0..6 {
         assert!(

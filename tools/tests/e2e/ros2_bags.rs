@@ -371,3 +371,119 @@ fn bad_bags_exit_2_naming_what_is_missing() {
     let t = run(&["--bag".as_ref(), none.as_os_str()]);
     assert!(t.contains("none_0.db3") && t.contains("not there"), "{t}");
 }
+
+/// The rig's raw log as MCAP (board `[log] format = "mcap"`, hal `rawlog::McapLog`), written
+/// here from table1's capture and serial log as the rig's logger would (in receive order):
+/// an independent reader (PyPI `rosbags`, from the schemas in the file) finds every data
+/// packet in the VelodyneScans, the position packets and the serial bytes; `calibrate --bag`
+/// gives the capture's solution, its LiDAR clock PPS-locked from the logged position packets
+/// (no --allow-unlocked-clock).
+#[test]
+fn an_mcap_raw_log_calibrates_as_its_pcap_and_serial_log() {
+    use spherecal_hal::rawlog::McapLog;
+    use spherecal_hal::serial::{ByteSource, FileChain, ReadOutcome};
+    use spherecal_hal::{PacketSource, Record};
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let d = dir("mcap-log");
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    let mut log = McapLog::create(&d, "run", 16 << 20, 2368, 921_600).unwrap();
+    let mut serial = Vec::new();
+    let mut ins = FileChain::open(vec![d.join("ins.vnlog")]).unwrap();
+    let mut buf = [0u8; 4096];
+    while let ReadOutcome::Data { len, stamp } = ins.read_chunk(&mut buf).unwrap() {
+        serial.push((stamp.unwrap(), buf[..len].to_vec()));
+    }
+    let mut pcap = spherecal_hal::pcap::PcapSource::open(d.join("lidar.pcap")).unwrap();
+    let me = std::net::Ipv4Addr::new(192, 168, 1, 77);
+    let (mut k, mut udp) = (0, 0);
+    while let Some(r) = pcap.next_record().unwrap() {
+        let Record::Udp(g) = r else { continue };
+        while k < serial.len() && serial[k].0.wall <= g.time {
+            log.write_serial(serial[k].0, &serial[k].1).unwrap();
+            k += 1;
+        }
+        log.write_datagram(
+            g.time,
+            (g.src_addr, g.src_port),
+            (me, g.dst_port),
+            g.payload,
+        )
+        .unwrap();
+        udp += 1;
+    }
+    for (st, b) in &serial[k..] {
+        log.write_serial(*st, b).unwrap();
+    }
+    log.finish().unwrap();
+    let bag = log.bag().to_path_buf();
+    assert_eq!((log.datagrams, log.reads), (udp, serial.len() as u64));
+    assert!(
+        log.files().len() >= 4,
+        "rotated at 16 MB: {:?}",
+        log.files()
+    );
+
+    // An independent reader: rosbags, the types registered from the file's own schemas.
+    let py = r#"
+import sys
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+ts = get_typestore(Stores.ROS2_HUMBLE)
+with Reader(sys.argv[1]) as r:
+    for c in r.connections:
+        for part in c.msgdef.data.split("=" * 80 + "\n"):
+            if part.startswith("MSG: "):
+                name, text = part[5:].split("\n", 1)
+                pkg, typ = name.split("/")
+                name = f"{pkg}/msg/{typ}"
+            else:
+                name, text = c.msgtype, part
+            if name not in ts.types:
+                ts.register(get_types_from_msg(text, name))
+    n = {"pkt": 0, "pos": 0, "ser": 0, "scan": 0}
+    for c, t, raw in r.messages():
+        m = ts.deserialize_cdr(raw, c.msgtype)
+        if c.topic == "/velodyne_packets":
+            n["scan"] += 1
+            n["pkt"] += len(m.packets)
+            assert all(len(p.data) == 1206 for p in m.packets)
+        elif c.topic == "/spherecal/datagrams":
+            n["pos"] += m.dst_port == 8308
+        else:
+            n["ser"] += len(m.data)
+    print(n["pkt"], n["pos"], n["ser"], n["scan"])
+"#;
+    let o = std::process::Command::new("python3")
+        .args(["-c", py])
+        .arg(&bag)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got: Vec<u64> = String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let bytes: usize = serial.iter().map(|s| s.1.len()).sum();
+    assert_eq!(got[..3], [47_095, 62, bytes as u64], "{got:?}");
+
+    // calibrate --bag: the capture's solution, the clock checked from the position packets.
+    let a: Vec<std::ffi::OsString> = common::survey_args(&d);
+    let a: Vec<&std::ffi::OsStr> = a.iter().map(|s| s.as_os_str()).collect();
+    let (o, from_pcap) = calibrate(&a, &d.join("pcap.json"));
+    assert!(o.status.success(), "{}", text(&o));
+    let site = d.join("site.toml");
+    let (o, r) = calibrate(
+        &[
+            "--bag".as_ref(),
+            bag.as_os_str(),
+            "--site".as_ref(),
+            site.as_os_str(),
+        ],
+        &d.join("log.json"),
+    );
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("PPS locked") || t.contains("locked"), "{t}");
+    assert!(t.contains("MCAP raw log"), "{t}");
+    assert_eq!(common::report_deg_m(&r), common::report_deg_m(&from_pcap));
+}

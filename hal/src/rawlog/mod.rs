@@ -6,9 +6,12 @@
 //! Files are `DIR/PREFIX-NNN.EXT` (`NNN` from 000): each one is complete in itself (its own
 //! pcap or log header), so any piece decodes alone.
 
+pub mod mcap_log;
+
 use crate::packet::HostTime;
 use crate::pcap::{build_udp_frame, PcapWriter, UdpEndpoints};
 use crate::serial::{LogWriter, RxStamp};
+pub use mcap_log::McapLog;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::net::Ipv4Addr;
