@@ -1,5 +1,6 @@
 //! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup,
-//! AttitudeGroup, PointCloud2, Imu, NavSatFix, TimeReference): an error or a message, never a panic; a scan's packets are all
+//! AttitudeGroup, PointCloud2, Imu, NavSatFix, TimeReference, and the MCAP raw log's Datagram and
+//! SerialChunk): an error or a message, never a panic; a scan's packets are all
 //! there when it parses; every cell of a cloud that parses reads, and becomes a return or a
 //! reason.
 #![no_main]
@@ -24,6 +25,8 @@ fuzz_target!(|data: &[u8]| {
         let _ = (i.enu(), i.vn_quaternion(true));
     }
     let _ = NavSatFix::parse(data);
+    let _ = spherecal::ros2::raw::Datagram::parse(data);
+    let _ = spherecal::ros2::raw::SerialChunk::parse(data);
     if let Ok(r) = TimeReference::parse(data) {
         let _ = r.gps_minus_host_ns(18);
     }

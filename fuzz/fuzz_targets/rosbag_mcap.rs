@@ -39,6 +39,12 @@ fuzz_target!(|data: &[u8]| {
                 let _ = r.gps_minus_host_ns(18);
             }
         }
+        "spherecal_msgs/msg/Datagram" => {
+            let _ = spherecal::ros2::raw::Datagram::parse(msg);
+        }
+        "spherecal_msgs/msg/SerialChunk" => {
+            let _ = spherecal::ros2::raw::SerialChunk::parse(msg);
+        }
         "vectornav_msgs/msg/InsGroup" => {
             let _ = InsGroup::parse(msg);
         }
