@@ -400,6 +400,7 @@ impl Opened {
             "LiDAR: {}",
             match &self.chosen.lidar {
                 Some((t, why)) if self.chosen.lidar_cloud => format!("{t} ({why}), velodyne_pointcloud's returns (x y z ring time); clock: the host's (the cloud's stamp plus each point's time), mapped to GPS time by the INS messages' stamps, the time offset estimated; lost against packets: the sensor's clock, the azimuth's precision (0.01 deg), returns inside the driver's min_range"),
+                Some((t, why)) if self.chosen.datagrams.is_some() => format!("{t} ({why}) with {} (spherecal's MCAP raw log); clock: from the logged position packets (PPS, RMC), as a capture's", self.chosen.datagrams.as_deref().unwrap_or("")),
                 Some((t, why)) => format!("{t} ({why}); clock: PPS unknown (ROS 2 bag: the driver does not record the position packets), the hour from the INS's GPS time, the time offset estimated"),
                 None => "none".into(),
             }
