@@ -113,13 +113,15 @@ if [ "$RUNNER" = "cargo test --workspace" ]; then
   $RUNNER
   fuzz_stage
 else
-  say "tests: build"
+  # The side job starts now, at nice 19 on one core: it takes what the builds leave (their
+  # single-threaded tails and links) instead of waiting for them (it was the last to finish).
+  side_jobs >"$work/side.out" 2>&1 &
+  side_pid=$!
+  say "tests: build (the side job started beside it)"
   cargo nextest run --workspace --no-run
   say "doc tests (nextest does not run them)"
   cargo test --workspace --doc -q
   say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
-  side_jobs >"$work/side.out" 2>&1 &
-  side_pid=$!
   rig_rc=0
   $RUNNER -E "$RIG" || rig_rc=$?
   say "tests: the rest"
