@@ -171,6 +171,17 @@ fn truncated_capture_is_a_counted_skip() {
     );
 }
 
+/// `spherecal decode --bag BAG --csv CSV`: its summary.
+fn decode_bag_to(bag: &std::path::Path, csv: &std::path::Path) -> String {
+    common::stdout_of(
+        common::spherecal()
+            .args(["decode", "--bag"])
+            .arg(bag)
+            .arg("--csv")
+            .arg(csv),
+    )
+}
+
 /// The real MRPT capture's data packets as a ROS 2 bag (written by rosbags from the capture:
 /// tests/data/ros2/README.md): `decode --bag` writes the very CSV the capture gives (the
 /// capture's is checked against an independent decoding above); a cut bag stops with the file
@@ -179,13 +190,7 @@ fn truncated_capture_is_a_counted_skip() {
 fn a_bag_of_the_mrpt_capture_decodes_as_the_capture() {
     let bag = common::test_data("ros2/bags/mrpt_vlp16");
     let (from_bag, from_pcap) = (tmp("mrpt-bag.csv"), tmp("mrpt-pcap.csv"));
-    let out = common::stdout_of(
-        common::spherecal()
-            .args(["decode", "--bag"])
-            .arg(&bag)
-            .arg("--csv")
-            .arg(&from_bag),
-    );
+    let out = decode_bag_to(&bag, &from_bag);
     assert!(out.contains("data packets: 293 (strongest: 293)"), "{out}");
     assert!(
         out.contains("product byte 0x22, packet period agrees"),
@@ -225,13 +230,7 @@ fn a_bag_of_the_mrpt_capture_decodes_as_the_capture() {
 fn a_bag_of_point_clouds_decodes_to_the_captures_returns() {
     let bag = common::test_data("ros2/bags/mrpt_vlp16_clouds.mcap");
     let (from_bag, from_pcap) = (tmp("mrpt-clouds.csv"), tmp("mrpt-pcap-2.csv"));
-    let out = common::stdout_of(
-        common::spherecal()
-            .args(["decode", "--bag"])
-            .arg(&bag)
-            .arg("--csv")
-            .arg(&from_bag),
-    );
+    let out = decode_bag_to(&bag, &from_bag);
     assert!(out.contains("point clouds: 2"), "{out}");
     assert!(out.contains("skipped: 0"), "{out}");
     common::stdout_of(

@@ -235,17 +235,7 @@ fn same_as_calibrate_on_the_logs(
         .arg("--report")
         .arg(&from_logs);
     cal.arg("--lidar-ports").arg(format!("{dp},{pp}"));
-    common::stdout_of(&mut cal);
-    let again: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&from_logs).unwrap()).unwrap();
-    let (a, b) = (common::report_deg_m(rep), common::report_deg_m(&again));
-    let z: Vec<f64> = (0..6)
-        .map(|i| (a[i] - b[i]) / sigma_deg_m(rep)[i])
-        .collect();
-    eprintln!("rig minus calibrate on its logs, in sigmas: {z:.3?}");
-    assert!(z.iter().all(|z| z.abs() <= 0.1), "{z:?}: {a:?} vs {b:?}");
-    assert_eq!(again["converged"], true, "{again}");
-    b
+    agrees_with(rep, &mut cal, &from_logs, "its logs")
 }
 
 /// As [`same_as_calibrate_on_the_logs`], on an MCAP raw log's bag folder (its scans are the
@@ -265,14 +255,25 @@ fn same_as_calibrate_on_the_bag(
         .arg(&from_logs)
         .arg("--lidar-ports")
         .arg(format!("2368,{pp}"));
-    common::stdout_of(&mut cal);
+    agrees_with(rep, &mut cal, &from_logs, "its MCAP log")
+}
+
+/// Run `cal` (a calibrate writing its report to `report`): its answer is the rig's `rep`,
+/// every parameter within a tenth of its sigma, and converged. Returns it [deg, m].
+fn agrees_with(
+    rep: &serde_json::Value,
+    cal: &mut std::process::Command,
+    report: &Path,
+    on: &str,
+) -> [f64; 6] {
+    common::stdout_of(cal);
     let again: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&from_logs).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(report).unwrap()).unwrap();
     let (a, b) = (common::report_deg_m(rep), common::report_deg_m(&again));
     let z: Vec<f64> = (0..6)
         .map(|i| (a[i] - b[i]) / sigma_deg_m(rep)[i])
         .collect();
-    eprintln!("rig minus calibrate on its MCAP log, in sigmas: {z:.3?}");
+    eprintln!("rig minus calibrate on {on}, in sigmas: {z:.3?}");
     assert!(z.iter().all(|z| z.abs() <= 0.1), "{z:?}: {a:?} vs {b:?}");
     assert_eq!(again["converged"], true, "{again}");
     b
