@@ -365,7 +365,7 @@ def main():
                     chans[topic] = w.register_channel(topic=topic, message_encoding="cdr", schema_id=sid)
                 w.add_message(chans[topic], log_time=t, data=data, publish_time=t)
             w.finish()
-    print(f"{a.out}: {scans} scans, {n_ins} CommonGroup messages, {len(msgs)} messages ({a.storage})")
+    print(f"{a.out}: {scans} {'clouds' if a.clouds else 'scans'}, {n_ins} INS samples ({'Imu + NavSatFix' if a.ins_as_imu else 'CommonGroup'}), {len(msgs)} messages ({a.storage})")
 
 
 main()
