@@ -17,6 +17,9 @@ pub struct Pass {
     pub speed: f64,
     /// Duration [s].
     pub duration: f64,
+    /// Down of this pass relative to the trajectory's [m] (negative: higher; a drone's second
+    /// flight height). Turns climb or descend between passes on the same Hermite curve.
+    pub down: f64,
 }
 
 impl Pass {
@@ -25,7 +28,7 @@ impl Pass {
         Vector3::new(self.speed * c, self.speed * s, 0.0)
     }
     fn at(&self, tau: f64) -> Vector3<f64> {
-        Vector3::new(self.start[0], self.start[1], 0.0) + self.velocity() * tau
+        Vector3::new(self.start[0], self.start[1], self.down) + self.velocity() * tau
     }
 }
 
@@ -189,7 +192,7 @@ impl Trajectory<'_> {
             return self.sampled(t);
         }
         let (mut p, _, course) = self.path(t);
-        p.z = self.down + wave(self.motion.heave, t, 0.3);
+        p.z += self.down + wave(self.motion.heave, t, 0.3);
         let roll = wave(self.motion.roll, t, 0.0);
         let pitch = wave(self.motion.pitch, t, 1.0);
         let heading = course + wave(self.motion.yaw, t, 2.0);
@@ -244,12 +247,14 @@ mod tests {
                 heading: 0.0,
                 speed: 2.0,
                 duration: 10.0,
+                down: 0.0,
             },
             Pass {
                 start: [10.0, 25.0],
                 heading: core::f64::consts::PI,
                 speed: 2.0,
                 duration: 10.0,
+                down: 0.0,
             },
         ];
         let tr = Trajectory {
@@ -274,5 +279,46 @@ mod tests {
         let s = tr.state(20.0);
         assert!((s.position - Vector3::new(0.0, 25.0, -1.0)).norm() < 1e-12);
         assert!((s.rph[2].abs() - core::f64::consts::PI).abs() < 1e-12);
+    }
+
+    /// A drone's second flight height: the pass flies at its own down, the turn climbs on the
+    /// same smooth curve (no jump in height or in its rate at either joint).
+    #[test]
+    fn a_pass_at_another_height_is_reached_smoothly() {
+        let passes = [
+            Pass {
+                start: [0.0, 0.0],
+                heading: 0.0,
+                speed: 5.0,
+                duration: 10.0,
+                down: 0.0,
+            },
+            Pass {
+                start: [50.0, 20.0],
+                heading: core::f64::consts::PI,
+                speed: 5.0,
+                duration: 10.0,
+                down: -15.0,
+            },
+        ];
+        let tr = Trajectory {
+            samples: &[],
+            passes: &passes,
+            turn: 8.0,
+            down: -30.0,
+            motion: Motion::default(),
+        };
+        assert!((tr.state(5.0).position.z + 30.0).abs() < 1e-12);
+        assert!((tr.state(23.0).position.z + 45.0).abs() < 1e-12);
+        let mid = tr.state(14.0).position.z;
+        assert!(mid < -30.0 && mid > -45.0, "{mid}");
+        for t in [10.0, 18.0] {
+            let (a, va, _) = tr.path(t - 1e-6);
+            let (b, vb, _) = tr.path(t + 1e-6);
+            assert!(
+                (a - b).norm() < 1e-4 && (va.z - vb.z).abs() < 1e-3,
+                "{t}: {va} {vb}"
+            );
+        }
     }
 }

@@ -8,7 +8,8 @@ use std::process::ExitCode;
 /// Simulate a survey: write lidar.pcap, ins.bin, site.toml and truth.json.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A built-in scenario name (table1, table1-noisy) or a scenario TOML file.
+    /// A built-in scenario name (table1, table1-noisy, table1-real, pontoon, drone, ...) or a
+    /// scenario TOML file.
     #[arg(long, required_unless_present = "print_scenario")]
     pub scenario: Option<String>,
     /// Output folder.

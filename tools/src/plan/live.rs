@@ -138,6 +138,10 @@ impl Live {
                     heading_deg: ve.atan2(vn).to_degrees().rem_euclid(360.0),
                     speed_mps: speed,
                     duration_s: ((p.end.0 - p.start.0) as f64 * 1e-9).max(1.0),
+                    // The height flown (a drone's passes differ; a vessel's are the same).
+                    down_m: Some(
+                        kept.iter().map(|k| k.position.z).sum::<f64>() / kept.len() as f64,
+                    ),
                 },
             ));
         }

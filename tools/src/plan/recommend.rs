@@ -215,6 +215,7 @@ fn candidate_passes(s: &Scenario) -> Vec<PassSpec> {
                 heading_deg: (heading.rem_euclid(360.0) * 10.0).round() / 10.0,
                 speed_mps: speed,
                 duration_s: (duration * 10.0).round() / 10.0,
+                down_m: None,
             });
         }
     }

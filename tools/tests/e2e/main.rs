@@ -11,6 +11,7 @@ mod cli_errors;
 mod cli_ins;
 mod clocks;
 mod datums;
+mod drone;
 mod extraction;
 mod georef;
 mod multi_file;

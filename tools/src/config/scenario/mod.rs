@@ -38,6 +38,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "table1-real",
         include_str!("../../../scenarios/table1-real.toml"),
     ),
+    ("drone", include_str!("../../../scenarios/drone.toml")),
 ];
 
 /// A scenario file.
@@ -310,6 +311,10 @@ pub struct PassSpec {
     pub speed_mps: f64,
     /// Duration [s].
     pub duration_s: f64,
+    /// The INS's down on this pass [m] (default `trajectory.ins_down_m`): a drone's second
+    /// flight height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub down_m: Option<f64>,
 }
 
 /// The vessel's path and motion.
@@ -457,6 +462,7 @@ impl Scenario {
                 heading: p.heading_deg.to_radians(),
                 speed: p.speed_mps,
                 duration: p.duration_s,
+                down: p.down_m.map_or(0.0, |d| d - self.trajectory.ins_down_m),
             })
             .collect()
     }

@@ -310,6 +310,11 @@ impl Scenario {
                 &format!("trajectory.pass[{i}]"),
                 "not finite",
             )?;
+            check(
+                p.down_m.is_none_or(|d| d.is_finite() && d.abs() < 1e4),
+                &format!("trajectory.pass[{i}].down_m"),
+                "expected a finite down [m], |down| < 10 km",
+            )?;
         }
         check(
             self.duration_s() <= 3600.0,

@@ -1,0 +1,64 @@
+//! The drone (issue 30, first step): the built-in `drone` survey — a multirotor at 40 m and
+//! 25 m above a field, its VLP-16 scanning across the track, spheres on tripods on the grass
+//! among a shed, cars, trees and bushes — is extracted from above and calibrates within 1e-3
+//! of the truth from a-priori values 0.5 deg / 3 cm off.
+
+use crate::common;
+
+#[test]
+fn the_drone_survey_calibrates_from_above_within_1e_3() {
+    let s = spherecal_tools::config::scenario::Scenario::load("drone").unwrap();
+    // Two flight heights, from the passes' own down.
+    let downs: Vec<f64> = s
+        .trajectory
+        .pass
+        .iter()
+        .map(|p| p.down_m.unwrap_or(s.trajectory.ins_down_m))
+        .collect();
+    assert!(
+        downs.contains(&-40.0) && downs.contains(&-25.0),
+        "{downs:?}"
+    );
+    let d = common::tmp("drone", "clean");
+    let _ = std::fs::remove_dir_all(&d);
+    let truth = spherecal_tools::synth::synth(&s, &d).unwrap();
+    // Every sphere is seen from the air (the simulator's own labels).
+    assert!(
+        truth.points_per_sphere.iter().all(|&n| n > 150),
+        "{:?}",
+        truth.points_per_sphere
+    );
+    let report = d.join("report.json");
+    let o = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(&d))
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.status.success(), "{text}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["converged"], true, "{text}");
+    common::assert_within(
+        &common::report_deg_m(&r),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        "the drone survey",
+    );
+    // Each sphere's kept returns are most of what the simulator put on it.
+    for (k, p) in r["per_sphere"].as_array().unwrap().iter().enumerate() {
+        let kept = p["points"].as_u64().unwrap_or(0);
+        assert!(
+            kept * 10 >= truth.points_per_sphere[k] * 6,
+            "sphere {k}: kept {kept} of {}: {p}",
+            truth.points_per_sphere[k]
+        );
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
