@@ -66,6 +66,8 @@ pub struct NavBytes {
     ready: VecDeque<(i64, [u8; VN200_FRAME_MAX], usize)>,
     /// The latest reference: its stamp and GPS minus host time.
     latest: Option<(i64, i64)>,
+    /// The file the latest message came from (for errors).
+    file: std::path::PathBuf,
     /// The last frame decision (RFU/ENU unless the specific force says FRD/NED).
     enu: bool,
     /// What was met.
@@ -83,6 +85,7 @@ impl NavBytes {
             pending: VecDeque::new(),
             ready: VecDeque::new(),
             latest: None,
+            file: std::path::PathBuf::new(),
             enu: true,
             stats: NavBagStats::default(),
         }
@@ -171,7 +174,7 @@ impl ByteSource for NavBytes {
             if let Some((t, frame, n)) = self.ready.pop_front() {
                 if n > buf.len() {
                     return Err(BagError::new(
-                        std::path::Path::new(&self.topics[0]),
+                        &self.file,
                         format!(
                             "a {n}-byte VN-200 frame does not fit the reader's {}-byte buffer",
                             buf.len()
@@ -195,7 +198,11 @@ impl ByteSource for NavBytes {
                     }
                     continue;
                 };
-                // No copy per message: `m` borrows only `self.msgs`.
+                // No copy per message: `m` borrows only `self.msgs` (the file's name only
+                // when it changes).
+                if m.file != self.file.as_path() {
+                    self.file = m.file.to_path_buf();
+                }
                 let bad = |e: &dyn std::fmt::Display| {
                     Got::Bad(format!(
                         "{} in {} at {}: {e}",

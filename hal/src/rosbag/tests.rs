@@ -17,6 +17,21 @@ fn data(rel: &str) -> PathBuf {
     p
 }
 
+/// A pose read back has the host stamp, GPS time and position the script put in (`w`).
+fn same_stamp_time_and_place(
+    what: &str,
+    w: &serde_json::Value,
+    stamp: Option<crate::serial::RxStamp>,
+    p: &spherecal::vn200::pose::Pose,
+) {
+    assert_eq!(stamp.unwrap().wall.0, w["host"].as_i64().unwrap(), "{what}");
+    assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap(), "{what}");
+    let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
+    for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
+        assert!((g - x.as_f64().unwrap()).abs() < 1e-9, "{what}: {lla:?}");
+    }
+}
+
 fn expected() -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(data("expected.json")).unwrap()).unwrap()
 }
@@ -133,15 +148,7 @@ fn the_vectornav_groups_become_the_vn200_frames() {
                     let f = Frame::parse(&buf[..len]).unwrap();
                     if let Some(w) = want.get(k) {
                         let p = Pose::from_frame(&f).unwrap();
-                        assert_eq!(stamp.unwrap().wall.0, w["host"].as_i64().unwrap());
-                        assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap());
-                        let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
-                        for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
-                            assert!(
-                                (g - x.as_f64().unwrap()).abs() < 1e-9,
-                                "{name} {k}: {lla:?}"
-                            );
-                        }
+                        same_stamp_time_and_place(&format!("{name} {k}"), w, stamp, &p);
                         let Attitude::YawPitchRoll(y) = p.attitude else {
                             panic!()
                         };
@@ -463,15 +470,7 @@ fn imu_navsatfix_and_time_reference_become_the_vn200_frames() {
         while let ReadOutcome::Data { len, stamp } = src.read_chunk(&mut buf).unwrap() {
             let p = Pose::from_frame(&Frame::parse(&buf[..len]).unwrap()).unwrap();
             if let Some(w) = want.get(k) {
-                assert_eq!(stamp.unwrap().wall.0, w["host"].as_i64().unwrap());
-                assert_eq!(p.time.0 as u64, w["timegps"].as_u64().unwrap());
-                let lla = [p.lat.to_degrees(), p.lon.to_degrees(), p.h];
-                for (g, x) in lla.iter().zip(w["lla"].as_array().unwrap()) {
-                    assert!(
-                        (g - x.as_f64().unwrap()).abs() < 1e-9,
-                        "{name} {k}: {lla:?}"
-                    );
-                }
+                same_stamp_time_and_place(&format!("{name} {k}"), w, stamp, &p);
                 assert!(matches!(p.attitude, Attitude::Quaternion(_)));
                 let ypr: Vec<f64> = w["ypr"]
                     .as_array()

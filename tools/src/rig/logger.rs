@@ -28,7 +28,7 @@ impl RawLog {
         }
     }
 
-    /// Log a serial read; false when there is no serial log.
+    /// Log a serial read; None when there is no serial log.
     fn serial(&mut self, stamp: RxStamp, bytes: &[u8]) -> Option<std::io::Result<()>> {
         match self {
             RawLog::Files { serial, .. } => serial.as_mut().map(|s| s.write(stamp, bytes)),

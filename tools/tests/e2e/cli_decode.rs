@@ -171,6 +171,17 @@ fn truncated_capture_is_a_counted_skip() {
     );
 }
 
+/// `spherecal decode` of the real MRPT capture into `csv`.
+fn decode_mrpt_capture_to(csv: &std::path::Path) {
+    common::stdout_of(
+        common::spherecal()
+            .arg("decode")
+            .arg(common::test_data("vlp16/mrpt_vlp16_gps.pcap"))
+            .arg("--csv")
+            .arg(csv),
+    );
+}
+
 /// `spherecal decode --bag BAG --csv CSV`: its summary.
 fn decode_bag_to(bag: &std::path::Path, csv: &std::path::Path) -> String {
     common::stdout_of(
@@ -197,13 +208,7 @@ fn a_bag_of_the_mrpt_capture_decodes_as_the_capture() {
         "{out}"
     );
     assert!(out.contains("points: 73486"), "{out}");
-    common::stdout_of(
-        common::spherecal()
-            .arg("decode")
-            .arg(common::test_data("vlp16/mrpt_vlp16_gps.pcap"))
-            .arg("--csv")
-            .arg(&from_pcap),
-    );
+    decode_mrpt_capture_to(&from_pcap);
     assert!(std::fs::read(&from_bag).unwrap() == std::fs::read(&from_pcap).unwrap());
     let whole = std::fs::read(bag.join("mrpt_vlp16.mcap")).unwrap();
     let cut = tmp("cut.mcap");
@@ -233,13 +238,7 @@ fn a_bag_of_point_clouds_decodes_to_the_captures_returns() {
     let out = decode_bag_to(&bag, &from_bag);
     assert!(out.contains("point clouds: 2"), "{out}");
     assert!(out.contains("skipped: 0"), "{out}");
-    common::stdout_of(
-        common::spherecal()
-            .arg("decode")
-            .arg(common::test_data("vlp16/mrpt_vlp16_gps.pcap"))
-            .arg("--csv")
-            .arg(&from_pcap),
-    );
+    decode_mrpt_capture_to(&from_pcap);
     let rows = |p: &std::path::Path| -> Vec<Vec<String>> {
         std::fs::read_to_string(p)
             .unwrap()
