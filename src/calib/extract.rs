@@ -360,4 +360,86 @@ mod tests {
         assert_eq!(it.next(), Some(5..7));
         assert_eq!(it.next(), None);
     }
+
+    /// A 0.25 m sphere resting on the ground seen from 40 m up and 10 m aside (centre at the
+    /// origin, NED, ground at down +r), the ground's returns within a 10 cm shell kept with
+    /// the sphere's: every kept ground return is rejected, and of the sphere only returns
+    /// within the shell's width of the ground. Three tripod legs under it instead of the
+    /// ground: nothing is rejected.
+    #[test]
+    fn the_ground_under_a_sphere_is_rejected_and_a_tripod_is_not() {
+        extern crate std;
+        // Three scans of 8,192 observations: more than a test thread's stack.
+        std::thread::Builder::new()
+            .stack_size(64 << 20)
+            .spawn(ground_and_tripod)
+            .unwrap()
+            .join()
+            .unwrap();
+    }
+
+    fn ground_and_tripod() {
+        let (r, tau) = (0.25, 0.1);
+        let sensor = Vector3::new(-10.0, 0.0, -40.0);
+        let c = Vector3::zeros();
+        let mut v: heapless::Vec<Observation, 8192> = heapless::Vec::new();
+        sphere_cap(sensor, c, r, 0.0004, &mut v);
+        let on_sphere = v.len();
+        assert!(on_sphere > 300, "{on_sphere}");
+        // The ground within 0.75 m of the contact, where the sphere does not hide it.
+        for i in -30..=30 {
+            for j in -30..=30 {
+                let g = Vector3::new(f64::from(i) * 0.025, f64::from(j) * 0.025, r);
+                let d = (g - sensor).normalize();
+                if crate::sim::scene::ray_sphere(&sensor, &d, &c, r).is_none() {
+                    let _ = v.push(at(g, sensor));
+                }
+            }
+        }
+        let shell = |o: &Observation| (norm(o.work.x) - r as f32).abs() < tau as f32;
+        let mut obs = v.clone();
+        for o in obs.iter_mut() {
+            if shell(o) {
+                o.work.verdict = ReturnClass::Kept as u8;
+            }
+        }
+        let ground_kept = obs[on_sphere..]
+            .iter()
+            .filter(|o| o.work.verdict == ReturnClass::Kept as u8)
+            .count();
+        assert!(ground_kept > 30, "{ground_kept}");
+        let n = reject_touching_plane(&mut obs, r, tau, 12);
+        assert!(obs[on_sphere..]
+            .iter()
+            .all(|o| o.work.verdict != ReturnClass::Kept as u8));
+        // Of the sphere, only the band within tau of the ground.
+        for o in &obs[..on_sphere] {
+            let near_ground = f64::from(o.work.x[2]) > r - tau;
+            assert_eq!(
+                o.work.verdict == ReturnClass::Plane as u8,
+                near_ground,
+                "{:?}",
+                o.work.x
+            );
+        }
+        assert!(n >= ground_kept, "{n} {ground_kept}");
+        // A tripod: three legs from under the sphere to the ground 1.5 m below.
+        let mut obs: heapless::Vec<Observation, 8192> = heapless::Vec::new();
+        sphere_cap(sensor, c, r, 0.0004, &mut obs);
+        for leg in 0..3 {
+            let a = f64::from(leg) * 2.0 * core::f64::consts::PI / 3.0;
+            for k in 0..60 {
+                let s = f64::from(k) / 60.0;
+                let p = Vector3::new(0.0, 0.0, r + 0.02)
+                    + Vector3::new(0.6 * a.cos(), 0.6 * a.sin(), 1.5) * s;
+                let _ = obs.push(at(p, sensor));
+            }
+        }
+        for o in obs.iter_mut() {
+            if shell(o) {
+                o.work.verdict = ReturnClass::Kept as u8;
+            }
+        }
+        assert_eq!(reject_touching_plane(&mut obs, r, tau, 12), 0);
+    }
 }

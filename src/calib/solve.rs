@@ -432,11 +432,13 @@ fn solve_data(
         return sol;
     }
     // 2. The last extraction, around the surveyed spheres.
-    let (used, tallies) = r.last_extraction(&mut d, &mut passes);
+    let (mut used, tallies) = r.last_extraction(&mut d, &mut passes);
     sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
+    sol.shell = r.tau;
     // 3. Least squares on the kept returns: the answer and its uncertainty.
-    r.final_fit(&mut d, &used[..n], found, &mut sol);
+    r.final_fit(&mut d, &mut used[..n], found, &mut sol);
+    let found = (0..n).filter(|&j| used[j] > 0).count();
     let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {

@@ -125,3 +125,116 @@ pub fn reject_attachments(
     }
     (planes, poles)
 }
+
+/// Reject the kept returns on a surface the sphere rests on or leans against (the ground, a
+/// deck, a wall: a plane touching it). Within the shell near the contact such a surface's
+/// returns lie as close to the sphere as its own, and its collar returns spread round the
+/// contact in every direction, so [`reject_attachments`]' one-direction test misses it. The
+/// plane is found among the collar returns (centre at the origin of `work.x`, radius `r`,
+/// shell `tau`) by a deterministic sample consensus: a plane whose distance from the centre is
+/// `r` within `tau`, holding at least `min_inliers` collar returns within `tau` and 40 % of
+/// them, spread round the contact point in at least 4 of 8 sectors (a tripod's legs, a pole
+/// or a lone structure fill two or three); then every kept return within `tau` of it is
+/// rejected as [`ReturnClass::Plane`] (of the sphere that is only the cap below
+/// `acos(1 - tau / r)` from the contact, hidden by the surface itself from most viewpoints).
+/// Returns how many.
+pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inliers: u32) -> usize {
+    /// Planes tried.
+    const TRIES: u32 = 96;
+    let (r, tau) = (r as f32, tau as f32);
+    let outer = r + tau + (2.0 * tau).max(0.05);
+    let collar = |o: &Observation| {
+        let d = norm(o.work.x);
+        d > r + tau && d < outer
+    };
+    let n = obs.iter().filter(|o| collar(o)).count();
+    if n < min_inliers.max(3) as usize {
+        return 0;
+    }
+    // The k-th collar return (walks the slice; the collar is small).
+    let nth = |k: usize| {
+        obs.iter()
+            .filter(|o| collar(o))
+            .nth(k)
+            .map_or([0.0; 3], |o| o.work.x)
+    };
+    let mut best: Option<([f32; 3], f32, u32)> = None;
+    let mut state = 0x9E37_79B9u32;
+    let mut next = |m: usize| {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as usize % m
+    };
+    for _ in 0..TRIES {
+        let (a, b, c) = (nth(next(n)), nth(next(n)), nth(next(n)));
+        let (u, v) = (sub(b, a), sub(c, a));
+        let nrm = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let len = norm(nrm);
+        if len < 1e-6 || !len.is_finite() {
+            continue;
+        }
+        let mut nv = [nrm[0] / len, nrm[1] / len, nrm[2] / len];
+        // Oriented away from the centre: the plane is n.x = off, off > 0.
+        let mut off = dot(nv, a);
+        if off < 0.0 {
+            nv = [-nv[0], -nv[1], -nv[2]];
+            off = -off;
+        }
+        if (off - r).abs() > tau {
+            continue;
+        }
+        let inl = obs
+            .iter()
+            .filter(|o| collar(o) && (dot(nv, o.work.x) - off).abs() <= tau)
+            .count() as u32;
+        if best.is_none_or(|(_, _, m)| inl > m) {
+            best = Some((nv, off, inl));
+        }
+    }
+    let Some((nv, off, inl)) = best else { return 0 };
+    if inl < min_inliers || (inl as usize) * 5 < n * 2 {
+        return 0;
+    }
+    // Spread round the contact point: sectors of the plane about it.
+    let e1 = if nv[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let p1 = {
+        let d = dot(e1, nv);
+        let t = sub(e1, [nv[0] * d, nv[1] * d, nv[2] * d]);
+        let l = norm(t).max(1e-9);
+        [t[0] / l, t[1] / l, t[2] / l]
+    };
+    let p2 = [
+        nv[1] * p1[2] - nv[2] * p1[1],
+        nv[2] * p1[0] - nv[0] * p1[2],
+        nv[0] * p1[1] - nv[1] * p1[0],
+    ];
+    let mut sectors = [0u32; 8];
+    for o in obs
+        .iter()
+        .filter(|o| collar(o) && (dot(nv, o.work.x) - off).abs() <= tau)
+    {
+        let a = libm::atan2f(dot(o.work.x, p2), dot(o.work.x, p1));
+        let k = (((a + core::f32::consts::PI) / core::f32::consts::FRAC_PI_4) as usize).min(7);
+        sectors[k] += 1;
+    }
+    if sectors.iter().filter(|&&c| c >= 3).count() < 4 {
+        return 0;
+    }
+    let mut rejected = 0;
+    for o in obs.iter_mut() {
+        if o.work.verdict == ReturnClass::Kept as u8 && dot(nv, o.work.x) >= off - tau {
+            o.work.verdict = ReturnClass::Plane as u8;
+            rejected += 1;
+        }
+    }
+    rejected
+}

@@ -78,7 +78,11 @@ fn calibrate(
 /// reported sigma honest (errors within 3 reported sigmas in 97 % of the runs, RMS z-score
 /// 0.7-1.4).
 fn agrees_with_monte_carlo(name: &str) {
-    let trials = TRIALS;
+    agrees_with_monte_carlo_over(name, TRIALS)
+}
+
+/// [`agrees_with_monte_carlo`] over `trials` seeds.
+fn agrees_with_monte_carlo_over(name: &str, trials: u64) {
     let s = plan::with_planning_noise(&Scenario::load(name).unwrap());
     let t0 = std::time::Instant::now();
     let noise = PlanNoise::of(&s);
@@ -246,6 +250,19 @@ fn pontoon_prediction_agrees_with_monte_carlo() {
 #[test]
 fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
     agrees_with_monte_carlo("pontoon-noisy");
+}
+
+/// The drone (issue 30) as real sensors record it: from 25-40 m, an APX-15-class INS's errors
+/// wandering over 30 s, the VLP-16's measured noise, spheres on tripods and on the grass. Over
+/// 100 seeds the plan's sigmas are the calibrations' spread (within 20 %), and each claimed
+/// calibration's reported sigmas hold its errors (97 % within 3 sigma, RMS z 0.7-1.4).
+/// Open (issue 30; NOTES.md "Issue 30"): the reported sigmas hold (96-97 of 97 claimed
+/// within 3) but the plan is 1.3-4.3x optimistic (the spheres on the grass are detected in a
+/// quarter of the slices the plan counts) and 3 % are refused (a navigation jump, a survey).
+#[test]
+#[ignore = "open (issue 30): the plan is optimistic for spheres on the grass; NOTES.md"]
+fn drone_noisy_prediction_agrees_with_monte_carlo() {
+    agrees_with_monte_carlo_over("drone-noisy", 100);
 }
 
 /// A plan that misses its targets (every pass 25 m off the quay, all northbound: the time

@@ -39,6 +39,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../../scenarios/table1-real.toml"),
     ),
     ("drone", include_str!("../../../scenarios/drone.toml")),
+    (
+        "drone-noisy",
+        include_str!("../../../scenarios/drone-noisy.toml"),
+    ),
 ];
 
 /// A scenario file.
