@@ -435,10 +435,11 @@ fn solve_data(
     let (mut used, tallies) = r.last_extraction(&mut d, &mut passes);
     sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
-    sol.shell = r.tau;
     // 3. Least squares on the kept returns: the answer and its uncertainty.
     r.final_fit(&mut d, &mut used[..n], found, &mut sol);
     let found = (0..n).filter(|&j| used[j] > 0).count();
+    // Under the navigation model, the shell of the corrected residuals.
+    sol.shell = r.tau;
     let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {

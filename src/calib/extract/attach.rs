@@ -132,9 +132,11 @@ pub fn reject_attachments(
 /// contact in every direction, so [`reject_attachments`]' one-direction test misses it. The
 /// plane is found among the collar returns (centre at the origin of `work.x`, radius `r`,
 /// shell `tau`) by a deterministic sample consensus: a plane whose distance from the centre is
-/// `r` within `tau`, holding at least `min_inliers` collar returns within `tau` and 40 % of
-/// them, spread round the contact point in at least 4 of 8 sectors (a tripod's legs, a pole
-/// or a lone structure fill two or three); then every kept return within `tau` of it is
+/// `r` within `tau`, behind the sphere as the beams see it (their mean direction along its
+/// normal positive: the sphere's own visible cap is nearly a tangent plane too, facing them),
+/// holding at least `min_inliers` collar returns within `tau` and half of them, spread round
+/// the contact point in at least 5 of 8 sectors (a tripod's legs fill three or four; seen
+/// under a misfit's wide shell they did fill four); then every kept return within `tau` of it is
 /// rejected as [`ReturnClass::Plane`] (of the sphere that is only the cap below
 /// `acos(1 - tau / r)` from the contact, hidden by the surface itself from most viewpoints).
 /// Returns how many.
@@ -188,16 +190,26 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
         if (off - r).abs() > tau {
             continue;
         }
-        let inl = obs
+        let (mut inl, mut away) = (0u32, 0f32);
+        for o in obs
             .iter()
             .filter(|o| collar(o) && (dot(nv, o.work.x) - off).abs() <= tau)
-            .count() as u32;
+        {
+            inl += 1;
+            away += dot(nv, o.work.u);
+        }
+        // The beams reach it going away from the centre: a surface behind the sphere as seen
+        // from the sensor, not the sphere's own cap facing it (which is nearly a tangent
+        // plane too).
+        if away <= 0.05 * inl as f32 {
+            continue;
+        }
         if best.is_none_or(|(_, _, m)| inl > m) {
             best = Some((nv, off, inl));
         }
     }
     let Some((nv, off, inl)) = best else { return 0 };
-    if inl < min_inliers || (inl as usize) * 5 < n * 2 {
+    if inl < min_inliers || (inl as usize) * 2 < n {
         return 0;
     }
     // Spread round the contact point: sectors of the plane about it.
@@ -226,7 +238,7 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
         let k = (((a + core::f32::consts::PI) / core::f32::consts::FRAC_PI_4) as usize).min(7);
         sectors[k] += 1;
     }
-    if sectors.iter().filter(|&&c| c >= 3).count() < 4 {
+    if sectors.iter().filter(|&&c| c >= 3).count() < 5 {
         return 0;
     }
     let mut rejected = 0;

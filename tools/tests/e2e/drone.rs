@@ -1,6 +1,6 @@
 //! The drone (issue 30, first step): the built-in `drone` survey — a multirotor at 40 m and
-//! 25 m above a field, its VLP-16 scanning across the track, spheres on tripods on the grass
-//! among a shed, cars, trees and bushes — is extracted from above and calibrates within 1e-3
+//! 25 m above a field, its VLP-16 scanning across the track, spheres on tripods and resting
+//! on the grass among a shed, cars, trees and bushes — is extracted from above and calibrates within 1e-3
 //! of the truth from a-priori values 0.5 deg / 3 cm off.
 
 use crate::common;
@@ -51,14 +51,19 @@ fn the_drone_survey_calibrates_from_above_within_1e_3() {
         1e-3,
         "the drone survey",
     );
-    // Each sphere's kept returns are most of what the simulator put on it.
+    // A tripod sphere's kept returns are most of what the simulator put on it; a sphere on
+    // the grass keeps fewer (the scan lines run on from the grass over it: found in fewer
+    // slices; 43 % when this was written), none of the grass.
     for (k, p) in r["per_sphere"].as_array().unwrap().iter().enumerate() {
         let kept = p["points"].as_u64().unwrap_or(0);
+        let on_grass = s.sphere[k].stand == "none";
+        let share = if on_grass { 3 } else { 6 };
         assert!(
-            kept * 10 >= truth.points_per_sphere[k] * 6,
+            kept * 10 >= truth.points_per_sphere[k] * share,
             "sphere {k}: kept {kept} of {}: {p}",
             truth.points_per_sphere[k]
         );
     }
+    assert!(s.sphere.iter().any(|x| x.stand == "none"));
     let _ = std::fs::remove_dir_all(&d);
 }
