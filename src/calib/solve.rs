@@ -432,14 +432,11 @@ fn solve_data(
         return sol;
     }
     // 2. The last extraction, around the surveyed spheres.
-    let (mut used, tallies) = r.last_extraction(&mut d, &mut passes);
+    let (used, tallies) = r.last_extraction(&mut d, &mut passes);
     sol.passes = passes;
     let found = (0..n).filter(|&j| used[j] > 0).count();
     // 3. Least squares on the kept returns: the answer and its uncertainty.
-    r.final_fit(&mut d, &mut used[..n], found, &mut sol);
-    let found = (0..n).filter(|&j| used[j] > 0).count();
-    // Under the navigation model, the shell of the corrected residuals.
-    sol.shell = r.tau;
+    r.final_fit(&mut d, &used[..n], found, &mut sol);
     let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {

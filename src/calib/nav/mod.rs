@@ -196,23 +196,6 @@ fn piece_of(pieces: &[Piece], t: GpsTime) -> usize {
         .min(pieces.len().saturating_sub(1))
 }
 
-/// The residual of `o` on `target` at the time offset `dt` with its piece's error (of
-/// `pieces`, the fit's, in time order) and the sphere's centre correction `centre` [m, NED]
-/// taken out, less the common `radius_offset` (`None` at the centre itself).
-pub fn corrected_residual(
-    lin: &Linearised,
-    o: &crate::window::Observation,
-    target: &crate::window::Target,
-    dt: f64,
-    pieces: &[Piece],
-    centre: [f64; 3],
-    radius_offset: f64,
-) -> Option<f64> {
-    let p = pieces.get(piece_of(pieces, o.time))?;
-    let c = p.correction(Vector3::from(centre));
-    Some(lin.row_corrected(o, target, dt, &c)?.residual - radius_offset)
-}
-
 /// What the navigation model's least squares found besides [`LmResult`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NavFit {

@@ -3,8 +3,7 @@
 
 #[allow(unused_imports)]
 use super::*;
-use crate::calib::nav::{corrected_residual, cut_for, refine as refine_nav, NavFit, Piece};
-use crate::calib::objective::Linearised;
+use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
 
 impl Rounds {
     /// The last extraction: around the surveyed spheres, in the slices where the sphere is
@@ -89,17 +88,17 @@ impl Rounds {
     pub(super) fn final_fit(
         &mut self,
         d: &mut Data<'_, '_, '_>,
-        used: &mut [usize],
+        used: &[usize],
         found: usize,
         sol: &mut Solution,
     ) {
-        let (targets, s) = (d.targets, d.s);
+        let (targets, s, obs) = (d.targets, d.s, &*d.obs);
         let nav = &mut *d.ws.nav;
         // Under the navigation model the weights are the white noise's, absolute (the priors
         // are in metres and radians).
         let w = match s.nav {
             Some(_) => Some(s.noise()),
-            None => weights(d.obs, used, s),
+            None => weights(obs, used, s),
         };
         let fit =
             |pb: &Problem<'_>, b: &[f64; P], iter: usize, clock: Clock, nav: &mut [Piece]| match &s
@@ -122,28 +121,14 @@ impl Rounds {
                 None => (refine(pb, b, iter, s.cluster_ns, clock), None),
             };
         let lm = (found >= 2).then(|| {
-            with_problem(targets, d.obs, used, 1, self.time, w, |pb| {
+            with_problem(targets, obs, used, 1, self.time, w, |pb| {
                 fit(pb, &self.b, s.lm_iter, s.clock(), nav)
             })
         });
-        let mut lm = lm.map(|(l, f)| {
+        let lm = lm.map(|(l, f)| {
             sol.nav = f;
             l
         });
-        // Under the navigation model the shell was drawn around returns still carrying the
-        // navigation's wander (centimetres): with it taken out, the returns beyond the shell
-        // of what is left are not the sphere's (ground, clutter), and the fit goes again.
-        if let (Some(l), Some(f)) = (&lm, sol.nav) {
-            let trimmed =
-                self.trim_to_corrected_shell(d.obs, targets, used, &nav[..f.pieces], l, &f, s);
-            if trimmed > 0 && used.iter().filter(|&&u| u > 0).count() >= 2 {
-                let (l, f) = with_problem(targets, d.obs, used, 1, self.time, w, |pb| {
-                    fit(pb, &l.b, s.lm_iter, s.clock(), nav)
-                });
-                sol.nav = f;
-                lm = Some(l);
-            }
-        }
         if let Some(l) = &lm {
             self.b = l.b;
             self.time.dt = l.dt;
@@ -159,7 +144,7 @@ impl Rounds {
                 dt: true,
                 drift: s.estimate_drift,
             };
-            let (free, at_held) = with_problem(targets, d.obs, used, 1, self.time, w, |pb| {
+            let (free, at_held) = with_problem(targets, obs, used, 1, self.time, w, |pb| {
                 (
                     fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
                     fit(pb, &l.b, 0, free_clock, nav).0,
@@ -175,77 +160,6 @@ impl Rounds {
         sol.drift = self.time.drift;
         sol.t_ref = self.time.t_ref;
         sol.lm = lm;
-        sol.l1 = with_problem(targets, d.obs, used, 1, self.time, None, |pb| {
-            pb.l1(&self.b)
-        });
-    }
-
-    /// Under the navigation model, after a fit: each kept return's residual with its piece's
-    /// error and its sphere's centre correction taken out (`pieces`: the fit's); those beyond
-    /// the shell of these residuals (`shell_sigmas` robust sigmas, at least `shell_floor`)
-    /// rejected as outside it, the kept ones first again. A sphere left with fewer than
-    /// `min_points` is not found. Returns how many were rejected.
-    #[allow(clippy::too_many_arguments)]
-    fn trim_to_corrected_shell(
-        &mut self,
-        obs: &mut [&mut [Observation]],
-        targets: &[Target],
-        used: &mut [usize],
-        pieces: &[Piece],
-        l: &LmResult,
-        f: &NavFit,
-        s: &Settings,
-    ) -> usize {
-        if pieces.is_empty() {
-            return 0;
-        }
-        let lin = Linearised::at(&l.b);
-        let time = self.time;
-        let res = |j: usize, o: &Observation| {
-            corrected_residual(
-                &lin,
-                o,
-                &targets[j],
-                time.at(o),
-                pieces,
-                f.centre[j],
-                l.radius_offset,
-            )
-        };
-        let mut h = Histogram::new();
-        for (j, v) in obs.iter().enumerate().take(used.len()) {
-            for o in &v[..used[j]] {
-                if let Some(e) = res(j, o) {
-                    h.add(e.abs());
-                }
-            }
-        }
-        if h.n == 0 {
-            return 0;
-        }
-        let tau = (s.shell_sigmas * 1.4826 * h.median()).max(s.shell_floor);
-        if tau >= self.tau {
-            return 0;
-        }
-        self.tau = tau;
-        let mut rejected = 0;
-        for (j, v) in obs.iter_mut().enumerate().take(used.len()) {
-            let mut out = 0;
-            for i in 0..used[j] {
-                if res(j, &v[i]).is_none_or(|e| e.abs() > tau) {
-                    v[i].work.verdict = ReturnClass::OutsideShell as u8;
-                    out += 1;
-                }
-            }
-            if out > 0 {
-                rejected += out;
-                used[j] = partition(v);
-                if used[j] < s.min_points {
-                    extract::tag(v, ReturnClass::NotFound);
-                    used[j] = 0;
-                }
-            }
-        }
-        rejected
+        sol.l1 = with_problem(targets, obs, used, 1, self.time, None, |pb| pb.l1(&self.b));
     }
 }

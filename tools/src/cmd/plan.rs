@@ -1,5 +1,5 @@
 //! `spherecal plan --scenario NAME|FILE [--target-sigma-deg A --target-sigma-m L] [--report
-//! OUT.json|.html] [--write-plan OUT.toml]`.
+//! OUT.json|.html] [--write-plan OUT.toml] [--no-recommend] [--design]`.
 
 use super::{claimed, fail};
 use crate::plan::{html, plan, recommend, render, Goal};
@@ -27,6 +27,11 @@ pub struct Args {
     /// Predict only: no recommendations.
     #[arg(long)]
     pub no_recommend: bool,
+    /// Design the survey for the scenario's site: flight heights, line pattern and speed (aerial)
+    /// and the number, size and placement of spheres; the report and --write-plan are then the
+    /// proposed survey's.
+    #[arg(long)]
+    pub design: bool,
 }
 
 /// Run it: exit 0 when the plan meets the targets, 1 when it misses them, 2 on bad input.
@@ -68,7 +73,22 @@ pub fn run(a: Args) -> ExitCode {
         sigma_m: a.target_sigma_m,
         ..Goal::default()
     };
-    let r = match plan(&s, &goal, !a.no_recommend) {
+    let design = if a.design {
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+        match crate::plan::design::design(&s, &goal, threads) {
+            Ok(d) => Some(d),
+            Err(e) => return fail("plan", e),
+        }
+    } else {
+        None
+    };
+    if let Some(d) = &design {
+        say!("{}", crate::plan::design::render(d, &goal));
+    }
+    let s = design.as_ref().map_or(s, |d| d.scenario.clone());
+    // The recommendations' candidate passes are a vessel's: not for a designed flight.
+    let recommend = !a.no_recommend && design.as_ref().is_none_or(|d| d.kind == "vessel");
+    let r = match plan(&s, &goal, recommend) {
         Ok(r) => r,
         Err(e) => return fail("plan", e),
     };
@@ -78,8 +98,14 @@ pub fn run(a: Args) -> ExitCode {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
         {
-            html::render(&s, &r)
+            html::render(&s, &r, design.as_ref())
                 .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))
+        } else if let Some(d) = &design {
+            crate::report::write_json_atomically(
+                p,
+                &serde_json::json!({ "design": { "kind": d.kind, "chosen": d.chosen,
+                    "candidates": d.candidates }, "plan": r }),
+            )
         } else {
             crate::report::write_json_atomically(p, &r)
         };
@@ -87,7 +113,21 @@ pub fn run(a: Args) -> ExitCode {
             return fail("plan", e);
         }
     }
-    if let Some(p) = &a.write_plan {
+    if let (Some(p), true) = (&a.write_plan, design.is_some()) {
+        let text = match toml::to_string(&s) {
+            Ok(t) => format!("# the survey `plan --design` proposes\n{t}"),
+            Err(e) => {
+                return fail(
+                    "plan",
+                    crate::Error::internal(format!("the scenario as TOML: {e}")),
+                )
+            }
+        };
+        if let Err(e) = crate::report::write_atomically(p, text.as_bytes()) {
+            return fail("plan", e);
+        }
+        sayln!("wrote {}", p.display());
+    } else if let Some(p) = &a.write_plan {
         let Some(rec) = r.recommendations.first() else {
             return fail(
                 "plan",

@@ -120,6 +120,37 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
             .light_line_style(WHITE)
             .draw()
             .map_err(e)?;
+        // The site as a map: its buildings, vehicles and structures (boxes) and its posts and
+        // trees (poles) from above, in grey, under the lines.
+        let grey = RGBColor(205, 205, 205);
+        let inside = |(x, y): (f64, f64)| (x0..=x1).contains(&x) && (y0..=y1).contains(&y);
+        for b in &s.boxes {
+            let (h, [n, e0]) = (b.heading_deg.to_radians(), [b.center_m[0], b.center_m[1]]);
+            let corner = |u: f64, v: f64| {
+                let (du, dv) = (u * b.size_m[0] / 2.0, v * b.size_m[1] / 2.0);
+                (
+                    e0 + du * h.sin() + dv * h.cos(),
+                    n + du * h.cos() - dv * h.sin(),
+                )
+            };
+            let ring = vec![
+                corner(-1.0, -1.0),
+                corner(1.0, -1.0),
+                corner(1.0, 1.0),
+                corner(-1.0, 1.0),
+            ];
+            if ring.iter().any(|&p| inside(p)) {
+                ch.draw_series([Polygon::new(ring, grey.filled())])
+                    .map_err(e)?;
+            }
+        }
+        for p in &s.poles {
+            let c = (p.base_m[1], p.base_m[0]);
+            if inside(c) {
+                ch.draw_series([Circle::new(c, 3, grey.filled())])
+                    .map_err(e)?;
+            }
+        }
         for (seg, pts) in &paths {
             let (colour, width) = match seg {
                 Segment::Turn(_) => (RGBColor(170, 170, 170), 1),
@@ -129,8 +160,14 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
                 .map_err(e)?;
             if let (Segment::Pass(i), Some(&last)) = (seg, pts.last()) {
                 let mid = pts[pts.len() / 2];
+                // A flight's lines with their height above the spheres' ground.
+                let above = s.trajectory.pass[*i]
+                    .down_m
+                    .filter(|_| super::design::is_aerial(s))
+                    .map(|d| format!(" ({:.0} m)", super::design::ground(s) - d))
+                    .unwrap_or_default();
                 ch.draw_series([Text::new(
-                    format!("{}", i + 1),
+                    format!("{}{above}", i + 1),
                     mid,
                     ("sans-serif", 13).into_font().color(&BLACK),
                 )])
@@ -237,7 +274,11 @@ fn fmt(v: Option<f64>, i: usize) -> String {
 }
 
 /// The page.
-pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
+pub fn render(
+    s: &Scenario,
+    r: &PlanReport,
+    design: Option<&super::design::Design>,
+) -> Result<String, crate::Error> {
     let mut o = String::new();
     let _ = write!(
         o,
@@ -259,6 +300,49 @@ pub fn render(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
             "<p class=\"no\">The plan misses the targets: {}.</p>",
             escape(&r.missing.join("; "))
         );
+    }
+    if let Some(d) = design {
+        let c = &d.candidates[d.chosen];
+        let _ = writeln!(
+            o,
+            "<h2>Design</h2><p>Proposed ({} survey, {} candidates weighed): {} <span class=\"note\">({}; cost {:.0} s with the spheres' set-up)</span>. The map and the tables below are this survey's.</p>",
+            d.kind,
+            d.candidates.len(),
+            escape(&c.words),
+            if c.meets { "meets the targets" } else { "the closest: none meets them" },
+            c.cost_s
+        );
+        o.push_str("<table><tr><th>height [m]</th><th>speed [m/s]</th><th>spheres</th><th>radius [m]</th><th class=\"l\">where</th><th>cost [s]</th>");
+        for name in NAMES {
+            let _ = write!(o, "<th>{name}</th>");
+        }
+        o.push_str("<th>meets</th></tr>\n");
+        let mut order: Vec<usize> = (0..d.candidates.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (x, y) = (&d.candidates[a], &d.candidates[b]);
+            (b == d.chosen)
+                .cmp(&(a == d.chosen))
+                .then(y.meets.cmp(&x.meets))
+                .then(x.cost_s.total_cmp(&y.cost_s))
+        });
+        for &k in order.iter().take(super::design::SHOWN) {
+            let c = &d.candidates[k];
+            let _ = write!(
+                o,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td class=\"l\">{}</td><td>{:.0}</td>",
+                c.height_m.map_or("&ndash;".into(), |h| format!("{h:.0}")),
+                c.speed_mps.map_or("&ndash;".into(), |v| format!("{v:.0}")),
+                c.spheres,
+                c.radius_m,
+                escape(&c.layout),
+                c.cost_s
+            );
+            for i in 0..P {
+                let _ = write!(o, "<td>{}</td>", fmt(c.predicted.sigma_deg_m[i], i));
+            }
+            let _ = writeln!(o, "<td>{}</td></tr>", if c.meets { "yes" } else { "no" });
+        }
+        o.push_str("</table>\n");
     }
     let n = &r.noise;
     let _ = writeln!(

@@ -8,6 +8,7 @@
 //! sphere's share is known (the sigmas without it), and a candidate change (a pass, a slower
 //! pass, a sphere: [`recommend`]) costs only its own tracing.
 
+pub mod design;
 pub mod html;
 pub mod live;
 pub mod nav;

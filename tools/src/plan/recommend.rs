@@ -134,7 +134,7 @@ impl State {
 
 /// The line of the spheres: centroid (N, E), unit direction along it, the unit normal towards
 /// the passes, and the spheres' extent along it [m].
-fn line(s: &Scenario) -> ([f64; 2], [f64; 2], [f64; 2], [f64; 2]) {
+pub(super) fn line(s: &Scenario) -> ([f64; 2], [f64; 2], [f64; 2], [f64; 2]) {
     let n = s.sphere.len() as f64;
     let c = s.sphere.iter().fold([0.0, 0.0], |a, sp| {
         [a[0] + sp.ned_m[0] / n, a[1] + sp.ned_m[1] / n]
