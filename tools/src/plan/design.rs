@@ -149,15 +149,10 @@ fn aerial_passes(
     ]
 }
 
-/// Sphere positions (N, E) for `count` spheres: across the swath and along the lines
-/// (aerial), or along the reach (vessel), symmetric about the centre.
-fn positions(
-    c: [f64; 2],
-    heading_deg: f64,
-    along: f64,
-    across: f64,
-    count: usize,
-) -> Vec<[f64; 2]> {
+/// Sphere positions (N, E) about the centre `c`: the four corners of a rectangle `along` the
+/// lines and `across` them, then two further across the middle. A layout of n spheres is the
+/// first n (three: a right triangle; four: the rectangle).
+fn positions(c: [f64; 2], heading_deg: f64, along: f64, across: f64) -> Vec<[f64; 2]> {
     let a = heading_deg.to_radians();
     let (dir, side) = ([a.cos(), a.sin()], [-a.sin(), a.cos()]);
     let at = |u: f64, v: f64| {
@@ -166,21 +161,14 @@ fn positions(
             c[1] + dir[1] * u + side[1] * v,
         ]
     };
-    let corners = [
+    vec![
         at(-along, -across),
         at(along, -across),
         at(along, across),
         at(-along, across),
-    ];
-    match count {
-        3 => vec![corners[0], at(along, 0.0), corners[3]],
-        4 => corners.to_vec(),
-        _ => {
-            let mut v = corners.to_vec();
-            v.extend([at(0.0, -1.6 * across), at(0.0, 1.6 * across)]);
-            v
-        }
-    }
+        at(0.0, -1.6 * across),
+        at(0.0, 1.6 * across),
+    ]
 }
 
 /// The spheres at `pos`, radius `r`, on tripods on the ground at `ground`.
@@ -290,7 +278,7 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
                     sc.name = format!("{}-design", s.name);
                     sc.trajectory.pass = aerial_passes(c, heading, ground, h, v, reach);
                     sc.trajectory.ins_down_m = ground - h;
-                    sc.sphere = spheres_at(&positions(c, heading, along, across, 6), r, ground);
+                    sc.sphere = spheres_at(&positions(c, heading, along, across), r, ground);
                     sc.validate().map_err(|e| e.to_string())?;
                     let survey_s = sc.duration_s();
                     let label = |n: usize| {

@@ -159,7 +159,8 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
             ch.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(width)))
                 .map_err(e)?;
             if let (Segment::Pass(i), Some(&last)) = (seg, pts.last()) {
-                let mid = pts[pts.len() / 2];
+                // Staggered along the line: lines that cross over the targets keep apart.
+                let mid = pts[(pts.len() * (2 + 2 * (*i % 3)) / 10).min(pts.len() - 1)];
                 // A flight's lines with their height above the spheres' ground.
                 let above = s.trajectory.pass[*i]
                     .down_m

@@ -327,6 +327,55 @@ fn the_designed_drone_survey_is_confirmed_by_monte_carlo() {
     agrees_with_monte_carlo(file.to_str().unwrap());
 }
 
+/// `plan --design` for a vessel (table1's quay and passes): sphere layouts along the reach
+/// weighed (sizes, counts, spacing, heights), the JSON report carrying them, the proposed
+/// layout written as a scenario `plan` accepts; four 0.35 m spheres predict better than the
+/// planned two of 0.19 m in every one of the six.
+#[test]
+fn plan_design_for_a_vessel_proposes_sphere_layouts() {
+    let d = tmp("vessel-design");
+    let (report, written) = (d.join("r.json"), d.join("p.toml"));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_spherecal"))
+        .args(["plan", "--scenario", "table1", "--design", "--no-recommend"])
+        .arg("--report")
+        .arg(&report)
+        .arg("--write-plan")
+        .arg(&written)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        text.contains("design (vessel survey, 36 candidates"),
+        "{text}"
+    );
+    // None of the layouts meets 0.01 deg with these passes (pitch): exit 1.
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let cands = r["design"]["candidates"].as_array().unwrap();
+    assert_eq!(cands.len(), 36);
+    let planned = plan::plan(&Scenario::load("table1").unwrap(), &Goal::default(), false)
+        .unwrap()
+        .predicted;
+    let four_big = cands
+        .iter()
+        .find(|c| {
+            c["spheres"] == 4
+                && c["radius_m"].as_f64() == Some(0.35)
+                && c["layout"].as_str() == Some("along 20 m")
+        })
+        .unwrap();
+    for i in 0..6 {
+        let big = four_big["predicted"]["sigma_deg_m"][i].as_f64().unwrap();
+        assert!(big < planned.sigma_deg_m[i].unwrap(), "{i}: {big}");
+    }
+    let s = Scenario::load(written.to_str().unwrap()).unwrap();
+    let chosen = &cands[r["design"]["chosen"].as_u64().unwrap() as usize];
+    assert_eq!(s.sphere.len() as u64, chosen["spheres"].as_u64().unwrap());
+    assert_eq!(r["plan"]["scenario"], "table1-design");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A plan that misses its targets (every pass 25 m off the quay, all northbound: the time
 /// offset and the lever arm along the track cannot be told apart), the recommendation that
 /// makes it meet them, the predictor confirming it on the changed plan traced from scratch,
