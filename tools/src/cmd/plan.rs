@@ -113,53 +113,47 @@ pub fn run(a: Args) -> ExitCode {
             return fail("plan", e);
         }
     }
-    if let (Some(p), true) = (&a.write_plan, design.is_some()) {
-        let text = match toml::to_string(&s) {
-            Ok(t) => format!("# the survey `plan --design` proposes\n{t}"),
-            Err(e) => {
+    if let Some(p) = &a.write_plan {
+        let written = if design.is_some() {
+            write_scenario(p, &s, "the survey `plan --design` proposes")
+        } else {
+            let Some(rec) = r.recommendations.first() else {
                 return fail(
                     "plan",
-                    crate::Error::internal(format!("the scenario as TOML: {e}")),
-                )
-            }
+                    format!(
+                        "--write-plan {}: no change to write (the plan {})",
+                        p.display(),
+                        if r.meets {
+                            "meets the targets"
+                        } else {
+                            "has no candidate change: it uses a recorded trajectory"
+                        }
+                    ),
+                );
+            };
+            let mut improved = recommend::apply(&s, &rec.changes);
+            improved.name = format!("{}-planned", s.name);
+            write_scenario(
+                p,
+                &improved,
+                &format!("{} with the plan's recommendation: {}", s.name, rec.words),
+            )
         };
-        if let Err(e) = crate::report::write_atomically(p, text.as_bytes()) {
-            return fail("plan", e);
-        }
-        sayln!("wrote {}", p.display());
-    } else if let Some(p) = &a.write_plan {
-        let Some(rec) = r.recommendations.first() else {
-            return fail(
-                "plan",
-                format!(
-                    "--write-plan {}: no change to write (the plan {})",
-                    p.display(),
-                    if r.meets {
-                        "meets the targets"
-                    } else {
-                        "has no candidate change: it uses a recorded trajectory"
-                    }
-                ),
-            );
-        };
-        let mut improved = recommend::apply(&s, &rec.changes);
-        improved.name = format!("{}-planned", s.name);
-        let text = match toml::to_string(&improved) {
-            Ok(t) => format!(
-                "# {} with the plan's recommendation: {}\n{t}",
-                s.name, rec.words
-            ),
-            Err(e) => {
-                return fail(
-                    "plan",
-                    crate::Error::internal(format!("the scenario as TOML: {e}")),
-                )
-            }
-        };
-        if let Err(e) = crate::report::write_atomically(p, text.as_bytes()) {
+        if let Err(e) = written {
             return fail("plan", e);
         }
         sayln!("wrote {}", p.display());
     }
     claimed(r.meets)
+}
+
+/// A scenario as a TOML file to edit, under a comment line.
+fn write_scenario(
+    p: &std::path::Path,
+    s: &crate::config::scenario::Scenario,
+    what: &str,
+) -> Result<(), crate::Error> {
+    let t = toml::to_string(s)
+        .map_err(|e| crate::Error::internal(format!("the scenario as TOML: {e}")))?;
+    crate::report::write_atomically(p, format!("# {what}\n{t}").as_bytes())
 }

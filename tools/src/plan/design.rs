@@ -205,25 +205,33 @@ fn predict_subset(g: &Geometry, keep: &[bool]) -> (Predicted, Vec<u32>) {
     (p, returns)
 }
 
-/// Weigh one traced layout: every sphere count its positions allow (the first `n` of them).
-#[allow(clippy::too_many_arguments)]
+/// One traced survey and what its candidates share.
+struct Layout<'a> {
+    /// The sphere counts to weigh (the first n of the scenario's spheres).
+    counts: &'a [usize],
+    radius_m: f64,
+    survey_s: f64,
+    height_m: Option<f64>,
+    speed_mps: Option<f64>,
+    /// Where the spheres are, in words.
+    layout: String,
+    /// The candidate of n spheres in words.
+    label: &'a dyn Fn(usize) -> String,
+}
+
+/// Weigh one traced layout: every sphere count it names (the first `n` of its spheres).
 fn weigh(
     s: &Scenario,
     noise: &PlanNoise,
     goal: &Goal,
-    counts: &[usize],
-    r: f64,
-    survey_s: f64,
-    label: &dyn Fn(usize) -> String,
-    layout: &str,
-    height: Option<f64>,
-    speed: Option<f64>,
+    l: &Layout<'_>,
     threads: usize,
     out: &mut Vec<(Candidate, Scenario)>,
 ) -> Result<(), crate::Error> {
+    let (r, survey_s) = (l.radius_m, l.survey_s);
     let g = geometry(s, noise, threads)?;
     let all = s.sphere.len();
-    for &n in counts {
+    for &n in l.counts {
         let keep: Vec<bool> = (0..all).map(|j| j < n).collect();
         let (p, returns) = predict_subset(&g, &keep);
         let pred = Prediction::of(&p);
@@ -234,11 +242,11 @@ fn weigh(
         sc.sphere.truncate(n);
         out.push((
             Candidate {
-                words: label(n),
-                height_m: height,
-                speed_mps: speed,
+                words: (l.label)(n),
+                height_m: l.height_m,
+                speed_mps: l.speed_mps,
                 spheres: n,
-                layout: layout.to_string(),
+                layout: l.layout.clone(),
                 radius_m: r,
                 survey_s,
                 cost_s,
@@ -289,20 +297,16 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
                             (0.6 * h).max(15.0)
                         )
                     };
-                    weigh(
-                        &sc,
-                        &noise,
-                        goal,
-                        &[3, 4, 6],
-                        r,
+                    let l = Layout {
+                        counts: &[3, 4, 6],
+                        radius_m: r,
                         survey_s,
-                        &label,
-                        &format!("{along:.0} m along, {across:.0} m across the centre"),
-                        Some(h),
-                        Some(v),
-                        threads,
-                        &mut weighed,
-                    )?;
+                        height_m: Some(h),
+                        speed_mps: Some(v),
+                        layout: format!("{along:.0} m along, {across:.0} m across the centre"),
+                        label: &label,
+                    };
+                    weigh(&sc, &noise, goal, &l, threads, &mut weighed)?;
                 }
             }
         }
@@ -344,15 +348,13 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
                         }
                     )
                 };
-                weigh(
-                    &sc,
-                    &noise,
-                    goal,
-                    &[2, 3, 4],
-                    r,
+                let l = Layout {
+                    counts: &[2, 3, 4],
+                    radius_m: r,
                     survey_s,
-                    &label,
-                    &format!(
+                    height_m: None,
+                    speed_mps: None,
+                    layout: format!(
                         "along {:.0} m{}",
                         2.0 * half,
                         if raise > 0.0 {
@@ -361,11 +363,9 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
                             ""
                         }
                     ),
-                    None,
-                    None,
-                    threads,
-                    &mut weighed,
-                )?;
+                    label: &label,
+                };
+                weigh(&sc, &noise, goal, &l, threads, &mut weighed)?;
             }
         }
     }
@@ -389,6 +389,26 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
         chosen,
         candidates: weighed.into_iter().map(|(c, _)| c).collect(),
     })
+}
+
+impl Design {
+    /// The candidates to show first: the proposal, the cheapest that meet, then the closest
+    /// that do not.
+    pub fn order(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.candidates.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (x, y) = (&self.candidates[a], &self.candidates[b]);
+            (b == self.chosen)
+                .cmp(&(a == self.chosen))
+                .then(y.meets.cmp(&x.meets))
+                .then(if x.meets {
+                    x.cost_s.total_cmp(&y.cost_s)
+                } else {
+                    x.worst_ratio.total_cmp(&y.worst_ratio)
+                })
+        });
+        order
+    }
 }
 
 /// The design in words: the proposal and the table weighed.
@@ -420,19 +440,7 @@ pub fn render(d: &Design, goal: &Goal) -> String {
         "  {:>6} {:>5} {:>3} {:>5} {:>6} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7}  meets  spheres",
         "height", "m/s", "n", "r m", "cost s", "roll", "pitch", "heading", "x mm", "y mm", "z mm"
     );
-    // The cheapest that meet, then the closest that do not; the proposal first.
-    let mut order: Vec<usize> = (0..d.candidates.len()).collect();
-    order.sort_by(|&a, &b| {
-        let (x, y) = (&d.candidates[a], &d.candidates[b]);
-        (b == d.chosen)
-            .cmp(&(a == d.chosen))
-            .then(y.meets.cmp(&x.meets))
-            .then(if x.meets {
-                x.cost_s.total_cmp(&y.cost_s)
-            } else {
-                x.worst_ratio.total_cmp(&y.worst_ratio)
-            })
-    });
+    let order = d.order();
     for &k in order.iter().take(SHOWN) {
         let c = &d.candidates[k];
         let s = |i: usize| {

@@ -318,14 +318,7 @@ pub fn render(
             let _ = write!(o, "<th>{name}</th>");
         }
         o.push_str("<th>meets</th></tr>\n");
-        let mut order: Vec<usize> = (0..d.candidates.len()).collect();
-        order.sort_by(|&a, &b| {
-            let (x, y) = (&d.candidates[a], &d.candidates[b]);
-            (b == d.chosen)
-                .cmp(&(a == d.chosen))
-                .then(y.meets.cmp(&x.meets))
-                .then(x.cost_s.total_cmp(&y.cost_s))
-        });
+        let order = d.order();
         for &k in order.iter().take(super::design::SHOWN) {
             let c = &d.candidates[k];
             let _ = write!(
