@@ -171,11 +171,7 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
     for _ in 0..TRIES {
         let (a, b, c) = (nth(next(n)), nth(next(n)), nth(next(n)));
         let (u, v) = (sub(b, a), sub(c, a));
-        let nrm = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
+        let nrm = cross(u, v);
         let len = norm(nrm);
         if len < 1e-6 || !len.is_finite() {
             continue;
@@ -224,11 +220,7 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
         let l = norm(t).max(1e-9);
         [t[0] / l, t[1] / l, t[2] / l]
     };
-    let p2 = [
-        nv[1] * p1[2] - nv[2] * p1[1],
-        nv[2] * p1[0] - nv[0] * p1[2],
-        nv[0] * p1[1] - nv[1] * p1[0],
-    ];
+    let p2 = cross(nv, p1);
     let mut sectors = [0u32; 8];
     for o in obs
         .iter()
@@ -249,4 +241,12 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
         }
     }
     rejected
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }

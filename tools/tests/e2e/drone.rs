@@ -5,6 +5,28 @@
 
 use crate::common;
 
+/// `calibrate` on the survey in `d` (exit 0, claimed): its JSON report and what it printed.
+fn calibrated(d: &std::path::Path) -> (serde_json::Value, String) {
+    let report = d.join("report.json");
+    let o = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(d))
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.status.success(), "{text}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["converged"], true, "{text}");
+    (r, text)
+}
+
 #[test]
 fn the_drone_survey_calibrates_from_above_within_1e_3() {
     let s = spherecal_tools::config::scenario::Scenario::load("drone").unwrap();
@@ -28,23 +50,7 @@ fn the_drone_survey_calibrates_from_above_within_1e_3() {
         "{:?}",
         truth.points_per_sphere
     );
-    let report = d.join("report.json");
-    let o = common::spherecal()
-        .arg("calibrate")
-        .args(common::survey_args(&d))
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    assert!(o.status.success(), "{text}");
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(r["converged"], true, "{text}");
+    let (r, _) = calibrated(&d);
     common::assert_within(
         &common::report_deg_m(&r),
         &s.mount.truth.deg_m().0,
@@ -93,24 +99,8 @@ fn the_noisy_drone_survey_calibrates_within_its_sigmas() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(d.join("ins.bin").exists() && !d.join("ins.posmv").exists());
     let s = spherecal_tools::config::scenario::Scenario::load("drone-noisy").unwrap();
-    let report = d.join("report.json");
-    let o = common::spherecal()
-        .arg("calibrate")
-        .args(common::survey_args(&d))
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    assert!(o.status.success(), "{text}");
+    let (r, text) = calibrated(&d);
     assert!(text.contains("preset \"apx15\""), "{text}");
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(r["converged"], true, "{text}");
     let got = common::report_deg_m(&r);
     let truth = s.mount.truth.deg_m().0;
     let sig = &r["sigma"];
