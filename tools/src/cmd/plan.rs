@@ -93,6 +93,13 @@ pub fn run(a: Args) -> ExitCode {
         Err(e) => return fail("plan", e),
     };
     say!("{}", render(&r));
+    if !r.meets && design.is_none() && crate::plan::design::is_aerial(&s) {
+        sayln!(
+            "an aerial survey: `plan --design` weighs flight heights, the line pattern, speed and \
+             the spheres' number, size and placement (the recommendations above are a vessel's: \
+             lines along the spheres at the plan's height, slower lines, one more sphere)"
+        );
+    }
     if let Some(p) = &a.report {
         let out = if p
             .extension()
