@@ -21,6 +21,36 @@ fn heat(share: f64) -> RGBColor {
     RGBColor(mix(200.0, 180.0), mix(200.0, 20.0), mix(200.0, 30.0))
 }
 
+/// A convex polygon clipped to the box `[x0, x1, y0, y1]` (Sutherland-Hodgman).
+fn clip(mut poly: Vec<(f64, f64)>, b: [f64; 4]) -> Vec<(f64, f64)> {
+    // Each edge of the box: inside when `s * (coordinate - at) >= 0`.
+    for (axis, at, s) in [
+        (0, b[0], 1.0),
+        (0, b[1], -1.0),
+        (1, b[2], 1.0),
+        (1, b[3], -1.0),
+    ] {
+        let val = |p: (f64, f64)| s * (if axis == 0 { p.0 } else { p.1 } - at);
+        let mut out = Vec::with_capacity(poly.len() + 2);
+        for k in 0..poly.len() {
+            let (p, q) = (poly[k], poly[(k + 1) % poly.len()]);
+            let (vp, vq) = (val(p), val(q));
+            if vp >= 0.0 {
+                out.push(p);
+            }
+            if (vp >= 0.0) != (vq >= 0.0) {
+                let f = vp / (vp - vq);
+                out.push((p.0 + f * (q.0 - p.0), p.1 + f * (q.1 - p.1)));
+            }
+        }
+        poly = out;
+        if poly.is_empty() {
+            break;
+        }
+    }
+    poly
+}
+
 /// The plan from above: east to the right, north up, 1:1.
 pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
     let segs = segments(s);
@@ -139,7 +169,18 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
                 corner(1.0, 1.0),
                 corner(-1.0, 1.0),
             ];
-            if ring.iter().any(|&p| inside(p)) {
+            // Drawn where it overlaps the view (a deck or a quay wall may hold it all).
+            let (bx0, bx1, by0, by1) = ring.iter().fold(
+                (
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                ),
+                |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
+            );
+            if bx1 >= x0 && bx0 <= x1 && by1 >= y0 && by0 <= y1 {
+                let ring = clip(ring, [x0, x1, y0, y1]);
                 ch.draw_series([Polygon::new(ring, grey.filled())])
                     .map_err(e)?;
             }
@@ -442,4 +483,32 @@ pub fn render(
     }
     o.push_str("</table>\n</body></html>\n");
     Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    /// By hand: a 2 m square at the origin clipped to [1, 3] x [1, 3] is the 1 m square at
+    /// (1, 1); a diamond wholly inside is unchanged; one wholly outside is empty.
+    #[test]
+    fn polygons_are_clipped_to_the_view() {
+        let area = |p: &[(f64, f64)]| {
+            (0..p.len())
+                .map(|k| {
+                    let (a, b) = (p[k], p[(k + 1) % p.len()]);
+                    a.0 * b.1 - b.0 * a.1
+                })
+                .sum::<f64>()
+                .abs()
+                / 2.0
+        };
+        let sq = vec![(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)];
+        let c = super::clip(sq, [1.0, 3.0, 1.0, 3.0]);
+        assert!((area(&c) - 1.0).abs() < 1e-12, "{c:?}");
+        assert!(c
+            .iter()
+            .all(|p| (1.0..=2.0).contains(&p.0) && (1.0..=2.0).contains(&p.1)));
+        let diamond = vec![(2.0, 1.5), (2.5, 2.0), (2.0, 2.5), (1.5, 2.0)];
+        assert_eq!(super::clip(diamond.clone(), [1.0, 3.0, 1.0, 3.0]), diamond);
+        assert!(super::clip(diamond, [5.0, 6.0, 5.0, 6.0]).is_empty());
+    }
 }
