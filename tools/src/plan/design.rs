@@ -17,11 +17,9 @@
 //! larger sphere is harder to carry and set up).
 
 use super::recommend::SPHERE_COST_S;
-use super::{geometry, Geometry, Goal, PlanNoise, Prediction};
+use super::{geometry, Goal, PlanNoise, Prediction};
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::predict::Predicted;
-use spherecal::calib::P;
 
 /// Above this height over the spheres a scenario is an aerial survey [m].
 pub const AERIAL_M: f64 = 10.0;
@@ -81,14 +79,7 @@ pub struct Design {
 /// centre (N, E) [m].
 fn ground_and_centre(s: &Scenario) -> (f64, [f64; 2]) {
     let n = s.sphere.len().max(1) as f64;
-    let floor = |sp: &SphereSpec| {
-        sp.stand_down_m.unwrap_or(if sp.stand == "none" {
-            sp.ned_m[2] + sp.radius_m
-        } else {
-            sp.ned_m[2] + sp.radius_m + 1.2
-        })
-    };
-    let g = s.sphere.iter().map(floor).sum::<f64>() / n;
+    let g = s.sphere.iter().map(SphereSpec::floor_down_m).sum::<f64>() / n;
     let c = s.sphere.iter().fold([0.0, 0.0], |a, sp| {
         [a[0] + sp.ned_m[0] / n, a[1] + sp.ned_m[1] / n]
     });
@@ -115,6 +106,11 @@ pub fn is_aerial(s: &Scenario) -> bool {
             .all(|p| top - p.down_m.unwrap_or(tr.ins_down_m) >= AERIAL_M)
 }
 
+/// The second, lower flight height for a working height `h` above the ground [m].
+fn lower_m(h: f64) -> f64 {
+    (0.6 * h).max(15.0)
+}
+
 /// The aerial pattern over `c` along `heading_deg` at `h` (and 0.6 h) above `ground`, at
 /// `speed`: each line reaches `reach` beyond the targets' centre both ways.
 fn aerial_passes(
@@ -139,7 +135,7 @@ fn aerial_passes(
             down_m: Some(down),
         }
     };
-    let (hi, lo) = (ground - h, ground - (0.6 * h).max(15.0));
+    let (hi, lo) = (ground - h, ground - lower_m(h));
     let off = 0.1 * h;
     vec![
         line(-off, heading_deg, hi),
@@ -186,25 +182,6 @@ fn spheres_at(pos: &[[f64; 2]], r: f64, ground: f64) -> Vec<SphereSpec> {
         .collect()
 }
 
-/// The prediction of the spheres `keep` says of a traced geometry (under the scenario's
-/// navigation model if it has one) and the returns of each kept sphere.
-fn predict_subset(g: &Geometry, keep: &[bool]) -> (Predicted, Vec<u32>) {
-    let white = Predicted::of(&g.sum(|_, j| keep[j]));
-    let p = match &g.nav {
-        Some(nav) => {
-            let mut p = white;
-            p.sigma = nav.sigma(|_, j| keep[j]).unwrap_or([f64::INFINITY; P + 1]);
-            p
-        }
-        None => white,
-    };
-    let returns = (0..keep.len())
-        .filter(|&j| keep[j])
-        .map(|j| g.cells.iter().map(|r| r[j].info.n).sum())
-        .collect();
-    (p, returns)
-}
-
 /// One traced survey and what its candidates share.
 struct Layout<'a> {
     /// The sphere counts to weigh (the first n of the scenario's spheres).
@@ -233,7 +210,8 @@ fn weigh(
     let all = s.sphere.len();
     for &n in l.counts {
         let keep: Vec<bool> = (0..all).map(|j| j < n).collect();
-        let (p, returns) = predict_subset(&g, &keep);
+        let p = g.predict(|j| keep[j]);
+        let returns: Vec<u32> = (0..n).map(|j| g.returns_of(j)).collect();
         let pred = Prediction::of(&p);
         let ids: Vec<String> = s.sphere[..n].iter().map(|x| x.id.clone()).collect();
         let meets = super::assess(&pred, &p, &returns, &ids, goal).is_empty();
@@ -294,7 +272,7 @@ pub fn design(s: &Scenario, goal: &Goal, threads: usize) -> Result<Design, crate
                             "fly {h:.0} m and {:.0} m above the ground at {v:.0} m/s (two opposing \
                              lines, one lower, one crossing: {survey_s:.0} s); {n} spheres of \
                              {r:.2} m on tripods",
-                            (0.6 * h).max(15.0)
+                            lower_m(h)
                         )
                     };
                     let l = Layout {

@@ -305,15 +305,10 @@ pub fn report_of(s: &Scenario, noise: &PlanNoise, g: &Geometry, goal: &Goal) -> 
         Some(nav) => under(nav.sigma_without(&g.segments, k, j)),
         None => Predicted::of(&g.sum(|kk, jj| Some(kk) != k && Some(jj) != j)),
     };
-    let p = match &g.nav {
-        Some(nav) => under(nav.sigma(|_, _| true)),
-        None => white,
-    };
+    let p = g.predict(|_| true);
     let pred = Prediction::of(&p);
     let ids: Vec<String> = s.sphere.iter().map(|x| x.id.clone()).collect();
-    let per_sphere: Vec<u32> = (0..ids.len())
-        .map(|j| g.cells.iter().map(|r| r[j].info.n).sum())
-        .collect();
+    let per_sphere: Vec<u32> = (0..ids.len()).map(|j| g.returns_of(j)).collect();
     let mut missing = assess(&pred, &p, &per_sphere, &ids, goal);
     // Why a sphere gets too few returns, where the survey's geometry says it.
     for (j, &n) in per_sphere.iter().enumerate() {

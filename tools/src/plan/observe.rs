@@ -6,7 +6,7 @@ use super::{PlanNoise, RATE_HALF_S};
 use crate::config::scenario::Scenario;
 use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::predict::Info;
+use spherecal::calib::predict::{Info, Predicted};
 use spherecal::georef::{beam_origin_l, beam_unit};
 use spherecal::sim::{LidarSim, SimPacket, World};
 use spherecal::velodyne::data::field;
@@ -66,6 +66,23 @@ impl Geometry {
     /// All of it.
     pub fn total(&self) -> Info {
         self.sum(|_, _| true)
+    }
+
+    /// The prediction from the spheres `keep` says: under the scenario's navigation model its
+    /// solver's sigmas (infinite when not determined), else the white information's.
+    pub fn predict(&self, keep: impl Fn(usize) -> bool) -> Predicted {
+        let mut p = Predicted::of(&self.sum(|_, j| keep(j)));
+        if let Some(nav) = &self.nav {
+            p.sigma = nav
+                .sigma(|_, j| keep(j))
+                .unwrap_or([f64::INFINITY; spherecal::calib::P + 1]);
+        }
+        p
+    }
+
+    /// Sphere `j`'s returns over every segment.
+    pub fn returns_of(&self, j: usize) -> u32 {
+        self.cells.iter().map(|r| r[j].info.n).sum()
     }
 
     /// The cells `keep(segment, sphere)` says.

@@ -126,6 +126,19 @@ pub struct SphereSpec {
     pub reflectivity: f64,
 }
 
+impl SphereSpec {
+    /// NED down of the floor under it [m]: `stand_down_m`, else the sphere's bottom when it
+    /// stands on nothing (it rests on the floor), else 1.2 m below its bottom.
+    pub fn floor_down_m(&self) -> f64 {
+        let bottom = self.ned_m[2] + self.radius_m;
+        self.stand_down_m.unwrap_or(if self.stand == "none" {
+            bottom
+        } else {
+            bottom + 1.2
+        })
+    }
+}
+
 fn default_stand() -> String {
     "none".into()
 }
@@ -511,10 +524,14 @@ impl Scenario {
             sc.kinds.push("sphere");
         }
         for s in &self.sphere {
-            let c = Vector3::from(s.ned_m);
-            let floor = s.stand_down_m.unwrap_or(c.z + s.radius_m + 1.2);
             let stand = Stand::parse(&s.stand).unwrap_or(Stand::None);
-            sc.add_stand(&s.id, stand, c, s.radius_m, floor);
+            sc.add_stand(
+                &s.id,
+                stand,
+                Vector3::from(s.ned_m),
+                s.radius_m,
+                s.floor_down_m(),
+            );
         }
         let centres: Vec<Vector3<f64>> =
             self.sphere.iter().map(|s| Vector3::from(s.ned_m)).collect();
