@@ -441,5 +441,40 @@ mod tests {
             }
         }
         assert_eq!(reject_touching_plane(&mut obs, r, tau, 12), 0);
+        assert_eq!(set_aside_ground(&mut obs, r, tau, 0.04), obs.len());
+        ground_set_aside(&v, on_sphere, sensor, r, tau);
+    }
+
+    /// [`set_aside_ground`] on the slice above (sphere and ground, nothing kept yet), its
+    /// points shifted 6 cm north and 8 cm down as a navigation error moves them together:
+    /// every ground return is set aside at the end, tagged `Plane`; of the sphere only the
+    /// band within 4 cm of the ground.
+    fn ground_set_aside(
+        v: &heapless::Vec<Observation, 8192>,
+        on_sphere: usize,
+        sensor: Vector3<f64>,
+        r: f64,
+        tau: f64,
+    ) {
+        let shift = [0.06f32, 0.0, 0.08];
+        let mut obs = v.clone();
+        for (k, o) in obs.iter_mut().enumerate() {
+            o.work.x = [o.work.x[0] + shift[0], o.work.x[1], o.work.x[2] + shift[2]];
+            // The sphere's returns numbered by their place in the slice (the ground's 0).
+            o.block = u8::from(k < on_sphere);
+            o.channel = (k % 256) as u8;
+        }
+        let band = 0.04;
+        let front = set_aside_ground(&mut obs, r, tau, band);
+        let ground = v.len() - on_sphere;
+        let sphere_near_ground = v[..on_sphere]
+            .iter()
+            .filter(|o| f64::from(o.work.x[2]) > r - band)
+            .count();
+        assert_eq!(v.len() - front, ground + sphere_near_ground, "{sensor:?}");
+        assert!(obs[..front].iter().all(|o| o.block == 1));
+        assert!(obs[front..]
+            .iter()
+            .all(|o| o.work.verdict == ReturnClass::Plane as u8));
     }
 }

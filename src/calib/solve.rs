@@ -236,6 +236,13 @@ fn extract_sphere(
             .map(|o| o.time)
             .min()
             .unwrap_or(GpsTime(0));
+        // Around the surveyed centre, the ground a sphere rests on is set aside first.
+        let sl = if surveyed {
+            let band = 3.5 * noise.range + 0.01;
+            sl.start..sl.start + extract::set_aside_ground(&mut v[sl.clone()], t.radius, tau, band)
+        } else {
+            sl
+        };
         let det = extract::detect(&v[sl.clone()], keys, t.radius, tau, prior, grid, dirs, st);
         match det {
             Some(d) => {

@@ -141,22 +141,74 @@ pub fn reject_attachments(
 /// `acos(1 - tau / r)` from the contact, hidden by the surface itself from most viewpoints).
 /// Returns how many.
 pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inliers: u32) -> usize {
-    /// Planes tried.
-    const TRIES: u32 = 96;
     let (r, tau) = (r as f32, tau as f32);
     let outer = r + tau + (2.0 * tau).max(0.05);
     let collar = |o: &Observation| {
         let d = norm(o.work.x);
         d > r + tau && d < outer
     };
-    let n = obs.iter().filter(|o| collar(o)).count();
-    if n < min_inliers.max(3) as usize {
+    let Some((nv, off)) = touching_plane(obs, collar, r, tau, tau, min_inliers) else {
         return 0;
+    };
+    let mut rejected = 0;
+    for o in obs.iter_mut() {
+        if o.work.verdict == ReturnClass::Kept as u8 && dot(nv, o.work.x) >= off - tau {
+            o.work.verdict = ReturnClass::Plane as u8;
+            rejected += 1;
+        }
     }
-    // The k-th collar return (walks the slice; the collar is small).
+    rejected
+}
+
+/// Set aside, in one slice of a sphere's returns (centre at the origin of `work.x` within
+/// `tau`, radius `r`), the ground it rests on: from the air a sphere on the grass and the grass
+/// round it form one scan-line segment, and within a shell widened for the navigation's errors
+/// the grass pulls the slice's fit off the sphere. The plane is found as in
+/// [`reject_touching_plane`] among the returns within half a metre of the surface, its inliers
+/// within `band` (the range noise's spread); they are tagged [`ReturnClass::Plane`] and moved to
+/// the end of `obs`. Returns how many others there are (the front of `obs`).
+pub fn set_aside_ground(obs: &mut [Observation], r: f64, tau: f64, band: f64) -> usize {
+    let (r, tau, band) = (r as f32, tau as f32, band as f32);
+    let reach = r + tau + 0.5;
+    let near = |o: &Observation| norm(o.work.x) < reach;
+    let Some((nv, off)) = touching_plane(obs, near, r, tau, band, 12) else {
+        return obs.len();
+    };
+    let mut w = 0;
+    for i in 0..obs.len() {
+        if (dot(nv, obs[i].work.x) - off).abs() > band {
+            obs.swap(i, w);
+            w += 1;
+        } else {
+            obs[i].work.verdict = ReturnClass::Plane as u8;
+        }
+    }
+    w
+}
+
+/// The plane, among the returns `member` picks, that touches the sphere (centre at the origin
+/// of `work.x`, radius `r`: its distance from the centre is `r` within `tau`) from behind as
+/// the beams see it, by a deterministic sample consensus: at least `min_inliers` and half of
+/// the members within `band` of it, spread round the contact in at least 5 of 8 sectors.
+/// Returns its unit normal (away from the centre) and offset (`n.x = off`).
+fn touching_plane(
+    obs: &[Observation],
+    member: impl Fn(&Observation) -> bool,
+    r: f32,
+    tau: f32,
+    band: f32,
+    min_inliers: u32,
+) -> Option<([f32; 3], f32)> {
+    /// Planes tried.
+    const TRIES: u32 = 96;
+    let n = obs.iter().filter(|o| member(o)).count();
+    if n < min_inliers.max(3) as usize {
+        return None;
+    }
+    // The k-th member (walks the slice; the members are few).
     let nth = |k: usize| {
         obs.iter()
-            .filter(|o| collar(o))
+            .filter(|o| member(o))
             .nth(k)
             .map_or([0.0; 3], |o| o.work.x)
     };
@@ -189,7 +241,7 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
         let (mut inl, mut away) = (0u32, 0f32);
         for o in obs
             .iter()
-            .filter(|o| collar(o) && (dot(nv, o.work.x) - off).abs() <= tau)
+            .filter(|o| member(o) && (dot(nv, o.work.x) - off).abs() <= band)
         {
             inl += 1;
             away += dot(nv, o.work.u);
@@ -204,9 +256,9 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
             best = Some((nv, off, inl));
         }
     }
-    let Some((nv, off, inl)) = best else { return 0 };
+    let (nv, off, inl) = best?;
     if inl < min_inliers || (inl as usize) * 2 < n {
-        return 0;
+        return None;
     }
     // Spread round the contact point: sectors of the plane about it.
     let e1 = if nv[0].abs() < 0.9 {
@@ -224,23 +276,13 @@ pub fn reject_touching_plane(obs: &mut [Observation], r: f64, tau: f64, min_inli
     let mut sectors = [0u32; 8];
     for o in obs
         .iter()
-        .filter(|o| collar(o) && (dot(nv, o.work.x) - off).abs() <= tau)
+        .filter(|o| member(o) && (dot(nv, o.work.x) - off).abs() <= band)
     {
         let a = libm::atan2f(dot(o.work.x, p2), dot(o.work.x, p1));
         let k = (((a + core::f32::consts::PI) / core::f32::consts::FRAC_PI_4) as usize).min(7);
         sectors[k] += 1;
     }
-    if sectors.iter().filter(|&&c| c >= 3).count() < 5 {
-        return 0;
-    }
-    let mut rejected = 0;
-    for o in obs.iter_mut() {
-        if o.work.verdict == ReturnClass::Kept as u8 && dot(nv, o.work.x) >= off - tau {
-            o.work.verdict = ReturnClass::Plane as u8;
-            rejected += 1;
-        }
-    }
-    rejected
+    (sectors.iter().filter(|&&c| c >= 3).count() >= 5).then_some((nv, off))
 }
 
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {

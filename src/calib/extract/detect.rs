@@ -79,13 +79,18 @@ pub fn detect_all(
     } else {
         st.min_inliers
     };
-    if voters < need {
+    // With a prior the surveyed centre is tested whatever the votes: a sphere resting on
+    // the ground joins it in one long scan-line segment and has no voters.
+    if voters < need && prior.is_none() {
         return;
     }
     if let Some(p) = prior {
         for a in 0..3 {
             lo[a] = lo[a].max(-p - r);
             hi[a] = hi[a].min(p + r);
+            if voters == 0 {
+                (lo[a], hi[a]) = (-p - r, p + r);
+            }
         }
     }
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0f32, f32::max);
@@ -175,6 +180,7 @@ pub fn detect_all(
         }
         // Last, the beams that pass through it to returns behind (a scan of the slice).
         let through = seen_through(obs, c, r, tau);
+
         let violations = s.violations + through;
         let score = score - st.violation_weight * through as f32;
         if violations as f32 > 0.25 * s.inliers as f32 + 2.0 || score <= 0.0 {

@@ -138,14 +138,13 @@ fn agrees_with_monte_carlo_over(name: &str, trials: u64) {
         .filter_map(|r| r.1 .2.as_ref().map(|w| (r.0, w)))
         .collect();
     eprintln!("{name}: refused {refused:?}");
-    assert!(
-        refused.len() as f64 <= 0.02 * n,
-        "{name}: refused {refused:?}"
-    );
+    let mut bad = Vec::new();
+    if refused.len() as f64 > 0.02 * n {
+        bad.push(format!("refused {}", refused.len()));
+    }
     // The spread of the calibrations a surveyor would accept: the claimed ones.
     let results: Vec<_> = results.iter().filter(|r| r.1 .2.is_none()).collect();
     let n = results.len() as f64;
-    let mut bad = Vec::new();
     for i in 0..7 {
         let mean = results.iter().map(|r| r.1 .0[i]).sum::<f64>() / n;
         let sd = (results
@@ -166,14 +165,21 @@ fn agrees_with_monte_carlo_over(name: &str, trials: u64) {
             / n)
             .sqrt();
         let mean_reported = results.iter().map(|r| r.1 .1[i]).sum::<f64>() / n;
+        let mut worst: Vec<(u64, f64)> = results
+            .iter()
+            .map(|r| (r.0, r.1 .0[i] / r.1 .1[i]))
+            .collect();
+        worst.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        worst.truncate(3);
         eprintln!(
-            "{name}: {:<11} predicted {:.3e} MC sd {:.3e} (ratio {ratio:.3}) mean {:+.1e}; reported mean {:.3e}, {inside}/{trials} within 3 reported sigma, RMS z {rms_z:.2}",
+            "{name}: {:<11} predicted {:.3e} MC sd {:.3e} (ratio {ratio:.3}) mean {:+.1e}; reported mean {:.3e}, {inside}/{trials} within 3 reported sigma, RMS z {rms_z:.2}; worst (seed, z) {worst:.1?}",
             NAMES[i], sigma_pred[i], sd, mean, mean_reported
         );
         if (ratio - 1.0).abs() > 0.2 {
             bad.push(format!("{}: MC sd / predicted = {ratio:.3}", NAMES[i]));
         }
-        if (inside as f64) < 0.97 * n || !(0.7..=1.4).contains(&rms_z) {
+        // Of all the trials: a refused one is not a calibration within its sigmas.
+        if (inside as f64) < 0.97 * trials as f64 || !(0.7..=1.4).contains(&rms_z) {
             bad.push(format!(
                 "{}: reported sigma: {inside} within 3, RMS z {rms_z:.2}",
                 NAMES[i]
