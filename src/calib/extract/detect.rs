@@ -180,7 +180,6 @@ pub fn detect_all(
         }
         // Last, the beams that pass through it to returns behind (a scan of the slice).
         let through = seen_through(obs, c, r, tau);
-
         let violations = s.violations + through;
         let score = score - st.violation_weight * through as f32;
         if violations as f32 > 0.25 * s.inliers as f32 + 2.0 || score <= 0.0 {

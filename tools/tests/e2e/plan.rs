@@ -270,10 +270,11 @@ fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
 /// calibration's reported sigmas hold its errors (97 % within 3 sigma, RMS z 0.7-1.4).
 /// Open (issue 30; NOTES.md "Issue 30"): since the ground under a sphere is set aside per
 /// slice the spheres on the grass are kept as the plan counts them (pitch 4.4x -> 1.5x), but
-/// the plan is still 1.4-1.5x optimistic in roll, pitch and x (likely: the solver weighs every
-/// return alike where, from 40 m, the footprint's incidence term dominates the range noise,
-/// which the plan weighs; the solver finds the white noise 1.5-1.8x the declared), the time
-/// offset 2x with one seed 12 sigma off, and 2 % are refused (over-dispersed).
+/// the plan is still 1.4-1.5x optimistic in roll, pitch and x (~1.2x without the tails; likely
+/// the footprint's range spread at incidence, which from 40 m outweighs the declared range
+/// noise on much of a sphere: the solver finds the white noise 1.5-1.8x the declared; weighing
+/// it was tried, NOTES.md), the time offset 2x with one seed 12 sigma off, and 2 % are refused
+/// (over-dispersed).
 #[test]
 #[ignore = "open (issue 30): the plan is 1.5x optimistic from 40 m; NOTES.md"]
 fn drone_noisy_prediction_agrees_with_monte_carlo() {
