@@ -439,11 +439,21 @@ fn solve_data(
         return sol;
     }
     // 2. The last extraction, around the surveyed spheres.
-    let (used, tallies) = r.last_extraction(&mut d, &mut passes);
-    sol.passes = passes;
+    let (mut used, mut tallies) = r.last_extraction(&mut d, &mut passes);
     let found = (0..n).filter(|&j| used[j] > 0).count();
     // 3. Least squares on the kept returns: the answer and its uncertainty.
     r.final_fit(&mut d, &used[..n], found, &mut sol);
+    if found >= 2 {
+        let mut k = last::Kept {
+            used: &mut used,
+            tallies: &mut tallies,
+            passes: &mut passes,
+            found,
+        };
+        r.set_aside_misfit_pieces(&mut d, &mut k, &mut sol);
+        r.set_aside_influential(&mut d, &mut k, &mut sol);
+    }
+    sol.passes = passes;
     let obs = &mut *d.obs;
     // 4. Per sphere.
     let per = PerSphere {

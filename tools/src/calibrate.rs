@@ -307,6 +307,8 @@ pub fn solve_report_in(
                 .map(|p| f64::from(p.chi2))
                 .fold(0.0, f64::max),
             free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
+            misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
+            influential_set_aside: sol.set_aside.influential.into(),
         },
         batch_overflow: 0,
         inputs: None,

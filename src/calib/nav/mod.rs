@@ -88,6 +88,9 @@ pub struct Piece {
     /// Its 1 sigma (posterior) once [`refine`] returns; during the iterations the step
     /// [`Joint::step`] last computed for it.
     pub sigma: [f64; 6],
+    /// [`escape_steps`]' copies of `error`: the minimum found, the best other start's.
+    kept: [f64; 6],
+    best: [f64; 6],
     d: Mat6,
     b: MatG6,
     g: Vec6,
@@ -103,6 +106,8 @@ impl Piece {
         n: 0,
         error: [0.0; 6],
         sigma: [0.0; 6],
+        kept: [0.0; 6],
+        best: [0.0; 6],
         d: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
         b: MatG6::from_array_storage(nalgebra::ArrayStorage([[0.0; G]; 6])),
         g: Vec6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 1])),
@@ -246,6 +251,9 @@ pub fn refine(
         }
         at.factor *= s2;
         sums = at.evaluate(pieces);
+    }
+    if converged {
+        (sums, iterations) = escape_steps(&mut at, pieces, max_iter, sums, iterations);
     }
     let converged = converged && sums.cost.is_finite() && at.z.iter().all(|x| x.is_finite());
     let h = at.reduced(&sums, pieces);
@@ -446,17 +454,130 @@ fn posterior_sigmas(at: &Joint<'_, '_>, pieces: &mut [Piece], cov: Option<&MatG>
 
 /// The largest step between consecutive pieces in the model's sigmas ([`NavFit::worst_step`]).
 fn worst_step(model: &NavModel, pieces: &[Piece]) -> (f64, GpsTime, [f64; 6]) {
-    let mut worst = (0.0, GpsTime(0), [0.0; 6]);
+    let (sigmas, k, step) = worst_step_at(model, pieces);
+    (sigmas, pieces.get(k).map_or(GpsTime(0), |p| p.start), step)
+}
+
+/// [`worst_step`] with the index of the piece after the step.
+fn worst_step_at(model: &NavModel, pieces: &[Piece]) -> (f64, usize, [f64; 6]) {
+    let mut worst = (0.0, 0, [0.0; 6]);
     let sg = model.sigmas();
-    for w in pieces.windows(2) {
+    for (i, w) in pieces.windows(2).enumerate() {
         let phi = model.phi(&w[0], &w[1]);
         let step: [f64; 6] = core::array::from_fn(|k| w[1].error[k] - phi * w[0].error[k]);
         for k in 0..6 {
             let sd = sg[k] * libm::sqrt((1.0 - phi * phi).max(1e-12));
             if sd > 0.0 && step[k].abs() / sd > worst.0 {
-                worst = (step[k].abs() / sd, w[1].start, step);
+                worst = (step[k].abs() / sd, i + 1, step);
             }
         }
     }
     worst
+}
+
+/// A step between pieces beyond this many sigmas is tried from the other side's start.
+const ESCAPE_SIGMAS: f64 = 4.0;
+/// A run of pieces ends at a gap of this many seconds (a turn, a sphere out of view).
+const RUN_GAP_S: f64 = 2.0;
+/// The starts tried: (the run before the step?, at most this many pieces of it).
+const RUNS: [(bool, usize); 6] = [
+    (true, 2),
+    (false, 2),
+    (true, 8),
+    (false, 8),
+    (true, usize::MAX),
+    (false, usize::MAX),
+];
+
+/// A step between consecutive pieces far beyond the model's is either the navigation's (an
+/// INS that jumped: [`Refusal::NavigationJump`](super::solve::Refusal)) or a second minimum:
+/// where a run of pieces holds a few returns on one side of one sphere (the first scan lines
+/// of a pass, from 40 m), a sphere shifted several centimetres across and one shifted
+/// tens of centimetres down fit them alike, and the pieces start from zero. So for the worst
+/// step beyond [`ESCAPE_SIGMAS`] (up to three times), the run before it (back to a gap of
+/// [`RUN_GAP_S`]) is started from the piece after the step, then the run after it from the
+/// piece before; the lowest cost of the three minima is kept (a real jump's data keep it).
+fn escape_steps(
+    at: &mut Joint<'_, '_>,
+    pieces: &mut [Piece],
+    max_iter: usize,
+    mut sums: joint::Sums,
+    mut iterations: usize,
+) -> (joint::Sums, usize) {
+    // The run of pieces before (`back`) or after piece `k`'s step, at most `len` of them and
+    // not past a gap of `RUN_GAP_S`.
+    let run = |pieces: &[Piece], k: usize, back: bool, len: usize| -> (usize, usize) {
+        let gap = |a: &Piece, b: &Piece| (b.start.0 - a.end.0) as f64 * 1e-9 > RUN_GAP_S;
+        if back {
+            let mut a = k - 1;
+            while a > 0 && k - a < len && !gap(&pieces[a - 1], &pieces[a]) {
+                a -= 1;
+            }
+            (a, k)
+        } else {
+            let mut b = k + 1;
+            while b < pieces.len() && b - k < len && !gap(&pieces[b - 1], &pieces[b]) {
+                b += 1;
+            }
+            (k, b)
+        }
+    };
+    for _ in 0..3 {
+        let (sigmas, k, _) = worst_step_at(&at.model, pieces);
+        if sigmas <= ESCAPE_SIGMAS || k == 0 {
+            break;
+        }
+        let (z0, cost0) = (at.z, sums.cost);
+        for p in pieces.iter_mut() {
+            p.kept = p.error;
+        }
+        let mut best: Option<(f64, [f64; G])> = None;
+        let mut tried = (usize::MAX, usize::MAX);
+        for (back, len) in RUNS {
+            let (a, b) = run(pieces, k, back, len);
+            if (a, b) == tried {
+                continue;
+            }
+            tried = (a, b);
+            at.z = z0;
+            for p in pieces.iter_mut() {
+                p.error = p.kept;
+            }
+            let from = if back {
+                pieces[k].error
+            } else {
+                pieces[k - 1].error
+            };
+            for p in &mut pieces[a..b] {
+                p.error = from;
+            }
+            let (s, it, ok) = iterate(at, pieces, max_iter);
+            iterations += it;
+            let lowest = best.as_ref().map_or(cost0, |b| b.0);
+            if ok && s.cost.is_finite() && s.cost < lowest * (1.0 - 1e-9) {
+                best = Some((s.cost, at.z));
+                for p in pieces.iter_mut() {
+                    p.best = p.error;
+                }
+            }
+        }
+        match best {
+            Some((_, z)) => {
+                at.z = z;
+                for p in pieces.iter_mut() {
+                    p.error = p.best;
+                }
+                sums = at.evaluate(pieces);
+            }
+            None => {
+                at.z = z0;
+                for p in pieces.iter_mut() {
+                    p.error = p.kept;
+                }
+                sums = at.evaluate(pieces);
+                break;
+            }
+        }
+    }
+    (sums, iterations)
 }

@@ -4,6 +4,7 @@
 #[allow(unused_imports)]
 use super::*;
 use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
+use crate::calib::objective::Linearised;
 
 impl Rounds {
     /// The last extraction: around the surveyed spheres, in the slices where the sphere is
@@ -162,4 +163,248 @@ impl Rounds {
         sol.lm = lm;
         sol.l1 = with_problem(targets, obs, used, 1, self.time, None, |pb| pb.l1(&self.b));
     }
+
+    /// Under the navigation model, a step between consecutive pieces beyond
+    /// `max_nav_step_sigmas` that one piece's few returns alone make — a slice whose detection
+    /// kept ground returns (from 60 m a grass sphere's slice can hold four that fit a free
+    /// centre): that piece's kept returns are set aside and the fit made again, kept when then
+    /// every step is within the limit. An INS that jumped moves every piece after the jump, so
+    /// no one piece explains it: the step stays and is refused ([`Refusal::NavigationJump`]).
+    /// At most three pieces of at most [`MISFIT_RETURNS`] returns each.
+    pub(super) fn set_aside_misfit_pieces(
+        &mut self,
+        d: &mut Data<'_, '_, '_>,
+        k: &mut Kept<'_>,
+        sol: &mut Solution,
+    ) {
+        for _ in 0..3 {
+            let Some(f) = sol.nav.filter(|f| f.worst_step.0 > d.s.max_nav_step_sigmas) else {
+                return;
+            };
+            let cut = &d.ws.nav[..f.pieces.min(d.ws.nav.len())];
+            let Some(i) = cut.iter().position(|p| p.start == f.worst_step.1) else {
+                return;
+            };
+            let spans = [i.checked_sub(1), Some(i)].map(|i| i.map(|i| (cut[i].start, cut[i].end)));
+            let mut done = false;
+            for span in spans.into_iter().flatten() {
+                let limit = d.s.max_nav_step_sigmas;
+                let accepted = self.try_without(d, k, span, MISFIT_RETURNS, sol, |_, new, _| {
+                    new.nav.is_some_and(|f| f.worst_step.0 <= limit)
+                });
+                if let Some(n) = accepted {
+                    sol.set_aside.misfit_pieces.0 += n;
+                    sol.set_aside.misfit_pieces.1 += 1;
+                    done = true;
+                    break;
+                }
+            }
+            if !done {
+                return;
+            }
+        }
+    }
+
+    /// An isolated stretch of few kept returns (at most [`INFLUENTIAL_RETURNS`], a 20th of
+    /// all, with gaps of [`GAP_S`] either side: a turn, a far glimpse of a sphere) that is not
+    /// the sphere: without it, its returns lie (median) beyond the shell from the spheres the
+    /// rest put them on, and its removal moves a parameter (the six, the time offset) by more
+    /// than `max_influence_sigmas` times what its information can move it by (under the model
+    /// the change is the difference of two estimates, of variance `sigma_without^2 -
+    /// sigma_with^2`; at least half `sigma_without`, the variance factor being found again).
+    /// Three ground returns kept in a turn at 60 m made the time offset pay 12 sigma (0.5-0.7
+    /// m off without them); a turn's real returns move it as much (5 sigma in a drone survey's
+    /// turn: the model's time offset is optimistic there) but lie within the shell. Set aside,
+    /// the fit without it kept. At most [`INFLUENCE_TRIES`] stretches refitted.
+    pub(super) fn set_aside_influential(
+        &mut self,
+        d: &mut Data<'_, '_, '_>,
+        k: &mut Kept<'_>,
+        sol: &mut Solution,
+    ) {
+        let n = d.targets.len();
+        let total: usize = k.used[..n].iter().sum();
+        let (mut t, mut tries) = (GpsTime(i64::MIN), 0);
+        while tries < INFLUENCE_TRIES {
+            // The next stretch: the kept returns (all spheres) from the first after `t` on,
+            // until a gap of GAP_S.
+            let obs = &*d.obs;
+            let next = |after: GpsTime| {
+                (0..n)
+                    .filter_map(|j| {
+                        let v = &obs[j][..k.used[j]];
+                        v.get(v.partition_point(|o| o.time <= after))
+                            .map(|o| o.time)
+                    })
+                    .min()
+            };
+            let Some(a) = next(t) else { return };
+            let (mut b, mut count) = (a, 0usize);
+            loop {
+                count += (0..n)
+                    .map(|j| {
+                        let v = &obs[j][..k.used[j]];
+                        v.partition_point(|o| o.time <= b) - v.partition_point(|o| o.time < b)
+                    })
+                    .sum::<usize>();
+                match next(b) {
+                    Some(c) if (c.0 - b.0) as f64 * 1e-9 <= GAP_S => b = c,
+                    _ => break,
+                }
+            }
+            t = b;
+            if count > INFLUENTIAL_RETURNS || count * 20 > total {
+                continue;
+            }
+            // Kept within the shell of the answer they helped make: the sphere's.
+            let kept = ReturnClass::Kept as u8;
+            let within = |j: usize, o: &Observation| {
+                o.work.verdict == kept && o.time >= a && o.time <= b && j < n
+            };
+            if self.off_sphere(d, within) <= self.tau {
+                continue;
+            }
+            tries += 1;
+            let (max, shell) = (d.s.max_influence_sigmas, self.tau);
+            let accepted = self.try_without(
+                d,
+                k,
+                (a, b),
+                INFLUENTIAL_RETURNS,
+                sol,
+                |with, without, off| {
+                    let (Some(w), Some(wo)) = (with.lm, without.lm) else {
+                        return false;
+                    };
+                    if off <= shell {
+                        return false;
+                    }
+                    let z = |x: f64, y: f64, sw: f64, swo: f64| {
+                        let room = libm::sqrt((swo * swo - sw * sw).max(0.0)).max(0.5 * swo);
+                        (x - y).abs() / room
+                    };
+                    let worst = (0..P)
+                        .map(|i| z(w.b[i], wo.b[i], w.sigma[i], wo.sigma[i]))
+                        .chain(
+                            (w.sigma_dt > 0.0)
+                                .then(|| z(with.dt, without.dt, w.sigma_dt, wo.sigma_dt)),
+                        )
+                        .fold(0.0, f64::max);
+                    worst > max
+                },
+            );
+            if let Some(m) = accepted {
+                sol.set_aside.influential.0 += m;
+                sol.set_aside.influential.1 += 1;
+            }
+        }
+    }
+
+    /// The fit again without the kept returns in `span` (all spheres; at most `most`, each
+    /// sphere keeping `min_points`), kept when it converged and `better(before, after)`; else
+    /// everything as it was. The returns set aside, if kept.
+    fn try_without(
+        &mut self,
+        d: &mut Data<'_, '_, '_>,
+        k: &mut Kept<'_>,
+        (a, b): (GpsTime, GpsTime),
+        most: usize,
+        sol: &mut Solution,
+        better: impl Fn(&Solution, &Solution, f64) -> bool,
+    ) -> Option<u32> {
+        let (n, min_points) = (d.targets.len(), d.s.min_points);
+        let obs = &mut *d.obs;
+        // Each sphere's kept returns in the span: a run of its time-ordered kept ones.
+        let runs: [(usize, usize); MAX_TARGETS] = core::array::from_fn(|j| {
+            if j >= n {
+                return (0, 0);
+            }
+            let v = &obs[j][..k.used[j]];
+            let lo = v.partition_point(|o| o.time < a);
+            (lo, lo + v[lo..].partition_point(|o| o.time <= b))
+        });
+        let total: usize = runs.iter().map(|(lo, hi)| hi - lo).sum();
+        let enough = (0..n).all(|j| {
+            let left = k.used[j] - (runs[j].1 - runs[j].0);
+            k.used[j] == 0 || left >= min_points
+        });
+        if total == 0 || total > most || !enough {
+            return None;
+        }
+        let mut moved: heapless::Vec<(usize, GpsTime, u8, u8), MOVED> = heapless::Vec::new();
+        for j in 0..n {
+            for o in &mut obs[j][runs[j].0..runs[j].1] {
+                o.work.verdict = ReturnClass::Undetected as u8;
+                let _ = moved.push((j, o.time, o.channel, o.block));
+            }
+            k.used[j] = partition(obs[j]);
+        }
+        let saved = (self.b, self.time, sol.clone());
+        self.final_fit(d, &k.used[..n], k.found, sol);
+        let off = self.off_sphere(d, |j, o| moved.contains(&(j, o.time, o.channel, o.block)));
+        let ok = sol.lm.is_some_and(|l| l.converged) && better(&saved.2, sol, off);
+        if ok {
+            for &(j, t, _, _) in &moved {
+                let kept = ReturnClass::Kept as usize;
+                let undetected = ReturnClass::Undetected as usize;
+                k.tallies[j][kept] = k.tallies[j][kept].saturating_sub(1);
+                k.tallies[j][undetected] += 1;
+                let lo = k.passes.partition_point(|p| usize::from(p.sphere) < j);
+                let hi = k.passes.partition_point(|p| usize::from(p.sphere) <= j);
+                if let Some(p) = pass_of(&mut k.passes[lo..hi], t) {
+                    p.verdicts[kept] = p.verdicts[kept].saturating_sub(1);
+                    p.verdicts[undetected] += 1;
+                }
+            }
+            return Some(total as u32);
+        }
+        for (j, v) in d.obs.iter_mut().enumerate().take(n) {
+            for o in v.iter_mut() {
+                if moved.contains(&(j, o.time, o.channel, o.block)) {
+                    o.work.verdict = ReturnClass::Kept as u8;
+                }
+            }
+            k.used[j] = partition(v);
+        }
+        (self.b, self.time) = (saved.0, saved.1);
+        *sol = saved.2;
+        None
+    }
+
+    /// The median distance from their sphere of the returns `pick(sphere, return)` chooses
+    /// at the current answer (at most [`MOVED`] of them), raw (no navigation correction: the
+    /// shell is widened by the navigation's errors).
+    fn off_sphere(&self, d: &Data<'_, '_, '_>, pick: impl Fn(usize, &Observation) -> bool) -> f64 {
+        let lin = Linearised::at(&self.b);
+        let mut r: heapless::Vec<f64, MOVED> = heapless::Vec::new();
+        for (j, v) in d.obs.iter().enumerate().take(d.targets.len()) {
+            for o in v.iter().filter(|o| pick(j, o)) {
+                if let Some(row) = lin.row(o, &d.targets[j], self.time.at(o)) {
+                    let _ = r.push(row.residual.abs());
+                }
+            }
+        }
+        r.sort_unstable_by(f64::total_cmp);
+        r.get(r.len() / 2).copied().unwrap_or(0.0)
+    }
 }
+
+/// The kept returns' bookkeeping the set-asides keep up to date: each sphere's kept count (the
+/// kept ones first in its `obs`), its verdict tallies, the passes' and the spheres found.
+pub(super) struct Kept<'a> {
+    pub(super) used: &'a mut [usize; MAX_TARGETS],
+    pub(super) tallies: &'a mut [[u32; 8]; MAX_TARGETS],
+    pub(super) passes: &'a mut [PassReport],
+    pub(super) found: usize,
+}
+
+/// Most returns one piece may hold for [`Rounds::set_aside_misfit_pieces`] to set it aside.
+const MISFIT_RETURNS: usize = 8;
+/// Most returns a stretch may hold for [`Rounds::set_aside_influential`] to test it.
+const INFLUENTIAL_RETURNS: usize = 24;
+/// Most stretches [`Rounds::set_aside_influential`] refits without.
+const INFLUENCE_TRIES: usize = 8;
+/// A stretch of kept returns ends at a gap of this many seconds.
+const GAP_S: f64 = 2.0;
+/// Room for the keys of the returns one set-aside moves.
+const MOVED: usize = 24;

@@ -350,8 +350,22 @@ pub struct Solution {
     pub consensus: Option<Consensus>,
     /// The box the mounting had to stay in.
     pub bounds: Bounds,
+    /// Kept returns set aside after the final fit ([`SetAside`]).
+    pub set_aside: SetAside,
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
+}
+
+/// Kept returns the final fit set aside (tagged `Undetected`: the slice's detection was not
+/// the sphere), each as (returns, stretches of time).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SetAside {
+    /// Pieces whose few returns the navigation model could not join to their neighbours (a
+    /// step between pieces beyond `max_nav_step_sigmas` that goes with them).
+    pub misfit_pieces: (u32, u32),
+    /// Isolated stretches (a gap of 2 s either side) of few returns that alone moved the
+    /// answer beyond `max_influence_sigmas` of what they can move it by.
+    pub influential: (u32, u32),
 }
 
 impl Solution {
@@ -393,6 +407,7 @@ impl Solution {
             predicted_rms: 0.0,
             consensus: None,
             bounds: Bounds::none(b0),
+            set_aside: SetAside::default(),
             refusal: None,
         }
     }

@@ -78,6 +78,9 @@ pub struct Settings {
     /// model's sigmas, that is not a jump (surveys with the declared errors: 1.7-2.3; a 5 cm
     /// jump within a pass: 10).
     pub max_nav_step_sigmas: f64,
+    /// An isolated stretch of few kept returns is set aside when it alone moves a parameter by
+    /// more than this many times what its information can move it by (`solve::last`).
+    pub max_influence_sigmas: f64,
 }
 
 /// What the caller read of the clocks in the streams.
@@ -164,6 +167,7 @@ impl Default for Settings {
             nav: None,
             centre_sigma: [0.0; MAX_TARGETS],
             max_nav_step_sigmas: 5.0,
+            max_influence_sigmas: 5.0,
         }
     }
 }

@@ -187,6 +187,15 @@ pub struct Consistency {
     /// With the time offset held: what the data give when free (offset on top of the held one,
     /// sigma) [s]; refused when it differs by more than 5 sigma and 1 ms.
     pub free_time_offset_s: Option<[f64; 2]>,
+    /// Kept returns set aside after the fit, [returns, pieces]: pieces whose few returns the
+    /// navigation model could not join to their neighbours (a step beyond the jump limit that
+    /// goes with them).
+    #[serde(default)]
+    pub misfit_pieces_set_aside: [u32; 2],
+    /// [returns, stretches]: isolated stretches of few returns that alone moved the answer
+    /// beyond 5 times what their information can.
+    #[serde(default)]
+    pub influential_set_aside: [u32; 2],
 }
 
 /// `report.json` (DESIGN.md contract plus the keys).

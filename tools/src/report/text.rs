@@ -124,6 +124,23 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             "; time offset held, the data give {d:+.6} +- {sg:.6} s more"
         ))
     );
+        let ([m, mp], [i, is]) = (c.misfit_pieces_set_aside, c.influential_set_aside);
+        if m + i > 0 {
+            let mut why = Vec::new();
+            if m > 0 {
+                why.push(format!(
+                    "{m} in {mp} piece(s) the navigation model could not join to their neighbours"
+                ));
+            }
+            if i > 0 {
+                why.push(format!("{i} in {is} isolated stretch(es) that alone moved the answer beyond 5 times what they can"));
+            }
+            let _ = writeln!(
+                o,
+                "set aside after the fit (not the sphere: counted as undetected): {} returns",
+                why.join("; ")
+            );
+        }
     }
     if let Some(n) = &r.navigation {
         let _ = writeln!(

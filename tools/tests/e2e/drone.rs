@@ -132,3 +132,144 @@ fn the_noisy_drone_survey_calibrates_within_its_sigmas() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// One `drone-noisy` Monte Carlo trial (the plan's trials: the scenario's planning noise, the
+/// windowed packets only), its lidar effects switched off when `ideal`: solved as the file
+/// command does with `settings` changed by `edit`; the solution, the returns with their
+/// verdicts and the trial's labels (object, purity) by (packet, block, channel).
+type Labels = std::collections::HashMap<(u32, u8, u8), (u16, u8)>;
+
+fn trial(
+    ideal: bool,
+    seed: u64,
+    edits: &[&dyn Fn(&mut spherecal::calib::Settings)],
+) -> Vec<(
+    spherecal::calib::Solution,
+    Vec<Vec<spherecal::window::Observation>>,
+    Labels,
+)> {
+    use spherecal_tools::calibrate::{collect, settings_for, site_targets, solve_report_in};
+    use spherecal_tools::config::scenario::Scenario;
+    let mut s = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap());
+    if ideal {
+        let l = &mut s.lidar;
+        l.beam_divergence_mrad = [0.0, 0.0];
+        l.incidence_noise = false;
+        l.intensity_scatter = 0.0;
+        l.edge_dropout = 0.0;
+        l.range_walk_m = 0.0;
+    }
+    let mut cache = spherecal_tools::synth::trace(&s).unwrap();
+    let (keep, _) = spherecal_tools::montecarlo::windowed_packets(&s, &cache, 0.5, 2).unwrap();
+    cache.keep_only(keep);
+    s.seed = seed;
+    let d = common::tmp("drone", &format!("trial-{ideal}-{seed}"));
+    let _ = std::fs::remove_dir_all(&d);
+    spherecal_tools::synth::synth_traced(&s, &d, &cache).unwrap();
+    let inp = spherecal_tools::pipeline::Inputs::apriori(
+        d.join("lidar.pcap").into(),
+        spherecal_tools::pipeline::InsInput::Vn200(d.join("ins.bin").into()),
+        spherecal_tools::config::site::Site::load(&d.join("site.toml")).unwrap(),
+    );
+    let labels: Labels = spherecal_tools::synth::read_labels(&d.join("labels.bin"))
+        .unwrap()
+        .into_iter()
+        .map(|l| ((l.packet, l.block, l.channel), (l.object, l.purity)))
+        .collect();
+    let (_, obs) = collect(&inp).unwrap();
+    let (tg, ids) = site_targets(&inp);
+    let out = edits
+        .iter()
+        .map(|edit| {
+            let mut settings = settings_for(&inp.site, s.model(), true, inp.margin);
+            edit(&mut settings);
+            let mut o = obs.clone();
+            let (sol, _) = solve_report_in(
+                &tg,
+                &ids,
+                &mut o,
+                &inp.mount.params(),
+                &settings,
+                &mut spherecal_tools::calibrate::Scratch::default(),
+                &mut (),
+            );
+            (sol, o, labels.clone())
+        })
+        .collect();
+    let _ = std::fs::remove_dir_all(&d);
+    out
+}
+
+/// The kept returns of `a` that `b` does not keep.
+fn kept_only_in(
+    a: &[Vec<spherecal::window::Observation>],
+    b: &[Vec<spherecal::window::Observation>],
+) -> Vec<(usize, spherecal::window::Observation)> {
+    let kept = spherecal::calib::extract::ReturnClass::Kept as u8;
+    let key = |o: &spherecal::window::Observation| (o.packet, o.block, o.channel);
+    a.iter()
+        .enumerate()
+        .flat_map(|(j, v)| {
+            let theirs: std::collections::HashSet<_> = b[j]
+                .iter()
+                .filter(|o| o.work.verdict == kept)
+                .map(key)
+                .collect();
+            v.iter()
+                .filter(move |o| o.work.verdict == kept && !theirs.contains(&key(o)))
+                .map(move |o| (j, *o))
+        })
+        .collect()
+}
+
+/// What the final fit sets aside, on real faults of the drone's Monte Carlo trials (seeds the
+/// 100-seed check found; a change to the simulator's random streams moves them: look for new
+/// ones with `SPHERECAL_MC_KEEP` and `calibrate --returns` against the trial's labels.bin, as
+/// NOTES.md "Issue 30" says). The labels, not the solver, say what the returns were:
+/// - seed 1085: in a turn 60 m from a grass sphere, a slice kept three grass returns; the
+///   time offset paid for them (12 sigma). The isolated stretch is set aside (they lie
+///   0.5-0.7 m off the sphere without it), the offset comes within 3 sigma;
+/// - seed 1037 with an ideal LiDAR: a slice kept grass returns that a navigation piece took
+///   in, a 7-sigma step refused as an INS jump; that piece is set aside and the survey claimed.
+#[test]
+fn the_final_fit_sets_aside_what_is_not_the_sphere() {
+    let is_sphere = |labels: &Labels, j: usize, o: &spherecal::window::Observation| {
+        labels
+            .get(&(o.packet, o.block, o.channel))
+            .is_some_and(|&(ob, purity)| usize::from(ob) == j && purity >= 230)
+    };
+    // Seed 1085: the influence test on and off.
+    let runs = trial(
+        false,
+        1085,
+        &[&|_| {}, &|s| s.max_influence_sigmas = f64::INFINITY],
+    );
+    let ((with, kept, labels), (without, all, _)) = (&runs[0], &runs[1]);
+    assert_eq!(with.refusal, None, "{:?}", with.refusal);
+    assert_eq!(with.set_aside.influential.1, 1, "{:?}", with.set_aside);
+    let aside = kept_only_in(all, kept);
+    assert_eq!(aside.len() as u32, with.set_aside.influential.0);
+    assert!(
+        aside.iter().all(|(j, o)| !is_sphere(labels, *j, o)),
+        "set aside sphere returns: {aside:?}"
+    );
+    let z = |s: &spherecal::calib::Solution| s.dt / s.lm.unwrap().sigma_dt;
+    assert!(z(without).abs() > 5.0, "the fault: {}", z(without));
+    assert!(z(with).abs() < 3.0, "{}", z(with));
+    // Seed 1037, an ideal LiDAR: the misfit piece on and off (no jump test).
+    let runs = trial(
+        true,
+        1037,
+        &[&|_| {}, &|s| s.max_nav_step_sigmas = f64::INFINITY],
+    );
+    let ((with, kept, labels), (without, all, _)) = (&runs[0], &runs[1]);
+    assert_eq!(with.refusal, None, "{:?}", with.refusal);
+    assert_eq!(with.set_aside.misfit_pieces.1, 1, "{:?}", with.set_aside);
+    assert!(without.nav.unwrap().worst_step.0 > 5.0);
+    let aside = kept_only_in(all, kept);
+    assert_eq!(aside.len() as u32, with.set_aside.misfit_pieces.0);
+    assert!(
+        aside.iter().all(|(j, o)| !is_sphere(labels, *j, o)),
+        "set aside sphere returns: {aside:?}"
+    );
+}
