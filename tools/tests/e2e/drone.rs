@@ -115,7 +115,7 @@ fn the_noisy_drone_survey_calibrates_within_its_sigmas() {
             sig[group][k].as_f64().unwrap()
         })
         .collect();
-    let planned = [0.032, 0.012, 0.056, 0.024, 0.015, 0.060];
+    let planned = [0.039, 0.015, 0.058, 0.028, 0.016, 0.063];
     for i in 0..6 {
         assert!(
             (got[i] - truth[i]).abs() <= 3.0 * sigma[i],
