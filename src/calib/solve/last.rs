@@ -406,5 +406,6 @@ const INFLUENTIAL_RETURNS: usize = 24;
 const INFLUENCE_TRIES: usize = 8;
 /// A stretch of kept returns ends at a gap of this many seconds.
 const GAP_S: f64 = 2.0;
-/// Room for the keys of the returns one set-aside moves.
+/// Room for the keys of the returns one set-aside moves (all of them: they are restored by it).
 const MOVED: usize = 24;
+const _: () = assert!(MISFIT_RETURNS <= MOVED && INFLUENTIAL_RETURNS <= MOVED);

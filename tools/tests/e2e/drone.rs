@@ -233,43 +233,42 @@ fn kept_only_in(
 ///   in, a 7-sigma step refused as an INS jump; that piece is set aside and the survey claimed.
 #[test]
 fn the_final_fit_sets_aside_what_is_not_the_sphere() {
-    let is_sphere = |labels: &Labels, j: usize, o: &spherecal::window::Observation| {
-        labels
-            .get(&(o.packet, o.block, o.channel))
-            .is_some_and(|&(ob, purity)| usize::from(ob) == j && purity >= 230)
-    };
+    // Claimed; the returns the second run keeps and the first not are `counted`, none the
+    // sphere's by the labels.
+    let claimed_without_spheres =
+        |runs: &[(spherecal::calib::Solution, Vec<Vec<_>>, Labels)],
+         counted: fn(&spherecal::calib::Solution) -> (u32, u32)| {
+            let ((with, kept, labels), (_, all, _)) = (&runs[0], &runs[1]);
+            assert_eq!(with.refusal, None, "{:?}", with.refusal);
+            assert_eq!(counted(with).1, 1, "{:?}", with.set_aside);
+            let aside = kept_only_in(all, kept);
+            assert_eq!(aside.len() as u32, counted(with).0);
+            let sphere = |j: usize, o: &spherecal::window::Observation| {
+                labels
+                    .get(&(o.packet, o.block, o.channel))
+                    .is_some_and(|&(ob, purity)| usize::from(ob) == j && purity >= 230)
+            };
+            assert!(
+                aside.iter().all(|(j, o)| !sphere(*j, o)),
+                "set aside sphere returns: {aside:?}"
+            );
+        };
     // Seed 1085: the influence test on and off.
     let runs = trial(
         false,
         1085,
         &[&|_| {}, &|s| s.max_influence_sigmas = f64::INFINITY],
     );
-    let ((with, kept, labels), (without, all, _)) = (&runs[0], &runs[1]);
-    assert_eq!(with.refusal, None, "{:?}", with.refusal);
-    assert_eq!(with.set_aside.influential.1, 1, "{:?}", with.set_aside);
-    let aside = kept_only_in(all, kept);
-    assert_eq!(aside.len() as u32, with.set_aside.influential.0);
-    assert!(
-        aside.iter().all(|(j, o)| !is_sphere(labels, *j, o)),
-        "set aside sphere returns: {aside:?}"
-    );
+    claimed_without_spheres(&runs, |s| s.set_aside.influential);
     let z = |s: &spherecal::calib::Solution| s.dt / s.lm.unwrap().sigma_dt;
-    assert!(z(without).abs() > 5.0, "the fault: {}", z(without));
-    assert!(z(with).abs() < 3.0, "{}", z(with));
+    assert!(z(&runs[1].0).abs() > 5.0, "the fault: {}", z(&runs[1].0));
+    assert!(z(&runs[0].0).abs() < 3.0, "{}", z(&runs[0].0));
     // Seed 1037, an ideal LiDAR: the misfit piece on and off (no jump test).
     let runs = trial(
         true,
         1037,
         &[&|_| {}, &|s| s.max_nav_step_sigmas = f64::INFINITY],
     );
-    let ((with, kept, labels), (without, all, _)) = (&runs[0], &runs[1]);
-    assert_eq!(with.refusal, None, "{:?}", with.refusal);
-    assert_eq!(with.set_aside.misfit_pieces.1, 1, "{:?}", with.set_aside);
-    assert!(without.nav.unwrap().worst_step.0 > 5.0);
-    let aside = kept_only_in(all, kept);
-    assert_eq!(aside.len() as u32, with.set_aside.misfit_pieces.0);
-    assert!(
-        aside.iter().all(|(j, o)| !is_sphere(labels, *j, o)),
-        "set aside sphere returns: {aside:?}"
-    );
+    claimed_without_spheres(&runs, |s| s.set_aside.misfit_pieces);
+    assert!(runs[1].0.nav.unwrap().worst_step.0 > 5.0);
 }
