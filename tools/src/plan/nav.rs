@@ -12,7 +12,6 @@ use crate::config::site::DEFAULT_CENTRE_SIGMA_M;
 use spherecal::calib::lm::Clock;
 use spherecal::calib::nav::{cut_for, predict, NavModel, Piece};
 use spherecal::calib::objective::{Linearised, Noise, Problem, SphereObs};
-
 use spherecal::calib::P;
 use spherecal::window::{Observation, Target};
 

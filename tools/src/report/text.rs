@@ -129,15 +129,17 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             let mut why = Vec::new();
             if m > 0 {
                 why.push(format!(
-                    "{m} in {mp} piece(s) the navigation model could not join to their neighbours"
+                    "{m} returns in {mp} piece(s) the navigation model could not join to their neighbours"
                 ));
             }
             if i > 0 {
-                why.push(format!("{i} in {is} isolated stretch(es) that alone moved the answer beyond 5 times what they can"));
+                why.push(format!(
+                    "{i} returns in {is} isolated stretch(es) that lay off the spheres and alone moved the answer beyond what their information can"
+                ));
             }
             let _ = writeln!(
                 o,
-                "set aside after the fit (not the sphere: counted as undetected): {} returns",
+                "set aside after the fit (not the sphere: counted as undetected): {}",
                 why.join("; ")
             );
         }
