@@ -258,9 +258,8 @@ impl Rounds {
             }
             // Kept within the shell of the answer they helped make: the sphere's.
             let kept = ReturnClass::Kept as u8;
-            let within = |j: usize, o: &Observation| {
-                o.work.verdict == kept && o.time >= a && o.time <= b && j < n
-            };
+            let within =
+                |_: usize, o: &Observation| o.work.verdict == kept && o.time >= a && o.time <= b;
             if self.off_sphere(d, within) <= self.tau {
                 continue;
             }

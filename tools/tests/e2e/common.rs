@@ -101,3 +101,30 @@ pub fn assert_within(got: &[f64; 6], want: &[f64; 6], tol: f64, what: &str) {
         );
     }
 }
+
+/// The inputs of a survey `synth` wrote to `dir` (its VN-200 stream and site), from the site's
+/// a-priori values.
+pub fn survey_inputs(dir: &std::path::Path) -> spherecal_tools::pipeline::Inputs {
+    spherecal_tools::pipeline::Inputs::apriori(
+        dir.join("lidar.pcap").into(),
+        spherecal_tools::pipeline::InsInput::Vn200(dir.join("ins.bin").into()),
+        spherecal_tools::config::site::Site::load(&dir.join("site.toml")).unwrap(),
+    )
+}
+
+/// How far beyond a sphere's window a Monte Carlo trial's packets are kept [m].
+pub const WINDOW_EXTRA_M: f64 = 0.5;
+
+/// The Monte Carlo trials' trace of `s`: traced once, only the data packets that hold windowed
+/// returns (and two neighbours) kept — the rest cannot change a calibration
+/// (`plan::every_windowed_return_of_a_full_trial_is_simulated`); and how many those are.
+pub fn trial_cache(
+    s: &spherecal_tools::config::scenario::Scenario,
+) -> (spherecal_tools::synth::TraceCache, usize, usize) {
+    let mut cache = spherecal_tools::synth::trace(s).unwrap();
+    let (keep, n) =
+        spherecal_tools::montecarlo::windowed_packets(s, &cache, WINDOW_EXTRA_M, 2).unwrap();
+    let all = keep.len();
+    cache.keep_only(keep);
+    (cache, n, all)
+}

@@ -162,9 +162,7 @@ fn trial(
         l.edge_dropout = 0.0;
         l.range_walk_m = 0.0;
     }
-    let mut cache = spherecal_tools::synth::trace(&s).unwrap();
-    let (keep, _) = spherecal_tools::montecarlo::windowed_packets(&s, &cache, 0.5, 2).unwrap();
-    cache.keep_only(keep);
+    let (cache, _, _) = common::trial_cache(&s);
     seeds
         .iter()
         .map(|&seed| {
@@ -172,11 +170,7 @@ fn trial(
             let d = common::tmp("drone", &format!("trial-{ideal}-{seed}"));
             let _ = std::fs::remove_dir_all(&d);
             spherecal_tools::synth::synth_traced(&s, &d, &cache).unwrap();
-            let inp = spherecal_tools::pipeline::Inputs::apriori(
-                d.join("lidar.pcap").into(),
-                spherecal_tools::pipeline::InsInput::Vn200(d.join("ins.bin").into()),
-                spherecal_tools::config::site::Site::load(&d.join("site.toml")).unwrap(),
-            );
+            let inp = common::survey_inputs(&d);
             let labels: Labels = spherecal_tools::synth::read_labels(&d.join("labels.bin"))
                 .unwrap()
                 .into_iter()

@@ -4,19 +4,16 @@
 //! solver), the same runs' reported sigmas against their errors, and its recommendations
 //! turning a plan that misses its targets into one a simulated calibration confirms.
 
+use crate::common;
 use spherecal_tools::calibrate::{collect, settings_for, site_targets, solve_report_in, Scratch};
 use spherecal_tools::config::scenario::Scenario;
-use spherecal_tools::config::site::Site;
 use spherecal_tools::montecarlo::windowed_packets;
-use spherecal_tools::pipeline::{Inputs, InsInput};
 use spherecal_tools::plan::{self, recommend, Goal, PlanNoise};
 use std::path::{Path, PathBuf};
 
 /// Trials per site: the sample standard deviation's own relative error is then
 /// 1 / sqrt(2 (n - 1)) = 6.5 %, the 20 % bound ~3 of it (fixed seeds: the same runs every time).
 const TRIALS: u64 = 120;
-/// The Monte Carlo's packet mask is made with windows this much wider than the site's [m].
-const WINDOW_EXTRA_M: f64 = 0.5;
 const NAMES: [&str; 7] = ["roll", "pitch", "heading", "x", "y", "z", "time offset"];
 
 fn tmp(name: &str) -> PathBuf {
@@ -34,14 +31,6 @@ fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
-fn inputs(dir: &Path) -> Inputs {
-    Inputs::apriori(
-        dir.join("lidar.pcap").into(),
-        InsInput::Vn200(dir.join("ins.bin").into()),
-        Site::load(&dir.join("site.toml")).unwrap(),
-    )
-}
-
 /// One calibration of a synthesised survey: errors of the six [deg, m] and the time offset
 /// [s], the reported sigmas, why it was refused if it was.
 fn calibrate(
@@ -49,7 +38,7 @@ fn calibrate(
     dir: &Path,
     scratch: &mut Scratch,
 ) -> ([f64; 7], [f64; 7], Option<String>) {
-    let inp = inputs(dir);
+    let inp = common::survey_inputs(dir);
     let (_, mut obs) = collect(&inp).unwrap();
     let (tg, ids) = site_targets(&inp);
     let (sol, _) = solve_report_in(
@@ -114,10 +103,8 @@ fn agrees_with_monte_carlo_over(name: &str, trials: u64) {
     // The trials simulate only the data packets that hold windowed returns (and their
     // neighbours): the rest cannot change a calibration
     // (`every_windowed_return_of_a_full_trial_is_simulated` checks the mask loses none).
-    let mut cache = spherecal_tools::synth::trace(&s).unwrap();
-    let (keep, n) = windowed_packets(&s, &cache, WINDOW_EXTRA_M, 2).unwrap();
-    eprintln!("{name}: trials simulate {n} of {} data packets", keep.len());
-    cache.keep_only(keep);
+    let (cache, n, all) = common::trial_cache(&s);
+    eprintln!("{name}: trials simulate {n} of {all} data packets");
     let results = std::sync::Mutex::new(Vec::new());
     // A scenario given as a file: its name without the folders.
     let name_ = Path::new(name)
@@ -223,7 +210,7 @@ fn every_windowed_return_of_a_full_trial_is_simulated() {
     for name in ["table1-noisy", "pontoon-noisy"] {
         let s = plan::with_planning_noise(&Scenario::load(name).unwrap());
         let cache = spherecal_tools::synth::trace(&s).unwrap();
-        let (keep, n) = windowed_packets(&s, &cache, WINDOW_EXTRA_M, 2).unwrap();
+        let (keep, n) = windowed_packets(&s, &cache, common::WINDOW_EXTRA_M, 2).unwrap();
         assert!(
             n * 5 < keep.len(),
             "{name}: the mask keeps {n} of {} packets",
@@ -235,7 +222,7 @@ fn every_windowed_return_of_a_full_trial_is_simulated() {
             let dir = tmp(&format!("full-{name}-{seed}"));
             let (_, written) =
                 spherecal_tools::synth::synth_traced_written(&sd, &dir, &cache).unwrap();
-            let (_, obs) = collect(&inputs(&dir)).unwrap();
+            let (_, obs) = collect(&common::survey_inputs(&dir)).unwrap();
             let windowed: usize = obs.iter().map(Vec::len).sum();
             assert!(windowed > 10_000, "{name} {seed}: {windowed}");
             for o in obs.iter().flatten() {
