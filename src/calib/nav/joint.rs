@@ -3,6 +3,7 @@
 //! eliminated by the block-tridiagonal recursion, and Levenberg-Marquardt over it.
 
 use super::*;
+use crate::calib::lm::VecQ;
 use nalgebra::Cholesky;
 
 /// The state of the joint least squares: the global parameters and every piece's error.
@@ -27,6 +28,18 @@ pub(super) struct Sums {
     pub(super) cost: f64,
     pub(super) n: usize,
     pub(super) raw: f64,
+}
+
+/// One return's linearised row: the global row's `Q` entries, its sphere's centre (`-n`), its
+/// piece's six (position, rotation), the residual and the absolute weight.
+pub(super) struct Row {
+    pub(super) sphere: usize,
+    pub(super) time: crate::time::GpsTime,
+    pub(super) jq: VecQ,
+    pub(super) jc: [f64; 3],
+    pub(super) je: Vec6,
+    pub(super) res: f64,
+    pub(super) w: f64,
 }
 
 impl<'a, 'p> Joint<'a, 'p> {
@@ -132,6 +145,37 @@ impl Joint<'_, '_> {
         (own, link)
     }
 
+    /// Each return's linearised row at the state, in the spheres' order and each sphere's
+    /// time order, with its piece: `f(piece, row)`.
+    pub(super) fn each_row(&self, pieces: &mut [Piece], mut f: impl FnMut(&mut Piece, &Row)) {
+        let pb = self.problem();
+        let lin = Linearised::at(&self.b());
+        let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
+        for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
+            let centre = self.centre(j);
+            for o in sp.obs {
+                let i = piece_of(pieces, o.time);
+                let c = pieces[i].correction(centre);
+                let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &c) else {
+                    continue;
+                };
+                let n = r.normal;
+                let nw = n.cross(&r.arm);
+                let row = Row {
+                    sphere: j,
+                    time: o.time,
+                    jq: row_q(&r.row, r.grazing, self.clock, pb.since_ref(o)),
+                    // The sphere's centre: -n.
+                    jc: [-n.x, -n.y, -n.z],
+                    je: Vec6::new(-n.x, -n.y, -n.z, nw.x, nw.y, nw.z),
+                    res: r.residual - nu0 - nu1 * r.grazing,
+                    w: self.weight(&pb, o, pieces[i].len_s()),
+                };
+                f(&mut pieces[i], &row);
+            }
+        }
+    }
+
     /// Evaluate at the state: the measurement sums into `pieces` (d, b, g) and the global
     /// ones, priors included.
     pub(super) fn evaluate(&self, pieces: &mut [Piece]) -> Sums {
@@ -147,59 +191,40 @@ impl Joint<'_, '_> {
             p.b = MatG6::zeros();
             p.g = Vec6::zeros();
         }
-        let pb = self.problem();
-        let lin = Linearised::at(&self.b());
-        let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
-        for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
-            let cj = Q + 3 * j;
-            let centre = self.centre(j);
-            for o in sp.obs {
-                let i = piece_of(pieces, o.time);
-                let c = pieces[i].correction(centre);
-                let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &c) else {
-                    continue;
-                };
-                let jq = row_q(&r.row, r.grazing, self.clock, pb.since_ref(o));
-                let n = r.normal;
-                let nw = n.cross(&r.arm);
-                let je = Vec6::new(-n.x, -n.y, -n.z, nw.x, nw.y, nw.z);
-                let res = r.residual - nu0 - nu1 * r.grazing;
-                let w = self.weight(&pb, o, pieces[i].len_s());
-                // The global row: the Q entries and the sphere's centre (-n).
-                let jc = [-n.x, -n.y, -n.z];
-                for a in 0..Q {
-                    for b in 0..=a {
-                        s.a[(a, b)] += jq[a] * jq[b] * w;
-                    }
-                    for (k, jck) in jc.iter().enumerate() {
-                        s.a[(cj + k, a)] += jck * jq[a] * w;
-                    }
-                    s.g[a] += jq[a] * res * w;
+        self.each_row(pieces, |p, r| {
+            let (jq, jc, je, res, w) = (&r.jq, &r.jc, &r.je, r.res, r.w);
+            let cj = Q + 3 * r.sphere;
+            for a in 0..Q {
+                for b in 0..=a {
+                    s.a[(a, b)] += jq[a] * jq[b] * w;
                 }
-                for k in 0..3 {
-                    for l in 0..=k {
-                        s.a[(cj + k, cj + l)] += jc[k] * jc[l] * w;
-                    }
-                    s.g[cj + k] += jc[k] * res * w;
+                for (k, jck) in jc.iter().enumerate() {
+                    s.a[(cj + k, a)] += jck * jq[a] * w;
                 }
-                let p = &mut pieces[i];
-                for a in 0..6 {
-                    for b in 0..6 {
-                        p.d[(a, b)] += je[a] * je[b] * w;
-                    }
-                    for q in 0..Q {
-                        p.b[(q, a)] += jq[q] * je[a] * w;
-                    }
-                    for (k, jck) in jc.iter().enumerate() {
-                        p.b[(cj + k, a)] += jck * je[a] * w;
-                    }
-                    p.g[a] += je[a] * res * w;
-                }
-                s.cost += w * res * res;
-                s.raw += res * res;
-                s.n += 1;
+                s.g[a] += jq[a] * res * w;
             }
-        }
+            for k in 0..3 {
+                for l in 0..=k {
+                    s.a[(cj + k, cj + l)] += jc[k] * jc[l] * w;
+                }
+                s.g[cj + k] += jc[k] * res * w;
+            }
+            for a in 0..6 {
+                for b in 0..6 {
+                    p.d[(a, b)] += je[a] * je[b] * w;
+                }
+                for q in 0..Q {
+                    p.b[(q, a)] += jq[q] * je[a] * w;
+                }
+                for (k, jck) in jc.iter().enumerate() {
+                    p.b[(cj + k, a)] += jck * je[a] * w;
+                }
+                p.g[a] += je[a] * res * w;
+            }
+            s.cost += w * res * res;
+            s.raw += res * res;
+            s.n += 1;
+        });
         // The lower triangle to the full matrix.
         for a in 0..G {
             for b in 0..a {
@@ -217,7 +242,7 @@ impl Joint<'_, '_> {
         for j in 0..MAX_TARGETS {
             let cj = Q + 3 * j;
             for k in 0..3 {
-                if j < pb.spheres.len() {
+                if j < self.pb.spheres.len() {
                     let info = self.centre_info[j];
                     s.a[(cj + k, cj + k)] += info;
                     s.g[cj + k] += info * self.z[cj + k];
@@ -333,8 +358,32 @@ impl Joint<'_, '_> {
         Some(h)
     }
 
+    /// Each piece's block of the inverse of the chain's matrix M into its `s` (the globals
+    /// held): backward from the forward recursion's C_i, left by the last [`Self::reduced`],
+    /// `S_i = C_i^-1 + C_i^-1 L_i S_(i+1) L_i C_i^-1` (NaN where a block is singular).
+    pub(super) fn chain_blocks(&self, pieces: &mut [Piece]) {
+        let mut next: Option<Mat6> = None;
+        for i in (0..pieces.len()).rev() {
+            let (_, link) = self.chain(pieces, i);
+            let p = &mut pieces[i];
+            let Some(cinv) = p.c.try_inverse() else {
+                p.s = Mat6::from_element(f64::NAN);
+                next = None;
+                continue;
+            };
+            p.s = match next {
+                Some(sn) => {
+                    let a = cinv * Mat6::from_diagonal(&Vec6::from(link));
+                    cinv + a * sn * a.transpose()
+                }
+                None => cinv,
+            };
+            next = Some(p.s);
+        }
+    }
+
     /// The globals in use: the lm's `Q` and three per sphere (past them `B` is zero).
-    fn active(&self) -> usize {
+    pub(super) fn active(&self) -> usize {
         Q + 3 * self.pb.spheres.len().min(MAX_TARGETS)
     }
 }

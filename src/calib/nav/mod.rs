@@ -19,6 +19,7 @@ use crate::window::MAX_TARGETS;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 mod joint;
+mod robust;
 #[cfg(test)]
 mod tests;
 
@@ -96,6 +97,8 @@ pub struct Piece {
     g: Vec6,
     c: Mat6,
     y: Mat6G1,
+    /// The chain's own posterior block (of `M^-1`: the globals held), [`Joint::chain_blocks`].
+    s: Mat6,
 }
 
 impl Piece {
@@ -113,6 +116,7 @@ impl Piece {
         g: Vec6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 1])),
         c: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
         y: Mat6G1::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; G + 1])),
+        s: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
     };
 
     /// Its span [s].
@@ -224,7 +228,9 @@ pub struct NavFit {
 /// with [`cut_for`]). At most `max_iter` iterations per pass; the white noise's variance
 /// factor is re-estimated between passes (at most four), with the design effect of returns
 /// within `cluster_ns` of each other on one sphere. The covariance is the inverse of the
-/// mounting's information with every other parameter marginalised.
+/// mounting's information with every other parameter marginalised, widened where the
+/// residuals show more than the weights say (cluster-robust, [`robust`]); `sigma_classic`
+/// is the information's alone.
 #[allow(clippy::too_many_arguments)]
 pub fn refine(
     pb: &Problem<'_>,
@@ -257,7 +263,9 @@ pub fn refine(
     }
     let converged = converged && sums.cost.is_finite() && at.z.iter().all(|x| x.is_finite());
     let h = at.reduced(&sums, pieces);
-    let cov = h.and_then(|h| h.try_inverse());
+    let classic = h.and_then(|h| h.try_inverse());
+    at.chain_blocks(pieces);
+    let cov = classic.map(|c| robust::covariance(&at, pieces, &c, cluster_ns));
     let nan = f64::NAN;
     let var = |i: usize| cov.map_or(nan, |c| c[(i, i)].max(0.0));
     let sigma: [f64; P] = core::array::from_fn(|i| libm::sqrt(var(i)));
@@ -277,7 +285,7 @@ pub fn refine(
     }
     // The mounting's (and clock's) information with everything else marginalised: what the
     // data and priors leave to pin it.
-    let info_q: MatQ = cov.map_or(MatQ::from_element(nan), |c| {
+    let info_q: MatQ = classic.map_or(MatQ::from_element(nan), |c| {
         let block = c.fixed_view::<Q, Q>(0, 0).into_owned();
         let mut keep = block;
         if !clock.dt {
@@ -294,7 +302,7 @@ pub fn refine(
     } else {
         0.0
     };
-    posterior_sigmas(&at, pieces, cov.as_ref());
+    posterior_sigmas(pieces, cov.as_ref());
     let mut fit = NavFit {
         pieces: pieces.len(),
         centre: [[0.0; 3]; MAX_TARGETS],
@@ -323,7 +331,9 @@ pub fn refine(
         covariance,
         sigma,
         sigma_dt,
-        sigma_classic: sigma,
+        sigma_classic: core::array::from_fn(|i| {
+            classic.map_or(nan, |c| libm::sqrt(c[(i, i)].max(0.0)))
+        }),
         clusters: pieces.len(),
         correlation,
         dt_correlation,
@@ -419,36 +429,22 @@ fn white_noise_factor(
     wss / dof * design
 }
 
-/// Each piece's posterior sigma into its `sigma`: the diagonal blocks of the inverse of the
-/// chain's matrix M (backward from the forward recursion's C_i, left by the last
-/// [`Joint::reduced`]: `S_i = C_i^-1 + C_i^-1 L_i S_(i+1) L_i C_i^-1`) plus what the globals'
-/// uncertainty `cov` adds, `(M^-1 B^T)_i cov (B M^-1)_i`.
-fn posterior_sigmas(at: &Joint<'_, '_>, pieces: &mut [Piece], cov: Option<&MatG>) {
-    let mut next: Option<Mat6> = None;
-    for i in (0..pieces.len()).rev() {
-        let (_, link) = at.chain(pieces, i);
-        let p = &mut pieces[i];
-        let Some(cinv) = p.c.try_inverse() else {
-            p.sigma = [f64::NAN; 6];
-            next = None;
-            continue;
-        };
-        let own = match next {
-            Some(sn) => {
-                let a = cinv * Mat6::from_diagonal(&Vec6::from(link));
-                cinv + a * sn * a.transpose()
-            }
-            None => cinv,
-        };
+/// Each piece's posterior sigma into its `sigma`: its block of the chain's `M^-1` (left by
+/// [`Joint::chain_blocks`]) plus what the globals' uncertainty `cov` adds,
+/// `(M^-1 B^T)_i cov (B M^-1)_i`.
+fn posterior_sigmas(pieces: &mut [Piece], cov: Option<&MatG>) {
+    for p in pieces.iter_mut() {
         let total = match cov {
             Some(c) => {
                 let yb = p.y.fixed_view::<6, G>(0, 0);
-                own + yb * c * yb.transpose()
+                p.s + yb * c * yb.transpose()
             }
-            None => own,
+            None => p.s,
         };
-        p.sigma = core::array::from_fn(|k| libm::sqrt(total[(k, k)].max(0.0)));
-        next = Some(own);
+        p.sigma = core::array::from_fn(|k| match total[(k, k)] {
+            v if v.is_nan() => f64::NAN,
+            v => libm::sqrt(v.max(0.0)),
+        });
     }
 }
 
