@@ -25,6 +25,7 @@ mod checks;
 mod last;
 mod outcome;
 mod passes;
+mod restart;
 mod rounds;
 mod settings;
 
@@ -412,6 +413,9 @@ fn solve_data(
         ws,
     };
     run_rounds(&mut d, &passes, &mut r, &mut sol, watch);
+    if s.second_start && r.end.is_none() && (0..n).any(|j| windowed[j] > 0 && r.kept[j] == 0) {
+        restart::second_start(&mut d, &passes, &mut r, &mut sol, b0, windowed, watch);
+    }
     sol.shell = r.tau;
     sol.consensus = r.consensus;
     if let Some(end) = r.end {

@@ -309,6 +309,9 @@ pub fn solve_report_in(
             free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
             misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
             influential_set_aside: sol.set_aside.influential.into(),
+            second_start: sol
+                .second_start
+                .map(|s| [s.first, s.second, u32::from(s.taken)]),
         },
         batch_overflow: 0,
         inputs: None,

@@ -352,6 +352,8 @@ pub struct Solution {
     pub bounds: Bounds,
     /// Kept returns set aside after the final fit ([`SetAside`]).
     pub set_aside: SetAside,
+    /// The rounds' second start, when the first lost a sphere ([`SecondStart`]).
+    pub second_start: Option<SecondStart>,
     /// Why the solution is not claimed, if it is not.
     pub refusal: Option<Refusal>,
 }
@@ -366,6 +368,21 @@ pub struct SetAside {
     /// Isolated stretches (a gap of 2 s either side) of few returns that alone moved the
     /// answer beyond `max_influence_sigmas` of what they can move it by.
     pub influential: (u32, u32),
+}
+
+/// The rounds started again from the a-priori mounting, close (each sphere looked for around
+/// where it puts it, the widest shell) instead of from the first round's consensus, because
+/// the first start's rounds ended with a sphere lost: the slices in which each start's last
+/// round detected a sphere, all spheres, and whether the second start's rounds were taken
+/// (they detect the spheres in at least 5/4 the slices, and as many spheres).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SecondStart {
+    /// The first start's detected slices.
+    pub first: u32,
+    /// The second's.
+    pub second: u32,
+    /// The second start's rounds are the answer's.
+    pub taken: bool,
 }
 
 impl Solution {
@@ -408,6 +425,7 @@ impl Solution {
             consensus: None,
             bounds: Bounds::none(b0),
             set_aside: SetAside::default(),
+            second_start: None,
             refusal: None,
         }
     }

@@ -56,6 +56,8 @@ pub(super) struct Rounds {
     last_kept: Option<usize>,
     /// How the rounds ended, once they have.
     ended: Option<Termination>,
+    /// Each sphere's returns kept in the latest round.
+    pub(super) kept: [usize; MAX_TARGETS],
 }
 
 impl Rounds {
@@ -86,6 +88,7 @@ impl Rounds {
             prints: heapless::Vec::new(),
             last_kept: None,
             ended: None,
+            kept: [0; MAX_TARGETS],
         }
     }
 
@@ -225,6 +228,7 @@ impl Rounds {
         self.round_solve(targets, &mut part, &lens, d.s);
         let next_prior = self.next_shell(targets, &mut part, &lens, d.s);
         let total: usize = kept[..n].iter().sum();
+        self.kept = kept;
         let entry = Round {
             tau: round_tau,
             prior: self.prior,

@@ -81,6 +81,9 @@ pub struct Settings {
     /// An isolated stretch of few kept returns is set aside when it alone moves a parameter by
     /// more than this many times what its information can move it by (`solve::last`).
     pub max_influence_sigmas: f64,
+    /// When the rounds end with a sphere lost, start them again from the a-priori, close, and
+    /// keep the start that explains more (`solve::restart`).
+    pub second_start: bool,
 }
 
 /// What the caller read of the clocks in the streams.
@@ -168,6 +171,7 @@ impl Default for Settings {
             centre_sigma: [0.0; MAX_TARGETS],
             max_nav_step_sigmas: 5.0,
             max_influence_sigmas: 5.0,
+            second_start: true,
         }
     }
 }

@@ -196,6 +196,11 @@ pub struct Consistency {
     /// beyond 5 times what their information can.
     #[serde(default)]
     pub influential_set_aside: [u32; 2],
+    /// The rounds started again from the a-priori mounting because the first start lost a
+    /// sphere: [slices the first start's spheres were detected in, the second's, 1 when the
+    /// second start's answer was taken else 0].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub second_start: Option<[u32; 3]>,
 }
 
 /// `report.json` (DESIGN.md contract plus the keys).

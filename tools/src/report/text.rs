@@ -143,6 +143,17 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
                 why.join("; ")
             );
         }
+        if let Some([first, second, taken]) = c.second_start {
+            let _ = writeln!(
+                o,
+                "a sphere was lost, so the rounds started again from the a-priori mounting: the spheres detected in {second} slices against {first} from the first start's consensus; {}",
+                if taken == 1 {
+                    "the second start's answer is this one"
+                } else {
+                    "the first start's answer kept"
+                }
+            );
+        }
     }
     if let Some(n) = &r.navigation {
         let _ = writeln!(
