@@ -60,12 +60,12 @@ pub(super) fn second_start(
     // at its last mounting, then its rule for the returns still taking part.
     in_time_order(d, &windowed);
     let mount = Mount::from_params(&Params(r.b));
-    for j in 0..n {
-        let v = &mut d.obs[j][..windowed[j]];
-        extract::georeference(v, &d.targets[j], &mount, &r.time);
+    for (j, (&w, t)) in windowed.iter().zip(d.targets).enumerate() {
+        let v = &mut d.obs[j][..w];
+        extract::georeference(v, t, &mount, &r.time);
         r.active[j] = match r.prior {
-            Some(p) => compact(v, d.targets[j].radius, (4.0 * p).max(0.5) + r.tau),
-            None => windowed[j],
+            Some(p) => compact(v, t.radius, (4.0 * p).max(0.5) + r.tau),
+            None => w,
         };
     }
 }
