@@ -322,12 +322,12 @@ pub struct Solution {
     pub nav: Option<NavFit>,
     /// Eq. 6 at the solution over the kept returns [m].
     pub l1: f64,
-    /// Detect-and-solve rounds.
+    /// Detect-and-solve rounds (both starts' when there was a [`SecondStart`]).
     pub rounds: usize,
-    /// How they ended.
+    /// How they ended (the answer's start's).
     pub termination: Termination,
-    /// What each round did.
-    pub log: heapless::Vec<Round, 16>,
+    /// What each round did (both starts', in order).
+    pub log: heapless::Vec<Round, 32>,
     /// The final shell half-width [m].
     pub shell: f64,
     /// Per sphere.

@@ -38,7 +38,20 @@ pub(super) fn second_start(
     let mut log = Solution::start(b0, widest);
     log.bounds = sol.bounds;
     log.t_ref = sol.t_ref;
-    run_rounds(d, passes, &mut again, &mut log, watch);
+    run_rounds(
+        d,
+        passes,
+        &mut again,
+        &mut log,
+        &mut Continued {
+            inner: watch,
+            after: sol.rounds,
+        },
+    );
+    for entry in &log.log {
+        let _ = sol.log.push(*entry);
+    }
+    sol.rounds += log.rounds;
     let slices = |r: &Rounds| r.counts[..n].iter().map(|c| c.1).sum::<u32>();
     let found = |r: &Rounds| r.kept[..n].iter().filter(|&&k| k > 0).count();
     let (first, second) = (slices(r), slices(&again));
@@ -51,9 +64,10 @@ pub(super) fn second_start(
     });
     if taken {
         *r = again;
-        sol.rounds = log.rounds;
         sol.termination = log.termination;
-        sol.log = log.log;
+    }
+    watch.ended(sol.termination, sol.rounds);
+    if taken {
         return;
     }
     // The first start's returns as its rounds left them: every windowed return in time order
@@ -76,4 +90,18 @@ fn in_time_order(d: &mut Data<'_, '_, '_>, windowed: &[usize; MAX_TARGETS]) {
     for (v, &w) in d.obs.iter_mut().zip(windowed) {
         v[..w].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
     }
+}
+
+/// The watch over the second start: its rounds numbered on from the first start's, its end
+/// told once the start is chosen.
+struct Continued<'w, W: Observe> {
+    inner: &'w mut W,
+    after: usize,
+}
+
+impl<W: Observe> Observe for Continued<'_, W> {
+    fn round(&mut self, n: usize, r: &Round) {
+        self.inner.round(self.after + n, r);
+    }
+    fn ended(&mut self, _: Termination, _: usize) {}
 }
