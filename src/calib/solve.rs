@@ -150,7 +150,7 @@ fn partition(v: &mut [Observation]) -> usize {
             k += 1;
         }
     }
-    v[..k].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+    v[..k].sort_unstable_by_key(time_order);
     k
 }
 
@@ -311,6 +311,18 @@ fn gather(
     out
 }
 
+/// The returns' order in time (a firing's returns by channel, then block): a slice's returns
+/// together, and the least squares' clusters.
+fn time_order(o: &Observation) -> (GpsTime, u8, u8) {
+    (o.time, o.channel, o.block)
+}
+
+/// The rule for the returns still taking part in the rounds at prior radius `prior` and shell
+/// `tau`: within a few prior radii of the sphere's surface, at least half a metre.
+fn reach(prior: f64, tau: f64) -> f64 {
+    (4.0 * prior).max(0.5) + tau
+}
+
 /// Each sphere's windowed returns in time order (once: the scan-line segments, whose lengths
 /// do not depend on the mounting, and the slices), georeferenced with the start `b0`,
 /// unclassified; and the passes over each sphere.
@@ -323,7 +335,7 @@ fn prepare(
 ) -> heapless::Vec<PassReport, MAX_PASSES> {
     let mount0 = Mount::from_params(b0);
     for (v, t) in obs.iter_mut().zip(targets) {
-        v.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+        v.sort_unstable_by_key(time_order);
         extract::georeference(v, t, &mount0, &TimeOffset::default());
         extract::runs(v, st.firing_ns, st.jump);
         extract::assign_slices(v, st.slice_ns, slices);

@@ -42,6 +42,14 @@ pub(super) struct Row {
     pub(super) w: f64,
 }
 
+impl Row {
+    /// Its cluster: its sphere and its time within `cluster_ns` (neighbours on one sphere
+    /// share the footprint's and the cap's errors).
+    pub(super) fn cluster(&self, cluster_ns: i64) -> (usize, i64) {
+        (self.sphere, self.time.0.div_euclid(cluster_ns.max(1)))
+    }
+}
+
 impl<'a, 'p> Joint<'a, 'p> {
     /// At the mounting `b0` (the problem's clock), the centres at their survey and every
     /// piece's error zero.

@@ -379,7 +379,7 @@ pub fn predict(
 /// errors) `sum_g (sum_k sqrt(w) r)^2 / sum w r^2`, at least 1.
 fn white_noise_factor(
     at: &Joint<'_, '_>,
-    pieces: &[Piece],
+    pieces: &mut [Piece],
     sums: &joint::Sums,
     cluster_ns: i64,
 ) -> f64 {
@@ -397,29 +397,16 @@ fn white_noise_factor(
     let dof = (sums.n as f64 - p_eff).max(1.0);
     let (mut wss, mut clustered, mut cluster_sum) = (0.0, 0.0, 0.0);
     let mut key: Option<(usize, i64)> = None;
-    let pb = at.problem();
-    let lin = Linearised::at(&at.b());
-    let (nu0, nu1) = (at.z[P + 1], at.z[P + 2]);
-    for (j, sp) in pb.spheres.iter().enumerate() {
-        let centre = at.centre(j);
-        for o in sp.obs {
-            let p = &pieces[piece_of(pieces, o.time)];
-            let Some(r) = lin.row_corrected(o, &sp.target, pb.dt_at(o), &p.correction(centre))
-            else {
-                continue;
-            };
-            let res = r.residual - nu0 - nu1 * r.grazing;
-            let w = at.weight(&pb, o, p.len_s());
-            wss += w * res * res;
-            let k = (j, o.time.0.div_euclid(cluster_ns.max(1)));
-            if key != Some(k) {
-                clustered += cluster_sum * cluster_sum;
-                cluster_sum = 0.0;
-                key = Some(k);
-            }
-            cluster_sum += libm::sqrt(w) * res;
+    at.each_row(pieces, |_, r| {
+        wss += r.w * r.res * r.res;
+        let k = r.cluster(cluster_ns);
+        if key != Some(k) {
+            clustered += cluster_sum * cluster_sum;
+            cluster_sum = 0.0;
+            key = Some(k);
         }
-    }
+        cluster_sum += libm::sqrt(r.w) * r.res;
+    });
     clustered += cluster_sum * cluster_sum;
     let design = if wss > 0.0 {
         (clustered / wss).max(1.0)

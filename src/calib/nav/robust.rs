@@ -57,7 +57,7 @@ pub(super) fn covariance(
         // `1 - h` in variance (a piece of few returns follows them).
         let hat = r.w * ((jt.transpose() * h_inv * jt)[0] + (r.je.transpose() * p.s * r.je)[0]);
         let scale = 1.0 / libm::sqrt((1.0 - hat).max(0.05));
-        let k = (r.sphere, r.time.0.div_euclid(cluster_ns.max(1)));
+        let k = r.cluster(cluster_ns);
         if key != Some(k) {
             add_outer(&mut mid, &u, na);
             u = VecG::zeros();

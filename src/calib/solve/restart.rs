@@ -78,7 +78,7 @@ pub(super) fn second_start(
         let v = &mut d.obs[j][..w];
         extract::georeference(v, t, &mount, &r.time);
         r.active[j] = match r.prior {
-            Some(p) => compact(v, t.radius, (4.0 * p).max(0.5) + r.tau),
+            Some(p) => compact(v, t.radius, reach(p, r.tau)),
             None => w,
         };
     }
@@ -88,7 +88,7 @@ pub(super) fn second_start(
 /// together), whatever the rounds' compaction left past the returns taking part.
 fn in_time_order(d: &mut Data<'_, '_, '_>, windowed: &[usize; MAX_TARGETS]) {
     for (v, &w) in d.obs.iter_mut().zip(windowed) {
-        v[..w].sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+        v[..w].sort_unstable_by_key(time_order);
     }
 }
 

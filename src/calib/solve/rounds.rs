@@ -396,7 +396,7 @@ impl Rounds {
             if let Some(p) = self.prior {
                 // Returns far from the sphere (a few prior radii beyond its surface, at least
                 // half a metre) cannot become its returns any more: they leave the rounds.
-                self.active[j] = compact(v, targets[j].radius, (4.0 * p).max(0.5) + self.tau);
+                self.active[j] = compact(v, targets[j].radius, reach(p, self.tau));
             }
             let v = &mut obs[j][..self.active[j]];
             let (k, sl, det) = extract_sphere(
@@ -459,7 +459,7 @@ impl Rounds {
             self.b = DegM(nm.x).params().0;
         } else {
             for p in part.iter_mut().take(n) {
-                p.sort_unstable_by_key(|o| (o.time, o.channel, o.block));
+                p.sort_unstable_by_key(time_order);
             }
             let w = weights(part, &lens[..n], s);
             let lm = with_problem(targets, part, lens, 1, self.time, w, |pb| {
