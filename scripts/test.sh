@@ -27,7 +27,20 @@ if cargo nextest --version >/dev/null 2>&1; then
 fi
 
 work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+# The built-in surveys the tests synthesise, once each per run (tools/src/synth/cache.rs): on
+# the RAM disk when it has room (about 1 GB is used), else beside the other scratch files.
+synth_cache=$work/synth-cache
+shm_kb=$(df -Pk /dev/shm 2>/dev/null | awk 'NR == 2 { print $4 }')
+if [ -n "$shm_kb" ] && [ "$shm_kb" -gt 8000000 ]; then
+  synth_cache=$(mktemp -d /dev/shm/spherecal-synth-cache.XXXXXX)
+fi
+mkdir -p "$synth_cache"
+export SPHERECAL_SYNTH_CACHE=$synth_cache
+trap 'rm -rf "$work" "$synth_cache"' EXIT
+# A clean build gains nothing from incremental compilation's records (it only writes them).
+if [ "${CI:-}" = "true" ]; then
+  export CARGO_INCREMENTAL=0
+fi
 # The side jobs' builds go to the RAM disk when it has room: they then write nothing to the disk
 # the rig tests log to with fsync.
 # Their own target folder either way: cargo's lock on a shared one would hold the tests' runs.

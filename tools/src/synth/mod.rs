@@ -25,6 +25,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 
+pub mod cache;
 mod ins;
 use ins::write_ins;
 pub use ins::{synth_ins, NAV_ERRORS, SBET, SMRMSG};
@@ -138,12 +139,27 @@ const SERIAL_BAUD: u32 = 921_600;
 /// Delay between a VN-200 sample and the start of its frame on the wire.
 const SERIAL_LATENCY_NS: i64 = 1_000_000;
 
-/// Simulate and write the files into `dir` (created if needed).
+/// Simulate and write the files into `dir` (created if needed); through the cache of
+/// `SPHERECAL_SYNTH_CACHE` when it is set ([`cache`]).
 pub fn synth(s: &Scenario, dir: &Path) -> Result<Truth, crate::Error> {
+    let root = std::env::var_os(cache::VAR).map(std::path::PathBuf::from);
+    synth_cached(s, dir, root.as_deref())
+}
+
+/// [`synth`] through the cache at `root` (none: no cache).
+pub fn synth_cached(s: &Scenario, dir: &Path, root: Option<&Path>) -> Result<Truth, crate::Error> {
+    let slot = root.and_then(|r| cache::slot(r, s));
+    if let Some(t) = slot.as_deref().and_then(|p| cache::fetch(p, dir)) {
+        return Ok(t);
+    }
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    s.with_world(|world| write_files(s, world, dir, None))
-        .map_err(|e| e.to_string())?
-        .map(|(t, _)| t)
+    let (truth, _, files) = s
+        .with_world(|world| write_files(s, world, dir, None))
+        .map_err(|e| e.to_string())??;
+    if let Some(p) = &slot {
+        cache::store(p, &files);
+    }
+    Ok(truth)
 }
 
 /// A scene's trace: every data packet's echoes before noise ([`spherecal::sim::lidar::Traced`]),
@@ -221,6 +237,7 @@ pub fn synth_traced_written(
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     s.with_world(|world| write_files(s, world, dir, Some(cache)))
         .map_err(|e| e.to_string())?
+        .map(|(t, w, _)| (t, w))
 }
 
 fn write_files(
@@ -228,7 +245,7 @@ fn write_files(
     world: &World<'_>,
     dir: &Path,
     cache: Option<&TraceCache>,
-) -> Result<(Truth, Vec<u32>), crate::Error> {
+) -> Result<(Truth, Vec<u32>, Vec<std::path::PathBuf>), crate::Error> {
     // Every file goes to its temporary first and all are renamed at the end: an interrupted
     // or failed synth leaves no file of this run, none half-written ([`crate::output`]).
     let mut files = Vec::new();
@@ -240,8 +257,9 @@ fn write_files(
     let truth_path = dir.join("truth.json");
     let json = serde_json::to_string_pretty(&truth).map_err(|e| e.to_string())?;
     files.push(staged_bytes(&truth_path, (json + "\n").as_bytes())?);
+    let paths = files.iter().map(|f| f.path().to_path_buf()).collect();
     crate::output::commit_all(files)?;
-    Ok((truth, written))
+    Ok((truth, written, paths))
 }
 
 /// The files a scenario's [`synth`] writes, by name (the POS MV's log only with a POS MV).

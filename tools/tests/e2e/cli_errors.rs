@@ -353,11 +353,13 @@ fn outputs_are_whole_or_absent() {
         .collect();
     assert_eq!(left, vec!["r.json".to_string()], "nothing half-written");
 
-    // Ctrl-C during synth: exit 130, no file of the run, no temporary.
+    // Ctrl-C during synth: exit 130, no file of the run, no temporary (synthesised, not copied
+    // from the test run's cache).
     let s_dir = common::tmp("outputs", "interrupted");
     let child = common::spherecal()
         .args(["synth", "--scenario", "table1-bare", "--out"])
         .arg(&s_dir)
+        .env_remove(spherecal_tools::synth::cache::VAR)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()

@@ -8,9 +8,10 @@ fn bars_on_a_terminal_only() {
     let out = common::tmp("progress", "synth");
     let bin = env!("CARGO_BIN_EXE_spherecal");
     let cmd = format!("{bin} synth --scenario table1-bare --out {}", out.display());
-    // On a terminal.
+    // On a terminal; synthesised, not copied from the test run's cache.
     let tty = std::process::Command::new("script")
         .args(["-qec", &cmd, "/dev/null"])
+        .env_remove(spherecal_tools::synth::cache::VAR)
         .output()
         .expect("util-linux script");
     assert!(tty.status.success());
