@@ -11,7 +11,7 @@ use spherecal::sim::Rng;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-/// Run a Monte Carlo.
+/// Run a Monte Carlo: synthesise the scenario, then [`montecarlo_of`] its files.
 pub fn montecarlo(
     scenario: &Scenario,
     trials: usize,
@@ -22,6 +22,22 @@ pub fn montecarlo(
 ) -> Result<McReport, crate::Error> {
     let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
     crate::synth::synth(scenario, &dir)?;
+    let r = montecarlo_of(scenario, &dir, trials, angle_deg, lever_m, seed, progress);
+    let _ = std::fs::remove_dir_all(&dir);
+    r
+}
+
+/// [`montecarlo`] of a synthesis of `scenario` already in `dir` (`site.toml`, `lidar.pcap`,
+/// `ins.bin`).
+pub fn montecarlo_of(
+    scenario: &Scenario,
+    dir: &std::path::Path,
+    trials: usize,
+    angle_deg: f64,
+    lever_m: f64,
+    seed: u64,
+    progress: bool,
+) -> Result<McReport, crate::Error> {
     let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
     let inp = Inputs::apriori(
         dir.join("lidar.pcap").into(),
@@ -29,7 +45,6 @@ pub fn montecarlo(
         site.clone(),
     );
     let (_, obs) = collect(&inp)?;
-    let _ = std::fs::remove_dir_all(&dir);
     let (_, tg) = targets(&site);
     // As `calibrate` would (the mounting held to the clock: the simulated one has PPS).
     let settings = crate::calibrate::settings_for(
