@@ -44,16 +44,19 @@ pub fn fetch(slot: &Path, dir: &Path) -> Option<Truth> {
     serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).ok()?).ok()
 }
 
-/// Store `files` (what the synthesis wrote) in the slot: copied to a folder of this process
-/// and renamed into place, so that a concurrent reader sees all of them or none.
+/// Store `files` (what the synthesis wrote) in the slot: copied to a folder of this call's own
+/// (process and call number: threads of one process store too) and renamed into place, so that
+/// a concurrent reader sees all of them or none.
 pub fn store(slot: &Path, files: &[PathBuf]) {
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let (Some(root), Some(name)) = (slot.parent(), slot.file_name()) else {
         return;
     };
     let tmp = root.join(format!(
-        ".{}-{}",
+        ".{}-{}-{}",
         name.to_string_lossy(),
-        std::process::id()
+        std::process::id(),
+        CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
     ));
     let copied = std::fs::create_dir_all(&tmp).is_ok()
         && files.iter().all(|f| {
