@@ -11,33 +11,33 @@ use spherecal::sim::Rng;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-/// Run a Monte Carlo: synthesise the scenario, then [`montecarlo_of`] its files.
+/// Run a Monte Carlo on `files`, a synthesis of `scenario` already made (`site.toml`,
+/// `lidar.pcap`, `ins.bin`), or without them on one made for it in a temporary folder.
 pub fn montecarlo(
     scenario: &Scenario,
+    files: Option<&std::path::Path>,
     trials: usize,
     angle_deg: f64,
     lever_m: f64,
     seed: u64,
     progress: bool,
 ) -> Result<McReport, crate::Error> {
-    let dir = std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
-    crate::synth::synth(scenario, &dir)?;
-    let r = montecarlo_of(scenario, &dir, trials, angle_deg, lever_m, seed, progress);
-    let _ = std::fs::remove_dir_all(&dir);
-    r
-}
-
-/// [`montecarlo`] of a synthesis of `scenario` already in `dir` (`site.toml`, `lidar.pcap`,
-/// `ins.bin`).
-pub fn montecarlo_of(
-    scenario: &Scenario,
-    dir: &std::path::Path,
-    trials: usize,
-    angle_deg: f64,
-    lever_m: f64,
-    seed: u64,
-    progress: bool,
-) -> Result<McReport, crate::Error> {
+    let Some(dir) = files else {
+        let dir =
+            std::env::temp_dir().join(format!("spherecal-mc-{}-{}", std::process::id(), seed));
+        crate::synth::synth(scenario, &dir)?;
+        let r = montecarlo(
+            scenario,
+            Some(&dir),
+            trials,
+            angle_deg,
+            lever_m,
+            seed,
+            progress,
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        return r;
+    };
     let site = crate::config::site::Site::load(&dir.join("site.toml"))?;
     let inp = Inputs::apriori(
         dir.join("lidar.pcap").into(),

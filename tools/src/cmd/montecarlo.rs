@@ -41,6 +41,7 @@ pub fn run(a: Args) -> ExitCode {
     crate::output::remove_partial_on_interrupt();
     let r = match crate::montecarlo::montecarlo(
         &s,
+        None,
         a.trials,
         a.angle_noise_deg,
         a.lever_noise_m,

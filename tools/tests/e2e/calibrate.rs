@@ -455,8 +455,8 @@ count = 12
             assert!(e.precision >= 0.995 && e.recall >= 0.90);
         }
         // 40 random starts each (the 100x scene's trials take ~0.2 s), on the same files.
-        let mc =
-            spherecal_tools::montecarlo::montecarlo_of(&s, &dir, 40, 5.0, 0.5, 11, false).unwrap();
+        let mc = spherecal_tools::montecarlo::montecarlo(&s, Some(&dir), 40, 5.0, 0.5, 11, false)
+            .unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
         assert_eq!(mc.runs.len(), 40);
         eprintln!(
@@ -548,7 +548,8 @@ fn pontoon_site() {
         assert!(e.clutter_ratio >= 10.0);
         assert!(e.precision >= 0.995 && e.recall >= 0.90);
     }
-    let mc = spherecal_tools::montecarlo::montecarlo_of(&s, &dir, 100, 5.0, 0.5, 5, false).unwrap();
+    let mc =
+        spherecal_tools::montecarlo::montecarlo(&s, Some(&dir), 100, 5.0, 0.5, 5, false).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(mc.fraction_within, 1.0, "worst errors {:?}", mc.worst_error);
 }

@@ -150,7 +150,7 @@ fn decoys_are_not_taken_for_the_spheres() {
         assert_eq!(code, Some(0), "{name}: {text}");
         assert_within(&report_deg_m(&rep), &s.mount.truth.deg_m().0, 1e-3, name);
         let mc =
-            spherecal_tools::montecarlo::montecarlo_of(&s, &d, 12, 3.0, 0.4, 7, false).unwrap();
+            spherecal_tools::montecarlo::montecarlo(&s, Some(&d), 12, 3.0, 0.4, 7, false).unwrap();
         assert_eq!(
             mc.fraction_within,
             1.0,
