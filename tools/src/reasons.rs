@@ -89,6 +89,13 @@ pub fn refusal_text_clock(
             sigma * 1e3,
             shift.abs() / sigma.max(1e-12)
         ),
+        Refusal::Unsettled { lost, first, slices } => format!(
+            "the detect-and-solve rounds did not settle: they lost sphere {} and ended as \"{}\" (the spheres detected in {} slices); started again from the a-priori mounting they left the bounds ({} slices): no mounting explains the spheres together. Check the a-priori values and the site; from the air, spheres resting on the ground are hard to tell from it under a wrong mounting: put them on tripods (`spherecal plan --design`)",
+            ids.get(*lost).map_or("?", |s| s.as_str()),
+            first.words(),
+            slices[0],
+            slices[1]
+        ),
         Refusal::TimeOffsetContradicted { held, found, sigma } => format!(
             "the time offset held is contradicted by the data: free to estimate it, they move it by {:+.6} s (sigma {sigma:.6} s, {:.0} sigma); the mounting found with it held has absorbed the clock error (drop --hold-time-offset, or hold the offset the data give)",
             found - held,

@@ -130,6 +130,20 @@ pub enum Refusal {
         /// The survey's sigma [m].
         sigma: f64,
     },
+    /// Neither start of the rounds settled: the first lost a sphere (`lost`, the first of
+    /// them) and ended without settling (`first`: a round found fewer than two spheres, or
+    /// the rounds reached their limit), and the second, from the a-priori mounting, could not
+    /// go on (it left the bounds): no mounting was confirmed by the rounds, whatever the last
+    /// extraction around the first start's finds ([`SecondStart`]; a drone's spheres resting
+    /// on the grass, whose ground a wrong mounting lifts into their shells).
+    Unsettled {
+        /// The first sphere the first start lost.
+        lost: usize,
+        /// How the first start's rounds ended.
+        first: Termination,
+        /// The slices each start's last round detected the spheres in.
+        slices: [u32; 2],
+    },
     /// The time offset was held, and the data, free to estimate it, put it elsewhere: the
     /// mounting has absorbed the clock error (a lever-arm x of speed x offset).
     TimeOffsetContradicted {

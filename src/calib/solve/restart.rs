@@ -62,9 +62,19 @@ pub(super) fn second_start(
         second,
         taken,
     });
+    let first_settled = matches!(sol.termination, Termination::Settled | Termination::Cycle);
     if taken {
         *r = again;
         sol.termination = log.termination;
+    } else if again.end.is_some() && !first_settled {
+        // Neither start settled: nothing confirms the first start's mounting.
+        r.end = Some(Refusal::Unsettled {
+            lost: (0..n)
+                .find(|&j| windowed[j] > 0 && r.kept[j] == 0)
+                .unwrap_or(0),
+            first: sol.termination,
+            slices: [first, second],
+        });
     }
     watch.ended(sol.termination, sol.rounds);
     if taken {
