@@ -2,7 +2,7 @@
 //! returns off the deck, the quay wall, the stand, people and parked vehicles. By step: scan
 //! lines and slices (`scan`), Hough votes on the centre (`vote`), scoring a candidate
 //! (`score`), one slice's detection and the returns kept (`detect`), what meets the sphere
-//! (`attach`). The method: docs/extraction.md, section 2.
+//! (`attach`), the ground it rests on along the sweeps (`ground`). The method: docs/extraction.md, section 2.
 
 use super::objective::{Noise, TimeOffset};
 use crate::georef::Mount;
@@ -12,12 +12,14 @@ use nalgebra::{Matrix3, Vector3};
 
 mod attach;
 mod detect;
+mod ground;
 mod scan;
 mod score;
 mod vote;
 
 pub use attach::*;
 pub use detect::*;
+pub use ground::*;
 pub use scan::*;
 pub use score::*;
 use vote::*;
@@ -109,6 +111,9 @@ pub struct ExtractSettings {
     pub jump: f64,
     /// Score penalty per return in the collar just outside a candidate sphere.
     pub collar_weight: f32,
+    /// The last extraction rejects the ground a sphere rests on along each laser's sweep
+    /// ([`reject_ground_on_sweeps`]); off only to show what it does.
+    pub ground_sweeps: bool,
 }
 
 impl Default for ExtractSettings {
@@ -126,6 +131,7 @@ impl Default for ExtractSettings {
             firing_ns: 55_296,
             jump: 0.3,
             collar_weight: 1.0,
+            ground_sweeps: true,
         }
     }
 }
@@ -205,7 +211,7 @@ mod tests {
     use crate::time::GpsTime;
 
     /// An observation at a point `x` (relative to the surveyed centre) seen from `sensor`.
-    fn at(x: Vector3<f64>, sensor: Vector3<f64>) -> Observation {
+    pub(super) fn at(x: Vector3<f64>, sensor: Vector3<f64>) -> Observation {
         let d = x - sensor;
         let u = d / d.norm();
         Observation {

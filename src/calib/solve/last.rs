@@ -52,6 +52,10 @@ impl Rounds {
                 .count() as u32;
             extract::reject_attachments(v, targets[j].radius, tau, &dirs, (kept / 33).max(8));
             extract::reject_touching_plane(v, targets[j].radius, tau, (kept / 10).max(12));
+            if s.extract.ground_sweeps {
+                let band = 3.5 * s.noise().range + 0.01;
+                extract::reject_ground_on_sweeps(v, targets[j].radius, tau, band);
+            }
             used[j] = partition(obs[j]);
             if used[j] < s.min_points {
                 extract::tag(obs[j], ReturnClass::NotFound);

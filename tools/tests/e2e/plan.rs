@@ -273,15 +273,12 @@ fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
 /// The drone (issue 30) as real sensors record it: from 25-40 m, an APX-15-class INS's errors
 /// wandering over 30 s, the VLP-16's measured noise, spheres on tripods and on the grass. Over
 /// 100 seeds the plan's sigmas are the calibrations' spread (within 20 %), and each claimed
-/// calibration's reported sigmas hold its errors (97 % within 3 sigma, RMS z 0.7-1.4).
-/// Open (issue 30; NOTES.md "Issue 30"): the plan now weighs with the white noise the solver
-/// will find (the footprint's spread at incidence from 40 m) and the final fit sets aside what
-/// made a confident wrong answer (seed 1085's time offset, 12 sigma before): MC sd / plan
-/// 1.00-1.26 (roll 1.26, x 1.23 over the 20 %); the solver's own sigmas under-state x and the
-/// time offset in a few seeds (96 and 94 of 100 within 3: the footprint's noise is larger near
-/// the silhouette than the uniform weights assume), and 2 % are refused (over-dispersed).
+/// calibration's reported sigmas hold its errors (97 % within 3 sigma, RMS z 0.7-1.4), at
+/// most 2 % refused. Passing since the grass the laser's own sweep draws round a grass sphere
+/// is rejected (`extract::reject_ground_on_sweeps`): before, the few grass returns each seed
+/// kept put x and the time offset at 96 and 95 of 100 within 3 sigma and refused 2
+/// (over-dispersed); after, 99-100 and 98, none refused (MC sd / plan 0.90-1.11).
 #[test]
-#[ignore = "open (issue 30): every prediction within 20 % now, but x and the time offset 96 / 95 % within 3 sigma (97 needed); NOTES.md"]
 fn drone_noisy_prediction_agrees_with_monte_carlo() {
     // SPHERECAL_MC_SCENARIO=FILE: the same check on an edited scenario (the simulator's
     // effects switched off one at a time: NOTES.md "Issue 30").
