@@ -333,13 +333,7 @@ fn the_final_fit_sets_aside_what_is_not_the_sphere() {
 /// without the second start the fault is back (the test can fail).
 #[test]
 fn a_lost_sphere_starts_the_rounds_again_from_the_apriori() {
-    use spherecal_tools::config::scenario::Scenario;
-    let truth = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap())
-        .mount
-        .truth
-        .deg_m()
-        .params()
-        .0;
+    let truth = noisy_truth();
     let runs = &trial_of(
         "walkless",
         &|s| s.lidar.range_walk_m = 0.0,
@@ -378,13 +372,7 @@ fn a_lost_sphere_starts_the_rounds_again_from_the_apriori() {
 #[test]
 fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
     use spherecal::calib::solve::{Refusal, Termination};
-    use spherecal_tools::config::scenario::Scenario;
-    let truth = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap())
-        .mount
-        .truth
-        .deg_m()
-        .params()
-        .0;
+    let truth = noisy_truth();
     let runs = trial_of(
         "grounded",
         &|s| {
@@ -418,4 +406,15 @@ fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
         let z = (fine.b.0[i] - t) / l.sigma[i];
         assert!(z.abs() < 3.0, "{i}: z {z}");
     }
+}
+
+/// The mounting `drone-noisy`'s trials are made with [rad, m].
+fn noisy_truth() -> [f64; 6] {
+    use spherecal_tools::config::scenario::Scenario;
+    spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap())
+        .mount
+        .truth
+        .deg_m()
+        .params()
+        .0
 }
