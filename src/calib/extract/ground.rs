@@ -14,6 +14,9 @@ const MIN_GROUND: usize = 4;
 const MIN_SPAN_M: f32 = 0.3;
 /// Most neighbours one kept return looks at.
 const MAX_NEIGHBOURS: usize = 32;
+/// Most returns beyond the shell one slice's index holds (a slice with more is walked for
+/// each kept return).
+const MAX_BEYOND: usize = 256;
 
 /// Reject the kept returns that lie on the ground a sphere rests on, as the laser's own sweep
 /// draws it (centre at the origin of `work.x`, radius `r`, shell `tau`, the range noise's
@@ -31,6 +34,12 @@ const MAX_NEIGHBOURS: usize = 32;
 /// behind) draws its line behind the sphere, not through its returns. `obs` holds one sphere's
 /// returns grouped by slice (a slice's returns together). Returns how many were rejected.
 pub fn reject_ground_on_sweeps(obs: &mut [Observation], r: f64, tau: f64, band: f64) -> usize {
+    reject_indexed(obs, r, tau, band, MAX_BEYOND)
+}
+
+/// [`reject_ground_on_sweeps`] with a slice's index of the returns beyond the shell holding
+/// at most `most` (`MAX_BEYOND`; fewer only to test the walk without it).
+fn reject_indexed(obs: &mut [Observation], r: f64, tau: f64, band: f64, most: usize) -> usize {
     let (r, tau, band) = (r as f32, tau as f32, band as f32);
     let beyond = |o: &Observation| {
         let d = norm(o.work.x);
@@ -44,6 +53,24 @@ pub fn reject_ground_on_sweeps(obs: &mut [Observation], r: f64, tau: f64, band: 
         };
         let sl = start + sl.start..start + sl.end;
         start = sl.end;
+        if !obs[sl.clone()]
+            .iter()
+            .any(|o| o.work.verdict == ReturnClass::Kept as u8)
+        {
+            continue;
+        }
+        // The slice's returns beyond the shell, once (a slice with more walks itself).
+        let mut index = [(0u8, 0i64, [0f32; 3]); MAX_BEYOND];
+        let mut nb = 0;
+        let mut whole = false;
+        for o in obs[sl.clone()].iter().filter(|o| beyond(o)) {
+            if nb == most.min(MAX_BEYOND) {
+                whole = true;
+                break;
+            }
+            index[nb] = (o.laser, o.time.0, o.work.x);
+            nb += 1;
+        }
         for i in sl.clone() {
             if obs[i].work.verdict != ReturnClass::Kept as u8 {
                 continue;
@@ -51,14 +78,19 @@ pub fn reject_ground_on_sweeps(obs: &mut [Observation], r: f64, tau: f64, band: 
             let (laser, t) = (obs[i].laser, obs[i].time.0);
             let mut near = [([0f32; 3], 0i64); MAX_NEIGHBOURS];
             let mut n = 0;
-            for o in obs[sl.clone()]
-                .iter()
-                .filter(|o| o.laser == laser && (o.time.0 - t).abs() <= SWEEP_NS && beyond(o))
-            {
-                if n < MAX_NEIGHBOURS {
-                    near[n] = (o.work.x, o.time.0);
+            let mut take = |(l, tt, x): (u8, i64, V3)| {
+                if l == laser && (tt - t).abs() <= SWEEP_NS && n < MAX_NEIGHBOURS {
+                    near[n] = (x, tt);
                     n += 1;
                 }
+            };
+            if whole {
+                obs[sl.clone()]
+                    .iter()
+                    .filter(|o| beyond(o))
+                    .for_each(|o| take((o.laser, o.time.0, o.work.x)));
+            } else {
+                index[..nb].iter().for_each(|&e| take(e));
             }
             if n < MIN_GROUND {
                 continue;
@@ -137,12 +169,12 @@ mod tests {
     }
 
     /// Tag the returns within the shell kept; reject the ground; (ground kept before, ground
-    /// kept after, sphere returns rejected).
+    /// kept after, sphere returns rejected, returns beyond the shell).
     fn run(
         v: &mut heapless::Vec<(Observation, bool), 1024>,
         r: f64,
         tau: f64,
-    ) -> (usize, usize, usize) {
+    ) -> (usize, usize, usize, usize) {
         for (o, _) in v.iter_mut() {
             if (norm(o.work.x) - r as f32).abs() < tau as f32 {
                 o.work.verdict = ReturnClass::Kept as u8;
@@ -155,7 +187,22 @@ mod tests {
         };
         let (ground_before, sphere_before) = (kept(v, false), kept(v, true));
         let mut obs: heapless::Vec<Observation, 1024> = v.iter().map(|p| p.0).collect();
+        // The slice's index (when it holds every return beyond the shell) and the walk
+        // without it agree.
+        let beyond = v
+            .iter()
+            .filter(|(o, _)| {
+                let d = norm(o.work.x);
+                d > (r + tau) as f32 && d <= (r + tau) as f32 + REACH_M
+            })
+            .count();
+        let mut walked = obs.clone();
         let n = reject_ground_on_sweeps(&mut obs, r, tau, 0.04);
+        assert_eq!(reject_indexed(&mut walked, r, tau, 0.04, 0), n);
+        assert!(walked
+            .iter()
+            .zip(&obs)
+            .all(|(a, b)| a.work.verdict == b.work.verdict));
         for (p, o) in v.iter_mut().zip(&obs) {
             p.0 = *o;
         }
@@ -164,7 +211,12 @@ mod tests {
             n,
             ground_before - ground_after + sphere_before - sphere_after
         );
-        (ground_before, ground_after, sphere_before - sphere_after)
+        (
+            ground_before,
+            ground_after,
+            sphere_before - sphere_after,
+            beyond,
+        )
     }
 
     /// From 40 m above (a drone, the VLP-16's sweeps across the track), a 0.25 m sphere resting
@@ -195,7 +247,8 @@ mod tests {
                 &mut v,
             );
         }
-        let (before, after, sphere_lost) = run(&mut v, r, tau);
+        let (before, after, sphere_lost, beyond) = run(&mut v, r, tau);
+        assert!(beyond < MAX_BEYOND, "the index holds them: {beyond}");
         assert!(before >= 5, "the shell holds grass: {before}");
         assert_eq!(after, 0);
         assert_eq!(sphere_lost, 0);
@@ -226,7 +279,9 @@ mod tests {
                     &mut v,
                 );
             }
-            let (_, _, sphere_lost) = run(&mut v, r, tau);
+            let (_, _, sphere_lost, beyond) = run(&mut v, r, tau);
+            // The near wall: more returns beyond the shell than the index holds (walked).
+            assert_eq!(beyond > MAX_BEYOND, gap < 0.5, "{beyond}");
             assert!(v.iter().filter(|p| p.1).count() > 20);
             assert_eq!(sphere_lost, 0, "wall {gap} m behind");
         }
