@@ -79,7 +79,7 @@ fn reject_indexed(obs: &mut [Observation], r: f64, tau: f64, band: f64, most: us
             let mut near = [([0f32; 3], 0i64); MAX_NEIGHBOURS];
             let mut n = 0;
             let mut take = |(l, tt, x): (u8, i64, V3)| {
-                if l == laser && (tt - t).abs() <= SWEEP_NS && n < MAX_NEIGHBOURS {
+                if l == laser && tt.abs_diff(t) <= SWEEP_NS.unsigned_abs() && n < MAX_NEIGHBOURS {
                     near[n] = (x, tt);
                     n += 1;
                 }
