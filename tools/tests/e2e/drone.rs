@@ -379,6 +379,7 @@ fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
             for sp in s.sphere.iter_mut().filter(|sp| sp.stand == "tripod") {
                 sp.ned_m[2] = -sp.radius_m;
                 sp.stand = "none".into();
+                sp.stand_down_m = None;
             }
         },
         &[1045, 1000],
@@ -417,4 +418,44 @@ fn noisy_truth() -> [f64; 6] {
         .deg_m()
         .params()
         .0
+}
+
+/// `plan` on an aerial survey whose spheres all rest on the ground says what its prediction
+/// leaves out (the footprint's mixed returns against the grass bias the lever arm's height)
+/// and to put spheres on tripods; on the built-in `drone` (two on tripods) it does not.
+#[test]
+fn plan_warns_when_every_sphere_rests_on_the_ground() {
+    use spherecal_tools::config::scenario::Scenario;
+    let d = common::tmp("drone", "grounded-plan");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let mut s = Scenario::load("drone").unwrap();
+    for sp in s.sphere.iter_mut().filter(|sp| sp.stand != "none") {
+        sp.ned_m[2] = -sp.radius_m;
+        sp.stand = "none".into();
+        sp.stand_down_m = None;
+    }
+    let f = d.join("grounded.toml");
+    std::fs::write(&f, toml::to_string(&s).unwrap()).unwrap();
+    let said = |scenario: &std::ffi::OsStr| {
+        let o = common::spherecal()
+            .args(["plan", "--no-recommend", "--scenario"])
+            .arg(scenario)
+            .output()
+            .unwrap();
+        // Exit 1: the plan misses the default targets (0.01 deg, 5 mm); not an error.
+        assert!(
+            matches!(o.status.code(), Some(0 | 1)),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let grounded = said(f.as_os_str());
+    assert!(
+        grounded.contains("every sphere rests on the ground") && grounded.contains("tripods"),
+        "{grounded}"
+    );
+    assert!(!said("drone".as_ref()).contains("rests on the ground"));
+    let _ = std::fs::remove_dir_all(&d);
 }
