@@ -100,7 +100,7 @@ pub fn run(a: Args) -> ExitCode {
              lines along the spheres at the plan's height, slower lines, one more sphere)"
         );
     }
-    if crate::plan::design::is_aerial(&s) && s.sphere.iter().all(|x| x.stand == "none") {
+    if crate::plan::design::every_sphere_grounded(&s) {
         sayln!(
             "every sphere rests on the ground: from the air the beam's footprint straddles each \
              sphere's edge with the grass right behind it, and those returns, mixed, lie beyond \

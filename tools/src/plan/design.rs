@@ -91,6 +91,13 @@ pub fn ground(s: &Scenario) -> f64 {
     ground_and_centre(s).0
 }
 
+/// An aerial survey whose spheres all rest on the ground: the beam's footprint straddles each
+/// sphere's edge with the grass right behind it, and the mixed returns bias the lever arm's
+/// height, which the prediction leaves out (NOTES.md "Issue 30", session 23).
+pub fn every_sphere_grounded(s: &Scenario) -> bool {
+    is_aerial(s) && s.sphere.iter().all(|x| x.stand == "none")
+}
+
 /// The scenario is an aerial survey: its passes fly [`AERIAL_M`] or more above the spheres.
 pub fn is_aerial(s: &Scenario) -> bool {
     let top = s
