@@ -100,16 +100,6 @@ pub fn run(a: Args) -> ExitCode {
              lines along the spheres at the plan's height, slower lines, one more sphere)"
         );
     }
-    if crate::plan::design::every_sphere_grounded(&s) {
-        sayln!(
-            "every sphere rests on the ground: from the air the beam's footprint straddles each \
-             sphere's edge with the grass right behind it, and those returns, mixed, lie beyond \
-             the sphere: the prediction above leaves out the bias they give the lever arm's \
-             height (simulated on the built-in field, all four spheres on the grass: -5 cm, 0.85 \
-             sigma; 6 in 100 flights refused, none with two on tripods): put two or more on \
-             tripods (1.5 m)"
-        );
-    }
     if let Some(p) = &a.report {
         let out = if p
             .extension()

@@ -343,6 +343,9 @@ pub fn render(
             escape(&r.missing.join("; "))
         );
     }
+    for w in &r.warnings {
+        let _ = writeln!(o, "<p class=\"no\">Warning: {}.</p>", escape(w));
+    }
     if let Some(d) = design {
         let c = &d.candidates[d.chosen];
         let _ = writeln!(

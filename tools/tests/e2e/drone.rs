@@ -422,7 +422,8 @@ fn noisy_truth() -> [f64; 6] {
 
 /// `plan` on an aerial survey whose spheres all rest on the ground says what its prediction
 /// leaves out (the footprint's mixed returns against the grass bias the lever arm's height)
-/// and to put spheres on tripods; on the built-in `drone` (two on tripods) it does not.
+/// and to put spheres on tripods, in its text and its report (`warnings`); on the built-in
+/// `drone` (two on tripods) it does not.
 #[test]
 fn plan_warns_when_every_sphere_rests_on_the_ground() {
     use spherecal_tools::config::scenario::Scenario;
@@ -441,6 +442,8 @@ fn plan_warns_when_every_sphere_rests_on_the_ground() {
         let o = common::spherecal()
             .args(["plan", "--no-recommend", "--scenario"])
             .arg(scenario)
+            .arg("--report")
+            .arg(d.join("plan.json"))
             .output()
             .unwrap();
         // Exit 1: the plan misses the default targets (0.01 deg, 5 mm); not an error.
@@ -453,9 +456,20 @@ fn plan_warns_when_every_sphere_rests_on_the_ground() {
     };
     let grounded = said(f.as_os_str());
     assert!(
-        grounded.contains("every sphere rests on the ground") && grounded.contains("tripods"),
+        grounded.contains("warning: every sphere rests on the ground")
+            && grounded.contains("tripods"),
         "{grounded}"
     );
+    // In the report too.
+    let report = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("plan.json")).unwrap()).unwrap()
+    };
+    let w = &report(&d)["warnings"];
+    assert!(
+        w[0].as_str().unwrap().contains("rests on the ground"),
+        "{w}"
+    );
     assert!(!said("drone".as_ref()).contains("rests on the ground"));
+    assert!(report(&d).get("warnings").is_none());
     let _ = std::fs::remove_dir_all(&d);
 }
