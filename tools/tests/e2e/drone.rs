@@ -375,13 +375,7 @@ fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
     let truth = noisy_truth();
     let runs = trial_of(
         "grounded",
-        &|s| {
-            for sp in s.sphere.iter_mut().filter(|sp| sp.stand == "tripod") {
-                sp.ned_m[2] = -sp.radius_m;
-                sp.stand = "none".into();
-                sp.stand_down_m = None;
-            }
-        },
+        &every_sphere_on_the_grass,
         &[1045, 1000],
         &[&|_| {}],
     );
@@ -431,11 +425,7 @@ fn plan_warns_when_every_sphere_rests_on_the_ground() {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     let mut s = Scenario::load("drone").unwrap();
-    for sp in s.sphere.iter_mut().filter(|sp| sp.stand != "none") {
-        sp.ned_m[2] = -sp.radius_m;
-        sp.stand = "none".into();
-        sp.stand_down_m = None;
-    }
+    every_sphere_on_the_grass(&mut s);
     let f = d.join("grounded.toml");
     std::fs::write(&f, toml::to_string(&s).unwrap()).unwrap();
     let said = |scenario: &std::ffi::OsStr| {
@@ -472,4 +462,14 @@ fn plan_warns_when_every_sphere_rests_on_the_ground() {
     assert!(!said("drone".as_ref()).contains("rests on the ground"));
     assert!(report(&d).get("warnings").is_none());
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Every sphere of `s` taken off its stand and laid on the grass (the ground at d = 0): its
+/// centre one radius up.
+fn every_sphere_on_the_grass(s: &mut spherecal_tools::config::scenario::Scenario) {
+    for sp in s.sphere.iter_mut().filter(|sp| sp.stand != "none") {
+        sp.ned_m[2] = -sp.radius_m;
+        sp.stand = "none".into();
+        sp.stand_down_m = None;
+    }
 }
