@@ -22,6 +22,7 @@ beyond 130 m dropped, each point's time = its packet's stamp + its firing offset
 
 Usage: ros2-bag.py SURVEY OUT [--storage mcap|sqlite3|mcap-zstd|mcap-lz4] [--humble] [--extra]
        [--sigmas] [--scan-packets N] [--lidar-topic T] [--ins-topic T] [--max-scans N]
+       [--drop-ins-every N] [--garble-ins-every N]
 OUT is a bag folder for mcap/sqlite3 (rosbags) and a single .mcap file for mcap-zstd/-lz4.
 --humble rewrites the sqlite3 tables to Humble's schema (no type_description_hash, no
 message_definitions). --extra adds unrelated topics (/rosout-like strings, a TimeGroup)."""
@@ -128,13 +129,14 @@ def common_group(f, lag_ns):
     lla = struct.unpack("<3d", f[6]) if 6 in f else (0.0, 0.0, 0.0)
     st = struct.unpack("<H", f[12])[0] if 12 in f else 0
     host = tg + (GPS_UNIX - LEAP) * 1_000_000_000 + lag_ns
-    fields = sum(1 << k for k in (1, 3, 4, 6, 12) if m >> k & 1)
+    ts = struct.unpack("<Q", f[0])[0] if 0 in f else 0
+    fields = sum(1 << k for k in (0, 1, 3, 4, 6, 12) if m >> k & 1)
     status = T("vectornav_msgs/msg/InsStatus")(mode=st & 3, gps_fix=bool(st & 4), time_error=bool(st & 16),
         imu_error=bool(st & 32), mag_pres_error=bool(st & 64), gps_error=bool(st & 128),
         gps_heading_ins=bool(st & 256), gps_compass=bool(st & 512))
     z = V3(x=0.0, y=0.0, z=0.0)
     msg = T("vectornav_msgs/msg/CommonGroup")(header=Header(stamp=stamp(host), frame_id="vectornav"),
-        group_fields=fields, timestartup=0, timegps=tg, timesyncin=0,
+        group_fields=fields, timestartup=ts, timegps=tg, timesyncin=0,
         yawpitchroll=V3(x=float(ypr[0]), y=float(ypr[1]), z=float(ypr[2])),
         quaternion=Q(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])), angularrate=z,
         position=P3(x=lla[0], y=lla[1], z=lla[2]), velocity=z, accel=z, imu_accel=z, imu_rate=z, magpres_mag=z,
@@ -234,6 +236,10 @@ def main():
                     help="with --ins-as-imu: the driver's use_enu false (the sensor's FRD/NED quaternion and force)")
     ap.add_argument("--pcap", help="the capture (default: SURVEY/lidar.pcap)")
     ap.add_argument("--expect", help="write what was put in (packets, first INS samples) as JSON here")
+    ap.add_argument("--drop-ins-every", type=int, default=0,
+                    help="leave out every Nth CommonGroup message (a recorder dropping messages)")
+    ap.add_argument("--garble-ins-every", type=int, default=0,
+                    help="cut every Nth CommonGroup message's CDR short (a message no reader can parse)")
     a = ap.parse_args()
     expect = {"packets": [], "ins": []}
 
@@ -310,8 +316,13 @@ def main():
             expect["ins"].append({"host": host, "timegps": msg.timegps,
                 "ypr": [msg.yawpitchroll.x, msg.yawpitchroll.y, msg.yawpitchroll.z],
                 "lla": [msg.position.x, msg.position.y, msg.position.z], "status": msg.insstatus.mode})
-        msgs.append((host, a.ins_topic, "vectornav_msgs/msg/CommonGroup", ts.serialize_cdr(msg, "vectornav_msgs/msg/CommonGroup")))
         n_ins += 1
+        if a.drop_ins_every and n_ins % a.drop_ins_every == 0:
+            continue
+        cdr = ts.serialize_cdr(msg, "vectornav_msgs/msg/CommonGroup")
+        if a.garble_ins_every and n_ins % a.garble_ins_every == 1:
+            cdr = cdr[:40]
+        msgs.append((host, a.ins_topic, "vectornav_msgs/msg/CommonGroup", cdr))
         if a.sigmas:
             z, zp = V3(x=0.0, y=0.0, z=0.0), P3(x=0.0, y=0.0, z=0.0)
             ig = T("vectornav_msgs/msg/InsGroup")(header=msg.header, group_fields=0x0200, insstatus=status,

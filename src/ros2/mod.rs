@@ -166,7 +166,9 @@ pub struct CommonGroup<'a> {
 }
 
 impl<'a> CommonGroup<'a> {
-    /// `group_fields` bit: TimeGps.
+    /// `group_fields` bit: TimeStartup.
+    pub const TIMESTARTUP: u16 = 0x0001;
+    /// ... TimeGps.
     pub const TIMEGPS: u16 = 0x0002;
     /// ... YawPitchRoll.
     pub const YAWPITCHROLL: u16 = 0x0008;
@@ -227,12 +229,12 @@ impl<'a> CommonGroup<'a> {
     }
 }
 
-/// The longest frame [`CommonGroup::vn200_frame`] writes (header 8, payload 79, CRC 2).
+/// The longest frame [`CommonGroup::vn200_frame`] writes (header 8, payload 86, CRC 2).
 pub const VN200_FRAME_MAX: usize = 96;
 
 impl CommonGroup<'_> {
     /// The VN-200 binary frame this group was parsed from, as far as the group keeps it: the
-    /// Common group's TimeGps, YawPitchRoll, Quaternion, Position and InsStatus (those whose
+    /// Common group's TimeStartup, TimeGps, YawPitchRoll, Quaternion, Position and InsStatus (those whose
     /// bit is set), with the filter's own sigmas when given (Attitude.YprU [deg], Ins.PosU
     /// [m]: another message of the driver's). Attitudes go back to the sensor's f32. Returns
     /// the frame's length; `None` when the group holds none of those fields.
@@ -245,12 +247,16 @@ impl CommonGroup<'_> {
         use crate::vn200::binary::{emit, Masks};
         use crate::vn200::fields::Group;
         let mut masks = Masks::default();
-        let mut p = [0u8; 80];
+        let mut p = [0u8; 88];
         let mut at = 0;
         let mut put = |b: &[u8]| {
             p[at..at + b.len()].copy_from_slice(b);
             at += b.len();
         };
+        if self.has(Self::TIMESTARTUP) {
+            masks = masks.with(Group::Common, 0);
+            put(&self.timestartup.to_le_bytes());
+        }
         if self.has(Self::TIMEGPS) {
             masks = masks.with(Group::Common, 1);
             put(&self.timegps.to_le_bytes());
@@ -277,7 +283,7 @@ impl CommonGroup<'_> {
             masks = masks.with(Group::Common, 12);
             put(&self.insstatus.word().to_le_bytes());
         }
-        if masks == Masks::default() {
+        if masks == Masks::default() || masks == Masks::default().with(Group::Common, 0) {
             return None;
         }
         if let Some(u) = ypru {

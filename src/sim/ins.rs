@@ -1,4 +1,4 @@
-//! The VN-200 side of the simulator: binary output frames (Common group: TimeGps,
+//! The VN-200 side of the simulator: binary output frames (Common group: TimeStartup, TimeGps,
 //! YawPitchRoll or Quaternion, Position, InsStatus) at a fixed rate, sampled from the truth,
 //! with optional noise (white per sample, and correlated: [`super::nav_error`]), a clock
 //! offset, clock steps and corrupted bytes, written through the VN-200 emit side.
@@ -83,19 +83,23 @@ impl InsConfig {
     }
 }
 
-/// The fields the simulated VN-200 sends: Common group TimeGps (1), YawPitchRoll (3) or
-/// Quaternion (4), Position (6), InsStatus (12).
+/// The fields the simulated VN-200 sends: Common group TimeStartup (0), TimeGps (1),
+/// YawPitchRoll (3) or Quaternion (4), Position (6), InsStatus (12): what the boards configure.
 pub fn output_masks(attitude: AttitudeOutput) -> Masks {
     let att = match attitude {
         AttitudeOutput::YawPitchRoll => 3,
         AttitudeOutput::Quaternion => 4,
     };
     Masks::default()
+        .with(Group::Common, 0)
         .with(Group::Common, 1)
         .with(Group::Common, att)
         .with(Group::Common, 6)
         .with(Group::Common, 12)
 }
+
+/// TimeStartup at the first output [ns]: the unit was powered on 100 s before.
+pub const STARTUP_NS: i64 = 100_000_000_000;
 
 /// INS status sent: mode 2 (tracking) and GNSS fix (bit 2).
 pub const INS_STATUS: u16 = 0b110;
@@ -241,12 +245,15 @@ impl<'w, 'a> InsSim<'w, 'a> {
     /// Write the next frame into `out` (at least 64 bytes); its true time and length.
     pub fn next_frame(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
         let (t, stamp, [r, p, h], g) = self.next_sample()?;
-        let mut payload = [0u8; 50];
+        let mut payload = [0u8; 58];
         let mut w = 0;
         let mut put = |b: &[u8]| {
             payload[w..w + b.len()].copy_from_slice(b);
             w += b.len();
         };
+        // The unit's free-running clock: powered on STARTUP_NS before its first output; it
+        // does not take the GPS clock's steps.
+        put(&((t.0 - self.first + STARTUP_NS) as u64).to_le_bytes());
         put(&(stamp as u64).to_le_bytes());
         match self.cfg.attitude {
             AttitudeOutput::YawPitchRoll => {

@@ -387,6 +387,15 @@ impl<'a> Frame<'a> {
         GpsTime::from_week_tow_ns(week, tow)
     }
 
+    /// The unit's free-running clock: Common/Time TimeStartup [ns since power-on] (VN-200
+    /// manual, Common group bit 0 / Time group bit 0; PROTOCOLS.md). It keeps counting when
+    /// the GPS time steps, so the two together tell a clock step from lost frames.
+    pub fn time_startup(&self) -> Option<i64> {
+        self.u64_field(Group::Common, 0)
+            .or_else(|| self.u64_field(Group::Time, 0))
+            .and_then(|ns| i64::try_from(ns).ok())
+    }
+
     /// Yaw, pitch, roll [deg] from Common or Attitude.
     pub fn yaw_pitch_roll_deg(&self) -> Option<[f32; 3]> {
         self.f32s(Group::Common, 3)

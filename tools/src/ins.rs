@@ -83,7 +83,8 @@ pub fn frame_bytes(bytes: &[u8], csv: Option<&mut dyn Write>) -> io::Result<InsS
             *s.frames_by_header.entry(hex(f.header_bytes())).or_default() += 1;
             if let Some(p) = Pose::from_frame(&f) {
                 s.poses += 1;
-                s.clock.sample_frame(p.time, it.offset, f.bytes().len());
+                s.clock
+                    .sample_frame(p.time, it.offset, f.bytes().len(), f.time_startup());
                 s.clock.used(p.time, i64::MAX);
             }
             for (key, name, _) in frame_columns(&f) {
@@ -95,7 +96,7 @@ pub fn frame_bytes(bytes: &[u8], csv: Option<&mut dyn Write>) -> io::Result<InsS
             if let Ok(Vn::Ins(ins)) = a.decode() {
                 if let Some(p) = Pose::from_ins(&ins) {
                     s.poses += 1;
-                    s.clock.sample(p.time, false);
+                    s.clock.sample(p.time, false, None);
                     s.clock.used(p.time, i64::MAX);
                 }
             }

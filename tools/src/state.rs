@@ -223,6 +223,10 @@ pub struct InsState {
     /// Clock steps in all.
     #[serde(default)]
     pub clock_step_count: u64,
+    /// Samples missing between those read (forward jumps of whole output periods, or where the
+    /// reader saw data lost): lost data, not clock steps.
+    #[serde(default)]
+    pub lost_samples: u64,
     /// What the clock check remembers between samples.
     #[serde(skip)]
     pub watch: ClockWatch,
@@ -243,6 +247,7 @@ pub struct InsState {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ClockWatch {
     last: Option<i64>,
+    own: Option<i64>,
     end: Option<u64>,
     period: Option<i64>,
     learn: Vec<i64>,
@@ -265,35 +270,59 @@ pub fn excluded_by(status: u16) -> Option<usize> {
 }
 
 impl InsState {
-    /// Every sample with a time, used or not, in stream order; `contiguous`: it came right after
+    /// Every sample with a time, used or not, in stream order. `contiguous`: it came right after
     /// the sample before with nothing lost between (consecutive binary frames, consecutive
-    /// records). Time going back is always a step; a contiguous sample more than a quarter of
-    /// the output period (and 2 ms) off one period after the one before is a step too: a serial
-    /// line that loses data cuts frames and is not contiguous, and a VN-200 does not skip its
-    /// outputs. A second message of the same sample (the same time) is not a step.
-    pub fn sample(&mut self, t: GpsTime, contiguous: bool) {
+    /// records); `own`: the INS's free-running clock at the sample when the stream carries it
+    /// (VN-200 TimeStartup) [ns].
+    ///
+    /// Time going back is always a step. A forward jump is lost data, not a step, when the
+    /// reader saw data lost (not contiguous), when the free-running clock advanced by as much
+    /// (within a quarter period, 2 ms at least), or, without that clock, when it is a whole
+    /// number of output periods (within a tenth of one, 0.1 ms at least): a VN-200 whose output
+    /// outruns its line, a recorder dropping messages and a silent port all lose whole samples.
+    /// What is left is a step: a time jump with the data continuous around it. A second message
+    /// of the same sample (the same time) is neither.
+    pub fn sample(&mut self, t: GpsTime, contiguous: bool, own: Option<i64>) {
         let w = &mut self.watch;
         if w.last == Some(t.0) {
             // The same sample again (a second message of it).
             return;
         }
+        let last_own = core::mem::replace(&mut w.own, own);
         let Some(last) = w.last.replace(t.0) else {
             return;
         };
         let d = t.0 - last;
+        // What the free-running clock counted meanwhile (None: not carried, or it restarted).
+        let d_own = match (last_own, own) {
+            (Some(a), Some(b)) if b > a => Some(b - a),
+            _ => None,
+        };
         let step = if d < 0 {
             self.backward += 1;
-            Some(d - w.period.unwrap_or(0))
-        } else if !contiguous {
-            None
+            Some(d - d_own.or(w.period).unwrap_or(0))
         } else if let Some(p) = w.period {
-            ((d - p).abs() > (p / 4).max(2_000_000)).then_some(d - p)
+            let tol = (p / 4).max(2_000_000);
+            let whole = (d + p / 2) / p.max(1);
+            let step = match d_own {
+                _ if !contiguous => None,
+                Some(o) => ((d - o).abs() > tol).then_some(d - o),
+                None if (d - p).abs() <= tol => None,
+                None if whole >= 2 && (d - whole * p).abs() <= (p / 10).max(100_000) => None,
+                None => Some(d - p),
+            };
+            if step.is_none() && whole >= 2 {
+                self.lost_samples += (whole - 1) as u64;
+            }
+            step
         } else {
-            w.learn.push(d);
-            if w.learn.len() == LEARN {
-                let mut v = w.learn.clone();
-                v.sort_unstable();
-                w.period = Some(v[LEARN / 2]);
+            if contiguous {
+                w.learn.push(d);
+                if w.learn.len() == LEARN {
+                    let mut v = w.learn.clone();
+                    v.sort_unstable();
+                    w.period = Some(v[LEARN / 2]);
+                }
             }
             None
         };
@@ -306,11 +335,11 @@ impl InsState {
     }
 
     /// A sample from the frame at byte `offset` of `len` bytes: contiguous when the sample
-    /// before ended where it starts.
-    pub fn sample_frame(&mut self, t: GpsTime, offset: u64, len: usize) {
+    /// before ended where it starts; `own` as for [`Self::sample`].
+    pub fn sample_frame(&mut self, t: GpsTime, offset: u64, len: usize, own: Option<i64>) {
         let contiguous = self.watch.end == Some(offset);
         self.watch.end = Some(offset + len as u64);
-        self.sample(t, contiguous);
+        self.sample(t, contiguous, own);
     }
 
     /// The clock steps within GPS seconds `span` (the LiDAR data's).
@@ -407,6 +436,13 @@ impl InsState {
                 o,
                 "; {} gaps, the longest {:.3} s",
                 self.gaps, self.longest_gap_s
+            );
+        }
+        if self.lost_samples > 0 {
+            let _ = write!(
+                o,
+                "; {} samples missing (lost data, not clock steps)",
+                self.lost_samples
             );
         }
         if self.clock_step_count > 0 {
@@ -550,21 +586,24 @@ mod tests {
         assert_eq!(excluded_by(0x0007), Some(2)); // GNSS lost
     }
 
-    /// 200 Hz samples: a lost frame is a gap, not a step; a contiguous +20 ms and a -50 ms
-    /// are steps, the latter also time going back.
+    /// 200 Hz samples of the GPS time alone: whole output periods missing (one frame cut from
+    /// the bytes, 25 frames dropped whole, a 2 s silence) are lost data, not steps; a
+    /// contiguous +23 ms and a -50 ms are steps, the latter also time going back.
     #[test]
     fn clock_steps_and_time_going_back() {
         let mut s = InsState::default();
         let mut t = 0i64;
         let mut next = |s: &mut InsState, d: i64, contiguous: bool| {
             t += d;
-            s.sample(GpsTime(t), contiguous);
+            s.sample(GpsTime(t), contiguous, None);
         };
         for _ in 0..40 {
             next(&mut s, 5_000_000, true);
         }
-        next(&mut s, 10_000_000, false); // a frame lost
-        next(&mut s, 25_000_000, true); // +20 ms
+        next(&mut s, 10_000_000, false); // a frame cut
+        next(&mut s, 130_000_000, true); // 25 frames dropped whole
+        next(&mut s, 2_000_000_000, true); // the port silent for 2 s
+        next(&mut s, 28_000_000, true); // +23 ms
         next(&mut s, 5_000_000, true);
         next(&mut s, -45_000_000, true); // -50 ms
         for _ in 0..5 {
@@ -573,8 +612,33 @@ mod tests {
         next(&mut s, 5_400_000, true); // jitter
         assert_eq!(s.clock_step_count, 2, "{:?}", s.clock_steps);
         assert_eq!(s.backward, 1);
-        assert!((s.clock_steps[0].1 - 0.020).abs() < 1e-9);
+        assert!((s.clock_steps[0].1 - 0.023).abs() < 1e-9);
         assert!((s.clock_steps[1].1 + 0.050).abs() < 1e-9);
+        assert_eq!(s.lost_samples, 1 + 25 + 399);
+    }
+
+    /// With the unit's free-running clock (TimeStartup) a step of whole periods is told from
+    /// lost frames; a restart of that clock (a power cycle) falls back to the periods.
+    #[test]
+    fn the_free_running_clock_tells_a_step_of_whole_periods_from_lost_frames() {
+        let mut s = InsState::default();
+        let (mut t, mut own) = (0i64, 7_000_000_000i64);
+        let mut next = |s: &mut InsState, d: i64, d_own: i64| {
+            t += d;
+            own += d_own;
+            s.sample(GpsTime(t), true, Some(own));
+        };
+        for _ in 0..40 {
+            next(&mut s, 5_000_000, 5_000_000);
+        }
+        next(&mut s, 2_000_000_000, 2_000_000_000); // 2 s of frames lost
+        next(&mut s, 25_000_000, 5_000_000); // +20 ms: a step of four whole periods
+        next(&mut s, 5_000_000, 5_000_000);
+        next(&mut s, 600_000_000, -6_000_000_000); // restarted, 0.6 s later
+        next(&mut s, 5_000_000, 5_000_000);
+        assert_eq!(s.clock_step_count, 1, "{:?}", s.clock_steps);
+        assert!((s.clock_steps[0].1 - 0.020).abs() < 1e-9);
+        assert_eq!(s.lost_samples, 399 + 119);
     }
 
     #[test]

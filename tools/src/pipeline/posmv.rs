@@ -179,7 +179,7 @@ impl PosmvFeed {
             self.st.exclude(p.time, 1);
             return;
         }
-        self.st.sample(p.time, false);
+        self.st.sample(p.time, false, None);
         if !p.alignment.is_navigating() {
             let k = if p.alignment == Alignment::NoSolution {
                 0

@@ -388,7 +388,7 @@ pub fn ins_file_reader(
                     };
                     let local = spherecal::frames::rotation(r.roll, r.pitch, r.heading());
                     // Records of one file follow each other: nothing is lost between them.
-                    st.sample(t, rd.records > 1);
+                    st.sample(t, rd.records > 1, None);
                     st.used(t, max_gap_ns);
                     let pose = PoseSample::from_geodetic(&frame, t, &g, &local);
                     enqueue(out.ring, InsItem::Pose(pose, None), out.policy, out.full);
@@ -499,8 +499,10 @@ impl PoseGate {
         match got {
             InsOutcome::Pose(s, status) => {
                 match &it.item {
-                    Item::Binary(f) => st.sample_frame(s.time, it.offset, f.bytes().len()),
-                    _ => st.sample(s.time, false),
+                    Item::Binary(f) => {
+                        st.sample_frame(s.time, it.offset, f.bytes().len(), f.time_startup())
+                    }
+                    _ => st.sample(s.time, false, None),
                 }
                 // Not tracking, aligning, GNSS lost, no fix: left out (counted).
                 match status.and_then(crate::state::excluded_by) {

@@ -9,8 +9,8 @@
 //!   04 an unknown command, 05/07 missing or bad parameters, 08 an unknown register, 0C a
 //!   binary output the baud cannot carry (10 bits a byte).
 //! - A baud write is answered at the old baud, then the line changes.
-//! - Binary frames at 800 Hz / divisor with the registered fields: TimeGps, YawPitchRoll,
-//!   Position and InsStatus (tracking) filled, other fields zero.
+//! - Binary frames at 800 Hz / divisor with the registered fields: TimeStartup, TimeGps,
+//!   YawPitchRoll, Position and InsStatus (tracking) filled, other fields zero.
 
 use spherecal::vn200::ascii::{self, Vn};
 use spherecal::vn200::command::{BinaryOutput, IMU_RATE_HZ};
@@ -210,6 +210,8 @@ impl Unit {
             let mut f = vec![0u8; usize::from(n)];
             if g == Group::Common {
                 match bit {
+                    // TimeStartup: powered on a minute before.
+                    0 => f.copy_from_slice(&(((60.0 + t) * 1e9) as u64).to_le_bytes()),
                     // TimeGps: a GPS time in 2024, moving with t.
                     1 => f.copy_from_slice(&(((1_400_000_000.0 + t) * 1e9) as u64).to_le_bytes()),
                     // YawPitchRoll [deg].

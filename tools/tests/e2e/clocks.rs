@@ -8,6 +8,7 @@
 //! the code's own output.
 
 use crate::common;
+use crate::common::vn200::{frame_time_s, frames, seal, set_status, FRAME, HEIGHT_AT, STATUS_AT};
 
 use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
@@ -311,49 +312,6 @@ fn pcap_byte_edits_pps_rmc_and_stamps() {
     std::fs::remove_dir_all(d).unwrap();
 }
 
-/// CRC-16/XMODEM (poly 0x1021, init 0), bit by bit (VectorNav's "16-bit CRC"): the
-/// test's own, independent of the crate's.
-fn crc16(bytes: &[u8]) -> u16 {
-    let mut c: u16 = 0;
-    for &b in bytes {
-        c ^= u16::from(b) << 8;
-        for _ in 0..8 {
-            c = if c & 0x8000 != 0 {
-                (c << 1) ^ 0x1021
-            } else {
-                c << 1
-            };
-        }
-    }
-    c
-}
-
-/// The synthetic VN-200 frames: sync 0xFA, group 1, fields 0x104A (TimeGps u64, YPR 3 f32,
-/// Position 3 f64, InsStatus u16), CRC: 52 bytes. Their offsets in the stream.
-fn frames(ins: &[u8]) -> Vec<usize> {
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i + 52 <= ins.len() {
-        if ins[i..i + 4] == [0xFA, 0x01, 0x4A, 0x10] && crc16(&ins[i + 1..i + 52]) == 0 {
-            out.push(i);
-            i += 52;
-        } else {
-            i += 1;
-        }
-    }
-    out
-}
-
-fn frame_time_s(ins: &[u8], at: usize) -> f64 {
-    u64::from_le_bytes(ins[at + 4..at + 12].try_into().unwrap()) as f64 * 1e-9
-}
-
-fn set_status(ins: &mut [u8], at: usize, status: u16) {
-    ins[at + 48..at + 50].copy_from_slice(&status.to_le_bytes());
-    let c = crc16(&ins[at + 1..at + 50]);
-    ins[at + 50..at + 52].copy_from_slice(&c.to_be_bytes());
-}
-
 /// The VN-200 stream edited the way a real one misbehaves: 3 s of frames whose InsStatus
 /// says "aligning" (mode 1) and 2 s saying "GNSS lost" (mode 3), CRC damage in every 10th frame
 /// elsewhere, and a 2 s hole (cutting the frames either side). The report counts exactly what
@@ -373,10 +331,10 @@ fn ins_byte_edits_status_crc_and_gaps() {
     let mut prev = 0;
     for (k, &i) in at.iter().enumerate() {
         out.extend_from_slice(&ins[prev..i]);
-        prev = i + 52;
-        let mut f = ins[i..i + 52].to_vec();
+        prev = i + FRAME;
+        let mut f = ins[i..i + FRAME].to_vec();
         let t = frame_time_s(&ins, i) - t0;
-        let status = u16::from_le_bytes([f[48], f[49]]);
+        let status = u16::from_le_bytes([f[STATUS_AT], f[STATUS_AT + 1]]);
         assert_eq!(status & 3, 2, "the synthetic INS tracks");
         if (20.0..22.0).contains(&t) {
             // The line dropped out for 2 s: it also cuts the frames either side of the hole
@@ -522,11 +480,11 @@ fn an_ins_jump_in_one_pass_is_inconsistent() {
     let mut n = 0;
     for &i in &at {
         if (31.0..=40.0).contains(&(frame_time_s(&ins, i) - t0)) {
-            // Position: latitude, longitude (deg), height (m) as f64 at 24..48.
-            let h = f64::from_le_bytes(out[i + 40..i + 48].try_into().unwrap());
-            out[i + 40..i + 48].copy_from_slice(&(h + 0.08).to_le_bytes());
-            let c = crc16(&out[i + 1..i + 50]);
-            out[i + 50..i + 52].copy_from_slice(&c.to_be_bytes());
+            // Position: latitude, longitude (deg), height (m) as f64.
+            let at = i + HEIGHT_AT;
+            let h = f64::from_le_bytes(out[at..at + 8].try_into().unwrap());
+            out[at..at + 8].copy_from_slice(&(h + 0.08).to_le_bytes());
+            seal(&mut out, i);
             n += 1;
         }
     }

@@ -128,3 +128,76 @@ pub fn trial_cache(
     cache.keep_only(keep);
     (cache, n, all)
 }
+
+/// The simulated VN-200 stream, byte by byte, as the tests edit it (independent of the crate's
+/// framer and CRC).
+pub mod vn200 {
+    /// CRC-16/XMODEM (poly 0x1021, init 0), bit by bit (VectorNav's "16-bit CRC"): the
+    /// test's own, independent of the crate's.
+    pub fn crc16(bytes: &[u8]) -> u16 {
+        let mut c: u16 = 0;
+        for &b in bytes {
+            c ^= u16::from(b) << 8;
+            for _ in 0..8 {
+                c = if c & 0x8000 != 0 {
+                    (c << 1) ^ 0x1021
+                } else {
+                    c << 1
+                };
+            }
+        }
+        c
+    }
+
+    /// The synthetic VN-200 frame (what the boards configure): sync 0xFA, group 1, fields 0x104B
+    /// (TimeStartup u64, TimeGps u64, YPR 3 f32, Position 3 f64, InsStatus u16), CRC.
+    pub const FRAME: usize = 60;
+    /// Where TimeGps, the height and InsStatus sit in it.
+    pub const TIME_AT: usize = 12;
+    pub const HEIGHT_AT: usize = 48;
+    pub const STATUS_AT: usize = 56;
+
+    /// The frames' offsets in the stream.
+    pub fn frames(ins: &[u8]) -> Vec<usize> {
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i + FRAME <= ins.len() {
+            if ins[i..i + 4] == [0xFA, 0x01, 0x4B, 0x10] && crc16(&ins[i + 1..i + FRAME]) == 0 {
+                out.push(i);
+                i += FRAME;
+            } else {
+                i += 1;
+            }
+        }
+        out
+    }
+
+    pub fn frame_time_s(ins: &[u8], at: usize) -> f64 {
+        u64::from_le_bytes(ins[at + TIME_AT..at + TIME_AT + 8].try_into().unwrap()) as f64 * 1e-9
+    }
+
+    /// The frame at `at` with its CRC made again.
+    pub fn seal(ins: &mut [u8], at: usize) {
+        let c = crc16(&ins[at + 1..at + FRAME - 2]);
+        ins[at + FRAME - 2..at + FRAME].copy_from_slice(&c.to_be_bytes());
+    }
+
+    pub fn set_status(ins: &mut [u8], at: usize, status: u16) {
+        ins[at + STATUS_AT..at + STATUS_AT + 2].copy_from_slice(&status.to_le_bytes());
+        seal(ins, at);
+    }
+
+    /// The frames at `at` as a unit configured without TimeStartup sends them (fields 0x104A,
+    /// 52 bytes: the older boards' output), back to back.
+    pub fn without_startup(ins: &[u8], at: &[usize]) -> Vec<u8> {
+        let mut out = Vec::with_capacity(at.len() * (FRAME - 8));
+        for &i in at {
+            let mut f = vec![0xFA, 0x01, 0x4A, 0x10];
+            f.extend_from_slice(&ins[i + 12..i + FRAME - 2]);
+            let c = crc16(&f[1..]);
+            f.extend_from_slice(&c.to_be_bytes());
+            out.extend_from_slice(&f);
+        }
+        out
+    }
+}

@@ -186,9 +186,9 @@ fn sbet_trajectory_gives_the_same_windows() {
 #[test]
 fn ins_gap_is_counted_not_bridged() {
     let (dir, _) = table1();
-    // Cut 0.4 s of VN-200 frames (52 bytes each at 200 Hz) while the first pass sees S1.
+    // Cut 0.4 s of VN-200 frames (60 bytes each at 200 Hz) while the first pass sees S1.
     let bytes = std::fs::read(dir.join("ins.bin")).unwrap();
-    let frame = 52;
+    let frame = 60;
     let (a, b) = (frame * 600, frame * 680);
     let mut cut = bytes[..a].to_vec();
     cut.extend_from_slice(&bytes[b..]);

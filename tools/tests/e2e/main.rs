@@ -13,6 +13,7 @@ mod clocks;
 mod datums;
 mod drone;
 mod extraction;
+mod faults;
 mod georef;
 mod multi_file;
 mod nav_errors;

@@ -88,7 +88,7 @@ fn configures_an_emulated_unit_and_refuses_in_words() {
     assert!(text.contains("baud 115200 -> 921600"), "{text}");
     assert!(u.saved && text.contains("saved to flash"), "{text}");
 
-    // 200 Hz of 52-byte frames need 104 kbit/s: at 9600 baud the unit says $VNERR,0C.
+    // 200 Hz of 60-byte frames need 120 kbit/s: at 9600 baud the unit says $VNERR,0C.
     let b9600 = board(&dir, 9600);
     let (code, text, _) = configure(Unit::factory(9600), &[], &b9600);
     assert_eq!(code, Some(2), "{text}");
