@@ -443,7 +443,6 @@ pub fn calibrate(
         crate::pipeline::InsInput::Posmv(..) => InsKind::PosmvRealTime,
     };
     let site_spec = inp.site.ins.as_ref().map(|i| i.correlated.clone());
-    let site_noise = inp.site.noise;
     let mut chosen = false;
     // A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
     let drift = std::cell::Cell::new(false);
@@ -459,12 +458,12 @@ pub fn calibrate(
                 .filter(|s| s.samples > 0)
                 .unwrap_or(&stats.ins.stated);
             let c = crate::nav_source::choose(site_spec.as_ref(), None, Some(stated), kind)?;
-            session.set_nav(&c, site_noise);
+            session.set_nav(&c, &inp.site);
             chosen = true;
         }
         // The accuracy file's sigmas weigh each return, unless a navigation model holds them.
         if let Some(a) = &accuracy {
-            used_accuracy = Some(match session.nav() {
+            used_accuracy = Some(match session.nav().filter(|m| !m.is_white()) {
                 None => a.apply(&mut obs),
                 Some(_) => a.unapplied(),
             });

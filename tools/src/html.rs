@@ -371,7 +371,15 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
     let Some(n) = &r.navigation else {
         return;
     };
-    let _ = writeln!(
+    if n.is_white() {
+        let _ = writeln!(
+            o,
+            "<h2>Sphere centres</h2><p class=\"note\">The INS errors white ({}); the sphere centres estimated with the mounting, each with its survey's sigma (0: held); the white noise found {}x the declared.</p>",
+            escape(&n.source),
+            num(n.white_noise_factor.sqrt(), 2)
+        );
+    } else {
+        let _ = writeln!(
         o,
         "<h2>Navigation errors</h2><p class=\"note\">Estimated with the mounting under {} (position {} / {} cm, attitude {} / {} deg, correlation {} s) in {} pieces; the white noise found {}x the declared. Reported minus true: subtract from the INS.</p>",
         escape(&n.source),
@@ -383,6 +391,7 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
         n.pieces,
         num(n.white_noise_factor.sqrt(), 2)
     );
+    }
     o.push_str("<table><tr><th class=\"l\">sphere</th><th>survey sigma [mm]</th><th>centre moved N, E, D [mm]</th><th>1-sigma N, E, D [mm]</th></tr>\n");
     for c in &n.centres {
         let mm = |v: [f64; 3]| v.map(|x| num(x * 1e3, 1)).join(", ");
@@ -395,7 +404,11 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
             mm(c.sigma_m)
         );
     }
-    o.push_str("</table>\n<table><tr><th class=\"l\">time</th><th>pieces</th><th>position N, E, D [mm]</th><th>1-sigma [mm]</th><th>heading [deg]</th><th>1-sigma [deg]</th></tr>\n");
+    o.push_str("</table>\n");
+    if n.corrections.is_empty() {
+        return;
+    }
+    o.push_str("<table><tr><th class=\"l\">time</th><th>pieces</th><th>position N, E, D [mm]</th><th>1-sigma [mm]</th><th>heading [deg]</th><th>1-sigma [deg]</th></tr>\n");
     let mut k = 0;
     while k < n.corrections.len() {
         let second = n.corrections[k].start_gps_s.floor();

@@ -32,32 +32,46 @@ pub fn settings_for(
         margin,
         ..Default::default()
     };
-    with_nav(&mut s, site.noise, site.nav_model().ok().flatten());
-    for (c, sp) in s.centre_sigma.iter_mut().zip(&site.sphere) {
-        *c = sp.sigma_m.unwrap_or(DEFAULT_CENTRE_SIGMA_M);
-    }
+    with_nav(&mut s, site, site.nav_model().ok().flatten());
     if let Some(m) = model {
         s.extract.firing_ns = i64::from(m.laser_period_ns());
     }
     s
 }
 
-/// Put the navigation model `nav` into `s` with the white noise that goes with it: the site's
-/// `[noise]` if it has one; else, under a model, the INS's errors are in the model and the
-/// white noise left is the LiDAR's; without one, the sensors' specified values.
-pub fn with_nav(s: &mut Settings, noise: Option<SiteNoise>, nav: Option<NavModel>) {
-    let noise = noise.unwrap_or(match nav {
-        Some(_) => SiteNoise {
+/// Put the navigation model `nav` into `s` with the white noise that goes with it and the
+/// sphere centres' survey sigmas, from `site`.
+///
+/// The white noise: the site's `[noise]` if it has one; else, under a model, the INS's errors
+/// are in the model and the white noise left is the LiDAR's; without one, the sensors'
+/// specified values. The centres: each sphere's declared `sigma_m` under every model; one that
+/// declares none, [`DEFAULT_CENTRE_SIGMA_M`] under a model and held at its survey under white
+/// errors (the paper's model). White errors with a declared survey sigma solve with the centres
+/// as parameters ([`NavModel::WHITE`]).
+pub fn with_nav(s: &mut Settings, site: &Site, nav: Option<NavModel>) {
+    let declared = |j: usize| site.sphere.get(j).and_then(|sp| sp.sigma_m);
+    let surveyed = (0..site.sphere.len()).any(|j| declared(j).is_some_and(|v| v > 0.0));
+    let wanders = nav.is_some_and(|m| !m.is_white());
+    let noise = site.noise.unwrap_or(if wanders {
+        SiteNoise {
             attitude_deg: 0.0,
             position_m: 0.0,
             ..SiteNoise::default()
-        },
-        None => SiteNoise::default(),
+        }
+    } else {
+        SiteNoise::default()
     });
     s.range_noise = noise.range_m;
     s.attitude_noise = noise.attitude_deg.to_radians();
     s.position_noise = noise.position_m;
-    s.nav = nav;
+    s.nav = match nav {
+        Some(m) if wanders => Some(m),
+        _ if surveyed => Some(NavModel::WHITE),
+        _ => None,
+    };
+    for (j, c) in s.centre_sigma.iter_mut().enumerate() {
+        *c = declared(j).unwrap_or(if wanders { DEFAULT_CENTRE_SIGMA_M } else { 0.0 });
+    }
 }
 
 /// A calibration under way.
@@ -97,10 +111,10 @@ impl Session {
         self
     }
 
-    /// Solve under `choice`'s navigation model (the site's `noise` with it: [`with_nav`]) and
-    /// name its source in the reports.
-    pub fn set_nav(&mut self, choice: &crate::nav_source::NavChoice, noise: Option<SiteNoise>) {
-        with_nav(&mut self.settings, noise, choice.model);
+    /// Solve under `choice`'s navigation model (the site's noise and survey with it:
+    /// [`with_nav`]) and name its source in the reports.
+    pub fn set_nav(&mut self, choice: &crate::nav_source::NavChoice, site: &Site) {
+        with_nav(&mut self.settings, site, choice.model);
         self.nav_source = choice.source.clone();
     }
 

@@ -37,6 +37,21 @@ pub struct NavModel {
 }
 
 impl NavModel {
+    /// No navigation error that wanders (the INS's errors white, in the weights), but the
+    /// joint least squares' sphere centres with their survey's sigma: the white model with a
+    /// declared survey (DESIGN.md "Navigation errors that wander"). The pieces are held at
+    /// zero by their prior.
+    pub const WHITE: NavModel = NavModel {
+        position_sigma: [0.0; 2],
+        attitude_sigma: [0.0; 2],
+        correlation_s: 1e9,
+    };
+
+    /// Whether this is [`Self::WHITE`]: no error that wanders.
+    pub fn is_white(&self) -> bool {
+        self.sigmas().iter().all(|s| *s == 0.0)
+    }
+
     /// The six sigmas: N, E, D [m]; rotation about N, E, D [rad] (roll and pitch share one
     /// sigma, so about any horizontal axis; heading is about down).
     pub fn sigmas(&self) -> [f64; 6] {
@@ -55,6 +70,10 @@ impl NavModel {
     /// at 0.25 s 1.10 and 1.09). The wander left in a piece is added to each return's
     /// variance ([`Joint::weight`]). Too many for the workspace: doubled ([`cut_for`]).
     pub fn piece_s(&self) -> f64 {
+        if self.is_white() {
+            // Nothing to estimate in a piece: as long as the data run without a gap.
+            return 3600.0;
+        }
         (self.correlation_s / 240.0).clamp(0.25, 0.5)
     }
 

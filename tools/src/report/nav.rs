@@ -12,6 +12,8 @@ impl NavigationReport {
         s: &spherecal::calib::Settings,
         ids: &[String],
     ) -> Self {
+        // Under white errors the pieces are held at zero: nothing to list.
+        let pieces = if m.is_white() { &[][..] } else { pieces };
         let corrections = pieces
             .iter()
             .map(|p| NavCorrectionReport {
@@ -49,5 +51,16 @@ impl NavigationReport {
             worst_step_sigmas: fit.map_or(f64::NAN, |f| f.worst_step.0),
             worst_step_gps_s: fit.map_or(f64::NAN, |f| f.worst_step.1 .0 as f64 * 1e-9),
         }
+    }
+}
+
+impl NavigationReport {
+    /// No error that wanders (white INS errors): only the sphere centres were estimated with
+    /// the mounting ([`spherecal::calib::nav::NavModel::WHITE`]).
+    pub fn is_white(&self) -> bool {
+        self.position_sigma_m
+            .iter()
+            .chain(&self.attitude_sigma_deg)
+            .all(|s| *s == 0.0)
     }
 }

@@ -155,7 +155,14 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             );
         }
     }
-    if let Some(n) = &r.navigation {
+    if let Some(n) = r.navigation.as_ref().filter(|n| n.is_white()) {
+        let _ = writeln!(
+            o,
+            "navigation errors: white ({}); the sphere centres estimated with the mounting, each with its survey's sigma; white noise x{:.2} the declared",
+            n.source,
+            n.white_noise_factor.sqrt()
+        );
+    } else if let Some(n) = &r.navigation {
         let _ = writeln!(
             o,
             "navigation errors: estimated with the mounting ({}: {:.1} / {:.1} cm, {:.3} / {:.3} deg, wandering over {} s) in {} pieces; white noise x{:.2} the declared",
@@ -201,7 +208,17 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             );
             k = e;
         }
+    }
+    if let Some(n) = &r.navigation {
         for c in &n.centres {
+            if c.prior_sigma_m <= 0.0 {
+                let _ = writeln!(
+                    o,
+                    "  {}: centre held at its survey (the site declares no sigma_m)",
+                    c.sphere
+                );
+                continue;
+            }
             let [x, y, z] = c.correction_m.map(|v| v * 1e3);
             let [sx, sy, sz] = c.sigma_m.map(|v| v * 1e3);
             let _ = writeln!(

@@ -164,7 +164,7 @@ impl Plan {
                     source: e.to_string(),
                 });
         if let Some(site) = &opts.site {
-            crate::session::with_nav(&mut settings, site.noise, nav.model);
+            crate::session::with_nav(&mut settings, site, nav.model);
         }
         Self {
             frame,

@@ -1274,7 +1274,7 @@ fn rig_configures_a_factory_vn200() {
     let said = lines.join("\n");
     assert!(said.contains("vn200: ASCII async output off"), "{said}");
     assert!(
-        said.contains("vn200: binary output (register 75): TimeGps, YawPitchRoll, Position, InsStatus at 200 Hz"),
+        said.contains("vn200: binary output (register 75): TimeStartup, TimeGps, YawPitchRoll, Position, InsStatus at 200 Hz"),
         "{said}"
     );
     assert!(
