@@ -440,6 +440,7 @@ fn solve_data(
         let per = PerSphere {
             windowed: &windowed,
             used: &none,
+            rounds_kept: &r.kept,
             tallies: &[[0; 8]; MAX_TARGETS],
             counts: &r.counts,
         };
@@ -475,6 +476,7 @@ fn solve_data(
     let per = PerSphere {
         windowed: &windowed,
         used: &used,
+        rounds_kept: &r.kept,
         tallies: &tallies,
         counts: &r.counts,
     };
@@ -534,6 +536,7 @@ fn middle_time(obs: &[&mut [Observation]]) -> GpsTime {
 struct PerSphere<'a> {
     windowed: &'a [usize; MAX_TARGETS],
     used: &'a [usize; MAX_TARGETS],
+    rounds_kept: &'a [usize; MAX_TARGETS],
     tallies: &'a [[u32; 8]; MAX_TARGETS],
     counts: &'a [(u32, u32); MAX_TARGETS],
 }
@@ -572,6 +575,7 @@ fn sphere_reports(
         let _ = sol.spheres.push(SphereReport {
             windowed: per.windowed[j],
             used: per.used[j],
+            rounds_kept: per.rounds_kept[j],
             found: per.used[j] > 0,
             slices: per.counts[j].0,
             detected: per.counts[j].1,

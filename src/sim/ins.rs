@@ -40,6 +40,41 @@ pub struct InsConfig {
     /// off by a further `.1` (north, east, down [m]): a GNSS solution that loses its fix and
     /// its filter that follows (a fault beyond any declared noise model).
     pub position_jumps: [(i64, [f64; 3]); 4],
+    /// Silent GNSS outages: the INS coasts, its error growing, then snaps back (the status
+    /// word unchanged).
+    pub outages: [Outage; 4],
+}
+
+/// A silent GNSS outage: from `start` [ns since the GPS epoch, true time] for `duration_ns`
+/// the INS's error grows as `(elapsed / duration)^2` to `peak` (north, east, down [m], roll,
+/// pitch, heading [rad]: a coasting INS's drift), then is gone when the fix returns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outage {
+    /// Start [ns since the GPS epoch].
+    pub start: i64,
+    /// Length [ns].
+    pub duration_ns: i64,
+    /// The error at its end.
+    pub peak: [f64; 6],
+}
+
+impl Outage {
+    /// No outage.
+    pub const NONE: Outage = Outage {
+        start: i64::MAX,
+        duration_ns: 0,
+        peak: [0.0; 6],
+    };
+
+    /// Its error at true time `t`.
+    pub fn error_at(&self, t: GpsTime) -> [f64; 6] {
+        let e = t.0.saturating_sub(self.start);
+        if self.duration_ns <= 0 || e < 0 || e >= self.duration_ns {
+            return [0.0; 6];
+        }
+        let f = e as f64 / self.duration_ns as f64;
+        self.peak.map(|p| p * f * f)
+    }
 }
 
 /// Which attitude field the simulated VN-200 sends (VN-200 manual, Common group bits 3, 4).
@@ -66,6 +101,7 @@ impl Default for InsConfig {
             attitude: AttitudeOutput::YawPitchRoll,
             time_steps: [(i64::MAX, 0); 4],
             position_jumps: [(i64::MAX, [0.0; 3]); 4],
+            outages: [Outage::NONE; 4],
         }
     }
 }
@@ -177,13 +213,18 @@ impl<'w, 'a> InsSim<'w, 'a> {
             self.rng.gauss(self.cfg.pos_sigma) + ee,
             self.rng.gauss(self.cfg.pos_sigma) + ed,
         );
+        let coast = self.cfg.outages.iter().fold([0.0; 6], |a, o| {
+            let e = o.error_at(t);
+            core::array::from_fn(|i| a[i] + e[i])
+        });
         let jumped: Vector3<f64> = self
             .cfg
             .position_jumps
             .iter()
             .filter(|(at, _)| t.0 >= *at)
             .map(|(_, d)| Vector3::from(*d))
-            .sum();
+            .sum::<Vector3<f64>>()
+            + Vector3::new(coast[0], coast[1], coast[2]);
         let g = self.world.site.to_geodetic(&(s.position + noise + jumped));
         // Attitude relative to the local-level NED at the vessel, as an INS reports it.
         let c = self.world.site.from_local_level(g.lat, g.lon);
@@ -200,9 +241,9 @@ impl<'w, 'a> InsSim<'w, 'a> {
         let (r, p, h) = (r0, p0, h0);
         let sig = self.cfg.att_sigma;
         let (h, p, r) = (
-            h + self.rng.gauss(sig) + eh,
-            p + self.rng.gauss(sig) + ep,
-            r + self.rng.gauss(sig) + er,
+            h + self.rng.gauss(sig) + eh + coast[5],
+            p + self.rng.gauss(sig) + ep + coast[4],
+            r + self.rng.gauss(sig) + er + coast[3],
         );
         let stamp = (t.0 + self.cfg.clock_error_ns(t)).max(0);
         Some((t, stamp, [r, p, h], g))

@@ -319,6 +319,7 @@ pub fn solve_report_in(
             let pieces = sol.nav.map_or(&[][..], |f| &scratch.nav[..f.pieces]);
             crate::report::NavigationReport::of(&m, sol.nav.as_ref(), pieces, s, ids)
         }),
+        set_aside: Vec::new(),
         clutter_rejected: sol
             .spheres
             .iter()
@@ -333,6 +334,7 @@ pub fn solve_report_in(
                 found: s.found,
                 windowed: s.windowed,
                 points: s.used,
+                rounds_kept: s.rounds_kept,
                 slices: s.slices,
                 detected: s.detected,
                 verdicts: Verdicts::from_tally(&s.verdicts),
@@ -470,6 +472,10 @@ pub fn calibrate(
         }
         session.estimate_drift(drift.get());
         session.replace(obs, inp.time_offset_ns);
+        if let (false, Some((t0, _))) = (inp.exclude.is_empty(), stats.align.lidar_span) {
+            let week_of = spherecal::time::GpsTime((t0 * 1e9) as i64);
+            session.exclude(&crate::stretches::in_week_of(&inp.exclude, week_of));
+        }
         let clocks = clock_facts(&stats, applied, clock.allow_unlocked);
         // The report's offset includes the one the windows were made at.
         let (sol, rep) = session.solve(b0, clocks, &mut crate::progress::Rounds(&spinner));

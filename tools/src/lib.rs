@@ -25,6 +25,7 @@ pub mod report;
 pub mod rig;
 pub mod session;
 pub mod state;
+pub mod stretches;
 pub mod survey;
 pub mod synth;
 pub mod verdict;

@@ -53,6 +53,13 @@ pub fn refusal_text_clock(
             rms / predicted.max(1e-12),
             predicted * 1e3
         ),
+        Refusal::Remnant { sphere, kept, rounds } => format!(
+            "sphere {}: the last extraction, around its surveyed centre, kept {kept} of the {rounds} returns the rounds kept around where the returns put it: somewhere the navigation puts the sphere elsewhere than its returns do (a GNSS outage the INS status did not show, a sphere moved); no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1",
+            ids.get(*sphere).map_or("?", |s| s.as_str())
+        ),
+        Refusal::Noisier { factor, limit } => format!(
+            "the returns scatter {factor:.1}x the white noise the noise model declares (limit {limit:.1}): somewhere the navigation errors are not the declared ones (a GNSS outage, multipath); no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1, or declare the INS's errors in the site's [ins.correlated]"
+        ),
         Refusal::Ambiguous(a) => {
             let d = (a.offset[0].powi(2) + a.offset[1].powi(2) + a.offset[2].powi(2)).sqrt();
             format!(
@@ -102,12 +109,14 @@ pub fn refusal_text_clock(
             (found - held).abs() / sigma.max(1e-12)
         ),
         Refusal::NavigationJump { at, step, sigmas } => format!(
-            "the navigation jumps at GPS {:.1} s: N {:+.1} E {:+.1} D {:+.1} mm, heading {:+.4} deg between consecutive pieces of the survey, {sigmas:.0} times what the declared model ([ins.correlated]) lets it move: an INS that lost its fix or a trajectory edited; cut the survey there or calibrate the stretches apart",
+            "the navigation jumps at GPS {:.1} s: N {:+.1} E {:+.1} D {:+.1} mm, heading {:+.4} deg between consecutive pieces of the survey, {sigmas:.0} times what the declared model ([ins.correlated]) lets it move: an INS that lost its fix or a trajectory edited, and no pass around it set aside left the rest clean; set the bad stretch aside with --exclude {:.0}..{:.0} (widen it to where the INS recovered) and calibrate again",
             at.0 as f64 * 1e-9,
             step[0] * 1e3,
             step[1] * 1e3,
             step[2] * 1e3,
-            step[5].to_degrees()
+            step[5].to_degrees(),
+            at.0 as f64 * 1e-9 - 5.0,
+            at.0 as f64 * 1e-9 + 5.0
         ),
         Refusal::SurveyDisagrees { sphere, moved, chi2, sigma } => {
             let d = (moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]).sqrt();

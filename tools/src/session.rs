@@ -87,6 +87,12 @@ pub struct Session {
     capacity: usize,
     /// Where the navigation model came from (the report's `navigation.source`).
     nav_source: String,
+    /// Spans left out [GPS ns], with the returns each took out of the store and why: by hand
+    /// (`--exclude`), or set aside by a solve ([`Session::solve`]); every later collection and
+    /// batch leaves them out too.
+    excluded: Vec<((i64, i64), usize, String)>,
+    /// Look for a stretch to set aside when a solve is refused for a reason one may explain.
+    search: bool,
 }
 
 impl Session {
@@ -102,7 +108,28 @@ impl Session {
             offset_ns: 0,
             capacity: usize::MAX,
             nav_source: "site [ins.correlated]".into(),
+            excluded: Vec::new(),
+            search: true,
         }
+    }
+
+    /// Leave out the returns within these spans [GPS ns] (`--exclude`), from the store and from
+    /// every batch added.
+    pub fn exclude(&mut self, spans: &[(i64, i64)]) {
+        for &s in spans {
+            if !self.excluded.iter().any(|e| e.0 == s) {
+                let why = "excluded by hand (--exclude)".to_string();
+                self.excluded.push((s, 0, why));
+            }
+        }
+        for (span, n, _) in &mut self.excluded {
+            *n += crate::stretches::remove(&mut self.store, *span);
+        }
+    }
+
+    /// Whether a refused solve looks for a stretch to set aside (on by default).
+    pub fn search_stretches(&mut self, on: bool) {
+        self.search = on;
     }
 
     /// Name the source of the navigation model in the settings (the rig's plan chose it).
@@ -155,6 +182,9 @@ impl Session {
         self.store = obs;
         self.store.resize(self.targets.len(), Vec::new());
         self.offset_ns = offset_ns;
+        for (span, n, _) in &mut self.excluded {
+            *n = crate::stretches::remove(&mut self.store, *span);
+        }
     }
 
     /// One sphere's batch aligned at `offset_ns`, moved to the store's offset first; returns
@@ -170,6 +200,12 @@ impl Session {
         let k = obs.len().min(self.capacity.saturating_sub(v.len()));
         let at = v.len();
         v.extend_from_slice(&obs[..k]);
+        for (span, n, _) in &mut self.excluded {
+            let before = v.len();
+            v.retain(|o| o.time.0 < span.0 || o.time.0 > span.1);
+            *n += before - v.len();
+        }
+        let at = at.min(v.len());
         if d != 0.0 {
             v[at..].iter_mut().for_each(|o| o.rebase(d));
         }
@@ -194,7 +230,7 @@ impl Session {
     ) -> (Solution, Report) {
         let mut s = self.settings;
         s.clocks = clocks;
-        let (sol, mut rep) = solve_report_in(
+        let (mut sol, mut rep) = solve_report_in(
             &self.targets,
             &self.ids,
             &mut self.store,
@@ -203,11 +239,80 @@ impl Session {
             &mut self.scratch,
             watch,
         );
+        if let Some(found) = self.set_aside(b0, &s, &sol) {
+            (sol, rep) = (found.0, found.1);
+            let sp = found.2;
+            let span = ((sp.from_gps_s * 1e9) as i64, (sp.to_gps_s * 1e9) as i64);
+            self.excluded.push((span, sp.returns, sp.why));
+        }
+        rep.set_aside = self
+            .excluded
+            .iter()
+            .map(|((a, b), n, why)| crate::stretches::SetAsideSpan {
+                from_gps_s: *a as f64 * 1e-9,
+                to_gps_s: *b as f64 * 1e-9,
+                returns: *n,
+                why: why.clone(),
+            })
+            .collect();
         rep.time_offset_s += self.offset_ns as f64 * 1e-9;
         if let Some(n) = rep.navigation.as_mut() {
             n.source = self.nav_source.clone();
         }
         (sol, rep)
+    }
+
+    /// When `sol` was refused for a reason one stretch of the survey may explain
+    /// ([`crate::stretches`]): the first candidate stretch without which the rest is claimed,
+    /// holding at most a third of the kept returns, taken out of the store for good, with the
+    /// solve without it; `None` (the store as it was) when none is.
+    fn set_aside(
+        &mut self,
+        b0: &Params,
+        s: &Settings,
+        sol: &Solution,
+    ) -> Option<(Solution, Report, crate::stretches::SetAsideSpan)> {
+        use crate::stretches::{candidates, locatable, restore, split, SetAsideSpan, MAX_FRACTION};
+        let r = sol.refusal.filter(|r| self.search && locatable(r))?;
+        let kept: u32 = sol.passes.iter().map(|p| p.verdicts[1]).sum();
+        for span in candidates(&sol.passes, &r) {
+            let within: u32 = sol
+                .passes
+                .iter()
+                .filter(|p| p.start.0 >= span.0 && p.end.0 <= span.1)
+                .map(|p| p.verdicts[1])
+                .sum();
+            if f64::from(within) > MAX_FRACTION * f64::from(kept) {
+                continue;
+            }
+            let cut = split(&mut self.store, span);
+            let (sol2, rep2) = solve_report_in(
+                &self.targets,
+                &self.ids,
+                &mut self.store,
+                b0,
+                s,
+                &mut self.scratch,
+                &mut (),
+            );
+            if sol2.refusal.is_none()
+                && sol2.lm.is_some_and(|l| l.converged)
+                && crate::stretches::clean(&sol2).is_ok()
+            {
+                let span = SetAsideSpan {
+                    from_gps_s: span.0 as f64 * 1e-9,
+                    to_gps_s: span.1 as f64 * 1e-9,
+                    returns: cut.iter().map(Vec::len).sum(),
+                    why: format!(
+                        "with it the survey was refused ({}); without it every check passes",
+                        crate::reasons::refusal_text(&r, &self.ids, &[])
+                    ),
+                };
+                return Some((sol2, rep2, span));
+            }
+            restore(&mut self.store, cut);
+        }
+        None
     }
 
     /// The offset the windows should be aligned at next [ns], when the solve moved it enough to

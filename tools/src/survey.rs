@@ -35,6 +35,8 @@ pub struct Survey {
     pub trajectory_datum: Option<String>,
     /// The LiDAR's UDP ports in the capture (`--lidar-ports`; default 2368, 8308).
     pub ports: spherecal_hal::velodyne::Ports,
+    /// Spans to leave out (`--exclude`) [GPS s, or seconds of the week].
+    pub exclude: Vec<(f64, f64)>,
 }
 
 impl Survey {
@@ -53,6 +55,7 @@ impl Survey {
             site: dir.join("site.toml"),
             trajectory_datum: None,
             ports: Default::default(),
+            exclude: Vec::new(),
         }
     }
 }
@@ -181,6 +184,7 @@ pub fn run_calibrate(
     inp.accuracy = accuracy;
     inp.mount = b0.mount();
     inp.keep_untracked_ins = clock.keep_untracked_ins;
+    inp.exclude = survey.exclude.clone();
     let (targets, ids) = calibrate::site_targets(&inp);
     let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
     let mut text = format!("{datums}\n");

@@ -325,11 +325,15 @@ pub(super) fn checks(
         // A clock that steps or drifts also spreads the residuals and moves passes' centres:
         // the cause first.
         clock
+    } else if let Some(r) = remnant(s, sol) {
+        Some(r)
     } else if lm.rms.is_nan() || lm.rms > s.max_dispersion * predicted {
         Some(Refusal::OverDispersed {
             rms: lm.rms,
             predicted,
         })
+    } else if let Some(r) = noisier(s, sol) {
+        Some(r)
     } else {
         // A jump of the navigation, then a sphere's survey the others contradict, are the
         // causes of the passes' disagreement.
@@ -337,6 +341,35 @@ pub(super) fn checks(
             .or_else(|| survey_check(s, sol, targets.len()))
             .or(worst)
     }
+}
+
+/// The sphere whose last extraction kept the smallest fraction of what the rounds kept, when
+/// below `min_kept_fraction` (spheres the rounds kept fewer than twice `min_points` of are not
+/// judged: a glimpse).
+fn remnant(s: &Settings, sol: &Solution) -> Option<Refusal> {
+    sol.spheres
+        .iter()
+        .enumerate()
+        .filter(|(_, sp)| sp.rounds_kept >= 2 * s.min_points && sp.used > 0)
+        .map(|(j, sp)| (j, sp.used as f64 / sp.rounds_kept as f64))
+        .filter(|(_, f)| *f < s.min_kept_fraction)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(j, _)| Refusal::Remnant {
+            sphere: j,
+            kept: sol.spheres[j].used,
+            rounds: sol.spheres[j].rounds_kept,
+        })
+}
+
+/// Under a navigation model that wanders, the white noise found beyond
+/// `max_white_noise_factor` times the declared.
+fn noisier(s: &Settings, sol: &Solution) -> Option<Refusal> {
+    s.nav.filter(|m| !m.is_white())?;
+    let factor = libm::sqrt(sol.nav.as_ref()?.variance_factor);
+    (factor.is_nan() || factor > s.max_white_noise_factor).then_some(Refusal::Noisier {
+        factor,
+        limit: s.max_white_noise_factor,
+    })
 }
 
 /// Under the navigation model, the largest step between consecutive pieces when beyond

@@ -130,6 +130,27 @@ pub enum Refusal {
         /// The survey's sigma [m].
         sigma: f64,
     },
+    /// The last extraction, around a sphere's surveyed centre, kept only a remnant of what the
+    /// rounds kept around where its returns put it: somewhere the navigation (or the survey)
+    /// puts the sphere elsewhere than its returns do (a GNSS outage the INS status did not
+    /// show), and a claim would stand on the few returns that happened to lie on the shell.
+    Remnant {
+        /// Sphere index.
+        sphere: usize,
+        /// Returns the last extraction kept.
+        kept: usize,
+        /// Returns the rounds kept.
+        rounds: usize,
+    },
+    /// The residuals scatter far more than the noise model's white noise (the least squares'
+    /// variance factor under the navigation model): somewhere the errors are not the declared
+    /// ones.
+    Noisier {
+        /// The white noise found over the declared (the variance factor's square root).
+        factor: f64,
+        /// The limit.
+        limit: f64,
+    },
     /// Neither start of the rounds settled: the first lost a sphere (`lost`, the first of
     /// them) and ended without settling (`first`: a round found fewer than two spheres, or
     /// the rounds reached their limit), and the second, from the a-priori mounting, could not
@@ -163,6 +184,10 @@ pub struct SphereReport {
     pub windowed: usize,
     /// Returns kept (used by the solution).
     pub used: usize,
+    /// Returns the rounds' last extraction kept (around where the returns put the sphere);
+    /// far more than `used` means the last extraction, around the surveyed centre, found most
+    /// of them elsewhere (a navigation the returns contradict).
+    pub rounds_kept: usize,
     /// The sphere was found among the clutter (enough returns in detected slices).
     pub found: bool,
     /// Slices of time with window returns, and those where the sphere was detected.

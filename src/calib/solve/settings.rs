@@ -29,6 +29,16 @@ pub struct Settings {
     /// Over-dispersion: the residual RMS may be at most this many times what the noise model
     /// predicts.
     pub max_dispersion: f64,
+    /// A sphere's last extraction (around its surveyed centre) must keep at least this
+    /// fraction of what the rounds kept (around where its returns put it). The lowest sphere's
+    /// share over the planner's Monte Carlo: table1-real 0.90-0.98 (120 seeds), table1-noisy
+    /// 0.79-0.9, drone-noisy 0.36-1 (grass spheres; 100 seeds); 0.13-0.16 where a silent GNSS
+    /// outage moved the spheres for 40 s of table1-real.
+    pub min_kept_fraction: f64,
+    /// Under a navigation model that wanders, the white noise found may be at most this many
+    /// times the declared (the variance factor's square root): table1-real 0.7-0.97,
+    /// drone-noisy 1.3-1.82 over the same Monte Carlo; 2.6-3.1 under that outage.
+    pub max_white_noise_factor: f64,
     /// A pass's sphere centre offset fails the consistency test beyond this chi-square (3
     /// degrees of freedom; 25: p = 1.4e-5) ...
     pub max_pass_chi2: f64,
@@ -152,6 +162,8 @@ impl Default for Settings {
             attitude_noise: 0.05f64.to_radians(),
             position_noise: 0.03,
             max_dispersion: 2.0,
+            min_kept_fraction: 0.25,
+            max_white_noise_factor: 2.5,
             max_pass_chi2: 25.0,
             pass_offset_floor: 0.003,
             held_dt_sigmas: 5.0,

@@ -54,6 +54,11 @@ pub struct Args {
     /// turns it off).
     #[arg(long, allow_hyphen_values = true, value_parser = super::non_negative)]
     pub search_time_offset: Option<f64>,
+    /// Leave the returns between these GPS times out (`T0..T1`: GPS seconds as the reports
+    /// print them, or seconds of the GPS week); repeatable. A stretch whose navigation is bad
+    /// (a multipath jump, a GNSS outage the INS did not flag).
+    #[arg(long, value_parser = crate::stretches::parse_span)]
+    pub exclude: Vec<(f64, f64)>,
 }
 
 /// Run it.
@@ -75,6 +80,7 @@ pub fn run(a: Args) -> ExitCode {
         site: s.site,
         trajectory_datum: s.trajectory_datum,
         ports,
+        exclude: a.exclude,
     };
     let out = crate::Outputs {
         report: a.report,

@@ -95,6 +95,7 @@ pub fn run(a: Args) -> ExitCode {
         keep_untracked_ins: a.keep_untracked_ins,
         accuracy: None,
         ports,
+        exclude: Vec::new(),
         site,
     };
     match crate::georef::georef(

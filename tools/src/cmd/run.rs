@@ -36,6 +36,10 @@ pub struct Args {
     /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
     #[arg(long)]
     pub keep_untracked_ins: bool,
+    /// Leave the returns between these GPS times out of the calibration (`T0..T1`: GPS
+    /// seconds, or seconds of the GPS week); repeatable. Everything is still logged.
+    #[arg(long, value_parser = crate::stretches::parse_span)]
+    pub exclude: Vec<(f64, f64)>,
     /// Check that the rig can start (board, UDP ports free, serial device, log folder,
     /// console) and exit: 0 when every check passes, 2 otherwise.
     #[arg(long)]
@@ -100,6 +104,7 @@ pub fn run(a: Args) -> ExitCode {
             duration: None,
             report: None,
             keep_untracked_ins: false,
+            exclude: Vec::new(),
         };
         let results = crate::rig::check::check(&opts);
         for r in &results {
@@ -138,6 +143,7 @@ pub fn run(a: Args) -> ExitCode {
         duration: a.duration.map(std::time::Duration::from_secs_f64),
         report: a.report,
         keep_untracked_ins: a.keep_untracked_ins,
+        exclude: a.exclude,
     };
     match crate::rig::run(&opts, &mut console, &stop) {
         Ok(s) => {

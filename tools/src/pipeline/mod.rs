@@ -114,6 +114,9 @@ pub struct Inputs {
     pub ports: Ports,
     /// When `pcap` names a ROS 2 bag: its topic of scans (None: the only one).
     pub lidar_topic: Option<String>,
+    /// Spans to leave out of the calibration (`--exclude`): GPS seconds since 1980-01-06, or
+    /// of the data's GPS week ([`crate::stretches::in_week_of`]).
+    pub exclude: Vec<(f64, f64)>,
 }
 
 impl Inputs {
@@ -142,6 +145,7 @@ impl Inputs {
             model: None,
             ports: Ports::default(),
             lidar_topic: None,
+            exclude: Vec::new(),
             site,
         }
     }

@@ -151,6 +151,10 @@ pub struct PerSphere {
     pub windowed: usize,
     /// Returns used.
     pub points: usize,
+    /// Returns the rounds kept (around where the returns put the sphere) before the last
+    /// extraction kept `points` around its surveyed centre.
+    #[serde(default)]
+    pub rounds_kept: usize,
     /// Slices of time with windowed returns, and those where the sphere was detected.
     pub slices: u32,
     /// ...
@@ -292,6 +296,10 @@ pub struct Report {
     /// The navigation model the least squares estimated under, when one was declared.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub navigation: Option<NavigationReport>,
+    /// Stretches of the survey whose returns were left out: by hand (`--exclude`), or set
+    /// aside because the survey was refused with them and every check passes without.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub set_aside: Vec<crate::stretches::SetAsideSpan>,
 }
 
 /// The navigation errors' model and what the solve found under it (DESIGN.md "Navigation

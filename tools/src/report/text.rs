@@ -305,15 +305,20 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         }
         let _ = writeln!(
             o,
-            "  {}: kept {} of {} windowed returns, seen in {} of {} slices; rejected {} ({why}); RMS {:.2} mm",
+            "  {}: kept {} of {} windowed returns (the rounds kept {}), seen in {} of {} slices; rejected {} ({why}); RMS {:.2} mm",
             p.id,
             p.points,
             p.windowed,
+            p.rounds_kept,
             p.detected,
             p.slices,
             v.rejected(),
             p.rms_after_m * 1e3
         );
+    }
+    let first = r.per_pass.iter().map(|p| p.start_gps_s).reduce(f64::min);
+    for sp in &r.set_aside {
+        let _ = writeln!(o, "SET ASIDE: {}", sp.describe(first));
     }
     let _ = writeln!(
         o,

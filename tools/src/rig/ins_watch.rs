@@ -21,6 +21,14 @@ pub struct InsWatch {
     pub silences: Mutex<Vec<(f64, f64)>>,
     /// Bytes that waited in the serial port's buffer from before the run, discarded.
     pub stale_bytes: AtomicU64,
+    /// Since when the serial device has been gone [ms since the origin] (`u64::MAX`: it is
+    /// there).
+    lost_ms: AtomicU64,
+    /// Times the serial device was opened again after it went away.
+    pub reopens: AtomicU64,
+    /// What the reader has to say on the console (device lost, reopened), taken by the status
+    /// loop.
+    said: Mutex<Vec<String>>,
 }
 
 /// What the INS is doing, for the status line.
@@ -33,6 +41,9 @@ pub enum Speaking {
     /// Bytes, but no usable pose for this long [s] (frames the aligner cannot use: not
     /// tracking, no pose fields, corrupt).
     Unusable(f64),
+    /// The serial device went away this long ago [s] (a USB adapter unplugged or
+    /// re-enumerating): the reader is opening it again.
+    Lost(f64),
 }
 
 impl Default for InsWatch {
@@ -43,6 +54,9 @@ impl Default for InsWatch {
             bytes_ms: AtomicU64::new(u64::MAX),
             silences: Mutex::new(Vec::new()),
             stale_bytes: AtomicU64::new(0),
+            lost_ms: AtomicU64::new(u64::MAX),
+            reopens: AtomicU64::new(0),
+            said: Mutex::new(Vec::new()),
         }
     }
 }
@@ -60,6 +74,33 @@ impl InsWatch {
     /// Bytes (or a datagram) arrived.
     pub fn bytes(&self) {
         self.bytes_ms.store(self.now_ms(), Ordering::Relaxed);
+    }
+
+    /// The serial device went away (`line`: the words for the console).
+    pub fn lost(&self, line: String) {
+        self.lost_ms.store(self.now_ms(), Ordering::Relaxed);
+        self.say(line);
+    }
+
+    /// The serial device is back (`line`: the words for the console).
+    pub fn reopened(&self, line: String) {
+        self.lost_ms.store(u64::MAX, Ordering::Relaxed);
+        self.reopens.fetch_add(1, Ordering::Relaxed);
+        self.say(line);
+    }
+
+    fn say(&self, line: String) {
+        if let Ok(mut v) = self.said.lock() {
+            v.push(line);
+        }
+    }
+
+    /// The lines the reader left to say.
+    pub fn take_said(&self) -> Vec<String> {
+        self.said
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default()
     }
 
     /// Seconds since the origin.
@@ -81,7 +122,10 @@ impl InsWatch {
             since(self.pose_ms.load(Ordering::Relaxed)),
             since(self.bytes_ms.load(Ordering::Relaxed)),
         );
-        if pose <= SILENT_MS {
+        let lost = self.lost_ms.load(Ordering::Relaxed);
+        if lost != u64::MAX {
+            Speaking::Lost(since(lost) as f64 * 1e-3)
+        } else if pose <= SILENT_MS {
             Speaking::Yes
         } else if bytes <= SILENT_MS {
             Speaking::Unusable(pose as f64 * 1e-3)
@@ -117,7 +161,7 @@ impl SilenceTalk {
                     without_pose.saturating_sub(self.returns_at_start)
                 ))
             }
-            (Speaking::Silent(s) | Speaking::Unusable(s), None) => {
+            (Speaking::Silent(s) | Speaking::Unusable(s) | Speaking::Lost(s), None) => {
                 let start = t - s;
                 self.since = Some(start);
                 self.said = t;
@@ -126,19 +170,20 @@ impl SilenceTalk {
                     "WARNING: {} {s:.1} s (since t={start:.1} s): returns get no pose and are not georeferenced meanwhile; check the INS's cable, power and output",
                     match now {
                         Speaking::Silent(_) => "the INS has been silent for",
+                        Speaking::Lost(_) => "the INS's serial device has been gone for",
                         _ => "the INS sends nothing usable (no pose, or not tracking) for",
                     }
                 ))
             }
-            (Speaking::Silent(s) | Speaking::Unusable(s), Some(_)) => {
+            (Speaking::Silent(s) | Speaking::Unusable(s) | Speaking::Lost(s), Some(_)) => {
                 (t - self.said >= SILENT_AGAIN_S).then(|| {
                     self.said = t;
                     format!(
                         "WARNING: the INS is still {} ({s:.1} s; {} returns without a pose)",
-                        if matches!(now, Speaking::Silent(_)) {
-                            "silent"
-                        } else {
-                            "unusable"
+                        match now {
+                            Speaking::Silent(_) => "silent",
+                            Speaking::Lost(_) => "gone (its serial device: opening it again)",
+                            _ => "unusable",
                         },
                         without_pose.saturating_sub(self.returns_at_start)
                     )

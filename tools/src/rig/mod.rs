@@ -120,6 +120,9 @@ pub struct RunOptions {
     pub report: Option<PathBuf>,
     /// Use VN-200 poses whose InsStatus says not tracking (else left out, counted).
     pub keep_untracked_ins: bool,
+    /// Spans whose returns the calibration leaves out (`--exclude`) [GPS s, or seconds of the
+    /// week].
+    pub exclude: Vec<(f64, f64)>,
 }
 
 /// A datagram on its way to the log.
@@ -339,7 +342,18 @@ fn run_threads(
         let ins = match (serial, posmv) {
             (Some((dev, src)), _) => Some(spawn(sc, "serial", move || {
                 let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
-                serial_reader(&dev, &plan.expected, src, frame, keep, ins_p, slog_p, sh)
+                let baud = opts.board.ins.baud;
+                serial_reader(
+                    &dev,
+                    baud,
+                    &plan.expected,
+                    src,
+                    frame,
+                    keep,
+                    ins_p,
+                    slog_p,
+                    sh,
+                )
             })),
             (None, Some(sock)) => Some(spawn(sc, "udp-posmv", move || {
                 let b = &opts.board;
@@ -382,6 +396,7 @@ fn run_threads(
                 opts.board.lidar_model().unwrap_or_default(),
                 plan.margin,
                 report,
+                &opts.exclude,
                 sh,
             )
         });

@@ -97,9 +97,18 @@ pub(super) fn check_outputs(
     }
 }
 
+/// Waits between attempts to open a serial device that went away: from the first to the last,
+/// doubling [ms].
+const REOPEN_MS: (u64, u64) = (250, 2_000);
+
+/// The VN-200's serial port until the stop: every read to the log ring, framed into poses onto
+/// the INS ring. A device that goes away (a USB adapter unplugged or re-enumerating: a read
+/// error, or the end of its stream) is said on the console, and opened again by its path with
+/// a back-off ([`REOPEN_MS`]) until it is back or the run stops.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn serial_reader(
     dev: &str,
+    baud: u32,
     expected: &[(&'static str, u8)],
     mut src: SerialSource,
     frame: &LocalFrame,
@@ -142,21 +151,58 @@ pub(super) fn serial_reader(
         policy: Overflow::Drop,
         full: &sh.ring_drops.ins,
     };
-    match ins_reader(
-        &mut src,
-        &mut buf,
-        &mut feed,
-        &mut out,
-        sh.stop,
-        &mut log_chunk,
-        &mut seen,
-    ) {
-        Ok(InsEnd::Stopped) => {}
-        Ok(InsEnd::SourceEnded) => sh.error(format!("serial {dev}: the stream ended")),
-        Err(e) => sh.error(format!("serial {dev}: {e}")),
+    loop {
+        let why = match ins_reader(
+            &mut src,
+            &mut buf,
+            &mut feed,
+            &mut out,
+            sh.stop,
+            &mut log_chunk,
+            &mut seen,
+        ) {
+            Ok(InsEnd::Stopped) => break,
+            Ok(InsEnd::SourceEnded) => "its stream ended".to_string(),
+            Err(e) => e.to_string(),
+        };
+        sh.ins_watch.lost(format!(
+            "WARNING: serial {dev}: the device went away ({why}); opening it again"
+        ));
+        let gone = Instant::now();
+        match reopen(dev, baud, sh) {
+            Some(s) => {
+                src = s;
+                sh.ins_watch.reopened(format!(
+                    "serial {dev}: reopened after {:.1} s",
+                    gone.elapsed().as_secs_f64()
+                ));
+            }
+            None => {
+                sh.error(format!(
+                    "serial {dev}: the device went away ({why}) and was not back before the end"
+                ));
+                break;
+            }
+        }
     }
     end_ins(&mut ring, sh);
     feed.state()
+}
+
+/// Open `dev` again until it opens (`None`: the run stopped first), waiting [`REOPEN_MS`].
+fn reopen(dev: &str, baud: u32, sh: &Shared<'_>) -> Option<SerialSource> {
+    let mut wait = REOPEN_MS.0;
+    while !sh.stop.load(Ordering::Relaxed) {
+        if let Ok(s) = SerialSource::open(dev, baud, super::READ_TIMEOUT) {
+            return Some(s);
+        }
+        let until = Instant::now() + Duration::from_millis(wait);
+        while Instant::now() < until && !sh.stop.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        wait = (wait * 2).min(REOPEN_MS.1);
+    }
+    None
 }
 
 /// End the INS ring: wait for room for the End, unless the aligner is gone.

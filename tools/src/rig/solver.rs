@@ -21,6 +21,7 @@ pub(super) fn solver(
     model: spherecal::velodyne::Model,
     apriori_margin: f64,
     report: Option<&Path>,
+    exclude: &[(f64, f64)],
     sh: &Shared<'_>,
 ) -> Option<Report> {
     let n = targets.len();
@@ -30,6 +31,7 @@ pub(super) fn solver(
             .with_capacity(MAX_OBS_PER_SPHERE)
             .with_nav_source(nav_source);
     let mut last_total = 0usize;
+    let mut excluding = false;
     let mut last_solve: Option<Instant> = None;
     let mut latest: Option<Report> = None;
     let mut start = *b0;
@@ -122,6 +124,11 @@ pub(super) fn solver(
     loop {
         let closed = match rx.recv_timeout(Duration::from_millis(200)) {
             Ok(m) => {
+                // The spans left out by hand, placed in the data's GPS week at the first batch.
+                if let (false, Some(o)) = (exclude.is_empty() || excluding, m.obs.first()) {
+                    session.exclude(&crate::stretches::in_week_of(exclude, o.time));
+                    excluding = true;
+                }
                 // Aligned at an older offset (in flight when it moved): the session moves it
                 // to the store's.
                 let dropped = session.add(m.sphere, &m.obs, m.offset_ns);

@@ -8,7 +8,8 @@
 //! is silent); `al/s` data packets aligned with the INS in the last second; `drop` ring drops so far, LiDAR/INS/raw log; `kdrop` datagrams the kernel
 //! dropped (socket buffer full) so far; `pps` the position packets' PPS state;
 //! `ins` the INS mode, or `silent:3.2s` (no usable pose and no bytes for that long) or
-//! `unusable:3.2s` (bytes, but no usable pose: not tracking, no pose fields) after a second;
+//! `unusable:3.2s` (bytes, but no usable pose: not tracking, no pose fields) after a second,
+//! or `lost:3.2s` (the serial device went away: the reader is opening it again);
 //! `nopose` the returns that got no pose so far; `lag_ms` LiDAR clock minus INS time, each
 //! against the host receive
 //! clock, at the last aligned packet [ms];
@@ -42,7 +43,7 @@ pub struct Status {
     /// PPS state name.
     pub pps: String,
     /// INS mode name, or `silent:<s>s` / `unusable:<s>s` when no usable pose came for more
-    /// than a second.
+    /// than a second, `lost:<s>s` while the serial device is gone.
     pub ins: String,
     /// Returns that got no pose so far (before or after the INS's history, or in its gaps).
     pub without_pose: u64,
@@ -233,6 +234,7 @@ pub(super) fn snapshot(
             super::ins_watch::Speaking::Yes => ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
             super::ins_watch::Speaking::Silent(s) => format!("silent:{s:.1}s"),
             super::ins_watch::Speaking::Unusable(s) => format!("unusable:{s:.1}s"),
+            super::ins_watch::Speaking::Lost(s) => format!("lost:{s:.1}s"),
         },
         without_pose: sh.without_pose.load(Ordering::Relaxed),
         lag_ms: (lag != i64::MIN).then_some(lag as f64 * 1e-6),
@@ -361,6 +363,7 @@ pub(super) fn status_loop<'c>(
         sh.poll_kernel_drops();
         let s = snapshot(sh, ids, started, &mut last);
         let mut said = hearing.lines(sh, s.t_s);
+        said.extend(sh.ins_watch.take_said());
         // The INS: silent or unusable for a second is said, and again while it lasts (not
         // before the ports have had the time to be heard).
         let now = sh.ins_watch.speaking();

@@ -76,6 +76,9 @@ pub struct RunSummary {
     pub ins_silences: Vec<(f64, f64)>,
     /// Bytes that waited in the serial port from before the run: discarded, not framed.
     pub stale_serial_bytes: u64,
+    /// Times the serial device went away and was opened again.
+    #[serde(default)]
+    pub serial_reopened: u64,
 }
 
 /// What the threads hand back when a run ends.
@@ -155,6 +158,7 @@ impl RunSummary {
                 .map(|v| v.clone())
                 .unwrap_or_default(),
             stale_serial_bytes: sh.ins_watch.stale_bytes.load(Ordering::Relaxed),
+            serial_reopened: sh.ins_watch.reopens.load(Ordering::Relaxed),
             errors: sh
                 .errors
                 .lock()
@@ -249,6 +253,13 @@ pub fn render(s: &RunSummary) -> String {
             o,
             "serial: {} bytes waiting from before the run were discarded",
             s.stale_serial_bytes
+        );
+    }
+    if s.serial_reopened > 0 {
+        let _ = writeln!(
+            o,
+            "serial: the device went away and was opened again {} time(s)",
+            s.serial_reopened
         );
     }
     let _ = writeln!(

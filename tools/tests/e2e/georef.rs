@@ -51,6 +51,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         accuracy: None,
         ports: Default::default(),
         lidar_topic: None,
+        exclude: Vec::new(),
     }
 }
 

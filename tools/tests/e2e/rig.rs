@@ -1456,3 +1456,122 @@ fn a_silent_ins_is_said_and_stale_bytes_are_discarded() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A pseudo-terminal whose master end no child process inherits (close-on-exec), so that
+/// closing it here hangs the line up for the rig: its master and the path of its slave.
+fn private_pty() -> (nix::pty::PtyMaster, PathBuf) {
+    use nix::fcntl::OFlag;
+    let m = nix::pty::posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_CLOEXEC)
+        .expect("a pseudo-terminal");
+    nix::pty::grantpt(&m).unwrap();
+    nix::pty::unlockpt(&m).unwrap();
+    let slave = nix::pty::ptsname_r(&m).unwrap();
+    (m, PathBuf::from(slave))
+}
+
+/// The serial line as a USB-serial adapter that re-enumerates: the VN-200's stream goes to the
+/// pseudo-terminal behind `link` until `cut`, then the device is gone (the link removed, that
+/// terminal hung up: the rig's reads fail) for `gap`, its bytes lost; then a new terminal
+/// behind the same path takes the rest.
+struct Reenumerating {
+    link: PathBuf,
+    master: Option<nix::pty::PtyMaster>,
+    start: Option<Instant>,
+    cut: Duration,
+    gap: Duration,
+    back: bool,
+}
+
+impl std::io::Write for Reenumerating {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let t = self.start.get_or_insert_with(Instant::now).elapsed();
+        if t >= self.cut && !self.back {
+            if self.master.take().is_some() {
+                let _ = std::fs::remove_file(&self.link);
+            }
+            if t < self.cut + self.gap {
+                return Ok(buf.len());
+            }
+            let (master, slave) = private_pty();
+            std::os::unix::fs::symlink(slave, &self.link).unwrap();
+            self.master = Some(master);
+            self.back = true;
+        }
+        match self.master.as_mut() {
+            // A line nobody has opened yet, or full: the bytes are lost, as on a real line.
+            Some(m) => Ok(m.write(buf).unwrap_or(buf.len())),
+            None => Ok(buf.len()),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A USB-serial adapter that re-enumerates 6 s into table1: the rig's device path is gone for
+/// 10 s and comes back (issue 46: it said "still silent" to the end and calibrated on the first
+/// 24 s only). The rig says the device went away and that it reopened it, shows `lost:` on
+/// the status line meanwhile, counts the reopen in its summary, and uses the poses after it.
+#[test]
+fn a_serial_device_that_goes_away_is_opened_again() {
+    let (dp, pp) = (23_794, 23_795);
+    let Setup { dir, to, .. } = setup("rig-reopen", &table1(), dp, pp);
+    let (master, slave) = private_pty();
+    let link = dir.join("ttyINS");
+    std::os::unix::fs::symlink(slave, &link).unwrap();
+    let mut rig = start_rig(&dir, dp, pp, link.to_str().unwrap(), true);
+    let mut out = Reenumerating {
+        link: link.clone(),
+        master: Some(master),
+        start: None,
+        cut: Duration::from_secs(6),
+        gap: Duration::from_secs(10),
+        back: false,
+    };
+    let pcap = dir.join("lidar.pcap");
+    std::thread::spawn(move || {
+        let _ = replay_both(
+            &pcap,
+            to,
+            Some((&dir_ins(&pcap).into(), &mut out, 921_600)),
+            Speed::Factor(1.0),
+        );
+    });
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(28) {
+        rig.next_line(Duration::from_millis(500));
+    }
+    rig.signal(nix::sys::signal::Signal::SIGINT);
+    let (code, lines, err) = rig.wait(Duration::from_secs(30));
+    eprintln!("{}\n{err}", lines.join("\n"));
+    assert_eq!(code, Some(0), "{err}");
+    let dev = link.display().to_string();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with(&format!("WARNING: serial {dev}: the device went away"))),
+        "{lines:?}"
+    );
+    let back: Vec<&String> = lines
+        .iter()
+        .filter(|l| l.starts_with(&format!("serial {dev}: reopened after ")))
+        .collect();
+    assert_eq!(back.len(), 1, "{lines:?}");
+    let after: f64 = back[0]
+        .trim_start_matches(&format!("serial {dev}: reopened after "))
+        .trim_end_matches(" s")
+        .parse()
+        .unwrap();
+    assert!((9.0..14.0).contains(&after), "{after}");
+    let status: Vec<Status> = lines.iter().filter_map(|l| Status::parse(l)).collect();
+    assert!(
+        status.iter().filter(|s| s.ins.starts_with("lost:")).count() >= 5,
+        "{lines:?}"
+    );
+    let sm = summary(&dir.join("logs"));
+    assert_eq!(u(&sm["serial_reopened"]), 1, "{sm}");
+    // Poses before the cut (6 s at 200 Hz) and after the reopen (~10 s more).
+    assert!(u(&sm["ins"]["poses"]) > 2_600, "{sm}");
+    assert!(!sm["errors"].to_string().contains("Broken pipe"), "{sm}");
+}

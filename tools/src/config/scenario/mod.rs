@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use spherecal::frames::{Geodetic, LocalFrame};
 use spherecal::georef::Mount;
-use spherecal::sim::ins::AttitudeOutput;
+use spherecal::sim::ins::{AttitudeOutput, Outage};
 use spherecal::sim::trajectory::Sample;
 use spherecal::sim::{InsConfig, LidarConfig, Motion, Object, Pass, Shape};
 use spherecal::time::{days_from_civil, unix_ns_to_gps, GpsTime};
@@ -302,6 +302,12 @@ pub struct InsSpec {
     /// (north, east, down) (a lost fix: a fault, not noise).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub position_jumps: Vec<[f64; 4]>,
+    /// Silent GNSS outages: `[[at_s, duration_s, north_m, east_m, down_m, roll_deg, pitch_deg,
+    /// heading_deg], ...]`, at most four: from `at_s` seconds after the scan's start the INS
+    /// coasts, its error growing as the square of the time to the given peak at `duration_s`,
+    /// then snapping back when the fix returns; the status word says nothing (an RTK loss).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outages: Vec<[f64; 8]>,
 }
 
 fn is_default_correlated(c: &crate::config::nav_errors::CorrelatedSpec) -> bool {
@@ -690,6 +696,24 @@ impl Scenario {
                     );
                 }
                 steps
+            },
+            outages: {
+                let mut o = [Outage::NONE; 4];
+                for (k, v) in self.ins.outages.iter().take(4).enumerate() {
+                    o[k] = Outage {
+                        start: self.start().0 + (v[0] * 1e9).round() as i64,
+                        duration_ns: (v[1] * 1e9).round() as i64,
+                        peak: [
+                            v[2],
+                            v[3],
+                            v[4],
+                            v[5].to_radians(),
+                            v[6].to_radians(),
+                            v[7].to_radians(),
+                        ],
+                    };
+                }
+                o
             },
             position_jumps: {
                 let mut jumps = [(i64::MAX, [0.0; 3]); 4];

@@ -261,6 +261,18 @@ impl Scenario {
             "ins.position_jumps",
             "expected at most 4 [at_s >= 0, north_m, east_m, down_m], each |jump| < 100 m",
         )?;
+        check(
+            self.ins.outages.len() <= 4
+                && self.ins.outages.iter().all(|o| {
+                    o.iter().all(|v| v.is_finite())
+                        && o[0] >= 0.0
+                        && o[1] > 0.0
+                        && o[2..5].iter().all(|v| v.abs() < 100.0)
+                        && o[5..].iter().all(|v| v.abs() < 10.0)
+                }),
+            "ins.outages",
+            "expected at most 4 [at_s >= 0, duration_s > 0, north_m, east_m, down_m, roll_deg, pitch_deg, heading_deg], each peak |position| < 100 m and |angle| < 10 deg",
+        )?;
         Ok(())
     }
 
