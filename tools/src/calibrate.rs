@@ -255,7 +255,10 @@ pub fn solve_report_in(
         rounds: sol.rounds,
         termination: sol.termination.name().into(),
         converged: sol.refusal.is_none(),
-        reason: sol.refusal.as_ref().map(|r| refusal_text(r, ids, &weak)),
+        reason: sol
+            .refusal
+            .as_ref()
+            .map(|r| refusal_text(r, ids, &weak, s.estimate_dt)),
         correlation: (0..=P)
             .map(|i| {
                 (0..=P)
@@ -568,6 +571,7 @@ pub fn calibrate(
                 ids,
                 &[],
                 Some(&stats.clock.describe()),
+                clock.estimate,
             ));
         }
     }

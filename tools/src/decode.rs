@@ -199,7 +199,7 @@ pub fn identify_source<S: PacketSource>(
     match id {
         Identity::Agreed(m) => Ok(Some((
             m,
-            format!("product byte 0x{:02X}, packet period agrees", m.product()),
+            format!("product byte 0x{:02X}, {AGREED}", m.product()),
         ))),
         Identity::Pending(Some(m)) => Ok(Some((
             m,
@@ -212,6 +212,9 @@ pub fn identify_source<S: PacketSource>(
         identity => Err(ModelError { identity, offset }),
     }
 }
+
+/// The words of an identification whose product byte and packet period agree.
+pub const AGREED: &str = "packet period agrees";
 
 /// The model to decode a capture as: `given` (the user's `--model`, said so), else what its
 /// packets say ([`identify_file`]).

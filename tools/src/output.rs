@@ -18,9 +18,58 @@ use std::sync::{Arc, Mutex};
 
 /// Temporaries being written, removed on an interrupt.
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Outputs this run has committed, removed too on an interrupt before [`finished`]: one run's
+/// outputs are all there or none (a report.json beside no LAS would describe a run that did
+/// not end).
+static COMMITTED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn committed() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    COMMITTED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Every output of the run is written: an interrupt from now on removes none of them.
+pub fn finished() {
+    committed().clear();
+}
+
+/// On an interrupt: remove the temporaries being written and the outputs committed so far;
+/// the words naming what was removed.
+fn remove_this_run() -> String {
+    let tmps = std::mem::take(&mut *pending());
+    let done = std::mem::take(&mut *committed());
+    let mut named = Vec::new();
+    for f in &done {
+        if std::fs::remove_file(f).is_ok() {
+            named.push(f.display().to_string());
+        }
+    }
+    for t in &tmps {
+        if std::fs::remove_file(t).is_ok() {
+            // The final name of `.NAME.partial`.
+            let name = t
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let fin = name
+                .strip_prefix('.')
+                .and_then(|n| n.strip_suffix(".partial"))
+                .unwrap_or(&name)
+                .to_string();
+            named.push(format!("{} (unfinished)", t.with_file_name(fin).display()));
+        }
+    }
+    if named.is_empty() {
+        "interrupted: no output was written".into()
+    } else {
+        format!(
+            "interrupted: removed {}: a run's outputs are all there or none",
+            named.join(", ")
+        )
+    }
 }
 
 /// The temporary beside `p`: `.NAME.partial` in the same folder (hidden, so that a glob of the
@@ -63,8 +112,9 @@ pub fn check(flag: &str, p: &Path) -> Result<(), crate::Error> {
     }
 }
 
-/// On SIGINT or SIGTERM, remove every temporary being written and exit (130 or 143, as a
-/// shell reports a signal). For the file commands; the rig handles its signals itself.
+/// On SIGINT or SIGTERM, remove every temporary being written and every output this run
+/// committed before [`finished`], say which, and exit (130 or 143, as a shell reports a
+/// signal). For the file commands; the rig handles its signals itself.
 pub fn remove_partial_on_interrupt() {
     use signal_hook::consts::{SIGINT, SIGTERM};
     static INSTALLED: std::sync::Once = std::sync::Once::new();
@@ -74,14 +124,7 @@ pub fn remove_partial_on_interrupt() {
         };
         std::thread::spawn(move || {
             if let Some(sig) = signals.forever().next() {
-                let files = std::mem::take(&mut *pending());
-                for f in &files {
-                    let _ = std::fs::remove_file(f);
-                }
-                eprintln!(
-                    "interrupted: {} unfinished output(s) removed, nothing half-written is left",
-                    files.len()
-                );
+                eprintln!("{}", remove_this_run());
                 std::process::exit(128 + sig);
             }
         });
@@ -181,6 +224,7 @@ impl Staged {
         }
         std::fs::rename(&self.tmp, &self.path).map_err(err)?;
         pending().retain(|x| x != &self.tmp);
+        committed().push(self.path.clone());
         Ok(())
     }
 }

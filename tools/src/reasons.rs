@@ -5,9 +5,10 @@ use crate::pipeline::Closest;
 use spherecal::calib::solve::{Lost, Refusal};
 use spherecal::calib::NAMES;
 
-/// A refusal in words.
-pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String]) -> String {
-    refusal_text_clock(r, ids, weak, None)
+/// A refusal in words; `dt_estimated`: the time offset was estimated with the mounting (else
+/// held), so that a refusal does not blame an offset that was not left out.
+pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String], dt_estimated: bool) -> String {
+    refusal_text_clock(r, ids, weak, None, dt_estimated)
 }
 
 /// [`refusal_text`], with the LiDAR clock's state in words where a refusal is about it.
@@ -16,6 +17,7 @@ pub fn refusal_text_clock(
     ids: &[String],
     weak: &[String],
     lidar_clock: Option<&str>,
+    dt_estimated: bool,
 ) -> String {
     let clock_words = lidar_clock.unwrap_or("see the LiDAR clock line");
     match r {
@@ -138,7 +140,11 @@ pub fn refusal_text_clock(
                 ids.get(*sphere).map_or("?", |s| s.as_str()),
                 d * 1e3,
                 along_track * 1e3,
-                if along_track.abs() > 0.7 * d { ": an along-track error of this kind is what an unestimated time offset between the clocks does" } else { "" }
+                match (along_track.abs() > 0.7 * d, dt_estimated) {
+                    (false, _) => "",
+                    (true, false) => ": an along-track error of this kind is what a time offset between the clocks does, and it was held (drop --hold-time-offset)",
+                    (true, true) => ": an along-track error of this kind, with the time offset estimated, is what a clock that steps or drifts within the survey does (see the passes' own time offsets), or the navigation in that pass",
+                }
             )
         }
     }
@@ -206,4 +212,37 @@ pub fn empty_windows(empty: &[(&str, Closest, f64)], reach: f64) -> Option<Strin
         ));
     }
     (!why.is_empty()).then(|| why.join("; "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An along-track pass offset blames a held time offset only when it was held (issue 46:
+    /// the refusal blamed an unestimated offset that had been estimated).
+    #[test]
+    fn an_along_track_refusal_names_the_offset_as_it_was_treated() {
+        let r = Refusal::Inconsistent {
+            sphere: 1,
+            pass: 7,
+            offset: [0.14, 0.0, 0.0],
+            along_track: -0.14,
+            chi2: 63.0,
+        };
+        let ids = ["S1".to_string(), "S2".to_string()];
+        let held = refusal_text(&r, &ids, &[], false);
+        assert!(
+            held.contains("it was held (drop --hold-time-offset)"),
+            "{held}"
+        );
+        let free = refusal_text(&r, &ids, &[], true);
+        assert!(
+            free.contains("with the time offset estimated") && !free.contains("held"),
+            "{free}"
+        );
+        assert!(
+            free.starts_with("inconsistent: in pass 8 over sphere S2"),
+            "{free}"
+        );
+    }
 }

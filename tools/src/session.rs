@@ -305,7 +305,7 @@ impl Session {
                     returns: cut.iter().map(Vec::len).sum(),
                     why: format!(
                         "with it the survey was refused ({}); without it every check passes",
-                        crate::reasons::refusal_text(&r, &self.ids, &[])
+                        crate::reasons::refusal_text(&r, &self.ids, &[], s.estimate_dt)
                     ),
                 };
                 return Some((sol2, rep2, span));

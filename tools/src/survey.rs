@@ -188,6 +188,15 @@ pub fn run_calibrate(
     let (targets, ids) = calibrate::site_targets(&inp);
     let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
     let mut text = format!("{datums}\n");
+    // A bag's own account of itself (no metadata.yaml, messages it promises but lacks).
+    if let Some(b) = pipeline::as_bag(&inp.pcap) {
+        if let Ok(o) = crate::bag::open(&b, inp.lidar_topic.as_deref(), None, false) {
+            for n in o.notes() {
+                text.push_str(&n);
+                text.push('\n');
+            }
+        }
+    }
     text.push_str(&stats.describe_inputs(&inp.pcap, inp.ins_files()));
     text.push_str(&format!(
         "{} returns, windows {:?}\n",
@@ -243,6 +252,8 @@ pub fn run_calibrate(
         }
     }
     text.push_str(&wrote);
+    // Every output is written (or failed and said): an interrupt now removes none of them.
+    output::finished();
     Ok(Calibrated {
         text,
         converged: rep.converged,

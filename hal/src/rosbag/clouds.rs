@@ -203,3 +203,10 @@ impl CloudChunks {
         }
     }
 }
+
+impl CloudChunks {
+    /// The MCAP files found cut short so far ([`super::Messages::cut`]).
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        self.msgs.cut()
+    }
+}

@@ -1,7 +1,8 @@
 //! One MCAP file, read front to back with the `mcap` crate's sans-io reader (chunks
 //! decompressed as they come, zstd or lz4; CRCs checked): the schemas and channels as they
-//! appear, the messages of the wanted topics. A file cut short is an error naming the byte
-//! where it ends.
+//! appear, the messages of the wanted topics. A file cut short (a recorder killed, a disk
+//! full) gives the messages of its whole records and chunks before the cut, and says where it
+//! ends ([`Reader::truncated`]); a damaged one is an error naming the byte.
 
 use super::{BagError, Message, Topic};
 use mcap::records::Record;
@@ -28,6 +29,8 @@ pub(super) struct Reader<R: Read = std::fs::File> {
     /// The current message: topic index, log time, bytes, offset.
     cur: Option<(usize, i64, u64)>,
     data: Vec<u8>,
+    /// The bytes ended inside a record at this byte (the file cut short).
+    pub(super) truncated: Option<u64>,
 }
 
 impl Reader {
@@ -79,6 +82,7 @@ impl<R: Read> Reader<R> {
             want: want.map(<[String]>::to_vec),
             cur: None,
             data: Vec::new(),
+            truncated: None,
         }
     }
 
@@ -98,10 +102,16 @@ impl<R: Read> Reader<R> {
             let event = match self.rd.next_event() {
                 None => return Ok(false),
                 Some(Ok(e)) => e,
+                // The bytes ended inside a record: the file was cut short. What came before
+                // its cut is whole (each chunk's CRC was checked): the end, said.
+                Some(Err(_)) if self.at_end => {
+                    self.truncated = Some(self.read);
+                    return Ok(false);
+                }
                 Some(Err(e)) => {
                     let at = self.read;
                     return Err(self.err(format_args!(
-                        "not a complete MCAP file: {e} (after byte {at}: cut short, not written to the end, or damaged)"
+                        "not a complete MCAP file: {e} (after byte {at}: not written to the end, or damaged)"
                     )));
                 }
             };
@@ -115,13 +125,11 @@ impl<R: Read> Reader<R> {
                     };
                     if got == 0 {
                         // The end of the bytes; a reader that asks again past it would spin
-                        // (fuzz target `rosbag_mcap`: a damaged chunk did): it ends here.
+                        // (fuzz target `rosbag_mcap`: a damaged chunk did): it ends here, cut
+                        // short inside a record.
                         if self.at_end {
-                            let at = self.read;
-                            return Err(BagError::new(
-                                &self.path,
-                                format!("not a complete MCAP file: it ends at byte {at} inside a record (cut short, not written to the end, or damaged)"),
-                            ));
+                            self.truncated = Some(self.read);
+                            return Ok(false);
                         }
                         self.at_end = true;
                     }

@@ -13,6 +13,8 @@ pub struct Metadata {
     pub compression_format: Option<String>,
     /// `compression_mode` (`FILE`, `MESSAGE`, or empty).
     pub compression_mode: Option<String>,
+    /// The bag's `message_count` (all topics), as the recorder wrote it when it closed.
+    pub message_count: Option<u64>,
 }
 
 fn scalar(v: &str) -> String {
@@ -45,7 +47,10 @@ impl Metadata {
                     in_paths = None;
                 }
             }
-            if let Some(v) = t.strip_prefix("storage_identifier:") {
+            if let Some(v) = t.strip_prefix("message_count:").filter(|_| indent <= 2) {
+                // The bag's own count (the topics' are indented deeper).
+                m.message_count = m.message_count.or(scalar(v).parse().ok());
+            } else if let Some(v) = t.strip_prefix("storage_identifier:") {
                 m.storage_identifier = Some(scalar(v));
             } else if let Some(v) = t.strip_prefix("compression_format:") {
                 m.compression_format = Some(scalar(v));
@@ -64,6 +69,18 @@ impl Metadata {
         if m.relative_file_paths.is_empty() {
             return Err("metadata.yaml lists no file (relative_file_paths)".into());
         }
+        // rosbag2 keeps a bag's files in its folder: a path that leaves it (absolute, or
+        // through `..`) would read files the bag does not own.
+        if let Some(p) = m.relative_file_paths.iter().find(|p| {
+            let p = std::path::Path::new(p.as_str());
+            p.is_absolute()
+                || p.components()
+                    .any(|c| !matches!(c, std::path::Component::Normal(_)))
+        }) {
+            return Err(format!(
+                "metadata.yaml lists {p:?}, which is not in the bag's folder: refused (rosbag2 keeps a bag's files beside its metadata.yaml)"
+            ));
+        }
         Ok(m)
     }
 }
@@ -80,6 +97,18 @@ mod tests {
         assert_eq!(m.storage_identifier.as_deref(), Some("sqlite3"));
         assert_eq!(m.relative_file_paths, ["rec_0.db3", "rec_1.db3"]);
         assert_eq!(m.compression_mode.as_deref(), Some(""));
+        // The bag's own count, not a topic's (indented deeper).
+        assert_eq!(m.message_count, None);
+        let counted = t.replace("  duration:", "  message_count: 12\n  duration:");
+        assert_eq!(Metadata::parse(&counted).unwrap().message_count, Some(12));
+        // A file outside the bag's folder is refused by name.
+        for bad in ["../other/rec_0.db3", "/etc/passwd", "sub/../../x.db3"] {
+            let e = Metadata::parse(&t.replace("rec_1.db3", bad)).unwrap_err();
+            assert!(
+                e.contains(bad) && e.contains("not in the bag's folder"),
+                "{e}"
+            );
+        }
         let f = "rosbag2_bagfile_information:\n  relative_file_paths: [a_0.mcap.zstd]\n  compression_format: zstd\n  compression_mode: FILE\n";
         let m = Metadata::parse(f).unwrap();
         assert_eq!(m.relative_file_paths, ["a_0.mcap.zstd"]);

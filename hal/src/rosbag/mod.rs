@@ -319,6 +319,7 @@ impl Bag {
             topics: topics.iter().map(|t| t.to_string()).collect(),
             next: 0,
             cur: None,
+            cut: Vec::new(),
         }
     }
 }
@@ -343,6 +344,7 @@ pub struct Messages {
     topics: Vec<String>,
     next: usize,
     cur: Option<FileReader>,
+    cut: Vec<(PathBuf, u64)>,
 }
 
 impl Messages {
@@ -376,9 +378,34 @@ impl Messages {
                     None => None,
                 });
             }
+            if let (Some(FileReader::Mcap(r)), Some((f, _))) =
+                (self.cur.as_ref(), self.files.get(self.next - 1))
+            {
+                if let Some(at) = r.truncated {
+                    self.cut.push((f.clone(), at));
+                }
+            }
             self.cur = None;
         }
     }
+
+    /// The MCAP files found cut short so far, with the byte each ends at: their messages
+    /// before the cut were read.
+    pub fn cut(&self) -> &[(PathBuf, u64)] {
+        &self.cut
+    }
+}
+
+/// Words for files cut short ([`Messages::cut`]): empty when none.
+pub fn cut_words(cut: &[(PathBuf, u64)]) -> String {
+    cut.iter()
+        .map(|(f, at)| {
+            format!(
+                "; {} is cut short at byte {at} (a recording not closed): the messages before were read, those in its last unfinished chunk are lost (`mcap recover` or `ros2 bag reindex` may recover more)",
+                f.display()
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]

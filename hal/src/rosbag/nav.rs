@@ -262,3 +262,10 @@ impl ByteSource for NavBytes {
         }
     }
 }
+
+impl NavBytes {
+    /// The MCAP files found cut short so far ([`super::Messages::cut`]).
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        self.msgs.cut()
+    }
+}

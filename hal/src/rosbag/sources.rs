@@ -322,3 +322,24 @@ impl ByteSource for SerialBytes {
         }
     }
 }
+
+impl ScanPackets {
+    /// The MCAP files found cut short so far ([`super::Messages::cut`]).
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        self.msgs.cut()
+    }
+}
+
+impl Vn200Bytes {
+    /// The MCAP files found cut short so far ([`super::Messages::cut`]).
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        self.msgs.cut()
+    }
+}
+
+impl SerialBytes {
+    /// The MCAP files found cut short so far ([`super::Messages::cut`]).
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        self.msgs.cut()
+    }
+}

@@ -45,6 +45,7 @@ impl BagIns {
                 if let Some(first) = &b.first_bad {
                     said.push_str(&format!(", {} messages not parsed (first: {first})", b.bad));
                 }
+                said.push_str(&spherecal_hal::rosbag::cut_words(g.cut()));
                 said
             }
             BagIns::Serial(s) => {
@@ -59,6 +60,7 @@ impl BagIns {
                 if let (n, Some(first)) = &s.bad {
                     said.push_str(&format!(", {n} not parsed (first: {first})"));
                 }
+                said.push_str(&spherecal_hal::rosbag::cut_words(s.cut()));
                 said
             }
             BagIns::Nav(n) => {
@@ -86,6 +88,7 @@ impl BagIns {
                 if let Some(first) = &b.first_bad {
                     said.push_str(&format!(", {} messages not parsed (first: {first})", b.bad));
                 }
+                said.push_str(&spherecal_hal::rosbag::cut_words(n.cut()));
                 said
             }
         }

@@ -231,6 +231,34 @@ pub fn open(
 }
 
 impl Opened {
+    /// What a surveyor should know of the bag's own account of itself: no metadata.yaml (the
+    /// files read by name), or a metadata.yaml that promises more messages than the files
+    /// hold (a recording cut short, files missing).
+    pub fn notes(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        if self.bag.path.is_dir() && self.bag.metadata.is_none() {
+            v.push(format!(
+                "{}: no metadata.yaml: its .mcap / .db3 files are read in name order (`ros2 bag reindex` writes one)",
+                self.bag.path.display()
+            ));
+        }
+        let held: u64 = self.topics.iter().map(|t| t.count).sum();
+        if let Some(n) = self
+            .bag
+            .metadata
+            .as_ref()
+            .and_then(|m| m.message_count)
+            .filter(|&n| n > held)
+        {
+            v.push(format!(
+                "WARNING: {}: its metadata.yaml promises {n} messages, the files hold {held} ({} missing: a recording cut short, or a file gone)",
+                self.bag.path.display(),
+                n - held
+            ));
+        }
+        v
+    }
+
     /// The LiDAR topic, or why there is none.
     pub fn lidar(&self) -> Result<&str, crate::Error> {
         self.chosen
@@ -361,6 +389,9 @@ impl Opened {
         );
         for (f, _) in &self.bag.files {
             let _ = writeln!(o, "  {}", f.display());
+        }
+        for n in self.notes() {
+            let _ = writeln!(o, "{n}");
         }
         let span = self
             .topics

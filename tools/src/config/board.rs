@@ -316,6 +316,7 @@ impl Board {
         if !(0..=100).contains(&self.leap_seconds) {
             return bad("leap_seconds", "expected 0..=100");
         }
+        self.calibration.check("calibration")?;
         for (k, v) in [
             ("lidar.bind_addr", &self.lidar.bind_addr),
             ("lidar.sensor_addr", &self.lidar.sensor_addr),
@@ -442,6 +443,33 @@ mod tests {
             let b = Board::from_toml(&board(n)).unwrap_or_else(|e| panic!("{n}: {e}"));
             assert_eq!(b.name, n);
         }
+    }
+
+    /// The `[calibration]` targets: NaN, infinite, zero and negative sigmas are refused by key
+    /// (TOML reads `nan` and `-inf` as floats).
+    #[test]
+    fn targets_that_are_not_sigmas_are_refused_by_key() {
+        let t = board("rig-vn200");
+        for (v, key) in [
+            (
+                "target_sigma_deg = nan",
+                "calibration.target_sigma_deg = NaN",
+            ),
+            ("target_sigma_m = -inf", "calibration.target_sigma_m = -inf"),
+            ("target_sigma_m = 0.0", "calibration.target_sigma_m = 0"),
+            (
+                "target_sigma_deg = -0.01",
+                "calibration.target_sigma_deg = -0.01",
+            ),
+        ] {
+            let e = Board::from_toml(&t.replace("[calibration]", &format!("[calibration]\n{v}")))
+                .unwrap_err()
+                .to_string();
+            assert_eq!(e, format!("{key}: expected a positive, finite sigma"));
+        }
+        let ok =
+            Board::from_toml(&t.replace("[calibration]", "[calibration]\ntarget_sigma_deg = 0.02"));
+        assert!(ok.is_ok(), "{ok:?}");
     }
 
     #[test]

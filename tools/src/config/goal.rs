@@ -43,6 +43,20 @@ pub struct Targets {
 }
 
 impl Targets {
+    /// Each target given is a positive, finite sigma; an error names the key (under `table`,
+    /// e.g. `calibration`).
+    pub fn check(&self, table: &str) -> Result<(), crate::Error> {
+        for (k, v) in [
+            ("target_sigma_deg", self.target_sigma_deg),
+            ("target_sigma_m", self.target_sigma_m),
+        ] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(format!("{table}.{k} = {v}: expected a positive, finite sigma").into());
+            }
+        }
+        Ok(())
+    }
+
     /// The planner's goal for these targets (a target not given constrains nothing); `None`
     /// without any.
     pub fn goal(&self) -> Option<Goal> {

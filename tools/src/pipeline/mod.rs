@@ -155,9 +155,26 @@ impl Inputs {
 /// data packets say (product byte checked against period: [`crate::decode::identify_file`]);
 /// Err, naming the file, byte and `--model`, when they cannot be trusted. None: no data packet.
 pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
-    if let Some(m) = inp.model {
-        return Ok(Some((m, "given with --model".into())));
+    let Some(m) = inp.model else {
+        return identify(inp);
+    };
+    // A model given is checked against what the packets say when their product byte and
+    // period agree, as the rig checks its board's: decoded as another model, every return
+    // would be a wrong point (a byte that lies, or too few packets, leave --model to decide).
+    match identify(inp) {
+        Ok(Some((found, why))) if found != m && why.ends_with(crate::decode::AGREED) => Err(format!(
+            "--model {}: {} holds {} data packets ({why}); drop --model, or give the capture of that LiDAR",
+            m.key(),
+            inp.pcap.display(),
+            found.name()
+        )
+        .into()),
+        _ => Ok(Some((m, "given with --model".into()))),
     }
+}
+
+/// What the first capture's data packets say of the model ([`resolve_model`] without one).
+fn identify(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
     if crate::pipeline::as_bag(&inp.pcap).is_some() {
         let src = open_captures(&inp.pcap, inp.lidar_topic.as_deref(), None)?;
         if matches!(src, Captures::Clouds(_)) {
@@ -346,13 +363,25 @@ pub fn run<C: Send>(
                 ports: inp.ports,
                 sensor: None,
             };
-            let (skips, r) = match &mut pcap {
+            let (mut skips, r) = match &mut pcap {
                 Captures::Clouds(c) => cloud_reader(c, &mut out),
                 src => {
                     let (skips, r) = lidar_reader(src, &mut out, accept, &never);
                     (skips, r.map_err(|e| e.to_string()))
                 }
             };
+            // A bag's MCAP cut short: its whole chunks were read; the cut is said.
+            let cut = match &pcap {
+                Captures::Bag(b) => b.cut(),
+                Captures::Clouds(c) => c.cut(),
+                _ => &[],
+            };
+            for (_, at) in cut {
+                skips.count(
+                    *at,
+                    &spherecal_hal::packet::SkipReason::TruncatedFile { left: 0 },
+                );
+            }
             end_lidar(out.ring, &never);
             r.map(|()| skips)
         });

@@ -35,6 +35,16 @@ fn num(v: f64, prec: usize) -> String {
     }
 }
 
+/// The white noise found against the declared, in words: none when the solve stopped before
+/// its least squares (never `xNaN`).
+pub fn white_noise_words(variance_factor: f64) -> String {
+    if variance_factor.is_finite() && variance_factor >= 0.0 {
+        format!("white noise x{:.2} the declared", variance_factor.sqrt())
+    } else {
+        "white noise not estimated (the solve stopped before its least squares)".into()
+    }
+}
+
 /// The human summary.
 /// `truth`: roll, pitch, heading [deg], x, y, z [m], time offset [s].
 pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
@@ -158,14 +168,14 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
     if let Some(n) = r.navigation.as_ref().filter(|n| n.is_white()) {
         let _ = writeln!(
             o,
-            "navigation errors: white ({}); the sphere centres estimated with the mounting, each with its survey's sigma; white noise x{:.2} the declared",
+            "navigation errors: white ({}); the sphere centres estimated with the mounting, each with its survey's sigma; {}",
             n.source,
-            n.white_noise_factor.sqrt()
+            white_noise_words(n.white_noise_factor)
         );
     } else if let Some(n) = &r.navigation {
         let _ = writeln!(
             o,
-            "navigation errors: estimated with the mounting ({}: {:.1} / {:.1} cm, {:.3} / {:.3} deg, wandering over {} s) in {} pieces; white noise x{:.2} the declared",
+            "navigation errors: estimated with the mounting ({}: {:.1} / {:.1} cm, {:.3} / {:.3} deg, wandering over {} s) in {} pieces; {}",
             n.source,
             n.position_sigma_m[0] * 1e2,
             n.position_sigma_m[1] * 1e2,
@@ -173,7 +183,7 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             n.attitude_sigma_deg[1],
             n.correlation_s,
             n.pieces,
-            n.white_noise_factor.sqrt()
+            white_noise_words(n.white_noise_factor)
         );
         // The corrections over each stretch of the survey (pieces less than 2 s apart; seconds
         // from the first), as means with the pieces' mean sigma (report.json has every piece).
@@ -367,4 +377,19 @@ pub fn render_montecarlo(r: &McReport) -> String {
     }
     o.push('\n');
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A refusal before the least squares has no variance factor: said in words, never NaN.
+    #[test]
+    fn white_noise_without_a_fit_is_no_nan() {
+        assert_eq!(white_noise_words(1.21), "white noise x1.10 the declared");
+        for v in [f64::NAN, f64::INFINITY, -1.0] {
+            let w = white_noise_words(v);
+            assert!(w.contains("not estimated") && !w.contains("NaN"), "{w}");
+        }
+    }
 }

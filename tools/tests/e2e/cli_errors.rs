@@ -374,9 +374,61 @@ fn outputs_are_whole_or_absent() {
     let out = child.wait_with_output().unwrap();
     let se = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "{se}");
-    assert!(se.contains("nothing half-written is left"), "{se}");
+    assert!(
+        se.contains("interrupted: removed ") && se.contains("lidar.pcap (unfinished)"),
+        "{se}"
+    );
     let left: Vec<_> = std::fs::read_dir(&s_dir).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
+
+    // Ctrl-C during calibrate's LAS, its report.json already written: both are gone, and the
+    // message names them (one run's outputs are all there or none).
+    let t_dir = common::tmp("outputs", "table1");
+    spherecal_tools::synth::synth(&Scenario::load("table1").unwrap(), &t_dir).unwrap();
+    let c_dir = common::tmp("outputs", "calibrate-interrupted");
+    std::fs::create_dir_all(&c_dir).unwrap();
+    let (report, las, html) = (
+        c_dir.join("r.json"),
+        c_dir.join("x.las"),
+        c_dir.join("r.html"),
+    );
+    let (pcap1, ins1, site1) = (
+        t_dir.join("lidar.pcap"),
+        t_dir.join("ins.bin"),
+        t_dir.join("site.toml"),
+    );
+    let mut args = calibrate(&pcap1, "--ins", &ins1, &site1, &[]);
+    for (k, p) in [("--report", &report), ("--las", &las), ("--html", &html)] {
+        args.extend([k.into(), p.clone().into()]);
+    }
+    let child = common::spherecal()
+        .args(&args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let partial = c_dir.join(".x.las.partial");
+    let t0 = std::time::Instant::now();
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 1 << 20 {
+        assert!(
+            t0.elapsed().as_secs() < 120,
+            "calibrate never wrote 1 MB of LAS"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    kill(Pid::from_raw(child.id() as i32), Signal::SIGINT).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{se}");
+    assert!(
+        se.contains(&report.display().to_string())
+            && se.contains(&format!("{} (unfinished)", las.display())),
+        "{se}"
+    );
+    let left: Vec<_> = std::fs::read_dir(&c_dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+    let _ = std::fs::remove_dir_all(&c_dir);
+    let _ = std::fs::remove_dir_all(&t_dir);
     for d in [dir, out_dir, s_dir] {
         std::fs::remove_dir_all(d).unwrap();
     }

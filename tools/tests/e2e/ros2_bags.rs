@@ -492,3 +492,92 @@ with Reader(sys.argv[1]) as r:
     assert!(t.contains("MCAP raw log"), "{t}");
     assert_eq!(common::report_deg_m(&r), common::report_deg_m(&from_pcap));
 }
+
+/// A bag as a recorder leaves it when things go wrong (issue 46): its MCAP cut short (the
+/// recorder killed) is read up to its last whole chunk and the cut said with the recovery
+/// tools, not refused whole; a folder without metadata.yaml, or whose metadata.yaml promises
+/// more messages than the files hold, is said; a metadata.yaml listing a file outside the
+/// bag's folder is refused naming it.
+#[test]
+fn a_bag_cut_short_or_with_a_wrong_metadata_is_read_and_said() {
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let d = dir("cut");
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    let bag = d.join("rec");
+    write_bag(&d, &bag, &["--storage", "mcap"]);
+    let mcap = std::fs::read_dir(&bag)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .unwrap();
+    let meta = bag.join("metadata.yaml");
+    let yaml = std::fs::read_to_string(&meta).unwrap();
+    let info = |b: &Path| {
+        common::spherecal()
+            .args(["bag", "info"])
+            .arg(b)
+            .output()
+            .unwrap()
+    };
+
+    // metadata.yaml promising more than the files hold.
+    let count: u64 = yaml
+        .lines()
+        .find_map(|l| l.strip_prefix("  message_count: "))
+        .expect("rosbags writes the bag's message_count")
+        .trim()
+        .parse()
+        .unwrap();
+    std::fs::write(
+        &meta,
+        yaml.replacen(
+            &format!("\n  message_count: {count}\n"),
+            &format!("\n  message_count: {}\n", count + 500),
+            1,
+        ),
+    )
+    .unwrap();
+    let t = text(&info(&bag));
+    assert!(
+        t.contains(&format!(
+            "promises {} messages, the files hold {count}",
+            count + 500
+        )),
+        "{t}"
+    );
+    // A file outside the bag's folder.
+    let name = mcap.file_name().unwrap().to_string_lossy().into_owned();
+    std::fs::write(&meta, yaml.replace(&name, &format!("../{name}"))).unwrap();
+    let o = info(&bag);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("not in the bag's folder"), "{}", text(&o));
+    // No metadata.yaml.
+    std::fs::remove_file(&meta).unwrap();
+    let t = text(&info(&bag));
+    assert!(t.contains("no metadata.yaml"), "{t}");
+
+    // The recording cut at 70 %: read up to its last whole chunk; calibrated or refused on
+    // the data, never refused whole as an unreadable file.
+    let bytes = std::fs::read(&mcap).unwrap();
+    std::fs::write(&mcap, &bytes[..bytes.len() * 7 / 10]).unwrap();
+    let report = d.join("cut.json");
+    let o = common::spherecal()
+        .arg("calibrate")
+        .arg("--bag")
+        .arg(&bag)
+        .arg("--site")
+        .arg(d.join("site.toml"))
+        .args(["--allow-unlocked-clock", "--search-time-offset", "0.5"])
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert_ne!(o.status.code(), Some(2), "{t}");
+    assert!(
+        t.contains("is cut short at byte") && t.contains("mcap recover"),
+        "{t}"
+    );
+    assert!(t.contains("WARNING: a capture is truncated"), "{t}");
+    std::fs::remove_dir_all(d).unwrap();
+}

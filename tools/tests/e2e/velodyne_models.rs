@@ -272,3 +272,30 @@ fn a_product_byte_that_lies_is_refused_and_overridden() {
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("vlp16|puck-hires|hdl32e|vlp32c"), "{text}");
 }
+
+/// `calibrate --model hdl32e` on a VLP-16's capture (its product byte and period agree) is
+/// refused naming both models before anything is decoded (issue 46: it was refused as
+/// "ambiguous ... a buoy" after a whole solve).
+#[test]
+fn a_model_the_packets_contradict_is_refused_by_calibrate() {
+    let d = common::tmp("models", "wrong-model");
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    spherecal_tools::synth::synth(&s, &d).unwrap();
+    let out = common::spherecal()
+        .arg("calibrate")
+        .args(common::survey_args(&d))
+        .args(["--model", "hdl32e"])
+        .output()
+        .unwrap();
+    let t = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(out.status.code(), Some(2), "{t}");
+    assert!(
+        t.contains("--model hdl32e") && t.contains("VLP-16 data packets") && t.contains("0x22"),
+        "{t}"
+    );
+    let _ = std::fs::remove_dir_all(d);
+}
