@@ -190,7 +190,7 @@ pub fn run_calibrate(
     let mut text = format!("{datums}\n");
     // A bag's own account of itself (no metadata.yaml, messages it promises but lacks).
     if let Some(b) = pipeline::as_bag(&inp.pcap) {
-        if let Ok(o) = crate::bag::open(&b, inp.lidar_topic.as_deref(), None, false) {
+        if let Ok(o) = crate::bag::open(b, inp.lidar_topic.as_deref(), None, false) {
             for n in o.notes() {
                 text.push_str(&n);
                 text.push('\n');
