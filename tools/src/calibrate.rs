@@ -401,6 +401,31 @@ pub fn write_returns(
     w.commit()
 }
 
+/// When the collections at the time offsets found do not settle (the last of five, solved at
+/// the offset the one before found, still moves it by many of its own sigmas: the returns fix
+/// no one offset, and whichever the last collection lands on would be claimed with a sigma
+/// that does not hold; drone-noisy seed 1085's trial went 0 -> +18.9 -> +2.4 -> +5.4 -> +3.5
+/// -> +19.1 ms, each +- 2-3 ms), the refusal in words. `found`: each collection's offset and
+/// sigma [s].
+fn unsettled_offset(found: &[(f64, f64)]) -> Option<String> {
+    let last = found.len().checked_sub(1)?;
+    let (lo, hi) = found
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, f| {
+            (a.0.min(f.0), a.1.max(f.0))
+        });
+    let sigma = found[last].1;
+    let moved = (found[last].0 - found[last.checked_sub(1)?].0).abs();
+    (sigma.is_finite() && sigma > 0.0 && moved > 3.0 * sigma && hi - lo > 3.0 * sigma).then(|| {
+        let list: Vec<String> = found.iter().map(|f| format!("{:+.1}", f.0 * 1e3)).collect();
+        format!(
+            "the time offset does not settle: solved again at each offset found, the collections give {} ms (each +- {:.1} ms): the returns fix no one offset; hold it (--time-offset S --hold-time-offset) if the clocks are known to agree, or survey with turns and speed changes",
+            list.join(", "),
+            sigma * 1e3
+        )
+    })
+}
+
 /// The whole calibration of the files of `inp` from `b0` [rad, m]: collect the windows,
 /// solve; with the time offset estimated, collect them again at the offset found until it
 /// moves by less than 0.5 ms (the solver's estimate is first-order in the offset the poses were
@@ -518,8 +543,12 @@ pub fn calibrate(
     }
     let mut applied = start;
     let mut collections = 1;
+    // Each collection's time offset [s] (the windows' plus the solve's) and its sigma.
+    let mut found: Vec<(f64, f64)> = Vec::new();
+    let unsettled;
     let (stats, obs, sol, mut rep) = loop {
         let (stats, obs, sol, rep) = first;
+        found.push((applied + sol.dt, sol.lm.map_or(f64::NAN, |l| l.sigma_dt)));
         // Again with the offset found, while it moves enough to matter (the session's one
         // rule), at most five collections.
         let next = crate::session::next_offset(
@@ -530,12 +559,18 @@ pub fn calibrate(
             sol.lm.is_some_and(|l| l.converged),
         );
         let Some(next) = next.filter(|_| collections < 5) else {
+            // At the last collection still moving: not settled.
+            unsettled = next.is_some();
             break (stats, obs, sol, rep);
         };
         applied = next;
         first = attempt(applied)?;
         collections += 1;
     };
+    if let (true, true, Some(why)) = (rep.converged, unsettled, unsettled_offset(&found)) {
+        rep.converged = false;
+        rep.reason = Some(why);
+    }
     spinner.finish_and_clear();
     rep.time_offset_search = searched;
     rep.start.insert("time_offset".to_string(), start);
