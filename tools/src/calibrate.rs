@@ -323,6 +323,9 @@ pub fn solve_report_in(
             crate::report::NavigationReport::of(&m, sol.nav.as_ref(), pieces, s, ids)
         }),
         set_aside: Vec::new(),
+        targets: None,
+        conventions: None,
+        provenance: None,
         clutter_rejected: sol
             .spheres
             .iter()

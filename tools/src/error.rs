@@ -14,7 +14,7 @@ pub enum ErrorKind {
     BadInput,
     /// The inputs were read but no result can be claimed from them: exit 1.
     Refused,
-    /// A fault of spherecal itself (a worker thread that panicked): exit 3, please report.
+    /// A fault of spherecal itself (a worker thread that panicked): exit 4, please report.
     Internal,
 }
 
@@ -24,7 +24,7 @@ impl ErrorKind {
         match self {
             ErrorKind::Refused => 1,
             ErrorKind::BadInput => 2,
-            ErrorKind::Internal => 3,
+            ErrorKind::Internal => 4,
         }
     }
 }
@@ -103,7 +103,7 @@ mod tests {
         assert_eq!((e.kind(), e.kind().exit_code()), (ErrorKind::BadInput, 2));
         assert_eq!(Error::new(ErrorKind::Refused, "x").kind().exit_code(), 1);
         let i = Error::internal("the LiDAR reader panicked");
-        assert_eq!(i.kind().exit_code(), 3);
+        assert_eq!(i.kind().exit_code(), 4);
         assert!(i
             .to_string()
             .starts_with("internal error: the LiDAR reader panicked"));

@@ -43,6 +43,7 @@ table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;padding:
 th{background:#f2f2f2}td.l,th.l{text-align:left}
 .ok{background:#e3f4e3;border:2px solid #3a3;padding:10px 14px;font-size:17px}
 .no{background:#fbe4e4;border:2px solid #c33;padding:10px 14px;font-size:17px}
+.short{background:#fdf3d8;border:2px solid #c90;padding:10px 14px;font-size:17px}
 .figs{display:flex;flex-wrap:wrap;gap:6px}.figs svg{border:1px solid #ddd}
 .note{color:#555;font-size:13px}tr.dim td{color:#999}";
 
@@ -82,10 +83,24 @@ pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Er
 
 fn verdict(o: &mut String, r: &Report) {
     match &r.reason {
-        None => {
+        None if r.targets.as_ref().is_some_and(|t| !t.met) => {
+            let t = r.targets.as_ref().map(|t| t.words(r)).unwrap_or_default();
             let _ = writeln!(
                 o,
-                "<p class=\"ok\"><b>Converged.</b> The solution passed the consistency tests (residuals as the noise model predicts, every pass agreeing, the geometry well conditioned).</p>"
+                "<p class=\"short\"><b>Converged, but the sigmas miss the targets: not enough to use.</b> The solution passed the consistency tests, but {} More passes or better sensors bring them in (<code>spherecal plan</code>). Exit 3.</p>",
+                escape(&format!("{t}."))
+            );
+        }
+        None => {
+            let t = r
+                .targets
+                .as_ref()
+                .map(|t| format!(" {}.", t.words(r)))
+                .unwrap_or_default();
+            let _ = writeln!(
+                o,
+                "<p class=\"ok\"><b>Converged.</b> The solution passed the consistency tests (residuals as the noise model predicts, every pass agreeing, the geometry well conditioned).{}</p>",
+                escape(&t)
             );
         }
         Some(why) => {

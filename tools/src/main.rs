@@ -1,6 +1,7 @@
 //! `spherecal`: the command (README.md; docs/DESIGN.md for the contract). Each subcommand
-//! lives in `spherecal_tools::cmd`. Exit codes: 0 success; 1 calibration refused; 2 bad
-//! arguments or unreadable input.
+//! lives in `spherecal_tools::cmd`. Exit codes ([`cmd::EXIT_CODES`]): 0 converged and within
+//! its targets; 1 refused; 2 bad input; 3 converged but the sigmas miss the targets; 4 an
+//! internal fault.
 
 use clap::{Parser, Subcommand};
 use spherecal_tools::cmd;
@@ -10,7 +11,8 @@ use std::process::ExitCode;
 #[command(
     name = "spherecal",
     version,
-    about = "LiDAR boresight / lever-arm calibration on spheres"
+    about = "LiDAR boresight / lever-arm calibration on spheres",
+    after_help = cmd::EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -26,6 +28,7 @@ enum Cmd {
     /// Georeference a survey: align the LiDAR with the trajectory, keep the sphere windows.
     Georef(cmd::georef::Args),
     /// Calibrate: georeference, window, solve for boresight and lever arm, report.
+    #[command(after_help = cmd::EXIT_CODES)]
     Calibrate(cmd::calibrate::Args),
     /// Calibrate one synthetic survey from many perturbed starts, on all cores.
     Montecarlo(cmd::montecarlo::Args),

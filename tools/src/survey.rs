@@ -172,6 +172,7 @@ pub fn run_calibrate(
         }
         (None, None, None) => return Err("give --ins, --sbet or --posmv".into()),
     };
+    let surveyed = site.clone();
     let (site, datums) =
         pipeline::site_in_trajectory_datum(&site, &ins, survey.trajectory_datum.as_deref())?;
     if out.las.is_some() {
@@ -186,7 +187,7 @@ pub fn run_calibrate(
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     inp.exclude = survey.exclude.clone();
     let (targets, ids) = calibrate::site_targets(&inp);
-    let (stats, obs, sol, rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
+    let (stats, obs, sol, mut rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
     let mut text = format!("{datums}\n");
     // A bag's own account of itself (no metadata.yaml, messages it promises but lacks).
     if let Some(b) = pipeline::as_bag(&inp.pcap) {
@@ -203,6 +204,10 @@ pub fn run_calibrate(
         stats.align.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
+    let goal = crate::config::goal::TargetChoice::of(inp.site.calibration.as_ref(), None);
+    rep.targets = Some(report::TargetsReport::of(&rep, &goal));
+    rep.conventions = Some(report::conventions::Conventions::of(&sol.b.0));
+    rep.provenance = Some(provenance(&inp, &survey.site, &surveyed, &datums, &stats)?);
     text.push_str(&report::render(&rep, truth.as_ref()));
     // The result is printed whatever happens to the files: an output that fails now (a disk
     // full, a mount gone) is said after it, not instead of it.
@@ -257,6 +262,7 @@ pub fn run_calibrate(
     Ok(Calibrated {
         text,
         converged: rep.converged,
+        met: rep.targets.as_ref().is_some_and(|t| t.met),
         output_errors,
     })
 }
@@ -269,6 +275,46 @@ pub struct Calibrated {
     pub text: String,
     /// A solution is claimed (every check passed).
     pub converged: bool,
+    /// ... and every sigma is within its target (`report.json` `targets`).
+    pub met: bool,
     /// Outputs that failed, each naming its file.
     pub output_errors: Vec<String>,
+}
+
+/// Where this calibration came from: the command line, the build, each input file with its
+/// hash and the span its data cover, the site as surveyed and the datums' transformation.
+fn provenance(
+    inp: &pipeline::Inputs,
+    site_path: &std::path::Path,
+    surveyed: &config::site::Site,
+    datums: &str,
+    stats: &pipeline::RunStats,
+) -> Result<report::provenance::Provenance, crate::Error> {
+    use report::provenance::{InputFile, Provenance, SiteProvenance};
+    let mut inputs: Vec<InputFile> = Vec::new();
+    for (role, files, span) in [
+        ("lidar", &inp.pcap, stats.align.lidar_span),
+        ("ins", inp.ins_files(), stats.ins.span),
+    ] {
+        // A bag is one input (its folder's files hashed together).
+        let paths = match pipeline::as_bag(files) {
+            Some(b) => vec![b.to_path_buf()],
+            None => files.expand()?,
+        };
+        for f in paths {
+            if !inputs.iter().any(|i| i.path == f.display().to_string()) {
+                inputs.push(InputFile::of(role, &f, span)?);
+            }
+        }
+    }
+    if let Some(a) = &inp.accuracy {
+        inputs.push(InputFile::of("accuracy", a, None)?);
+    }
+    Ok(Provenance {
+        command: std::env::args().collect(),
+        version: report::provenance::version(),
+        made_utc: chrono::Utc::now().format("%Y-%m-%dT%H:%M:%SZ").to_string(),
+        inputs,
+        site: SiteProvenance::of(site_path, surveyed, &inp.site, datums)?,
+    })
 }

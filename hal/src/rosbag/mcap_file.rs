@@ -236,8 +236,11 @@ pub(super) fn summary_topics(path: &Path) -> Result<Option<Vec<super::TopicStats
                 let got = file.read(rd.insert(n)).map_err(|e| BagError::io(path, e))?;
                 rd.notify_read(got);
             }
+            // A file shorter than its footer (cut short) has no summary to seek to.
             SummaryReadEvent::SeekRequest(to) => {
-                let at = file.seek(to).map_err(|e| BagError::io(path, e))?;
+                let Ok(at) = file.seek(to) else {
+                    return Ok(None);
+                };
                 rd.notify_seeked(at);
             }
         }
@@ -248,6 +251,14 @@ pub(super) fn summary_topics(path: &Path) -> Result<Option<Vec<super::TopicStats
     let Some(stats) = s.stats else {
         return Ok(None);
     };
+    // The file's span (its statistics give it for all channels together).
+    let span = (stats.message_end_time >= stats.message_start_time && stats.message_count > 0)
+        .then(|| {
+            (
+                i64::try_from(stats.message_start_time).unwrap_or(i64::MAX),
+                i64::try_from(stats.message_end_time).unwrap_or(i64::MAX),
+            )
+        });
     let mut ids: Vec<&u16> = s.channels.keys().collect();
     ids.sort();
     let mut out: Vec<super::TopicStats> = Vec::new();
@@ -265,11 +276,7 @@ pub(super) fn summary_topics(path: &Path) -> Result<Option<Vec<super::TopicStats
         };
         match out.iter_mut().find(|t| t.topic.name == topic.name) {
             Some(t) => t.count += count,
-            None => out.push(super::TopicStats {
-                topic,
-                count,
-                span: None,
-            }),
+            None => out.push(super::TopicStats { topic, count, span }),
         }
     }
     Ok(Some(out))

@@ -161,6 +161,10 @@ pub fn is_bag(path: &Path) -> bool {
     }
 }
 
+/// The files of one recording split by the recorder follow one another: the next starts within
+/// this of where the one before ended [ns].
+pub const SPLIT_GAP_NS: i64 = 10_000_000_000;
+
 impl Bag {
     /// Open what `path` names: a bag folder (the files its metadata.yaml lists, else its
     /// `.mcap` / `.db3` files by name), or one file (its storage from its first bytes).
@@ -229,11 +233,75 @@ impl Bag {
             };
             files.push((f, s));
         }
-        Ok(Self {
+        let bag = Self {
             path: path.to_path_buf(),
             files,
             metadata,
-        })
+        };
+        if bag.metadata.is_none() && bag.files.len() > 1 {
+            bag.check_one_recording()?;
+        }
+        Ok(bag)
+    }
+
+    /// A folder of files without a metadata.yaml to tie them: they are one recording split
+    /// into files only when each starts within [`SPLIT_GAP_NS`] of where the one before
+    /// ended; else they are unrelated recordings (a folder of bags) and refused, each named
+    /// with its span, to choose one.
+    fn check_one_recording(&self) -> Result<(), BagError> {
+        let mut spans: Vec<(PathBuf, Option<(i64, i64)>)> = Vec::new();
+        for (f, s) in &self.files {
+            let one = Bag {
+                path: f.clone(),
+                files: vec![(f.clone(), *s)],
+                metadata: None,
+            };
+            let span = one
+                .topic_list()?
+                .iter()
+                .filter_map(|t| t.span)
+                .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+            spans.push((f.clone(), span));
+        }
+        spans.sort_by_key(|s| s.1.map_or(i64::MAX, |s| s.0));
+        let apart = spans.windows(2).any(|w| match (w[0].1, w[1].1) {
+            (Some(a), Some(b)) => b.0 > a.1.saturating_add(SPLIT_GAP_NS),
+            _ => false,
+        });
+        if !apart {
+            return Ok(());
+        }
+        let list: Vec<String> = spans
+            .iter()
+            .map(|(f, s)| {
+                let name = f
+                    .file_name()
+                    .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+                match s {
+                    Some((a, b)) => {
+                        let secs = a.div_euclid(1_000_000_000);
+                        let (y, mo, d) = spherecal::time::civil_from_days(secs.div_euclid(86_400));
+                        let t = secs.rem_euclid(86_400);
+                        format!(
+                            "{name} ({:.1} s from {y:04}-{mo:02}-{d:02} {:02}:{:02}:{:02} UTC)",
+                            (b - a) as f64 * 1e-9,
+                            t / 3600,
+                            t / 60 % 60,
+                            t % 60
+                        )
+                    }
+                    None => format!("{name} (no message)"),
+                }
+            })
+            .collect();
+        Err(BagError::new(
+            &self.path,
+            format!(
+                "holds {} recordings whose times do not follow one another and no metadata.yaml ties them: {}; give one of them (its file, or its own folder)",
+                spans.len(),
+                list.join(", ")
+            ),
+        ))
     }
 
     /// The storage(s), for people: `mcap`, `sqlite3`, or both joined.

@@ -204,22 +204,24 @@ fn a_cut_or_foreign_file_is_an_error_naming_it() {
         whole.len() - 20,
         whole.len() - 1,
     ] {
+        // A file cut short (a recorder killed): its whole chunks read, the cut said with
+        // where it is (issue 46: it was refused whole).
         let p = scratch("cut.mcap", &whole[..cut]);
         let bag = Bag::open(&p).unwrap();
         let mut m = bag.messages(&[]);
-        let err = loop {
-            match m.next() {
-                Ok(Some(_)) => {}
-                Ok(None) => panic!("cut at {cut}: read to the end"),
-                Err(e) => break e,
-            }
-        };
+        let mut n = 0;
+        while m.next().unwrap().is_some() {
+            n += 1;
+        }
+        assert_eq!(m.cut().len(), 1, "cut at {cut}: {n} messages, no cut said");
+        let (f, at) = &m.cut()[0];
         assert!(
-            err.to_string().contains("cut.mcap") && err.what.contains("not a complete MCAP"),
-            "{cut}: {err}"
+            f.ends_with("cut.mcap") && *at <= cut as u64,
+            "{cut}: {f:?} {at}"
         );
-        // Its topics cannot be had from a summary: counted from what is there, then the error.
-        assert!(bag.topic_list().is_err());
+        // Its topics cannot be had from a summary: counted from what is there.
+        let tl = bag.topic_list();
+        assert!(tl.is_ok(), "{cut}: {:?}", tl.err());
     }
     let db = std::fs::read(data("small_jazzy/small_jazzy.db3")).unwrap();
     let p = scratch("cut.db3", &db[..db.len() / 2]);
@@ -546,4 +548,28 @@ fn a_time_reference_is_gps_or_utc_by_the_hosts_clock() {
         Some((utc as i64 - 315_964_800 + 18 - 1_718_189_965) * 1_000_000_000 + 500)
     );
     assert_eq!(r(12_345).gps_minus_host_ns(18), None);
+}
+
+/// A folder of unrelated recordings without a metadata.yaml (issue 46/47: six test bags read as
+/// one recording of 8.4 years) is refused naming each with its span; files of one recording,
+/// or overlapping in time, open.
+#[test]
+fn a_folder_of_unrelated_recordings_is_refused_naming_them() {
+    let d = std::env::temp_dir().join(format!("spherecal-rosbag-folder-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    for f in ["mrpt_vlp16_clouds.mcap", "small_zstd.mcap"] {
+        std::fs::copy(data(f), d.join(f)).unwrap();
+    }
+    let e = Bag::open(&d).unwrap_err().to_string();
+    assert!(
+        e.contains("holds 2 recordings whose times do not follow one another")
+            && e.contains("mrpt_vlp16_clouds.mcap (0.1 s from 2016-01-21 08:18:02 UTC)")
+            && e.contains("small_zstd.mcap"),
+        "{e}"
+    );
+    std::fs::remove_file(d.join("mrpt_vlp16_clouds.mcap")).unwrap();
+    std::fs::copy(data("small_lz4.mcap"), d.join("small_lz4.mcap")).unwrap();
+    assert!(Bag::open(&d).is_ok());
+    std::fs::remove_dir_all(&d).unwrap();
 }

@@ -550,14 +550,23 @@ pub fn decode_bag(
         None => crate::decode::identify_source(open()?, spherecal_hal::velodyne::Ports::default())
             .map_err(|e| err(crate::decode::DecodeFailure::Model(e)))?,
     };
-    crate::decode::decode_packets(open()?, csv, chosen, |e| {
+    let mut src = open()?;
+    let mut s = crate::decode::decode_packets(&mut src, csv, chosen, |e| {
         Ok::<_, std::io::Error>(e.to_string())
     })
     .map_err(|e| {
         err(crate::decode::DecodeFailure::Pcap(
             spherecal_hal::pcap::PcapError::from(e),
         ))
-    })
+    })?;
+    // An MCAP cut short: what came before its cut was decoded; said as a truncated capture.
+    for (_, at) in src.cut() {
+        s.skips.count(
+            *at,
+            &spherecal_hal::packet::SkipReason::TruncatedFile { left: 0 },
+        );
+    }
+    Ok(s)
 }
 
 /// Decode a bag's point clouds: their returns (CSV rows as for packets, the packet column

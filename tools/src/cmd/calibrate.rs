@@ -108,7 +108,8 @@ pub fn run(a: Args) -> ExitCode {
     match crate::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None) {
         Ok(c) => {
             say!("{}", c.text);
-            super::outputs_failed("calibrate", &c.output_errors).unwrap_or(claimed(c.converged))
+            super::outputs_failed("calibrate", &c.output_errors)
+                .unwrap_or(claimed(c.converged, c.met))
         }
         Err(e) => super::fail("calibrate", e),
     }

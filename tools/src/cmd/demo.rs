@@ -85,7 +85,7 @@ pub fn run(a: Args) -> ExitCode {
                 "the survey's files are in {d}/ (lidar.pcap, ins.bin, site.toml, truth.json); try\n  spherecal calibrate --pcap {d}/lidar.pcap --ins {d}/ins.bin --site {d}/site.toml",
                 d = dir.display()
             );
-            claimed(c.converged)
+            claimed(c.converged, c.met)
         }
         Err(e) => fail("demo", e),
     };

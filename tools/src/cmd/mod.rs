@@ -64,14 +64,21 @@ fn print_or_fail(cmd: &str, r: Result<String, crate::Error>) -> ExitCode {
     }
 }
 
-/// Exit 0 when the result is claimed, else that of a refusal (1).
-fn claimed(ok: bool) -> ExitCode {
-    if ok {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(crate::ErrorKind::Refused.exit_code())
+/// The exit code of a calibration (the command contract): 0 claimed and every sigma within
+/// its target, 3 claimed but some sigma misses its target, 1 refused.
+fn claimed(converged: bool, met: bool) -> ExitCode {
+    match (converged, met) {
+        (true, true) => ExitCode::SUCCESS,
+        (true, false) => ExitCode::from(MISSES_TARGETS),
+        _ => ExitCode::from(crate::ErrorKind::Refused.exit_code()),
     }
 }
+
+/// Exit code of a calibration that converged but whose sigmas miss the targets.
+pub const MISSES_TARGETS: u8 = 3;
+
+/// The exit codes, for `--help`.
+pub const EXIT_CODES: &str = "Exit codes: 0 converged and every sigma within its target; 1 refused (the reason first); 2 bad input (the file, offset and reason); 3 converged, but the sigmas miss the targets ([calibration] target_sigma_deg / target_sigma_m in the site, else the board's, else 0.01 deg and 5 mm); 4 an internal fault of spherecal (a bug to report).";
 
 /// The recorded survey: capture, trajectory and site.
 #[derive(clap::Args, Debug, Clone)]

@@ -151,7 +151,7 @@ pub fn run(a: Args) -> ExitCode {
         }
         sayln!("wrote {}", p.display());
     }
-    claimed(r.meets)
+    claimed(r.meets, true)
 }
 
 /// A scenario as a TOML file to edit, under a comment line.

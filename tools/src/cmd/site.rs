@@ -30,9 +30,16 @@ pub struct ImportArgs {
     /// CRS of easting, northing (`EPSG:n`; a geographic CRS takes longitude, latitude [deg]).
     #[arg(long)]
     pub crs: String,
-    /// What the heights are: `ellipsoidal` (on the CRS's datum) or `orthometric`.
-    #[arg(long, default_value = "ellipsoidal")]
+    /// What the heights are (required: a wrong guess puts every sphere tens of metres off):
+    /// `ellipsoidal` (above the CRS datum's ellipsoid, as GNSS gives them) or `orthometric`
+    /// (above the geoid: levelled heights, a chart's land datum; then --geoid-n or --geoid).
+    #[arg(long)]
     pub height: HeightSystem,
+    /// The unit of the heights: `m`, `us-ft` (US survey foot) or `ft` (international foot).
+    /// Required when the CRS's unit is not the metre (e.g. EPSG:2248, US survey feet), unless
+    /// the CSV's header names it (`Elevation (ft)`, `Z_usft`, `Height [m]`).
+    #[arg(long)]
+    pub height_unit: Option<crate::config::crs::HeightUnit>,
     /// Geoid undulation N [m] for orthometric heights (h = H + N), one for the site ...
     #[arg(long, allow_negative_numbers = true, value_parser = super::finite, conflicts_with = "geoid")]
     pub geoid_n: Option<f64>,
@@ -55,6 +62,13 @@ pub struct ImportArgs {
     /// Window margin beyond the radius [m] (how far the a-priori mounting may be off there).
     #[arg(long, default_value_t = 2.5, allow_hyphen_values = true, value_parser = super::positive)]
     pub margin: f64,
+    /// The INS's errors that wander, as a preset: posmv-rtk, posmv-pp, posmv-quebec, apx15,
+    /// apx18, vn200-rtk, vn200-gnss, or white (`[ins.correlated]` in the site). Without it the
+    /// calibration takes what the INS states of its own accuracy (a VN-200 configured to send
+    /// PosU/YprU, a POS MV's Group 2, an SBET's smrmsg), else its kind's default: a VN-200's is
+    /// its own GNSS's, metre-level, and the lever arm's height then goes undetermined.
+    #[arg(long, value_parser = ins_preset)]
+    pub ins: Option<String>,
     /// The site file to write.
     #[arg(short, long)]
     pub out: PathBuf,
@@ -109,6 +123,7 @@ fn import(a: &ImportArgs) -> Result<String, crate::Error> {
             geoid_undulation_m: a.geoid_n,
             geoid_grid,
             vertical_epsg,
+            height_unit: a.height_unit,
         },
         radius_m: a.radius,
         leap_seconds: a.leap_seconds,
@@ -119,7 +134,12 @@ fn import(a: &ImportArgs) -> Result<String, crate::Error> {
         },
         base,
     };
-    let (site, columns) = import_csv(&text, &a.csv.display().to_string(), &o)?;
+    let (mut site, columns) = import_csv(&text, &a.csv.display().to_string(), &o)?;
+    if let Some(p) = &a.ins {
+        site.ins = Some(crate::config::site::SiteIns {
+            correlated: crate::config::nav_errors::CorrelatedSpec::preset_only(p),
+        });
+    }
     let datum = site.datum();
     let heights = match (a.height, a.geoid_n, &a.geoid) {
         (HeightSystem::Ellipsoidal, _, _) => "ellipsoidal heights".to_string(),
@@ -142,12 +162,30 @@ fn import(a: &ImportArgs) -> Result<String, crate::Error> {
         a.out.display(),
         datum.label()
     );
+    let unit = site
+        .crs
+        .as_ref()
+        .and_then(|c| c.height_unit)
+        .unwrap_or_default();
     for s in &site.sphere {
+        let given = match (unit, s.height_m) {
+            (crate::config::crs::HeightUnit::Metre, _) | (_, None) => String::new(),
+            (u, Some(m)) => format!(
+                " (surveyed {:.4} {}: x {})",
+                m / u.metres(),
+                u.key(),
+                u.metres()
+            ),
+        };
         out += &format!(
-            "  {:<8} lat {:>14.9} lon {:>14.9} h {:>9.4} m  r {} m\n",
+            "  {:<8} lat {:>14.9} lon {:>14.9} h {:>9.4} m{given}  r {} m\n",
             s.id, s.lat_deg, s.lon_deg, s.h_m, s.radius_m
         );
     }
+    out += &match &a.ins {
+        Some(p) => format!("navigation errors: [ins.correlated] preset \"{p}\" (--ins)\n"),
+        None => "navigation errors: none declared: calibrate takes what the INS states of its own accuracy (a VN-200 sending PosU/YprU, a POS MV's Group 2, an SBET's smrmsg), else its kind's default, for a VN-200 its own GNSS's, metre-level (the lever arm's height is then not determined); declare yours with --ins PRESET (vn200-rtk, posmv-rtk, ...)\n".into(),
+    };
     Ok(out)
 }
 
@@ -171,4 +209,17 @@ fn vertical_code(v: &str) -> Result<u16, String> {
         ));
     }
     Ok(code)
+}
+
+/// A preset of `[ins.correlated]` by its key.
+fn ins_preset(s: &str) -> Result<String, String> {
+    let keys: Vec<&str> = crate::config::nav_errors::PRESETS
+        .iter()
+        .map(|p| p.key)
+        .collect();
+    if keys.contains(&s) {
+        Ok(s.to_string())
+    } else {
+        Err(format!("{s:?}: expected one of {}", keys.join(", ")))
+    }
 }

@@ -35,7 +35,91 @@ impl std::fmt::Debug for Crs {
 /// WGS84 geographic, 3D (the GNSS/INS's frame).
 const WGS84: &str = "+proj=longlat +datum=WGS84 +no_defs";
 
+/// The unit heights are given in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum HeightUnit {
+    /// Metres.
+    #[default]
+    #[serde(rename = "m")]
+    Metre,
+    /// The US survey foot (1200/3937 m: US State Plane CRSs in feet, e.g. EPSG:2248).
+    #[serde(rename = "us-ft")]
+    UsFoot,
+    /// The international foot (0.3048 m).
+    #[serde(rename = "ft")]
+    Foot,
+}
+
+impl HeightUnit {
+    /// Metres per unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            HeightUnit::Metre => 1.0,
+            HeightUnit::UsFoot => 1200.0 / 3937.0,
+            HeightUnit::Foot => 0.3048,
+        }
+    }
+
+    /// Its name as `--height-unit` takes it.
+    pub fn key(self) -> &'static str {
+        match self {
+            HeightUnit::Metre => "m",
+            HeightUnit::UsFoot => "us-ft",
+            HeightUnit::Foot => "ft",
+        }
+    }
+
+    /// A unit from its spelling in an option or a CSV header (`m`, `metre(s)`, `meter(s)`,
+    /// `us-ft`, `usft`, `sft`, `ftus`, `us survey foot`, `ft`, `feet`, `foot`, `intl ft`).
+    pub fn parse(s: &str) -> Option<Self> {
+        let w: String = s
+            .trim()
+            .to_ascii_lowercase()
+            .chars()
+            .filter(|c| c.is_ascii_alphanumeric())
+            .collect();
+        Some(match w.as_str() {
+            "m" | "metre" | "metres" | "meter" | "meters" => HeightUnit::Metre,
+            "usft" | "sft" | "ftus" | "ussurveyfoot" | "ussurveyfeet" | "surveyfoot"
+            | "surveyfeet" => HeightUnit::UsFoot,
+            "ft" | "feet" | "foot" | "intlft" | "ift" | "internationalfoot" => HeightUnit::Foot,
+            _ => return None,
+        })
+    }
+}
+
+impl std::str::FromStr for HeightUnit {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s).ok_or_else(|| format!("{s:?}: expected m, us-ft or ft"))
+    }
+}
+
 impl Crs {
+    /// The unit of its projected coordinates, from its definition (`+units=`, `+to_meter=`):
+    /// metres for a geographic CRS and when it says none.
+    pub fn linear_unit(&self) -> HeightUnit {
+        for t in self.proj4.split_whitespace() {
+            match t {
+                "+units=us-ft" => return HeightUnit::UsFoot,
+                "+units=ft" => return HeightUnit::Foot,
+                _ => {}
+            }
+            if let Some(v) = t
+                .strip_prefix("+to_meter=")
+                .and_then(|v| v.parse::<f64>().ok())
+            {
+                if (v - HeightUnit::UsFoot.metres()).abs() < 1e-9 {
+                    return HeightUnit::UsFoot;
+                }
+                if (v - 0.3048).abs() < 1e-9 {
+                    return HeightUnit::Foot;
+                }
+            }
+        }
+        HeightUnit::Metre
+    }
+
     /// `EPSG:n` (or `n`).
     pub fn parse(s: &str) -> Result<Self, crate::Error> {
         let t = s.trim();
@@ -254,6 +338,10 @@ pub struct SiteCrs {
     /// height): the LAS file's compound CRS names it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vertical_epsg: Option<u16>,
+    /// The unit the survey gave its heights in (the site's `height_m` are in metres,
+    /// converted at import).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub height_unit: Option<HeightUnit>,
 }
 
 /// How a site's heights become ellipsoidal: h = H + N.
@@ -381,6 +469,7 @@ mod tests {
             geoid_undulation_m: Some(51.25),
             geoid_grid: None,
             vertical_epsg: None,
+            height_unit: None,
         };
         let here = std::path::Path::new(".");
         let n = s.undulation(here).unwrap();

@@ -170,6 +170,10 @@ pub struct Site {
     /// the navigation errors with the mounting.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ins: Option<SiteIns>,
+    /// The accuracy the calibration must reach (`target_sigma_deg`, `target_sigma_m`; else the
+    /// board's, else [`super::goal::DEFAULT_TARGETS`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<super::goal::Targets>,
 }
 
 impl Site {
@@ -297,6 +301,9 @@ impl Site {
     /// Values a calibration can use: every number finite and in its range, named by its key.
     pub fn check(&self) -> Result<(), crate::Error> {
         self.nav_model()?;
+        if let Some(t) = &self.calibration {
+            t.check("calibration")?;
+        }
         let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let need = |ok: bool, key: String, why: &str| {
             if ok {

@@ -2,7 +2,7 @@
 //! height system) into a site file: the centres kept as surveyed under `[crs]`, their WGS84
 //! values computed beside them, the origin at their mean.
 
-use super::crs::{Crs, SiteCrs};
+use super::crs::{Crs, HeightUnit, SiteCrs};
 use super::site::{Origin, Site, SiteApriori, SiteSphere};
 
 /// What the CSV does not say.
@@ -34,33 +34,79 @@ enum Col {
     Sigma,
 }
 
-/// A header word's column, and whether it names a geographic coordinate.
-fn column_of(word: &str) -> Option<(Col, bool)> {
-    let w = word.trim().to_ascii_lowercase().replace([' ', '-'], "_");
-    Some(match w.as_str() {
-        "id" | "name" | "point" | "pt" | "sphere" | "target" => (Col::Id, false),
+/// A header word's column, whether it names a geographic coordinate, and the unit it names
+/// (`Elevation (ft)`, `Z [m]`, `Height_usft`).
+fn column_of(word: &str) -> Option<(Col, bool, Option<HeightUnit>)> {
+    let raw = word.trim();
+    // A unit in brackets after the name.
+    let (name, mut unit) = match raw.find(['(', '[']) {
+        Some(i) => {
+            let u = raw[i + 1..].trim_end_matches([')', ']']);
+            (raw[..i].trim(), Some(HeightUnit::parse(u)?))
+        }
+        None => (raw, None),
+    };
+    let mut w = name.to_ascii_lowercase().replace([' ', '-', '.'], "_");
+    // ... or as a suffix (`z_ft`, `elevation_usft`); `_m` is taken as metres below.
+    for (suffix, u) in [
+        ("_usft", HeightUnit::UsFoot),
+        ("_sft", HeightUnit::UsFoot),
+        ("_ftus", HeightUnit::UsFoot),
+        ("_ft", HeightUnit::Foot),
+        ("_feet", HeightUnit::Foot),
+    ] {
+        if unit.is_none() {
+            if let Some(stem) = w.strip_suffix(suffix) {
+                w = stem.to_string();
+                unit = Some(u);
+            }
+        }
+    }
+    let (c, geo) = column_name(&w)?;
+    if unit.is_none() && matches!(c, Col::Height) && w.ends_with("_m") {
+        unit = Some(HeightUnit::Metre);
+    }
+    Some((c, geo, unit))
+}
+
+/// A header name's column (lower case, `_` for spaces), and whether it is geographic.
+fn column_name(w: &str) -> Option<(Col, bool)> {
+    Some(match w {
+        "id" | "name" | "point" | "pt" | "sphere" | "target" | "point_id" | "pointid"
+        | "point_name" | "station" | "stn" => (Col::Id, false),
         "easting" | "east" | "e" | "x" | "easting_m" | "x_m" => (Col::X, false),
         "northing" | "north" | "n" | "y" | "northing_m" | "y_m" => (Col::Y, false),
         "lon" | "long" | "longitude" | "lng" | "lon_deg" => (Col::X, true),
         "lat" | "latitude" | "lat_deg" => (Col::Y, true),
         "height" | "h" | "z" | "elevation" | "elev" | "alt" | "altitude" | "height_m" | "h_m"
-        | "ellipsoidal_height" | "orthometric_height" => (Col::Height, false),
+        | "z_m" | "elevation_m" | "elev_m" | "ellipsoidal_height" | "orthometric_height" | "ht" => {
+            (Col::Height, false)
+        }
         "radius" | "r" | "radius_m" => (Col::Radius, false),
         "sigma" | "sigma_m" | "sd" | "std" | "precision" | "accuracy" => (Col::Sigma, false),
         _ => return None,
     })
 }
 
-/// The columns a header names, in order; `None` when the line is not a header (its second
-/// field is a number).
-fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col>, crate::Error>> {
-    if fields.get(1).is_some_and(|s| s.parse::<f64>().is_ok()) {
+/// The columns a header names, in order, and the heights' unit if it names one; `None` when
+/// the line is not a header (its second field is a number).
+#[allow(clippy::type_complexity)]
+fn header(
+    fields: &[String],
+    geographic: bool,
+    epsg: u16,
+) -> Option<Result<(Vec<Col>, Option<HeightUnit>), crate::Error>> {
+    if fields.get(1).is_some_and(|s| number(s).is_some()) {
         return None;
     }
     let mut cols = Vec::new();
+    let mut height_unit = None;
     for f in fields {
         match column_of(f) {
-            Some((c, geo)) => {
+            Some((c, geo, unit)) => {
+                if c == Col::Height {
+                    height_unit = unit;
+                }
                 if geo && !geographic {
                     return Some(Err(format!(
                         "the header says {f:?} but EPSG:{epsg} is projected (easting, northing): give the geographic CRS of the survey (e.g. EPSG:4326) or its projected coordinates"
@@ -73,7 +119,7 @@ fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col
             }
             None => {
                 return Some(Err(format!(
-                "header column {f:?}: expected id, easting/northing (or lon/lat), height, radius, sigma"
+                "header column {f:?}: expected one of: Point/Name/ID; E/Easting/X (or Lon); N/Northing/Y (or Lat); Z/H/Elev/Height/Elevation (a unit in brackets, e.g. Elevation (ft)); Radius; Sigma (any case)"
             )
                 .into()))
             }
@@ -93,7 +139,103 @@ fn header(fields: &[&str], geographic: bool, epsg: u16) -> Option<Result<Vec<Col
             .into()));
         }
     }
-    Some(Ok(cols))
+    Some(Ok((cols, height_unit)))
+}
+
+/// The unit of the heights: the header's, else `--height-unit`'s (they must agree when both
+/// say); else metres, but for a CRS in feet, which must say (a height in feet read as metres
+/// puts a sphere tens of metres off).
+fn height_unit(
+    crs: &Crs,
+    header: Option<HeightUnit>,
+    given: Option<HeightUnit>,
+) -> Result<HeightUnit, String> {
+    match (header, given) {
+        (Some(h), Some(g)) if h != g => Err(format!(
+            "the header gives the heights in {}, --height-unit in {}: which?",
+            h.key(),
+            g.key()
+        )),
+        (Some(u), _) | (None, Some(u)) => Ok(u),
+        (None, None) => match crs.linear_unit() {
+            HeightUnit::Metre => Ok(HeightUnit::Metre),
+            u => Err(format!(
+                "EPSG:{}'s coordinates are in {}: say the heights' unit, --height-unit m|us-ft|ft (or in the header: Elevation (ft))",
+                crs.code,
+                match u {
+                    HeightUnit::UsFoot => "US survey feet",
+                    _ => "feet",
+                }
+            )),
+        },
+    }
+}
+
+/// A number as a surveyor's CSV writes it (a decimal comma already made a point).
+fn number(s: &str) -> Option<f64> {
+    s.trim().parse::<f64>().ok()
+}
+
+/// How a CSV is written: its separator, and whether its numbers use a decimal comma. A
+/// spreadsheet's export in a locale with a decimal comma separates with `;`; a tab-separated
+/// export is read too.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Dialect {
+    sep: char,
+    decimal_comma: bool,
+}
+
+impl Dialect {
+    /// From the first line that holds data or a header.
+    fn of(text: &str) -> Self {
+        let first = text
+            .lines()
+            .map(|l| l.trim())
+            .find(|l| !l.is_empty() && !l.starts_with('#'))
+            .unwrap_or("");
+        let sep = if first.contains(';') {
+            ';'
+        } else if first.contains('\t') {
+            '\t'
+        } else {
+            ','
+        };
+        Self {
+            sep,
+            decimal_comma: sep != ',',
+        }
+    }
+
+    /// A line's fields: separated, quotes (`"..."`, `""` inside) removed, trimmed; a decimal
+    /// comma read as a point.
+    fn fields(&self, line: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut cur = String::new();
+        let mut quoted = false;
+        let mut chars = line.chars().peekable();
+        while let Some(c) = chars.next() {
+            match c {
+                '"' if quoted && chars.peek() == Some(&'"') => {
+                    cur.push('"');
+                    chars.next();
+                }
+                '"' => quoted = !quoted,
+                c if c == self.sep && !quoted => out.push(std::mem::take(&mut cur)),
+                c => cur.push(c),
+            }
+        }
+        out.push(cur);
+        out.into_iter()
+            .map(|f| {
+                let f = f.trim().to_string();
+                if self.decimal_comma && f.contains(',') && number(&f.replace(',', ".")).is_some() {
+                    f.replace(',', ".")
+                } else {
+                    f
+                }
+            })
+            .collect()
+    }
 }
 
 /// Spheres farther than this from the others' middle cannot be one calibration site [m].
@@ -125,17 +267,24 @@ pub fn import_csv(
         (Col::Radius, _) => "radius",
         (Col::Sigma, _) => "sigma",
     };
+    // A spreadsheet's "CSV UTF-8" starts with a byte-order mark.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let dialect = Dialect::of(text);
+    let mut header_unit: Option<HeightUnit> = None;
+    let mut used_unit: Option<HeightUnit> = None;
     for (i, raw) in text.lines().enumerate() {
         let at = |why: String| crate::Error::bad_input(format!("{name}:{}: {why}", i + 1));
         let line = raw.split('#').next().unwrap_or("").trim();
         if line.is_empty() {
             continue;
         }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let owned = dialect.fields(line);
+        let f: Vec<&str> = owned.iter().map(String::as_str).collect();
         if cols.is_none() {
-            match header(&f, crs.is_geographic(), crs.code) {
-                Some(Ok(c)) => {
+            match header(&owned, crs.is_geographic(), crs.code) {
+                Some(Ok((c, u))) => {
                     cols = Some(c);
+                    header_unit = u;
                     continue;
                 }
                 Some(Err(e)) => return Err(at(e.to_string())),
@@ -162,9 +311,7 @@ pub fn import_csv(
         let num = |k: Col| -> Result<Option<f64>, crate::Error> {
             match get(k) {
                 None => Ok(None),
-                Some(s) => s
-                    .parse::<f64>()
-                    .ok()
+                Some(s) => number(s)
                     .filter(|v| v.is_finite())
                     .map(Some)
                     .ok_or_else(|| at(format!("{} {s:?} is not a finite number", word(&k)))),
@@ -174,11 +321,15 @@ pub fn import_csv(
         if id.is_empty() || spheres.iter().any(|s| s.id == id) {
             return Err(at(format!("sphere id {id:?} is empty or repeated")));
         }
-        let (x, y, h) = (
+        let unit = height_unit(&crs, header_unit, o.crs.height_unit).map_err(&at)?;
+        used_unit = Some(unit);
+        let (x, y, h_given) = (
             num(Col::X)?.unwrap_or(f64::NAN),
             num(Col::Y)?.unwrap_or(f64::NAN),
             num(Col::Height)?.unwrap_or(f64::NAN),
         );
+        // Heights in metres from here on (the unit recorded in the site's [crs]).
+        let h = h_given * unit.metres();
         let radius_m = match num(Col::Radius)? {
             Some(r) => r,
             None => o
@@ -254,7 +405,10 @@ pub fn import_csv(
         datum: None,
         geodetic: None,
         base: o.base.clone(),
-        crs: Some(o.crs.clone()),
+        crs: Some(SiteCrs {
+            height_unit: used_unit,
+            ..o.crs.clone()
+        }),
         origin: Origin {
             lat_deg: mean(|s| s.lat_deg),
             lon_deg: mean(|s| s.lon_deg),
@@ -264,6 +418,7 @@ pub fn import_csv(
         apriori: o.apriori.clone(),
         noise: None,
         ins: None,
+        calibration: None,
     };
     site.resolve().map_err(|e| format!("{name}: {e}"))?;
     site.check().map_err(|e| format!("{name}: {e}"))?;
@@ -285,6 +440,7 @@ mod tests {
                 geoid_undulation_m: n,
                 geoid_grid: None,
                 vertical_epsg: None,
+                height_unit: None,
             },
             radius_m: Some(0.1),
             leap_seconds: 18,
@@ -348,6 +504,73 @@ mod tests {
 
     /// The header decides the columns: northing before easting, lat/lon either way, with the
     /// same points as the default order.
+    /// A spreadsheet's exports: Excel's "CSV UTF-8" (a byte-order mark, CRLF), a locale with
+    /// decimal commas (`;` separated), tab separated, quoted fields, the header names
+    /// surveyors use in any case: each reads as the plain CSV does.
+    #[test]
+    fn spreadsheet_exports_read_as_the_plain_csv() {
+        let o = opts(32630, HeightSystem::Ellipsoidal, None);
+        let plain = "id,easting,northing,height\nS1,500000.25,5360000.5,3.5\nS2,500010,5360000,4\n";
+        let (want, _) = import_csv(plain, "q", &o).unwrap();
+        for csv in [
+            "\u{feff}Point,E,N,Elevation\r\nS1,500000.25,5360000.5,3.5\r\nS2,500010,5360000,4\r\n",
+            "POINT;EASTING;NORTHING;ELEV\nS1;500000,25;5360000,5;3,5\nS2;500010;5360000;4\n",
+            "Name\tX\tY\tZ\nS1\t500000.25\t5360000.5\t3.5\nS2\t500010\t5360000\t4\n",
+            "\"Point ID\",\"Easting\",\"Northing\",\"Height\"\n\"S1\",\"500000.25\",\"5360000.5\",\"3.5\"\n\"S2\",500010,5360000,4\n",
+            "\u{feff}id;e;n;h\r\n\"S1\";\"500000,25\";5360000,5;3,5\r\nS2;500010;5360000;4\r\n",
+        ] {
+            let (got, _) = import_csv(csv, "q", &o).unwrap_or_else(|e| panic!("{csv:?}: {e}"));
+            assert_eq!(got.sphere, want.sphere, "{csv:?}");
+        }
+        // Anything else is named with the names taken.
+        let e = import_csv("Pt;Ost;Nord;Hoehe\nS1;1;2;3\n", "q", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"Ost\"") && e.contains("Easting"), "{e}");
+    }
+
+    /// Heights in feet: a CRS in US survey feet (EPSG:2248, Maryland) needs their unit said,
+    /// by `--height-unit` or in the header (`Elevation (ftUS)`); they are converted to metres
+    /// (1200/3937 m) and the unit recorded; a header and an option that disagree are refused.
+    #[test]
+    fn heights_in_feet_are_said_and_converted() {
+        let csv = "id,easting,northing,elevation\nS1,1300000,500000,100\nS2,1300030,500000,110\n";
+        let o = opts(2248, HeightSystem::Ellipsoidal, None);
+        let e = import_csv(csv, "q", &o).unwrap_err().to_string();
+        assert!(
+            e.contains("US survey feet") && e.contains("--height-unit"),
+            "{e}"
+        );
+        let mut ft = opts(2248, HeightSystem::Ellipsoidal, None);
+        ft.crs.height_unit = Some(HeightUnit::UsFoot);
+        let (s, _) = import_csv(csv, "q", &ft).unwrap();
+        assert!(
+            (s.sphere[0].h_m - 100.0 * 1200.0 / 3937.0).abs() < 1e-9,
+            "{}",
+            s.sphere[0].h_m
+        );
+        assert_eq!(
+            s.crs.as_ref().unwrap().height_unit,
+            Some(HeightUnit::UsFoot)
+        );
+        let header = csv.replace("elevation", "Elevation (ftUS)");
+        let (h, _) = import_csv(&header, "q", &o).unwrap();
+        assert_eq!(h.sphere, s.sphere);
+        // A metric CRS with heights in international feet, from the header.
+        let m = opts(32630, HeightSystem::Ellipsoidal, None);
+        let (f, _) = import_csv(
+            "id,e,n,z_ft\nS1,500000,5360000,10\nS2,500010,5360000,10\n",
+            "q",
+            &m,
+        )
+        .unwrap();
+        assert!((f.sphere[0].h_m - 3.048).abs() < 1e-9);
+        let mut both = ft.clone();
+        both.crs.height_unit = Some(HeightUnit::Metre);
+        let e = import_csv(&header, "q", &both).unwrap_err().to_string();
+        assert!(e.contains("which?"), "{e}");
+    }
+
     #[test]
     fn header_names_decide_the_columns() {
         let o = opts(32630, HeightSystem::Ellipsoidal, None);

@@ -154,6 +154,27 @@ impl PacketSource for Captures {
     }
 }
 
+/// A source read through a borrow (so that what it knew at the end, a bag's cut, can be asked
+/// after).
+impl PacketSource for &mut Captures {
+    type Error = CaptureError;
+
+    fn next_record(&mut self) -> Result<Option<Record<'_>>, CaptureError> {
+        (**self).next_record()
+    }
+}
+
+impl Captures {
+    /// The MCAP files of a bag found cut short, with the byte each ends at.
+    pub fn cut(&self) -> &[(std::path::PathBuf, u64)] {
+        match self {
+            Captures::Bag(b) => b.cut(),
+            Captures::Clouds(c) => c.cut(),
+            Captures::Pcap(_) => &[],
+        }
+    }
+}
+
 /// The bag `files` names, if it names one (a single `.mcap`, `.db3` or bag folder).
 pub fn as_bag(files: &Files) -> Option<&Path> {
     match files.0.as_slice() {

@@ -371,12 +371,7 @@ pub fn run<C: Send>(
                 }
             };
             // A bag's MCAP cut short: its whole chunks were read; the cut is said.
-            let cut = match &pcap {
-                Captures::Bag(b) => b.cut(),
-                Captures::Clouds(c) => c.cut(),
-                _ => &[],
-            };
-            for (_, at) in cut {
+            for (_, at) in pcap.cut() {
                 skips.count(
                     *at,
                     &spherecal_hal::packet::SkipReason::TruncatedFile { left: 0 },

@@ -4,7 +4,9 @@
 
 mod text;
 pub use text::{render, render_montecarlo, termination_words, utc};
+pub mod conventions;
 mod nav;
+pub mod provenance;
 
 use crate::pipeline::{Inputs, RunStats};
 use serde::{Deserialize, Serialize};
@@ -300,6 +302,81 @@ pub struct Report {
     /// aside because the survey was refused with them and every check passes without.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub set_aside: Vec<crate::stretches::SetAsideSpan>,
+    /// The accuracy targets and whether the sigmas meet them (a converged calibration that
+    /// misses them exits 3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub targets: Option<TargetsReport>,
+    /// The mounting in the conventions other software takes ([`conventions`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conventions: Option<conventions::Conventions>,
+    /// Where the calibration came from ([`provenance`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<provenance::Provenance>,
+}
+
+/// `report.json` `targets`: each sigma's target, whether all are met, which are missed.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct TargetsReport {
+    /// Each boresight angle's 1-sigma at most [deg] (null: not targeted).
+    pub sigma_deg: Option<f64>,
+    /// Each lever-arm component's 1-sigma at most [m] (null: not targeted).
+    pub sigma_m: Option<f64>,
+    /// Every sigma within its target (false when not converged).
+    pub met: bool,
+    /// The parameters that miss (roll, pitch, heading, x, y, z).
+    pub missed: Vec<String>,
+    /// Where the targets came from.
+    pub source: String,
+}
+
+impl TargetsReport {
+    /// The report's sigmas against `t`.
+    pub fn of(r: &Report, t: &crate::config::goal::TargetChoice) -> Self {
+        let missed: Vec<String> = t
+            .missed(&r.sigma.deg_m())
+            .into_iter()
+            .map(String::from)
+            .collect();
+        let fin = |v: f64| v.is_finite().then_some(v);
+        Self {
+            sigma_deg: fin(t.sigma_deg),
+            sigma_m: fin(t.sigma_m),
+            met: r.converged && missed.is_empty(),
+            missed,
+            source: t.source.clone(),
+        }
+    }
+
+    /// The verdict line: met, or what is missed by how much.
+    pub fn words(&self, r: &Report) -> String {
+        let t = |v: Option<f64>, scale: f64, unit: &str| {
+            v.map_or("-".to_string(), |v| format!("{} {unit}", v * scale))
+        };
+        let targets = format!(
+            "targets ({}, {}: {})",
+            t(self.sigma_deg, 1.0, "deg"),
+            t(self.sigma_m, 1e3, "mm"),
+            self.source
+        );
+        if self.met {
+            return format!("every sigma within the {targets}");
+        }
+        let sig = r.sigma.deg_m();
+        let names = ["roll", "pitch", "heading", "x", "y", "z"];
+        let missed: Vec<String> = self
+            .missed
+            .iter()
+            .filter_map(|m| names.iter().position(|n| n == m).map(|i| (m, i)))
+            .map(|(m, i)| {
+                if i < 3 {
+                    format!("{m} {:.4} deg", sig[i])
+                } else {
+                    format!("{m} {:.1} mm", sig[i] * 1e3)
+                }
+            })
+            .collect();
+        format!("the sigmas miss the {targets}: {}", missed.join(", "))
+    }
 }
 
 /// The navigation errors' model and what the solve found under it (DESIGN.md "Navigation

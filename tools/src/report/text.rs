@@ -345,11 +345,21 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         );
     }
     let _ = writeln!(o, "Nelder-Mead {} evaluations ({} iterations), {} detect-and-solve rounds ({}), LM {} iterations, {:.1} ms", r.evaluations, r.nm_iterations, r.rounds, termination_words(&r.termination), r.lm_iterations, r.solve_ms);
-    match &r.reason {
-        None => {
+    match (&r.reason, &r.targets) {
+        (None, Some(t)) if t.met => {
+            let _ = writeln!(o, "converged: {}", t.words(r));
+        }
+        (None, Some(t)) => {
+            let _ = writeln!(
+                o,
+                "converged, but {}; more passes or better sensors bring them in (`spherecal plan`): exit 3",
+                t.words(r)
+            );
+        }
+        (None, None) => {
             let _ = writeln!(o, "converged");
         }
-        Some(why) => {
+        (Some(why), _) => {
             let _ = writeln!(o, "NOT CONVERGED: {why}");
         }
     }

@@ -382,7 +382,12 @@ fn run_threads(
         let solver = spawn(sc, "solver", move || {
             let (tg, ids) = (&plan.targets, &plan.ids);
             let report = opts.report.as_deref();
-            let goal = opts.board.calibration.goal();
+            // The targets: the site's [calibration], else the board's, else the default (as
+            // `calibrate` judges).
+            let targets = crate::config::goal::TargetChoice::of(
+                opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
+                Some(&opts.board.calibration),
+            );
             solver(
                 rx,
                 pool_tx,
@@ -392,7 +397,7 @@ fn run_threads(
                 &plan.settings,
                 &plan.nav_source,
                 opts.board.ins.rate_hz,
-                goal.as_ref(),
+                &targets,
                 opts.board.lidar_model().unwrap_or_default(),
                 plan.margin,
                 report,

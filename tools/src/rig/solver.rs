@@ -17,7 +17,7 @@ pub(super) fn solver(
     settings: &Settings,
     nav_source: &str,
     ins_rate_hz: f64,
-    goal: Option<&crate::config::goal::Goal>,
+    accuracy: &crate::config::goal::TargetChoice,
     model: spherecal::velodyne::Model,
     apriori_margin: f64,
     report: Option<&Path>,
@@ -38,8 +38,11 @@ pub(super) fn solver(
     // The planner on the survey under way (built at the first solve: the LiDAR's rpm is known
     // by then).
     let mut live: Option<crate::plan::live::Live> = None;
+    let goal_of = accuracy.goal();
+    let goal = Some(&goal_of);
     let mut solve = |session: &mut crate::session::Session, start: &mut Params| {
-        let (sol, rep) = session.solve(start, Default::default(), &mut StatusRounds(sh));
+        let (sol, mut rep) = session.solve(start, Default::default(), &mut StatusRounds(sh));
+        rep.targets = Some(crate::report::TargetsReport::of(&rep, accuracy));
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)
         let store = session.store();

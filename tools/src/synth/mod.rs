@@ -519,6 +519,7 @@ fn site_of(s: &Scenario) -> Site {
                 crate::config::nav_errors::CorrelatedSpec::preset_only("white")
             },
         }),
+        calibration: None,
     }
 }
 

@@ -49,11 +49,13 @@ pub fn python(script: &str, needs: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-/// Run a command; it must succeed. Returns its stdout.
+/// Run a command; it must succeed (or claim a calibration that misses its targets: exit 3).
+/// Returns its stdout.
 pub fn stdout_of(cmd: &mut std::process::Command) -> String {
     let out = cmd.output().unwrap();
+    // 3: a calibration claimed whose sigmas miss the default targets (the noisy scenarios').
     assert!(
-        out.status.success(),
+        matches!(out.status.code(), Some(0 | 3)),
         "{cmd:?}: {}{}",
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
@@ -200,4 +202,10 @@ pub mod vn200 {
         }
         out
     }
+}
+
+/// A calibration was claimed: exit 0 (its sigmas within the targets) or 3 (claimed, but the
+/// sigmas miss the targets: the noisy scenarios' against the default 0.01 deg / 5 mm).
+pub fn claimed(o: &std::process::Output) -> bool {
+    matches!(o.status.code(), Some(0 | 3))
 }

@@ -322,7 +322,7 @@ fn table1_real_calibrates_under_the_navigation_model() {
     let calibrate = |site: &Path, report: &Path| calibrate_from(&stream, site, report);
     let report = dir.join("report.json");
     let (code, out) = calibrate(&dir.join("site.toml"), &report);
-    assert_eq!(code, Some(0), "{out}");
+    assert!(matches!(code, Some(0 | 3)), "{out}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r["converged"], true, "{out}");
@@ -382,7 +382,7 @@ fn table1_real_calibrates_under_the_navigation_model() {
     ] {
         let report = dir.join("report-undeclared.json");
         let (code, out) = calibrate_from(ins, &undeclared, &report);
-        assert_eq!(code, Some(0), "{from}: {out}");
+        assert!(matches!(code, Some(0 | 3)), "{from}: {out}");
         let r: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
         let source = r["navigation"]["source"].as_str().unwrap_or_default();
@@ -507,7 +507,7 @@ fn a_held_clock_the_data_contradict_is_refused_under_the_model() {
         "{text}"
     );
     let (code, text, r) = run(false);
-    assert_eq!(code, Some(0), "{text}");
+    assert!(matches!(code, Some(0 | 3)), "{text}");
     let dt = r["time_offset_s"].as_f64().unwrap();
     let sigma = r["sigma"]["time_offset_s"].as_f64().unwrap();
     assert!((dt - 0.02).abs() < 3.0 * sigma, "{dt} +- {sigma}");

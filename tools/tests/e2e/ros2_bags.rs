@@ -352,13 +352,22 @@ fn bad_bags_exit_2_naming_what_is_missing() {
             && t.contains("/topic (std_msgs/msg/String)"),
         "{t}"
     );
-    // A truncated MCAP: the file and where it ends.
+    // A truncated MCAP: read to its last whole chunk, the file and where it ends said (then
+    // refused on this one-sphere site: `a_bag_cut_short_or_with_a_wrong_metadata_is_read_and_said`
+    // calibrates one).
     let bytes = std::fs::read(data("small_mcap/small_mcap.mcap")).unwrap();
     let cut = d.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
-    let t = run(&["--bag".as_ref(), cut.as_os_str()]);
+    let o = common::spherecal()
+        .arg("calibrate")
+        .args(["--bag".as_ref(), cut.as_os_str()])
+        .arg("--site")
+        .arg(&site)
+        .output()
+        .unwrap();
+    let t = text(&o);
     assert!(
-        t.contains("cut.mcap") && t.contains("not a complete MCAP file"),
+        t.contains("cut.mcap is cut short at byte") && t.contains("capture is truncated"),
         "{t}"
     );
     // Empty: a file of nothing, a folder whose metadata names a file that is not there.

@@ -49,9 +49,10 @@ fn import(epsg: u16, pts: &[(f64, f64, f64)], n: Option<f64>) -> Site {
         .arg(&csv_path)
         .args(["--crs", &format!("EPSG:{epsg}"), "--force", "-o"])
         .arg(&out);
-    if let Some(n) = n {
-        cmd.args(["--height", "orthometric", "--geoid-n", &n.to_string()]);
-    }
+    match n {
+        Some(n) => cmd.args(["--height", "orthometric", "--geoid-n", &n.to_string()]),
+        None => cmd.args(["--height", "ellipsoidal"]),
+    };
     let text = common::stdout_of(&mut cmd);
     assert!(text.contains(&format!("{} spheres", pts.len())), "{text}");
     Site::load(&out).unwrap()
@@ -106,7 +107,8 @@ fn refusals_name_the_problem() {
     let out = common::spherecal()
         .args(["site", "import"])
         .arg(&csv)
-        .args(["--crs", "EPSG:32630", "--radius", "0.1", "--force", "-o"])
+        .args(["--crs", "EPSG:32630", "--radius", "0.1", "--force"])
+        .args(["--height", "ellipsoidal", "-o"])
         .arg(dir.join("s.toml"))
         .output()
         .unwrap();
@@ -116,7 +118,7 @@ fn refusals_name_the_problem() {
     let out = common::spherecal()
         .args(["site", "import"])
         .arg(&csv)
-        .args(["--crs", "EPSG:99999", "-o"])
+        .args(["--crs", "EPSG:99999", "--height", "ellipsoidal", "-o"])
         .arg(dir.join("s.toml"))
         .output()
         .unwrap();
@@ -142,7 +144,8 @@ fn compound_and_unknown_codes_say_what_to_give() {
         let out = common::spherecal()
             .args(["site", "import"])
             .arg(&csv)
-            .args(["--radius", "0.19", "--crs", crs, "--force", "-o"])
+            .args(["--radius", "0.19", "--crs", crs, "--force"])
+            .args(["--height", "ellipsoidal", "-o"])
             .arg(csv.with_extension("toml"))
             .output()
             .unwrap();
