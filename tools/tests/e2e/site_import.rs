@@ -171,3 +171,113 @@ fn compound_and_unknown_codes_say_what_to_give() {
     }
     assert!(run("EPSG:x1").contains("expected EPSG:<code> (digits)"));
 }
+
+/// A surveyor's first calibration (issue 47): table1's spheres surveyed in UTM 30N and exported
+/// by a spreadsheet in a decimal-comma locale (a byte-order mark, `;`, decimal commas, CRLF,
+/// `Point;Easting;Northing;Elevation`), projected by pyproj; `site import` (its heights said
+/// ellipsoidal) gives back the survey's centres; `calibrate` on the synthesised VN-200 stream
+/// refuses without a navigation model (the VN-200's metre-level default cannot hold the
+/// vertical lever arm: not claimed), and with `--ins white` declared (the noise-free scenario)
+/// claims within its targets: exit 0, `targets.met`, and the report files its provenance
+/// (the site's CRS, the CSV-made site's SHA-256) and the mounting as a ROS transform.
+#[test]
+fn a_spreadsheet_survey_imported_then_calibrated() {
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let dir = common::tmp("site-import", "first-calibration");
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let synth_site = Site::load(&dir.join("site.toml")).unwrap();
+    let pts: Vec<(f64, f64, f64)> = synth_site
+        .sphere
+        .iter()
+        .map(|p| (p.lat_deg, p.lon_deg, p.h_m))
+        .collect();
+    let xy = pyproj_forward(32630, &pts);
+    let comma = |v: f64| format!("{v:.4}").replace('.', ",");
+    let mut csv = String::from("\u{feff}Point;Easting;Northing;Elevation\r\n");
+    for (sp, ((x, y), p)) in synth_site.sphere.iter().zip(xy.iter().zip(&pts)) {
+        csv += &format!("{};{};{};{}\r\n", sp.id, comma(*x), comma(*y), comma(p.2));
+    }
+    let csv_path = dir.join("survey.csv");
+    std::fs::write(&csv_path, csv).unwrap();
+    let a = synth_site.apriori.clone();
+    let apriori = format!(
+        "{},{},{},{},{},{}",
+        a.boresight_deg[0],
+        a.boresight_deg[1],
+        a.boresight_deg[2],
+        a.lever_arm_m[0],
+        a.lever_arm_m[1],
+        a.lever_arm_m[2]
+    );
+    let import = |extra: &[&str], out: &std::path::Path| {
+        let mut cmd = common::spherecal();
+        cmd.args(["site", "import"])
+            .arg(&csv_path)
+            .args(["--crs", "EPSG:32630", "--height", "ellipsoidal"])
+            .args(["--radius", "0.19", "--margin", "3", "--force"])
+            .args(["--apriori", &apriori])
+            .args(extra)
+            .arg("-o")
+            .arg(out);
+        common::stdout_of(&mut cmd)
+    };
+    let bare = dir.join("imported.toml");
+    let said = import(&[], &bare);
+    assert!(said.contains("navigation errors: none declared"), "{said}");
+    let imported = Site::load(&bare).unwrap();
+    for (a, b) in imported.sphere.iter().zip(&synth_site.sphere) {
+        assert!((a.lat_deg - b.lat_deg).abs() < 1e-8 && (a.lon_deg - b.lon_deg).abs() < 1e-8);
+        assert!((a.h_m - b.h_m).abs() < 1e-4);
+    }
+    let calibrate = |site: &std::path::Path, report: &std::path::Path| {
+        common::spherecal()
+            .arg("calibrate")
+            .arg("--pcap")
+            .arg(dir.join("lidar.pcap"))
+            .arg("--ins")
+            .arg(dir.join("ins.bin"))
+            .arg("--site")
+            .arg(site)
+            .arg("--report")
+            .arg(report)
+            .output()
+            .unwrap()
+    };
+    let o = calibrate(&bare, &dir.join("bare.json"));
+    let t = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!common::claimed(&o), "{t}");
+    let white = dir.join("white.toml");
+    assert!(import(&["--ins", "white"], &white).contains("preset \"white\" (--ins)"));
+    let report = dir.join("white.json");
+    let o = calibrate(&white, &report);
+    let t = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(o.status.code(), Some(0), "{t}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["targets"]["met"], true, "{}", r["targets"]);
+    assert_eq!(r["provenance"]["site"]["crs"], "EPSG:32630");
+    assert_eq!(
+        r["provenance"]["site"]["file"]["sha256"]
+            .as_str()
+            .map(str::len),
+        Some(64)
+    );
+    assert!(r["conventions"]["ros2_static_transform"]
+        .as_str()
+        .is_some_and(|c| c.contains("--frame-id base_link --child-frame-id velodyne")));
+    common::assert_within(
+        &common::report_deg_m(&r),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        "imported site",
+    );
+    std::fs::remove_dir_all(dir).unwrap();
+}
