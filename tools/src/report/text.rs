@@ -229,6 +229,19 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
                 );
                 continue;
             }
+            if c.correction_m
+                .iter()
+                .chain(&c.sigma_m)
+                .any(|v| !v.is_finite())
+            {
+                let _ = writeln!(
+                    o,
+                    "  {}: centre not estimated (the solve stopped before its least squares; its survey's sigma {:.1} mm)",
+                    c.sphere,
+                    c.prior_sigma_m * 1e3
+                );
+                continue;
+            }
             let [x, y, z] = c.correction_m.map(|v| v * 1e3);
             let [sx, sy, sz] = c.sigma_m.map(|v| v * 1e3);
             let _ = writeln!(
