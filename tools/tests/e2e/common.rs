@@ -209,3 +209,12 @@ pub mod vn200 {
 pub fn claimed(o: &std::process::Output) -> bool {
     matches!(o.status.code(), Some(0 | 3))
 }
+
+/// A command's standard output and error, together.
+pub fn text(o: &std::process::Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}

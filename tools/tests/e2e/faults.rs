@@ -3,6 +3,7 @@
 //! dropped and unparsable messages) is a gap, never a clock step.
 
 use crate::common;
+use crate::common::text;
 use crate::common::vn200::{frame_time_s, frames, without_startup};
 
 use spherecal_tools::calibrate::Report;
@@ -18,34 +19,35 @@ fn synth(base: &str, name: &str, edit: impl FnOnce(&mut Scenario)) -> (PathBuf, 
     (d, s)
 }
 
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-/// `calibrate` of the survey in `d` with the VN-200 stream `ins`: its output and report.
-fn calibrate(d: &Path, ins: &Path, extra: &[&str]) -> (Output, Report) {
-    let report = ins.with_extension("report.json");
-    let _ = std::fs::remove_file(&report);
+/// `calibrate` of the survey in `d` with the INS given by `ins` (`--ins FILE` or `--posmv
+/// FILE`), writing its report to `report`: its output and report.
+fn calibrate_as(
+    d: &Path,
+    ins: [&std::ffi::OsStr; 2],
+    report: &Path,
+    extra: &[&str],
+) -> (Output, Report) {
+    let _ = std::fs::remove_file(report);
     let out = common::spherecal()
         .arg("calibrate")
         .arg("--pcap")
         .arg(d.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(ins)
+        .args(ins)
         .arg("--site")
         .arg(d.join("site.toml"))
         .arg("--report")
-        .arg(&report)
+        .arg(report)
         .args(extra)
         .output()
         .unwrap();
-    let r =
-        std::fs::read_to_string(&report).unwrap_or_else(|_| panic!("no report: {}", text(&out)));
+    let r = std::fs::read_to_string(report).unwrap_or_else(|_| panic!("no report: {}", text(&out)));
     (out, serde_json::from_str(&r).unwrap())
+}
+
+/// `calibrate` of the survey in `d` with the VN-200 stream `ins`.
+fn calibrate(d: &Path, ins: &Path, extra: &[&str]) -> (Output, Report) {
+    let report = ins.with_extension("report.json");
+    calibrate_as(d, ["--ins".as_ref(), ins.as_os_str()], &report, extra)
 }
 
 /// Every parameter within `k` of its reported sigma of the truth.
@@ -282,24 +284,11 @@ fn real_with(
     (d, s, o, r)
 }
 
+/// `calibrate` of the survey in `d` with its POS MV stream.
 fn calibrate_posmv(d: &Path, extra: &[&str]) -> (Output, Report) {
     let report = d.join(format!("r{}.json", extra.len()));
-    let _ = std::fs::remove_file(&report);
-    let o = common::spherecal()
-        .arg("calibrate")
-        .arg("--pcap")
-        .arg(d.join("lidar.pcap"))
-        .arg("--posmv")
-        .arg(d.join("ins.posmv"))
-        .arg("--site")
-        .arg(d.join("site.toml"))
-        .arg("--report")
-        .arg(&report)
-        .args(extra)
-        .output()
-        .unwrap();
-    let r = std::fs::read_to_string(&report).unwrap_or_else(|_| panic!("no report: {}", text(&o)));
-    (o, serde_json::from_str(&r).unwrap())
+    let posmv = d.join("ins.posmv");
+    calibrate_as(d, ["--posmv".as_ref(), posmv.as_os_str()], &report, extra)
 }
 
 /// GPS seconds of the scenario's start plus `s`.
