@@ -324,6 +324,7 @@ pub fn solve_report_in(
         }),
         set_aside: Vec::new(),
         targets: None,
+        mounting_prior: Vec::new(),
         conventions: None,
         provenance: None,
         clutter_rejected: sol
@@ -349,6 +350,7 @@ pub fn solve_report_in(
                 centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
                 agreed_slices: s.agreed,
                 lost: s.lost.map(|l| lost_name(l).to_string()),
+                apparent_radius_m: None,
             })
             .collect(),
         solve_ms,
@@ -574,6 +576,22 @@ pub fn calibrate(
         rep.converged = false;
         rep.reason = Some(why);
     }
+    // A refusal: the radii first, a wrong one is the cause of whatever else went wrong (a
+    // claim passed the passes' consistency, which a wrong radius fails: seen from two sides,
+    // a sphere's centre moves by twice the error).
+    if !rep.converged {
+        let extract = settings_for(&inp.site, inp.model, clock.estimate, inp.margin).extract;
+        let radii = crate::radius::apparent(&obs, targets, &inp.mount, &extract);
+        for (p, a) in rep.per_sphere.iter_mut().zip(&radii) {
+            p.apparent_radius_m = a.map(|a| a.radius_m);
+        }
+        if let Some(why) = crate::radius::disagreement(&radii, targets, ids) {
+            rep.reason = Some(match rep.reason.take() {
+                Some(r) => format!("{why}; so: {r}"),
+                None => why,
+            });
+        }
+    }
     spinner.finish_and_clear();
     rep.time_offset_search = searched;
     rep.start.insert("time_offset".to_string(), start);
@@ -593,7 +611,14 @@ pub fn calibrate(
                 Some((ids[k].as_str(), c, targets[k].radius + inp.margin))
             })
             .collect();
-        if let Some(why) = empty_windows(&empty, reach) {
+        // No window caught anything: the heights are tested before the mounting is blamed.
+        let heights = if empty.len() == obs.len() {
+            let medians = crate::vertical::columns(inp, targets)?;
+            crate::vertical::heights_off(&medians, targets, ids, inp.margin)
+        } else {
+            None
+        };
+        if let Some(why) = heights.or_else(|| empty_windows(&empty, reach)) {
             rep.reason = Some(format!(
                 "{why}{}",
                 rep.reason.map(|r| format!("; so {r}")).unwrap_or_default()

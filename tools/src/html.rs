@@ -45,7 +45,7 @@ th{background:#f2f2f2}td.l,th.l{text-align:left}
 .no{background:#fbe4e4;border:2px solid #c33;padding:10px 14px;font-size:17px}
 .short{background:#fdf3d8;border:2px solid #c90;padding:10px 14px;font-size:17px}
 .figs{display:flex;flex-wrap:wrap;gap:6px}.figs svg{border:1px solid #ddd}
-.note{color:#555;font-size:13px}tr.dim td{color:#999}";
+.note{color:#555;font-size:13px}tr.dim td{color:#999}tr.bad td{background:#fbe4e4}";
 
 /// The page.
 pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Error> {
@@ -150,6 +150,26 @@ fn parameters(o: &mut String, r: &Report) {
         },
         num(r.time_offset_s - start, 6)
     );
+    if !r.mounting_prior.is_empty() {
+        o.push_str("<h3>As measured on the vessel</h3><table><tr><th class=\"l\">parameter</th><th>measured</th><th>1-sigma</th><th>calibration - measured</th><th>z</th></tr>\n");
+        for m in &r.mounting_prior {
+            let warn = if m.z.abs() > 3.0 {
+                " class=\"bad\""
+            } else {
+                ""
+            };
+            let _ = writeln!(
+                o,
+                "<tr{warn}><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                escape(&m.parameter),
+                num(m.measured, 5),
+                num(m.sigma, 5),
+                num(m.moved, 5),
+                num(m.z, 1)
+            );
+        }
+        o.push_str("</table>\n");
+    }
     o.push_str("<p class=\"note\">Roll, pitch, heading rotate the LiDAR frame into the INS body frame (z-y-x, DESIGN.md); the lever arm is the LiDAR origin in the INS body frame.</p>\n");
 }
 

@@ -19,6 +19,7 @@ pub mod pipeline;
 pub mod plan;
 pub mod plot;
 pub mod progress;
+pub mod radius;
 pub mod reasons;
 pub mod replay;
 pub mod report;
@@ -29,6 +30,7 @@ pub mod stretches;
 pub mod survey;
 pub mod synth;
 pub mod verdict;
+pub mod vertical;
 pub mod vn200;
 
 pub use error::{Error, ErrorKind};

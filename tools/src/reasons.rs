@@ -55,6 +55,17 @@ pub fn refusal_text_clock(
             rms / predicted.max(1e-12),
             predicted * 1e3
         ),
+        Refusal::PriorDisagrees { parameter, moved, sigma, z } => {
+            let (v, sg, unit) = if *parameter < 3 {
+                (moved.to_degrees(), sigma.to_degrees(), "deg")
+            } else {
+                (*moved * 1e3, sigma * 1e3, "mm")
+            };
+            format!(
+                "the data move the {} {v:+.4} {unit} from its measured value, {z:.1} times what its declared sigma ({sg:.4} {unit}, [apriori]) leaves room for: the measurement of the mounting or its sigma is wrong (or the data: see the passes below)",
+                NAMES.get(*parameter).copied().unwrap_or("?")
+            )
+        }
         Refusal::Remnant { sphere, kept, rounds } => format!(
             "sphere {}: the last extraction, around its surveyed centre, kept {kept} of the {rounds} returns the rounds kept around where the returns put it: somewhere the navigation puts the sphere elsewhere than its returns do (a GNSS outage the INS status did not show, a sphere moved); no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1",
             ids.get(*sphere).map_or("?", |s| s.as_str())
@@ -205,7 +216,7 @@ pub fn empty_windows(empty: &[(&str, Closest, f64)], reach: f64) -> Option<Strin
     }
     if !near.is_empty() {
         why.push(format!(
-            "no return in the windows of {}: the trajectory passed within the LiDAR's reach ({}), yet no return fell within {:.2} m of their centres: the a-priori mounting puts the returns elsewhere (check the site's [apriori] or --init: roll,pitch,heading in degrees, x,y,z in metres; or widen window_margin_m), or the spheres were hidden",
+            "no return in the windows of {}: the trajectory passed within the LiDAR's reach ({}), yet no return fell within {:.2} m of their centres: the a-priori mounting puts the returns elsewhere (check the site's [apriori] or --init: roll,pitch,heading in degrees, x,y,z in metres; or widen window_margin_m), the surveyed heights are off (their datum or unit), or the spheres were hidden",
             names(&near),
             list(&near),
             near.iter().map(|e| e.2).fold(0.0, f64::max)

@@ -50,7 +50,10 @@ pub fn settings_for(
 /// as parameters ([`NavModel::WHITE`]).
 pub fn with_nav(s: &mut Settings, site: &Site, nav: Option<NavModel>) {
     let declared = |j: usize| site.sphere.get(j).and_then(|sp| sp.sigma_m);
-    let surveyed = (0..site.sphere.len()).any(|j| declared(j).is_some_and(|v| v > 0.0));
+    s.mount_prior = site.apriori.prior();
+    // A declared survey or mounting sigma: the joint least squares carry the priors.
+    let surveyed =
+        (0..site.sphere.len()).any(|j| declared(j).is_some_and(|v| v > 0.0)) || s.mount_prior.any();
     let wanders = nav.is_some_and(|m| !m.is_white());
     let noise = site.noise.unwrap_or(if wanders {
         SiteNoise {

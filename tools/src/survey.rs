@@ -207,6 +207,7 @@ pub fn run_calibrate(
     let goal = crate::config::goal::TargetChoice::of(inp.site.calibration.as_ref(), None);
     rep.targets = Some(report::TargetsReport::of(&rep, &goal));
     rep.conventions = Some(report::conventions::Conventions::of(&sol.b.0));
+    rep.mounting_prior = report::prior::of(&inp.site.apriori, &rep);
     rep.provenance = Some(provenance(&inp, &survey.site, &surveyed, &datums, &stats)?);
     text.push_str(&report::render(&rep, truth.as_ref()));
     // The result is printed whatever happens to the files: an output that fails now (a disk

@@ -19,6 +19,8 @@ pub(super) struct Joint<'a, 'p> {
     pub(super) model: NavModel,
     /// The white noise's variance factor the weights are divided by.
     pub(super) factor: f64,
+    /// The prior on the mounting.
+    pub(super) mount: MountPrior,
 }
 
 /// Sums of one evaluation.
@@ -79,6 +81,7 @@ impl<'a, 'p> Joint<'a, 'p> {
             centre_info,
             model: *model,
             factor: 1.0,
+            mount: MountPrior::default(),
         }
     }
 }
@@ -245,6 +248,16 @@ impl Joint<'_, '_> {
         }
         if !self.clock.drift {
             s.a[(DRIFT, DRIFT)] = 1.0;
+        }
+        // The mounting's prior.
+        for i in 0..P {
+            let info = self.mount.info[i];
+            if info > 0.0 {
+                let d = self.z[i] - self.mount.centre[i];
+                s.a[(i, i)] += info;
+                s.g[i] += info * d;
+                s.cost += info * d * d;
+            }
         }
         // The centres' priors (held past the spheres).
         for j in 0..MAX_TARGETS {

@@ -241,6 +241,39 @@ pub struct NavFit {
     pub worst_step: (f64, GpsTime, [f64; 6]),
 }
 
+/// A prior on the mounting (a vessel survey's lever arms, a parameter the data cannot
+/// determine held at its a-priori value): each of the six `centre` [rad, m] with its
+/// information `info` (1 / sigma^2; 0: none).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MountPrior {
+    /// The a-priori values.
+    pub centre: [f64; P],
+    /// Their information (0: no prior).
+    pub info: [f64; P],
+}
+
+impl MountPrior {
+    /// From the a-priori values and their sigmas (0 or not finite: no prior).
+    pub fn of(centre: &[f64; P], sigma: &[f64; P]) -> Self {
+        Self {
+            centre: *centre,
+            info: core::array::from_fn(|i| {
+                let s = sigma[i];
+                if s.is_finite() && s > 0.0 {
+                    1.0 / (s * s)
+                } else {
+                    0.0
+                }
+            }),
+        }
+    }
+
+    /// Whether any parameter has a prior.
+    pub fn any(&self) -> bool {
+        self.info.iter().any(|i| *i > 0.0)
+    }
+}
+
 /// Refine `b0` under the navigation model by Levenberg-Marquardt over the mounting (and the
 /// clock as `clock` says), the nuisance terms, the sphere centres (prior sigma `centre_sigma`
 /// per sphere [m]; 0: held at the survey) and the pieces' errors (`pieces`: at least one; cut
@@ -261,16 +294,45 @@ pub fn refine(
     cluster_ns: i64,
     clock: Clock,
 ) -> (LmResult, NavFit) {
+    refine_with_prior(
+        pb,
+        b0,
+        model,
+        centre_sigma,
+        &MountPrior::default(),
+        pieces,
+        max_iter,
+        cluster_ns,
+        clock,
+    )
+}
+
+/// [`refine`] with a prior on the mounting (`mount`).
+#[allow(clippy::too_many_arguments)]
+pub fn refine_with_prior(
+    pb: &Problem<'_>,
+    b0: &[f64; P],
+    model: &NavModel,
+    centre_sigma: &[f64],
+    mount: &MountPrior,
+    pieces: &mut [Piece],
+    max_iter: usize,
+    cluster_ns: i64,
+    clock: Clock,
+) -> (LmResult, NavFit) {
     let clock = Clock {
         dt: clock.dt,
         drift: clock.dt && clock.drift,
     };
     let mut at = Joint::start(pb, b0, model, centre_sigma, pieces, clock);
+    at.mount = *mount;
     let (mut iterations, mut converged) = (0, false);
     let mut sums = at.evaluate(pieces);
     for _pass in 0..4 {
         (sums, iterations, converged) = iterate(&mut at, pieces, max_iter);
-        let s2 = white_noise_factor(&at, pieces, &sums, cluster_ns);
+        // Under white errors the clusters' correlation is the robust covariance's to carry.
+        let clusters = if model.is_white() { 0 } else { cluster_ns };
+        let s2 = white_noise_factor(&at, pieces, &sums, clusters);
         if !(s2.is_finite() && s2 > 0.0) || (s2 - 1.0).abs() < 0.05 {
             break;
         }

@@ -339,6 +339,7 @@ pub(super) fn checks(
         // causes of the passes' disagreement.
         jump_check(s, sol)
             .or_else(|| survey_check(s, sol, targets.len()))
+            .or_else(|| prior_check(s, sol))
             .or(worst)
     }
 }
@@ -359,6 +360,45 @@ fn remnant(s: &Settings, sol: &Solution) -> Option<Refusal> {
             kept: sol.spheres[j].used,
             rounds: sol.spheres[j].rounds_kept,
         })
+}
+
+/// The mounting's measured values the data contradict: over the angles and over the lever
+/// arm, the chi-square of each one's move from its prior against what the prior leaves
+/// unexplained (prior variance less posterior, at least a tenth of the prior, as
+/// [`survey_check`]) beyond `max_pass_chi2` (3 degrees of freedom); the parameter moved most
+/// named.
+fn prior_check(s: &Settings, sol: &Solution) -> Option<Refusal> {
+    let lm = sol.lm?;
+    let mut worst: Option<(f64, Refusal)> = None;
+    for group in [0..3, 3..P] {
+        let (mut chi2, mut most) = (0.0, None::<Refusal>);
+        for i in group {
+            let info = s.mount_prior.info[i];
+            if info.is_nan() || info <= 0.0 {
+                continue;
+            }
+            let sp2 = 1.0 / info;
+            let post = lm.sigma[i] * lm.sigma[i];
+            let moved = sol.b.0[i] - s.mount_prior.centre[i];
+            let z = moved.abs() / libm::sqrt((sp2 - post).max(0.1 * sp2));
+            chi2 += z * z;
+            if most
+                .as_ref()
+                .is_none_or(|m| matches!(m, Refusal::PriorDisagrees { z: zm, .. } if z > *zm))
+            {
+                most = Some(Refusal::PriorDisagrees {
+                    parameter: i,
+                    moved,
+                    sigma: libm::sqrt(sp2),
+                    z,
+                });
+            }
+        }
+        if chi2 > s.max_pass_chi2 && worst.as_ref().is_none_or(|(c, _)| chi2 > *c) {
+            worst = most.map(|m| (chi2, m));
+        }
+    }
+    worst.map(|(_, r)| r)
 }
 
 /// Under a navigation model that wanders, the white noise found beyond

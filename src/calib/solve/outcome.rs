@@ -142,6 +142,19 @@ pub enum Refusal {
         /// Returns the rounds kept.
         rounds: usize,
     },
+    /// The data move a parameter of the mounting from its measured (a-priori) value beyond
+    /// what the measurement's sigma allows: the measurement, or the data, is wrong.
+    PriorDisagrees {
+        /// Parameter index (0-2 angles, 3-5 lever arm).
+        parameter: usize,
+        /// The solution minus the measured value [rad or m].
+        moved: f64,
+        /// The measurement's sigma [rad or m].
+        sigma: f64,
+        /// `moved` over what the prior leaves unexplained (see [`Refusal::SurveyDisagrees`]); the
+        /// angles' or the lever arm's chi-square over theirs beyond the consistency threshold.
+        z: f64,
+    },
     /// The residuals scatter far more than the noise model's white noise (the least squares'
     /// variance factor under the navigation model): somewhere the errors are not the declared
     /// ones.

@@ -84,6 +84,10 @@ pub struct Settings {
     pub nav: Option<NavModel>,
     /// Each sphere's surveyed centre's 1 sigma [m] under the navigation model (0: held).
     pub centre_sigma: [f64; MAX_TARGETS],
+    /// A prior on the mounting (a measured lever arm; a parameter held at its a-priori value):
+    /// under a navigation model (use [`NavModel::WHITE`] for white errors) the least squares
+    /// take it as a pseudo-observation.
+    pub mount_prior: crate::calib::nav::MountPrior,
     /// Under the navigation model, the largest step between consecutive pieces, in the
     /// model's sigmas, that is not a jump (surveys with the declared errors: 1.7-2.3; a 5 cm
     /// jump within a pass: 10).
@@ -181,6 +185,10 @@ impl Default for Settings {
             clocks: ClockFacts::default(),
             nav: None,
             centre_sigma: [0.0; MAX_TARGETS],
+            mount_prior: crate::calib::nav::MountPrior {
+                centre: [0.0; P],
+                info: [0.0; P],
+            },
             max_nav_step_sigmas: 5.0,
             max_influence_sigmas: 5.0,
             second_start: true,

@@ -131,6 +131,8 @@ fn import(a: &ImportArgs) -> Result<String, crate::Error> {
             boresight_deg: [r, p, h],
             lever_arm_m: [x, y, z],
             window_margin_m: a.margin,
+            boresight_sigma_deg: None,
+            lever_arm_sigma_m: None,
         },
         base,
     };

@@ -101,9 +101,28 @@ pub struct SiteApriori {
     pub lever_arm_m: [f64; 3],
     /// Window margin beyond the radius [m].
     pub window_margin_m: f64,
+    /// The boresight's 1-sigma as measured (roll, pitch, heading [deg]), when the mounting's
+    /// angles are known: a prior the calibration weighs with the data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub boresight_sigma_deg: Option<[f64; 3]>,
+    /// The lever arm's 1-sigma as measured (x, y, z [m]; a total-station survey of the
+    /// vessel to a few millimetres): a prior the calibration weighs with the data.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lever_arm_sigma_m: Option<[f64; 3]>,
 }
 
 impl SiteApriori {
+    /// The prior on the mounting the sigmas give (none without them): roll, pitch, heading
+    /// [rad], x, y, z [m].
+    pub fn prior(&self) -> spherecal::calib::nav::MountPrior {
+        let b = self.mount().deg_m().params().0;
+        let [r, p, h] = self
+            .boresight_sigma_deg
+            .map_or([0.0; 3], |s| s.map(f64::to_radians));
+        let [x, y, z] = self.lever_arm_sigma_m.unwrap_or([0.0; 3]);
+        spherecal::calib::nav::MountPrior::of(&b, &[r, p, h, x, y, z])
+    }
+
     /// The a-priori mounting.
     pub fn mount(&self) -> super::MountDegM {
         super::MountDegM {
@@ -303,6 +322,17 @@ impl Site {
         self.nav_model()?;
         if let Some(t) = &self.calibration {
             t.check("calibration")?;
+        }
+        for (k, v) in [
+            (
+                "apriori.boresight_sigma_deg",
+                self.apriori.boresight_sigma_deg,
+            ),
+            ("apriori.lever_arm_sigma_m", self.apriori.lever_arm_sigma_m),
+        ] {
+            if v.is_some_and(|v| v.iter().any(|s| !(s.is_finite() && *s > 0.0))) {
+                return Err(format!("{k}: expected three positive, finite sigmas").into());
+            }
         }
         let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let need = |ok: bool, key: String, why: &str| {

@@ -448,6 +448,8 @@ mod tests {
                 boresight_deg: [0.0; 3],
                 lever_arm_m: [0.0; 3],
                 window_margin_m: 2.5,
+                boresight_sigma_deg: None,
+                lever_arm_sigma_m: None,
             },
             base: std::path::PathBuf::new(),
         }

@@ -6,6 +6,7 @@ mod text;
 pub use text::{render, render_montecarlo, termination_words, utc};
 pub mod conventions;
 mod nav;
+pub mod prior;
 pub mod provenance;
 
 use crate::pipeline::{Inputs, RunStats};
@@ -178,6 +179,10 @@ pub struct PerSphere {
     /// before keeping returns: the report's reason says why).
     #[serde(default)]
     pub lost: Option<String>,
+    /// On a refusal, the radius its returns show (`crate::radius`; null: not looked for, or
+    /// no slice showed a sphere) [m].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub apparent_radius_m: Option<f64>,
 }
 
 /// The tests a solution passed (or failed) before it is claimed.
@@ -306,6 +311,9 @@ pub struct Report {
     /// misses them exits 3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub targets: Option<TargetsReport>,
+    /// The mounting as measured (`[apriori]`'s sigmas) against the calibration ([`prior`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub mounting_prior: Vec<prior::MeasuredParameter>,
     /// The mounting in the conventions other software takes ([`conventions`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub conventions: Option<conventions::Conventions>,

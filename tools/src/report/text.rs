@@ -339,6 +339,7 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             p.rms_after_m * 1e3
         );
     }
+    o.push_str(&super::prior::words(&r.mounting_prior));
     let first = r.per_pass.iter().map(|p| p.start_gps_s).reduce(f64::min);
     for sp in &r.set_aside {
         let _ = writeln!(o, "SET ASIDE: {}", sp.describe(first));

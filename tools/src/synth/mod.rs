@@ -502,6 +502,8 @@ fn site_of(s: &Scenario) -> Site {
             boresight_deg: s.mount.apriori.boresight_deg,
             lever_arm_m: s.mount.apriori.lever_arm_m,
             window_margin_m: s.mount.apriori.window_margin_m,
+            boresight_sigma_deg: None,
+            lever_arm_sigma_m: None,
         },
         // A survey whose INS errors wander declares them, with the white noise on top (what
         // a surveyor reads off the INS's and the LiDAR's sheets).

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 const TRIALS: u64 = 120;
 const NAMES: [&str; 7] = ["roll", "pitch", "heading", "x", "y", "z", "time offset"];
 
-fn tmp(name: &str) -> PathBuf {
+pub(crate) fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("spherecal-plan-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
@@ -36,7 +36,7 @@ fn copy_dir(from: &Path, to: &Path) {
 /// function, the session the rig also uses (collections again at the time offset found, the
 /// stretches set aside, the navigation model chosen as for a user): errors of the six [deg, m]
 /// and the time offset [s], the reported sigmas, why it was refused if it was.
-fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option<String>) {
+pub(crate) fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option<String>) {
     let mut survey = spherecal_tools::Survey::synth_dir(dir);
     if s.ins.kind == "posmv" {
         survey.ins = None;
