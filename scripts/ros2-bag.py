@@ -95,24 +95,43 @@ def crc16(data):
     return crc
 
 
+# Sizes of the Attitude and INS group fields the boards configure: YprU (Attitude bit 8),
+# PosU (INS bit 9); a frame with any other field of those groups is left out.
+OTHER_SIZES = {4: {8: 12}, 5: {9: 4}}
+
+
 def vn200_frames(path):
-    """Dicts of the Common-group fields of every VN-200 binary frame with a good CRC."""
+    """Dicts of the Common-group fields of every VN-200 binary frame with a good CRC (groups
+    Common, and the Attitude and INS groups' YprU and PosU, which are skipped)."""
     b = open(path, "rb").read()
     i = 0
     while i < len(b) - 4:
-        if b[i] != 0xFA or b[i + 1] != 0x01:
+        groups = b[i + 1] if b[i] == 0xFA else 0
+        if not groups & 1 or groups & ~0x31:
             i += 1
             continue
+        extra = [g for g in (4, 5) if groups >> g & 1]
+        head = 2 + 2 * (1 + len(extra))
+        if i + head > len(b):
+            break
         mask = struct.unpack("<H", b[i + 2:i + 4])[0]
-        if mask & 0x8000:
+        sizes = []
+        for k, g in enumerate(extra):
+            m = struct.unpack("<H", b[i + 4 + 2 * k:i + 6 + 2 * k])[0]
+            bits = [j for j in range(16) if m >> j & 1]
+            if any(j not in OTHER_SIZES[g] for j in bits):
+                sizes = None
+                break
+            sizes += [OTHER_SIZES[g][j] for j in bits]
+        if mask & 0x8000 or sizes is None:
             i += 1
             continue
-        n = sum(COMMON_SIZES[k] for k in range(15) if mask >> k & 1)
-        end = i + 4 + n + 2
+        n = sum(COMMON_SIZES[k] for k in range(15) if mask >> k & 1) + sum(sizes)
+        end = i + head + n + 2
         if end > len(b) or crc16(b[i + 1:end]) != 0:
             i += 1
             continue
-        f, at = {"mask": mask}, i + 4
+        f, at = {"mask": mask}, i + head
         for k in range(15):
             if mask >> k & 1:
                 f[k] = b[at:at + COMMON_SIZES[k]]

@@ -43,6 +43,9 @@ pub struct InsConfig {
     /// Silent GNSS outages: the INS coasts, its error growing, then snaps back (the status
     /// word unchanged).
     pub outages: [Outage; 4],
+    /// The unit states its own accuracy (Attitude.YprU and Ins.PosU in every frame: what
+    /// the boards configure; false: the Common group only, an unconfigured unit's output).
+    pub stated: bool,
 }
 
 /// A silent GNSS outage: from `start` [ns since the GPS epoch, true time] for `duration_ns`
@@ -102,6 +105,7 @@ impl Default for InsConfig {
             time_steps: [(i64::MAX, 0); 4],
             position_jumps: [(i64::MAX, [0.0; 3]); 4],
             outages: [Outage::NONE; 4],
+            stated: true,
         }
     }
 }
@@ -120,18 +124,24 @@ impl InsConfig {
 }
 
 /// The fields the simulated VN-200 sends: Common group TimeStartup (0), TimeGps (1),
-/// YawPitchRoll (3) or Quaternion (4), Position (6), InsStatus (12): what the boards configure.
-pub fn output_masks(attitude: AttitudeOutput) -> Masks {
+/// YawPitchRoll (3) or Quaternion (4), Position (6), InsStatus (12); with `stated`, the
+/// Attitude group's YprU (8) and the INS group's PosU (9): what the boards configure.
+pub fn output_masks(attitude: AttitudeOutput, stated: bool) -> Masks {
     let att = match attitude {
         AttitudeOutput::YawPitchRoll => 3,
         AttitudeOutput::Quaternion => 4,
     };
-    Masks::default()
+    let m = Masks::default()
         .with(Group::Common, 0)
         .with(Group::Common, 1)
         .with(Group::Common, att)
         .with(Group::Common, 6)
-        .with(Group::Common, 12)
+        .with(Group::Common, 12);
+    if stated {
+        m.with(Group::Attitude, 8).with(Group::Ins, 9)
+    } else {
+        m
+    }
 }
 
 /// TimeStartup at the first output [ns]: the unit was powered on 100 s before.
@@ -283,10 +293,10 @@ impl<'w, 'a> InsSim<'w, 'a> {
         }
     }
 
-    /// Write the next frame into `out` (at least 64 bytes); its true time and length.
+    /// Write the next frame into `out` (at least 96 bytes); its true time and length.
     pub fn next_frame(&mut self, out: &mut [u8]) -> Option<(GpsTime, usize)> {
         let (t, stamp, [r, p, h], g) = self.next_sample()?;
-        let mut payload = [0u8; 58];
+        let mut payload = [0u8; 74];
         let mut w = 0;
         let mut put = |b: &[u8]| {
             payload[w..w + b.len()].copy_from_slice(b);
@@ -316,7 +326,21 @@ impl<'w, 'a> InsSim<'w, 'a> {
             put(&v.to_le_bytes());
         }
         put(&INS_STATUS.to_le_bytes());
-        let n = emit(out, &output_masks(self.cfg.attitude), &payload[..w]).ok()?;
+        if self.cfg.stated {
+            // Attitude.YprU: yaw, pitch, roll 1 sigma [deg]; Ins.PosU: one number [m] (the
+            // largest axis: VectorNav's is the position's uncertainty, not per axis).
+            let sg = self.stated_sigmas();
+            for a in [sg[5], sg[4], sg[3]] {
+                put(&(a.to_degrees() as f32).to_le_bytes());
+            }
+            put(&(sg[0].max(sg[1]).max(sg[2]) as f32).to_le_bytes());
+        }
+        let n = emit(
+            out,
+            &output_masks(self.cfg.attitude, self.cfg.stated),
+            &payload[..w],
+        )
+        .ok()?;
         self.stats.frames += 1;
         self.corrupt(&mut out[..n]);
         Some((t, n))

@@ -81,18 +81,30 @@ fn group_one() -> u16 {
 }
 
 impl InsLink {
-    /// The board's `fields` as Common-group bits of the core's field table (unknown names are
-    /// left out: the board's validation refuses them).
-    pub fn common_bits(&self) -> Vec<(&'static str, u8)> {
-        use spherecal::vn200::Group;
-        Group::Common
-            .fields()
+    /// The board's `fields` as (name, group, bit) of the core's field table: a bare name is
+    /// a Common-group field, `Group.Field` another group's (`Attitude.YprU`, `Ins.PosU`; the
+    /// group names of [`spherecal::vn200::Group::name`]). Unknown names are left out: the
+    /// board's validation refuses them ([`output_bit`]).
+    pub fn output_bits(&self) -> Vec<(&str, spherecal::vn200::Group, u8)> {
+        self.fields
             .iter()
-            .enumerate()
-            .filter_map(|(i, d)| d.as_ref().map(|d| (d.name, i as u8)))
-            .filter(|(n, _)| self.fields.iter().any(|f| f == n))
+            .filter_map(|f| output_bit(f).map(|(g, b)| (f.as_str(), g, b)))
             .collect()
     }
+}
+
+/// One `ins.fields` entry's group and bit: `Field` (Common) or `Group.Field`.
+pub fn output_bit(name: &str) -> Option<(spherecal::vn200::Group, u8)> {
+    use spherecal::vn200::Group;
+    let (g, field) = match name.split_once('.') {
+        Some((g, f)) => (*Group::ALL.iter().find(|x| x.name() == g)?, f),
+        None => (Group::Common, name),
+    };
+    let bit = g
+        .fields()
+        .iter()
+        .position(|d| d.as_ref().is_some_and(|d| d.name == field))?;
+    Some((g, bit as u8))
 }
 
 fn yes() -> bool {
@@ -344,13 +356,14 @@ impl Board {
                 if !BAUDS.contains(&self.ins.baud) {
                     return bad("ins.baud", "expected a VN-200 rate (9600 .. 921600)");
                 }
-                if let Some(f) = self
-                    .ins
-                    .fields
-                    .iter()
-                    .find(|f| !COMMON_FIELDS.contains(&f.as_str()))
-                {
-                    return bad("ins.fields", &format!("unknown Common-group field {f:?}"));
+                if let Some(f) = self.ins.fields.iter().find(|f| {
+                    output_bit(f).is_none()
+                        || (!f.contains('.') && !COMMON_FIELDS.contains(&f.as_str()))
+                }) {
+                    return bad(
+                        "ins.fields",
+                        &format!("unknown field {f:?} (a Common-group name, or Group.Field: Attitude.YprU, Ins.PosU)"),
+                    );
                 }
                 for need in ["YawPitchRoll", "Position"] {
                     if !self.ins.fields.iter().any(|f| f == need) {
@@ -424,6 +437,19 @@ mod tests {
             env!("CARGO_MANIFEST_DIR")
         ))
         .unwrap()
+    }
+
+    /// `ins.fields` entries: a Common name bare, another group's as `Group.Field`, at the bits
+    /// of the VN-200 manual's tables (Attitude YprU bit 8, INS PosU bit 9).
+    #[test]
+    fn group_qualified_fields() {
+        use spherecal::vn200::Group;
+        assert_eq!(output_bit("TimeGps"), Some((Group::Common, 1)));
+        assert_eq!(output_bit("Attitude.YprU"), Some((Group::Attitude, 8)));
+        assert_eq!(output_bit("Ins.PosU"), Some((Group::Ins, 9)));
+        assert_eq!(output_bit("YprU"), None);
+        assert_eq!(output_bit("Attitude.PosU"), None);
+        assert_eq!(output_bit("Nope.YprU"), None);
     }
 
     /// The names a board may list are the core's Common-group field names, in bit order.

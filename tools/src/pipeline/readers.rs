@@ -442,14 +442,15 @@ pub fn vn200_pose(item: &Item<'_>, frame: &LocalFrame) -> InsOutcome {
 const VN200_STATED: &str = "VN-200 Ins.PosU and Attitude.YprU";
 
 /// The errors a VN-200 item states: a binary frame's Ins.PosU (one number, taken for each
-/// axis) with its Attitude.YprU, or a $VNINS sentence's PosU and AttU; north, east, down [m],
+/// axis) with its Attitude.YprU (all above zero), or a $VNINS sentence's PosU and AttU; north, east, down [m],
 /// roll, pitch, heading [deg].
 fn vn200_stated(item: &Item<'_>) -> Option<([f64; 3], [f64; 3])> {
     match item {
         Item::Binary(f) => {
+            // Zero is no statement (a filter not yet converged; a simulator without noise).
             let p = f64::from(f.position_uncertainty_m()?);
             let [y, pi, r] = f.ypr_uncertainty_deg()?.map(f64::from);
-            Some(([p; 3], [r, pi, y]))
+            (p > 0.0 && y > 0.0 && pi > 0.0 && r > 0.0).then_some(([p; 3], [r, pi, y]))
         }
         Item::Ascii(a) => match a.decode() {
             Ok(spherecal::vn200::ascii::Vn::Ins(i)) => Some(([i.pos_u; 3], [i.att_u; 3])),

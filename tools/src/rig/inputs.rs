@@ -126,7 +126,7 @@ pub(super) struct Plan {
     /// The board's a-priori mounting.
     pub(super) b0: Params,
     /// The board's expected VN-200 outputs as Common-group bits (the core's field table).
-    pub(super) expected: Vec<(&'static str, u8)>,
+    pub(super) expected: Vec<(String, spherecal::vn200::Group, u8)>,
 }
 
 impl Plan {
@@ -145,7 +145,12 @@ impl Plan {
                 0.0,
             ),
         };
-        let expected = b.ins.common_bits();
+        let expected: Vec<(String, spherecal::vn200::Group, u8)> = b
+            .ins
+            .output_bits()
+            .into_iter()
+            .map(|(n, g, bit)| (n.to_string(), g, bit))
+            .collect();
         let mut settings = match &opts.site {
             Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
             None => Settings::default(),

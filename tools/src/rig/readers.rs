@@ -70,13 +70,13 @@ pub(super) fn udp_reader(
     (skips, src.get_ref().kernel_stamped)
 }
 
-/// Say once per frame layout if the VN-200 does not send the Common-group outputs the board
+/// Say once per frame layout if the VN-200 does not send the outputs the board
 /// expects (its register 75 configuration differs from `ins.fields`).
 pub(super) fn check_outputs(
     m: &Masks,
     offset: u64,
     last: &mut Option<Masks>,
-    expected: &[(&'static str, u8)],
+    expected: &[(String, Group, u8)],
     dev: &str,
     sh: &Shared<'_>,
 ) {
@@ -86,12 +86,12 @@ pub(super) fn check_outputs(
     *last = Some(*m);
     let missing: Vec<&str> = expected
         .iter()
-        .filter(|(_, bit)| !m.has(Group::Common, *bit))
-        .map(|(name, _)| *name)
+        .filter(|(_, g, bit)| !m.has(*g, *bit))
+        .map(|(name, _, _)| name.as_str())
         .collect();
     if !missing.is_empty() {
         sh.error(format!(
-            "serial {dev}: the VN-200 frame at byte {offset} lacks the Common-group outputs {} that the board expects (ins.fields)",
+            "serial {dev}: the VN-200 frame at byte {offset} lacks the outputs {} that the board expects (ins.fields)",
             missing.join(", ")
         ));
     }
@@ -109,7 +109,7 @@ const REOPEN_MS: (u64, u64) = (250, 2_000);
 pub(super) fn serial_reader(
     dev: &str,
     baud: u32,
-    expected: &[(&'static str, u8)],
+    expected: &[(String, Group, u8)],
     mut src: SerialSource,
     frame: &LocalFrame,
     keep_untracked: bool,

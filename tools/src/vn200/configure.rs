@@ -1,12 +1,13 @@
 //! Configure a VN-200 from a board's `[ins]` section over its serial port: ASCII async output
 //! off (register 6), optionally the baud (register 5), the binary output (register 75: the
-//! board's Common-group `fields` at `rate_hz` on `port`), each write checked against the unit's
+//! board's `fields` at `rate_hz` on `port`: Common-group outputs, and the Attitude group's
+//! YprU and the INS group's PosU by which the unit states its own accuracy), each write checked against the unit's
 //! `$VNWRG` echo (checksums both ways; `$VNERR` codes in words; retried), optionally saved to
 //! flash (`$VNWNV`); then the first binary frames are checked against the board.
 
 use spherecal::vn200::ascii::Vn;
 use spherecal::vn200::command::{self, BinaryOutput};
-use spherecal::vn200::{Framer, Group, Item, Masks};
+use spherecal::vn200::{Framer, Item, Masks};
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
@@ -52,17 +53,17 @@ pub struct Configured {
 
 /// The binary output register 75 the board asks for.
 pub fn binary_output(ins: &InsLink) -> Result<BinaryOutput, crate::Error> {
-    let bits = ins.common_bits();
+    let bits = ins.output_bits();
     if bits.len() != ins.fields.len() {
         return Err(format!(
-            "ins.fields {:?}: not all are Common-group fields",
+            "ins.fields {:?}: not all are VN-200 output fields (Common-group names, or Group.Field)",
             ins.fields
         )
         .into());
     }
     let masks = bits
         .iter()
-        .fold(Masks::default(), |m, &(_, bit)| m.with(Group::Common, bit));
+        .fold(Masks::default(), |m, &(_, g, bit)| m.with(g, bit));
     let rate_divisor = BinaryOutput::divisor_for(ins.rate_hz)
         .ok_or_else(|| format!("ins.rate_hz {}: not 800 Hz / an integer", ins.rate_hz))?;
     Ok(BinaryOutput {

@@ -231,6 +231,16 @@ impl Unit {
                     _ => {}
                 }
             }
+            // The unit's own accuracy: Attitude.YprU [deg] (yaw, pitch, roll), Ins.PosU [m]
+            // (an RTK-aided unit's).
+            if g == Group::Attitude && bit == 8 {
+                for (i, v) in [0.3f32, 0.03, 0.03].iter().enumerate() {
+                    f[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+                }
+            }
+            if g == Group::Ins && bit == 9 {
+                f.copy_from_slice(&0.02f32.to_le_bytes());
+            }
             payload.extend_from_slice(&f);
         }
         let mut out = vec![0u8; payload.len() + 64];

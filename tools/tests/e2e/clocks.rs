@@ -372,9 +372,9 @@ fn ins_byte_edits_status_crc_and_gaps() {
     let r = r.unwrap();
     let st = &r.inputs.as_ref().unwrap().ins_state;
     // Every damaged frame fails its CRC; a resynchronising framer may also try a false sync
-    // byte inside one (a few per thousand).
+    // byte inside one (an 80-byte frame: ~1 in 10).
     assert!(
-        st.crc_failures >= damaged && st.crc_failures <= damaged + damaged / 100,
+        st.crc_failures >= damaged && st.crc_failures <= damaged + damaged / 8,
         "{} CRC failures for {damaged} damaged frames",
         st.crc_failures
     );

@@ -151,20 +151,23 @@ pub mod vn200 {
         c
     }
 
-    /// The synthetic VN-200 frame (what the boards configure): sync 0xFA, group 1, fields 0x104B
-    /// (TimeStartup u64, TimeGps u64, YPR 3 f32, Position 3 f64, InsStatus u16), CRC.
-    pub const FRAME: usize = 60;
+    /// The synthetic VN-200 frame (what the boards configure): sync 0xFA, groups 0x31 (Common,
+    /// Attitude, INS), fields 0x104B (TimeStartup u64, TimeGps u64, YPR 3 f32, Position 3 f64,
+    /// InsStatus u16), 0x0100 (YprU 3 f32), 0x0200 (PosU f32), CRC.
+    pub const FRAME: usize = 80;
+    /// Its header: sync, groups, the three groups' fields.
+    pub const HEADER: [u8; 8] = [0xFA, 0x31, 0x4B, 0x10, 0x00, 0x01, 0x00, 0x02];
     /// Where TimeGps, the height and InsStatus sit in it.
-    pub const TIME_AT: usize = 12;
-    pub const HEIGHT_AT: usize = 48;
-    pub const STATUS_AT: usize = 56;
+    pub const TIME_AT: usize = 16;
+    pub const HEIGHT_AT: usize = 52;
+    pub const STATUS_AT: usize = 60;
 
     /// The frames' offsets in the stream.
     pub fn frames(ins: &[u8]) -> Vec<usize> {
         let mut out = Vec::new();
         let mut i = 0;
         while i + FRAME <= ins.len() {
-            if ins[i..i + 4] == [0xFA, 0x01, 0x4B, 0x10] && crc16(&ins[i + 1..i + FRAME]) == 0 {
+            if ins[i..i + 8] == HEADER && crc16(&ins[i + 1..i + FRAME]) == 0 {
                 out.push(i);
                 i += FRAME;
             } else {
@@ -189,13 +192,14 @@ pub mod vn200 {
         seal(ins, at);
     }
 
-    /// The frames at `at` as a unit configured without TimeStartup sends them (fields 0x104A,
-    /// 52 bytes: the older boards' output), back to back.
+    /// The frames at `at` as a unit configured by the older boards sends them (the Common
+    /// group only, without TimeStartup: fields 0x104A, 52 bytes), back to back.
     pub fn without_startup(ins: &[u8], at: &[usize]) -> Vec<u8> {
-        let mut out = Vec::with_capacity(at.len() * (FRAME - 8));
+        let mut out = Vec::with_capacity(at.len() * 52);
         for &i in at {
             let mut f = vec![0xFA, 0x01, 0x4A, 0x10];
-            f.extend_from_slice(&ins[i + 12..i + FRAME - 2]);
+            // The Common payload after TimeStartup: TimeGps to InsStatus.
+            f.extend_from_slice(&ins[i + TIME_AT..i + STATUS_AT + 2]);
             let c = crc16(&f[1..]);
             f.extend_from_slice(&c.to_be_bytes());
             out.extend_from_slice(&f);

@@ -945,8 +945,8 @@ fn sigint_mid_run_leaves_clean_logs() {
         &slave.name().unwrap(),
         true,
         &[(
-            "\"Position\", \"InsStatus\"]",
-            "\"Position\", \"InsStatus\", \"Quaternion\"]",
+            "\"InsStatus\", \"Attitude.YprU\"",
+            "\"InsStatus\", \"Quaternion\", \"Attitude.YprU\"",
         )],
     );
     // The run is interrupted 4 s into the replay (of ~31 s).
@@ -960,7 +960,7 @@ fn sigint_mid_run_leaves_clean_logs() {
     let sm = summary(&logs);
     let errors = sm["errors"].to_string();
     assert!(
-        errors.contains("lacks the Common-group outputs Quaternion that the board expects"),
+        errors.contains("lacks the outputs Quaternion that the board expects"),
         "{errors}"
     );
     let (got, skipped) = datagrams(&files(&logs, "-lidar-"));
@@ -1274,7 +1274,7 @@ fn rig_configures_a_factory_vn200() {
     let said = lines.join("\n");
     assert!(said.contains("vn200: ASCII async output off"), "{said}");
     assert!(
-        said.contains("vn200: binary output (register 75): TimeStartup, TimeGps, YawPitchRoll, Position, InsStatus at 200 Hz"),
+        said.contains("vn200: binary output (register 75): TimeStartup, TimeGps, YawPitchRoll, Position, InsStatus, Attitude.YprU, Ins.PosU at 200 Hz"),
         "{said}"
     );
     assert!(

@@ -62,7 +62,7 @@ fn configures_an_emulated_unit_and_refuses_in_words() {
     assert_eq!(code, Some(0), "{text}");
     assert_eq!(u.async_type, 0, "ASCII output off");
     assert_eq!(u.binary[0], want, "register 75 as the board says");
-    assert!(text.contains("binary output (register 75): TimeStartup, TimeGps, YawPitchRoll, Position, InsStatus at 200 Hz on serial port 1"), "{text}");
+    assert!(text.contains("binary output (register 75): TimeStartup, TimeGps, YawPitchRoll, Position, InsStatus, Attitude.YprU, Ins.PosU at 200 Hz on serial port 1"), "{text}");
     assert!(
         text.contains("first binary frames match the board"),
         "{text}"

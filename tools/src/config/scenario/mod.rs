@@ -287,6 +287,11 @@ pub struct InsSpec {
     pub time_offset_s: f64,
     /// Probability of a corrupted serial byte.
     pub corrupt_prob: f64,
+    /// The VN-200 states its own accuracy in every frame (Attitude.YprU, Ins.PosU: what the
+    /// boards configure; default true); false: the Common group only, as a unit configured
+    /// by hand often sends.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub states_accuracy: bool,
     /// The attitude field the VN-200 sends: `yaw_pitch_roll` (default) or `quaternion`.
     #[serde(
         default = "default_attitude",
@@ -312,6 +317,14 @@ pub struct InsSpec {
 
 fn is_default_correlated(c: &crate::config::nav_errors::CorrelatedSpec) -> bool {
     *c == crate::config::nav_errors::CorrelatedSpec::default()
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 fn default_attitude() -> String {
@@ -687,6 +700,7 @@ impl Scenario {
             } else {
                 AttitudeOutput::YawPitchRoll
             },
+            stated: self.ins.states_accuracy,
             time_steps: {
                 let mut steps = [(i64::MAX, 0); 4];
                 for (k, [at, d]) in self.ins.clock_steps.iter().take(4).enumerate() {
