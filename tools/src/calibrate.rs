@@ -324,6 +324,7 @@ pub fn solve_report_in(
         }),
         set_aside: Vec::new(),
         targets: None,
+        held: Vec::new(),
         mounting_prior: Vec::new(),
         conventions: None,
         provenance: None,

@@ -150,6 +150,15 @@ fn parameters(o: &mut String, r: &Report) {
         },
         num(r.time_offset_s - start, 6)
     );
+    if !r.held.is_empty() {
+        let _ = writeln!(
+            o,
+            "<p class=\"short\"><b>Held, not calibrated:</b> {}: the data do not determine {} under this navigation model; {} at the a-priori value, the sigma the hold's. Measure it on the vessel ([apriori] sigmas) or declare the INS's real accuracy.</p>",
+            escape(&r.held.join(", ")),
+            if r.held.len() > 1 { "them" } else { "it" },
+            if r.held.len() > 1 { "they stay" } else { "it stays" }
+        );
+    }
     if !r.mounting_prior.is_empty() {
         o.push_str("<h3>As measured on the vessel</h3><table><tr><th class=\"l\">parameter</th><th>measured</th><th>1-sigma</th><th>calibration - measured</th><th>z</th></tr>\n");
         for m in &r.mounting_prior {

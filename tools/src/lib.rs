@@ -29,6 +29,7 @@ pub mod state;
 pub mod stretches;
 pub mod survey;
 pub mod synth;
+pub mod undetermined;
 pub mod verdict;
 pub mod vertical;
 pub mod vn200;

@@ -187,8 +187,28 @@ pub fn run_calibrate(
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     inp.exclude = survey.exclude.clone();
     let (targets, ids) = calibrate::site_targets(&inp);
-    let (stats, obs, sol, mut rep) = calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
-    let mut text = format!("{datums}\n");
+    let (mut stats, mut obs, mut sol, mut rep) =
+        calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
+    // A parameter the data cannot determine: held at its a-priori value, the rest calibrated.
+    let candidates = crate::undetermined::candidates(&sol, &inp.site);
+    let mut held = String::new();
+    if !candidates.is_empty() {
+        let mut again = inp.clone();
+        again.site = crate::undetermined::holding(&inp.site, &candidates);
+        let second = calibrate::calibrate(&mut again, &targets, &ids, &b0, clock)?;
+        let weak = crate::undetermined::undetermined(&candidates, &second.3.sigma.deg_m());
+        if second.3.converged && !weak.is_empty() {
+            let why = rep.reason.clone().unwrap_or_default();
+            held = crate::undetermined::words(&weak, &inp.site, &why);
+            (stats, obs, sol, rep) = second;
+            rep.held = weak
+                .iter()
+                .map(|&i| spherecal::calib::NAMES[i].into())
+                .collect();
+            inp = again;
+        }
+    }
+    let mut text = format!("{datums}\n{held}");
     // A bag's own account of itself (no metadata.yaml, messages it promises but lacks).
     if let Some(b) = pipeline::as_bag(&inp.pcap) {
         if let Ok(o) = crate::bag::open(b, inp.lidar_topic.as_deref(), None, false) {
@@ -207,7 +227,8 @@ pub fn run_calibrate(
     let goal = crate::config::goal::TargetChoice::of(inp.site.calibration.as_ref(), None);
     rep.targets = Some(report::TargetsReport::of(&rep, &goal));
     rep.conventions = Some(report::conventions::Conventions::of(&sol.b.0));
-    rep.mounting_prior = report::prior::of(&inp.site.apriori, &rep);
+    // What the site measured (not the holds).
+    rep.mounting_prior = report::prior::of(&surveyed.apriori, &rep);
     rep.provenance = Some(provenance(&inp, &survey.site, &surveyed, &datums, &stats)?);
     text.push_str(&report::render(&rep, truth.as_ref()));
     // The result is printed whatever happens to the files: an output that fails now (a disk

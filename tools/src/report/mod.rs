@@ -311,6 +311,10 @@ pub struct Report {
     /// misses them exits 3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub targets: Option<TargetsReport>,
+    /// Parameters the data could not determine, held at their a-priori values
+    /// (`crate::undetermined`): their sigmas are the hold's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub held: Vec<String>,
     /// The mounting as measured (`[apriori]`'s sigmas) against the calibration ([`prior`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub mounting_prior: Vec<prior::MeasuredParameter>,

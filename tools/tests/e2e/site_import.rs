@@ -176,8 +176,9 @@ fn compound_and_unknown_codes_say_what_to_give() {
 /// by a spreadsheet in a decimal-comma locale (a byte-order mark, `;`, decimal commas, CRLF,
 /// `Point;Easting;Northing;Elevation`), projected by pyproj; `site import` (its heights said
 /// ellipsoidal) gives back the survey's centres; `calibrate` on the synthesised VN-200 stream
-/// refuses without a navigation model (the VN-200's metre-level default cannot hold the
-/// vertical lever arm: not claimed), and with `--ins white` declared (the noise-free scenario)
+/// (noise-free: it states no accuracy) without a navigation model takes the VN-200's
+/// metre-level default, which cannot determine the vertical lever arm: held at its a-priori
+/// value and named, the rest calibrated, exit 3; with `--ins white` declared (the noise-free scenario)
 /// claims within its targets: exit 0, `targets.met`, and the report files its provenance
 /// (the site's CRS, the CSV-made site's SHA-256) and the mounting as a ROS transform.
 #[test]
@@ -249,7 +250,49 @@ fn a_spreadsheet_survey_imported_then_calibrated() {
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     );
-    assert!(!common::claimed(&o), "{t}");
+    // The metre-level default cannot determine the lever arm's height: held at its a-priori
+    // value and named, the others calibrated, exit 3 (its sigma misses every target).
+    assert_eq!(o.status.code(), Some(3), "{t}");
+    assert!(
+        t.contains(
+            "HELD: z at its a-priori value -1.759 m +- 500 mm: the data do not determine it"
+        ),
+        "{t}"
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("bare.json")).unwrap()).unwrap();
+    assert_eq!(r["held"], serde_json::json!(["z"]), "{}", r["held"]);
+    assert_eq!(r["targets"]["met"], false);
+    assert!(
+        r.get("mounting_prior").is_none(),
+        "the holds are not measurements"
+    );
+    // Honest: each parameter within 3 of its sigma of the truth, the held one too.
+    let truth = s.mount.truth.deg_m().0;
+    let got = [
+        &r["boresight_deg"]["roll"],
+        &r["boresight_deg"]["pitch"],
+        &r["boresight_deg"]["heading"],
+        &r["lever_arm_m"]["x"],
+        &r["lever_arm_m"]["y"],
+        &r["lever_arm_m"]["z"],
+    ];
+    let sg = [
+        &r["sigma"]["boresight_deg"]["roll"],
+        &r["sigma"]["boresight_deg"]["pitch"],
+        &r["sigma"]["boresight_deg"]["heading"],
+        &r["sigma"]["lever_arm_m"]["x"],
+        &r["sigma"]["lever_arm_m"]["y"],
+        &r["sigma"]["lever_arm_m"]["z"],
+    ];
+    for i in 0..6 {
+        let (g, e) = (got[i].as_f64().unwrap(), sg[i].as_f64().unwrap());
+        assert!(
+            (g - truth[i]).abs() < 3.0 * e,
+            "{i}: {g} vs {} ({e})",
+            truth[i]
+        );
+    }
     let white = dir.join("white.toml");
     assert!(import(&["--ins", "white"], &white).contains("preset \"white\" (--ins)"));
     let report = dir.join("white.json");
