@@ -9,6 +9,8 @@ use crate::report::{utc, Report};
 use spherecal::calib::{NAMES, P};
 use std::fmt::Write as _;
 
+mod cover;
+
 /// Under this long [s] (or under 3 scan slices) a pass is a glimpse.
 const GLIMPSE_S: f64 = 1.5;
 
@@ -68,7 +70,8 @@ pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Er
             leap
         )
     );
-    verdict(&mut o, r);
+    cover::cover(&mut o, r, leap);
+    o.push_str("<h2>Details</h2>\n");
     parameters(&mut o, r);
     checks(&mut o, r);
     inputs(&mut o, r, leap);
@@ -81,6 +84,7 @@ pub fn render(r: &Report, figs: &Figures, leap: i64) -> Result<String, crate::Er
     Ok(o)
 }
 
+/// The verdict in one banner (on the cover sheet).
 fn verdict(o: &mut String, r: &Report) {
     match &r.reason {
         None if r.targets.as_ref().is_some_and(|t| !t.met) => {
@@ -195,7 +199,7 @@ fn checks(o: &mut String, r: &Report) {
         "residual RMS",
         format!("{} mm", num(r.rms_m * 1e3, 2)),
         &format!(
-            "the noise model predicts {} mm",
+            "each kept return's distance to its sphere's surface, with the solution, over all spheres; the noise model predicts {} mm",
             num(c.predicted_rms_m * 1e3, 2)
         ),
     );
@@ -231,7 +235,7 @@ fn checks(o: &mut String, r: &Report) {
         "fitted minus surveyed centres, RMS",
         r.sphere_centre_rms_m
             .map_or("&ndash;".into(), |v| format!("{:.2} mm", v * 1e3)),
-        "",
+        "each sphere fitted to its own kept returns (radius held) against its surveyed centre: the survey and the calibration together, not a residual",
     );
     if let Some([d, s]) = c.free_time_offset_s {
         row(
@@ -350,7 +354,7 @@ fn inputs(o: &mut String, r: &Report, leap: i64) {
 }
 
 fn spheres(o: &mut String, r: &Report) {
-    o.push_str("<h2>Spheres</h2><table><tr><th class=\"l\">sphere</th><th>windowed</th><th>kept</th><th>seen in slices</th><th>RMS before [mm]</th><th>RMS after [mm]</th><th>fitted - surveyed N, E, D [mm]</th><th class=\"l\">rejected</th></tr>\n");
+    o.push_str("<h2>Spheres</h2><table><tr><th class=\"l\">sphere</th><th>windowed</th><th>kept</th><th>seen in slices</th><th>residual RMS at the start [mm]</th><th>residual RMS, solution [mm]</th><th>fitted - surveyed N, E, D [mm]</th><th class=\"l\">rejected</th></tr>\n");
     for p in &r.per_sphere {
         let v = &p.verdicts;
         let _ = writeln!(
@@ -452,6 +456,7 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
     if n.corrections.is_empty() {
         return;
     }
+    o.push_str("<details><summary>The corrections to the INS, second by second</summary>");
     o.push_str("<table><tr><th class=\"l\">time</th><th>pieces</th><th>position N, E, D [mm]</th><th>1-sigma [mm]</th><th>heading [deg]</th><th>1-sigma [deg]</th></tr>\n");
     let mut k = 0;
     while k < n.corrections.len() {
@@ -480,7 +485,7 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
         );
         k = e;
     }
-    o.push_str("</table>\n");
+    o.push_str("</table></details>\n");
 }
 
 fn correlation(o: &mut String, r: &Report) {

@@ -1,6 +1,6 @@
 //! Helpers shared by the end-to-end tests.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The repository root (tests run with the crate's manifest dir as cwd).
 pub fn repo_root() -> PathBuf {
@@ -25,6 +25,24 @@ pub fn test_data(rel: &str) -> PathBuf {
 /// The `spherecal` binary of this build.
 pub fn spherecal() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_spherecal"))
+}
+
+/// `spherecal calibrate` of the survey `synth` wrote to `dir` (its `lidar.pcap` and VN-200
+/// `ins.bin`) with the site `site`, its report to `report` (removed first).
+pub fn calibrate_survey(dir: &Path, site: &Path, report: &Path) -> std::process::Output {
+    let _ = std::fs::remove_file(report);
+    spherecal()
+        .arg("calibrate")
+        .arg("--pcap")
+        .arg(dir.join("lidar.pcap"))
+        .arg("--ins")
+        .arg(dir.join("ins.bin"))
+        .arg("--site")
+        .arg(site)
+        .arg("--report")
+        .arg(report)
+        .output()
+        .unwrap()
 }
 
 /// A path in a per-process scratch folder for test `group` (created).

@@ -228,20 +228,7 @@ fn a_survey_sigma_applies_under_white_ins_errors() {
     let off = d.join("off.toml");
     std::fs::write(&off, resurveyed(&site, "S1", 0.02, 0.03)).unwrap();
     let report = d.join("off.json");
-    let run = |site: &Path| {
-        common::spherecal()
-            .arg("calibrate")
-            .arg("--pcap")
-            .arg(d.join("lidar.pcap"))
-            .arg("--ins")
-            .arg(d.join("ins.bin"))
-            .arg("--site")
-            .arg(site)
-            .arg("--report")
-            .arg(&report)
-            .output()
-            .unwrap()
-    };
+    let run = |site: &Path| common::calibrate_survey(&d, site, &report);
     let o = run(&off);
     let t = text(&o);
     assert!(common::claimed(&o), "{t}");

@@ -65,6 +65,40 @@ pub(crate) fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option
     (err, sigma, r.reason)
 }
 
+/// Each seed of `seeds` a trial of `s` on two threads: its files simulated from `cache` into a
+/// folder of its own, `trial` run on them (the scenario with the seed, the folder), the
+/// folder removed (`SPHERECAL_MC_KEEP=DIR`: copied there first, to look into a seed;
+/// `calibrate --returns` against its labels.bin). The seeds with their results, in no order.
+pub(crate) fn run_trials<R: Send>(
+    s: &Scenario,
+    seeds: &[u64],
+    cache: &spherecal_tools::synth::TraceCache,
+    name: &str,
+    trial: impl Fn(&Scenario, &Path) -> R + Sync,
+) -> Vec<(u64, R)> {
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|sc| {
+        for chunk in seeds.chunks(seeds.len().div_ceil(2)) {
+            let (results, trial) = (&results, &trial);
+            sc.spawn(move || {
+                for &seed in chunk {
+                    let mut sd = s.clone();
+                    sd.seed = seed;
+                    let dir = tmp(&format!("{name}-{seed}"));
+                    spherecal_tools::synth::synth_traced(&sd, &dir, cache).unwrap();
+                    let r = trial(&sd, &dir);
+                    results.lock().unwrap().push((seed, r));
+                    if let Ok(keep) = std::env::var("SPHERECAL_MC_KEEP") {
+                        copy_dir(&dir, &Path::new(&keep).join(format!("{name}-{seed}")));
+                    }
+                    std::fs::remove_dir_all(&dir).unwrap();
+                }
+            });
+        }
+    });
+    results.into_inner().unwrap()
+}
+
 /// The Monte Carlo of a site against the plan's prediction: each parameter's standard
 /// deviation over 120 noise seeds within 20 % of the predicted sigma (the sample's own
 /// relative error is 6.5 %; over the runs claimed, as a surveyor would keep them), at most
@@ -103,36 +137,12 @@ fn agrees_with_monte_carlo_over(name: &str, trials: u64) {
     // (`every_windowed_return_of_a_full_trial_is_simulated` checks the mask loses none).
     let (cache, n, all) = common::trial_cache(&s);
     eprintln!("{name}: trials simulate {n} of {all} data packets");
-    let results = std::sync::Mutex::new(Vec::new());
     // A scenario given as a file: its name without the folders.
     let name_ = Path::new(name)
         .file_name()
         .map_or(name.into(), |f| f.to_string_lossy());
-    let name_ = name_.as_ref();
     let seeds: Vec<u64> = (1000..1000 + trials).collect();
-    std::thread::scope(|sc| {
-        for chunk in seeds.chunks(seeds.len().div_ceil(2)) {
-            let (s, results, cache) = (&s, &results, &cache);
-            sc.spawn(move || {
-                for &seed in chunk {
-                    let mut sd = s.clone();
-                    sd.seed = seed;
-                    let dir = tmp(&format!("{name_}-{seed}"));
-                    spherecal_tools::synth::synth_traced(&sd, &dir, cache).unwrap();
-                    let r = calibrate(&sd, &dir);
-                    results.lock().unwrap().push((seed, r));
-                    // SPHERECAL_MC_KEEP=DIR: every trial's folder is copied there (to look into
-                    // a seed; `calibrate --returns` against its labels.bin).
-                    if let Ok(keep) = std::env::var("SPHERECAL_MC_KEEP") {
-                        let to = Path::new(&keep).join(format!("{name_}-{seed}"));
-                        copy_dir(&dir, &to);
-                    }
-                    std::fs::remove_dir_all(&dir).unwrap();
-                }
-            });
-        }
-    });
-    let results = results.into_inner().unwrap();
+    let results = run_trials(&s, &seeds, &cache, name_.as_ref(), calibrate);
     let n = results.len() as f64;
     assert_eq!(results.len() as u64, trials);
     let refused: Vec<(u64, &String)> = results

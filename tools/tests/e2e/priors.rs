@@ -5,7 +5,7 @@
 
 use crate::common;
 use crate::common::text;
-use crate::plan::{calibrate, tmp};
+use crate::plan::{calibrate, run_trials, tmp};
 use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
 use std::path::Path;
@@ -76,11 +76,11 @@ fn edit_site(
 
 const NAMES: [&str; 7] = ["roll", "pitch", "heading", "x", "y", "z", "time offset"];
 
-/// table1-noisy (white INS errors) over 24 seeds, each trial's spheres surveyed with errors
+/// table1-noisy (white INS errors) over 60 seeds, each trial's spheres surveyed with errors
 /// drawn at 1 cm and declared so, its lever arm measured with 3 mm errors and declared so,
 /// calibrated as a user runs it: every parameter's RMS z-score 0.7-1.4 (too large a sigma is
-/// as wrong as too small; the sample's own relative error at 24 trials is ~15 %), at most one
-/// refused; the lever arm's sigmas below both the measurement's and the data's alone.
+/// as wrong as too small; the sample's own relative error at 60 trials is ~9 %), at most one
+/// refused; the lever arm's sigmas below the measurement's.
 #[test]
 fn survey_and_lever_arm_priors_are_honest_under_white_errors() {
     const TRIALS: u64 = 60;
@@ -89,34 +89,19 @@ fn survey_and_lever_arm_priors_are_honest_under_white_errors() {
     let s = Scenario::load("table1-noisy").unwrap();
     let truth = s.mount.truth.deg_m().0;
     let (cache, _, _) = common::trial_cache(&s);
-    let results = std::sync::Mutex::new(Vec::new());
     let seeds: Vec<u64> = (3000..3000 + TRIALS).collect();
-    std::thread::scope(|sc| {
-        for chunk in seeds.chunks(seeds.len().div_ceil(2)) {
-            let (s, results, cache) = (&s, &results, &cache);
-            sc.spawn(move || {
-                for &seed in chunk {
-                    let mut sd = s.clone();
-                    sd.seed = seed;
-                    let dir = tmp(&format!("priors-{seed}"));
-                    spherecal_tools::synth::synth_traced(&sd, &dir, cache).unwrap();
-                    let mut g = Normal(seed);
-                    let arm = [3, 4, 5].map(|i| truth[i] + LEVER_M * g.next());
-                    let mut g2 = Normal(seed ^ 0xABCD);
-                    edit_site(
-                        &dir,
-                        |_| [0; 3].map(|_| SURVEY_M * g2.next()),
-                        Some(SURVEY_M),
-                        Some((arm, LEVER_M)),
-                    );
-                    let r = calibrate(&sd, &dir);
-                    results.lock().unwrap().push((seed, r));
-                    std::fs::remove_dir_all(&dir).unwrap();
-                }
-            });
-        }
+    let results = run_trials(&s, &seeds, &cache, "priors", |sd, dir| {
+        let mut g = Normal(sd.seed);
+        let arm = [3, 4, 5].map(|i| truth[i] + LEVER_M * g.next());
+        let mut g2 = Normal(sd.seed ^ 0xABCD);
+        edit_site(
+            dir,
+            |_| [0; 3].map(|_| SURVEY_M * g2.next()),
+            Some(SURVEY_M),
+            Some((arm, LEVER_M)),
+        );
+        calibrate(sd, dir)
     });
-    let results = results.into_inner().unwrap();
     let refused: Vec<_> = results
         .iter()
         .filter_map(|(seed, r)| r.2.as_ref().map(|w| (seed, w)))
@@ -149,19 +134,7 @@ fn survey_and_lever_arm_priors_are_honest_under_white_errors() {
 /// `spherecal calibrate` of the trial in `dir`: its output and report.
 fn calibrate_cli(dir: &Path) -> (std::process::Output, Report) {
     let report = dir.join("report.json");
-    let _ = std::fs::remove_file(&report);
-    let out = common::spherecal()
-        .arg("calibrate")
-        .arg("--pcap")
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(dir.join("site.toml"))
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap();
+    let out = common::calibrate_survey(dir, &dir.join("site.toml"), &report);
     let r = std::fs::read_to_string(&report).unwrap_or_else(|_| panic!("{}", text(&out)));
     (out, serde_json::from_str(&r).unwrap())
 }

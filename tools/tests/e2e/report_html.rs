@@ -62,6 +62,27 @@ fn html_report_converged_and_refused() {
     assert_self_contained(&page);
     assert!(page.contains("<b>Converged.</b>"));
     assert!(!page.contains("Refused"));
+    // A cover sheet first: the verdict, the mounting against the targets, the checks, the
+    // inputs with their SHA-256 and the command; the details after it.
+    let (cover, details) = page.split_once("<h2>Details</h2>").unwrap();
+    assert!(cover.contains("<h2>Cover sheet</h2>") && cover.contains("<b>Converged.</b>"));
+    assert!(
+        cover.contains(&format!("<b>{:.5}</b> deg", rep.boresight_deg.roll)),
+        "{cover}"
+    );
+    assert!(cover.contains("<th>target</th>") && cover.contains("Checks: residual RMS"));
+    let prov = rep.provenance.as_ref().unwrap();
+    for i in &prov.inputs {
+        assert!(
+            cover.contains(&format!("SHA-256 {}...", &i.sha256[..16])),
+            "{cover}"
+        );
+    }
+    assert!(
+        cover.contains("<code>") && cover.contains("calibrate"),
+        "{cover}"
+    );
+    assert!(!details.contains("<h2>Cover sheet</h2>"));
     // The parameters as the JSON has them, with their sigma and change from the start.
     for (v, start) in [
         (rep.boresight_deg.roll, rep.start["roll"]),

@@ -12,20 +12,7 @@ use std::path::Path;
 /// `spherecal calibrate` of the survey in `dir` with the site `site`, its report to
 /// `dir/report.json`.
 fn run(dir: &Path, site: &Path) -> std::process::Output {
-    let report = dir.join("report.json");
-    let _ = std::fs::remove_file(&report);
-    common::spherecal()
-        .arg("calibrate")
-        .arg("--pcap")
-        .arg(dir.join("lidar.pcap"))
-        .arg("--ins")
-        .arg(dir.join("ins.bin"))
-        .arg("--site")
-        .arg(site)
-        .arg("--report")
-        .arg(&report)
-        .output()
-        .unwrap()
+    common::calibrate_survey(dir, site, &dir.join("report.json"))
 }
 
 /// [`run`] of a calibration that claims: output and report.

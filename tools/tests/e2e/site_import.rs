@@ -231,18 +231,7 @@ fn a_spreadsheet_survey_imported_then_calibrated() {
         assert!((a.h_m - b.h_m).abs() < 1e-4);
     }
     let calibrate = |site: &std::path::Path, report: &std::path::Path| {
-        common::spherecal()
-            .arg("calibrate")
-            .arg("--pcap")
-            .arg(dir.join("lidar.pcap"))
-            .arg("--ins")
-            .arg(dir.join("ins.bin"))
-            .arg("--site")
-            .arg(site)
-            .arg("--report")
-            .arg(report)
-            .output()
-            .unwrap()
+        common::calibrate_survey(&dir, site, report)
     };
     let o = calibrate(&bare, &dir.join("bare.json"));
     let t = format!(
