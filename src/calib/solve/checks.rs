@@ -321,6 +321,10 @@ pub(super) fn checks(
             condition: lm.condition,
             limit: s.max_condition,
         })
+    } else if let Some(r) = prior_check(s, sol) {
+        // A measured mounting the data contradict, as a held offset: the fit bent around it
+        // makes jumps and inconsistent passes of its own.
+        Some(r)
     } else if clock.is_some() {
         // A clock that steps or drifts also spreads the residuals and moves passes' centres:
         // the cause first.
@@ -339,7 +343,6 @@ pub(super) fn checks(
         // causes of the passes' disagreement.
         jump_check(s, sol)
             .or_else(|| survey_check(s, sol, targets.len()))
-            .or_else(|| prior_check(s, sol))
             .or(worst)
     }
 }

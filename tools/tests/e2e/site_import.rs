@@ -313,3 +313,40 @@ fn a_spreadsheet_survey_imported_then_calibrated() {
     );
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// The sample survey the README walks (`examples/survey-utm30n.csv`: a spreadsheet's export
+/// with a byte-order mark, `;`, decimal commas and CRLF) imports to table1's spheres, so that
+/// `calibrate` of `synth --scenario table1-noisy` with it calibrates as the README says.
+#[test]
+fn the_readme_sample_survey_is_table1s() {
+    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let dir = common::tmp("site-import", "sample");
+    spherecal_tools::synth::synth(&s, &dir).unwrap();
+    let want = Site::load(&dir.join("site.toml")).unwrap();
+    let out = dir.join("my-site.toml");
+    let mut cmd = common::spherecal();
+    cmd.args(["site", "import"])
+        .arg(common::repo_root().join("examples/survey-utm30n.csv"))
+        .args([
+            "--crs",
+            "EPSG:32630",
+            "--height",
+            "ellipsoidal",
+            "--margin",
+            "3",
+        ])
+        .args(["--apriori", "181.787,-42.423,2.431,1.312,-1.205,-1.759"])
+        .arg("-o")
+        .arg(&out);
+    let said = common::stdout_of(&mut cmd);
+    assert!(said.contains("2 spheres"), "{said}");
+    let got = Site::load(&out).unwrap();
+    for (a, b) in got.sphere.iter().zip(&want.sphere) {
+        assert_eq!(a.id, b.id);
+        // 0.1 mm in the CSV: 1e-9 deg.
+        assert!((a.lat_deg - b.lat_deg).abs() < 2e-9, "{a:?} {b:?}");
+        assert!((a.lon_deg - b.lon_deg).abs() < 2e-9, "{a:?} {b:?}");
+        assert!((a.h_m - b.h_m).abs() < 1e-4 && a.radius_m == b.radius_m);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
