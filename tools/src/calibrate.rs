@@ -452,11 +452,11 @@ pub fn calibrate(
     if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
         inp.model = Some(m);
     }
-    let mut session = crate::session::Session::with_settings(
-        targets.to_vec(),
-        ids.to_vec(),
-        settings_for(&inp.site, inp.model, clock.estimate, inp.margin),
-    );
+    let settings = settings_for(&inp.site, inp.model, clock.estimate, inp.margin);
+    // The extraction's settings, for the radii's search on a refusal (the session's own).
+    let extract = settings.extract;
+    let mut session =
+        crate::session::Session::with_settings(targets.to_vec(), ids.to_vec(), settings);
     let accuracy = match (&inp.accuracy, &inp.ins) {
         (Some(p), crate::pipeline::InsInput::Sbet(_, week)) => Some(Accuracy::load(
             p,
@@ -581,17 +581,7 @@ pub fn calibrate(
     // claim passed the passes' consistency, which a wrong radius fails: seen from two sides,
     // a sphere's centre moves by twice the error).
     if !rep.converged {
-        let extract = settings_for(&inp.site, inp.model, clock.estimate, inp.margin).extract;
-        let radii = crate::radius::apparent(&obs, targets, &inp.mount, &extract);
-        for (p, a) in rep.per_sphere.iter_mut().zip(&radii) {
-            p.apparent_radius_m = a.map(|a| a.radius_m);
-        }
-        if let Some(why) = crate::radius::disagreement(&radii, targets, ids) {
-            rep.reason = Some(match rep.reason.take() {
-                Some(r) => format!("{why}; so: {r}"),
-                None => why,
-            });
-        }
+        crate::radius::name_first(&mut rep, &obs, targets, ids, &inp.mount, &extract);
     }
     spinner.finish_and_clear();
     rep.time_offset_search = searched;

@@ -124,3 +124,25 @@ pub fn disagreement(
         )
     })
 }
+
+/// On a refusal: each sphere's apparent radius into `rep.per_sphere`, and a radius the returns
+/// do not show named before the refusal's own reason.
+pub fn name_first(
+    rep: &mut crate::report::Report,
+    obs: &[Vec<Observation>],
+    targets: &[Target],
+    ids: &[String],
+    mount: &Mount,
+    st: &ExtractSettings,
+) {
+    let radii = apparent(obs, targets, mount, st);
+    for (p, a) in rep.per_sphere.iter_mut().zip(&radii) {
+        p.apparent_radius_m = a.map(|a| a.radius_m);
+    }
+    if let Some(why) = disagreement(&radii, targets, ids) {
+        rep.reason = Some(match rep.reason.take() {
+            Some(r) => format!("{why}; so: {r}"),
+            None => why,
+        });
+    }
+}

@@ -282,34 +282,11 @@ impl MountPrior {
 /// within `cluster_ns` of each other on one sphere. The covariance is the inverse of the
 /// mounting's information with every other parameter marginalised, widened where the
 /// residuals show more than the weights say (cluster-robust, [`robust`]); `sigma_classic`
-/// is the information's alone.
+/// is the information's alone. `mount`: the prior on the mounting (none:
+/// [`MountPrior::default`]); under white errors the design effect is left to the robust
+/// covariance.
 #[allow(clippy::too_many_arguments)]
 pub fn refine(
-    pb: &Problem<'_>,
-    b0: &[f64; P],
-    model: &NavModel,
-    centre_sigma: &[f64],
-    pieces: &mut [Piece],
-    max_iter: usize,
-    cluster_ns: i64,
-    clock: Clock,
-) -> (LmResult, NavFit) {
-    refine_with_prior(
-        pb,
-        b0,
-        model,
-        centre_sigma,
-        &MountPrior::default(),
-        pieces,
-        max_iter,
-        cluster_ns,
-        clock,
-    )
-}
-
-/// [`refine`] with a prior on the mounting (`mount`).
-#[allow(clippy::too_many_arguments)]
-pub fn refine_with_prior(
     pb: &Problem<'_>,
     b0: &[f64; P],
     model: &NavModel,

@@ -227,6 +227,7 @@ mod honesty {
                 &TRUTH,
                 &model,
                 &[0.02, 0.02],
+                &MountPrior::default(),
                 &mut pieces[..m],
                 100,
                 20_000_000,

@@ -3,7 +3,7 @@
 
 #[allow(unused_imports)]
 use super::*;
-use crate::calib::nav::{cut_for, refine_with_prior as refine_nav, Piece};
+use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
 use crate::calib::objective::Linearised;
 
 impl Rounds {

@@ -1,4 +1,4 @@
-//! `boards/*.toml`: one file per rig (README "Boards"). Unknown keys and impossible values are
+//! `boards/*.toml`: one file per rig (docs/REFERENCE.md "Boards"). Unknown keys and impossible values are
 //! refused with the key's name.
 
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! `site.toml`: the surveyed targets and the a-priori mounting (README "site.toml").
+//! `site.toml`: the surveyed targets and the a-priori mounting (docs/REFERENCE.md "site.toml").
 
 use super::crs::{Crs, SiteCrs};
 use serde::{Deserialize, Serialize};
