@@ -1,5 +1,6 @@
-//! `spherecal plan --scenario NAME|FILE [--target-sigma-deg A --target-sigma-m L] [--report
-//! OUT.json|.html] [--write-plan OUT.toml] [--no-recommend] [--design]`.
+//! `spherecal plan --scenario NAME|FILE | --site SITE.toml [--platform vessel|drone]
+//! [--target-sigma-deg A --target-sigma-m L] [--report OUT.json|.html] [--geojson OUT.geojson]
+//! [--write-plan OUT.toml] [--no-recommend] [--design]`.
 
 use super::{claimed, fail};
 use crate::plan::{html, plan, recommend, render, Goal};
@@ -10,14 +11,42 @@ use std::process::ExitCode;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// A built-in scenario or a scenario file (the planned spheres, scene, passes, sensors).
+    #[arg(long, required_unless_present = "site", conflicts_with = "site")]
+    pub scenario: Option<String>,
+    /// Plan for your own site file (`site import`'s): its surveyed spheres, a-priori mounting,
+    /// noise, navigation model and targets, with the passes of a first survey by `--platform`;
+    /// the lines are printed in the site's grid.
     #[arg(long)]
-    pub scenario: String,
-    /// Each boresight angle's 1-sigma wanted [deg].
-    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true, value_parser = super::positive)]
-    pub target_sigma_deg: f64,
-    /// Each lever-arm component's 1-sigma wanted [m].
-    #[arg(long, default_value_t = 0.005, allow_hyphen_values = true, value_parser = super::positive)]
-    pub target_sigma_m: f64,
+    pub site: Option<PathBuf>,
+    /// With --site: a vessel (lines along the spheres at 8, 12, 20, 30 m, both ways) or a drone
+    /// (two opposing lines over them, one lower, one crossing).
+    #[arg(long, value_enum, default_value = "vessel")]
+    pub platform: crate::plan::site::Platform,
+    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires).
+    #[arg(long, default_value = "vlp16", value_parser = lidar_model)]
+    pub model: &'static str,
+    /// With --site: a vessel's INS height above the spheres' mean centre (default -1.5: below
+    /// them), or a drone's working height above the ground (default 40) [m].
+    #[arg(long, allow_hyphen_values = true, value_parser = super::finite)]
+    pub height: Option<f64>,
+    /// With --site: speed along the lines [m/s] (vessel 2, drone 5).
+    #[arg(long, value_parser = super::positive)]
+    pub speed: Option<f64>,
+    /// With --site and a vessel: the side of the spheres' line to run on, a compass direction
+    /// from the spheres (n, ne, e, ... or degrees; default: the side the prediction favours).
+    #[arg(long, value_parser = compass)]
+    pub side: Option<f64>,
+    /// With --site: write the lines (and the spheres) as GeoJSON (WGS 84).
+    #[arg(long)]
+    pub geojson: Option<PathBuf>,
+    /// Each boresight angle's 1-sigma wanted [deg] (default: the site's [calibration], else
+    /// 0.01).
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
+    pub target_sigma_deg: Option<f64>,
+    /// Each lever-arm component's 1-sigma wanted [m] (default: the site's [calibration], else
+    /// 0.005).
+    #[arg(long, allow_hyphen_values = true, value_parser = super::positive)]
+    pub target_sigma_m: Option<f64>,
     /// Write the report: JSON, or a self-contained HTML page if the name ends in .html.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -36,17 +65,61 @@ pub struct Args {
 
 /// Run it: exit 0 when the plan meets the targets, 1 when it misses them, 2 on bad input.
 pub fn run(a: Args) -> ExitCode {
-    let s = match crate::config::scenario::Scenario::load(&a.scenario) {
-        Ok(s) => s,
-        Err(e) => return fail("plan", e),
-    };
-    if !(a.target_sigma_deg > 0.0 && a.target_sigma_m > 0.0) {
-        return fail(
-            "plan",
-            "--target-sigma-deg and --target-sigma-m: expected > 0",
-        );
+    if a.site.is_none() {
+        let given = [
+            ("--height", a.height.is_some()),
+            ("--speed", a.speed.is_some()),
+            ("--side", a.side.is_some()),
+            ("--geojson", a.geojson.is_some()),
+            (
+                "--platform drone",
+                a.platform != crate::plan::site::Platform::Vessel,
+            ),
+            ("--model", a.model != "vlp16"),
+        ];
+        if let Some((flag, _)) = given.iter().find(|g| g.1) {
+            return fail(
+                "plan",
+                format!("{flag} plans for a site file: give --site SITE.toml (a scenario states its own passes and sensors)"),
+            );
+        }
     }
-    for (flag, p) in [("--report", &a.report), ("--write-plan", &a.write_plan)] {
+    let site = match &a.site {
+        Some(p) => match crate::config::site::Site::load(p) {
+            Ok(site) => Some(site),
+            Err(e) => return fail("plan", e),
+        },
+        None => None,
+    };
+    let (s, side) = match (&site, &a.scenario) {
+        (Some(site), _) => {
+            let o = crate::plan::site::Options {
+                platform: a.platform,
+                model: a.model,
+                height_m: a.height,
+                speed_mps: a.speed,
+                side_deg: a.side,
+            };
+            match crate::plan::site::scenario(site, &o) {
+                Ok(x) => x,
+                Err(e) => return fail("plan", e),
+            }
+        }
+        (None, Some(name)) => match crate::config::scenario::Scenario::load(name) {
+            Ok(s) => (s, None),
+            Err(e) => return fail("plan", e),
+        },
+        (None, None) => return fail("plan", "give --scenario or --site"),
+    };
+    let targets = crate::config::goal::TargetChoice::of(
+        site.as_ref().and_then(|x| x.calibration.as_ref()),
+        None,
+    );
+    for (flag, p) in [
+        ("--report", &a.report),
+        ("--write-plan", &a.write_plan),
+        ("--geojson", &a.geojson),
+    ] {
         if let Some(p) = p {
             if let Err(e) = crate::check_output(flag, p) {
                 return fail("plan", e);
@@ -69,8 +142,8 @@ pub fn run(a: Args) -> ExitCode {
     }
     crate::output::remove_partial_on_interrupt();
     let goal = Goal {
-        sigma_deg: a.target_sigma_deg,
-        sigma_m: a.target_sigma_m,
+        sigma_deg: a.target_sigma_deg.unwrap_or(targets.sigma_deg),
+        sigma_m: a.target_sigma_m.unwrap_or(targets.sigma_m),
         ..Goal::default()
     };
     let design = if a.design {
@@ -93,6 +166,23 @@ pub fn run(a: Args) -> ExitCode {
         Err(e) => return fail("plan", e),
     };
     say!("{}", render(&r));
+    let lines = match &site {
+        Some(site) => {
+            let first = r
+                .recommendations
+                .first()
+                .map_or(&[][..], |x| &x.changes[..]);
+            let drone = a.platform == crate::plan::site::Platform::Drone;
+            match crate::plan::site::lines(site, &s, side, first, drone) {
+                Ok(l) => {
+                    say!("{}", crate::plan::site::render(&l, drone));
+                    Some(l)
+                }
+                Err(e) => return fail("plan", e),
+            }
+        }
+        None => None,
+    };
     if !r.meets && design.is_none() && crate::plan::design::is_aerial(&s) {
         sayln!(
             "an aerial survey: `plan --design` weighs flight heights, the line pattern, speed and \
@@ -105,7 +195,7 @@ pub fn run(a: Args) -> ExitCode {
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
         {
-            html::render(&s, &r, design.as_ref())
+            html::render(&s, &r, design.as_ref(), lines.as_ref())
                 .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))
         } else if let Some(d) = &design {
             crate::report::write_json_atomically(
@@ -113,12 +203,23 @@ pub fn run(a: Args) -> ExitCode {
                 &serde_json::json!({ "design": { "kind": d.kind, "chosen": d.chosen,
                     "candidates": d.candidates }, "plan": r }),
             )
+        } else if let Some(l) = &lines {
+            crate::report::write_json_atomically(p, &serde_json::json!({ "lines": l, "plan": r }))
         } else {
             crate::report::write_json_atomically(p, &r)
         };
         if let Err(e) = out {
             return fail("plan", e);
         }
+        sayln!("wrote {}", p.display());
+    }
+    if let (Some(p), Some(l), Some(site)) = (&a.geojson, &lines, &site) {
+        let out = crate::plan::site::geojson(site, l)
+            .and_then(|g| crate::report::write_json_atomically(p, &g));
+        if let Err(e) = out {
+            return fail("plan", e);
+        }
+        sayln!("wrote {}", p.display());
     }
     if let Some(p) = &a.write_plan {
         let written = if design.is_some() {
@@ -163,4 +264,47 @@ fn write_scenario(
     let t = toml::to_string(s)
         .map_err(|e| crate::Error::internal(format!("the scenario as TOML: {e}")))?;
     crate::report::write_atomically(p, format!("# {what}\n{t}").as_bytes())
+}
+
+/// A LiDAR model's name, checked.
+fn lidar_model(s: &str) -> Result<&'static str, String> {
+    match spherecal::velodyne::Model::parse(s) {
+        Some(spherecal::velodyne::Model::Vlp16) => Ok("vlp16"),
+        Some(spherecal::velodyne::Model::PuckHiRes) => Ok("puck-hires"),
+        Some(spherecal::velodyne::Model::Hdl32e) => Ok("hdl32e"),
+        Some(spherecal::velodyne::Model::Vlp32c) => Ok("vlp32c"),
+        _ => Err(format!(
+            "{s:?}: expected vlp16, hdl32e, vlp32c or puck-hires"
+        )),
+    }
+}
+
+/// A compass direction: n, ne, e, se, s, sw, w, nw (or the words), or degrees.
+fn compass(s: &str) -> Result<f64, String> {
+    const P: [&str; 8] = [
+        "north",
+        "northeast",
+        "east",
+        "southeast",
+        "south",
+        "southwest",
+        "west",
+        "northwest",
+    ];
+    const A: [&str; 8] = ["n", "ne", "e", "se", "s", "sw", "w", "nw"];
+    let t: String = s
+        .trim()
+        .to_ascii_lowercase()
+        .chars()
+        .filter(|c| !matches!(c, '-' | ' ' | '_'))
+        .collect();
+    if let Some(k) = P.iter().zip(A).position(|(p, a)| t == *p || t == a) {
+        return Ok(45.0 * k as f64);
+    }
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v.rem_euclid(360.0)),
+        _ => Err(format!(
+            "{s:?}: expected a compass direction (n, ne, e, se, s, sw, w, nw) or degrees"
+        )),
+    }
 }

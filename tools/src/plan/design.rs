@@ -120,7 +120,7 @@ fn lower_m(h: f64) -> f64 {
 
 /// The aerial pattern over `c` along `heading_deg` at `h` (and 0.6 h) above `ground`, at
 /// `speed`: each line reaches `reach` beyond the targets' centre both ways.
-fn aerial_passes(
+pub(super) fn aerial_passes(
     c: [f64; 2],
     heading_deg: f64,
     ground: f64,

@@ -320,6 +320,7 @@ pub fn render(
     s: &Scenario,
     r: &PlanReport,
     design: Option<&super::design::Design>,
+    lines: Option<&super::site::Lines>,
 ) -> Result<String, crate::Error> {
     let mut o = String::new();
     let _ = write!(
@@ -396,6 +397,9 @@ pub fn render(
         r.predicted.condition.map_or("infinite".into(), |c| format!("{c:.1}")),
         escape(&super::weakest_words(&r.weakest))
     );
+    if let Some(l) = lines {
+        o.push_str(&super::site::html(l));
+    }
     o.push_str("<h2>Predicted 1-sigma</h2><table><tr><th class=\"l\">parameter</th><th>predicted</th><th>target</th></tr>\n");
     for (i, name) in NAMES.iter().enumerate() {
         let (t, unit) = if i < 3 {

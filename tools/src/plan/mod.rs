@@ -14,6 +14,7 @@ pub mod live;
 pub mod nav;
 pub mod observe;
 pub mod recommend;
+pub mod site;
 
 pub use observe::{
     geometry, geometry_of, observe, segments, targets_of_scenario, Cell, Geometry, Segment,

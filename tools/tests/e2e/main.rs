@@ -18,6 +18,7 @@ mod georef;
 mod multi_file;
 mod nav_errors;
 mod plan;
+mod plan_site;
 mod posmv;
 mod priors;
 mod progress;
