@@ -456,7 +456,24 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
     if n.corrections.is_empty() {
         return;
     }
-    o.push_str("<details><summary>The corrections to the INS, second by second</summary>");
+    match crate::plot::nav_corrections(&n.corrections) {
+        Ok(Some(svg)) => {
+            let _ = writeln!(
+                o,
+                "<figure>{}<figcaption>The corrections to the INS the calibration estimated, against time, with their 1-sigma band (one line per stretch of contiguous pieces: a pass and its turn).</figcaption></figure>",
+                crate::plot::strip_xml_header(&svg)
+            );
+        }
+        Ok(None) => {}
+        Err(e) => {
+            let _ = writeln!(
+                o,
+                "<p class=\"no\">The navigation figure failed: {}</p>",
+                escape(&e.to_string())
+            );
+        }
+    }
+    o.push_str("<details><summary>The corrections to the INS, second by second (table)</summary>");
     o.push_str("<table><tr><th class=\"l\">time</th><th>pieces</th><th>position N, E, D [mm]</th><th>1-sigma [mm]</th><th>heading [deg]</th><th>1-sigma [deg]</th></tr>\n");
     let mut k = 0;
     while k < n.corrections.len() {

@@ -37,6 +37,11 @@ pub struct Survey {
     pub ports: spherecal_hal::velodyne::Ports,
     /// Spans to leave out (`--exclude`) [GPS s, or seconds of the week].
     pub exclude: Vec<(f64, f64)>,
+    /// The rig's board file (`calibrate --board`): its name, vessel and operator on the
+    /// report, its `[calibration]` targets when the site gives none.
+    pub board: Option<PathBuf>,
+    /// Who ran the survey (`calibrate --operator`; else the board's).
+    pub operator: Option<String>,
 }
 
 impl Survey {
@@ -56,6 +61,8 @@ impl Survey {
             trajectory_datum: None,
             ports: Default::default(),
             exclude: Vec::new(),
+            board: None,
+            operator: None,
         }
     }
 }
@@ -153,6 +160,10 @@ pub fn run_calibrate(
     use crate::pipeline::{Inputs, InsInput};
     out.check()?;
     let site = config::site::Site::load(&survey.site)?;
+    let board = match &survey.board {
+        Some(p) => Some((p.clone(), config::board::Board::load(p)?)),
+        None => None,
+    };
     let start = init.unwrap_or(site.apriori_deg_m());
     let b0 = start.params();
     let (ins, accuracy) = match (survey.ins, survey.sbet, survey.posmv) {
@@ -224,12 +235,17 @@ pub fn run_calibrate(
         stats.align.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
-    let goal = crate::config::goal::TargetChoice::of(inp.site.calibration.as_ref(), None);
+    let goal = crate::config::goal::TargetChoice::of(
+        inp.site.calibration.as_ref(),
+        board.as_ref().map(|b| &b.1.calibration),
+    );
     rep.targets = Some(report::TargetsReport::of(&rep, &goal));
     rep.conventions = Some(report::conventions::Conventions::of(&sol.b.0));
     // What the site measured (not the holds).
     rep.mounting_prior = report::prior::of(&surveyed.apriori, &rep);
-    rep.provenance = Some(provenance(&inp, &survey.site, &surveyed, &datums, &stats)?);
+    let mut prov = provenance(&inp, &survey.site, &surveyed, &datums, &stats)?;
+    prov.platform = report::provenance::Platform::of(board.as_ref(), survey.operator.as_deref())?;
+    rep.provenance = Some(prov);
     text.push_str(&report::render(&rep, truth.as_ref()));
     // The result is printed whatever happens to the files: an output that fails now (a disk
     // full, a mount gone) is said after it, not instead of it.
@@ -338,5 +354,6 @@ fn provenance(
         made_utc: chrono::Utc::now().format("%Y-%m-%dT%H:%M:%SZ").to_string(),
         inputs,
         site: SiteProvenance::of(site_path, surveyed, &inp.site, datums)?,
+        platform: None,
     })
 }

@@ -59,6 +59,13 @@ pub struct Args {
     /// (a multipath jump, a GNSS outage the INS did not flag).
     #[arg(long, value_parser = crate::stretches::parse_span)]
     pub exclude: Vec<(f64, f64)>,
+    /// The rig's board file: its name, `vessel` and `operator` go on the report's cover sheet,
+    /// its `[calibration]` targets apply when the site gives none.
+    #[arg(long)]
+    pub board: Option<PathBuf>,
+    /// Who ran the survey, for the report (else the board's `operator`).
+    #[arg(long)]
+    pub operator: Option<String>,
 }
 
 /// Run it.
@@ -81,6 +88,8 @@ pub fn run(a: Args) -> ExitCode {
         trajectory_datum: s.trajectory_datum,
         ports,
         exclude: a.exclude,
+        board: a.board,
+        operator: a.operator,
     };
     let out = crate::Outputs {
         report: a.report,

@@ -158,6 +158,12 @@ pub enum LogFormat {
 pub struct Board {
     /// Name.
     pub name: String,
+    /// The vessel (or vehicle, aircraft) carrying it, for the report's cover sheet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vessel: Option<String>,
+    /// Who runs the survey, for the report's cover sheet (`calibrate --operator` overrides).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operator: Option<String>,
     /// GPS - UTC [s].
     pub leap_seconds: i64,
     /// LiDAR network.

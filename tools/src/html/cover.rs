@@ -99,6 +99,18 @@ fn source(o: &mut String, r: &Report, leap: i64) {
         escape(p.site.heights.as_deref().unwrap_or("ellipsoidal")),
         escape(&p.site.transformation)
     );
+    if let Some(pl) = &p.platform {
+        let board = match (&pl.board_name, &pl.board) {
+            (Some(n), Some(f)) => format!("board {} ({})", escape(n), escape(&f.path)),
+            _ => "-".into(),
+        };
+        let _ = writeln!(
+            o,
+            "<tr><th class=\"l\">vessel</th><td class=\"l\">{} ({board})</td></tr><tr><th class=\"l\">operator</th><td class=\"l\">{}</td></tr>",
+            escape(pl.vessel.as_deref().unwrap_or("-")),
+            escape(pl.operator.as_deref().unwrap_or("-"))
+        );
+    }
     for i in &p.inputs {
         let _ = writeln!(
             o,

@@ -125,6 +125,48 @@ pub struct Provenance {
     pub inputs: Vec<InputFile>,
     /// The site.
     pub site: SiteProvenance,
+    /// The rig's board, its vessel and the operator (`calibrate --board`, `--operator`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform: Option<Platform>,
+}
+
+/// `provenance.platform`: what carried the sensors and who ran the survey.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Platform {
+    /// The board file, its bytes and SHA-256 (`None`: no `--board`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board: Option<InputFile>,
+    /// The board's `name`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board_name: Option<String>,
+    /// The board's `vessel`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vessel: Option<String>,
+    /// `--operator`, else the board's `operator`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operator: Option<String>,
+}
+
+impl Platform {
+    /// From the board file (path, as loaded) and the operator given; `None` without either.
+    pub fn of(
+        board: Option<&(std::path::PathBuf, crate::config::board::Board)>,
+        operator: Option<&str>,
+    ) -> Result<Option<Self>, String> {
+        if board.is_none() && operator.is_none() {
+            return Ok(None);
+        }
+        Ok(Some(Self {
+            board: board
+                .map(|(p, _)| InputFile::of("board", p, None))
+                .transpose()?,
+            board_name: board.map(|b| b.1.name.clone()),
+            vessel: board.and_then(|b| b.1.vessel.clone()),
+            operator: operator
+                .map(str::to_string)
+                .or_else(|| board.and_then(|b| b.1.operator.clone())),
+        }))
+    }
 }
 
 impl SiteProvenance {

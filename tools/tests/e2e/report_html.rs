@@ -130,6 +130,38 @@ fn html_report_converged_and_refused() {
     );
     assert_eq!(n.trim(), (5 * found).to_string());
 
+    // The rig's board: its name, vessel and operator on the cover and in the provenance, its
+    // targets when the site gives none (the sim board's, loosened here).
+    let board = dir.join("board.toml");
+    let text = std::fs::read_to_string(common::repo_root().join("boards/sim.toml")).unwrap();
+    let text = text
+        .replace(
+            "name = \"sim\"",
+            "name = \"sim\"\nvessel = \"RV Tideway\"\noperator = \"crew\"",
+        )
+        .replace("target_sigma_deg = 0.01", "target_sigma_deg = 0.5");
+    std::fs::write(&board, text).unwrap();
+    let b = board.display().to_string();
+    let (page, rep, _) = run(&dir, "board", &["--board", &b, "--operator", "A. Surveyor"]);
+    let (cover, _) = page.split_once("<h2>Details</h2>").unwrap();
+    assert!(
+        cover.contains("RV Tideway (board sim (") && cover.contains("A. Surveyor"),
+        "{cover}"
+    );
+    let pl = rep.provenance.as_ref().unwrap().platform.clone().unwrap();
+    assert_eq!(pl.vessel.as_deref(), Some("RV Tideway"));
+    assert_eq!(
+        pl.operator.as_deref(),
+        Some("A. Surveyor"),
+        "--operator wins"
+    );
+    assert_eq!(pl.board.unwrap().sha256.len(), 64);
+    let t = rep.targets.as_ref().unwrap();
+    assert_eq!(
+        (t.sigma_deg, t.source.as_str()),
+        (Some(0.5), "the board's [calibration]")
+    );
+
     // Refused: a held time offset 0.3 s wrong. The reason comes first, escaped, before the
     // numbers (which are where the solver stopped).
     let (page, rep, _) = run(

@@ -12,6 +12,9 @@ use spherecal::georef::Mount;
 use spherecal::window::{Observation, Target};
 use std::path::Path;
 
+mod nav;
+pub use nav::nav_corrections;
+
 /// Scatter plots draw at most this many returns (evenly spread; the caption says so): a
 /// survey's 10^5 kept returns would make a page of tens of megabytes.
 pub const MAX_DOTS: usize = 3000;
@@ -163,9 +166,9 @@ fn dots(n: usize) -> String {
     }
 }
 
-type Res<T> = Result<T, crate::Error>;
+pub(crate) type Res<T> = Result<T, crate::Error>;
 
-fn e<E: std::fmt::Display>(x: E) -> String {
+pub(crate) fn e<E: std::fmt::Display>(x: E) -> String {
     x.to_string()
 }
 
