@@ -52,6 +52,26 @@ pub fn tmp(group: &str, name: &str) -> PathBuf {
     d.join(name)
 }
 
+/// WGS 84 (longitude, latitude) points projected into EPSG `epsg` by pyproj (x, y: easting,
+/// northing in the CRS's unit).
+pub fn pyproj_forward(epsg: u32, lon_lat: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let list: Vec<String> = lon_lat
+        .iter()
+        .map(|p| format!("({}, {})", p[0], p[1]))
+        .collect();
+    let script = format!(
+        "from pyproj import Transformer\nt = Transformer.from_crs('EPSG:4326', 'EPSG:{epsg}', always_xy=True)\nfor lon, lat in [{}]:\n    x, y = t.transform(lon, lat)\n    print(repr(x), repr(y))",
+        list.join(", ")
+    );
+    python(&script, "pyproj")
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();
+            [v[0], v[1]]
+        })
+        .collect()
+}
+
 /// Run a Python script (an independent reference: laspy, pyproj, installed by
 /// scripts/test.sh); it must succeed. Returns its stdout.
 pub fn python(script: &str, needs: &str) -> String {

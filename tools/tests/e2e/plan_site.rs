@@ -35,25 +35,6 @@ fn pair(v: &serde_json::Value) -> [f64; 2] {
     [v[0].as_f64().unwrap(), v[1].as_f64().unwrap()]
 }
 
-/// WGS 84 (lon, lat) points projected into EPSG `epsg` by pyproj.
-fn pyproj(epsg: u32, pts: &[[f64; 2]]) -> Vec<[f64; 2]> {
-    let list: Vec<String> = pts
-        .iter()
-        .map(|p| format!("({}, {})", p[0], p[1]))
-        .collect();
-    let script = format!(
-        "from pyproj import Transformer\nt = Transformer.from_crs('EPSG:4326', 'EPSG:{epsg}', always_xy=True)\nfor lon, lat in [{}]:\n    x, y = t.transform(lon, lat)\n    print(repr(x), repr(y))",
-        list.join(", ")
-    );
-    common::python(&script, "pyproj")
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();
-            [v[0], v[1]]
-        })
-        .collect()
-}
-
 /// The distance of `p` from the line through `a` and `b`.
 fn off_line(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
@@ -110,7 +91,7 @@ fn a_vessel_plan_for_the_sample_site_in_its_grid() {
     }
     // The grid coordinates are the WGS 84 ends projected (pyproj, independently).
     let ends: Vec<[f64; 2]> = lines.iter().map(|l| pair(&l["start_wgs84"])).collect();
-    for (l, p) in lines.iter().zip(pyproj(32630, &ends)) {
+    for (l, p) in lines.iter().zip(common::pyproj_forward(32630, &ends)) {
         let g = pair(&l["start"]);
         assert!(
             (g[0] - p[0]).abs() < 1e-3 && (g[1] - p[1]).abs() < 1e-3,
@@ -192,7 +173,7 @@ fn lines_in_a_feet_grid() {
     std::fs::create_dir_all(&dir).unwrap();
     // Two spheres by the water at Annapolis, Maryland (EPSG:2248, NAD83 / Maryland (ftUS)).
     let ll = [[-76.4800, 38.9700], [-76.4800, 38.97018]];
-    let xy = pyproj(2248, &ll);
+    let xy = common::pyproj_forward(2248, &ll);
     let mut csv = String::from("Point,Easting,Northing,Elevation (usft)\n");
     for (k, p) in xy.iter().enumerate() {
         csv += &format!("S{},{:.3},{:.3},{:.3}\n", k + 1, p[0], p[1], 5.0);
@@ -229,7 +210,7 @@ fn lines_in_a_feet_grid() {
     let wgs: Vec<[f64; 2]> = lines.iter().map(|l| pair(&l["end_wgs84"])).collect();
     // NAD83 here is within a metre of WGS 84 and the site's datum shift is PROJ's
     // null transformation for it: pyproj from WGS 84 agrees to a millimetre.
-    for (l, p) in lines.iter().zip(pyproj(2248, &wgs)) {
+    for (l, p) in lines.iter().zip(common::pyproj_forward(2248, &wgs)) {
         let g = pair(&l["end"]);
         assert!(
             (g[0] - p[0]).abs() < 0.01 && (g[1] - p[1]).abs() < 0.01,

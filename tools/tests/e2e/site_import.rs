@@ -18,17 +18,10 @@ const SF: [(f64, f64, f64); 2] = [(37.808_2, -122.409_9, -28.5), (37.808_6, -122
 
 /// Each point projected into EPSG `epsg` by pyproj (x east, y north).
 fn pyproj_forward(epsg: u16, pts: &[(f64, f64, f64)]) -> Vec<(f64, f64)> {
-    let list: Vec<String> = pts.iter().map(|p| format!("({}, {})", p.1, p.0)).collect();
-    let script = format!(
-        "from pyproj import Transformer\nt = Transformer.from_crs('EPSG:4326', 'EPSG:{epsg}', always_xy=True)\nfor lon, lat in [{}]:\n    x, y = t.transform(lon, lat)\n    print(repr(x), repr(y))",
-        list.join(", ")
-    );
-    common::python(&script, "pyproj")
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split(' ').map(|s| s.parse().unwrap()).collect();
-            (v[0], v[1])
-        })
+    let ll: Vec<[f64; 2]> = pts.iter().map(|p| [p.1, p.0]).collect();
+    common::pyproj_forward(u32::from(epsg), &ll)
+        .into_iter()
+        .map(|p| (p[0], p[1]))
         .collect()
 }
 
