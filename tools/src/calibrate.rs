@@ -510,7 +510,13 @@ pub fn calibrate(
             let week_of = spherecal::time::GpsTime((t0 * 1e9) as i64);
             session.exclude(&crate::stretches::in_week_of(&inp.exclude, week_of));
         }
-        let clocks = clock_facts(&stats, applied, clock.allow_unlocked);
+        let clocks = crate::session::clock_facts(
+            &stats.clock,
+            &stats.ins.clock_steps,
+            stats.align.lidar_span,
+            applied,
+            clock.allow_unlocked,
+        );
         // The report's offset includes the one the windows were made at.
         let (sol, rep) = session.solve(b0, clocks, &mut crate::progress::Rounds(&spinner));
         let obs = session.take_store();
@@ -632,37 +638,6 @@ pub fn calibrate(
         }
     }
     Ok((stats, obs, sol, rep))
-}
-
-/// What the streams say of the clocks, for the core's checks: the LiDAR clock's trust (with
-/// the offset `applied` before the solve) and the first INS clock step within the LiDAR data.
-fn clock_facts(
-    stats: &crate::pipeline::RunStats,
-    applied: f64,
-    allowed: bool,
-) -> spherecal::calib::solve::ClockFacts {
-    let span = stats
-        .align
-        .lidar_span
-        .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-    let count = stats.ins.steps_within(span).count();
-    spherecal::calib::solve::ClockFacts {
-        lidar_untrusted: (!stats.clock.trusted()).then(|| {
-            spherecal::calib::solve::UntrustedLidar {
-                rmc_offset_s: stats.clock.rmc_offset_s(),
-                applied_s: applied,
-                allowed,
-            }
-        }),
-        ins_step: stats.ins.steps_within(span).next().map(|&(at, step)| {
-            spherecal::calib::solve::InsStep {
-                at_s: at,
-                into_s: at - span.0,
-                step_s: step,
-                count,
-            }
-        }),
-    }
 }
 
 /// Site targets and ids.

@@ -10,6 +10,40 @@ use spherecal::calib::solve::{ClockFacts, Observe};
 use spherecal::calib::{Params, Settings, Solution};
 use spherecal::window::{Observation, Target};
 
+/// What the streams say of the clocks, for the core's checks (one rule for `calibrate` and
+/// the rig): the LiDAR clock's trust as its position packets tell it (with the offset
+/// `applied_s` the windows were aligned at; `allowed`: `--allow-unlocked-clock`), and the first
+/// of the INS clock's `steps` (GPS s, step s) within the LiDAR data's `span` (GPS s; live,
+/// from the first data on; all of them without a span).
+pub fn clock_facts(
+    clock: &crate::state::ClockState,
+    steps: &[(f64, f64)],
+    span: Option<(f64, f64)>,
+    applied_s: f64,
+    allowed: bool,
+) -> ClockFacts {
+    let span = span.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+    let mut within = steps
+        .iter()
+        .filter(move |(t, _)| *t >= span.0 && *t <= span.1);
+    let count = within.clone().count();
+    ClockFacts {
+        lidar_untrusted: (!clock.trusted()).then(|| spherecal::calib::solve::UntrustedLidar {
+            rmc_offset_s: clock.rmc_offset_s(),
+            applied_s,
+            allowed,
+        }),
+        ins_step: within
+            .next()
+            .map(|&(at, step)| spherecal::calib::solve::InsStep {
+                at_s: at,
+                into_s: at - span.0,
+                step_s: step,
+                count,
+            }),
+    }
+}
+
 /// The time offset moves the windows again when the solve moved it by more than this [s]
 /// (the solver's estimate is first order in the offset the poses were taken at).
 pub const OFFSET_STEP_S: f64 = 5e-4;

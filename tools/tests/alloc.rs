@@ -155,6 +155,7 @@ fn rig_steady_state_allocates_nothing_per_packet() {
         duration: None,
         report: None,
         keep_untracked_ins: false,
+        allow_unlocked_clock: false,
         exclude: Vec::new(),
     };
     static STOP: AtomicBool = AtomicBool::new(false);

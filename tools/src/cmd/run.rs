@@ -36,6 +36,10 @@ pub struct Args {
     /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
     #[arg(long)]
     pub keep_untracked_ins: bool,
+    /// Claim a solution although the LiDAR clock is not PPS-locked with a valid RMC (as
+    /// `calibrate --allow-unlocked-clock`: the time offset found must explain the stamps).
+    #[arg(long)]
+    pub allow_unlocked_clock: bool,
     /// Leave the returns between these GPS times out of the calibration (`T0..T1`: GPS
     /// seconds, or seconds of the GPS week); repeatable. Everything is still logged.
     #[arg(long, value_parser = crate::stretches::parse_span)]
@@ -104,6 +108,7 @@ pub fn run(a: Args) -> ExitCode {
             duration: None,
             report: None,
             keep_untracked_ins: false,
+            allow_unlocked_clock: false,
             exclude: Vec::new(),
         };
         let results = crate::rig::check::check(&opts);
@@ -143,6 +148,7 @@ pub fn run(a: Args) -> ExitCode {
         duration: a.duration.map(std::time::Duration::from_secs_f64),
         report: a.report,
         keep_untracked_ins: a.keep_untracked_ins,
+        allow_unlocked_clock: a.allow_unlocked_clock,
         exclude: a.exclude,
     };
     match crate::rig::run(&opts, &mut console, &stop) {

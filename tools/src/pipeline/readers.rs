@@ -236,12 +236,17 @@ pub fn ins_reader<B: ByteSource>(
     stop: &AtomicBool,
     on_chunk: &mut dyn FnMut(&[u8], Option<RxStamp>),
     seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
+    on_steps: &mut dyn FnMut(&[(f64, f64)]),
 ) -> Result<InsEnd, B::Error> {
     while !stop.load(Ordering::Relaxed) {
         match src.read_chunk(buf)? {
             ReadOutcome::Data { len, stamp } => {
                 on_chunk(&buf[..len], stamp);
+                let steps = feed.st.clock_steps.len();
                 feed.feed(&buf[..len], stamp.map(|s| s.wall), out, seen);
+                if feed.st.clock_steps.len() != steps {
+                    on_steps(&feed.st.clock_steps);
+                }
             }
             ReadOutcome::Idle => {}
             ReadOutcome::End => {
@@ -279,6 +284,7 @@ pub fn ins_file_reader(
                 &AtomicBool::new(false),
                 &mut keep_head,
                 &mut |_, _| {},
+                &mut |_| {},
             )
             .map_err(|e| e.to_string())?;
             Ok((feed.state(), head))
@@ -293,6 +299,7 @@ pub fn ins_file_reader(
                 &AtomicBool::new(false),
                 &mut |_, _| {},
                 &mut |_, _| {},
+                &mut |_| {},
             )
             .map_err(|e| e.to_string())?;
             let mut st = feed.state();

@@ -47,11 +47,21 @@ pub(super) fn align_until_end(
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
     let mut steer = sh.steer.receiver();
     let mut windows_moved = 0;
+    let mut published = Instant::now();
+    let mut unpublished = false;
     loop {
         while let Some(p) = pos_c.dequeue() {
             if let LidarPacket::Position(p) = p.packet() {
                 al.position(&p);
+                unpublished = true;
             }
+        }
+        // The clock's state for the solver, at most 5 times a second.
+        if unpublished && published.elapsed() >= Duration::from_millis(200) {
+            if let Ok(mut c) = sh.clock.lock() {
+                *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
+            }
+            (published, unpublished) = (Instant::now(), false);
         }
         al.drain_ins(ins_c);
         let Some(item) = data_c.dequeue() else {
@@ -73,8 +83,16 @@ pub(super) fn align_until_end(
             }
         }
         match item.packet() {
-            LidarPacket::End => break,
-            LidarPacket::Position(p) => al.position(&p),
+            LidarPacket::End => {
+                if let Ok(mut c) = sh.clock.lock() {
+                    *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
+                }
+                break;
+            }
+            LidarPacket::Position(p) => {
+                al.position(&p);
+                unpublished = true;
+            }
             LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
             LidarPacket::Points(c) => al.points(c, ins_c, None, &mut emit),
         }

@@ -63,6 +63,7 @@ pub(super) fn final_from_logs(
     let (targets, ids) = crate::calibrate::site_targets(&inp);
     let clock = crate::ClockOptions {
         keep_untracked_ins: opts.keep_untracked_ins,
+        allow_unlocked: opts.allow_unlocked_clock,
         ..Default::default()
     };
     let (_, _, _, rep) = crate::calibrate::calibrate(&mut inp, &targets, &ids, &plan.b0, clock)?;

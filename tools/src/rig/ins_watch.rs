@@ -29,6 +29,8 @@ pub struct InsWatch {
     /// What the reader has to say on the console (device lost, reopened), taken by the status
     /// loop.
     said: Mutex<Vec<String>>,
+    /// The INS clock's steps so far (GPS s, step s), for the solver's clock facts.
+    steps: Mutex<Vec<(f64, f64)>>,
 }
 
 /// What the INS is doing, for the status line.
@@ -57,11 +59,25 @@ impl Default for InsWatch {
             lost_ms: AtomicU64::new(u64::MAX),
             reopens: AtomicU64::new(0),
             said: Mutex::new(Vec::new()),
+            steps: Mutex::new(Vec::new()),
         }
     }
 }
 
 impl InsWatch {
+    /// The INS clock's steps as the reader found them so far.
+    pub fn set_clock_steps(&self, steps: &[(f64, f64)]) {
+        if let Ok(mut s) = self.steps.lock() {
+            s.clear();
+            s.extend_from_slice(steps);
+        }
+    }
+
+    /// See [`Self::set_clock_steps`].
+    pub fn clock_steps(&self) -> Vec<(f64, f64)> {
+        self.steps.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+
     fn now_ms(&self) -> u64 {
         self.origin.elapsed().as_millis() as u64
     }

@@ -120,6 +120,9 @@ pub struct RunOptions {
     pub report: Option<PathBuf>,
     /// Use VN-200 poses whose InsStatus says not tracking (else left out, counted).
     pub keep_untracked_ins: bool,
+    /// Claim although the LiDAR clock is not PPS-locked with a valid RMC (as `calibrate
+    /// --allow-unlocked-clock`).
+    pub allow_unlocked_clock: bool,
     /// Spans whose returns the calibration leaves out (`--exclude`) [GPS s, or seconds of the
     /// week].
     pub exclude: Vec<(f64, f64)>,
@@ -388,22 +391,21 @@ fn run_threads(
                 opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
                 Some(&opts.board.calibration),
             );
-            solver(
-                rx,
-                pool_tx,
-                tg,
+            let sp = solver::SolverPlan {
+                targets: tg,
                 ids,
-                &plan.b0,
-                &plan.settings,
-                &plan.nav_source,
-                opts.board.ins.rate_hz,
-                &targets,
-                opts.board.lidar_model().unwrap_or_default(),
-                plan.margin,
+                b0: &plan.b0,
+                settings: &plan.settings,
+                nav_source: &plan.nav_source,
+                ins_rate_hz: opts.board.ins.rate_hz,
+                accuracy: &targets,
+                model: opts.board.lidar_model().unwrap_or_default(),
+                apriori_margin: plan.margin,
                 report,
-                &opts.exclude,
-                sh,
-            )
+                exclude: &opts.exclude,
+                allow_unlocked: opts.allow_unlocked_clock,
+            };
+            solver(rx, pool_tx, &sp, sh)
         });
         let status = spawn(sc, "status", move || {
             status_loop(

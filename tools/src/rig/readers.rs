@@ -160,6 +160,7 @@ pub(super) fn serial_reader(
             sh.stop,
             &mut log_chunk,
             &mut seen,
+            &mut |steps| sh.ins_watch.set_clock_steps(steps),
         ) {
             Ok(InsEnd::Stopped) => break,
             Ok(InsEnd::SourceEnded) => "its stream ended".to_string(),

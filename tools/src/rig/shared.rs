@@ -81,6 +81,10 @@ pub(super) struct Shared<'a> {
     pub(super) without_pose: AtomicU64,
     /// Warnings said on the console (run.json keeps them).
     pub(super) warnings: Mutex<Vec<String>>,
+    /// The LiDAR clock as the position packets told it so far (the aligner publishes it,
+    /// the solver's clock facts read it).
+    /// With the LiDAR data's first GPS time [s].
+    pub(super) clock: Mutex<(crate::state::ClockState, Option<f64>)>,
 }
 
 /// Counts a reader out however it ends (the logger runs until every reader is out).
@@ -143,6 +147,7 @@ impl<'a> Shared<'a> {
             verdict: Mutex::new(None),
             ins_watch: ins_watch::InsWatch::default(),
             without_pose: AtomicU64::new(0),
+            clock: Mutex::new((crate::state::ClockState::default(), None)),
             warnings: Mutex::new(Vec::new()),
         }
     }

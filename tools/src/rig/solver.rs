@@ -7,23 +7,54 @@ use spherecal::calib::Params;
 /// Anything that arrived is solved with at most this long after the last solve [s].
 pub(super) const RESOLVE_S: u64 = 5;
 
-#[allow(clippy::too_many_arguments)]
+/// What the solver thread solves for and how it judges: the run's plan and options.
+pub(super) struct SolverPlan<'a> {
+    /// The spheres and their names.
+    pub(super) targets: &'a [Target],
+    /// See `targets`.
+    pub(super) ids: &'a [String],
+    /// The start (the a-priori mounting).
+    pub(super) b0: &'a Params,
+    /// The calibration's settings (the site's and the board's).
+    pub(super) settings: &'a Settings,
+    /// Where the navigation model came from, in words.
+    pub(super) nav_source: &'a str,
+    /// The INS's output rate [Hz].
+    pub(super) ins_rate_hz: f64,
+    /// The targets the verdict judges by.
+    pub(super) accuracy: &'a crate::config::goal::TargetChoice,
+    /// The LiDAR model.
+    pub(super) model: spherecal::velodyne::Model,
+    /// The a-priori window margin [m].
+    pub(super) apriori_margin: f64,
+    /// Where to keep the report current.
+    pub(super) report: Option<&'a Path>,
+    /// Spans left out by hand (GPS s or seconds of the week).
+    pub(super) exclude: &'a [(f64, f64)],
+    /// Claim although the LiDAR clock is not PPS-locked (`run --allow-unlocked-clock`).
+    pub(super) allow_unlocked: bool,
+}
+
 pub(super) fn solver(
     rx: crossbeam_channel::Receiver<BatchMsg>,
     pool: crossbeam_channel::Sender<Vec<Observation>>,
-    targets: &[Target],
-    ids: &[String],
-    b0: &Params,
-    settings: &Settings,
-    nav_source: &str,
-    ins_rate_hz: f64,
-    accuracy: &crate::config::goal::TargetChoice,
-    model: spherecal::velodyne::Model,
-    apriori_margin: f64,
-    report: Option<&Path>,
-    exclude: &[(f64, f64)],
+    plan: &SolverPlan<'_>,
     sh: &Shared<'_>,
 ) -> Option<Report> {
+    let SolverPlan {
+        targets,
+        ids,
+        b0,
+        settings,
+        nav_source,
+        ins_rate_hz,
+        accuracy,
+        model,
+        apriori_margin,
+        report,
+        exclude,
+        allow_unlocked,
+    } = *plan;
     let n = targets.len();
     // The calibration session: the same settings, workspace and offset rule as `calibrate`.
     let mut session =
@@ -41,7 +72,18 @@ pub(super) fn solver(
     let goal_of = accuracy.goal();
     let goal = Some(&goal_of);
     let mut solve = |session: &mut crate::session::Session, start: &mut Params| {
-        let (sol, mut rep) = session.solve(start, Default::default(), &mut StatusRounds(sh));
+        // The clocks as the position packets and the INS stream told them so far: the live
+        // verdict claims and refuses by the same rule as `calibrate`.
+        let (clock, first) = sh.clock.lock().map(|c| c.clone()).unwrap_or_default();
+        let steps = sh.ins_watch.clock_steps();
+        let clocks = crate::session::clock_facts(
+            &clock,
+            &steps,
+            first.map(|t| (t, f64::INFINITY)),
+            session.offset_ns() as f64 * 1e-9,
+            allow_unlocked,
+        );
+        let (sol, mut rep) = session.solve(start, clocks, &mut StatusRounds(sh));
         rep.targets = Some(crate::report::TargetsReport::of(&rep, accuracy));
         sh.solves.fetch_add(1, Ordering::Relaxed);
         // Enough yet? (From the kept returns, before the store is pruned.)

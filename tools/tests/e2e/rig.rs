@@ -400,6 +400,96 @@ fn table1_noisy_through_the_rig() {
     );
 }
 
+/// A LiDAR clock without PPS (issue 48): the rig's live solves refuse it by `calibrate`'s
+/// rule, not only its final pass over the logs (the live verdict once claimed on it), and both
+/// name the clock; `--allow-unlocked-clock` lets `calibrate` claim on the same logs.
+#[test]
+fn an_unlocked_lidar_clock_is_refused_live_as_calibrate_refuses_it() {
+    let mut s = table1();
+    s.lidar.pps = "absent".into();
+    let (dp, pp) = (23_790, 23_791);
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        to,
+        ..
+    } = setup("rig-unlocked", &s, dp, pp);
+    let slave_name = slave.name().unwrap();
+    let board = board(&dir, dp, pp);
+    let (logs, report) = (dir.join("logs"), dir.join("run-report.json"));
+    let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
+    replay_both(
+        dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
+        Speed::Factor(4.0),
+    )
+    .unwrap();
+    let (lines, _) = interrupt_after_replay(rig);
+    drop(slave);
+    let live: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(live["converged"], false, "{live}");
+    let why = live["reason"].as_str().unwrap().to_string();
+    assert!(why.contains("PPS"), "{why}");
+    // Live: no status line ever showed a calibration (a converged live solve puts one there),
+    // and the solver did solve.
+    let status: Vec<_> = lines
+        .iter()
+        .filter_map(|l| spherecal_tools::rig::status::Status::parse(l))
+        .collect();
+    assert!(status.iter().any(|st| st.solve.is_some()), "{lines:?}");
+    assert!(
+        status.iter().all(|st| st.calibration.is_none()),
+        "{lines:?}"
+    );
+    let verdict = status
+        .iter()
+        .rev()
+        .find_map(|st| st.verdict.clone())
+        .unwrap();
+    assert_eq!(verdict, "collecting", "never ready");
+    // The final pass over the logs refuses it too (the report is the final one).
+    assert!(
+        lines
+            .last()
+            .unwrap()
+            .contains("file engine): NOT CONVERGED"),
+        "{lines:?}"
+    );
+    let run = |extra: &[&str]| {
+        let out_json = dir.join("from-logs.json");
+        let _ = std::fs::remove_file(&out_json);
+        let mut cal = common::spherecal();
+        cal.arg("calibrate")
+            .arg("--pcap")
+            .args(files(&logs, "-lidar-"));
+        cal.arg("--ins").args(files(&logs, "-ins-"));
+        cal.arg("--site")
+            .arg(dir.join("site.toml"))
+            .arg("--report")
+            .arg(&out_json);
+        cal.arg("--lidar-ports")
+            .arg(format!("{dp},{pp}"))
+            .args(extra);
+        let out = cal.output().unwrap();
+        let rep: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out_json).unwrap()).unwrap();
+        (out.status.code(), rep)
+    };
+    let (code, rep) = run(&[]);
+    assert_eq!(code, Some(1), "{rep}");
+    assert_eq!(
+        rep["reason"].as_str(),
+        Some(why.as_str()),
+        "one rule, one sentence"
+    );
+    let (code, rep) = run(&["--allow-unlocked-clock"]);
+    assert!(matches!(code, Some(0 | 3)), "{rep}");
+    assert_eq!(rep["converged"], true);
+}
+
 /// table1 through the whole rig, its INS 20 ms late (serial latency): replayed in real time
 /// (the 62.5 s survey) to loopback and a pseudo-terminal; the run estimates the time offset and
 /// moves its windows by it, calibrates to the truth, logs every datagram and every serial byte
