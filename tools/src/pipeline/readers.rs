@@ -223,6 +223,9 @@ pub enum InsEnd {
     Stopped,
 }
 
+/// Told the INS clock's steps (GPS s, step s) each time the reader finds another.
+pub type OnSteps<'a> = dyn FnMut(&[(f64, f64)]) + 'a;
+
 /// Bytes from any [`ByteSource`] (a file, a serial log, the live port) through the VN-200
 /// feed onto the INS ring, in reads of at most `buf.len()`, until the source ends, `stop` is
 /// set, or it fails. `on_chunk` sees every read first (the rig logs it); `seen` every framed
@@ -236,7 +239,7 @@ pub fn ins_reader<B: ByteSource>(
     stop: &AtomicBool,
     on_chunk: &mut dyn FnMut(&[u8], Option<RxStamp>),
     seen: &mut dyn FnMut(&Framed<'_>, &InsOutcome),
-    on_steps: &mut dyn FnMut(&[(f64, f64)]),
+    on_steps: &mut OnSteps<'_>,
 ) -> Result<InsEnd, B::Error> {
     while !stop.load(Ordering::Relaxed) {
         match src.read_chunk(buf)? {
