@@ -93,7 +93,7 @@ pub fn ground(s: &Scenario) -> f64 {
 
 /// An aerial survey whose spheres all rest on the ground: the beam's footprint straddles each
 /// sphere's edge with the grass right behind it, and the mixed returns bias the lever arm's
-/// height, which the prediction leaves out (NOTES.md "Issue 30", session 23).
+/// height, which the prediction leaves out (docs/history/issue-30-drone.md, session 23).
 pub fn every_sphere_grounded(s: &Scenario) -> bool {
     is_aerial(s) && s.sphere.iter().all(|x| x.stand == "none")
 }

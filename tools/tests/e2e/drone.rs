@@ -254,7 +254,7 @@ fn kept_only_in(
 /// What the final fit sets aside, on real faults of the drone's Monte Carlo trials (seeds the
 /// 100-seed check found; a change to the simulator's random streams moves them: look for new
 /// ones with `SPHERECAL_MC_KEEP` and `calibrate --returns` against the trial's labels.bin, as
-/// NOTES.md "Issue 30" says). The labels, not the solver, say what the returns were:
+/// docs/history/issue-30-drone.md says). The labels, not the solver, say what the returns were:
 /// - seed 1085: in a turn 60 m from a grass sphere, a slice kept three grass returns; the
 ///   time offset paid for them (12 sigma). The isolated stretch is set aside (they lie
 ///   0.5-0.7 m off the sphere without it), the offset comes within 3 sigma;

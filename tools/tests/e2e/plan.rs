@@ -295,7 +295,7 @@ fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
 #[ignore = "through the command's path the drone's time-offset sigma is 20-27 % optimistic (96/100 within 3 sigma): issue 46 item 6, open"]
 fn drone_noisy_prediction_agrees_with_monte_carlo() {
     // SPHERECAL_MC_SCENARIO=FILE: the same check on an edited scenario (the simulator's
-    // effects switched off one at a time: NOTES.md "Issue 30").
+    // effects switched off one at a time: docs/history/issue-30-drone.md).
     let n = std::env::var("SPHERECAL_MC_SCENARIO").unwrap_or("drone-noisy".into());
     agrees_with_monte_carlo_over(&n, 100);
 }

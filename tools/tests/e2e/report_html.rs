@@ -2,7 +2,7 @@
 //! script, no link, nothing fetched), the numbers of the JSON report in its tables, five figures
 //! per sphere, the refusal's reason first when refused; the SVG parsed by Python's XML parser
 //! (an independent reader). The figures' geometry (1:1 cross-sections, histograms on their own
-//! axes) is tested in `plot.rs`; the page was looked at in headless Chromium (NOTES.md).
+//! axes) is tested in `plot.rs`; the page was looked at in headless Chromium (docs/history/issue-14-surveyor-io.md).
 
 use crate::common;
 
