@@ -4,6 +4,7 @@
 
 pub mod bag;
 pub mod calibrate;
+pub mod cli;
 pub mod cmd;
 pub mod config;
 pub mod decode;

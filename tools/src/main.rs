@@ -1,63 +1,12 @@
-//! `spherecal`: the command (README.md; docs/DESIGN.md for the contract). Each subcommand
-//! lives in `spherecal_tools::cmd`. Exit codes ([`cmd::EXIT_CODES`]): 0 converged and within
-//! its targets; 1 refused; 2 bad input; 3 converged but the sigmas miss the targets; 4 an
-//! internal fault.
+//! `spherecal`: the command (README.md; docs/DESIGN.md for the contract; docs/CLI.md for every
+//! option, generated from [`spherecal_tools::cli`]). Exit codes ([`cmd::EXIT_CODES`]): 0
+//! converged and within its targets; 1 refused; 2 bad input; 3 converged but the sigmas miss
+//! the targets; 4 an internal fault.
 
-use clap::{Parser, Subcommand};
+use clap::Parser;
+use spherecal_tools::cli::{Cli, Cmd};
 use spherecal_tools::cmd;
 use std::process::ExitCode;
-
-#[derive(Parser)]
-#[command(
-    name = "spherecal",
-    version,
-    about = "LiDAR boresight / lever-arm calibration on spheres",
-    after_help = cmd::EXIT_CODES
-)]
-struct Cli {
-    #[command(subcommand)]
-    cmd: Option<Cmd>,
-}
-
-#[derive(Subcommand)]
-enum Cmd {
-    /// Decode VLP-16 packets from a pcap/pcapng capture; print counts, optionally list points.
-    Decode(cmd::decode::Args),
-    /// Simulate a survey: write lidar.pcap, ins.bin, site.toml and truth.json.
-    Synth(cmd::synth::Args),
-    /// Georeference a survey: align the LiDAR with the trajectory, keep the sphere windows.
-    Georef(cmd::georef::Args),
-    /// Calibrate: georeference, window, solve for boresight and lever arm, report.
-    #[command(after_help = cmd::EXIT_CODES)]
-    Calibrate(cmd::calibrate::Args),
-    /// Calibrate one synthetic survey from many perturbed starts, on all cores.
-    Montecarlo(cmd::montecarlo::Args),
-    /// Predict the accuracy of a planned calibration survey (each parameter's sigma, what each
-    /// pass and sphere brings) and propose the cheapest change that meets the targets.
-    Plan(cmd::plan::Args),
-    /// Play recorded files back: UDP datagrams to their ports, serial bytes to a device.
-    Replay(cmd::replay::Args),
-    /// The rig: listen to the VLP-16 and the VN-200, log everything raw, show a status line every
-    /// second, calibrate once every sphere has been seen well enough. Stops on SIGINT/SIGTERM
-    /// or after --duration, exit 0.
-    Run(cmd::run::Args),
-    /// Synthesise table1, calibrate from the paper's erroneous start, show the result beside the
-    /// truth (what a bare `cargo run --release` does).
-    Demo(cmd::demo::Args),
-    /// Board files: `board set-mount BOARD --from report.json` writes a calibration into
-    /// `[mount]`, keeping the rest of the file.
-    Board(cmd::board::Args),
-    /// Site files from survey data: `site import SURVEY.csv --crs EPSG:n -o site.toml`.
-    Site(cmd::site::Args),
-    /// ROS 2 bags: `bag info BAG` lists the topics and what spherecal reads of them.
-    Bag(cmd::bag::Args),
-    /// Frame a VN-200 serial capture (raw bytes or a spherecal serial log); print counts,
-    /// optionally list the binary frames' fields.
-    Ins(cmd::ins::Args),
-    /// The VN-200 on a serial port: `vn200 configure --board FILE` sets it up for the board
-    /// (and checks every write); `vn200 emulate --serial DEV` is one, to try the rig.
-    Vn200(cmd::vn200::Args),
-}
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -87,5 +36,6 @@ fn main() -> ExitCode {
         Some(Cmd::Bag(a)) => cmd::bag::run(a),
         Some(Cmd::Board(a)) => cmd::board::run(a),
         Some(Cmd::Vn200(a)) => cmd::vn200::run(a),
+        Some(Cmd::Reference(a)) => cmd::reference::run(a),
     }
 }

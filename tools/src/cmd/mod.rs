@@ -30,6 +30,7 @@ pub mod georef;
 pub mod ins;
 pub mod montecarlo;
 pub mod plan;
+pub mod reference;
 pub mod replay;
 pub mod run;
 pub mod site;
