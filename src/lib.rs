@@ -24,5 +24,3 @@ pub mod time;
 pub mod velodyne;
 
 pub mod vn200;
-/// The sphere windows: a stage of the alignment ([`align::window`]), here by its old path too.
-pub use align::window;

@@ -7,12 +7,14 @@
 //! has ended, or its own deadline passed), then hands the packet to [`Aligner::data`].
 
 use super::history::{PoseHistory, PoseSample};
+use crate::align::window::{
+    Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS,
+};
 use crate::georef::Mount;
 use crate::time::{GpsTime, HostTime, LidarClock};
 use crate::velodyne::{
     self, DataPacket, Identity, Model, Point, PointBuf, PositionPacket, PpsStatus,
 };
-use crate::window::{Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS};
 
 /// A packet's 24 firing sequences span 1.33 ms: the history must reach this far past its
 /// first firing.

@@ -15,8 +15,8 @@
 
 use super::objective::{rotation_and_derivatives, TimeOffset};
 use super::P;
+use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::georef::{Mount, Params};
-use crate::window::{Observation, Target, MAX_TARGETS};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// 6x6.

@@ -6,8 +6,8 @@
 //! docs/extraction.md, section 2.
 
 use super::objective::{Noise, TimeOffset};
+use crate::align::window::{Observation, Target};
 use crate::georef::Mount;
-use crate::window::{Observation, Target};
 use core::ops::Range;
 use nalgebra::{Matrix3, Vector3};
 
@@ -223,7 +223,7 @@ mod tests {
             r_ig: Matrix3::identity(),
             time: GpsTime(0),
             range: d.norm() as f32,
-            work: crate::window::Work {
+            work: crate::align::window::Work {
                 x: [x.x as f32, x.y as f32, x.z as f32],
                 u: [u.x as f32, u.y as f32, u.z as f32],
                 run: 0.0,

@@ -421,10 +421,10 @@ pub fn refine(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::align::window::{Observation, Target};
     use crate::calib::objective::{Noise, SphereObs};
     use crate::frames::rotation;
     use crate::time::GpsTime;
-    use crate::window::{Observation, Target};
     use nalgebra::Vector3;
 
     /// Returns on two spheres, made exactly by a known mounting from random poses.

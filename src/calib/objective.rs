@@ -5,8 +5,8 @@
 //! evaluation (six trig calls); each observation then costs two 3x3 products and a square root.
 
 use super::P;
+use crate::align::window::{Observation, Target};
 use crate::frames::rotation;
-use crate::window::{Observation, Target};
 use nalgebra::{Matrix3, Vector3};
 
 /// One sphere's observations and its surveyed target.

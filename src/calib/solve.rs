@@ -15,9 +15,9 @@ use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
 use super::{DegM, Params, P};
+use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::georef::Mount;
 use crate::time::GpsTime;
-use crate::window::{Observation, Target, MAX_TARGETS};
 use core::ops::Range;
 use nalgebra::Vector3;
 

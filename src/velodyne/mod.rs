@@ -20,9 +20,10 @@ pub mod model;
 pub mod position;
 mod tables;
 
+pub use beam::Beam;
 pub use data::{BlockRepr, DataPacket, DataRepr};
 pub use firing::{decode, decode_as, Point, PointBuf, Return, POINTS_PER_PACKET};
-pub use model::{Beam, Detector, Identity, Model, MAX_LASERS};
+pub use model::{Detector, Identity, Model, MAX_LASERS};
 pub use position::{NmeaTime, PositionPacket, PositionRepr, PpsStatus};
 
 use core::fmt;

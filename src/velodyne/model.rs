@@ -20,7 +20,7 @@
 //! A point's azimuth is the block's azimuth interpolated to the firing time (its fraction of
 //! the block) plus the laser's azimuth offset (VLP-32C table 9-2; zero on the others).
 
-pub use super::beam::Beam;
+use super::beam::Beam;
 use super::tables;
 
 /// Most lasers of any model (the channel count of a block).

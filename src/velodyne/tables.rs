@@ -2,7 +2,7 @@
 //! edit. `model.rs` tests the trigonometry against libm.
 #![allow(clippy::excessive_precision, clippy::unreadable_literal)]
 
-use super::model::Beam;
+use super::beam::Beam;
 
 /// VLP16: per laser id (firing order).
 pub(crate) const VLP16: [Beam; 16] = [

@@ -38,8 +38,8 @@ fn bench(c: &mut Criterion) {
     g.bench_function("georef_pass", |b| {
         b.iter(|| {
             let mut n = 0u64;
-            let mut each = |_: &spherecal::window::GeoPoint| n += 1;
-            let each: Option<&mut dyn FnMut(&spherecal::window::GeoPoint)> = Some(&mut each);
+            let mut each = |_: &spherecal::align::window::GeoPoint| n += 1;
+            let each: Option<&mut dyn FnMut(&spherecal::align::window::GeoPoint)> = Some(&mut each);
             run(&inp, each, |rx: crossbeam_channel::Receiver<BatchMsg>| {
                 rx.iter().count()
             })
@@ -60,7 +60,7 @@ fn bench(c: &mut Criterion) {
         b.iter_batched(
             || obs.clone(),
             |mut o| {
-                let mut s: Vec<&mut [spherecal::window::Observation]> =
+                let mut s: Vec<&mut [spherecal::align::window::Observation]> =
                     o.iter_mut().map(|v| v.as_mut_slice()).collect();
                 solve(
                     &targets,
@@ -99,7 +99,7 @@ fn bench(c: &mut Criterion) {
         b.iter_batched(
             || obs.clone(),
             |mut o| {
-                let mut s: Vec<&mut [spherecal::window::Observation]> =
+                let mut s: Vec<&mut [spherecal::align::window::Observation]> =
                     o.iter_mut().map(|v| v.as_mut_slice()).collect();
                 solve(&targets, &mut s, &b0, &settings, &mut scratch.workspace()).b
             },

@@ -3,8 +3,8 @@
 //! `cargo bench -p spherecal-tools --bench core_path`
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use spherecal::align::window::Batch;
 use spherecal::velodyne::PointBuf;
-use spherecal::window::Batch;
 use spherecal_tools::fixtures::CorePath;
 
 fn bench(c: &mut Criterion) {

@@ -2,8 +2,8 @@
 //! 20 times) for deterministic instruction counts: `valgrind --tool=callgrind
 //! target/release/examples/core_path_count` (criterion timings on a shared machine swing).
 
+use spherecal::align::window::Batch;
 use spherecal::velodyne::PointBuf;
-use spherecal::window::Batch;
 use spherecal_tools::fixtures::CorePath;
 
 fn main() {

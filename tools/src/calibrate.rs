@@ -5,14 +5,14 @@ use crate::nav_source::InsKind;
 use crate::pipeline::accuracy::Accuracy;
 use crate::pipeline::Closest;
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
-pub use crate::report::{
-    render, Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
+use crate::report::{
+    Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
     Verdicts, Xyz,
 };
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::consensus::Candidate;
 use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
 use spherecal::calib::{Params, NAMES, P};
-use spherecal::window::{Observation, Target};
 use std::fmt::Write as _;
 
 /// A calibration's run counts, windowed returns (with their verdicts), solution and report.
@@ -170,8 +170,8 @@ impl Scratch {
     }
 }
 
-pub use crate::reasons::{empty_windows, lost_name, refusal_text, refusal_text_clock};
-pub use crate::session::settings_for;
+use crate::reasons::{empty_windows, lost_name, refusal_text, refusal_text_clock};
+use crate::session::settings_for;
 
 /// Solve and build the report from collected observations (with a scratch of its own: see
 /// [`solve_report_in`] to keep one between solves).
@@ -378,7 +378,7 @@ pub fn write_returns(
     use std::io::Write as _;
     let err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = crate::output::Staged::create(path)?;
-    writeln!(w, "{}", crate::RETURNS_HEADER).map_err(err)?;
+    writeln!(w, "{}", crate::survey::RETURNS_HEADER).map_err(err)?;
     let mount = spherecal::georef::Mount::from_params(b);
     let mut line = String::new();
     for ((t, id), v) in targets.iter().zip(ids).zip(obs) {
@@ -445,7 +445,7 @@ pub fn calibrate(
     targets: &[Target],
     ids: &[String],
     b0: &Params,
-    clock: crate::ClockOptions,
+    clock: crate::survey::ClockOptions,
 ) -> Result<Calibrated, crate::Error> {
     // The model, once: every collection decodes as it, and the extraction's scan lines follow
     // its laser period.

@@ -3,12 +3,12 @@
 //! 2 deg over 5 s) around it, two sphere targets, and the pass over it all.
 
 use nalgebra::Vector3;
+use spherecal::align::window::{Batch, Target, WindowStats, Windowing};
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::frames::rotation;
 use spherecal::georef::Mount;
 use spherecal::time::{GpsTime, LidarClock};
 use spherecal::velodyne::{decode, DataPacket, PointBuf, PositionPacket};
-use spherecal::window::{Batch, Target, WindowStats, Windowing};
 use std::hint::black_box;
 
 /// The workload.

@@ -3,8 +3,8 @@
 use crate::config::crs::Crs;
 use crate::config::site::Site;
 use crate::pipeline::{run, BatchMsg, Inputs, RunStats};
+use spherecal::align::window::GeoPoint;
 use spherecal::georef::Mount;
-use spherecal::window::GeoPoint;
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
@@ -162,7 +162,7 @@ pub struct LasOut {
     abandon: crate::output::Abandon,
     path: std::path::PathBuf,
     to_map: Option<ToMap>,
-    targets: Vec<spherecal::window::Target>,
+    targets: Vec<spherecal::align::window::Target>,
     /// Points written.
     pub points: u64,
     /// First write error.

@@ -36,6 +36,3 @@ pub mod vertical;
 pub mod vn200;
 
 pub use error::{Error, ErrorKind};
-pub use survey::{
-    check_output, run_calibrate, Calibrated, ClockOptions, Outputs, Survey, RETURNS_HEADER,
-};

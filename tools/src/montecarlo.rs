@@ -47,12 +47,8 @@ pub fn montecarlo(
     let (_, obs) = collect(&inp)?;
     let (_, tg) = targets(&site);
     // As `calibrate` would (the mounting held to the clock: the simulated one has PPS).
-    let settings = crate::calibrate::settings_for(
-        &site,
-        scenario.model(),
-        false,
-        site.apriori.window_margin_m,
-    );
+    let settings =
+        crate::session::settings_for(&site, scenario.model(), false, site.apriori.window_margin_m);
     let t = &scenario.mount.truth;
     let truth = t.deg_m().0;
     let mut rng = Rng::new(seed);
@@ -93,7 +89,7 @@ pub fn montecarlo(
                     for (w, o) in work.iter_mut().zip(&obs) {
                         w.copy_from_slice(o);
                     }
-                    let mut slices: Vec<&mut [spherecal::window::Observation]> =
+                    let mut slices: Vec<&mut [spherecal::align::window::Observation]> =
                         work.iter_mut().map(|v| v.as_mut_slice()).collect();
                     let t0 = std::time::Instant::now();
                     let sol = solve_watched(

@@ -5,9 +5,9 @@
 //! metres, is named before any other cause.
 
 use serde::{Deserialize, Serialize};
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::extract::{detections_at_radii, ExtractSettings};
 use spherecal::georef::Mount;
-use spherecal::window::{Observation, Target};
 
 /// The radii tried, as factors of the site's: the slips a site file suffers (a diameter: 2 or
 /// 0.5; feet and metres: 3.2808 or 0.3048) and a geometric grid between (steps of ~25 %).

@@ -3,12 +3,13 @@
 //! solver's settings (built here only), the core's workspace kept between solves, the store of
 //! windowed returns with the time offset it was aligned at, and one claim rule.
 
-use crate::calibrate::{solve_report_in, Report, Scratch};
+use crate::calibrate::{solve_report_in, Scratch};
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
+use crate::report::Report;
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
 use spherecal::calib::solve::{ClockFacts, Observe};
 use spherecal::calib::{Params, Settings, Solution};
-use spherecal::window::{Observation, Target};
 
 /// What the streams say of the clocks, for the core's checks (one rule for `calibrate` and
 /// the rig): the LiDAR clock's trust as its position packets tell it (with the offset

@@ -12,9 +12,9 @@
 //! taken, when it holds at most a third of the kept returns.
 
 use serde::{Deserialize, Serialize};
+use spherecal::align::window::Observation;
 use spherecal::calib::solve::{PassReport, Refusal};
 use spherecal::time::GpsTime;
-use spherecal::window::Observation;
 
 /// A stretch of the survey whose returns were left out.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

@@ -6,12 +6,11 @@
 //! prediction from the geometry of the returns kept so far and the noise model
 //! ([`spherecal::calib::predict`]), marked `(predicted)`.
 
-pub use crate::config::goal::Targets;
 use crate::report::Report;
 use serde::{Deserialize, Serialize};
+use spherecal::align::window::Observation;
 use spherecal::calib::solve::Solution;
 use spherecal::calib::{NAMES, P};
-use spherecal::window::Observation;
 
 /// A pass counts when it holds this many kept returns.
 pub const MIN_PASS_RETURNS: usize = 10;
@@ -116,7 +115,7 @@ pub fn bound(h: f64) -> &'static str {
 /// the solution, with the solver's noise model (range, INS attitude and position per sample of
 /// an INS at `ins_rate_hz`, the 2 mm range step), and the returns per sphere.
 pub fn data_info(
-    targets: &[spherecal::window::Target],
+    targets: &[spherecal::align::window::Target],
     obs: &[Vec<Observation>],
     sol: &Solution,
     settings: &spherecal::calib::Settings,
@@ -147,7 +146,7 @@ pub fn data_info(
 /// The returns kept so far under the solver's navigation model (`None`: it has none), for the
 /// planner's predictions on them ([`crate::plan::nav`]).
 pub fn nav_plan(
-    targets: &[spherecal::window::Target],
+    targets: &[spherecal::align::window::Target],
     obs: &[Vec<Observation>],
     sol: &Solution,
     settings: &spherecal::calib::Settings,
@@ -167,7 +166,7 @@ pub fn nav_plan(
 /// The sigmas the planner's predictor gives the returns kept so far ([`data_info`]): the six
 /// [deg, m] and the time offset [s] (infinite where the geometry cannot determine them).
 pub fn predicted_sigma(
-    targets: &[spherecal::window::Target],
+    targets: &[spherecal::align::window::Target],
     obs: &[Vec<Observation>],
     sol: &Solution,
     settings: &spherecal::calib::Settings,

@@ -6,7 +6,7 @@
 //! not the mounting.
 
 use crate::pipeline::{run, Inputs};
-use spherecal::window::Target;
+use spherecal::align::window::Target;
 
 /// The histogram's bins [m] and its half-span [m]: heights 0.25 m apart up to 500 m off.
 const BIN_M: f64 = 0.25;
@@ -49,7 +49,7 @@ pub fn columns(inp: &Inputs, targets: &[Target]) -> Result<Vec<Option<f64>>, cra
         })
         .collect();
     let margin = inp.margin;
-    let mut each = |p: &spherecal::window::GeoPoint| {
+    let mut each = |p: &spherecal::align::window::GeoPoint| {
         for (t, c) in targets.iter().zip(cols.iter_mut()) {
             let d = p.ned - t.center;
             if d.x.hypot(d.y) > t.radius + margin {

@@ -1,12 +1,12 @@
 //! A counting global allocator shows that the core's steady state allocates nothing per packet:
 //! decode -> clock -> pose interpolation -> georeference -> window.
 
+use spherecal::align::window::{Batch, Target, WindowStats, Windowing};
 use spherecal::align::{PoseHistory, PoseSample};
 use spherecal::sim::{InsSim, LidarSim, SimPacket};
 use spherecal::time::LidarClock;
 use spherecal::velodyne::{decode, DataPacket, PointBuf, PositionPacket};
 use spherecal::vn200::{Framer, Item, Pose};
-use spherecal::window::{Batch, Target, WindowStats, Windowing};
 use spherecal_tools::config::scenario::Scenario;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -113,7 +113,7 @@ impl Joint<'_, '_> {
     pub(super) fn weight(
         &self,
         pb: &Problem<'_>,
-        o: &crate::window::Observation,
+        o: &crate::align::window::Observation,
         len_s: f64,
     ) -> f64 {
         let v = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);

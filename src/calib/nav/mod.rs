@@ -14,8 +14,8 @@
 use super::lm::{conditioning, row_q, Clock, LmResult, Mat6, MatQ, Vec6, DRIFT, Q};
 use super::objective::{Linearised, NavCorrection, Problem};
 use super::P;
+use crate::align::window::MAX_TARGETS;
 use crate::time::GpsTime;
-use crate::window::MAX_TARGETS;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 mod joint;

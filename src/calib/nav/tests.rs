@@ -5,8 +5,8 @@ use super::*;
 
 mod rows {
     use super::*;
+    use crate::align::window::{Observation, Target};
     use crate::frames::rotation;
-    use crate::window::{Observation, Target};
 
     /// The navigation rows `-n` (position) and `n x arm` (rotation) are the residual's
     /// derivatives by the correction `row_corrected` takes out.
@@ -64,10 +64,10 @@ mod rows {
 
 mod honesty {
     use super::*;
+    use crate::align::window::{Observation, Target};
     use crate::calib::objective::{Noise, SphereObs};
     use crate::frames::rotation;
     use crate::sim::nav_error::{Correlated, GaussMarkov};
-    use crate::window::{Observation, Target};
     use std::vec::Vec;
 
     const TRUTH: [f64; P] = [3.1329, -0.7837, 0.0209, 1.5, -1.24, -1.36];

@@ -74,7 +74,7 @@ pub fn run(a: Args) -> ExitCode {
     let ports = s.ports();
     let (pcap, lidar_topic) = s.lidar();
     let bag = s.ins_bag();
-    let survey = crate::Survey {
+    let survey = crate::survey::Survey {
         pcap,
         lidar_topic,
         bag,
@@ -91,7 +91,7 @@ pub fn run(a: Args) -> ExitCode {
         board: a.board,
         operator: a.operator,
     };
-    let out = crate::Outputs {
+    let out = crate::survey::Outputs {
         report: a.report,
         las: a.las,
         las_frame: a.las_frame,
@@ -106,7 +106,7 @@ pub fn run(a: Args) -> ExitCode {
         },
         None => (a.init, a.time_offset),
     };
-    let clock = crate::ClockOptions {
+    let clock = crate::survey::ClockOptions {
         estimate: !a.hold_time_offset,
         start,
         allow_unlocked: a.allow_unlocked_clock,
@@ -114,7 +114,8 @@ pub fn run(a: Args) -> ExitCode {
         search: a.search_time_offset,
     };
     crate::output::remove_partial_on_interrupt();
-    match crate::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None) {
+    match crate::survey::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None)
+    {
         Ok(c) => {
             say!("{}", c.text);
             super::outputs_failed("calibrate", &c.output_errors)

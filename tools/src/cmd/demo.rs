@@ -58,13 +58,13 @@ pub fn run(a: Args) -> ExitCode {
         t6[5],
         s.true_time_offset_s(),
     ];
-    let out = crate::Outputs {
+    let out = crate::survey::Outputs {
         report: Some(dir.join("report.json")),
         html: Some(dir.join("report.html")),
         ..Default::default()
     };
-    let res = crate::run_calibrate(
-        crate::Survey::synth_dir(&dir),
+    let res = crate::survey::run_calibrate(
+        crate::survey::Survey::synth_dir(&dir),
         None,
         Default::default(),
         &out,

@@ -56,7 +56,7 @@ pub fn run(a: Args) -> ExitCode {
     } = a.survey;
     for (flag, p) in [("--las", &a.las), ("--windows", &a.windows)] {
         if let Some(p) = p {
-            if let Err(e) = crate::check_output(flag, p) {
+            if let Err(e) = crate::survey::check_output(flag, p) {
                 return fail("georef", e);
             }
         }

@@ -34,7 +34,7 @@ pub fn run(a: Args) -> ExitCode {
         Err(e) => return fail("montecarlo", e),
     };
     if let Some(p) = &a.report {
-        if let Err(e) = crate::check_output("--report", p) {
+        if let Err(e) = crate::survey::check_output("--report", p) {
             return fail("montecarlo", e);
         }
     }

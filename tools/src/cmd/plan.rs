@@ -121,7 +121,7 @@ pub fn run(a: Args) -> ExitCode {
         ("--geojson", &a.geojson),
     ] {
         if let Some(p) = p {
-            if let Err(e) = crate::check_output(flag, p) {
+            if let Err(e) = crate::survey::check_output(flag, p) {
                 return fail("plan", e);
             }
         }

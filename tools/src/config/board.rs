@@ -179,7 +179,7 @@ pub struct Board {
     /// The accuracy wanted: the live verdict says `ready` when every sigma is within it
     /// (`target_sigma_deg`, `target_sigma_m`; defaults 0.01 deg, 5 mm).
     #[serde(default)]
-    pub calibration: crate::verdict::Targets,
+    pub calibration: crate::config::goal::Targets,
 }
 
 fn is_undeclared(c: &super::nav_errors::CorrelatedSpec) -> bool {

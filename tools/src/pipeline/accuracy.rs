@@ -10,8 +10,8 @@
 //! and is counted.
 
 use serde::{Deserialize, Serialize};
+use spherecal::align::window::Observation;
 use spherecal::time::GpsTime;
-use spherecal::window::Observation;
 use spherecal_hal::sbet::SmrmsgReader;
 use std::path::{Path, PathBuf};
 

@@ -72,7 +72,7 @@ impl<'a> RingAligner<'a> {
         // From files, the poses are read on past a packet by the span its returns' velocity and
         // turn rate are taken over (live input does not wait: the span shrinks at the newest).
         let lookahead = match wait {
-            InsWait::UntilEnd => spherecal::window::RATE_SPAN_NS,
+            InsWait::UntilEnd => spherecal::align::window::RATE_SPAN_NS,
             InsWait::Latency(_) => 0,
         };
         let core = CoreAligner::new(

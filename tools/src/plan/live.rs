@@ -10,10 +10,10 @@ use super::nav::NavPlan;
 use super::recommend::{candidate_pass_infos, PassCandidate};
 use super::{Goal, PlanNoise, Prediction};
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::predict::{Info, Predicted};
 use spherecal::calib::solve::Solution;
 use spherecal::calib::{Params, P};
-use spherecal::window::{Observation, Target};
 
 /// Another pass that improves no sigma by more than this share is not worth driving (on
 /// table1-noisy the best fifth pass gains 22 %, a sixth 16 %, a seventh 15 %, then 10 %).

@@ -6,11 +6,11 @@ use super::{PlanNoise, RATE_HALF_S};
 use crate::config::scenario::Scenario;
 use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::predict::{Info, Predicted};
 use spherecal::georef::{beam_origin_l, beam_unit};
 use spherecal::sim::{LidarSim, SimPacket, World};
 use spherecal::velodyne::data::field;
-use spherecal::window::{Observation, Target};
 
 /// A stretch of the trajectory: a pass, or the turn after one.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -6,10 +6,10 @@
 
 use crate::report::Report;
 use plotters::prelude::*;
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::solve::Solution;
 use spherecal::calib::Params;
 use spherecal::georef::Mount;
-use spherecal::window::{Observation, Target};
 use std::path::Path;
 
 mod nav;

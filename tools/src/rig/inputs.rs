@@ -119,7 +119,7 @@ pub(super) struct Plan {
     pub(super) ids: Vec<String>,
     pub(super) margin: f64,
     /// The solver's settings: the site's noise and margin, the board's LiDAR model
-    /// ([`crate::calibrate::settings_for`], as `calibrate` builds them).
+    /// ([`crate::session::settings_for`], as `calibrate` builds them).
     pub(super) settings: Settings,
     /// Where the navigation model in `settings` came from.
     pub(super) nav_source: String,
@@ -152,7 +152,7 @@ impl Plan {
             .map(|(n, g, bit)| (n.to_string(), g, bit))
             .collect();
         let mut settings = match &opts.site {
-            Some(site) => crate::calibrate::settings_for(site, b.lidar_model(), true, margin),
+            Some(site) => crate::session::settings_for(site, b.lidar_model(), true, margin),
             None => Settings::default(),
         };
         // The navigation model: the site's, else the board's, else the INS kind's default

@@ -14,13 +14,13 @@
 //! rings each have their count); the kernel's own drops on each socket are read back too, so
 //! `sent = received + kernel drops` and `received = enqueued + ring drops + skipped`.
 
-use crate::calibrate::Report;
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
     enqueue, targets, Accept, AlignStorage, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
     LidarItem, LidarPacket, Overflow, RingAligner, Vn200Feed, BATCH, INS_RING,
 };
+use crate::report::Report;
 use crate::state::{ClockState, InsState};
 
 mod align;
@@ -45,13 +45,13 @@ use logger::{logger, syncer, RawLog};
 use readers::{posmv_reader, serial_reader, udp_reader, LidarPort};
 use serde::Serialize;
 use solver::solver;
+use spherecal::align::window::{Observation, Target};
 use spherecal::calib::Params;
 use spherecal::calib::Settings;
 use spherecal::frames::LocalFrame;
 use spherecal::vn200::binary::Masks;
 use spherecal::vn200::fields::Group;
 use spherecal::vn200::Item;
-use spherecal::window::{Observation, Target};
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{Datagram, HostTime};
 use spherecal_hal::rawlog::{McapLog, PcapLog, SerialLog};

@@ -6,10 +6,10 @@
 
 use crate::common;
 
+use spherecal::align::window::Observation;
 use spherecal::calib::extract::ReturnClass;
 use spherecal::calib::solve::Refusal;
 use spherecal::calib::{solve, Settings};
-use spherecal::window::Observation;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report, Scratch};
 use spherecal_tools::config::scenario::{Scenario, BUILTIN};
 use spherecal_tools::config::site::Site;
@@ -85,7 +85,7 @@ fn synth_and_solve(
     name: &str,
 ) -> (
     PathBuf,
-    spherecal_tools::calibrate::Report,
+    spherecal_tools::report::Report,
     spherecal::calib::Solution,
     Vec<Vec<Observation>>,
 ) {
@@ -317,7 +317,7 @@ fn table1_quay_from_the_papers_start() {
         .collect();
     let text = std::fs::read_to_string(&returns).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some(spherecal_tools::RETURNS_HEADER));
+    assert_eq!(lines.next(), Some(spherecal_tools::survey::RETURNS_HEADER));
     let mut per: HashMap<String, (usize, usize, usize, usize)> = HashMap::new();
     for l in lines {
         let f: Vec<&str> = l.split(',').collect();
@@ -653,7 +653,7 @@ fn a_hidden_sphere_is_not_found_and_the_others_calibrate() {
     assert!(rep.converged, "{:?}", rep.reason);
     let got = rep.deg_m();
     common::assert_within(&got, &truth(&s), 2e-3, "two spheres of three");
-    let text = spherecal_tools::calibrate::render(&rep, None);
+    let text = spherecal_tools::report::render(&rep, None);
     assert!(text.contains("P3: NOT FOUND"), "{text}");
     std::fs::remove_dir_all(dir).unwrap();
 }

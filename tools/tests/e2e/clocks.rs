@@ -10,8 +10,8 @@
 use crate::common;
 use crate::common::vn200::{frame_time_s, frames, seal, set_status, FRAME, HEIGHT_AT, STATUS_AT};
 
-use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::report::Report;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 

@@ -146,7 +146,7 @@ type Labels = std::collections::HashMap<(u32, u8, u8), (u16, u8)>;
 /// A solution, the returns with their verdicts, the labels.
 type Solved = (
     spherecal::calib::Solution,
-    Vec<Vec<spherecal::window::Observation>>,
+    Vec<Vec<spherecal::align::window::Observation>>,
     Labels,
 );
 
@@ -185,8 +185,9 @@ fn trial_of(
     seeds: &[u64],
     edits: &[&dyn Fn(&mut spherecal::calib::Settings)],
 ) -> Vec<Vec<Solved>> {
-    use spherecal_tools::calibrate::{collect, settings_for, site_targets, solve_report_in};
+    use spherecal_tools::calibrate::{collect, site_targets, solve_report_in};
     use spherecal_tools::config::scenario::Scenario;
+    use spherecal_tools::session::settings_for;
     let mut s = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap());
     scene(&mut s);
     let (cache, _, _) = common::trial_cache(&s);
@@ -231,11 +232,11 @@ fn trial_of(
 
 /// The kept returns of `a` that `b` does not keep.
 fn kept_only_in(
-    a: &[Vec<spherecal::window::Observation>],
-    b: &[Vec<spherecal::window::Observation>],
-) -> Vec<(usize, spherecal::window::Observation)> {
+    a: &[Vec<spherecal::align::window::Observation>],
+    b: &[Vec<spherecal::align::window::Observation>],
+) -> Vec<(usize, spherecal::align::window::Observation)> {
     let kept = spherecal::calib::extract::ReturnClass::Kept as u8;
-    let key = |o: &spherecal::window::Observation| (o.packet, o.block, o.channel);
+    let key = |o: &spherecal::align::window::Observation| (o.packet, o.block, o.channel);
     a.iter()
         .enumerate()
         .flat_map(|(j, v)| {
@@ -281,7 +282,7 @@ fn the_final_fit_sets_aside_what_is_not_the_sphere() {
             assert_eq!(counted(with).1, 1, "{:?}", with.set_aside);
             let aside = kept_only_in(all, kept);
             assert_eq!(aside.len() as u32, counted(with).0);
-            let sphere = |j: usize, o: &spherecal::window::Observation| {
+            let sphere = |j: usize, o: &spherecal::align::window::Observation| {
                 labels
                     .get(&(o.packet, o.block, o.channel))
                     .is_some_and(|&(ob, purity)| usize::from(ob) == j && purity >= 230)

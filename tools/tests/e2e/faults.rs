@@ -6,8 +6,8 @@ use crate::common;
 use crate::common::text;
 use crate::common::vn200::{frame_time_s, frames, without_startup};
 
-use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::report::Report;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 

@@ -5,9 +5,9 @@
 
 use crate::common;
 
+use spherecal::align::window::Observation;
 use spherecal::frames::{roll_pitch_heading, rotation};
 use spherecal::georef::Mount;
-use spherecal::window::Observation;
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::config::site::Site;
 use spherecal_tools::georef::LasFrame;

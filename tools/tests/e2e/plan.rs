@@ -37,18 +37,18 @@ fn copy_dir(from: &Path, to: &Path) {
 /// stretches set aside, the navigation model chosen as for a user): errors of the six [deg, m]
 /// and the time offset [s], the reported sigmas, why it was refused if it was.
 pub(crate) fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option<String>) {
-    let mut survey = spherecal_tools::Survey::synth_dir(dir);
+    let mut survey = spherecal_tools::survey::Survey::synth_dir(dir);
     if s.ins.kind == "posmv" {
         survey.ins = None;
         survey.posmv = Some((dir.join("ins.posmv").into(), 1));
     }
     let report = dir.join("mc-report.json");
-    let out = spherecal_tools::Outputs {
+    let out = spherecal_tools::survey::Outputs {
         report: Some(report.clone()),
         ..Default::default()
     };
-    spherecal_tools::run_calibrate(survey, None, Default::default(), &out, None).unwrap();
-    let r: spherecal_tools::calibrate::Report =
+    spherecal_tools::survey::run_calibrate(survey, None, Default::default(), &out, None).unwrap();
+    let r: spherecal_tools::report::Report =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let b = r.deg_m();
     let t = s.mount.truth.deg_m().0;

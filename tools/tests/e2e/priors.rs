@@ -6,8 +6,8 @@
 use crate::common;
 use crate::common::text;
 use crate::plan::{calibrate, run_trials, tmp};
-use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::report::Report;
 use std::path::Path;
 
 /// A draw of N(0, 1) per call (SplitMix64 and Box-Muller: the test's own generator).

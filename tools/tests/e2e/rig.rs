@@ -961,7 +961,7 @@ fn overload_every_drop_is_counted() {
     // spheres after each converged solve).
     let store_kib = (spherecal_tools::rig::MAX_OBS_PER_SPHERE
         * 2
-        * std::mem::size_of::<spherecal::window::Observation>()
+        * std::mem::size_of::<spherecal::align::window::Observation>()
         / 1024) as u64;
     assert!(
         rss[9] < rss[1] + 8 * 1024 + store_kib,

@@ -681,8 +681,8 @@ fn recorded_trajectory_from_csv_and_sbet() {
                 "{name}: {a} vs {b} returns on sphere {k}"
             );
         }
-        let c = spherecal_tools::run_calibrate(
-            spherecal_tools::Survey::synth_dir(&out),
+        let c = spherecal_tools::survey::run_calibrate(
+            spherecal_tools::survey::Survey::synth_dir(&out),
             None,
             Default::default(),
             &Default::default(),

@@ -5,8 +5,8 @@
 use crate::common;
 use crate::common::text;
 use crate::plan::tmp;
-use spherecal_tools::calibrate::Report;
 use spherecal_tools::config::scenario::Scenario;
+use spherecal_tools::report::Report;
 use std::path::Path;
 
 /// `spherecal calibrate` of the survey in `dir` with the site `site`, its report to

@@ -8,9 +8,10 @@ use crate::common;
 
 use spherecal::calib::Settings;
 use spherecal_tools::calibrate::{collect, site_targets, solve_report};
+use spherecal_tools::config::goal::Targets;
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{Inputs, InsInput};
-use spherecal_tools::verdict::{assess, coverage, data_info, predicted_sigma, Targets};
+use spherecal_tools::verdict::{assess, coverage, data_info, predicted_sigma};
 
 /// Scenario `s` synthesised into `dir`: the inputs of its capture and VN-200 stream with its
 /// site.
@@ -222,7 +223,7 @@ fn under_the_navigation_model_the_rig_predicts_and_advises_with_it() {
     let (targets, ids) = site_targets(&inp);
     let (_, mut obs) = collect(&inp).unwrap();
     let b0 = inp.site.apriori_deg_m().params();
-    let settings = spherecal_tools::calibrate::settings_for(
+    let settings = spherecal_tools::session::settings_for(
         &inp.site,
         Some(spherecal::velodyne::Model::Vlp16),
         true,
