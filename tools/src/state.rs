@@ -342,13 +342,6 @@ impl InsState {
         self.sample(t, contiguous, own);
     }
 
-    /// The clock steps within GPS seconds `span` (the LiDAR data's).
-    pub fn steps_within(&self, span: (f64, f64)) -> impl Iterator<Item = &(f64, f64)> {
-        self.clock_steps
-            .iter()
-            .filter(move |(t, _)| *t >= span.0 && *t <= span.1)
-    }
-
     /// A pose used at `t`; `max_gap_ns`: the interpolation limit.
     pub fn used(&mut self, t: GpsTime, max_gap_ns: i64) {
         self.poses += 1;

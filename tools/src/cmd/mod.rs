@@ -237,7 +237,7 @@ fn parse3(s: &str) -> Result<[f64; 3], String> {
 }
 
 /// A LiDAR model by name (`--model`).
-fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String> {
+pub(crate) fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String> {
     spherecal::velodyne::Model::parse(s).ok_or_else(|| {
         format!(
             "unknown LiDAR model {s:?}: expected {}",

@@ -22,9 +22,9 @@ pub struct Args {
     /// (two opposing lines over them, one lower, one crossing).
     #[arg(long, value_enum, default_value = "vessel")]
     pub platform: crate::plan::site::Platform,
-    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires).
-    #[arg(long, default_value = "vlp16", value_parser = lidar_model)]
-    pub model: &'static str,
+    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires; default vlp16).
+    #[arg(long, value_parser = super::parse_model)]
+    pub model: Option<spherecal::velodyne::Model>,
     /// With --site: a vessel's INS height above the spheres' mean centre (default -1.5: below
     /// them), or a drone's working height above the ground (default 40) [m].
     #[arg(long, allow_hyphen_values = true, value_parser = super::finite)]
@@ -65,51 +65,9 @@ pub struct Args {
 
 /// Run it: exit 0 when the plan meets the targets, 1 when it misses them, 2 on bad input.
 pub fn run(a: Args) -> ExitCode {
-    if a.site.is_none() {
-        let given = [
-            ("--height", a.height.is_some()),
-            ("--speed", a.speed.is_some()),
-            ("--side", a.side.is_some()),
-            ("--geojson", a.geojson.is_some()),
-            (
-                "--platform drone",
-                a.platform != crate::plan::site::Platform::Vessel,
-            ),
-            ("--model", a.model != "vlp16"),
-        ];
-        if let Some((flag, _)) = given.iter().find(|g| g.1) {
-            return fail(
-                "plan",
-                format!("{flag} plans for a site file: give --site SITE.toml (a scenario states its own passes and sensors)"),
-            );
-        }
-    }
-    let site = match &a.site {
-        Some(p) => match crate::config::site::Site::load(p) {
-            Ok(site) => Some(site),
-            Err(e) => return fail("plan", e),
-        },
-        None => None,
-    };
-    let (s, side) = match (&site, &a.scenario) {
-        (Some(site), _) => {
-            let o = crate::plan::site::Options {
-                platform: a.platform,
-                model: a.model,
-                height_m: a.height,
-                speed_mps: a.speed,
-                side_deg: a.side,
-            };
-            match crate::plan::site::scenario(site, &o) {
-                Ok(x) => x,
-                Err(e) => return fail("plan", e),
-            }
-        }
-        (None, Some(name)) => match crate::config::scenario::Scenario::load(name) {
-            Ok(s) => (s, None),
-            Err(e) => return fail("plan", e),
-        },
-        (None, None) => return fail("plan", "give --scenario or --site"),
+    let (s, site, side) = match planned(&a) {
+        Ok(x) => x,
+        Err(e) => return fail("plan", e),
     };
     let targets = crate::config::goal::TargetChoice::of(
         site.as_ref().and_then(|x| x.calibration.as_ref()),
@@ -191,24 +149,7 @@ pub fn run(a: Args) -> ExitCode {
         );
     }
     if let Some(p) = &a.report {
-        let out = if p
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
-        {
-            html::render(&s, &r, design.as_ref(), lines.as_ref())
-                .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))
-        } else if let Some(d) = &design {
-            crate::report::write_json_atomically(
-                p,
-                &serde_json::json!({ "design": { "kind": d.kind, "chosen": d.chosen,
-                    "candidates": d.candidates }, "plan": r }),
-            )
-        } else if let Some(l) = &lines {
-            crate::report::write_json_atomically(p, &serde_json::json!({ "lines": l, "plan": r }))
-        } else {
-            crate::report::write_json_atomically(p, &r)
-        };
-        if let Err(e) = out {
+        if let Err(e) = write_report(p, &s, &r, design.as_ref(), lines.as_ref()) {
             return fail("plan", e);
         }
         sayln!("wrote {}", p.display());
@@ -266,19 +207,6 @@ fn write_scenario(
     crate::report::write_atomically(p, format!("# {what}\n{t}").as_bytes())
 }
 
-/// A LiDAR model's name, checked.
-fn lidar_model(s: &str) -> Result<&'static str, String> {
-    match spherecal::velodyne::Model::parse(s) {
-        Some(spherecal::velodyne::Model::Vlp16) => Ok("vlp16"),
-        Some(spherecal::velodyne::Model::PuckHiRes) => Ok("puck-hires"),
-        Some(spherecal::velodyne::Model::Hdl32e) => Ok("hdl32e"),
-        Some(spherecal::velodyne::Model::Vlp32c) => Ok("vlp32c"),
-        _ => Err(format!(
-            "{s:?}: expected vlp16, hdl32e, vlp32c or puck-hires"
-        )),
-    }
-}
-
 /// A compass direction: n, ne, e, se, s, sw, w, nw (or the words), or degrees.
 fn compass(s: &str) -> Result<f64, String> {
     const P: [&str; 8] = [
@@ -306,5 +234,76 @@ fn compass(s: &str) -> Result<f64, String> {
         _ => Err(format!(
             "{s:?}: expected a compass direction (n, ne, e, se, s, sw, w, nw) or degrees"
         )),
+    }
+}
+
+/// The scenario planned (a scenario file's, or the first survey of `--site`'s), the site, and
+/// the side of its spheres' line a vessel runs on.
+fn planned(
+    a: &Args,
+) -> Result<
+    (
+        crate::config::scenario::Scenario,
+        Option<crate::config::site::Site>,
+        Option<f64>,
+    ),
+    crate::Error,
+> {
+    let Some(path) = &a.site else {
+        let given = [
+            ("--height", a.height.is_some()),
+            ("--speed", a.speed.is_some()),
+            ("--side", a.side.is_some()),
+            ("--geojson", a.geojson.is_some()),
+            (
+                "--platform drone",
+                a.platform != crate::plan::site::Platform::Vessel,
+            ),
+            ("--model", a.model.is_some()),
+        ];
+        if let Some((flag, _)) = given.iter().find(|g| g.1) {
+            return Err(format!(
+                "{flag} plans for a site file: give --site SITE.toml (a scenario states its own passes and sensors)"
+            )
+            .into());
+        }
+        let name = a.scenario.as_deref().ok_or("give --scenario or --site")?;
+        return Ok((crate::config::scenario::Scenario::load(name)?, None, None));
+    };
+    let site = crate::config::site::Site::load(path)?;
+    let o = crate::plan::site::Options {
+        platform: a.platform,
+        model: a.model.unwrap_or(spherecal::velodyne::Model::Vlp16),
+        height_m: a.height,
+        speed_mps: a.speed,
+        side_deg: a.side,
+    };
+    let (s, side) = crate::plan::site::scenario(&site, &o)?;
+    Ok((s, Some(site), side))
+}
+
+/// The report: one HTML page, or JSON (with the design's candidates, or the site's lines).
+fn write_report(
+    p: &std::path::Path,
+    s: &crate::config::scenario::Scenario,
+    r: &crate::plan::PlanReport,
+    design: Option<&crate::plan::design::Design>,
+    lines: Option<&crate::plan::site::Lines>,
+) -> Result<(), crate::Error> {
+    if p.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"))
+    {
+        html::render(s, r, design, lines)
+            .and_then(|page| crate::report::write_atomically(p, page.as_bytes()))
+    } else if let Some(d) = design {
+        crate::report::write_json_atomically(
+            p,
+            &serde_json::json!({ "design": { "kind": d.kind, "chosen": d.chosen,
+                "candidates": d.candidates }, "plan": r }),
+        )
+    } else if let Some(l) = lines {
+        crate::report::write_json_atomically(p, &serde_json::json!({ "lines": l, "plan": r }))
+    } else {
+        crate::report::write_json_atomically(p, r)
     }
 }

@@ -41,8 +41,8 @@ pub const DRONE_MPS: f64 = 5.0;
 pub struct Options {
     /// The platform.
     pub platform: Platform,
-    /// The LiDAR model (`vlp16`, `hdl32e`, `vlp32c`, `puck-hires`).
-    pub model: &'static str,
+    /// The LiDAR model.
+    pub model: spherecal::velodyne::Model,
     /// Vessel: the INS's height above the spheres' mean centre (negative: below); drone: the
     /// working height above the ground under the spheres [m].
     pub height_m: Option<f64>,
@@ -100,7 +100,7 @@ fn base(site: &Site, o: &Options) -> Result<Scenario, crate::Error> {
         b = a.boresight_deg,
         l = a.lever_arm_m,
         w = a.window_margin_m,
-        model = o.model,
+        model = o.model.key(),
         range = noise.map_or(range, |n| n.range_m),
         att = noise.map_or(att, |n| n.attitude_deg),
         pos = noise.map_or(pos, |n| n.position_m),
@@ -197,7 +197,7 @@ pub fn scenario(site: &Site, o: &Options) -> Result<(Scenario, Option<f64>), cra
         Platform::Vessel => {
             let speed = o.speed_mps.unwrap_or(VESSEL_MPS);
             s.trajectory.ins_down_m = mean_down - o.height_m.unwrap_or(-VESSEL_BELOW_M);
-            let bearing = |n: [f64; 2]| n[1].atan2(n[0]).to_degrees().rem_euclid(360.0);
+            // The side given, else the one whose plan predicts the smaller worst sigma.
             let sides = match o.side_deg {
                 Some(b) => {
                     let (sn, se) = (b.to_radians().cos(), b.to_radians().sin());
@@ -210,22 +210,23 @@ pub fn scenario(site: &Site, o: &Options) -> Result<(Scenario, Option<f64>), cra
                 }
                 None => vec![normal, [-normal[0], -normal[1]]],
             };
-            let mut best: Option<(f64, Scenario, f64)> = None;
+            let goal = super::Goal::default();
+            let mut best: Option<(f64, Scenario, [f64; 2])> = None;
             for n in sides {
                 let mut t = s.clone();
                 t.trajectory.pass = vessel_passes(c, d, n, ext, speed);
                 t.validate().map_err(|e| e.to_string())?;
-                let score = if best.is_none() && o.side_deg.is_some() {
+                let score = if o.side_deg.is_some() {
                     0.0
                 } else {
-                    let r = super::plan(&t, &super::Goal::default(), false)?;
-                    r.predicted.worst_ratio(&super::Goal::default())
+                    super::plan(&t, &goal, false)?.predicted.worst_ratio(&goal)
                 };
                 if best.as_ref().is_none_or(|b| score < b.0) {
-                    best = Some((score, t, bearing(n)));
+                    best = Some((score, t, n));
                 }
             }
-            let (_, t, side) = best.ok_or("no side to plan on")?;
+            let (_, t, n) = best.ok_or("no side to plan on")?;
+            let side = n[1].atan2(n[0]).to_degrees().rem_euclid(360.0);
             Ok((t, Some(side)))
         }
     }

@@ -58,9 +58,7 @@ pub(super) fn align_until_end(
         }
         // The clock's state for the solver, at most 5 times a second.
         if unpublished && published.elapsed() >= Duration::from_millis(200) {
-            if let Ok(mut c) = sh.clock.lock() {
-                *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
-            }
+            publish_clock(al, sh);
             (published, unpublished) = (Instant::now(), false);
         }
         al.drain_ins(ins_c);
@@ -84,9 +82,7 @@ pub(super) fn align_until_end(
         }
         match item.packet() {
             LidarPacket::End => {
-                if let Ok(mut c) = sh.clock.lock() {
-                    *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
-                }
+                publish_clock(al, sh);
                 break;
             }
             LidarPacket::Position(p) => {
@@ -112,5 +108,12 @@ pub(super) fn align_until_end(
             w.before_history + w.after_history + w.in_gap,
             Ordering::Relaxed,
         );
+    }
+}
+
+/// The LiDAR clock's state and the data's first GPS time, for the solver's clock facts.
+fn publish_clock(al: &RingAligner<'_>, sh: &Shared<'_>) {
+    if let Ok(mut c) = sh.clock.lock() {
+        *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
     }
 }

@@ -81,9 +81,8 @@ pub(super) struct Shared<'a> {
     pub(super) without_pose: AtomicU64,
     /// Warnings said on the console (run.json keeps them).
     pub(super) warnings: Mutex<Vec<String>>,
-    /// The LiDAR clock as the position packets told it so far (the aligner publishes it,
-    /// the solver's clock facts read it).
-    /// With the LiDAR data's first GPS time [s].
+    /// The LiDAR clock as the position packets told it so far and the LiDAR data's first GPS
+    /// time [s] (the aligner publishes them, the solver's clock facts read them).
     pub(super) clock: Mutex<(crate::state::ClockState, Option<f64>)>,
 }
 

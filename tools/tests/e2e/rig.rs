@@ -322,6 +322,52 @@ fn serial_rig(
     Rig::start(&args)
 }
 
+/// What a survey replayed through the rig left: its folder, the console's lines, the log folder
+/// and the run's report.
+struct Replayed {
+    dir: PathBuf,
+    lines: Vec<String>,
+    logs: PathBuf,
+    report: PathBuf,
+}
+
+/// `s` synthesised into `group`, replayed at `speed` to a rig with its site, the INS on a
+/// pseudo-terminal and a board edited by `edits`, interrupted after the replay.
+fn through_the_rig(
+    group: &str,
+    s: &spherecal_tools::config::scenario::Scenario,
+    (dp, pp): (u16, u16),
+    edits: &[(&str, &str)],
+    speed: Speed,
+) -> Replayed {
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        to,
+        ..
+    } = setup(group, s, dp, pp);
+    let slave_name = slave.name().unwrap();
+    let board = board_with(&dir, dp, pp, edits);
+    let (logs, report) = (dir.join("logs"), dir.join("run-report.json"));
+    let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
+    replay_both(
+        dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
+        speed,
+    )
+    .unwrap();
+    let (lines, _) = interrupt_after_replay(rig);
+    drop(slave);
+    Replayed {
+        dir,
+        lines,
+        logs,
+        report,
+    }
+}
+
 /// table1-noisy (range and INS noise, clutter) through the whole rig at twice real time, its
 /// INS 20 ms late: the rig's final answer is `calibrate`'s on its own logs (within a tenth of
 /// a sigma) and within three sigmas of the truth, the time offset too.
@@ -333,27 +379,13 @@ fn table1_noisy_through_the_rig() {
     let mut s = spherecal_tools::config::scenario::Scenario::load("table1-noisy").unwrap();
     s.ins.time_offset_s = 0.02;
     let (dp, pp) = (23_740, 23_741);
-    let Setup {
+    let mcap = [("[log]\n", "[log]\nformat = \"mcap\"\n")];
+    let Replayed {
         dir,
-        mut master,
-        slave,
-        to,
-        ..
-    } = setup("rig-noisy", &s, dp, pp);
-    let slave_name = slave.name().unwrap();
-    let board = board_with(&dir, dp, pp, &[("[log]\n", "[log]\nformat = \"mcap\"\n")]);
-    let logs = dir.join("logs");
-    let report = dir.join("run-report.json");
-    let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
-    replay_both(
-        dir.join("lidar.pcap"),
-        to,
-        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
-        Speed::Factor(2.0),
-    )
-    .unwrap();
-    let (lines, _) = interrupt_after_replay(rig);
-    drop(slave);
+        lines,
+        logs,
+        report,
+    } = through_the_rig("rig-noisy", &s, (dp, pp), &mcap, Speed::Factor(2.0));
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(rep["converged"], true, "{rep}");
@@ -409,26 +441,12 @@ fn an_unlocked_lidar_clock_is_refused_live_as_calibrate_refuses_it() {
     let mut s = table1();
     s.lidar.pps = "absent".into();
     let (dp, pp) = (23_790, 23_791);
-    let Setup {
+    let Replayed {
         dir,
-        mut master,
-        slave,
-        to,
-        ..
-    } = setup("rig-unlocked", &s, dp, pp);
-    let slave_name = slave.name().unwrap();
-    let board = board(&dir, dp, pp);
-    let (logs, report) = (dir.join("logs"), dir.join("run-report.json"));
-    let rig = serial_rig(&dir, &board, &slave_name, &logs, &report, &[]);
-    replay_both(
-        dir.join("lidar.pcap"),
-        to,
-        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
-        Speed::Factor(8.0),
-    )
-    .unwrap();
-    let (lines, _) = interrupt_after_replay(rig);
-    drop(slave);
+        lines,
+        logs,
+        report,
+    } = through_the_rig("rig-unlocked", &s, (dp, pp), &[], Speed::Factor(8.0));
     let live: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(live["converged"], false, "{live}");
