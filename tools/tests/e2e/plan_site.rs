@@ -137,6 +137,7 @@ fn the_sites_targets_and_a_drone() {
         "the site's targets are met: {text}"
     );
     // A drone at 30 m over the spheres (their ground 1.55 m below their centres).
+    let json = dir.join("drone.json");
     let out = common::spherecal()
         .args([
             "plan",
@@ -148,9 +149,27 @@ fn the_sites_targets_and_a_drone() {
             "--site",
         ])
         .arg(&site)
+        .arg("--report")
+        .arg(&json)
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
+    // The lower line and the crossing one pass over the spheres' midpoint (the surveyed
+    // centres' in the CSV), the opposing pair 3 m (0.1 h) either side of it.
+    let lines = read_json(&json)["lines"]["lines"].clone();
+    let (s1, s2) = (
+        [389_672.24, 5_359_609.597_6],
+        [389_672.628_7, 5_359_629.588_6],
+    );
+    let mid = [(s1[0] + s2[0]) / 2.0, (s1[1] + s2[1]) / 2.0];
+    for (k, want) in [(0, 3.0), (1, 3.0), (2, 0.0), (3, 0.0)] {
+        let l = &lines[k];
+        let d = off_line(mid, pair(&l["start"]), pair(&l["end"]));
+        assert!(
+            (d - want).abs() < 0.05,
+            "line {k}: {d} m from the spheres' midpoint"
+        );
+    }
     assert!(text.contains("INS 30.0 m above the ground"), "{text}");
     assert!(
         text.contains("INS 18.0 m above the ground"),
