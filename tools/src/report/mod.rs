@@ -5,6 +5,7 @@
 mod text;
 pub use text::{render, render_montecarlo, termination_words, utc};
 pub mod conventions;
+pub mod lenient;
 mod nav;
 pub mod prior;
 pub mod provenance;
@@ -456,10 +457,16 @@ pub struct CentreCorrection {
 }
 
 impl Report {
+    /// A report.json's text, whatever it holds: a refused run's numbers that are not numbers
+    /// (written as `null`) read as NaN ([`lenient`]).
+    pub fn parse(text: &str) -> Result<Self, serde_json::Error> {
+        lenient::from_str(text)
+    }
+
     /// Read a report.json (for `--init-from`); its six and time offset must be finite.
     pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let r: Report = serde_json::from_str(&text)
+        let r = Report::parse(&text)
             .map_err(|e| format!("{}: not a spherecal report: {e}", path.display()))?;
         if !r
             .deg_m()

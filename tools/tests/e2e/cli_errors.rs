@@ -110,15 +110,24 @@ fn errors_name_the_file_and_the_reason() {
             "the trajectory passed within the LiDAR's reach (S1 ",
         ),
     ] {
-        let out = common::spherecal()
-            .args(calibrate(&pcap, "--ins", &ins, site, extra))
-            .output()
-            .unwrap();
+        let report = dir.join("refused.json");
+        let mut args = calibrate(&pcap, "--ins", &ins, site, extra);
+        args.extend(["--report".into(), report.clone().into()]);
+        let out = common::spherecal().args(args).output().unwrap();
         let so = String::from_utf8_lossy(&out.stdout);
         assert_eq!(out.status.code(), Some(1), "{so}");
         assert!(so.contains("NOT CONVERGED: no return in the windows of S1, S2"), "{so}");
         assert!(so.contains("(ended: a round found fewer than two spheres)"), "{so}");
         assert!(so.contains(want), "{want:?} in {so}");
+        // The refusal's report.json, its sigmas and RMS written as null (JSON has no NaN),
+        // reads back whole: the reason, and NaN where nothing was estimated.
+        let text = std::fs::read_to_string(&report).unwrap();
+        assert!(text.contains("\"rms_m\": null"), "{text}");
+        let r = spherecal_tools::report::Report::parse(&text).unwrap();
+        assert!(!r.converged);
+        assert!(r.reason.unwrap().contains("no return in the windows of S1, S2"));
+        assert!(r.rms_m.is_nan() && r.sigma.deg_m().iter().all(|s| s.is_nan()));
+        assert!(r.correlation.iter().flatten().all(|c| c.is_nan()));
     }
     // A site file that is not TOML: the file and the line.
     refused(

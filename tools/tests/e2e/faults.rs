@@ -191,7 +191,7 @@ fn a_bag_with_dropped_and_unparsable_ins_messages_calibrates() {
         t.contains("43 samples missing (lost data, not clock steps)"),
         "{t}"
     );
-    let r: Report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r = Report::parse(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(r.inputs.as_ref().unwrap().ins_state.clock_step_count, 0);
     common::assert_within(&r.deg_m(), &s.mount.truth.deg_m().0, 1e-3, "bag with drops");
     std::fs::remove_dir_all(d).unwrap();
@@ -236,7 +236,7 @@ fn a_survey_sigma_applies_under_white_ins_errors() {
         t.contains("S1: centre moved") && t.contains("S2: centre held at its survey"),
         "{t}"
     );
-    let r: Report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r = Report::parse(&std::fs::read_to_string(&report).unwrap()).unwrap();
     within_sigmas(&r, &s, 3.0, "S1 2 cm off, declared 3 cm");
     // The centre's estimate moved towards the truth (2 cm west of the survey).
     let c = &r.navigation.as_ref().unwrap().centres[0];
@@ -246,7 +246,7 @@ fn a_survey_sigma_applies_under_white_ins_errors() {
     std::fs::write(&bad, resurveyed(&site, "S1", 0.10, 0.01)).unwrap();
     let o = run(&bad);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let r: Report = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r = Report::parse(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let reason = r.reason.unwrap();
     assert!(
         reason.starts_with("sphere S1's surveyed centre disagrees"),

@@ -48,8 +48,8 @@ pub(crate) fn calibrate(s: &Scenario, dir: &Path) -> ([f64; 7], [f64; 7], Option
         ..Default::default()
     };
     spherecal_tools::survey::run_calibrate(survey, None, Default::default(), &out, None).unwrap();
-    let r: spherecal_tools::report::Report =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let r =
+        spherecal_tools::report::Report::parse(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let b = r.deg_m();
     let t = s.mount.truth.deg_m().0;
     let sig = r.sigma.deg_m();
