@@ -13,9 +13,11 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use spherecal::calib::{solve, Settings};
-use spherecal_tools::calibrate::{collect, site_targets, solve_report, Scratch};
+use spherecal_tools::calibrate::{collect, site_targets};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{run, BatchMsg, Inputs, InsInput};
+use spherecal_tools::session::scratch::Scratch;
+use spherecal_tools::session::solve_report;
 
 fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("spherecal-bench-cal-{}", std::process::id()));

@@ -62,9 +62,14 @@ fn bench(c: &mut Criterion) {
     );
     g.bench_function("mrpt_decode_command_no_csv_from_bag", |b| {
         b.iter(|| {
-            spherecal_tools::bag::decode_bag(std::path::Path::new(&bag), None, None, None)
-                .unwrap()
-                .points
+            spherecal_tools::pipeline::bag_decode::decode_bag(
+                std::path::Path::new(&bag),
+                None,
+                None,
+                None,
+            )
+            .unwrap()
+            .points
         })
     });
     g.finish();

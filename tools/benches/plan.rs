@@ -5,8 +5,9 @@
 //! `cargo bench -p spherecal-tools --bench plan`
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use spherecal_tools::config::goal::Goal;
 use spherecal_tools::config::scenario::Scenario;
-use spherecal_tools::plan::{self, Goal};
+use spherecal_tools::plan;
 
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("plan");

@@ -1,18 +1,16 @@
 //! `spherecal calibrate`: the pipeline, then the solver, then the report (JSON, a human
 //! summary, optionally the calibrated cloud as LAS and the residual plots as SVG).
 
-use crate::nav_source::InsKind;
+use crate::config::nav_source::InsKind;
 use crate::pipeline::accuracy::Accuracy;
 use crate::pipeline::Closest;
 use crate::pipeline::{run, targets, BatchMsg, Inputs, RunStats};
-use crate::report::{
-    Angles, Consistency, InputsReport, PerPass, PerSphere, Report, SearchCandidate, Sigma,
-    Verdicts, Xyz,
-};
+use crate::reasons::{empty_windows, refusal_text_clock};
+use crate::report::{InputsReport, Report, SearchCandidate};
+use crate::session::settings_for;
 use spherecal::align::window::{Observation, Target};
-use spherecal::calib::consensus::Candidate;
-use spherecal::calib::solve::{Refusal, Settings, Solution, Workspace};
-use spherecal::calib::{Params, NAMES, P};
+use spherecal::calib::solve::{Refusal, Solution};
+use spherecal::calib::Params;
 use std::fmt::Write as _;
 
 /// A calibration's run counts, windowed returns (with their verdicts), solution and report.
@@ -118,251 +116,38 @@ pub fn collect(inp: &Inputs) -> Result<(RunStats, Vec<Vec<Observation>>), crate:
     )
 }
 
-/// Cells of the detection's vote grid (64^3: 512 KB).
-pub const GRID_CELLS: usize = 64 * 64 * 64;
-/// Kept returns a detect-and-solve round solves on at most (8.6 MB).
-pub const KEPT_CAPACITY: usize = 50_000;
-/// Returns in one slice of time at most (longer ones are split).
-pub const SLICE_CAPACITY: usize = 32_768;
+/// The `--returns` CSV header.
+pub const RETURNS_HEADER: &str =
+    "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
 
-/// The first round's candidates at most (four per slice of 0.4 s: 16 spheres seen for 100 s).
-pub const CANDIDATE_CAPACITY: usize = 16_384;
-
-/// The solver's scratch, owned.
-#[derive(Debug, Clone)]
-pub struct Scratch {
-    grid: Vec<u16>,
-    kept: Vec<Observation>,
-    keys: Vec<(f32, u32)>,
-    cands: Vec<Candidate>,
-    idx: Vec<usize>,
-    nav: Vec<spherecal::calib::nav::Piece>,
+/// How `calibrate` treats the clocks and the INS.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClockOptions {
+    /// Estimate the time offset between the clocks (else hold `start`).
+    pub estimate: bool,
+    /// The time offset to start from [s] (INS time = LiDAR time + this); `None`: 0, or what
+    /// the LiDAR's RMC says when its clock is not PPS-locked.
+    pub start: Option<f64>,
+    /// Claim a solution although the LiDAR clock is not PPS-locked (when the time offset
+    /// found explains its disagreement with the RMC).
+    pub allow_unlocked: bool,
+    /// Use VN-200 poses whose InsStatus says not tracking.
+    pub keep_untracked_ins: bool,
+    /// Search the time offset over +- this [s] around the start (`None`: 2 s when the LiDAR
+    /// clock is not PPS-locked with a valid RMC, no search otherwise).
+    pub search: Option<f64>,
 }
 
-/// Pieces of the navigation model's time line (each ~6 kB; 0.25-0.5 s each: 1,024 hold
-/// 4-8 minutes of sphere returns).
-pub const NAV_PIECES: usize = 1024;
-
-impl Default for Scratch {
+impl Default for ClockOptions {
     fn default() -> Self {
         Self {
-            grid: vec![0; GRID_CELLS],
-            kept: vec![Observation::default(); KEPT_CAPACITY],
-            keys: vec![(0.0, 0); SLICE_CAPACITY],
-            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
-            idx: vec![0; CANDIDATE_CAPACITY],
-            nav: vec![spherecal::calib::nav::Piece::EMPTY; NAV_PIECES],
+            estimate: true,
+            start: None,
+            allow_unlocked: false,
+            keep_untracked_ins: false,
+            search: None,
         }
     }
-}
-
-impl Scratch {
-    /// The workspace [`solve`] borrows.
-    pub fn workspace(&mut self) -> Workspace<'_> {
-        Workspace {
-            grid: &mut self.grid,
-            kept: &mut self.kept,
-            keys: &mut self.keys,
-            cands: &mut self.cands,
-            idx: &mut self.idx,
-            nav: &mut self.nav,
-        }
-    }
-}
-
-use crate::reasons::{empty_windows, lost_name, refusal_text, refusal_text_clock};
-use crate::session::settings_for;
-
-/// Solve and build the report from collected observations (with a scratch of its own: see
-/// [`solve_report_in`] to keep one between solves).
-pub fn solve_report(
-    targets: &[Target],
-    ids: &[String],
-    obs: &mut [Vec<Observation>],
-    b0: &Params,
-    s: &Settings,
-) -> (Solution, Report) {
-    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default(), &mut ())
-}
-
-/// [`solve_report`] in a lent scratch (the core's workspace, ~9 MB: the rig keeps one for all
-/// its solves), telling `watch` of the rounds.
-pub fn solve_report_in(
-    targets: &[Target],
-    ids: &[String],
-    obs: &mut [Vec<Observation>],
-    b0: &Params,
-    s: &Settings,
-    scratch: &mut Scratch,
-    watch: &mut impl spherecal::calib::solve::Observe,
-) -> (Solution, Report) {
-    let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
-    let t0 = std::time::Instant::now();
-    let sol = spherecal::calib::solve::solve_watched(
-        targets,
-        &mut slices,
-        b0,
-        s,
-        &mut scratch.workspace(),
-        watch,
-    );
-    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let b = sol.b.0;
-    let lm = sol.lm;
-    let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
-    let weak: Vec<String> = NAMES
-        .iter()
-        .chain(&["time_offset"])
-        .zip(sol.weak)
-        .filter(|(_, w)| *w)
-        .map(|(n, _)| n.to_string())
-        .collect();
-    let report = Report {
-        boresight_deg: Angles {
-            roll: b[0].to_degrees(),
-            pitch: b[1].to_degrees(),
-            heading: b[2].to_degrees(),
-        },
-        lever_arm_m: Xyz {
-            x: b[3],
-            y: b[4],
-            z: b[5],
-        },
-        sigma: Sigma {
-            boresight_deg: Angles {
-                roll: sigma[0].to_degrees(),
-                pitch: sigma[1].to_degrees(),
-                heading: sigma[2].to_degrees(),
-            },
-            lever_arm_m: Xyz {
-                x: sigma[3],
-                y: sigma[4],
-                z: sigma[5],
-            },
-            time_offset_s: lm.map_or(f64::NAN, |l| l.sigma_dt),
-        },
-        time_offset_s: sol.dt,
-        time_offset_estimated: s.estimate_dt,
-        time_drift_ppm: sol.drift * 1e6,
-        time_drift_sigma_ppm: lm.map_or(0.0, |l| l.sigma_drift * 1e6),
-        time_offset_reference_gps_s: sol.t_ref.as_secs_f64(),
-        rms_m: lm.map_or(f64::NAN, |l| l.rms),
-        objective_l1_m: sol.l1,
-        points_per_sphere: sol.spheres.iter().map(|s| s.used).collect(),
-        evaluations: sol.nm.evaluations,
-        nm_iterations: sol.nm.iterations,
-        lm_iterations: lm.map_or(0, |l| l.iterations),
-        rounds: sol.rounds,
-        termination: sol.termination.name().into(),
-        converged: sol.refusal.is_none(),
-        reason: sol
-            .refusal
-            .as_ref()
-            .map(|r| refusal_text(r, ids, &weak, s.estimate_dt)),
-        correlation: (0..=P)
-            .map(|i| {
-                (0..=P)
-                    .map(|j| {
-                        lm.map_or(f64::NAN, |l| match (i, j) {
-                            (P, P) => f64::from(u8::from(l.estimated_dt)),
-                            (P, k) | (k, P) => l.dt_correlation[k],
-                            _ => l.correlation[(i, j)],
-                        })
-                    })
-                    .collect()
-            })
-            .collect(),
-        correlation_labels: NAMES
-            .iter()
-            .chain(&["time_offset"])
-            .map(|n| n.to_string())
-            .collect(),
-        version: format!("spherecal {}", env!("CARGO_PKG_VERSION")),
-        condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
-        weak_parameters: weak,
-        sphere_centre_rms_m: sol.center_rms,
-        per_pass: sol
-            .passes
-            .iter()
-            .map(|p| PerPass {
-                sphere: ids.get(usize::from(p.sphere)).cloned().unwrap_or_default(),
-                start_gps_s: p.start.as_secs_f64(),
-                end_gps_s: p.end.as_secs_f64(),
-                slices: p.slices,
-                detected: p.detected,
-                mean_inliers: p.mean_inliers,
-                windowed: p.verdicts.iter().sum(),
-                verdicts: Verdicts::from_tally(&p.verdicts),
-                centre_offset_m: p.centre_offset,
-                along_track_m: p.along_track,
-                chi2: p.chi2,
-                time_offset_shift_s: p.dt_shift,
-                time_offset_shift_sigma_s: p.dt_sigma,
-            })
-            .collect(),
-        shell_m: sol.shell,
-        consistency: Consistency {
-            predicted_rms_m: sol.predicted_rms,
-            dispersion: lm.map_or(f64::NAN, |l| l.rms) / sol.predicted_rms.max(1e-12),
-            worst_pass_chi2: sol
-                .passes
-                .iter()
-                .map(|p| f64::from(p.chi2))
-                .fold(0.0, f64::max),
-            free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
-            misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
-            influential_set_aside: sol.set_aside.influential.into(),
-            second_start: sol
-                .second_start
-                .map(|s| [s.first, s.second, u32::from(s.taken)]),
-        },
-        batch_overflow: 0,
-        inputs: None,
-        navigation: s.nav.map(|m| {
-            let pieces = sol.nav.map_or(&[][..], |f| &scratch.nav[..f.pieces]);
-            crate::report::NavigationReport::of(&m, sol.nav.as_ref(), pieces, s, ids)
-        }),
-        set_aside: Vec::new(),
-        targets: None,
-        held: Vec::new(),
-        mounting_prior: Vec::new(),
-        conventions: None,
-        provenance: None,
-        clutter_rejected: sol
-            .spheres
-            .iter()
-            .map(|s| u64::from(Verdicts::from_tally(&s.verdicts).rejected()))
-            .sum(),
-        per_sphere: sol
-            .spheres
-            .iter()
-            .zip(ids)
-            .map(|(s, id)| PerSphere {
-                id: id.clone(),
-                found: s.found,
-                windowed: s.windowed,
-                points: s.used,
-                rounds_kept: s.rounds_kept,
-                slices: s.slices,
-                detected: s.detected,
-                verdicts: Verdicts::from_tally(&s.verdicts),
-                rms_before_m: s.rms_before,
-                rms_after_m: s.rms_after,
-                centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
-                agreed_slices: s.agreed,
-                lost: s.lost.map(|l| lost_name(l).to_string()),
-                apparent_radius_m: None,
-            })
-            .collect(),
-        solve_ms,
-        time_offset_search: Vec::new(),
-        start: NAMES
-            .iter()
-            .zip(b0.deg_m().0)
-            .map(|(n, v)| (n.to_string(), v))
-            .collect(),
-    };
-    (sol, report)
 }
 
 /// Write every windowed return with its verdict (`--returns`): sphere id, where it is in the
@@ -378,7 +163,7 @@ pub fn write_returns(
     use std::io::Write as _;
     let err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = crate::output::Staged::create(path)?;
-    writeln!(w, "{}", crate::survey::RETURNS_HEADER).map_err(err)?;
+    writeln!(w, "{}", RETURNS_HEADER).map_err(err)?;
     let mount = spherecal::georef::Mount::from_params(b);
     let mut line = String::new();
     for ((t, id), v) in targets.iter().zip(ids).zip(obs) {
@@ -445,7 +230,7 @@ pub fn calibrate(
     targets: &[Target],
     ids: &[String],
     b0: &Params,
-    clock: crate::survey::ClockOptions,
+    clock: ClockOptions,
 ) -> Result<Calibrated, crate::Error> {
     // The model, once: every collection decodes as it, and the extraction's scan lines follow
     // its laser period.
@@ -493,7 +278,8 @@ pub fn calibrate(
                 .map(|a| &a.stated)
                 .filter(|s| s.samples > 0)
                 .unwrap_or(&stats.ins.stated);
-            let c = crate::nav_source::choose(site_spec.as_ref(), None, Some(stated), kind)?;
+            let c =
+                crate::config::nav_source::choose(site_spec.as_ref(), None, Some(stated), kind)?;
             session.set_nav(&c, &inp.site);
             chosen = true;
         }

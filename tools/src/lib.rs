@@ -14,7 +14,6 @@ pub mod georef;
 pub mod html;
 pub mod ins;
 pub mod montecarlo;
-pub mod nav_source;
 pub mod output;
 pub mod pipeline;
 pub mod plan;

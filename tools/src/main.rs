@@ -36,6 +36,6 @@ fn main() -> ExitCode {
         Some(Cmd::Bag(a)) => cmd::bag::run(a),
         Some(Cmd::Board(a)) => cmd::board::run(a),
         Some(Cmd::Vn200(a)) => cmd::vn200::run(a),
-        Some(Cmd::Reference(a)) => cmd::reference::run(a),
+        Some(Cmd::Reference(a)) => spherecal_tools::cli::reference::run(a),
     }
 }

@@ -4,7 +4,7 @@
 use crate::calibrate::collect;
 use crate::config::scenario::Scenario;
 use crate::pipeline::{targets, Inputs, InsInput};
-pub use crate::report::{render_montecarlo as render, McReport, Trial};
+use crate::report::{McReport, Trial};
 use spherecal::calib::solve::solve_watched;
 use spherecal::calib::P;
 use spherecal::sim::Rng;
@@ -78,7 +78,7 @@ pub fn montecarlo(
         for _ in 0..threads {
             sc.spawn(|| {
                 let mut work = obs.clone();
-                let mut scratch = crate::calibrate::Scratch::default();
+                let mut scratch = crate::session::scratch::Scratch::default();
                 loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     if k >= trials {

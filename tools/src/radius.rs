@@ -53,8 +53,8 @@ pub fn apparent(
     mount: &Mount,
     st: &ExtractSettings,
 ) -> Vec<Option<ApparentRadius>> {
-    let mut grid = vec![0u16; crate::calibrate::GRID_CELLS];
-    let mut keys = vec![(0.0f32, 0u32); crate::calibrate::SLICE_CAPACITY];
+    let mut grid = vec![0u16; crate::session::scratch::GRID_CELLS];
+    let mut keys = vec![(0.0f32, 0u32); crate::session::scratch::SLICE_CAPACITY];
     obs.iter()
         .zip(targets)
         .map(|(v, t)| {

@@ -233,7 +233,7 @@ pub struct InsState {
     /// What the INS stated of its own errors (VN-200 PosU/YprU, POS MV Group 2): a navigation
     /// model's source when the site declares none (`nav_source`).
     #[serde(skip)]
-    pub stated: crate::nav_source::Stated,
+    pub stated: crate::config::nav_source::Stated,
     /// What a POS MV stream gave (None: not a POS MV stream).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub posmv: Option<PosmvState>,

@@ -2,6 +2,7 @@
 //! ([`Outputs`]), the clock options ([`ClockOptions`]) and the whole calibration of the files
 //! ([`run_calibrate`]: the pipeline, the session, the outputs).
 
+use crate::calibrate::ClockOptions;
 use crate::{calibrate, config, georef, html, output, pipeline, plot, report};
 use spherecal::calib::DegM;
 use std::path::PathBuf;
@@ -106,40 +107,6 @@ impl Outputs {
             }
         }
         Ok(())
-    }
-}
-
-/// The `--returns` CSV header.
-pub const RETURNS_HEADER: &str =
-    "sphere,packet,block,channel,time_gps_s,laser,range_m,x_m,y_m,z_m,residual_m,verdict";
-
-/// How `calibrate` treats the clocks and the INS.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ClockOptions {
-    /// Estimate the time offset between the clocks (else hold `start`).
-    pub estimate: bool,
-    /// The time offset to start from [s] (INS time = LiDAR time + this); `None`: 0, or what
-    /// the LiDAR's RMC says when its clock is not PPS-locked.
-    pub start: Option<f64>,
-    /// Claim a solution although the LiDAR clock is not PPS-locked (when the time offset
-    /// found explains its disagreement with the RMC).
-    pub allow_unlocked: bool,
-    /// Use VN-200 poses whose InsStatus says not tracking.
-    pub keep_untracked_ins: bool,
-    /// Search the time offset over +- this [s] around the start (`None`: 2 s when the LiDAR
-    /// clock is not PPS-locked with a valid RMC, no search otherwise).
-    pub search: Option<f64>,
-}
-
-impl Default for ClockOptions {
-    fn default() -> Self {
-        Self {
-            estimate: true,
-            start: None,
-            allow_unlocked: false,
-            keep_untracked_ins: false,
-            search: None,
-        }
     }
 }
 

@@ -96,21 +96,6 @@ fn one<'a>(
     }
 }
 
-/// The compass point of a course [deg] ("northbound", "south-westbound" ...).
-pub fn bound(h: f64) -> &'static str {
-    const P: [&str; 8] = [
-        "northbound",
-        "north-eastbound",
-        "eastbound",
-        "south-eastbound",
-        "southbound",
-        "south-westbound",
-        "westbound",
-        "north-westbound",
-    ];
-    P[(((h.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
-}
-
 /// The information (the planner's predictor) of the returns kept so far ([`coverage`]'s) at
 /// the solution, with the solver's noise model (range, INS attitude and position per sample of
 /// an INS at `ins_rate_hz`, the 2 mm range step), and the returns per sphere.
@@ -210,8 +195,8 @@ pub fn assess(
             missing.push(format!(
                 "{}: no {} pass (all {} so far)",
                 c.id,
-                bound(h + 180.0),
-                bound(h)
+                crate::plan::bound(h + 180.0),
+                crate::plan::bound(h)
             ));
         }
     }
@@ -382,7 +367,7 @@ mod tests {
         let c = one("S1", &v, north.iter());
         assert_eq!((c.passes, c.both_directions), (1, false));
         assert!((c.headings_deg[0] - 0.0).abs() < 1e-9);
-        assert_eq!(bound(c.headings_deg[0] + 180.0), "southbound");
+        assert_eq!(crate::plan::bound(c.headings_deg[0] + 180.0), "southbound");
         v.extend((0..30).map(|k| obs(6.5 + k as f64 * 0.05, [-1.8, 0.1], 21.0)));
         let s = 1.8f32.hypot(0.1);
         let both = [pass(30, [1.0, 0.0]), pass(30, [-1.8 / s, 0.1 / s])];

@@ -3,7 +3,7 @@
 use super::print_or_fail;
 use crate::config::board::Board;
 use crate::config::MountDegM;
-use crate::report::Solved;
+use crate::report::solved::Solved;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -100,13 +100,13 @@ pub fn run(a: Args) -> ExitCode {
         returns: a.returns,
     };
     let (init, start) = match &a.init_from {
-        Some(p) => match crate::report::Solved::load(p) {
+        Some(p) => match crate::report::solved::Solved::load(p) {
             Ok(r) => (Some(r.deg_m), a.time_offset.or(Some(r.time_offset_s))),
             Err(e) => return fail("calibrate", e),
         },
         None => (a.init, a.time_offset),
     };
-    let clock = crate::survey::ClockOptions {
+    let clock = crate::calibrate::ClockOptions {
         estimate: !a.hold_time_offset,
         start,
         allow_unlocked: a.allow_unlocked_clock,

@@ -37,11 +37,12 @@ pub fn run(a: Args) -> ExitCode {
     let (path, decoded) = match (&a.bag, &a.file) {
         (Some(b), _) => (
             b,
-            crate::bag::decode_bag(b, a.lidar_topic.as_deref(), w, a.model),
+            crate::pipeline::bag_decode::decode_bag(b, a.lidar_topic.as_deref(), w, a.model),
         ),
-        (None, Some(f)) if spherecal_hal::rosbag::is_bag(f) => {
-            (f, crate::bag::decode_bag(f, None, w, a.model))
-        }
+        (None, Some(f)) if spherecal_hal::rosbag::is_bag(f) => (
+            f,
+            crate::pipeline::bag_decode::decode_bag(f, None, w, a.model),
+        ),
         (None, Some(f)) => (f, crate::decode::decode_file(f, w, a.model)),
         (None, None) => return fail("decode", "give a capture file or --bag"),
     };

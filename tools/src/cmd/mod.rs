@@ -1,7 +1,7 @@
 //! The `spherecal` subcommands: each module owns its clap `Args` and its `run`, which reads the
 //! arguments, calls the library and maps the outcome to the exit code of the command contract
-//! (0 success; 1 calibration refused; 2 bad arguments or unreadable input; 3 an internal
-//! fault: [`crate::Error`]).
+//! ([`EXIT_CODES`]: 0 success; 1 calibration refused; 2 bad arguments or unreadable input; 3
+//! converged but the sigmas miss the targets; 4 an internal fault: [`crate::Error`]).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -30,7 +30,6 @@ pub mod georef;
 pub mod ins;
 pub mod montecarlo;
 pub mod plan;
-pub mod reference;
 pub mod replay;
 pub mod run;
 pub mod site;
@@ -39,7 +38,7 @@ pub mod vn200;
 
 /// `spherecal CMD: error` on stderr and the exit code of its kind: a plain message is bad
 /// input (exit 2), a [`crate::Error`] keeps its kind.
-fn fail(cmd: &str, why: impl Into<crate::Error>) -> ExitCode {
+pub(crate) fn fail(cmd: &str, why: impl Into<crate::Error>) -> ExitCode {
     let e = why.into();
     eprintln!("spherecal {cmd}: {e}");
     e.exit_code()

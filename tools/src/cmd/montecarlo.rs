@@ -51,7 +51,7 @@ pub fn run(a: Args) -> ExitCode {
         Ok(r) => r,
         Err(e) => return fail("montecarlo", e),
     };
-    say!("{}", crate::montecarlo::render(&r));
+    say!("{}", crate::report::render_montecarlo(&r));
     if let Some(p) = a.report {
         if let Err(e) = crate::report::write_json_atomically(&p, &r) {
             return fail("montecarlo", e);

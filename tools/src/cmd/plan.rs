@@ -3,7 +3,8 @@
 //! [--write-plan OUT.toml] [--no-recommend] [--design]`.
 
 use super::{claimed, fail};
-use crate::plan::{html, plan, recommend, render, Goal};
+use crate::config::goal::Goal;
+use crate::plan::{html, plan, recommend, render};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

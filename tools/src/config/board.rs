@@ -188,11 +188,11 @@ fn is_undeclared(c: &super::nav_errors::CorrelatedSpec) -> bool {
 
 impl InsLink {
     /// The kind of INS, for its default navigation model.
-    pub fn nav_kind(&self) -> crate::nav_source::InsKind {
+    pub fn nav_kind(&self) -> crate::config::nav_source::InsKind {
         match self.kind.as_str() {
-            "posmv" => crate::nav_source::InsKind::PosmvRealTime,
-            "sbet" => crate::nav_source::InsKind::Sbet,
-            _ => crate::nav_source::InsKind::Vn200,
+            "posmv" => crate::config::nav_source::InsKind::PosmvRealTime,
+            "sbet" => crate::config::nav_source::InsKind::Sbet,
+            _ => crate::config::nav_source::InsKind::Vn200,
         }
     }
 }
@@ -559,8 +559,13 @@ mod tests {
         // The navigation model: the vessel's board declares one; a bad one is named.
         let v = Board::from_toml(&board("vessel-posmv")).unwrap();
         assert!(v.ins.correlated.is_declared());
-        let c = crate::nav_source::choose(None, Some(&v.ins.correlated), None, v.ins.nav_kind())
-            .unwrap();
+        let c = crate::config::nav_source::choose(
+            None,
+            Some(&v.ins.correlated),
+            None,
+            v.ins.nav_kind(),
+        )
+        .unwrap();
         assert_eq!(c.model.unwrap().correlation_s, 30.0);
         assert!(
             c.source.starts_with("board [ins.correlated]"),

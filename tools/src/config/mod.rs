@@ -15,6 +15,7 @@ pub mod epsg_tables;
 pub mod geoid;
 pub mod goal;
 pub mod nav_errors;
+pub mod nav_source;
 pub mod scenario;
 pub mod scenery;
 pub mod site;

@@ -33,7 +33,7 @@ pub struct Accuracy {
     pub invalid: u64,
     /// The file's sigmas per axis over all its records: the navigation model's source when
     /// the site declares none (`nav_source`).
-    pub stated: crate::nav_source::Stated,
+    pub stated: crate::config::nav_source::Stated,
 }
 
 /// What the accuracy file gave a calibration, in the report.

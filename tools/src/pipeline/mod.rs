@@ -16,6 +16,7 @@
 //! - [`feed`]: the core aligner fed from the rings, with the file or live waiting policy.
 
 pub mod accuracy;
+pub mod bag_decode;
 mod feed;
 mod files;
 mod items;

@@ -17,7 +17,8 @@
 //! larger sphere is harder to carry and set up).
 
 use super::recommend::SPHERE_COST_S;
-use super::{geometry, Goal, PlanNoise, Prediction};
+use super::{geometry, PlanNoise, Prediction};
+use crate::config::goal::Goal;
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use serde::{Deserialize, Serialize};
 

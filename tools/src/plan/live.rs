@@ -8,7 +8,8 @@
 
 use super::nav::NavPlan;
 use super::recommend::{candidate_pass_infos, PassCandidate};
-use super::{Goal, PlanNoise, Prediction};
+use super::{PlanNoise, Prediction};
+use crate::config::goal::Goal;
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::predict::{Info, Predicted};

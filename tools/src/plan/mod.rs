@@ -16,6 +16,7 @@ pub mod observe;
 pub mod recommend;
 pub mod site;
 
+use crate::config::goal::Goal;
 pub use observe::{
     geometry, geometry_of, observe, segments, targets_of_scenario, Cell, Geometry, Segment,
 };
@@ -106,8 +107,6 @@ pub fn with_planning_noise(s: &Scenario) -> Scenario {
     }
     s
 }
-
-pub use crate::config::goal::Goal;
 
 /// A prediction in the surveyor's units.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -208,7 +207,7 @@ pub fn segment_name(s: &Scenario, seg: Segment) -> String {
             format!(
                 "pass {} ({}, {:.1} m/s)",
                 i + 1,
-                crate::verdict::bound(p.heading_deg),
+                bound(p.heading_deg),
                 p.speed_mps
             )
         }
@@ -569,6 +568,21 @@ pub fn place(s: &Scenario, ne: [f64; 2]) -> String {
         hemi(lat, 'N', 'S'),
         hemi(lon, 'E', 'W')
     )
+}
+
+/// The compass point of a course [deg] ("northbound", "south-westbound" ...).
+pub fn bound(h: f64) -> &'static str {
+    const P: [&str; 8] = [
+        "northbound",
+        "north-eastbound",
+        "eastbound",
+        "south-eastbound",
+        "southbound",
+        "south-westbound",
+        "westbound",
+        "north-westbound",
+    ];
+    P[(((h.rem_euclid(360.0) + 22.5) / 45.0) as usize) % 8]
 }
 
 #[cfg(test)]

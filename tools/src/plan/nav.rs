@@ -19,7 +19,7 @@ use spherecal::calib::P;
 /// correlation times: each brings its own navigation errors).
 pub const PASS_APART_S: f64 = 600.0;
 
-/// Most pieces a planned survey is cut into (the file command's [`crate::calibrate::Scratch`]
+/// Most pieces a planned survey is cut into (the file command's [`crate::session::scratch::Scratch`]
 /// holds as many).
 const PIECES: usize = 1024;
 

@@ -6,7 +6,8 @@
 //! search goes on (at most [`MAX_STEPS`] changes).
 
 use super::nav::NavPlan;
-use super::{geometry_of, observe, segments, Geometry, Goal, PlanNoise, Prediction, Segment};
+use super::{geometry_of, observe, segments, Geometry, PlanNoise, Prediction, Segment};
+use crate::config::goal::Goal;
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use serde::{Deserialize, Serialize};
 use spherecal::calib::predict::{Info, Predicted};
@@ -368,7 +369,7 @@ pub fn candidate_pass_infos(
         out.push(PassCandidate {
             words: format!(
                 "add a {} pass {:.0} m off the spheres' line at {:.1} m/s ({:.0} s, course {:03.0} deg, start {})",
-                crate::verdict::bound(p.heading_deg),
+                super::bound(p.heading_deg),
                 p_offset(s, &p),
                 p.speed_mps,
                 p.duration_s,

@@ -210,7 +210,7 @@ pub fn scenario(site: &Site, o: &Options) -> Result<(Scenario, Option<f64>), cra
                 }
                 None => vec![normal, [-normal[0], -normal[1]]],
             };
-            let goal = super::Goal::default();
+            let goal = crate::config::goal::Goal::default();
             let mut best: Option<(f64, Scenario, [f64; 2])> = None;
             for n in sides {
                 let mut t = s.clone();
@@ -375,7 +375,7 @@ pub fn render(l: &Lines, drone: bool) -> String {
     if let Some(b) = l.side_deg {
         t += &format!(
             "; on the {} side of the spheres, `--side` for the other",
-            crate::verdict::bound(b)
+            super::bound(b)
                 .trim_end_matches("bound")
                 .trim_end_matches('-')
         );

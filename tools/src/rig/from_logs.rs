@@ -61,7 +61,7 @@ pub(super) fn final_from_logs(
     inp.keep_untracked_ins = opts.keep_untracked_ins;
     inp.mount = plan.b0.mount();
     let (targets, ids) = crate::calibrate::site_targets(&inp);
-    let clock = crate::survey::ClockOptions {
+    let clock = crate::calibrate::ClockOptions {
         keep_untracked_ins: opts.keep_untracked_ins,
         allow_unlocked: opts.allow_unlocked_clock,
         ..Default::default()

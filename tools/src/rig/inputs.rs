@@ -162,12 +162,16 @@ impl Plan {
             .as_ref()
             .and_then(|s| s.ins.as_ref())
             .map(|i| &i.correlated);
-        let nav =
-            crate::nav_source::choose(site_spec, Some(&b.ins.correlated), None, b.ins.nav_kind())
-                .unwrap_or_else(|e| crate::nav_source::NavChoice {
-                    model: None,
-                    source: e.to_string(),
-                });
+        let nav = crate::config::nav_source::choose(
+            site_spec,
+            Some(&b.ins.correlated),
+            None,
+            b.ins.nav_kind(),
+        )
+        .unwrap_or_else(|e| crate::config::nav_source::NavChoice {
+            model: None,
+            source: e.to_string(),
+        });
         if let Some(site) = &opts.site {
             crate::session::with_nav(&mut settings, site, nav.model);
         }

@@ -10,10 +10,12 @@ use spherecal::align::window::Observation;
 use spherecal::calib::extract::ReturnClass;
 use spherecal::calib::solve::Refusal;
 use spherecal::calib::{solve, Settings};
-use spherecal_tools::calibrate::{collect, site_targets, solve_report, Scratch};
+use spherecal_tools::calibrate::{collect, site_targets};
 use spherecal_tools::config::scenario::{Scenario, BUILTIN};
 use spherecal_tools::config::site::Site;
 use spherecal_tools::pipeline::{Inputs, InsInput};
+use spherecal_tools::session::scratch::Scratch;
+use spherecal_tools::session::solve_report;
 use spherecal_tools::synth::read_labels;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -95,7 +97,7 @@ fn synth_and_solve(
     let (_, mut obs) = collect(&inp).unwrap();
     let (t, ids) = site_targets(&inp);
     let mut heard = Heard::default();
-    let (sol, rep) = spherecal_tools::calibrate::solve_report_in(
+    let (sol, rep) = spherecal_tools::session::solve_report_in(
         &t,
         &ids,
         &mut obs,
@@ -317,7 +319,10 @@ fn table1_quay_from_the_papers_start() {
         .collect();
     let text = std::fs::read_to_string(&returns).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some(spherecal_tools::survey::RETURNS_HEADER));
+    assert_eq!(
+        lines.next(),
+        Some(spherecal_tools::calibrate::RETURNS_HEADER)
+    );
     let mut per: HashMap<String, (usize, usize, usize, usize)> = HashMap::new();
     for l in lines {
         let f: Vec<&str> = l.split(',').collect();

@@ -185,9 +185,10 @@ fn trial_of(
     seeds: &[u64],
     edits: &[&dyn Fn(&mut spherecal::calib::Settings)],
 ) -> Vec<Vec<Solved>> {
-    use spherecal_tools::calibrate::{collect, site_targets, solve_report_in};
+    use spherecal_tools::calibrate::{collect, site_targets};
     use spherecal_tools::config::scenario::Scenario;
     use spherecal_tools::session::settings_for;
+    use spherecal_tools::session::solve_report_in;
     let mut s = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap());
     scene(&mut s);
     let (cache, _, _) = common::trial_cache(&s);
@@ -218,7 +219,7 @@ fn trial_of(
                         &mut o,
                         &inp.mount.params(),
                         &settings,
-                        &mut spherecal_tools::calibrate::Scratch::default(),
+                        &mut spherecal_tools::session::scratch::Scratch::default(),
                         &mut (),
                     );
                     (sol, o, labels.clone())

@@ -155,7 +155,7 @@ fn decoys_are_not_taken_for_the_spheres() {
             mc.fraction_within,
             1.0,
             "{name}: {}",
-            spherecal_tools::montecarlo::render(&mc)
+            spherecal_tools::report::render_montecarlo(&mc)
         );
         let _ = std::fs::remove_dir_all(&d);
     }

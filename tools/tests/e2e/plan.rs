@@ -6,9 +6,10 @@
 
 use crate::common;
 use spherecal_tools::calibrate::collect;
+use spherecal_tools::config::goal::Goal;
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::montecarlo::windowed_packets;
-use spherecal_tools::plan::{self, recommend, Goal, PlanNoise};
+use spherecal_tools::plan::{self, recommend, PlanNoise};
 use std::path::{Path, PathBuf};
 
 /// Trials per site: the sample standard deviation's own relative error is then

@@ -7,10 +7,11 @@
 use crate::common;
 
 use spherecal::calib::Settings;
-use spherecal_tools::calibrate::{collect, site_targets, solve_report};
+use spherecal_tools::calibrate::{collect, site_targets};
 use spherecal_tools::config::goal::Targets;
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{Inputs, InsInput};
+use spherecal_tools::session::solve_report;
 use spherecal_tools::verdict::{assess, coverage, data_info, predicted_sigma};
 
 /// Scenario `s` synthesised into `dir`: the inputs of its capture and VN-200 stream with its

@@ -3,9 +3,11 @@
 //! solver's settings (built here only), the core's workspace kept between solves, the store of
 //! windowed returns with the time offset it was aligned at, and one claim rule.
 
-use crate::calibrate::{solve_report_in, Scratch};
+pub mod scratch;
+
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
 use crate::report::Report;
+use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
 use spherecal::calib::solve::{ClockFacts, Observe};
@@ -178,7 +180,7 @@ impl Session {
 
     /// Solve under `choice`'s navigation model (the site's noise and survey with it:
     /// [`with_nav`]) and name its source in the reports.
-    pub fn set_nav(&mut self, choice: &crate::nav_source::NavChoice, site: &Site) {
+    pub fn set_nav(&mut self, choice: &crate::config::nav_source::NavChoice, site: &Site) {
         with_nav(&mut self.settings, site, choice.model);
         self.nav_source = choice.source.clone();
     }
@@ -426,6 +428,44 @@ fn rebase_or_clear(store: &mut [Vec<Observation>], d_ns: i64) {
             v.iter_mut().for_each(|o| o.rebase(d));
         }
     }
+}
+
+/// Solve and build the report from collected observations (with a scratch of its own: see
+/// [`solve_report_in`] to keep one between solves).
+pub fn solve_report(
+    targets: &[Target],
+    ids: &[String],
+    obs: &mut [Vec<Observation>],
+    b0: &Params,
+    s: &Settings,
+) -> (Solution, Report) {
+    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default(), &mut ())
+}
+
+/// [`solve_report`] in a lent scratch (the core's workspace, ~9 MB: the rig keeps one for all
+/// its solves), telling `watch` of the rounds.
+pub fn solve_report_in(
+    targets: &[Target],
+    ids: &[String],
+    obs: &mut [Vec<Observation>],
+    b0: &Params,
+    s: &Settings,
+    scratch: &mut Scratch,
+    watch: &mut impl spherecal::calib::solve::Observe,
+) -> (Solution, Report) {
+    let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
+    let t0 = std::time::Instant::now();
+    let sol = spherecal::calib::solve::solve_watched(
+        targets,
+        &mut slices,
+        b0,
+        s,
+        &mut scratch.workspace(),
+        watch,
+    );
+    let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let report = Report::of(&sol, ids, b0, s, scratch.nav_pieces(), solve_ms);
+    (sol, report)
 }
 
 #[cfg(test)]

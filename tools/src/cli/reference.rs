@@ -1,10 +1,11 @@
 //! `spherecal reference [--markdown FILE] [--man DIR] [--completions SHELL]`: the command's own
-//! reference, generated from its clap definitions ([`crate::cli`]) so that it cannot drift:
+//! reference, generated from its clap definitions ([`super`]) so that it cannot drift:
 //! docs/CLI.md (checked against the definitions by `cli::tests`), a man page per subcommand
 //! (clap_mangen), the shell completions (clap_complete).
 
-use super::fail;
+use crate::cmd::fail;
 use clap::CommandFactory;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -36,7 +37,7 @@ pub fn run(a: Args) -> ExitCode {
         if let Err(e) = crate::report::write_atomically(p, crate::cli::markdown().as_bytes()) {
             return fail("reference", e);
         }
-        sayln!("wrote {}", p.display());
+        let _ = writeln!(std::io::stdout(), "wrote {}", p.display());
     }
     if let Some(d) = &a.man {
         let written = std::fs::create_dir_all(d)
@@ -44,7 +45,11 @@ pub fn run(a: Args) -> ExitCode {
         if let Err(e) = written {
             return fail("reference", format!("--man {}: {e}", d.display()));
         }
-        sayln!("wrote the man pages into {}", d.display());
+        let _ = writeln!(
+            std::io::stdout(),
+            "wrote the man pages into {}",
+            d.display()
+        );
     }
     if let Some(shell) = a.completions {
         let mut cmd = crate::cli::Cli::command();

@@ -1,6 +1,8 @@
 //! The `spherecal` command line: its subcommands and their options, one definition for the
 //! binary, the generated reference (docs/CLI.md, man pages) and the shell completions.
 
+pub mod reference;
+
 use crate::cmd;
 use clap::{Parser, Subcommand};
 
@@ -56,7 +58,7 @@ pub enum Cmd {
     Vn200(cmd::vn200::Args),
     /// This command's own reference: `reference --markdown FILE` (docs/CLI.md), `--man DIR`
     /// (a man page per subcommand), `--completions bash|zsh|fish|elvish|powershell`.
-    Reference(cmd::reference::Args),
+    Reference(reference::Args),
 }
 
 /// The Markdown reference of every subcommand (docs/CLI.md): each one's `--help` as clap

@@ -1,0 +1,182 @@
+//! The report of one solve ([`Report::of`]): the solution, its sigmas and correlations, the
+//! passes and spheres with their verdicts, the consistency tests, the refusal in words.
+
+use super::{
+    Angles, Consistency, NavigationReport, PerPass, PerSphere, Report, Sigma, Verdicts, Xyz,
+};
+use crate::reasons::{lost_name, refusal_text};
+use spherecal::calib::nav::Piece;
+use spherecal::calib::solve::{Settings, Solution};
+use spherecal::calib::{Params, NAMES, P};
+
+impl Report {
+    /// The report of `sol`, solved from `b0` with settings `s` over the spheres `ids` in
+    /// `solve_ms`; `nav_pieces` the navigation model's pieces the solve left in its scratch.
+    /// The inputs, targets, provenance and the like are the caller's to fill in.
+    pub fn of(
+        sol: &Solution,
+        ids: &[String],
+        b0: &Params,
+        s: &Settings,
+        nav_pieces: &[Piece],
+        solve_ms: f64,
+    ) -> Report {
+        let b = sol.b.0;
+        let lm = sol.lm;
+        let sigma = lm.map_or([f64::NAN; P], |l| l.sigma);
+        let weak: Vec<String> = NAMES
+            .iter()
+            .chain(&["time_offset"])
+            .zip(sol.weak)
+            .filter(|(_, w)| *w)
+            .map(|(n, _)| n.to_string())
+            .collect();
+        Report {
+            boresight_deg: Angles {
+                roll: b[0].to_degrees(),
+                pitch: b[1].to_degrees(),
+                heading: b[2].to_degrees(),
+            },
+            lever_arm_m: Xyz {
+                x: b[3],
+                y: b[4],
+                z: b[5],
+            },
+            sigma: Sigma {
+                boresight_deg: Angles {
+                    roll: sigma[0].to_degrees(),
+                    pitch: sigma[1].to_degrees(),
+                    heading: sigma[2].to_degrees(),
+                },
+                lever_arm_m: Xyz {
+                    x: sigma[3],
+                    y: sigma[4],
+                    z: sigma[5],
+                },
+                time_offset_s: lm.map_or(f64::NAN, |l| l.sigma_dt),
+            },
+            time_offset_s: sol.dt,
+            time_offset_estimated: s.estimate_dt,
+            time_drift_ppm: sol.drift * 1e6,
+            time_drift_sigma_ppm: lm.map_or(0.0, |l| l.sigma_drift * 1e6),
+            time_offset_reference_gps_s: sol.t_ref.as_secs_f64(),
+            rms_m: lm.map_or(f64::NAN, |l| l.rms),
+            objective_l1_m: sol.l1,
+            points_per_sphere: sol.spheres.iter().map(|s| s.used).collect(),
+            evaluations: sol.nm.evaluations,
+            nm_iterations: sol.nm.iterations,
+            lm_iterations: lm.map_or(0, |l| l.iterations),
+            rounds: sol.rounds,
+            termination: sol.termination.name().into(),
+            converged: sol.refusal.is_none(),
+            reason: sol
+                .refusal
+                .as_ref()
+                .map(|r| refusal_text(r, ids, &weak, s.estimate_dt)),
+            correlation: (0..=P)
+                .map(|i| {
+                    (0..=P)
+                        .map(|j| {
+                            lm.map_or(f64::NAN, |l| match (i, j) {
+                                (P, P) => f64::from(u8::from(l.estimated_dt)),
+                                (P, k) | (k, P) => l.dt_correlation[k],
+                                _ => l.correlation[(i, j)],
+                            })
+                        })
+                        .collect()
+                })
+                .collect(),
+            correlation_labels: NAMES
+                .iter()
+                .chain(&["time_offset"])
+                .map(|n| n.to_string())
+                .collect(),
+            version: format!("spherecal {}", env!("CARGO_PKG_VERSION")),
+            condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
+            weak_parameters: weak,
+            sphere_centre_rms_m: sol.center_rms,
+            per_pass: sol
+                .passes
+                .iter()
+                .map(|p| PerPass {
+                    sphere: ids.get(usize::from(p.sphere)).cloned().unwrap_or_default(),
+                    start_gps_s: p.start.as_secs_f64(),
+                    end_gps_s: p.end.as_secs_f64(),
+                    slices: p.slices,
+                    detected: p.detected,
+                    mean_inliers: p.mean_inliers,
+                    windowed: p.verdicts.iter().sum(),
+                    verdicts: Verdicts::from_tally(&p.verdicts),
+                    centre_offset_m: p.centre_offset,
+                    along_track_m: p.along_track,
+                    chi2: p.chi2,
+                    time_offset_shift_s: p.dt_shift,
+                    time_offset_shift_sigma_s: p.dt_sigma,
+                })
+                .collect(),
+            shell_m: sol.shell,
+            consistency: Consistency {
+                predicted_rms_m: sol.predicted_rms,
+                dispersion: lm.map_or(f64::NAN, |l| l.rms) / sol.predicted_rms.max(1e-12),
+                worst_pass_chi2: sol
+                    .passes
+                    .iter()
+                    .map(|p| f64::from(p.chi2))
+                    .fold(0.0, f64::max),
+                free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
+                misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
+                influential_set_aside: sol.set_aside.influential.into(),
+                second_start: sol
+                    .second_start
+                    .map(|s| [s.first, s.second, u32::from(s.taken)]),
+            },
+            batch_overflow: 0,
+            inputs: None,
+            navigation: s.nav.map(|m| {
+                let pieces = sol
+                    .nav
+                    .map_or(&[][..], |f| &nav_pieces[..f.pieces.min(nav_pieces.len())]);
+                NavigationReport::of(&m, sol.nav.as_ref(), pieces, s, ids)
+            }),
+            set_aside: Vec::new(),
+            targets: None,
+            held: Vec::new(),
+            mounting_prior: Vec::new(),
+            conventions: None,
+            provenance: None,
+            clutter_rejected: sol
+                .spheres
+                .iter()
+                .map(|s| u64::from(Verdicts::from_tally(&s.verdicts).rejected()))
+                .sum(),
+            per_sphere: sol
+                .spheres
+                .iter()
+                .zip(ids)
+                .map(|(s, id)| PerSphere {
+                    id: id.clone(),
+                    found: s.found,
+                    windowed: s.windowed,
+                    points: s.used,
+                    rounds_kept: s.rounds_kept,
+                    slices: s.slices,
+                    detected: s.detected,
+                    verdicts: Verdicts::from_tally(&s.verdicts),
+                    rms_before_m: s.rms_before,
+                    rms_after_m: s.rms_after,
+                    centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
+                    agreed_slices: s.agreed,
+                    lost: s.lost.map(|l| lost_name(l).to_string()),
+                    apparent_radius_m: None,
+                })
+                .collect(),
+            solve_ms,
+            time_offset_search: Vec::new(),
+            start: NAMES
+                .iter()
+                .zip(b0.deg_m().0)
+                .map(|(n, v)| (n.to_string(), v))
+                .collect(),
+        }
+    }
+}

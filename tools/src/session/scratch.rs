@@ -1,0 +1,63 @@
+//! The solver's scratch: the core's fixed-capacity workspace, allocated once and lent to each
+//! solve (the rig keeps one for all its solves).
+
+use spherecal::align::window::Observation;
+use spherecal::calib::consensus::Candidate;
+use spherecal::calib::solve::Workspace;
+
+/// Cells of the detection's vote grid (64^3: 512 KB).
+pub const GRID_CELLS: usize = 64 * 64 * 64;
+/// Kept returns a detect-and-solve round solves on at most (8.6 MB).
+pub const KEPT_CAPACITY: usize = 50_000;
+/// Returns in one slice of time at most (longer ones are split).
+pub const SLICE_CAPACITY: usize = 32_768;
+
+/// The first round's candidates at most (four per slice of 0.4 s: 16 spheres seen for 100 s).
+pub const CANDIDATE_CAPACITY: usize = 16_384;
+
+/// The solver's scratch, owned.
+#[derive(Debug, Clone)]
+pub struct Scratch {
+    grid: Vec<u16>,
+    kept: Vec<Observation>,
+    keys: Vec<(f32, u32)>,
+    cands: Vec<Candidate>,
+    idx: Vec<usize>,
+    nav: Vec<spherecal::calib::nav::Piece>,
+}
+
+/// Pieces of the navigation model's time line (each ~6 kB; 0.25-0.5 s each: 1,024 hold
+/// 4-8 minutes of sphere returns).
+pub const NAV_PIECES: usize = 1024;
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Self {
+            grid: vec![0; GRID_CELLS],
+            kept: vec![Observation::default(); KEPT_CAPACITY],
+            keys: vec![(0.0, 0); SLICE_CAPACITY],
+            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
+            idx: vec![0; CANDIDATE_CAPACITY],
+            nav: vec![spherecal::calib::nav::Piece::EMPTY; NAV_PIECES],
+        }
+    }
+}
+
+impl Scratch {
+    /// The workspace the core's solve borrows.
+    pub fn workspace(&mut self) -> Workspace<'_> {
+        Workspace {
+            grid: &mut self.grid,
+            kept: &mut self.kept,
+            keys: &mut self.keys,
+            cands: &mut self.cands,
+            idx: &mut self.idx,
+            nav: &mut self.nav,
+        }
+    }
+
+    /// The navigation model's pieces the last solve left (its `Solution::nav` says how many).
+    pub fn nav_pieces(&self) -> &[spherecal::calib::nav::Piece] {
+        &self.nav
+    }
+}
