@@ -4,7 +4,7 @@
 //! [`Lenient`], which hands `null` to a number as NaN and passes everything else on unchanged, so
 //! every `Deserialize` type reads what it wrote (the one place this is decided).
 
-use serde::de::{self, DeserializeOwned, DeserializeSeed, IntoDeserializer, Visitor};
+use serde::de::{self, DeserializeOwned, DeserializeSeed, Visitor};
 use serde_json::{Map, Value};
 
 /// `T` from JSON text, a `null` where a number belongs read as NaN.
@@ -111,7 +111,7 @@ impl<'de> de::MapAccess<'de> for Entries {
         match self.iter.next() {
             Some((k, v)) => {
                 self.value = Some(v);
-                seed.deserialize(k.into_deserializer()).map(Some)
+                seed.deserialize(Key(k)).map(Some)
             }
             None => Ok(None),
         }
@@ -126,6 +126,40 @@ impl<'de> de::MapAccess<'de> for Entries {
             .take()
             .ok_or_else(|| de::Error::custom("a value without its key"))?;
         seed.deserialize(Lenient(v))
+    }
+}
+
+/// An object's key: a string, or a number written as one (serde_json writes a map's integer
+/// keys as strings and reads them back so; `BTreeMap<u16, _>`).
+struct Key(String);
+
+macro_rules! key_number {
+    ($($de:ident $visit:ident $t:ty),*) => {$(
+        fn $de<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+            match self.0.parse::<$t>() {
+                Ok(n) => visitor.$visit(n),
+                Err(_) => Err(de::Error::invalid_value(de::Unexpected::Str(&self.0), &visitor)),
+            }
+        }
+    )*};
+}
+
+impl<'de> de::Deserializer<'de> for Key {
+    type Error = serde_json::Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        visitor.visit_string(self.0)
+    }
+
+    key_number! {
+        deserialize_i8 visit_i8 i8, deserialize_i16 visit_i16 i16, deserialize_i32 visit_i32 i32,
+        deserialize_i64 visit_i64 i64, deserialize_u8 visit_u8 u8, deserialize_u16 visit_u16 u16,
+        deserialize_u32 visit_u32 u32, deserialize_u64 visit_u64 u64, deserialize_f64 visit_f64 f64
+    }
+
+    serde::forward_to_deserialize_any! {
+        bool i128 u128 f32 char str string bytes byte_buf option unit unit_struct newtype_struct
+        seq tuple tuple_struct map struct enum identifier ignored_any
     }
 }
 
@@ -149,6 +183,7 @@ mod tests {
         inner: Vec<Inner>,
         grid: Vec<Vec<f64>>,
         map: BTreeMap<String, f64>,
+        by_number: BTreeMap<u16, f64>,
         #[serde(default)]
         missing: f64,
         flag: bool,
@@ -168,6 +203,7 @@ mod tests {
             }],
             grid: vec![vec![1.0, f64::NAN], vec![f64::NAN, 0.25]],
             map: [("roll".to_string(), f64::NAN), ("x".to_string(), 1.25)].into(),
+            by_number: [(1, f64::NAN), (300, 2.5)].into(),
             missing: 3.0,
             flag: true,
         };
@@ -187,6 +223,8 @@ mod tests {
         assert_eq!((r.grid[0][0], r.grid[1][1]), (1.0, 0.25));
         assert!(r.map["roll"].is_nan());
         assert_eq!(r.map["x"], 1.25);
+        assert!(r.by_number[&1].is_nan());
+        assert_eq!(r.by_number[&300], 2.5);
         assert_eq!(r.missing, 3.0);
         assert!(r.flag);
         // Wrong types are still errors.

@@ -6,7 +6,7 @@ use super::{
 };
 use crate::reasons::{lost_name, refusal_text};
 use spherecal::calib::nav::Piece;
-use spherecal::calib::solve::{Settings, Solution};
+use spherecal::calib::solve::{PassReport, Settings, Solution, SphereReport};
 use spherecal::calib::{Params, NAMES, P};
 
 impl Report {
@@ -73,19 +73,7 @@ impl Report {
                 .refusal
                 .as_ref()
                 .map(|r| refusal_text(r, ids, &weak, s.estimate_dt)),
-            correlation: (0..=P)
-                .map(|i| {
-                    (0..=P)
-                        .map(|j| {
-                            lm.map_or(f64::NAN, |l| match (i, j) {
-                                (P, P) => f64::from(u8::from(l.estimated_dt)),
-                                (P, k) | (k, P) => l.dt_correlation[k],
-                                _ => l.correlation[(i, j)],
-                            })
-                        })
-                        .collect()
-                })
-                .collect(),
+            correlation: correlation(sol),
             correlation_labels: NAMES
                 .iter()
                 .chain(&["time_offset"])
@@ -95,41 +83,9 @@ impl Report {
             condition_number: lm.map_or(f64::INFINITY, |l| l.condition),
             weak_parameters: weak,
             sphere_centre_rms_m: sol.center_rms,
-            per_pass: sol
-                .passes
-                .iter()
-                .map(|p| PerPass {
-                    sphere: ids.get(usize::from(p.sphere)).cloned().unwrap_or_default(),
-                    start_gps_s: p.start.as_secs_f64(),
-                    end_gps_s: p.end.as_secs_f64(),
-                    slices: p.slices,
-                    detected: p.detected,
-                    mean_inliers: p.mean_inliers,
-                    windowed: p.verdicts.iter().sum(),
-                    verdicts: Verdicts::from_tally(&p.verdicts),
-                    centre_offset_m: p.centre_offset,
-                    along_track_m: p.along_track,
-                    chi2: p.chi2,
-                    time_offset_shift_s: p.dt_shift,
-                    time_offset_shift_sigma_s: p.dt_sigma,
-                })
-                .collect(),
+            per_pass: sol.passes.iter().map(|p| PerPass::of(p, ids)).collect(),
             shell_m: sol.shell,
-            consistency: Consistency {
-                predicted_rms_m: sol.predicted_rms,
-                dispersion: lm.map_or(f64::NAN, |l| l.rms) / sol.predicted_rms.max(1e-12),
-                worst_pass_chi2: sol
-                    .passes
-                    .iter()
-                    .map(|p| f64::from(p.chi2))
-                    .fold(0.0, f64::max),
-                free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
-                misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
-                influential_set_aside: sol.set_aside.influential.into(),
-                second_start: sol
-                    .second_start
-                    .map(|s| [s.first, s.second, u32::from(s.taken)]),
-            },
+            consistency: Consistency::of(sol),
             batch_overflow: 0,
             inputs: None,
             navigation: s.nav.map(|m| {
@@ -153,22 +109,7 @@ impl Report {
                 .spheres
                 .iter()
                 .zip(ids)
-                .map(|(s, id)| PerSphere {
-                    id: id.clone(),
-                    found: s.found,
-                    windowed: s.windowed,
-                    points: s.used,
-                    rounds_kept: s.rounds_kept,
-                    slices: s.slices,
-                    detected: s.detected,
-                    verdicts: Verdicts::from_tally(&s.verdicts),
-                    rms_before_m: s.rms_before,
-                    rms_after_m: s.rms_after,
-                    centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
-                    agreed_slices: s.agreed,
-                    lost: s.lost.map(|l| lost_name(l).to_string()),
-                    apparent_radius_m: None,
-                })
+                .map(|(s, id)| PerSphere::of(s, id))
                 .collect(),
             solve_ms,
             time_offset_search: Vec::new(),
@@ -179,4 +120,88 @@ impl Report {
                 .collect(),
         }
     }
+}
+
+impl PerPass {
+    /// One pass of the solution over one of the spheres `ids`.
+    fn of(p: &PassReport, ids: &[String]) -> Self {
+        PerPass {
+            sphere: ids.get(usize::from(p.sphere)).cloned().unwrap_or_default(),
+            start_gps_s: p.start.as_secs_f64(),
+            end_gps_s: p.end.as_secs_f64(),
+            slices: p.slices,
+            detected: p.detected,
+            mean_inliers: p.mean_inliers,
+            windowed: p.verdicts.iter().sum(),
+            verdicts: Verdicts::from_tally(&p.verdicts),
+            centre_offset_m: p.centre_offset,
+            along_track_m: p.along_track,
+            chi2: p.chi2,
+            time_offset_shift_s: p.dt_shift,
+            time_offset_shift_sigma_s: p.dt_sigma,
+        }
+    }
+}
+
+impl PerSphere {
+    /// One sphere of the solution, named `id`.
+    fn of(s: &SphereReport, id: &str) -> Self {
+        PerSphere {
+            id: id.to_string(),
+            found: s.found,
+            windowed: s.windowed,
+            points: s.used,
+            rounds_kept: s.rounds_kept,
+            slices: s.slices,
+            detected: s.detected,
+            verdicts: Verdicts::from_tally(&s.verdicts),
+            rms_before_m: s.rms_before,
+            rms_after_m: s.rms_after,
+            centre_offset_m: s.center_offset.map(|c| [c.x, c.y, c.z]),
+            agreed_slices: s.agreed,
+            lost: s.lost.map(|l| lost_name(l).to_string()),
+            apparent_radius_m: None,
+        }
+    }
+}
+
+impl Consistency {
+    /// The tests `sol` passed or failed.
+    fn of(sol: &Solution) -> Self {
+        let lm = sol.lm;
+        Consistency {
+            predicted_rms_m: sol.predicted_rms,
+            dispersion: lm.map_or(f64::NAN, |l| l.rms) / sol.predicted_rms.max(1e-12),
+            worst_pass_chi2: sol
+                .passes
+                .iter()
+                .map(|p| f64::from(p.chi2))
+                .fold(0.0, f64::max),
+            free_time_offset_s: sol.dt_free.map(|(d, sg)| [d - sol.dt, sg]),
+            misfit_pieces_set_aside: sol.set_aside.misfit_pieces.into(),
+            influential_set_aside: sol.set_aside.influential.into(),
+            second_start: sol
+                .second_start
+                .map(|s| [s.first, s.second, u32::from(s.taken)]),
+        }
+    }
+}
+
+/// The correlations of the six and the time offset (NaN without a least-squares solve; the
+/// time offset's row and column 0 when it was held).
+fn correlation(sol: &Solution) -> Vec<Vec<f64>> {
+    let lm = sol.lm;
+    (0..=P)
+        .map(|i| {
+            (0..=P)
+                .map(|j| {
+                    lm.map_or(f64::NAN, |l| match (i, j) {
+                        (P, P) => f64::from(u8::from(l.estimated_dt)),
+                        (P, k) | (k, P) => l.dt_correlation[k],
+                        _ => l.correlation[(i, j)],
+                    })
+                })
+                .collect()
+        })
+        .collect()
 }
