@@ -202,6 +202,15 @@ pub fn run_calibrate(
         stats.align.window.points,
         obs.iter().map(Vec::len).collect::<Vec<_>>()
     ));
+    if stats.pruned > 0 {
+        text.push_str(&format!(
+            "memory: {} windowed returns farther than {:.1} m from every sphere were let go as \
+             they came (a solve of the first {} had placed the spheres)\n",
+            stats.pruned,
+            crate::session::KEEP_NEAR_M,
+            crate::calibrate::STORE_CAP
+        ));
+    }
     let goal = crate::config::goal::TargetChoice::of(
         inp.site.calibration.as_ref(),
         board.as_ref().map(|b| &b.1.calibration),

@@ -231,6 +231,7 @@ impl<'a> RingAligner<'a> {
             ring_full,
             model: self.core.model(),
             closest: self.closest.clone(),
+            pruned: 0,
         }
     }
 }

@@ -23,6 +23,9 @@ pub struct RunStats {
     pub model: Option<Model>,
     /// How close the trajectory came to each sphere.
     pub closest: Vec<Closest>,
+    /// Windowed returns let go because they were farther than `session::KEEP_NEAR_M` from
+    /// every sphere under a converged solve of those before (`calibrate::collect_bounded`).
+    pub pruned: u64,
 }
 
 impl RunStats {

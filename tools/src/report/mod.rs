@@ -535,6 +535,10 @@ pub struct InputsReport {
     pub packets_without_time: u64,
     /// The time offset the windows were collected at [s].
     pub time_offset_applied_s: f64,
+    /// Windowed returns let go as they came, farther than 1 m from every sphere under a solve
+    /// of the first ones (the collection's memory bound; 0 for a survey that fits).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub pruned_returns: u64,
     /// The trajectory's accuracy file and what it gave the returns (the noise model's INS
     /// sigmas), when one was read.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -567,6 +571,7 @@ impl InputsReport {
             not_georeferenced: [w.before_history, w.after_history, w.in_gap],
             packets_without_time: stats.align.packets_without_time,
             time_offset_applied_s: inp.time_offset_ns as f64 * 1e-9,
+            pruned_returns: stats.pruned,
             accuracy: None,
         }
     }
@@ -624,4 +629,8 @@ pub fn write_json_atomically<T: Serialize>(p: &Path, value: &T) -> Result<(), cr
 /// Write `bytes` to `p` whole or not at all ([`crate::output::write`]).
 pub fn write_atomically(p: &Path, bytes: &[u8]) -> Result<(), crate::Error> {
     crate::output::write(p, bytes).map_err(|e| format!("cannot write the report: {e}").into())
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }

@@ -84,13 +84,9 @@ pub const SERIAL_CHUNK: usize = 1024;
 pub const MAX_DATAGRAM: usize = 1472;
 /// Observations kept per sphere for the solver (older ones stay; newer ones are counted).
 pub const MAX_OBS_PER_SPHERE: usize = 200_000;
-/// After a converged solve, the solver's store keeps only the window returns this close to a
-/// sphere's surface (with that solution) [m]: the clutter farther out cannot matter any more,
-/// and a long survey's store stays small.
-pub const KEEP_NEAR_M: f64 = 1.0;
 /// Once calibrated, the windows reach this many residual RMS beyond the spheres ...
 pub const LIVE_MARGIN_RMS: f64 = 8.0;
-/// ... but at least this [m] (and at most [`KEEP_NEAR_M`] and the site's margin).
+/// ... but at least this [m] (and at most [`crate::session::KEEP_NEAR_M`] and the site's margin).
 pub const LIVE_MARGIN_FLOOR_M: f64 = 0.3;
 
 /// Read timeout of every reader: how fast a stop is noticed.

@@ -131,7 +131,7 @@ pub(super) fn solver(
                 0.0
             };
             let margin = (LIVE_MARGIN_RMS * rms)
-                .clamp(LIVE_MARGIN_FLOOR_M, KEEP_NEAR_M)
+                .clamp(LIVE_MARGIN_FLOOR_M, crate::session::KEEP_NEAR_M)
                 .min(apriori_margin);
             sh.steer.send_if(|now| {
                 let moved = now.windows.is_none_or(|(b, m)| {
@@ -150,7 +150,7 @@ pub(super) fn solver(
             });
             let mount = sol.b.mount();
             for (v, t) in session.store_mut().iter_mut().zip(targets) {
-                v.retain(|o| ((o.georef(&mount) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M);
+                v.retain(|o| crate::session::near(o, t, &mount, 0.0));
             }
             let d = sol.b.deg_m().0;
             // The sigmas are in the parameters' units.

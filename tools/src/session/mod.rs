@@ -5,6 +5,17 @@
 
 pub mod scratch;
 
+/// After a converged solve, a store keeps only the windowed returns this close to a sphere's
+/// surface (with that solution) [m]: the clutter farther out cannot matter any more, and a
+/// long survey's store stays small (the rig's live store, `calibrate`'s collections).
+pub const KEEP_NEAR_M: f64 = 1.0;
+
+/// Whether `o` is within [`KEEP_NEAR_M`] of sphere `t`'s surface with the mounting `mount` and
+/// the time offset `dt` beyond the store's.
+pub fn near(o: &Observation, t: &Target, mount: &spherecal::georef::Mount, dt: f64) -> bool {
+    ((o.georef_dt(mount, dt) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M
+}
+
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
 use crate::report::Report;
 use scratch::Scratch;
@@ -183,6 +194,11 @@ impl Session {
     pub fn set_nav(&mut self, choice: &crate::config::nav_source::NavChoice, site: &Site) {
         with_nav(&mut self.settings, site, choice.model);
         self.nav_source = choice.source.clone();
+    }
+
+    /// The settings its solves take.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
     }
 
     /// The navigation model the session solves under (`None`: white INS errors).
