@@ -99,25 +99,15 @@ checks() {
   fi
 }
 
-# Tests the side job runs once its checks and fuzzing are done (their core would idle for the
-# rest of the rig tests, ~3 minutes): one at a time, from the main build's binaries (it waits
-# for them), not again in "the rest".
-SIDE_TESTS='binary(e2e) & (test(/^clocks::/) | test(/^site_errors::/))'
-side_tests() {
-  while [ ! -e "$work/tests-built" ]; do sleep 2; done
-  say "tests beside the rig tests: $SIDE_TESTS"
-  (unset CARGO_TARGET_DIR CARGO_BUILD_JOBS; $RUNNER -E "$SIDE_TESTS" --test-threads 1)
-}
-
-# One core's work beside the rig tests: the checks, the fuzzing and some tests, one job at a
-# time, at nice 19, on the last CPU only (taskset) so that a core stays free for the rig.
+# One core's work beside the rig tests: the checks and the fuzzing, one job at a time, at
+# nice 19, on the last CPU only (taskset) so that a core stays free for the rig.
 side_jobs() {
   local pin=()
   if command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
     pin=(taskset -c "$(($(nproc) - 1))")
   fi
   export CARGO_BUILD_JOBS=1 CARGO_TARGET_DIR="$SIDE_TARGET"
-  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage side_tests); $(declare -p work THUMB SIDE_TARGET SIDE_TESTS RUNNER); rc=0; checks && fuzz_stage || rc=1; side_tests || rc=1; exit \$rc"
+  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage); $(declare -p work THUMB SIDE_TARGET); checks && fuzz_stage"
 }
 
 say "format"
@@ -142,7 +132,6 @@ else
   side_pid=$!
   say "tests: build (the side job started beside it)"
   cargo nextest run --workspace --no-run
-  touch "$work/tests-built"
   say "doc tests (nextest does not run them)"
   cargo test --workspace --doc -q
   say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
@@ -150,14 +139,14 @@ else
   $RUNNER -E "$RIG" || rig_rc=$?
   say "tests: the rest"
   rest_rc=0
-  $RUNNER -E "not ($RIG) & not ($SIDE_TESTS)" || rest_rc=$?
+  $RUNNER -E "not ($RIG)" || rest_rc=$?
   side_rc=0
   wait "$side_pid" || side_rc=$?
-  say "clippy, the bare-metal builds, the fuzzing and the side's tests (run beside the tests)"
+  say "clippy, the bare-metal builds and the fuzzing (run beside the tests)"
   cat "$work/side.out"
   [ "$rig_rc" -eq 0 ] || echo "error: the rig tests failed (above)" >&2
   [ "$rest_rc" -eq 0 ] || echo "error: tests failed (above)" >&2
-  [ "$side_rc" -eq 0 ] || echo "error: clippy, a bare-metal build, a fuzz target or a side test failed (above)" >&2
+  [ "$side_rc" -eq 0 ] || echo "error: clippy, a bare-metal build or a fuzz target failed (above)" >&2
   [ "$rig_rc" -eq 0 ] && [ "$rest_rc" -eq 0 ] && [ "$side_rc" -eq 0 ] || exit 1
 fi
 say "done"
