@@ -19,7 +19,6 @@ pub const STORE_CAP: usize = 300_000;
 pub fn collect_bounded(
     inp: &Inputs,
     targets: &[Target],
-    ids: &[String],
     b0: &Params,
     settings: &spherecal::calib::Settings,
     cap: usize,
@@ -52,7 +51,7 @@ pub fn collect_bounded(
                 }
                 if near.is_none() && held >= next_try {
                     next_try = next_try.saturating_mul(2);
-                    near = trial_mount(&mut out, targets, ids, b0, settings);
+                    near = trial_mount(&mut out, targets, b0, settings);
                     if let Some((mount, dt)) = &near {
                         for (v, t) in out.iter_mut().zip(targets) {
                             let before = v.len();
@@ -72,12 +71,11 @@ pub fn collect_bounded(
 }
 
 /// The mounting and time offset a solve from `b0` finds on the store so far, under white
-/// navigation errors; `None` unless it converged and was claimed. (In place: the store is put
-/// back in arrival order and unmarked after.)
+/// navigation errors; `None` unless it converged and was claimed. In place: every solve puts
+/// the store in time order and marks its returns afresh (`calib::solve`'s preparation).
 fn trial_mount(
     obs: &mut [Vec<Observation>],
     targets: &[Target],
-    ids: &[String],
     b0: &Params,
     settings: &spherecal::calib::Settings,
 ) -> Option<(spherecal::georef::Mount, f64)> {
@@ -85,12 +83,10 @@ fn trial_mount(
         nav: None,
         ..*settings
     };
-    let (sol, _) = crate::session::solve_report(targets, ids, obs, b0, &s);
-    // The store as it came: in arrival order, unmarked (what the session's solve expects).
-    for v in obs.iter_mut() {
-        v.sort_unstable_by_key(|o| (o.packet, o.block, o.channel));
-        v.iter_mut().for_each(|o| o.work = Default::default());
-    }
+    let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
+    let mut scratch = crate::session::scratch::Scratch::default();
+    let sol =
+        spherecal::calib::solve::solve(targets, &mut slices, b0, &s, &mut scratch.workspace());
     (sol.refusal.is_none() && sol.lm.is_some_and(|l| l.converged)).then(|| (sol.b.mount(), sol.dt))
 }
 

@@ -102,7 +102,6 @@ impl<'a> Collections<'a> {
         let (stats, mut obs) = collect_bounded(
             inp,
             self.targets,
-            self.ids,
             self.b0,
             self.session.settings(),
             STORE_CAP,

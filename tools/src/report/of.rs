@@ -31,28 +31,13 @@ impl Report {
             .filter(|(_, w)| *w)
             .map(|(n, _)| n.to_string())
             .collect();
+        let ((boresight_deg, lever_arm_m), (sigma_deg, sigma_m)) = (split(&b), split(&sigma));
         Report {
-            boresight_deg: Angles {
-                roll: b[0].to_degrees(),
-                pitch: b[1].to_degrees(),
-                heading: b[2].to_degrees(),
-            },
-            lever_arm_m: Xyz {
-                x: b[3],
-                y: b[4],
-                z: b[5],
-            },
+            boresight_deg,
+            lever_arm_m,
             sigma: Sigma {
-                boresight_deg: Angles {
-                    roll: sigma[0].to_degrees(),
-                    pitch: sigma[1].to_degrees(),
-                    heading: sigma[2].to_degrees(),
-                },
-                lever_arm_m: Xyz {
-                    x: sigma[3],
-                    y: sigma[4],
-                    z: sigma[5],
-                },
+                boresight_deg: sigma_deg,
+                lever_arm_m: sigma_m,
                 time_offset_s: lm.map_or(f64::NAN, |l| l.sigma_dt),
             },
             time_offset_s: sol.dt,
@@ -204,4 +189,20 @@ fn correlation(sol: &Solution) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
+}
+
+/// The six [rad, m] as the report writes them: the angles in degrees, the lever arm in metres.
+fn split(v: &[f64; P]) -> (Angles, Xyz) {
+    (
+        Angles {
+            roll: v[0].to_degrees(),
+            pitch: v[1].to_degrees(),
+            heading: v[2].to_degrees(),
+        },
+        Xyz {
+            x: v[3],
+            y: v[4],
+            z: v[5],
+        },
+    )
 }

@@ -5,6 +5,14 @@
 
 pub mod scratch;
 
+use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
+use crate::report::Report;
+use scratch::Scratch;
+use spherecal::align::window::{Observation, Target};
+use spherecal::calib::nav::NavModel;
+use spherecal::calib::solve::{ClockFacts, Observe};
+use spherecal::calib::{Params, Settings, Solution};
+
 /// After a converged solve, a store keeps only the windowed returns this close to a sphere's
 /// surface (with that solution) [m]: the clutter farther out cannot matter any more, and a
 /// long survey's store stays small (the rig's live store, `calibrate`'s collections).
@@ -15,14 +23,6 @@ pub const KEEP_NEAR_M: f64 = 1.0;
 pub fn near(o: &Observation, t: &Target, mount: &spherecal::georef::Mount, dt: f64) -> bool {
     ((o.georef_dt(mount, dt) - t.center).norm() - t.radius).abs() < KEEP_NEAR_M
 }
-
-use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
-use crate::report::Report;
-use scratch::Scratch;
-use spherecal::align::window::{Observation, Target};
-use spherecal::calib::nav::NavModel;
-use spherecal::calib::solve::{ClockFacts, Observe};
-use spherecal::calib::{Params, Settings, Solution};
 
 /// What the streams say of the clocks, for the core's checks (one rule for `calibrate` and
 /// the rig): the LiDAR clock's trust as its position packets tell it (with the offset

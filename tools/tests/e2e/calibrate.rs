@@ -682,7 +682,7 @@ fn a_long_collection_lets_go_of_what_cannot_be_a_sphere() {
     let b0 = inp.mount.params();
     let settings = spherecal_tools::session::settings_for(&inp.site, None, false, inp.margin);
     let (_, mut all) = collect(&inp).unwrap();
-    let (stats, mut kept) = collect_bounded(&inp, &t, &ids, &b0, &settings, 20_000).unwrap();
+    let (stats, mut kept) = collect_bounded(&inp, &t, &b0, &settings, 20_000).unwrap();
     let n_all: usize = all.iter().map(Vec::len).sum();
     let n_kept: usize = kept.iter().map(Vec::len).sum();
     assert!(n_all > 60_000, "{n_all}: the cap must be met early");
