@@ -110,6 +110,69 @@ impl Outputs {
     }
 }
 
+/// What a calibration's outputs are made from besides its report.
+struct Written<'a> {
+    targets: &'a [spherecal::align::window::Target],
+    ids: &'a [String],
+    obs: &'a [Vec<spherecal::align::window::Observation>],
+    sol: &'a spherecal::calib::Solution,
+    b0: &'a spherecal::calib::Params,
+    inp: &'a pipeline::Inputs,
+}
+
+/// Every output asked for (report.json, the returns CSV, the LAS, the plots, the HTML page):
+/// the lines naming those written, and the errors of those that failed.
+fn write_outputs(out: &Outputs, rep: &report::Report, w: &Written<'_>) -> (String, Vec<String>) {
+    let mut wrote = String::new();
+    let mut output_errors = Vec::new();
+    let mut put = |r: Result<Option<String>, crate::Error>| match r {
+        Ok(Some(line)) => wrote.push_str(&line),
+        Ok(None) => {}
+        Err(e) => output_errors.push(e.to_string()),
+    };
+    if let Some(p) = &out.report {
+        put(report::write_json_atomically(p, rep).map(|()| None));
+    }
+    if let Some(p) = &out.returns {
+        put(
+            calibrate::write_returns(p, w.targets, w.ids, w.obs, &w.sol.b)
+                .map(|()| Some(format!("returns: {}\n", p.display()))),
+        );
+    }
+    if let Some(p) = &out.las {
+        let inp2 = pipeline::Inputs {
+            mount: w.sol.b.mount(),
+            time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
+            ..w.inp.clone()
+        };
+        put(
+            georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(st, _, _)| {
+                Some(format!(
+                    "LAS: {} ({} returns with the calibrated mount, {} coordinates)\n",
+                    p.display(),
+                    st.align.window.georeferenced,
+                    match out.las_frame {
+                        georef::LasFrame::Projected => "map",
+                        georef::LasFrame::Local => "local east-north-up",
+                    }
+                ))
+            }),
+        );
+    }
+    if out.plot.is_some() || out.html.is_some() {
+        let figs = plot::Figures::new(w.targets, w.ids, w.obs, w.sol, w.b0, rep);
+        if let Some(p) = &out.plot {
+            put(plot::plot(p, &figs).map(|()| Some(format!("plot: {}\n", p.display()))));
+        }
+        if let Some(p) = &out.html {
+            put(html::render(rep, &figs, w.inp.site.leap_seconds)
+                .and_then(|page| output::write(p, page.as_bytes()))
+                .map(|()| Some(format!("report (HTML): {}\n", p.display()))));
+        }
+    }
+    (wrote, output_errors)
+}
+
 /// `spherecal calibrate` as a function: returns the summary and whether a solution is claimed.
 /// `init` overrides the site's a-priori start [deg, m]; `truth` (for the demo: the six and the
 /// time offset) is printed beside the result.
@@ -225,51 +288,15 @@ pub fn run_calibrate(
     text.push_str(&report::render(&rep, truth.as_ref()));
     // The result is printed whatever happens to the files: an output that fails now (a disk
     // full, a mount gone) is said after it, not instead of it.
-    let mut wrote = String::new();
-    let mut output_errors = Vec::new();
-    let mut put = |r: Result<Option<String>, crate::Error>| match r {
-        Ok(Some(line)) => wrote.push_str(&line),
-        Ok(None) => {}
-        Err(e) => output_errors.push(e.to_string()),
+    let written = Written {
+        targets: &targets,
+        ids: &ids,
+        obs: &obs,
+        sol: &sol,
+        b0: &b0,
+        inp: &inp,
     };
-    if let Some(p) = &out.report {
-        put(report::write_json_atomically(p, &rep).map(|()| None));
-    }
-    if let Some(p) = &out.returns {
-        put(calibrate::write_returns(p, &targets, &ids, &obs, &sol.b)
-            .map(|()| Some(format!("returns: {}\n", p.display()))));
-    }
-    if let Some(p) = &out.las {
-        let inp2 = pipeline::Inputs {
-            mount: sol.b.mount(),
-            time_offset_ns: (rep.time_offset_s * 1e9).round() as i64,
-            ..inp.clone()
-        };
-        put(
-            georef::georef(&inp2, Some((p, out.las_frame)), None).map(|(st, _, _)| {
-                Some(format!(
-                    "LAS: {} ({} returns with the calibrated mount, {} coordinates)\n",
-                    p.display(),
-                    st.align.window.georeferenced,
-                    match out.las_frame {
-                        georef::LasFrame::Projected => "map",
-                        georef::LasFrame::Local => "local east-north-up",
-                    }
-                ))
-            }),
-        );
-    }
-    if out.plot.is_some() || out.html.is_some() {
-        let figs = plot::Figures::new(&targets, &ids, &obs, &sol, &b0, &rep);
-        if let Some(p) = &out.plot {
-            put(plot::plot(p, &figs).map(|()| Some(format!("plot: {}\n", p.display()))));
-        }
-        if let Some(p) = &out.html {
-            put(html::render(&rep, &figs, inp.site.leap_seconds)
-                .and_then(|page| output::write(p, page.as_bytes()))
-                .map(|()| Some(format!("report (HTML): {}\n", p.display()))));
-        }
-    }
+    let (wrote, output_errors) = write_outputs(out, &rep, &written);
     text.push_str(&wrote);
     // Every output is written (or failed and said): an interrupt now removes none of them.
     output::finished();

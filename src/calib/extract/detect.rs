@@ -54,8 +54,6 @@ pub fn detect_all(
     let r = r as f32;
     let tau = tau as f32;
     let prior = prior.map(|p| p as f32);
-    // The region the centre may be in.
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     // Voters: returns on scan-line segments no longer than the sphere (a plane's long
     // segments would bury its peak), within reach of the prior.
     let run_max = 2.0 * r + 2.0 * tau + 0.05;
@@ -66,70 +64,18 @@ pub fn detect_all(
                 None => true,
             }
     };
-    let mut voters = 0;
-    for o in obs.iter().filter(|o| voter(o)) {
-        voters += 1;
-        for a in 0..3 {
-            lo[a] = lo[a].min(o.work.x[a] - r);
-            hi[a] = hi[a].max(o.work.x[a] + r);
-        }
-    }
     let need = if prior.is_some() {
         st.min_inliers_prior
     } else {
         st.min_inliers
     };
-    // With a prior the surveyed centre is tested whatever the votes: a sphere resting on
-    // the ground joins it in one long scan-line segment and has no voters.
-    if voters < need && prior.is_none() {
+    let Some(g) = region(obs, &voter, r, prior, need, grid.len()) else {
         return;
-    }
-    if let Some(p) = prior {
-        for a in 0..3 {
-            lo[a] = lo[a].max(-p - r);
-            hi[a] = hi[a].min(p + r);
-            if voters == 0 {
-                (lo[a], hi[a]) = (-p - r, p + r);
-            }
-        }
-    }
-    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0f32, f32::max);
-    if !extent.is_finite() || extent <= 0.0 {
-        return;
-    }
-    let nmax = (libm::cbrt(grid.len() as f64) as u32).max(1);
-    let h = (0.5 * r).max(extent / nmax as f32);
-    let mut dims = [1u32; 3];
-    for a in 0..3 {
-        dims[a] = (((hi[a] - lo[a]) / h) as u32 + 1).min(nmax);
-    }
-    let g = Grid { lo, h, dims };
+    };
     // Indexed by x, the returns near a candidate are a contiguous run of the index.
     let sorted = Sorted::new(obs, keys);
     let obs = sorted.obs;
-    let mut peaks = Peaks::<K>::new(dims);
-    let mut min = 0u16;
-    // Vote; then, per vote, read the cell (its first reader sees its full count: the peaks)
-    // and take the vote back (the grid is left all zero).
-    for pass in 0..2 {
-        for o in obs.iter().filter(|o| voter(o)) {
-            let (x, u) = (o.work.x, o.work.u);
-            for d in &dirs.0 {
-                if dot(*d, u) <= 0.0 {
-                    continue;
-                }
-                let c = [x[0] + r * d[0], x[1] + r * d[1], x[2] + r * d[2]];
-                let Some(k) = g.index(c) else { continue };
-                let cell = &mut grid[k as usize];
-                if pass == 0 {
-                    *cell = cell.wrapping_add(1);
-                } else {
-                    peaks.offer(k, *cell, &mut min);
-                    *cell = cell.wrapping_sub(1);
-                }
-            }
-        }
-    }
+    let peaks = vote::<K>(obs, &voter, &g, grid, dirs, r);
     // Refine and score the strongest peaks; keep the best acceptable one.
     let mut order: [usize; K] = core::array::from_fn(|i| i);
     order.sort_unstable_by(|&a, &b| peaks.count[b].cmp(&peaks.count[a]));
@@ -141,7 +87,7 @@ pub fn detect_all(
             .iter()
             .take(st.peaks.min(K))
             .filter(|&&i| peaks.cell[i] != u32::MAX && usize::from(peaks.count[i]) >= need / 2)
-            .map(|&i| (g.center(peaks.at[i]), (1.5 * h).max(2.0 * tau))),
+            .map(|&i| (g.center(peaks.at[i]), (1.5 * g.h).max(2.0 * tau))),
     );
     for (c0, band) in cands {
         let c1 = refine(&sorted, c0, r, band);
@@ -204,6 +150,87 @@ pub fn detect_all(
         }
         let _ = out.insert(at, d);
     }
+}
+
+/// The voting grid over the region the centre may be in: the voters' reach (and the prior's);
+/// `None` without enough voters and no prior, or an empty region.
+fn region(
+    obs: &[Observation],
+    voter: &impl Fn(&Observation) -> bool,
+    r: f32,
+    prior: Option<f32>,
+    need: usize,
+    cells: usize,
+) -> Option<Grid> {
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    let mut voters = 0;
+    for o in obs.iter().filter(|o| voter(o)) {
+        voters += 1;
+        for a in 0..3 {
+            lo[a] = lo[a].min(o.work.x[a] - r);
+            hi[a] = hi[a].max(o.work.x[a] + r);
+        }
+    }
+    // With a prior the surveyed centre is tested whatever the votes: a sphere resting on
+    // the ground joins it in one long scan-line segment and has no voters.
+    if voters < need && prior.is_none() {
+        return None;
+    }
+    if let Some(p) = prior {
+        for a in 0..3 {
+            lo[a] = lo[a].max(-p - r);
+            hi[a] = hi[a].min(p + r);
+            if voters == 0 {
+                (lo[a], hi[a]) = (-p - r, p + r);
+            }
+        }
+    }
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0f32, f32::max);
+    if !extent.is_finite() || extent <= 0.0 {
+        return None;
+    }
+    let nmax = (libm::cbrt(cells as f64) as u32).max(1);
+    let h = (0.5 * r).max(extent / nmax as f32);
+    let mut dims = [1u32; 3];
+    for a in 0..3 {
+        dims[a] = (((hi[a] - lo[a]) / h) as u32 + 1).min(nmax);
+    }
+    Some(Grid { lo, h, dims })
+}
+
+/// Vote every voter's possible centres (a radius behind it along each direction facing its
+/// beam); then, per vote, read the cell (its first reader sees its full count: the peaks) and
+/// take the vote back (the grid is left all zero).
+fn vote<const K: usize>(
+    obs: &[Observation],
+    voter: &impl Fn(&Observation) -> bool,
+    g: &Grid,
+    grid: &mut [u16],
+    dirs: &Directions,
+    r: f32,
+) -> Peaks<K> {
+    let mut peaks = Peaks::<K>::new(g.dims);
+    let mut min = 0u16;
+    for pass in 0..2 {
+        for o in obs.iter().filter(|o| voter(o)) {
+            let (x, u) = (o.work.x, o.work.u);
+            for d in &dirs.0 {
+                if dot(*d, u) <= 0.0 {
+                    continue;
+                }
+                let c = [x[0] + r * d[0], x[1] + r * d[1], x[2] + r * d[2]];
+                let Some(k) = g.index(c) else { continue };
+                let cell = &mut grid[k as usize];
+                if pass == 0 {
+                    *cell = cell.wrapping_add(1);
+                } else {
+                    peaks.offer(k, *cell, &mut min);
+                    *cell = cell.wrapping_sub(1);
+                }
+            }
+        }
+    }
+    peaks
 }
 
 /// Tag the observations of a slice against a sphere of radius `r` centred at `c` (relative):

@@ -241,6 +241,89 @@ impl Dialect {
 /// Spheres farther than this from the others' middle cannot be one calibration site [m].
 pub const SITE_EXTENT_M: f64 = 2_000.0;
 
+/// `(lat, lon)` [deg] of the point `(x, y)` within EPSG `code`'s area of use `area` ([west,
+/// south, east, north], a little beyond its edge is fine: a quay on a zone's border), else
+/// why not.
+fn inside_area(
+    area: Option<[f64; 4]>,
+    (x, y): (f64, f64),
+    (lat, lon): (f64, f64),
+    code: u16,
+) -> Result<(), String> {
+    let Some([w, so, e, n]) = area else {
+        return Ok(());
+    };
+    let tol = 0.5;
+    let inside_lon = if w <= e {
+        lon >= w - tol && lon <= e + tol
+    } else {
+        lon >= w - tol || lon <= e + tol
+    };
+    if inside_lon && lat >= so - tol && lat <= n + tol {
+        return Ok(());
+    }
+    Err(format!(
+        "({x:.5}, {y:.5}) = lat {lat:.4}, lon {lon:.4} is outside EPSG:{code}'s area of use (lon {w} to {e}, lat {so} to {n}): the wrong CRS, or its columns swapped?"
+    ))
+}
+
+/// Every sphere within [`SITE_EXTENT_M`] of the others' middle (the median latitude and
+/// longitude); `lines`: each sphere's line in `name`.
+fn within_extent(name: &str, spheres: &[SiteSphere], lines: &[usize]) -> Result<(), crate::Error> {
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mlat, mlon) = (
+        median(spheres.iter().map(|s| s.lat_deg).collect()),
+        median(spheres.iter().map(|s| s.lon_deg).collect()),
+    );
+    let mid =
+        spherecal::frames::LocalFrame::new(spherecal::frames::Geodetic::from_deg(mlat, mlon, 0.0));
+    for (s, line) in spheres.iter().zip(lines) {
+        let d = mid.to_ned(&spherecal::frames::Geodetic::from_deg(
+            s.lat_deg, s.lon_deg, 0.0,
+        ));
+        let far = d.x.hypot(d.y);
+        if far > SITE_EXTENT_M {
+            return Err(format!(
+                "{name}:{line}: sphere {} is {:.1} km from the others' middle: more than one calibration site can hold ({} km); a typing error, or the wrong CRS?",
+                s.id,
+                far / 1e3,
+                SITE_EXTENT_M / 1e3
+            ).into());
+        }
+    }
+    Ok(())
+}
+
+/// The site of the imported spheres: its origin their mean, the import's CRS (heights in
+/// `unit`), base, leap seconds and a-priori mounting.
+fn site_of(o: &ImportOptions, spheres: Vec<SiteSphere>, unit: Option<HeightUnit>) -> Site {
+    let n = spheres.len() as f64;
+    let mean = |f: fn(&SiteSphere) -> f64| spheres.iter().map(f).sum::<f64>() / n;
+    Site {
+        leap_seconds: o.leap_seconds,
+        datum: None,
+        geodetic: None,
+        base: o.base.clone(),
+        crs: Some(SiteCrs {
+            height_unit: unit,
+            ..o.crs.clone()
+        }),
+        origin: Origin {
+            lat_deg: mean(|s| s.lat_deg),
+            lon_deg: mean(|s| s.lon_deg),
+            h_m: mean(|s| s.h_m),
+        },
+        sphere: spheres,
+        apriori: o.apriori.clone(),
+        noise: None,
+        ins: None,
+        calibration: None,
+    }
+}
+
 /// The site for the CSV `text` (read from `name`, for errors as `name:line: why`), resolved
 /// and checked, and the columns as read (from its header, or the default order). Refused:
 /// a header that names unknown, missing or geographic columns for a projected CRS; a point
@@ -340,21 +423,8 @@ pub fn import_csv(
             .crs
             .to_geographic(&crs, &undulation, x, y, h)
             .map_err(|e| at(e.to_string()))?;
-        if let Some([w, so, e, n]) = area {
-            // A little beyond the edge is fine (a quay on a zone's border).
-            let tol = 0.5;
-            let inside_lon = if w <= e {
-                lon >= w - tol && lon <= e + tol
-            } else {
-                lon >= w - tol || lon <= e + tol
-            };
-            if !(inside_lon && lat >= so - tol && lat <= n + tol) {
-                return Err(at(format!(
-                    "sphere {id}: ({:.5}, {:.5}) = lat {lat:.4}, lon {lon:.4} is outside EPSG:{}'s area of use (lon {w} to {e}, lat {so} to {n}): the wrong CRS, or its columns swapped?",
-                    x, y, crs.code
-                )));
-            }
-        }
+        inside_area(area, (x, y), (lat, lon), crs.code)
+            .map_err(|why| at(format!("sphere {id}: {why}")))?;
         let sigma_m = num(Col::Sigma)?;
         if sigma_m.is_some_and(|v| !(v > 0.0 && v < 10.0)) {
             return Err(at(format!(
@@ -373,53 +443,8 @@ pub fn import_csv(
             spheres.len()
         ).into());
     }
-    // The middle (median latitude and longitude) and each sphere's distance from it.
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let (mlat, mlon) = (
-        median(spheres.iter().map(|s| s.lat_deg).collect()),
-        median(spheres.iter().map(|s| s.lon_deg).collect()),
-    );
-    let mid =
-        spherecal::frames::LocalFrame::new(spherecal::frames::Geodetic::from_deg(mlat, mlon, 0.0));
-    for (s, line) in spheres.iter().zip(&lines) {
-        let d = mid.to_ned(&spherecal::frames::Geodetic::from_deg(
-            s.lat_deg, s.lon_deg, 0.0,
-        ));
-        let far = d.x.hypot(d.y);
-        if far > SITE_EXTENT_M {
-            return Err(format!(
-                "{name}:{line}: sphere {} is {:.1} km from the others' middle: more than one calibration site can hold ({} km); a typing error, or the wrong CRS?",
-                s.id,
-                far / 1e3,
-                SITE_EXTENT_M / 1e3
-            ).into());
-        }
-    }
-    let n = spheres.len() as f64;
-    let mean = |f: fn(&SiteSphere) -> f64| spheres.iter().map(f).sum::<f64>() / n;
-    let mut site = Site {
-        leap_seconds: o.leap_seconds,
-        datum: None,
-        geodetic: None,
-        base: o.base.clone(),
-        crs: Some(SiteCrs {
-            height_unit: used_unit,
-            ..o.crs.clone()
-        }),
-        origin: Origin {
-            lat_deg: mean(|s| s.lat_deg),
-            lon_deg: mean(|s| s.lon_deg),
-            h_m: mean(|s| s.h_m),
-        },
-        sphere: spheres,
-        apriori: o.apriori.clone(),
-        noise: None,
-        ins: None,
-        calibration: None,
-    };
+    within_extent(name, &spheres, &lines)?;
+    let mut site = site_of(o, spheres, used_unit);
     site.resolve().map_err(|e| format!("{name}: {e}"))?;
     site.check().map_err(|e| format!("{name}: {e}"))?;
     let c = cols.unwrap_or_default();

@@ -6,6 +6,7 @@
 use super::{segments, PlanReport, Segment};
 use crate::config::scenario::Scenario;
 use crate::html::escape;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use spherecal::calib::{NAMES, P};
 use std::fmt::Write as _;
@@ -51,11 +52,16 @@ fn clip(mut poly: Vec<(f64, f64)>, b: [f64; 4]) -> Vec<(f64, f64)> {
     poly
 }
 
-/// The plan from above: east to the right, north up, 1:1.
-pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
+/// The map's chart: east and north in metres.
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A segment and its points from above (east, north) [m].
+type Path = (Segment, Vec<(f64, f64)>);
+
+/// Each segment's path from above (east, north), sampled every 0.5 s.
+fn paths_of(s: &Scenario) -> Result<Vec<Path>, crate::Error> {
     let segs = segments(s);
-    // Each segment's path, sampled every 0.5 s.
-    let paths: Vec<(Segment, Vec<(f64, f64)>)> = s
+    let paths = s
         .with_world(|w| {
             segs.iter()
                 .map(|&(seg, a, b)| {
@@ -76,16 +82,12 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
                 .collect()
         })
         .map_err(|e| e.to_string())?;
-    let share_of = |seg: Segment| -> f64 {
-        let name = super::segment_name(s, seg);
-        r.passes
-            .iter()
-            .find(|p| p.what == name)
-            .map_or(0.0, |p| p.share)
-    };
-    // The first recommendation's new passes (east, north from start to end), numbered.
-    let proposed: Vec<[(f64, f64); 2]> = r
-        .recommendations
+    Ok(paths)
+}
+
+/// The first recommendation's new passes (east, north from start to end), numbered.
+fn proposed_passes(r: &PlanReport) -> Vec<[(f64, f64); 2]> {
+    r.recommendations
         .first()
         .map(|rec| {
             rec.changes
@@ -100,7 +102,16 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
                 })
                 .collect()
         })
-        .unwrap_or_default();
+        .unwrap_or_default()
+}
+
+/// The view: the paths, the proposed passes and the spheres with a margin (east from, to;
+/// north from, to).
+fn view(
+    s: &Scenario,
+    paths: &[Path],
+    proposed: &[[(f64, f64); 2]],
+) -> (f64, f64, f64, f64) {
     let all = paths
         .iter()
         .flat_map(|p| p.1.iter().copied())
@@ -119,7 +130,108 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
         y1 = y1.max(y);
     }
     let pad = 0.08 * (x1 - x0).max(y1 - y0).max(10.0);
-    let (x0, x1, y0, y1) = (x0 - pad, x1 + pad, y0 - pad, y1 + pad);
+    (x0 - pad, x1 + pad, y0 - pad, y1 + pad)
+}
+
+/// The site as a map: its buildings, vehicles and structures (boxes) and its posts and
+/// trees (poles) from above, in grey, within the view `[x0, x1, y0, y1]`.
+fn draw_site(
+    ch: &mut Chart<'_, '_>,
+    s: &Scenario,
+    [x0, x1, y0, y1]: [f64; 4],
+) -> Result<(), crate::Error> {
+    let grey = RGBColor(205, 205, 205);
+    let inside = |(x, y): (f64, f64)| (x0..=x1).contains(&x) && (y0..=y1).contains(&y);
+    for b in &s.boxes {
+        let (h, [n, e0]) = (b.heading_deg.to_radians(), [b.center_m[0], b.center_m[1]]);
+        let corner = |u: f64, v: f64| {
+            let (du, dv) = (u * b.size_m[0] / 2.0, v * b.size_m[1] / 2.0);
+            (
+                e0 + du * h.sin() + dv * h.cos(),
+                n + du * h.cos() - dv * h.sin(),
+            )
+        };
+        let ring = vec![
+            corner(-1.0, -1.0),
+            corner(1.0, -1.0),
+            corner(1.0, 1.0),
+            corner(-1.0, 1.0),
+        ];
+        // Drawn where it overlaps the view (a deck or a quay wall may hold it all).
+        let (bx0, bx1, by0, by1) = ring.iter().fold(
+            (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
+        );
+        if bx1 >= x0 && bx0 <= x1 && by1 >= y0 && by0 <= y1 {
+            let ring = clip(ring, [x0, x1, y0, y1]);
+            ch.draw_series([Polygon::new(ring, grey.filled())])
+                .map_err(e)?;
+        }
+    }
+    for p in &s.poles {
+        let c = (p.base_m[1], p.base_m[0]);
+        if inside(c) {
+            ch.draw_series([Circle::new(c, 3, grey.filled())])
+                .map_err(e)?;
+        }
+    }
+    Ok(())
+}
+
+/// The recommended passes (dashed, numbered R1, R2, ...) and the spheres.
+fn draw_proposed_and_spheres(
+    ch: &mut Chart<'_, '_>,
+    s: &Scenario,
+    proposed: &[[(f64, f64); 2]],
+) -> Result<(), crate::Error> {
+    let green = RGBColor(20, 140, 60);
+    for (k, [a, b]) in proposed.iter().enumerate() {
+        ch.draw_series(DashedLineSeries::new([*a, *b], 6, 4, green.stroke_width(2)))
+            .map_err(e)?;
+        ch.draw_series([Circle::new(*b, 3, green.filled())])
+            .map_err(e)?;
+        ch.draw_series([Text::new(
+            format!("R{}", k + 1),
+            {
+                // Staggered along the line, so that passes on one track keep apart.
+                let f = 0.2 + 0.15 * (k % 5) as f64;
+                (a.0 + f * (b.0 - a.0) + 0.8, a.1 + f * (b.1 - a.1))
+            },
+            ("sans-serif", 13).into_font().color(&green),
+        )])
+        .map_err(e)?;
+    }
+    for sp in &s.sphere {
+        let c = (sp.ned_m[1], sp.ned_m[0]);
+        ch.draw_series([Circle::new(c, 5, RGBColor(30, 90, 180).filled())])
+            .map_err(e)?;
+        ch.draw_series([Text::new(
+            sp.id.clone(),
+            (c.0 + 0.8, c.1 + 0.8),
+            ("sans-serif", 12).into_font().color(&RGBColor(30, 90, 180)),
+        )])
+        .map_err(e)?;
+    }
+    Ok(())
+}
+
+/// The plan from above: east to the right, north up, 1:1.
+pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
+    let paths = paths_of(s)?;
+    let share_of = |seg: Segment| -> f64 {
+        let name = super::segment_name(s, seg);
+        r.passes
+            .iter()
+            .find(|p| p.what == name)
+            .map_or(0.0, |p| p.share)
+    };
+    let proposed = proposed_passes(r);
+    let (x0, x1, y0, y1) = view(s, &paths, &proposed);
     // 1:1 within 620 x 560 px.
     let scale = (560.0 / (x1 - x0)).min(480.0 / (y1 - y0));
     let (w, h) = (
@@ -150,48 +262,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
             .light_line_style(WHITE)
             .draw()
             .map_err(e)?;
-        // The site as a map: its buildings, vehicles and structures (boxes) and its posts and
-        // trees (poles) from above, in grey, under the lines.
-        let grey = RGBColor(205, 205, 205);
-        let inside = |(x, y): (f64, f64)| (x0..=x1).contains(&x) && (y0..=y1).contains(&y);
-        for b in &s.boxes {
-            let (h, [n, e0]) = (b.heading_deg.to_radians(), [b.center_m[0], b.center_m[1]]);
-            let corner = |u: f64, v: f64| {
-                let (du, dv) = (u * b.size_m[0] / 2.0, v * b.size_m[1] / 2.0);
-                (
-                    e0 + du * h.sin() + dv * h.cos(),
-                    n + du * h.cos() - dv * h.sin(),
-                )
-            };
-            let ring = vec![
-                corner(-1.0, -1.0),
-                corner(1.0, -1.0),
-                corner(1.0, 1.0),
-                corner(-1.0, 1.0),
-            ];
-            // Drawn where it overlaps the view (a deck or a quay wall may hold it all).
-            let (bx0, bx1, by0, by1) = ring.iter().fold(
-                (
-                    f64::INFINITY,
-                    f64::NEG_INFINITY,
-                    f64::INFINITY,
-                    f64::NEG_INFINITY,
-                ),
-                |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
-            );
-            if bx1 >= x0 && bx0 <= x1 && by1 >= y0 && by0 <= y1 {
-                let ring = clip(ring, [x0, x1, y0, y1]);
-                ch.draw_series([Polygon::new(ring, grey.filled())])
-                    .map_err(e)?;
-            }
-        }
-        for p in &s.poles {
-            let c = (p.base_m[1], p.base_m[0]);
-            if inside(c) {
-                ch.draw_series([Circle::new(c, 3, grey.filled())])
-                    .map_err(e)?;
-            }
-        }
+        draw_site(&mut ch, s, [x0, x1, y0, y1])?;
         for (seg, pts) in &paths {
             let (colour, width) = match seg {
                 Segment::Turn(_) => (RGBColor(170, 170, 170), 1),
@@ -218,34 +289,7 @@ pub fn map_svg(s: &Scenario, r: &PlanReport) -> Result<String, crate::Error> {
                     .map_err(e)?;
             }
         }
-        let green = RGBColor(20, 140, 60);
-        for (k, [a, b]) in proposed.iter().enumerate() {
-            ch.draw_series(DashedLineSeries::new([*a, *b], 6, 4, green.stroke_width(2)))
-                .map_err(e)?;
-            ch.draw_series([Circle::new(*b, 3, green.filled())])
-                .map_err(e)?;
-            ch.draw_series([Text::new(
-                format!("R{}", k + 1),
-                {
-                    // Staggered along the line, so that passes on one track keep apart.
-                    let f = 0.2 + 0.15 * (k % 5) as f64;
-                    (a.0 + f * (b.0 - a.0) + 0.8, a.1 + f * (b.1 - a.1))
-                },
-                ("sans-serif", 13).into_font().color(&green),
-            )])
-            .map_err(e)?;
-        }
-        for sp in &s.sphere {
-            let c = (sp.ned_m[1], sp.ned_m[0]);
-            ch.draw_series([Circle::new(c, 5, RGBColor(30, 90, 180).filled())])
-                .map_err(e)?;
-            ch.draw_series([Text::new(
-                sp.id.clone(),
-                (c.0 + 0.8, c.1 + 0.8),
-                ("sans-serif", 12).into_font().color(&RGBColor(30, 90, 180)),
-            )])
-            .map_err(e)?;
-        }
+        draw_proposed_and_spheres(&mut ch, s, &proposed)?;
         root.present().map_err(e)?;
     }
     Ok(out)
@@ -348,40 +392,7 @@ pub fn render(
         let _ = writeln!(o, "<p class=\"no\">Warning: {}.</p>", escape(w));
     }
     if let Some(d) = design {
-        let c = &d.candidates[d.chosen];
-        let _ = writeln!(
-            o,
-            "<h2>Design</h2><p>Proposed ({} survey, {} candidates weighed): {} <span class=\"note\">({}; cost {:.0} s with the spheres' set-up)</span>. The map and the tables below are this survey's.</p>",
-            d.kind,
-            d.candidates.len(),
-            escape(&c.words),
-            if c.meets { "meets the targets" } else { "the closest: none meets them" },
-            c.cost_s
-        );
-        o.push_str("<table><tr><th>height [m]</th><th>speed [m/s]</th><th>spheres</th><th>radius [m]</th><th class=\"l\">where</th><th>cost [s]</th>");
-        for name in NAMES {
-            let _ = write!(o, "<th>{name}</th>");
-        }
-        o.push_str("<th>meets</th></tr>\n");
-        let order = d.order();
-        for &k in order.iter().take(super::design::SHOWN) {
-            let c = &d.candidates[k];
-            let _ = write!(
-                o,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td class=\"l\">{}</td><td>{:.0}</td>",
-                c.height_m.map_or("&ndash;".into(), |h| format!("{h:.0}")),
-                c.speed_mps.map_or("&ndash;".into(), |v| format!("{v:.0}")),
-                c.spheres,
-                c.radius_m,
-                escape(&c.layout),
-                c.cost_s
-            );
-            for i in 0..P {
-                let _ = write!(o, "<td>{}</td>", fmt(c.predicted.sigma_deg_m[i], i));
-            }
-            let _ = writeln!(o, "<td>{}</td></tr>", if c.meets { "yes" } else { "no" });
-        }
-        o.push_str("</table>\n");
+        design_table(&mut o, d);
     }
     let n = &r.noise;
     let _ = writeln!(
@@ -400,6 +411,59 @@ pub fn render(
     if let Some(l) = lines {
         o.push_str(&super::site::html(l));
     }
+    predicted_table(&mut o, r);
+    let _ = writeln!(
+        o,
+        "<div class=\"figs\">{}{}</div>",
+        crate::plot::strip_xml_header(&map_svg(s, r)?),
+        crate::plot::strip_xml_header(&sigma_svg(r)?)
+    );
+    shares_table(&mut o, r);
+    recommendations_and_correlations(&mut o, r);
+    o.push_str("</table>\n</body></html>\n");
+    Ok(o)
+}
+
+/// The design's chosen survey and the candidates weighed.
+fn design_table(o: &mut String, d: &super::design::Design) {
+    let c = &d.candidates[d.chosen];
+    let _ = writeln!(
+        o,
+        "<h2>Design</h2><p>Proposed ({} survey, {} candidates weighed): {} <span class=\"note\">({}; cost {:.0} s with the spheres' set-up)</span>. The map and the tables below are this survey's.</p>",
+        d.kind,
+        d.candidates.len(),
+        escape(&c.words),
+        if c.meets { "meets the targets" } else { "the closest: none meets them" },
+        c.cost_s
+    );
+    o.push_str("<table><tr><th>height [m]</th><th>speed [m/s]</th><th>spheres</th><th>radius [m]</th><th class=\"l\">where</th><th>cost [s]</th>");
+    for name in NAMES {
+        let _ = write!(o, "<th>{name}</th>");
+    }
+    o.push_str("<th>meets</th></tr>\n");
+    let order = d.order();
+    for &k in order.iter().take(super::design::SHOWN) {
+        let c = &d.candidates[k];
+        let _ = write!(
+            o,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td class=\"l\">{}</td><td>{:.0}</td>",
+            c.height_m.map_or("&ndash;".into(), |h| format!("{h:.0}")),
+            c.speed_mps.map_or("&ndash;".into(), |v| format!("{v:.0}")),
+            c.spheres,
+            c.radius_m,
+            escape(&c.layout),
+            c.cost_s
+        );
+        for i in 0..P {
+            let _ = write!(o, "<td>{}</td>", fmt(c.predicted.sigma_deg_m[i], i));
+        }
+        let _ = writeln!(o, "<td>{}</td></tr>", if c.meets { "yes" } else { "no" });
+    }
+    o.push_str("</table>\n");
+}
+
+/// The predicted sigmas against the targets.
+fn predicted_table(o: &mut String, r: &PlanReport) {
     o.push_str("<h2>Predicted 1-sigma</h2><table><tr><th class=\"l\">parameter</th><th>predicted</th><th>target</th></tr>\n");
     for (i, name) in NAMES.iter().enumerate() {
         let (t, unit) = if i < 3 {
@@ -421,12 +485,10 @@ pub fn render(
             .sigma_time_offset_s
             .map_or("&ndash;".into(), |v| format!("{:.3}", v * 1e3))
     );
-    let _ = writeln!(
-        o,
-        "<div class=\"figs\">{}{}</div>",
-        crate::plot::strip_xml_header(&map_svg(s, r)?),
-        crate::plot::strip_xml_header(&sigma_svg(r)?)
-    );
+}
+
+/// What each pass and sphere brings: its share and the sigmas without it.
+fn shares_table(o: &mut String, r: &PlanReport) {
     o.push_str("<h2>What each pass and sphere brings</h2><p class=\"note\">Share: the mean over the six of 1 &minus; (sigma / sigma without it)&sup2;. Sigmas without it: deg for the angles, mm for the lever arm.</p><table><tr><th class=\"l\"></th><th>returns</th><th>ranges [m]</th><th>share</th>");
     for name in NAMES {
         let _ = write!(o, "<th>{name} without</th>");
@@ -450,6 +512,10 @@ pub fn render(
         o.push_str("</tr>\n");
     }
     o.push_str("</table>\n");
+}
+
+/// The recommendations and the correlations.
+fn recommendations_and_correlations(o: &mut String, r: &PlanReport) {
     if !r.recommendations.is_empty() {
         o.push_str("<h2>Recommendations</h2><ol>\n");
         for rec in &r.recommendations {
@@ -488,8 +554,6 @@ pub fn render(
         }
         o.push_str("</tr>\n");
     }
-    o.push_str("</table>\n</body></html>\n");
-    Ok(o)
 }
 
 #[cfg(test)]

@@ -386,17 +386,14 @@ pub fn candidate_pass_infos(
     Ok(out)
 }
 
-/// The recommendations for a traced plan that misses its goal.
-pub fn recommend(
+/// The changes weighed: each candidate pass added, each pass driven at half its speed, each
+/// candidate sphere set up (while the scene has room for one).
+fn candidates(
     s: &Scenario,
     noise: &PlanNoise,
     g: &Geometry,
-    goal: &Goal,
     threads: usize,
-) -> Result<Vec<Recommendation>, crate::Error> {
-    if s.trajectory.file.is_some() {
-        return Ok(Vec::new());
-    }
+) -> Result<Vec<Candidate>, crate::Error> {
     let mut cands: Vec<Candidate> = candidate_pass_infos(s, noise, threads)?
         .into_iter()
         .map(|c| Candidate {
@@ -466,6 +463,79 @@ pub fn recommend(
             });
         }
     }
+    Ok(cands)
+}
+
+/// The changes taken greedily from `base` (the best gain per second first) until the plan
+/// meets `goal` or no change helps: one recommendation, or none.
+fn greedy(
+    cands: &[Candidate],
+    base: State,
+    goal: &Goal,
+    nav: &NavScore<'_>,
+    before: Prediction,
+) -> Option<Recommendation> {
+    let mut state = base;
+    let mut taken: Vec<usize> = Vec::new();
+    let mut words = Vec::new();
+    let mut cost = 0.0;
+    let mut now = state.score(goal, nav).0;
+    let mut last = before;
+    for _ in 0..MAX_STEPS {
+        let best = cands
+            .iter()
+            .enumerate()
+            .filter(|(k, c)| {
+                let slowed_again = matches!(c.change, Change::SlowPass { .. })
+                    && taken.iter().any(|&t| cands[t].change == c.change);
+                !taken.contains(k) && !slowed_again
+            })
+            .map(|(k, c)| {
+                let (sc, p) = state.with(k, c).score(goal, nav);
+                let gain = (now.max(1e-300).ln() - sc.max(1e-300).ln()) / c.cost_s.max(1.0);
+                // A change that meets the goal now beats every partial gain, cheapest first.
+                let key = if sc <= 1.0 { 1e9 - c.cost_s } else { gain };
+                (k, p, sc, key)
+            })
+            .filter(|(_, _, sc, _)| sc.is_finite() && *sc < now)
+            .max_by(|a, b| a.3.total_cmp(&b.3));
+        let Some((k, p, sc, _)) = best else { break };
+        state = state.with(k, &cands[k]);
+        taken.push(k);
+        cost += cands[k].cost_s;
+        let after = Prediction::of(&p);
+        words.push(format!(
+            "{}: {}",
+            cands[k].words,
+            sigma_words(&last, &after, goal)
+        ));
+        last = after;
+        now = sc;
+        if sc <= 1.0 {
+            break;
+        }
+    }
+    (!taken.is_empty()).then(|| Recommendation {
+        words: words.join("; then "),
+        changes: taken.iter().map(|&k| cands[k].change.clone()).collect(),
+        cost_s: cost,
+        meets: now <= 1.0,
+        predicted: last,
+    })
+}
+
+/// The recommendations for a traced plan that misses its goal.
+pub fn recommend(
+    s: &Scenario,
+    noise: &PlanNoise,
+    g: &Geometry,
+    goal: &Goal,
+    threads: usize,
+) -> Result<Vec<Recommendation>, crate::Error> {
+    if s.trajectory.file.is_some() {
+        return Ok(Vec::new());
+    }
+    let cands = candidates(s, noise, g, threads)?;
     let base = State {
         info: g.total(),
         returns: returns_per_sphere(g, |_| true),
@@ -501,55 +571,7 @@ pub fn recommend(
         return Ok(out);
     }
     // Otherwise greedily: the best gain per second, until it meets or no change helps.
-    let mut state = base;
-    let mut taken: Vec<usize> = Vec::new();
-    let mut words = Vec::new();
-    let mut cost = 0.0;
-    let mut now = state.score(goal, &nav).0;
-    let mut last = before.clone();
-    for _ in 0..MAX_STEPS {
-        let best = cands
-            .iter()
-            .enumerate()
-            .filter(|(k, c)| {
-                let slowed_again = matches!(c.change, Change::SlowPass { .. })
-                    && taken.iter().any(|&t| cands[t].change == c.change);
-                !taken.contains(k) && !slowed_again
-            })
-            .map(|(k, c)| {
-                let (sc, p) = state.with(k, c).score(goal, &nav);
-                let gain = (now.max(1e-300).ln() - sc.max(1e-300).ln()) / c.cost_s.max(1.0);
-                // A change that meets the goal now beats every partial gain, cheapest first.
-                let key = if sc <= 1.0 { 1e9 - c.cost_s } else { gain };
-                (k, p, sc, key)
-            })
-            .filter(|(_, _, sc, _)| sc.is_finite() && *sc < now)
-            .max_by(|a, b| a.3.total_cmp(&b.3));
-        let Some((k, p, sc, _)) = best else { break };
-        state = state.with(k, &cands[k]);
-        taken.push(k);
-        cost += cands[k].cost_s;
-        let after = Prediction::of(&p);
-        words.push(format!(
-            "{}: {}",
-            cands[k].words,
-            sigma_words(&last, &after, goal)
-        ));
-        last = after;
-        now = sc;
-        if sc <= 1.0 {
-            break;
-        }
-    }
-    if !taken.is_empty() {
-        out.push(Recommendation {
-            words: words.join("; then "),
-            changes: taken.iter().map(|&k| cands[k].change.clone()).collect(),
-            cost_s: cost,
-            meets: now <= 1.0,
-            predicted: last,
-        });
-    }
+    out.extend(greedy(&cands, base, goal, &nav, before));
     Ok(out)
 }
 

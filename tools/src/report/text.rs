@@ -56,6 +56,18 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             "NOT CONVERGED: {why}\n(the values below are where the solver stopped, not a calibration)"
         );
     }
+    parameters(&mut o, r, truth);
+    fit(&mut o, r);
+    navigation(&mut o, r);
+    centres(&mut o, r);
+    search_and_accuracy(&mut o, r);
+    spheres(&mut o, r);
+    closing(&mut o, r);
+    o
+}
+
+/// The mounting and the time offset: start, solution, sigma (and truth, error).
+fn parameters(o: &mut String, r: &Report, truth: Option<&[f64; P + 1]>) {
     let (b, s) = (r.deg_m(), r.sigma.deg_m());
     let _ = writeln!(
         o,
@@ -108,6 +120,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
         let _ = write!(o, "{:>14.4}{:>11.2e}", t[P], r.time_offset_s - t[P]);
     }
     let _ = writeln!(o);
+}
+
+/// The fit's figures and its consistency tests, with what was set aside after it.
+fn fit(o: &mut String, r: &Report) {
     let _ = writeln!(
         o,
         "residual RMS {} mm, L1 {} m, condition number {}, centre RMS {}",
@@ -165,6 +181,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             );
         }
     }
+}
+
+/// The navigation model and its corrections over each stretch of the survey.
+fn navigation(o: &mut String, r: &Report) {
     if let Some(n) = r.navigation.as_ref().filter(|n| n.is_white()) {
         let _ = writeln!(
             o,
@@ -219,6 +239,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             k = e;
         }
     }
+}
+
+/// The sphere centres' corrections from their survey.
+fn centres(o: &mut String, r: &Report) {
     if let Some(n) = &r.navigation {
         for c in &n.centres {
             if c.prior_sigma_m <= 0.0 {
@@ -252,6 +276,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             );
         }
     }
+}
+
+/// The time offset's search and the trajectory's accuracy file.
+fn search_and_accuracy(o: &mut String, r: &Report) {
     if let (Some(a), Some(b)) = (r.time_offset_search.first(), r.time_offset_search.last()) {
         let found = r
             .time_offset_search
@@ -283,6 +311,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             }
         );
     }
+}
+
+/// Each sphere: what was kept and why the rest was not.
+fn spheres(o: &mut String, r: &Report) {
     for p in &r.per_sphere {
         let v = &p.verdicts;
         if !p.found {
@@ -339,6 +371,10 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             p.rms_after_m * 1e3
         );
     }
+}
+
+/// The prior, what was set aside, the clutter, the solver's effort and the verdict.
+fn closing(o: &mut String, r: &Report) {
     o.push_str(&super::prior::words(&r.mounting_prior));
     let first = r.per_pass.iter().map(|p| p.start_gps_s).reduce(f64::min);
     for sp in &r.set_aside {
@@ -377,7 +413,6 @@ pub fn render(r: &Report, truth: Option<&[f64; P + 1]>) -> String {
             let _ = writeln!(o, "NOT CONVERGED: {why}");
         }
     }
-    o
 }
 
 /// Monte Carlo in words.

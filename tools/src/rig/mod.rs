@@ -171,6 +171,80 @@ fn spawn<'s, 'e, T: Send + 's>(
         .unwrap_or_else(|e| panic!("cannot start the {name} thread: {e}"))
 }
 
+/// The rig's worker threads (the aligner is the caller's).
+struct Workers<'s> {
+    data: std::thread::ScopedJoinHandle<'s, (SkipStats, u64)>,
+    pos: std::thread::ScopedJoinHandle<'s, (SkipStats, u64)>,
+    ins: Option<std::thread::ScopedJoinHandle<'s, InsState>>,
+    logger: std::thread::ScopedJoinHandle<'s, (Vec<PathBuf>, [u64; 2])>,
+    syncer: std::thread::ScopedJoinHandle<'s, ()>,
+    solver: std::thread::ScopedJoinHandle<'s, Option<Report>>,
+    status: std::thread::ScopedJoinHandle<'s, &'s mut Console>,
+}
+
+/// After the aligner's end: the position items left, the INS to its end, every worker
+/// joined (one that panicked fails the run), the last status line; the threads' results.
+fn wind_down(
+    w: Workers<'_>,
+    al: &mut RingAligner<'_>,
+    pos_c: &mut Consumer<'_, LidarItem>,
+    ins_c: &mut Consumer<'_, InsItem>,
+    plan: &Plan,
+    sh: &Shared<'_>,
+    started: Instant,
+) -> Result<Ended, crate::Error> {
+    let Workers {
+        data,
+        pos,
+        ins,
+        logger,
+        syncer,
+        solver,
+        status,
+    } = w;
+    // The position reader may still hold items; the INS reader ends with its End.
+    let mut panicked = Vec::new();
+    let skips_pos = joined(pos, "position reader", &mut panicked);
+    while let Some(p) = pos_c.dequeue() {
+        if let LidarPacket::Position(p) = p.packet() {
+            al.position(&p);
+        }
+    }
+    al.drain_until_end(ins_c);
+    let skips_data = joined(data, "data reader", &mut panicked);
+    let ins = ins.map(|h| joined(h, "INS reader", &mut panicked));
+    let logged = joined(logger, "logger", &mut panicked);
+    joined(syncer, "log syncer", &mut panicked);
+    let ended = Ended {
+        skips: [skips_data, skips_pos],
+        ins: ins.unwrap_or_default(),
+        logged,
+        calibration: joined(solver, "solver", &mut panicked),
+        align: al.core.stats,
+        clock: al.clock_state(),
+    };
+    // The last line, with the final counts and calibration.
+    sh.aligned
+        .store(al.core.stats.data_packets, Ordering::Relaxed);
+    match status.join() {
+        Ok(c) => {
+            let mut last = [u64::MAX; 2];
+            if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
+                sh.error(format!("console: {e}"));
+            }
+        }
+        Err(_) => panicked.push("status"),
+    }
+    if panicked.is_empty() {
+        Ok(ended)
+    } else {
+        Err(crate::Error::internal(format!(
+            "the rig's {} thread panicked",
+            panicked.join(", ")
+        )))
+    }
+}
+
 /// A worker's result; a worker that panicked is named in `panicked` (the run then fails as
 /// an internal error instead of ending with that worker's counts silently zero).
 fn joined<T: Default>(
@@ -323,6 +397,12 @@ fn run_threads(
         mut raw_log,
         ..
     } = io;
+    // The targets: the site's [calibration], else the board's, else the default (as
+    // `calibrate` judges).
+    let accuracy = &crate::config::goal::TargetChoice::of(
+        opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
+        Some(&opts.board.calibration),
+    );
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
             udp_reader(data_sock, data_p, dlog_p, accept, LidarPort::Data, sh, true)
@@ -379,29 +459,12 @@ fn run_threads(
             raw_log.written()
         });
         let solver = spawn(sc, "solver", move || {
-            let (tg, ids) = (&plan.targets, &plan.ids);
-            let report = opts.report.as_deref();
-            // The targets: the site's [calibration], else the board's, else the default (as
-            // `calibrate` judges).
-            let targets = crate::config::goal::TargetChoice::of(
-                opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
-                Some(&opts.board.calibration),
-            );
-            let sp = solver::SolverPlan {
-                targets: tg,
-                ids,
-                b0: &plan.b0,
-                settings: &plan.settings,
-                nav_source: &plan.nav_source,
-                ins_rate_hz: opts.board.ins.rate_hz,
-                accuracy: &targets,
-                model: opts.board.lidar_model().unwrap_or_default(),
-                apriori_margin: plan.margin,
-                report,
-                exclude: &opts.exclude,
-                allow_unlocked: opts.allow_unlocked_clock,
-            };
-            solver(rx, pool_tx, &sp, sh)
+            solver(
+                rx,
+                pool_tx,
+                &solver::SolverPlan::of(opts, plan, accuracy),
+                sh,
+            )
         });
         let status = spawn(sc, "status", move || {
             status_loop(
@@ -439,46 +502,15 @@ fn run_threads(
             w.store(*n, Ordering::Relaxed);
         }
         drop(out);
-        // The position reader may still hold items; the INS reader ends with its End.
-        let mut panicked = Vec::new();
-        let skips_pos = joined(pos, "position reader", &mut panicked);
-        while let Some(p) = pos_c.dequeue() {
-            if let LidarPacket::Position(p) = p.packet() {
-                al.position(&p);
-            }
-        }
-        al.drain_until_end(&mut ins_c);
-        let skips_data = joined(data, "data reader", &mut panicked);
-        let ins = ins.map(|h| joined(h, "INS reader", &mut panicked));
-        let logged = joined(logger, "logger", &mut panicked);
-        joined(syncer, "log syncer", &mut panicked);
-        let ended = Ended {
-            skips: [skips_data, skips_pos],
-            ins: ins.unwrap_or_default(),
-            logged,
-            calibration: joined(solver, "solver", &mut panicked),
-            align: al.core.stats,
-            clock: al.clock_state(),
+        let workers = Workers {
+            data,
+            pos,
+            ins,
+            logger,
+            syncer,
+            solver,
+            status,
         };
-        // The last line, with the final counts and calibration.
-        sh.aligned
-            .store(al.core.stats.data_packets, Ordering::Relaxed);
-        match status.join() {
-            Ok(c) => {
-                let mut last = [u64::MAX; 2];
-                if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
-                    sh.error(format!("console: {e}"));
-                }
-            }
-            Err(_) => panicked.push("status"),
-        }
-        if panicked.is_empty() {
-            Ok(ended)
-        } else {
-            Err(crate::Error::internal(format!(
-                "the rig's {} thread panicked",
-                panicked.join(", ")
-            )))
-        }
+        wind_down(workers, &mut al, &mut pos_c, &mut ins_c, plan, sh, started)
     })
 }

@@ -35,43 +35,66 @@ pub(super) struct SolverPlan<'a> {
     pub(super) allow_unlocked: bool,
 }
 
-pub(super) fn solver(
-    rx: crossbeam_channel::Receiver<BatchMsg>,
-    pool: crossbeam_channel::Sender<Vec<Observation>>,
-    plan: &SolverPlan<'_>,
-    sh: &Shared<'_>,
-) -> Option<Report> {
-    let SolverPlan {
-        targets,
-        ids,
-        b0,
-        settings,
-        nav_source,
-        ins_rate_hz,
-        accuracy,
-        model,
-        apriori_margin,
-        report,
-        exclude,
-        allow_unlocked,
-    } = *plan;
-    let n = targets.len();
-    // The calibration session: the same settings, workspace and offset rule as `calibrate`.
-    let mut session =
-        crate::session::Session::with_settings(targets.to_vec(), ids.to_vec(), *settings)
-            .with_capacity(MAX_OBS_PER_SPHERE)
-            .with_nav_source(nav_source);
-    let mut last_total = 0usize;
-    let mut excluding = false;
-    let mut last_solve: Option<Instant> = None;
-    let mut latest: Option<Report> = None;
-    let mut start = *b0;
-    // The planner on the survey under way (built at the first solve: the LiDAR's rpm is known
-    // by then).
-    let mut live: Option<crate::plan::live::Live> = None;
-    let goal_of = accuracy.goal();
-    let goal = Some(&goal_of);
-    let mut solve = |session: &mut crate::session::Session, start: &mut Params| {
+impl<'a> SolverPlan<'a> {
+    /// The run's plan and options, judged by `accuracy`.
+    pub(super) fn of(
+        opts: &'a super::RunOptions,
+        plan: &'a super::inputs::Plan,
+        accuracy: &'a crate::config::goal::TargetChoice,
+    ) -> Self {
+        Self {
+            targets: &plan.targets,
+            ids: &plan.ids,
+            b0: &plan.b0,
+            settings: &plan.settings,
+            nav_source: &plan.nav_source,
+            ins_rate_hz: opts.board.ins.rate_hz,
+            accuracy,
+            model: opts.board.lidar_model().unwrap_or_default(),
+            apriori_margin: plan.margin,
+            report: opts.report.as_deref(),
+            exclude: &opts.exclude,
+            allow_unlocked: opts.allow_unlocked_clock,
+        }
+    }
+}
+
+/// The live calibration: the session, the start and the live planner, solved on demand.
+struct Live<'p, 's> {
+    plan: &'p SolverPlan<'p>,
+    sh: &'p Shared<'s>,
+    session: crate::session::Session,
+    start: Params,
+    /// The planner on the survey under way (built at the first solve: the LiDAR's rpm is
+    /// known by then).
+    planner: Option<crate::plan::live::Live>,
+    goal: crate::config::goal::Goal,
+}
+
+impl<'p, 's> Live<'p, 's> {
+    /// The session with the same settings, workspace and offset rule as `calibrate`.
+    fn new(plan: &'p SolverPlan<'p>, sh: &'p Shared<'s>) -> Self {
+        let session = crate::session::Session::with_settings(
+            plan.targets.to_vec(),
+            plan.ids.to_vec(),
+            *plan.settings,
+        )
+        .with_capacity(MAX_OBS_PER_SPHERE)
+        .with_nav_source(plan.nav_source);
+        Self {
+            plan,
+            sh,
+            session,
+            start: *plan.b0,
+            planner: None,
+            goal: plan.accuracy.goal(),
+        }
+    }
+
+    /// One solve on the store: the report (kept current on disk), the verdict published,
+    /// and on convergence the windows and the store moved to the solution.
+    fn solve(&mut self) -> Report {
+        let (plan, sh) = (self.plan, self.sh);
         // The clocks as the position packets and the INS stream told them so far: the live
         // verdict claims and refuses by the same rule as `calibrate`.
         let (clock, first) = sh.clock.lock().map(|c| c.clone()).unwrap_or_default();
@@ -80,103 +103,136 @@ pub(super) fn solver(
             &clock,
             &steps,
             first.map(|t| (t, f64::INFINITY)),
-            session.offset_ns() as f64 * 1e-9,
-            allow_unlocked,
+            self.session.offset_ns() as f64 * 1e-9,
+            plan.allow_unlocked,
         );
-        let (sol, mut rep) = session.solve(start, clocks, &mut StatusRounds(sh));
-        rep.targets = Some(crate::report::TargetsReport::of(&rep, accuracy));
+        let (sol, mut rep) = self
+            .session
+            .solve(&self.start, clocks, &mut StatusRounds(sh));
+        rep.targets = Some(crate::report::TargetsReport::of(&rep, plan.accuracy));
         sh.solves.fetch_add(1, Ordering::Relaxed);
-        // Enough yet? (From the kept returns, before the store is pruned.)
-        let store = session.store();
-        let (info, returns) =
-            crate::verdict::data_info(targets, store, &sol, settings, ins_rate_hz);
-        let predicted =
-            crate::verdict::predicted_sigma(targets, store, &sol, settings, ins_rate_hz);
-        if live.is_none() {
-            let rpm = sh.heard[0].lock().ok().and_then(|h| h.rpm).unwrap_or(600.0);
-            match crate::plan::live::Live::new(targets, ids, model, rpm, ins_rate_hz, settings) {
-                Ok(l) => live = Some(l),
-                Err(e) => sh.error(format!("the live planner: {e}")),
-            }
-        }
-        let advice = live.as_mut().and_then(|l| {
-            if let Err(e) = l.update(&sol, store) {
-                sh.error(format!("the live planner: {e}"));
-                return None;
-            }
-            let nav = crate::verdict::nav_plan(targets, store, &sol, settings);
-            l.has_candidates()
-                .then(|| l.advise(&info, &returns, goal, nav.as_ref()))
-        });
-        let verdict = session.claim(&sol, &rep, goal, Some(&predicted), advice.as_ref());
-        if let Ok(mut v) = sh.verdict.lock() {
-            *v = Some(verdict);
-        }
+        self.judge(&sol, &rep);
         if rep.converged {
-            if let Ok(mut t) = sh.time_offset.lock() {
-                *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
-            }
-            // Move the windows to the offset found, and the store with them (the session's
-            // rule, as `calibrate`'s).
-            let offset = session.wants_offset(&sol);
-            if let Some(to) = offset {
-                session.rebase(to);
-            }
-            *start = sol.b;
-            // The aligner's windows around the solution from now on, as tight as its residuals
-            // allow.
-            let rms = if rep.rms_m.is_finite() {
-                rep.rms_m
-            } else {
-                0.0
-            };
-            let margin = (LIVE_MARGIN_RMS * rms)
-                .clamp(LIVE_MARGIN_FLOOR_M, crate::session::KEEP_NEAR_M)
-                .min(apriori_margin);
-            sh.steer.send_if(|now| {
-                let moved = now.windows.is_none_or(|(b, m)| {
-                    (m - margin).abs() > 0.05
-                        || b.0.iter().zip(sol.b.0).any(|(a, c)| (a - c).abs() > 1e-4)
-                });
-                (moved || offset.is_some()).then(|| Steer {
-                    time_offset_ns: offset.unwrap_or(now.time_offset_ns),
-                    windows: if moved {
-                        Some((sol.b, margin))
-                    } else {
-                        now.windows
-                    },
-                    windows_moved: now.windows_moved + u64::from(moved),
-                })
-            });
-            let mount = sol.b.mount();
-            for (v, t) in session.store_mut().iter_mut().zip(targets) {
-                v.retain(|o| crate::session::near(o, t, &mount, 0.0));
-            }
-            let d = sol.b.deg_m().0;
-            // The sigmas are in the parameters' units.
-            let s = sol.lm.map_or([f64::NAN; 6], |l| Params(l.sigma).deg_m().0);
-            if let Ok(mut c) = sh.calibration.lock() {
-                *c = Some((d, s));
-            }
+            self.follow(&sol, &rep);
         }
-        if let Some(p) = report {
+        if let Some(p) = plan.report {
             if let Err(e) = crate::report::write_json_atomically(p, &rep) {
                 sh.error(e.to_string());
             }
         }
         rep
-    };
+    }
+
+    /// Enough yet? The verdict (from the kept returns, before the store is pruned) with the
+    /// live planner's advice, published.
+    fn judge(&mut self, sol: &spherecal::calib::Solution, rep: &Report) {
+        let (plan, sh) = (self.plan, self.sh);
+        let (targets, settings, rate) = (plan.targets, plan.settings, plan.ins_rate_hz);
+        let store = self.session.store();
+        let (info, returns) = crate::verdict::data_info(targets, store, sol, settings, rate);
+        let predicted = crate::verdict::predicted_sigma(targets, store, sol, settings, rate);
+        if self.planner.is_none() {
+            let rpm = sh.heard[0].lock().ok().and_then(|h| h.rpm).unwrap_or(600.0);
+            let l =
+                crate::plan::live::Live::new(targets, plan.ids, plan.model, rpm, rate, settings);
+            match l {
+                Ok(l) => self.planner = Some(l),
+                Err(e) => sh.error(format!("the live planner: {e}")),
+            }
+        }
+        let goal = Some(&self.goal);
+        let advice = self.planner.as_mut().and_then(|l| {
+            if let Err(e) = l.update(sol, store) {
+                sh.error(format!("the live planner: {e}"));
+                return None;
+            }
+            let nav = crate::verdict::nav_plan(targets, store, sol, settings);
+            l.has_candidates()
+                .then(|| l.advise(&info, &returns, goal, nav.as_ref()))
+        });
+        let verdict = self
+            .session
+            .claim(sol, rep, goal, Some(&predicted), advice.as_ref());
+        if let Ok(mut v) = sh.verdict.lock() {
+            *v = Some(verdict);
+        }
+    }
+
+    /// A converged solve: the time offset published, the windows and the store moved to the
+    /// offset found (the session's rule, as `calibrate`'s), the aligner's windows around the
+    /// solution as tight as its residuals allow, the store pruned, the calibration shown.
+    fn follow(&mut self, sol: &spherecal::calib::Solution, rep: &Report) {
+        let sh = self.sh;
+        if let Ok(mut t) = sh.time_offset.lock() {
+            *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
+        }
+        let offset = self.session.wants_offset(sol);
+        if let Some(to) = offset {
+            self.session.rebase(to);
+        }
+        self.start = sol.b;
+        let rms = if rep.rms_m.is_finite() {
+            rep.rms_m
+        } else {
+            0.0
+        };
+        let margin = (LIVE_MARGIN_RMS * rms)
+            .clamp(LIVE_MARGIN_FLOOR_M, crate::session::KEEP_NEAR_M)
+            .min(self.plan.apriori_margin);
+        sh.steer.send_if(|now| {
+            let moved = now.windows.is_none_or(|(b, m)| {
+                (m - margin).abs() > 0.05
+                    || b.0.iter().zip(sol.b.0).any(|(a, c)| (a - c).abs() > 1e-4)
+            });
+            (moved || offset.is_some()).then(|| Steer {
+                time_offset_ns: offset.unwrap_or(now.time_offset_ns),
+                windows: if moved {
+                    Some((sol.b, margin))
+                } else {
+                    now.windows
+                },
+                windows_moved: now.windows_moved + u64::from(moved),
+            })
+        });
+        let mount = sol.b.mount();
+        for (v, t) in self.session.store_mut().iter_mut().zip(self.plan.targets) {
+            v.retain(|o| crate::session::near(o, t, &mount, 0.0));
+        }
+        let d = sol.b.deg_m().0;
+        // The sigmas are in the parameters' units.
+        let s = sol.lm.map_or([f64::NAN; 6], |l| Params(l.sigma).deg_m().0);
+        if let Ok(mut c) = sh.calibration.lock() {
+            *c = Some((d, s));
+        }
+    }
+}
+
+/// The solver thread: batches into the session until the channel closes; a solve when every
+/// sphere has enough returns, again as the store grows, and at the end.
+pub(super) fn solver(
+    rx: crossbeam_channel::Receiver<BatchMsg>,
+    pool: crossbeam_channel::Sender<Vec<Observation>>,
+    plan: &SolverPlan<'_>,
+    sh: &Shared<'_>,
+) -> Option<Report> {
+    let n = plan.targets.len();
+    let mut live = Live::new(plan, sh);
+    let mut last_total = 0usize;
+    let mut excluding = false;
+    let mut last_solve: Option<Instant> = None;
+    let mut latest: Option<Report> = None;
     loop {
         let closed = match rx.recv_timeout(Duration::from_millis(200)) {
             Ok(m) => {
                 // The spans left out by hand, placed in the data's GPS week at the first batch.
-                if let (false, Some(o)) = (exclude.is_empty() || excluding, m.obs.first()) {
-                    session.exclude(&crate::stretches::in_week_of(exclude, o.time));
+                if let (false, Some(o)) = (plan.exclude.is_empty() || excluding, m.obs.first()) {
+                    live.session
+                        .exclude(&crate::stretches::in_week_of(plan.exclude, o.time));
                     excluding = true;
                 }
                 // Aligned at an older offset (in flight when it moved): the session moves it
                 // to the store's.
-                let dropped = session.add(m.sphere, &m.obs, m.offset_ns);
+                let dropped = live.session.add(m.sphere, &m.obs, m.offset_ns);
                 sh.batch_drops.fetch_add(dropped as u64, Ordering::Relaxed);
                 let _ = pool.try_send(m.obs);
                 false
@@ -190,14 +246,12 @@ pub(super) fn solver(
             }
             continue;
         }
-        let total: usize = session.store().iter().map(Vec::len).sum();
-        let ready = session
-            .store()
-            .iter()
-            .all(|s| s.len() >= settings.min_points);
+        let store = live.session.store();
+        let total: usize = store.iter().map(Vec::len).sum();
+        let ready = store.iter().all(|s| s.len() >= plan.settings.min_points);
         if closed {
             if ready && total > last_total {
-                latest = Some(solve(&mut session, &mut start));
+                latest = Some(live.solve());
             }
             return latest;
         }
@@ -210,8 +264,8 @@ pub(super) fn solver(
         let due = since.is_none_or(|e| e >= Duration::from_secs(1));
         let stale = since.is_none_or(|e| e >= Duration::from_secs(RESOLVE_S));
         if ready && due && total > last_total && (total * 4 >= last_total * 5 || stale) {
-            latest = Some(solve(&mut session, &mut start));
-            last_total = session.store().iter().map(Vec::len).sum();
+            latest = Some(live.solve());
+            last_total = live.session.store().iter().map(Vec::len).sum();
             last_solve = Some(Instant::now());
         }
     }
