@@ -10,11 +10,12 @@ use crate::pipeline::accuracy::{Accuracy, AccuracyReport};
 use crate::pipeline::{Closest, Inputs, InsInput, RunStats};
 use crate::reasons::{empty_windows, refusal_text_clock};
 use crate::report::{Report, SearchCandidate};
-use crate::session::{settings_for, Session};
+use crate::session::{settings_for, settings_under, Session};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::extract::ExtractSettings;
 use spherecal::calib::solve::{Refusal, Solution};
 use spherecal::calib::Params;
+use spherecal::calib::Settings;
 
 /// One calibration's collections over the files of `inp`, and what the first decided.
 pub(super) struct Collections<'a> {
@@ -23,7 +24,11 @@ pub(super) struct Collections<'a> {
     ids: &'a [String],
     b0: &'a Params,
     clock: ClockOptions,
-    session: Session,
+    /// The settings under the site's own navigation model: the first collection's (before
+    /// the model is chosen from what the INS stated).
+    base: Settings,
+    /// The session, made at the first collection under the navigation model chosen then.
+    session: Option<Session>,
     /// The extraction's settings, for the radii's search on a refusal (the session's own).
     pub(super) extract: ExtractSettings,
     /// The SBET's accuracy file.
@@ -34,16 +39,12 @@ pub(super) struct Collections<'a> {
     kind: InsKind,
     /// The site's navigation model, if it declares one.
     site_spec: Option<CorrelatedSpec>,
-    /// The navigation model was chosen (at the first collection).
-    chosen: bool,
-    /// A LiDAR clock without PPS runs on its own crystal: its drift is estimated too.
-    drift: bool,
     /// The rounds on a spinner (on a terminal only).
     pub(super) spinner: indicatif::ProgressBar,
 }
 
 impl<'a> Collections<'a> {
-    /// The session for `inp` (its model resolved once: every collection decodes as it, and the
+    /// The collections of `inp` (its model resolved once: every collection decodes as it, and the
     /// extraction's scan lines follow its laser period), its accuracy file read.
     pub(super) fn new(
         inp: &'a mut Inputs,
@@ -82,14 +83,13 @@ impl<'a> Collections<'a> {
             ids,
             b0,
             clock,
-            session: Session::with_settings(targets.to_vec(), ids.to_vec(), settings),
+            base: settings,
+            session: None,
             extract: settings.extract,
             accuracy,
             used_accuracy: None,
             kind,
             site_spec,
-            chosen: false,
-            drift: false,
             spinner: crate::progress::spinner("solving"),
             inp,
         })
@@ -99,42 +99,43 @@ impl<'a> Collections<'a> {
     pub(super) fn attempt(&mut self, applied: f64) -> Result<Calibrated, crate::Error> {
         let inp = &mut *self.inp;
         inp.time_offset_ns = (applied * 1e9).round() as i64;
-        let (stats, mut obs) = collect_bounded(
-            inp,
-            self.targets,
-            self.b0,
-            self.session.settings(),
-            STORE_CAP,
-        )?;
-        if !self.chosen {
-            let stated = self
-                .accuracy
-                .as_ref()
-                .map(|a| &a.stated)
-                .filter(|s| s.samples > 0)
-                .unwrap_or(&stats.ins.stated);
-            let c = crate::config::nav_source::choose(
-                self.site_spec.as_ref(),
-                None,
-                Some(stated),
-                self.kind,
-            )?;
-            self.session.set_nav(&c, &inp.site);
-            self.chosen = true;
-        }
+        let settings = self.session.as_ref().map_or(&self.base, Session::settings);
+        let (stats, mut obs) = collect_bounded(inp, self.targets, self.b0, settings, STORE_CAP)?;
+        let session = match &mut self.session {
+            Some(s) => s,
+            None => {
+                // The navigation model, chosen once: the site's, else what the INS stated in
+                // the data, else its kind's default; the settings made under it.
+                let stated = self
+                    .accuracy
+                    .as_ref()
+                    .map(|a| &a.stated)
+                    .filter(|s| s.samples > 0)
+                    .unwrap_or(&stats.ins.stated);
+                let c = crate::config::nav_source::choose(
+                    self.site_spec.as_ref(),
+                    None,
+                    Some(stated),
+                    self.kind,
+                )?;
+                let (site, est) = (&inp.site, self.clock.estimate);
+                let settings = settings_under(site, inp.model, est, inp.margin, c.model);
+                let (t, ids) = (self.targets.to_vec(), self.ids.to_vec());
+                self.session
+                    .insert(Session::new(t, ids, settings, &c.source))
+            }
+        };
         // The accuracy file's sigmas weigh each return, unless a navigation model holds them.
         if let Some(a) = &self.accuracy {
-            self.used_accuracy = Some(match self.session.nav().filter(|m| !m.is_white()) {
+            self.used_accuracy = Some(match session.nav().filter(|m| !m.is_white()) {
                 None => a.apply(&mut obs),
                 Some(_) => a.unapplied(),
             });
         }
-        self.session.estimate_drift(self.drift);
-        self.session.replace(obs, inp.time_offset_ns);
+        session.replace(obs, inp.time_offset_ns);
         if let (false, Some((t0, _))) = (inp.exclude.is_empty(), stats.align.lidar_span) {
             let week_of = spherecal::time::GpsTime((t0 * 1e9) as i64);
-            self.session
-                .exclude(&crate::stretches::in_week_of(&inp.exclude, week_of));
+            session.exclude(&crate::stretches::in_week_of(&inp.exclude, week_of));
         }
         let clocks = crate::session::clock_facts(
             &stats.clock,
@@ -145,14 +146,13 @@ impl<'a> Collections<'a> {
         );
         // The report's offset includes the one the windows were made at.
         let (sol, rep) =
-            self.session
-                .solve(self.b0, clocks, &mut crate::progress::Rounds(&self.spinner));
-        let obs = self.session.take_store();
+            session.solve(self.b0, clocks, &mut crate::progress::Rounds(&self.spinner));
+        let obs = session.take_store();
         Ok((stats, obs, sol, rep))
     }
 
-    /// The first collection: at the start offset (again with the drift estimated for a
-    /// LiDAR clock that is not trusted; from where its RMCs put it), then the coarse search
+    /// The first collection: at the start offset (for a LiDAR clock that is not trusted, again
+    /// from where its RMCs put it), then the coarse search
     /// around it when asked or the clock is untrusted. The start, the collection, the search.
     pub(super) fn first(
         &mut self,
@@ -161,10 +161,6 @@ impl<'a> Collections<'a> {
         let mut start = clock.start.unwrap_or(0.0);
         let mut first = self.attempt(start)?;
         let trusted = first.0.clock.trusted();
-        if !trusted && clock.estimate {
-            self.drift = true;
-            first = self.attempt(start)?;
-        }
         // An untrusted LiDAR clock: start where its RMCs put it (INS time = LiDAR time - its
         // error).
         if clock.start.is_none() && !trusted {

@@ -107,11 +107,7 @@ fn proposed_passes(r: &PlanReport) -> Vec<[(f64, f64); 2]> {
 
 /// The view: the paths, the proposed passes and the spheres with a margin (east from, to;
 /// north from, to).
-fn view(
-    s: &Scenario,
-    paths: &[Path],
-    proposed: &[[(f64, f64); 2]],
-) -> (f64, f64, f64, f64) {
+fn view(s: &Scenario, paths: &[Path], proposed: &[[(f64, f64); 2]]) -> (f64, f64, f64, f64) {
     let all = paths
         .iter()
         .flat_map(|p| p.1.iter().copied())

@@ -151,10 +151,6 @@ impl Plan {
             .into_iter()
             .map(|(n, g, bit)| (n.to_string(), g, bit))
             .collect();
-        let mut settings = match &opts.site {
-            Some(site) => crate::session::settings_for(site, b.lidar_model(), true, margin),
-            None => Settings::default(),
-        };
         // The navigation model: the site's, else the board's, else the INS kind's default
         // (both checked when loaded).
         let site_spec = opts
@@ -172,9 +168,12 @@ impl Plan {
             model: None,
             source: e.to_string(),
         });
-        if let Some(site) = &opts.site {
-            crate::session::with_nav(&mut settings, site, nav.model);
-        }
+        let settings = match &opts.site {
+            Some(site) => {
+                crate::session::settings_under(site, b.lidar_model(), true, margin, nav.model)
+            }
+            None => Settings::default(),
+        };
         Self {
             frame,
             targets,

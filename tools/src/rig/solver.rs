@@ -74,13 +74,13 @@ struct Live<'p, 's> {
 impl<'p, 's> Live<'p, 's> {
     /// The session with the same settings, workspace and offset rule as `calibrate`.
     fn new(plan: &'p SolverPlan<'p>, sh: &'p Shared<'s>) -> Self {
-        let session = crate::session::Session::with_settings(
+        let session = crate::session::Session::new(
             plan.targets.to_vec(),
             plan.ids.to_vec(),
             *plan.settings,
+            plan.nav_source,
         )
-        .with_capacity(MAX_OBS_PER_SPHERE)
-        .with_nav_source(plan.nav_source);
+        .with_capacity(MAX_OBS_PER_SPHERE);
         Self {
             plan,
             sh,

@@ -65,30 +65,27 @@ pub const OFFSET_STEP_S: f64 = 5e-4;
 /// order is no guide.
 pub const OFFSET_REACH_S: f64 = 2.0;
 
-/// The solver's settings for a survey: the site's noise model (`[noise]`, else the sensors'
-/// specified values), the window margin (the bounds the mounting must stay in), the LiDAR
-/// model's laser period (the extraction's scan lines), and whether the time offset is
-/// estimated.
+/// The solver's settings for a survey under the site's own navigation model (its `[ins]`, if
+/// it declares one): [`settings_under`].
 pub fn settings_for(
     site: &Site,
     model: Option<spherecal::velodyne::Model>,
     estimate_dt: bool,
     margin: f64,
 ) -> Settings {
-    let mut s = Settings {
+    settings_under(
+        site,
+        model,
         estimate_dt,
         margin,
-        ..Default::default()
-    };
-    with_nav(&mut s, site, site.nav_model().ok().flatten());
-    if let Some(m) = model {
-        s.extract.firing_ns = i64::from(m.laser_period_ns());
-    }
-    s
+        site.nav_model().ok().flatten(),
+    )
 }
 
-/// Put the navigation model `nav` into `s` with the white noise that goes with it and the
-/// sphere centres' survey sigmas, from `site`.
+/// The solver's settings for a survey under the navigation model `nav` (`None`: white INS
+/// errors): the site's noise model (`[noise]`, else the sensors' specified values), the window
+/// margin (the bounds the mounting must stay in), the LiDAR model's laser period (the
+/// extraction's scan lines), and whether the time offset is estimated.
 ///
 /// The white noise: the site's `[noise]` if it has one; else, under a model, the INS's errors
 /// are in the model and the white noise left is the LiDAR's; without one, the sensors'
@@ -96,7 +93,21 @@ pub fn settings_for(
 /// declares none, [`DEFAULT_CENTRE_SIGMA_M`] under a model and held at its survey under white
 /// errors (the paper's model). White errors with a declared survey sigma solve with the centres
 /// as parameters ([`NavModel::WHITE`]).
-pub fn with_nav(s: &mut Settings, site: &Site, nav: Option<NavModel>) {
+pub fn settings_under(
+    site: &Site,
+    model: Option<spherecal::velodyne::Model>,
+    estimate_dt: bool,
+    margin: f64,
+    nav: Option<NavModel>,
+) -> Settings {
+    let mut s = Settings {
+        estimate_dt,
+        margin,
+        ..Default::default()
+    };
+    if let Some(m) = model {
+        s.extract.firing_ns = i64::from(m.laser_period_ns());
+    }
     let declared = |j: usize| site.sphere.get(j).and_then(|sp| sp.sigma_m);
     s.mount_prior = site.apriori.prior();
     // A declared survey or mounting sigma: the joint least squares carry the priors.
@@ -123,6 +134,7 @@ pub fn with_nav(s: &mut Settings, site: &Site, nav: Option<NavModel>) {
     for (j, c) in s.centre_sigma.iter_mut().enumerate() {
         *c = declared(j).unwrap_or(if wanders { DEFAULT_CENTRE_SIGMA_M } else { 0.0 });
     }
+    s
 }
 
 /// A calibration under way.
@@ -142,13 +154,17 @@ pub struct Session {
     /// (`--exclude`), or set aside by a solve ([`Session::solve`]); every later collection and
     /// batch leaves them out too.
     excluded: Vec<((i64, i64), usize, String)>,
-    /// Look for a stretch to set aside when a solve is refused for a reason one may explain.
-    search: bool,
 }
 
 impl Session {
-    /// A session with settings made elsewhere by [`settings_for`] (the rig's plan).
-    pub fn with_settings(targets: Vec<Target>, ids: Vec<String>, settings: Settings) -> Self {
+    /// A session solving with `settings` ([`settings_under`]: made once, never patched), its
+    /// navigation model from `nav_source` (the report's `navigation.source`).
+    pub fn new(
+        targets: Vec<Target>,
+        ids: Vec<String>,
+        settings: Settings,
+        nav_source: &str,
+    ) -> Self {
         let n = targets.len();
         Self {
             targets,
@@ -158,9 +174,8 @@ impl Session {
             store: vec![Vec::new(); n],
             offset_ns: 0,
             capacity: usize::MAX,
-            nav_source: "site [ins.correlated]".into(),
+            nav_source: nav_source.into(),
             excluded: Vec::new(),
-            search: true,
         }
     }
 
@@ -178,24 +193,6 @@ impl Session {
         }
     }
 
-    /// Whether a refused solve looks for a stretch to set aside (on by default).
-    pub fn search_stretches(&mut self, on: bool) {
-        self.search = on;
-    }
-
-    /// Name the source of the navigation model in the settings (the rig's plan chose it).
-    pub fn with_nav_source(mut self, source: &str) -> Self {
-        self.nav_source = source.to_string();
-        self
-    }
-
-    /// Solve under `choice`'s navigation model (the site's noise and survey with it:
-    /// [`with_nav`]) and name its source in the reports.
-    pub fn set_nav(&mut self, choice: &crate::config::nav_source::NavChoice, site: &Site) {
-        with_nav(&mut self.settings, site, choice.model);
-        self.nav_source = choice.source.clone();
-    }
-
     /// The settings its solves take.
     pub fn settings(&self) -> &Settings {
         &self.settings
@@ -210,11 +207,6 @@ impl Session {
     pub fn with_capacity(mut self, n: usize) -> Self {
         self.capacity = n;
         self
-    }
-
-    /// Estimate the LiDAR clock's drift too (a clock without PPS).
-    pub fn estimate_drift(&mut self, on: bool) {
-        self.settings.estimate_drift = on;
     }
 
     /// The returns kept so far, per sphere.
@@ -284,7 +276,10 @@ impl Session {
         clocks: ClockFacts,
         watch: &mut impl Observe,
     ) -> (Solution, Report) {
+        // A LiDAR clock without PPS runs on its own crystal: its drift is estimated with the
+        // offset (one rule for `calibrate` and the rig).
         let mut s = self.settings;
+        s.estimate_drift = s.estimate_dt && clocks.lidar_untrusted.is_some();
         s.clocks = clocks;
         let (mut sol, mut rep) = solve_report_in(
             &self.targets,
@@ -329,7 +324,7 @@ impl Session {
         sol: &Solution,
     ) -> Option<(Solution, Report, crate::stretches::SetAsideSpan)> {
         use crate::stretches::{candidates, locatable, restore, split, SetAsideSpan, MAX_FRACTION};
-        let r = sol.refusal.filter(|r| self.search && locatable(r))?;
+        let r = sol.refusal.filter(locatable)?;
         let kept: u32 = sol.passes.iter().map(|p| p.verdicts[1]).sum();
         for span in candidates(&sol.passes, &r) {
             let within: u32 = sol
@@ -493,10 +488,11 @@ mod tests {
             center: nalgebra::Vector3::zeros(),
             radius: 0.2,
         };
-        Session::with_settings(
+        Session::new(
             vec![t, t],
             vec!["S1".into(), "S2".into()],
             Settings::default(),
+            "white",
         )
         .with_capacity(3)
     }
