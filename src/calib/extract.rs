@@ -5,11 +5,9 @@
 //! (`attach`), the ground it rests on along the sweeps (`ground`). The method:
 //! docs/extraction.md, section 2.
 
-use super::objective::{Noise, TimeOffset};
+use super::objective::TimeOffset;
 use crate::align::window::{Observation, Target};
 use crate::georef::Mount;
-use core::ops::Range;
-use nalgebra::{Matrix3, Vector3};
 
 mod attach;
 mod detect;
@@ -19,13 +17,11 @@ mod scan;
 mod score;
 mod vote;
 
-pub use attach::*;
-pub use detect::*;
-pub use ground::*;
-pub use radius::*;
-pub use scan::*;
-pub use score::*;
-use vote::*;
+pub use attach::{reject_attachments, reject_touching_plane, set_aside_ground};
+pub use detect::{detect, detect_all, keep, Candidates, MAX_CANDIDATES};
+pub use ground::reject_ground_on_sweeps;
+pub use radius::detections_at_radii;
+pub use scan::{assign_slices, runs, slices};
 
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -212,6 +208,7 @@ mod tests {
     use super::*;
     use crate::sim::rng::Rng;
     use crate::time::GpsTime;
+    use nalgebra::{Matrix3, Vector3};
 
     /// An observation at a point `x` (relative to the surveyed centre) seen from `sensor`.
     pub(super) fn at(x: Vector3<f64>, sensor: Vector3<f64>) -> Observation {

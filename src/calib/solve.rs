@@ -4,17 +4,11 @@
 //! ([`Refusal`]). Parts: `settings`, `outcome` (the results), `passes`, `rounds`, `checks`.
 //! The method and its limits: docs/extraction.md, section 2.
 
-use super::consensus::{
-    consensus, Ambiguity, Bounds, Candidate, Consensus, ConsensusSettings, Search,
-};
+use super::consensus::{Bounds, Candidate};
 use super::extract::{self, Directions, ExtractSettings, ReturnClass};
-use super::lm::Clock;
-use super::lm::{refine, LmResult};
-use super::nav::{NavFit, NavModel};
-use super::nelder_mead::{minimize, NmResult, NmSettings};
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
-use super::{DegM, Params, P};
+use super::{Params, P};
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::georef::Mount;
 use crate::time::GpsTime;
@@ -29,12 +23,14 @@ mod restart;
 mod rounds;
 mod settings;
 
-use checks::*;
-pub use outcome::*;
-use passes::*;
+use checks::{checks, clock_checks, lost_reasons};
+pub use outcome::{
+    Lost, PassReport, Refusal, Round, SecondStart, SetAside, Solution, SphereReport, Termination,
+};
+use passes::{find_passes, pass_of};
 pub use rounds::Observe;
-use rounds::*;
-pub use settings::*;
+use rounds::{run_rounds, Data, Rounds};
+pub use settings::{ClockFacts, InsStep, Settings, UntrustedLidar};
 
 /// Most passes (sightings of a sphere) reported per solve; later ones are added to the last.
 pub const MAX_PASSES: usize = 128;

@@ -1,8 +1,10 @@
 //! What meets a sphere (its stand, a deck, a pole) recognised in the collar around it and its
 //! returns rejected ([`reject_attachments`]).
 
-#[allow(unused_imports)]
-use super::*;
+use super::score::eigenvalues;
+use super::{dot, norm, sub, Directions, ReturnClass};
+use crate::align::window::Observation;
+use nalgebra::{Matrix3, Vector3};
 
 /// Reject the kept returns where a structure meets the sphere (centre at the origin of
 /// `work.x`, radius `r`, shell `tau` = 3.5 noise sigmas): a tripod head or a pole under it, a

@@ -1,8 +1,11 @@
 //! One slice's detection: votes, peaks, refinement, scoring and acceptance ([`detect`],
 //! [`detect_all`] for the first round's candidates), and the returns kept around it ([`keep`]).
 
-#[allow(unused_imports)]
-use super::*;
+use super::score::{plane_vs_sphere, refine, seen_through, support, Sorted};
+use super::vote::{Grid, Peaks};
+use super::{dot, norm, sub, Detection, Directions, ExtractSettings, ReturnClass, V3};
+use crate::align::window::Observation;
+use crate::calib::objective::Noise;
 
 /// Detect the sphere of radius `r` in one slice (observations georeferenced by
 /// [`georeference`]). `prior`: the centre must lie within this distance of the surveyed one

@@ -1,7 +1,8 @@
 //! The ground a sphere rests on, recognised along each laser's sweep ([`reject_ground_on_sweeps`]).
 
-#[allow(unused_imports)]
-use super::*;
+use super::scan::slices;
+use super::{dot, norm, sub, ReturnClass, V3};
+use crate::align::window::Observation;
 
 /// Returns of one sweep of one laser are within this time of each other [ns]: the sweep over
 /// a sphere's neighbourhood (a few metres at tens of metres) lasts about a millisecond, the
@@ -134,6 +135,7 @@ mod tests {
     use super::*;
     use crate::sim::scene::ray_sphere;
     use crate::time::GpsTime;
+    use nalgebra::Vector3;
 
     /// One laser's sweep from `sensor` (number `laser`, from time `t0`): rays in the plane
     /// through `sensor` spanned by `across` and `towards`, 0.2 deg apart (a VLP-16 at 600

@@ -3,7 +3,12 @@
 //! diameter (or feet read as metres) is detected at the radius it has, seldom at the one the
 //! site says.
 
-use super::*;
+use super::detect::detect;
+use super::scan::{assign_slices, runs, slices};
+use super::{georeference, Directions, ExtractSettings};
+use crate::align::window::{Observation, Target};
+use crate::calib::objective::TimeOffset;
+use crate::georef::Mount;
 
 /// Georeference one sphere's windowed returns `v` with `mount` (no time offset on top), cut
 /// them into scan lines and slices as the rounds do, and count into `out[i]` the slices in

@@ -1,8 +1,9 @@
 //! Scan lines and slices: each return's run along its laser's scan line (ranges that do not
 //! jump) and its slice of time (0.4 s, at most a slice buffer long), found once per solve.
 
-#[allow(unused_imports)]
-use super::*;
+use super::{norm, sub};
+use crate::align::window::Observation;
+use core::ops::Range;
 
 /// Scan-line segments: consecutive firings of one laser whose ranges differ by less than
 /// `jump` form a segment; every return gets its segment's length (first to last return, with

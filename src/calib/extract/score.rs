@@ -1,8 +1,9 @@
 //! Scoring a candidate centre: the returns sorted by x for range queries ([`Sorted`]), their
 //! MSAC support and free-space violations, the fixed-radius refinement and the plane test.
 
-#[allow(unused_imports)]
-use super::*;
+use super::{dot, norm, sub, V3};
+use crate::align::window::Observation;
+use nalgebra::{Matrix3, Vector3};
 
 /// What a candidate centre explains in a slice.
 #[derive(Debug, Clone, Copy, Default)]

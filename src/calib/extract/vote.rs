@@ -1,8 +1,7 @@
 //! Hough voting on the centre: the voxel grid over a slice (the caller's scratch) and the
 //! strongest distinct peaks in it.
 
-#[allow(unused_imports)]
-use super::*;
+use super::V3;
 
 /// The strongest distinct cells of the vote grid.
 pub(super) struct Peaks<const K: usize> {

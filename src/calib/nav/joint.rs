@@ -2,9 +2,13 @@
 //! normal matrix, each piece's blocks), the chain prior, the damped step with the pieces
 //! eliminated by the block-tridiagonal recursion, and Levenberg-Marquardt over it.
 
-use super::*;
+use super::{piece_of, Mat6G1, MatG, MatG6, MountPrior, NavModel, Piece, VecG, G};
+use crate::align::window::MAX_TARGETS;
 use crate::calib::lm::VecQ;
-use nalgebra::Cholesky;
+use crate::calib::lm::{row_q, Clock, Mat6, Vec6, DRIFT, Q};
+use crate::calib::nav::P;
+use crate::calib::objective::{Linearised, Problem};
+use nalgebra::{Cholesky, Vector3};
 
 /// The state of the joint least squares: the global parameters and every piece's error.
 pub(super) struct Joint<'a, 'p> {

@@ -11,8 +11,8 @@
 //! with the rest). A parameter the data no longer pin (all centres free over flat water: the
 //! vertical lever arm) shows as a condition number no survey passes.
 
-use super::lm::{conditioning, row_q, Clock, LmResult, Mat6, MatQ, Vec6, DRIFT, Q};
-use super::objective::{Linearised, NavCorrection, Problem};
+use super::lm::{conditioning, Clock, LmResult, Mat6, MatQ, Vec6, DRIFT, Q};
+use super::objective::{NavCorrection, Problem};
 use super::P;
 use crate::align::window::MAX_TARGETS;
 use crate::time::GpsTime;

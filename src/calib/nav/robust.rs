@@ -18,7 +18,8 @@
 //! the model's share. Each variance is at least the classic one, as the white model's.
 
 use super::joint::Joint;
-use super::*;
+use super::{MatG, Piece, VecG};
+use crate::calib::lm::Q;
 
 /// The robust covariance of the globals at the state, from the classic `h_inv` (the inverse
 /// of the last [`Joint::reduced`], whose elimination `pieces` still hold, with

@@ -2,6 +2,7 @@
 //! honesty on exact returns.
 
 use super::*;
+use crate::calib::objective::Linearised;
 
 mod rows {
     use super::*;

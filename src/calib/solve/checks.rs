@@ -2,9 +2,15 @@
 //! weights, the dispersion and every pass's chi-square, the clocks per pass, the reasons a sphere
 //! is lost (see the module [`super`] for the limits).
 
-#[allow(unused_imports)]
-use super::*;
-use nalgebra::Matrix3;
+use super::outcome::{Lost, PassReport, Refusal, Solution};
+use super::settings::Settings;
+use super::{fit_with_covariance, MAX_PASSES};
+use crate::align::window::{Observation, Target, MAX_TARGETS};
+use crate::calib::nav::NavModel;
+use crate::calib::objective::{Noise, TimeOffset};
+use crate::calib::{Params, P};
+use crate::georef::Mount;
+use nalgebra::{Matrix3, Vector3};
 
 /// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range
 /// noise, INS attitude noise times the range, INS position noise, the 2 mm range quantisation;
@@ -484,6 +490,9 @@ pub(super) fn clock_checks(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calib::solve::settings::ClockFacts;
+    use crate::calib::solve::settings::InsStep;
+    use crate::calib::solve::settings::UntrustedLidar;
 
     fn with(facts: ClockFacts) -> Settings {
         Settings {

@@ -1,10 +1,19 @@
 //! After the rounds: the last extraction around the surveyed spheres and the final least
 //! squares (the answer, its uncertainty, the held offset tested).
 
-#[allow(unused_imports)]
-use super::*;
+use super::checks::weights;
+use super::outcome::{PassReport, Solution};
+use super::passes::pass_of;
+use super::rounds::{Data, Rounds};
+use super::{extract_sphere, partition, with_problem};
+use crate::align::window::{Observation, MAX_TARGETS};
+use crate::calib::extract::{Directions, ReturnClass};
+use crate::calib::lm::{refine, Clock};
 use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
-use crate::calib::objective::Linearised;
+use crate::calib::objective::{Linearised, Problem};
+use crate::calib::{extract, Params, P};
+use crate::georef::Mount;
+use crate::time::GpsTime;
 
 impl Rounds {
     /// The last extraction: around the surveyed spheres, in the slices where the sphere is

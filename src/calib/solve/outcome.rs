@@ -1,8 +1,17 @@
 //! What the solve gives: the solution, its rounds, spheres and passes, how the rounds ended
 //! ([`Termination`]) and why a solution is not claimed ([`Refusal`]).
 
-#[allow(unused_imports)]
-use super::*;
+use super::settings::InsStep;
+use super::{Tally, MAX_PASSES};
+use crate::align::window::MAX_TARGETS;
+use crate::calib::consensus::{Ambiguity, Bounds, Consensus};
+use crate::calib::lm::LmResult;
+use crate::calib::nav::NavFit;
+use crate::calib::nelder_mead::NmResult;
+use crate::calib::objective::TimeOffset;
+use crate::calib::{Params, P};
+use crate::time::GpsTime;
+use nalgebra::Vector3;
 
 /// Why a solution is not claimed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,8 +1,10 @@
 //! Passes: each sphere's returns split by the course (a 90 deg turn or a 20 s gap; a piece of
 //! under 2 s after a turn joins the pass before).
 
-#[allow(unused_imports)]
-use super::*;
+use super::outcome::PassReport;
+use super::MAX_PASSES;
+use crate::align::window::Observation;
+use crate::time::GpsTime;
 
 /// The pass holding time `t` (the last one starting at or before it).
 pub(super) fn pass_of(ps: &mut [PassReport], t: GpsTime) -> Option<&mut PassReport> {

@@ -9,7 +9,13 @@
 //! widest shell, three times it as the prior); the start whose last round detects the spheres
 //! in more slices is the answer's.
 
-use super::*;
+use super::outcome::{PassReport, Refusal, Round, SecondStart, Solution, Termination};
+use super::rounds::{run_rounds, Data, Rounds};
+use super::{compact, reach, time_order};
+use crate::align::window::MAX_TARGETS;
+use crate::calib::solve::rounds::Observe;
+use crate::calib::{extract, Params};
+use crate::georef::Mount;
 
 /// The second start's rounds are taken when they detect the spheres in at least this share
 /// of the first start's slices (and find as many spheres).

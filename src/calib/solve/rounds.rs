@@ -3,8 +3,23 @@
 //! [`Termination`]) and an [`Observe`] hook told of every round; then the last extraction and
 //! the final least squares.
 
-#[allow(unused_imports)]
-use super::*;
+use super::checks::weights;
+use super::outcome::{PassReport, Refusal, Round, Solution, Termination};
+use super::settings::Settings;
+use super::{
+    apparent_offsets, compact, extract_sphere, fingerprint, gather, reach, split_ranges,
+    time_order, with_problem, Histogram, Workspace,
+};
+use crate::align::window::{Observation, Target, MAX_TARGETS};
+use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
+use crate::calib::extract::{Directions, ReturnClass};
+use crate::calib::lm::refine;
+use crate::calib::nelder_mead::{minimize, NmResult};
+use crate::calib::objective::TimeOffset;
+use crate::calib::{extract, DegM};
+use crate::calib::{Params, P};
+use crate::georef::Mount;
+use crate::time::GpsTime;
 
 /// What a solve tells whoever watches it (argmin's `Observe`): every round as it ends and how
 /// the rounds ended. Both do nothing by default; `()` watches nothing.
@@ -508,6 +523,7 @@ impl Rounds {
 mod tests {
     use super::*;
     use crate::calib::consensus::Bounds;
+    use nalgebra::Vector3;
 
     /// Counts what it is told.
     #[derive(Default)]

@@ -1,7 +1,13 @@
 //! What the solve is told: its limits, its noise model and its stopping rules.
 
-#[allow(unused_imports)]
-use super::*;
+use crate::align::window::MAX_TARGETS;
+use crate::calib::consensus::ConsensusSettings;
+use crate::calib::extract::ExtractSettings;
+use crate::calib::lm::Clock;
+use crate::calib::nav::NavModel;
+use crate::calib::nelder_mead::NmSettings;
+use crate::calib::objective::Noise;
+use crate::calib::P;
 
 /// Solver settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
