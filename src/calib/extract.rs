@@ -15,13 +15,15 @@ mod ground;
 mod radius;
 mod scan;
 mod score;
+mod sphere;
 mod vote;
 
 pub use attach::{reject_attachments, reject_touching_plane, set_aside_ground};
 pub use detect::{detect, detect_all, keep, Candidates, MAX_CANDIDATES};
 pub use ground::reject_ground_on_sweeps;
 pub use radius::detections_at_radii;
-pub use scan::{assign_slices, runs, slices};
+pub use scan::{assign_slices, runs, slices, SliceCursor};
+pub use sphere::{compact, extract_sphere, Extraction};
 
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@
 //! The method and its limits: docs/extraction.md, section 2.
 
 use super::consensus::{Bounds, Candidate};
-use super::extract::{self, Directions, ExtractSettings, ReturnClass};
+use super::extract::{self, ExtractSettings, ReturnClass};
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
 use super::{Params, P};
@@ -27,7 +27,7 @@ use checks::{checks, clock_checks, lost_reasons};
 pub use outcome::{
     Lost, PassReport, Refusal, Round, SecondStart, SetAside, Solution, SphereReport, Termination,
 };
-use passes::{find_passes, pass_of};
+use passes::find_passes;
 pub use rounds::Observe;
 use rounds::{run_rounds, Data, Rounds};
 pub use settings::{ClockFacts, InsStep, Settings, UntrustedLidar};
@@ -199,84 +199,6 @@ fn apparent_offsets(v: &[Observation], r: f64, h: &mut Histogram) {
             h.add(c.norm());
         }
     }
-}
-
-/// Detect the sphere in every slice of one sphere's observations (grouped by slice, in time
-/// order of slices) and tag them; `surveyed`: keep around the surveyed centre (the last
-/// round) rather than the detection. Returns (kept, slices, detected); with `passes` (this
-/// sphere's), also counts each pass's slices and detections.
-#[allow(clippy::too_many_arguments)]
-fn extract_sphere(
-    v: &mut [Observation],
-    t: &Target,
-    tau: f64,
-    prior: Option<f64>,
-    surveyed: bool,
-    grid: &mut [u16],
-    keys: &mut [(f32, u32)],
-    dirs: &Directions,
-    st: &ExtractSettings,
-    noise: &Noise,
-    mut passes: Option<&mut [PassReport]>,
-) -> (usize, u32, u32) {
-    let (mut kept, mut slices, mut detected) = (0, 0, 0);
-    let mut start = 0;
-    while start < v.len() {
-        let Some(sl) = extract::slices(&v[start..]).next() else {
-            break;
-        };
-        let sl = start + sl.start..start + sl.end;
-        start = sl.end;
-        slices += 1;
-        let t0 = v[sl.clone()]
-            .iter()
-            .map(|o| o.time)
-            .min()
-            .unwrap_or(GpsTime(0));
-        // Around the surveyed centre, the ground a sphere rests on is set aside first.
-        let sl = if surveyed {
-            let band = 3.5 * noise.range + 0.01;
-            sl.start..sl.start + extract::set_aside_ground(&mut v[sl.clone()], t.radius, tau, band)
-        } else {
-            sl
-        };
-        let det = extract::detect(&v[sl.clone()], keys, t.radius, tau, prior, grid, dirs, st);
-        match det {
-            Some(d) => {
-                detected += 1;
-                let c = if surveyed { [0.0; 3] } else { d.center };
-                kept += extract::keep(&mut v[sl.clone()], c, t.radius, tau, noise);
-            }
-            None => extract::tag(&mut v[sl.clone()], ReturnClass::Undetected),
-        }
-        if let Some(p) = passes.as_deref_mut().and_then(|ps| pass_of(ps, t0)) {
-            p.slices += 1;
-            if let Some(d) = det {
-                p.detected += 1;
-                p.mean_inliers += d.inliers as f32;
-            }
-        }
-    }
-    (kept, slices, detected)
-}
-
-/// Move the returns of a sphere farther than `reach` from its surface (with the current
-/// georeference) behind the others, tagged `OutsideShell`; the near ones keep their order.
-/// Returns how many are near.
-fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
-    let (r, reach) = (r as f32, reach as f32);
-    let mut w = 0;
-    for i in 0..v.len() {
-        let x = v[i].work.x;
-        let d = libm::sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
-        if (d - r).abs() <= reach {
-            v.swap(i, w);
-            w += 1;
-        } else {
-            v[i].work.verdict = ReturnClass::OutsideShell as u8;
-        }
-    }
-    w
 }
 
 /// Copy the kept returns of every sphere into `buf` (at most its length, evenly spread when

@@ -80,16 +80,29 @@ pub fn assign_slices(obs: &mut [Observation], slice_ns: i64, max_len: usize) -> 
 /// The slices of observations grouped by `work.slice` (any order within a slice): the index
 /// ranges of equal slice numbers.
 pub fn slices(obs: &[Observation]) -> impl Iterator<Item = Range<usize>> + '_ {
-    let mut i = 0;
-    core::iter::from_fn(move || {
-        if i >= obs.len() {
-            return None;
-        }
-        let start = i;
-        let id = obs[i].work.slice;
-        while i < obs.len() && obs[i].work.slice == id {
-            i += 1;
-        }
-        Some(start..i)
-    })
+    let mut cursor = SliceCursor::default();
+    core::iter::from_fn(move || cursor.next(obs))
+}
+
+/// A walk over the slices of observations grouped by `work.slice` that holds no borrow: each
+/// step is given the observations afresh, so the caller may change (tag, reorder) the slice it
+/// was just given before asking for the next.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SliceCursor {
+    at: usize,
+}
+
+impl SliceCursor {
+    /// The next slice's index range in `obs` (the same observations each step), `None` at the
+    /// end.
+    pub fn next(&mut self, obs: &[Observation]) -> Option<Range<usize>> {
+        let start = self.at;
+        let id = obs.get(start)?.work.slice;
+        let len = obs[start..]
+            .iter()
+            .take_while(|o| o.work.slice == id)
+            .count();
+        self.at = start + len;
+        Some(start..self.at)
+    }
 }

@@ -37,21 +37,34 @@ pub(super) fn weights(obs: &[&mut [Observation]], used: &[usize], s: &Settings) 
         .then(|| s.noise())
 }
 
+/// What the per-pass checks judge: the spheres, their returns (the first `used` of each kept),
+/// the solution's mounting `b` and its time offset model.
+#[derive(Clone, Copy)]
+pub(super) struct Answer<'a, 'o> {
+    pub(super) targets: &'a [Target],
+    pub(super) obs: &'a [&'o mut [Observation]],
+    pub(super) used: &'a [usize],
+    pub(super) b: &'a [f64; P],
+    pub(super) time: &'a TimeOffset,
+}
+
 /// Each pass's sphere centre (fitted, radius fixed, to its kept returns with the solution)
 /// against the surveyed one: its offset, along-track component and chi-square into `passes`;
 /// returns the worst pass as a refusal if any fails (beyond `max_pass_chi2` and
 /// `pass_offset_floor`). The uncertainty: the fit's, from the pass's residual scatter (at least
 /// 1 mm), inflated by the returns per 20 ms cluster (they share INS errors).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn consistency(
-    targets: &[Target],
-    obs: &[&mut [Observation]],
-    used: &[usize],
-    b: &[f64; P],
-    time: &TimeOffset,
+    at: &Answer<'_, '_>,
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
+    let Answer {
+        targets,
+        obs,
+        used,
+        b,
+        time,
+    } = *at;
     let mount = Mount::from_params(&Params(*b));
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {
@@ -123,14 +136,17 @@ pub(super) fn consistency(
 /// the pass furthest off as a refusal when it is off by more than `held_dt_sigmas` sigmas and
 /// `held_dt_floor` seconds: a clock that steps or drifts moves some passes and not others.
 pub(super) fn pass_clocks(
-    targets: &[Target],
-    obs: &[&mut [Observation]],
-    used: &[usize],
-    b: &[f64; P],
-    time: &TimeOffset,
+    at: &Answer<'_, '_>,
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
+    let Answer {
+        targets,
+        obs,
+        used,
+        b,
+        time,
+    } = *at;
     let lin = super::super::objective::Linearised::at(b);
     let first = passes.iter().map(|p| p.start.0).min().unwrap_or(0);
     let mut worst: Option<(f64, Refusal)> = None;
@@ -304,8 +320,15 @@ pub(super) fn checks(
     let (b, time, dt) = (sol.b.0, sol.time(), sol.dt);
     let predicted = predicted_rms(obs, used, s);
     sol.predicted_rms = predicted;
-    let worst = consistency(targets, obs, used, &b, &time, s, &mut sol.passes);
-    let clock = pass_clocks(targets, obs, used, &b, &time, s, &mut sol.passes);
+    let at = Answer {
+        targets,
+        obs,
+        used,
+        b: &b,
+        time: &time,
+    };
+    let worst = consistency(&at, s, &mut sol.passes);
+    let clock = pass_clocks(&at, s, &mut sol.passes);
     let contradicted = sol.dt_free.filter(|&(f, sg)| {
         let d = (f - dt).abs();
         d > s.held_dt_floor && d > s.held_dt_sigmas * sg

@@ -5,7 +5,7 @@ use super::checks::weights;
 use super::outcome::{PassReport, Solution};
 use super::passes::pass_of;
 use super::rounds::{Data, Rounds};
-use super::{extract_sphere, partition, with_problem};
+use super::{partition, with_problem};
 use crate::align::window::{Observation, MAX_TARGETS};
 use crate::calib::extract::{Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
@@ -40,19 +40,24 @@ impl Rounds {
                 let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
                 &mut passes[a..b]
             };
-            let (_, sl, det) = extract_sphere(
-                v,
-                &targets[j],
+            let how = extract::Extraction {
                 tau,
-                Some(self.prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
-                true,
-                ws.grid,
-                ws.keys,
-                &dirs,
-                &s.extract,
-                &s.noise(),
-                Some(&mut *mine),
-            );
+                prior: Some(self.prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
+                surveyed: true,
+                dirs: &dirs,
+                settings: &s.extract,
+                noise: &s.noise(),
+            };
+            let (_, sl, det) =
+                extract::extract_sphere(v, &targets[j], &how, ws.grid, ws.keys, |t0, d| {
+                    if let Some(p) = pass_of(mine, t0) {
+                        p.slices += 1;
+                        if let Some(d) = d {
+                            p.detected += 1;
+                            p.mean_inliers += d.inliers as f32;
+                        }
+                    }
+                });
             self.counts[j] = (sl, det);
             // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
             let kept = v

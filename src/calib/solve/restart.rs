@@ -11,7 +11,7 @@
 
 use super::outcome::{PassReport, Refusal, Round, SecondStart, Solution, Termination};
 use super::rounds::{run_rounds, Data, Rounds};
-use super::{compact, reach, time_order};
+use super::{reach, time_order};
 use crate::align::window::MAX_TARGETS;
 use crate::calib::solve::rounds::Observe;
 use crate::calib::{extract, Params};
@@ -94,7 +94,7 @@ pub(super) fn second_start(
         let v = &mut d.obs[j][..w];
         extract::georeference(v, t, &mount, &r.time);
         r.active[j] = match r.prior {
-            Some(p) => compact(v, t.radius, reach(p, r.tau)),
+            Some(p) => extract::compact(v, t.radius, reach(p, r.tau)),
             None => w,
         };
     }

@@ -7,8 +7,8 @@ use super::checks::weights;
 use super::outcome::{PassReport, Refusal, Round, Solution, Termination};
 use super::settings::Settings;
 use super::{
-    apparent_offsets, compact, extract_sphere, fingerprint, gather, reach, split_ranges,
-    time_order, with_problem, Histogram, Workspace,
+    apparent_offsets, fingerprint, gather, reach, split_ranges, time_order, with_problem,
+    Histogram, Workspace,
 };
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
@@ -277,13 +277,8 @@ impl Rounds {
             extract::georeference(v, &targets[j], &mount, &self.time);
             extract::tag(v, ReturnClass::Undetected);
             let (mut slices, mut detected) = (0, 0);
-            let mut start = 0;
-            loop {
-                let Some(sl) = extract::slices(&v[start..]).next() else {
-                    break;
-                };
-                let sl = start + sl.start..start + sl.end;
-                start = sl.end;
+            let mut cursor = extract::SliceCursor::default();
+            while let Some(sl) = cursor.next(v) {
                 slices += 1;
                 let slice = &v[sl.clone()];
                 extract::detect_all(
@@ -355,13 +350,8 @@ impl Rounds {
         let mut k = 0;
         for j in 0..n {
             let v = &mut obs[j][..self.active[j]];
-            let mut start = 0;
-            loop {
-                let Some(sl) = extract::slices(&v[start..]).next() else {
-                    break;
-                };
-                let sl = start + sl.start..start + sl.end;
-                start = sl.end;
+            let mut cursor = extract::SliceCursor::default();
+            while let Some(sl) = cursor.next(v) {
                 let id = v[sl.start + sl.len() / 2].work.slice;
                 while k < nc
                     && (usize::from(cands[k].sphere) < j
@@ -411,22 +401,19 @@ impl Rounds {
             if let Some(p) = self.prior {
                 // Returns far from the sphere (a few prior radii beyond its surface, at least
                 // half a metre) cannot become its returns any more: they leave the rounds.
-                self.active[j] = compact(v, targets[j].radius, reach(p, self.tau));
+                self.active[j] = extract::compact(v, targets[j].radius, reach(p, self.tau));
             }
             let v = &mut obs[j][..self.active[j]];
-            let (k, sl, det) = extract_sphere(
-                v,
-                &targets[j],
-                self.tau,
-                self.prior,
-                false,
-                ws.grid,
-                ws.keys,
-                &dirs,
-                &s.extract,
-                &s.noise(),
-                None,
-            );
+            let how = extract::Extraction {
+                tau: self.tau,
+                prior: self.prior,
+                surveyed: false,
+                dirs: &dirs,
+                settings: &s.extract,
+                noise: &s.noise(),
+            };
+            let (k, sl, det) =
+                extract::extract_sphere(v, &targets[j], &how, ws.grid, ws.keys, |_, _| {});
             self.counts[j] = (sl, det);
             kept[j] = k;
         }
