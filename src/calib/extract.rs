@@ -2,8 +2,8 @@
 //! returns off the deck, the quay wall, the stand, people and parked vehicles. By step: scan
 //! lines and slices (`scan`), Hough votes on the centre (`vote`), scoring a candidate
 //! (`score`), one slice's detection and the returns kept (`detect`), what meets the sphere
-//! (`attach`), the ground it rests on along the sweeps (`ground`). The method:
-//! docs/extraction.md, section 2.
+//! (`attach`), the ground it rests on along the sweeps (`ground`), one sphere's slices in
+//! turn (`sphere`). The method: docs/extraction.md, section 2.
 
 use super::objective::TimeOffset;
 use crate::align::window::{Observation, Target};
