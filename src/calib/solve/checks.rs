@@ -59,13 +59,9 @@ pub(super) fn consistency(
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
     let Answer {
-        targets,
-        obs,
-        used,
-        b,
-        time,
+        targets, obs, used, ..
     } = *at;
-    let mount = Mount::from_params(&Params(*b));
+    let mount = Mount::from_params(&Params(*at.b));
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {
         let j = usize::from(p.sphere);
@@ -75,7 +71,7 @@ pub(super) fn consistency(
         let kept = v[..used[j]]
             .iter()
             .filter(|o| o.time >= p.start && o.time <= p.end);
-        let Some(fit) = fit_with_covariance(kept.clone(), &mount, time, t) else {
+        let Some(fit) = fit_with_covariance(kept.clone(), &mount, at.time, t) else {
             continue;
         };
         let (d, jtj, rms, n) = fit;

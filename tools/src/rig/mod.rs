@@ -193,40 +193,31 @@ fn wind_down(
     sh: &Shared<'_>,
     started: Instant,
 ) -> Result<Ended, crate::Error> {
-    let Workers {
-        data,
-        pos,
-        ins,
-        logger,
-        syncer,
-        solver,
-        status,
-    } = w;
     // The position reader may still hold items; the INS reader ends with its End.
     let mut panicked = Vec::new();
-    let skips_pos = joined(pos, "position reader", &mut panicked);
+    let skips_pos = joined(w.pos, "position reader", &mut panicked);
     while let Some(p) = pos_c.dequeue() {
         if let LidarPacket::Position(p) = p.packet() {
             al.position(&p);
         }
     }
     al.drain_until_end(ins_c);
-    let skips_data = joined(data, "data reader", &mut panicked);
-    let ins = ins.map(|h| joined(h, "INS reader", &mut panicked));
-    let logged = joined(logger, "logger", &mut panicked);
-    joined(syncer, "log syncer", &mut panicked);
+    let skips_data = joined(w.data, "data reader", &mut panicked);
+    let ins = w.ins.map(|h| joined(h, "INS reader", &mut panicked));
+    let logged = joined(w.logger, "logger", &mut panicked);
+    joined(w.syncer, "log syncer", &mut panicked);
     let ended = Ended {
         skips: [skips_data, skips_pos],
         ins: ins.unwrap_or_default(),
         logged,
-        calibration: joined(solver, "solver", &mut panicked),
+        calibration: joined(w.solver, "solver", &mut panicked),
         align: al.core.stats,
         clock: al.clock_state(),
     };
     // The last line, with the final counts and calibration.
     sh.aligned
         .store(al.core.stats.data_packets, Ordering::Relaxed);
-    match status.join() {
+    match w.status.join() {
         Ok(c) => {
             let mut last = [u64::MAX; 2];
             if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {

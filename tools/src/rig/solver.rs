@@ -60,7 +60,7 @@ impl<'a> SolverPlan<'a> {
 }
 
 /// The live calibration: the session, the start and the live planner, solved on demand.
-struct Live<'p, 's> {
+struct LiveSolve<'p, 's> {
     plan: &'p SolverPlan<'p>,
     sh: &'p Shared<'s>,
     session: crate::session::Session,
@@ -71,7 +71,7 @@ struct Live<'p, 's> {
     goal: crate::config::goal::Goal,
 }
 
-impl<'p, 's> Live<'p, 's> {
+impl<'p, 's> LiveSolve<'p, 's> {
     /// The session with the same settings, workspace and offset rule as `calibrate`.
     fn new(plan: &'p SolverPlan<'p>, sh: &'p Shared<'s>) -> Self {
         let session = crate::session::Session::new(
@@ -216,7 +216,7 @@ pub(super) fn solver(
     sh: &Shared<'_>,
 ) -> Option<Report> {
     let n = plan.targets.len();
-    let mut live = Live::new(plan, sh);
+    let mut live = LiveSolve::new(plan, sh);
     let mut last_total = 0usize;
     let mut excluding = false;
     let mut last_solve: Option<Instant> = None;
