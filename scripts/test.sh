@@ -107,7 +107,7 @@ side_jobs() {
     pin=(taskset -c "$(($(nproc) - 1))")
   fi
   export CARGO_BUILD_JOBS=1 CARGO_TARGET_DIR="$SIDE_TARGET"
-  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage); $(declare -p work THUMB SIDE_TARGET); checks && fuzz_stage"
+  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage); $(declare -p work THUMB SIDE_TARGET); checks && fuzz_stage && say 'side job finished'"
 }
 
 say "format"

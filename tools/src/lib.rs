@@ -19,7 +19,6 @@ pub mod pipeline;
 pub mod plan;
 pub mod plot;
 pub mod progress;
-pub mod radius;
 pub mod reasons;
 pub mod replay;
 pub mod report;

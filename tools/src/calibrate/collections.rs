@@ -12,7 +12,6 @@ use crate::reasons::{empty_windows, refusal_text_clock};
 use crate::report::{Report, SearchCandidate};
 use crate::session::{settings_for, settings_under, Session};
 use spherecal::align::window::{Observation, Target};
-use spherecal::calib::extract::ExtractSettings;
 use spherecal::calib::solve::{Refusal, Solution};
 use spherecal::calib::Params;
 use spherecal::calib::Settings;
@@ -29,8 +28,6 @@ pub(super) struct Collections<'a> {
     base: Settings,
     /// The session, made at the first collection under the navigation model chosen then.
     session: Option<Session>,
-    /// The extraction's settings, for the radii's search on a refusal (the session's own).
-    pub(super) extract: ExtractSettings,
     /// The SBET's accuracy file.
     accuracy: Option<Accuracy>,
     /// What the accuracy file gave the returns, for the report.
@@ -85,7 +82,6 @@ impl<'a> Collections<'a> {
             clock,
             base: settings,
             session: None,
-            extract: settings.extract,
             accuracy,
             used_accuracy: None,
             kind,
@@ -210,7 +206,9 @@ impl<'a> Collections<'a> {
                 sol.dt,
                 sol.lm.is_some_and(|l| l.converged),
             );
-            let Some(next) = next.filter(|_| collections < 5) else {
+            // A radius the returns do not show: no offset mends it.
+            let radius = self.session.as_ref().is_some_and(Session::radius_named);
+            let Some(next) = next.filter(|_| collections < 5 && !radius) else {
                 // At the last collection still moving: not settled.
                 let why = next.and_then(|_| unsettled_offset(&found));
                 return Ok((first, why));

@@ -144,12 +144,6 @@ pub fn calibrate(
         rep.converged = false;
         rep.reason = Some(why);
     }
-    // A refusal: the radii first, a wrong one is the cause of whatever else went wrong (a
-    // claim passed the passes' consistency, which a wrong radius fails: seen from two sides,
-    // a sphere's centre moves by twice the error).
-    if !rep.converged {
-        crate::radius::name_first(&mut rep, &obs, targets, ids, &c.inp.mount, &c.extract);
-    }
     c.spinner.finish_and_clear();
     rep.time_offset_search = searched;
     rep.start.insert("time_offset".to_string(), start);

@@ -182,8 +182,8 @@ pub struct PerSphere {
     /// before keeping returns: the report's reason says why).
     #[serde(default)]
     pub lost: Option<String>,
-    /// On a refusal, the radius its returns show (`crate::radius`; null: not looked for, or
-    /// no slice showed a sphere) [m].
+    /// On a refusal, the radius its returns show (`crate::session::radius`; null: not looked
+    /// for, or no slice showed a sphere) [m].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub apparent_radius_m: Option<f64>,
 }

@@ -3,6 +3,7 @@
 //! solver's settings (built here only), the core's workspace kept between solves, the store of
 //! windowed returns with the time offset it was aligned at, and one claim rule.
 
+pub mod radius;
 pub mod scratch;
 
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
@@ -154,6 +155,8 @@ pub struct Session {
     /// (`--exclude`), or set aside by a solve ([`Session::solve`]); every later collection and
     /// batch leaves them out too.
     excluded: Vec<((i64, i64), usize, String)>,
+    /// The last solve was refused naming a radius the returns do not show.
+    radius_named: bool,
 }
 
 impl Session {
@@ -176,7 +179,14 @@ impl Session {
             capacity: usize::MAX,
             nav_source: nav_source.into(),
             excluded: Vec::new(),
+            radius_named: false,
         }
+    }
+
+    /// The last solve was refused naming a sphere's radius (a site's slip: collecting again at
+    /// another time offset cannot mend it).
+    pub fn radius_named(&self) -> bool {
+        self.radius_named
     }
 
     /// Leave out the returns within these spans [GPS ns] (`--exclude`), from the store and from
@@ -290,11 +300,26 @@ impl Session {
             &mut self.scratch,
             watch,
         );
-        if let Some(found) = self.set_aside(b0, &s, &sol) {
-            (sol, rep) = (found.0, found.1);
-            let sp = found.2;
-            let span = ((sp.from_gps_s * 1e9) as i64, (sp.to_gps_s * 1e9) as i64);
-            self.excluded.push((span, sp.returns, sp.why));
+        // A refusal: the radii first. A wrong one is the cause of whatever else went wrong (a
+        // claim passed the passes' consistency, which a wrong radius fails: seen from two
+        // sides, a sphere's centre moves by twice the error), and no stretch set aside helps.
+        self.radius_named = false;
+        if !rep.converged {
+            let mount = spherecal::georef::Mount::from_params(b0);
+            let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
+            let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);
+            if radius::disagreement(&radii, &self.targets, &self.ids).is_none() {
+                if let Some(found) = self.set_aside(b0, &s, &sol) {
+                    (sol, rep) = (found.0, found.1);
+                    let sp = found.2;
+                    let span = ((sp.from_gps_s * 1e9) as i64, (sp.to_gps_s * 1e9) as i64);
+                    self.excluded.push((span, sp.returns, sp.why));
+                }
+            }
+            if !rep.converged {
+                let (targets, ids) = (&self.targets, &self.ids);
+                self.radius_named = radius::name_first(&mut rep, &radii, targets, ids);
+            }
         }
         rep.set_aside = self
             .excluded

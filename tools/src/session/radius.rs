@@ -2,12 +2,15 @@
 //! windowed returns searched for a sphere at radii from a quarter to four times the site's
 //! ([`spherecal::calib::extract::detections_at_radii`], the rounds' own detection), the radius
 //! detected in most slices against the site's. A diameter typed as the radius, or feet read as
-//! metres, is named before any other cause.
+//! metres, is named before any other cause, and no stretch of the survey is set aside for it
+//! (a wrong radius refuses every stretch).
 
 use serde::{Deserialize, Serialize};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::extract::{detections_at_radii, ExtractSettings};
 use spherecal::georef::Mount;
+
+use super::scratch::Scratch;
 
 /// The radii tried, as factors of the site's: the slips a site file suffers (a diameter: 2 or
 /// 0.5; feet and metres: 3.2808 or 0.3048) and a geometric grid between (steps of ~25 %).
@@ -46,24 +49,23 @@ impl ApparentRadius {
 }
 
 /// Each sphere's apparent radius from its windowed returns `obs` georeferenced with `mount`
-/// (None: detected at no radius).
+/// (None: detected at no radius), on the detection's buffers of `scratch`.
 pub fn apparent(
     obs: &[Vec<Observation>],
     targets: &[Target],
     mount: &Mount,
     st: &ExtractSettings,
+    scratch: &mut Scratch,
 ) -> Vec<Option<ApparentRadius>> {
-    let mut grid = vec![0u16; crate::session::scratch::GRID_CELLS];
-    let mut keys = vec![(0.0f32, 0u32); crate::session::scratch::SLICE_CAPACITY];
+    let w = scratch.workspace();
+    let (grid, keys) = (w.grid, w.keys);
     obs.iter()
         .zip(targets)
         .map(|(v, t)| {
             let mut v = v.clone();
             let radii = FACTORS.map(|f| f * t.radius);
             let mut n = [0u32; FACTORS.len()];
-            detections_at_radii(
-                &mut v, t, mount, st, &mut keys, &mut grid, &radii, MAX_SLICES, &mut n,
-            );
+            detections_at_radii(&mut v, t, mount, st, keys, grid, &radii, MAX_SLICES, &mut n);
             let most = *n.iter().max()?;
             // The peak's centre: the radii detected in at least 70 % of the most slices,
             // averaged in log weighted by their slices (the detection accepts a sphere a
@@ -126,23 +128,22 @@ pub fn disagreement(
 }
 
 /// On a refusal: each sphere's apparent radius into `rep.per_sphere`, and a radius the returns
-/// do not show named before the refusal's own reason.
+/// do not show named before the refusal's own reason; whether one was.
 pub fn name_first(
     rep: &mut crate::report::Report,
-    obs: &[Vec<Observation>],
+    radii: &[Option<ApparentRadius>],
     targets: &[Target],
     ids: &[String],
-    mount: &Mount,
-    st: &ExtractSettings,
-) {
-    let radii = apparent(obs, targets, mount, st);
-    for (p, a) in rep.per_sphere.iter_mut().zip(&radii) {
+) -> bool {
+    for (p, a) in rep.per_sphere.iter_mut().zip(radii) {
         p.apparent_radius_m = a.map(|a| a.radius_m);
     }
-    if let Some(why) = disagreement(&radii, targets, ids) {
-        rep.reason = Some(match rep.reason.take() {
-            Some(r) => format!("{why}; so: {r}"),
-            None => why,
-        });
-    }
+    let Some(why) = disagreement(radii, targets, ids) else {
+        return false;
+    };
+    rep.reason = Some(match rep.reason.take() {
+        Some(r) => format!("{why}; so: {r}"),
+        None => why,
+    });
+    true
 }
