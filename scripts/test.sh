@@ -99,6 +99,28 @@ checks() {
   fi
 }
 
+# A process and its descendants, each pid on a line.
+descendants() {
+  echo "$1"
+  local c
+  for c in $(ps -o pid= --ppid "$1" 2>/dev/null); do
+    descendants "$c"
+  done
+}
+
+# Let a process tree (the rest of the tests, started on the last CPU) run on every CPU: twice,
+# for the processes started meanwhile by one not yet moved.
+widen() {
+  command -v taskset >/dev/null 2>&1 || return 0
+  local all="0-$(($(nproc) - 1))" p
+  for _ in 1 2; do
+    for p in $(descendants "$1"); do
+      taskset -a -p -c "$all" "$p" >/dev/null 2>&1 || true
+    done
+    sleep 0.2
+  done
+}
+
 # One core's work beside the rig tests: the checks and the fuzzing, one job at a time, at
 # nice 19, on the last CPU only (taskset) so that a core stays free for the rig.
 side_jobs() {
@@ -114,9 +136,9 @@ say "format"
 cargo fmt --all -- --check
 
 # The rig tests replay surveys in real time; measured here, they stall (INS silences through
-# the pseudo-terminal) when both cores are busy, so they run first, one at a time, beside one
-# single-threaded job on the other core (clippy, the bare-metal builds, the fuzzing). Then the
-# rest, at full width, while the side job finishes.
+# the pseudo-terminal) when both cores are busy, so they run first, one at a time, with a core
+# to themselves: beside them, on the last CPU only, the side job (clippy, the bare-metal builds,
+# the fuzzing), then the rest of the tests; those widen to every CPU when the rig tests end.
 RIG='(binary(e2e) & test(/^rig::/)) | test(rig_steady_state)'
 if [ "$RUNNER" = "cargo test --workspace" ]; then
   checks
@@ -135,11 +157,28 @@ else
   say "doc tests (nextest does not run them)"
   cargo test --workspace --doc -q
   say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
+  $RUNNER -E "$RIG" &
+  rig_pid=$!
+  # The last CPU is the side job's until it ends (measured: ~390 s in, the rig tests ~565 s):
+  # then the rest of the tests start there (their output follows the rig tests').
+  while kill -0 "$rig_pid" 2>/dev/null && kill -0 "$side_pid" 2>/dev/null; do
+    sleep 1
+  done
+  rest_pin=()
+  if kill -0 "$rig_pid" 2>/dev/null && command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
+    rest_pin=(taskset -c "$(($(nproc) - 1))")
+  fi
+  say "tests: the rest start (on the last CPU while the rig tests run)"
+  "${rest_pin[@]}" $RUNNER -E "not ($RIG)" >"$work/rest.out" 2>&1 &
+  rest_pid=$!
   rig_rc=0
-  $RUNNER -E "$RIG" || rig_rc=$?
-  say "tests: the rest"
+  wait "$rig_pid" || rig_rc=$?
+  say "tests: the rig tests ended; the rest widen to every CPU"
+  widen "$rest_pid"
   rest_rc=0
-  $RUNNER -E "not ($RIG)" || rest_rc=$?
+  wait "$rest_pid" || rest_rc=$?
+  say "tests: the rest ended"
+  cat "$work/rest.out"
   side_rc=0
   wait "$side_pid" || side_rc=$?
   say "clippy, the bare-metal builds and the fuzzing (run beside the tests)"

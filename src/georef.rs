@@ -55,12 +55,17 @@ impl Mount {
 /// heading [rad] and lever arm x, y, z [m]. People read and write them in degrees ([`DegM`]);
 /// the two types keep the units apart.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Params(pub [f64; 6]);
+pub struct Params(pub [f64; P]);
+
+/// Number of parameters.
+pub const P: usize = 6;
+/// Parameter names, in order.
+pub const NAMES: [&str; P] = ["roll", "pitch", "heading", "x", "y", "z"];
 
 /// The same six in the units of the command line, the TOML files and the reports: roll,
 /// pitch, heading [deg], x, y, z [m].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct DegM(pub [f64; 6]);
+pub struct DegM(pub [f64; P]);
 
 impl Params {
     /// In degrees and metres.

@@ -14,9 +14,8 @@
 //! candidates: if it explains nearly as much, the sphere is ambiguous and named.
 
 use super::objective::{rotation_and_derivatives, TimeOffset};
-use super::P;
 use crate::align::window::{Observation, Target, MAX_TARGETS};
-use crate::georef::{Mount, Params};
+use crate::georef::{Mount, Params, P};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// 6x6.

@@ -27,7 +27,7 @@
 //! turn rate.
 
 use super::objective::{Problem, P7};
-use super::P;
+use crate::georef::P;
 use nalgebra::{Cholesky, SMatrix, SVector, SymmetricEigen};
 
 /// 6x6.

@@ -21,11 +21,5 @@ pub mod predict;
 pub mod solve;
 pub mod sphere_fit;
 
-pub use crate::georef::{DegM, Params};
 pub use objective::Problem;
 pub use solve::{solve, Refusal, Settings, Solution, Termination};
-
-/// Number of parameters.
-pub const P: usize = 6;
-/// Parameter names, in order.
-pub const NAMES: [&str; P] = ["roll", "pitch", "heading", "x", "y", "z"];

@@ -4,9 +4,9 @@
 //! `x_k - c_j = u_k + R_k a + R_k R_li q_k` with `u_k = P_k - c_j`. `R_li` is built once per
 //! evaluation (six trig calls); each observation then costs two 3x3 products and a square root.
 
-use super::P;
 use crate::align::window::{Observation, Target};
 use crate::frames::rotation;
+use crate::georef::P;
 use nalgebra::{Matrix3, Vector3};
 
 /// One sphere's observations and its surveyed target.

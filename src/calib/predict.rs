@@ -23,8 +23,8 @@
 
 use super::lm::{conditioning, row_q, Clock, MatQ, DRIFT, Q};
 use super::objective::{Linearised, P7};
-use super::P;
 use crate::align::window::{Observation, Target};
+use crate::georef::P;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The residual's sensitivity to one INS sample's errors: Q x 6 (position N, E, D; roll,

@@ -8,14 +8,14 @@ use super::consensus::{Bounds, Candidate};
 use super::extract::{self, ExtractSettings, ReturnClass};
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
-use super::{Params, P};
 use crate::align::window::{Observation, Target, MAX_TARGETS};
-use crate::georef::Mount;
+use crate::georef::{Mount, Params, P};
 use crate::time::GpsTime;
 use core::ops::Range;
 use nalgebra::Vector3;
 
 mod checks;
+mod consistency;
 mod last;
 mod outcome;
 mod passes;
@@ -26,6 +26,7 @@ mod settings;
 use checks::{checks, clock_checks, lost_reasons};
 pub use outcome::{
     Lost, PassReport, Refusal, Round, SecondStart, SetAside, Solution, SphereReport, Termination,
+    Unfinished, TERMINATIONS,
 };
 use passes::find_passes;
 pub use rounds::Observe;
@@ -343,12 +344,13 @@ fn solve_data(
         ws,
     };
     run_rounds(&mut d, &passes, &mut r, &mut sol, watch);
-    if s.second_start && r.end.is_none() && (0..n).any(|j| windowed[j] > 0 && r.kept[j] == 0) {
+    if s.second_start && r.stopped().is_none() && (0..n).any(|j| windowed[j] > 0 && r.kept[j] == 0)
+    {
         restart::second_start(&mut d, &passes, &mut r, &mut sol, b0, windowed, watch);
     }
     sol.shell = r.tau;
     sol.consensus = r.consensus;
-    if let Some(end) = r.end {
+    if let Some(end) = r.stopped() {
         // The rounds could not go on: ambiguous spheres or a mounting out of bounds.
         sol.b = Params(r.b);
         sol.dt = r.time.dt;

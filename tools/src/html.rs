@@ -6,7 +6,7 @@
 
 use crate::plot::{sphere_figures, strip_xml_header, Figures};
 use crate::report::{utc, Report};
-use spherecal::calib::{NAMES, P};
+use spherecal::georef::{NAMES, P};
 use std::fmt::Write as _;
 
 mod cover;

@@ -6,7 +6,7 @@ use crate::config::scenario::Scenario;
 use crate::pipeline::{targets, Inputs, InsInput};
 use crate::report::{McReport, Trial};
 use spherecal::calib::solve::solve_watched;
-use spherecal::calib::P;
+use spherecal::georef::P;
 use spherecal::sim::Rng;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -85,7 +85,7 @@ pub fn montecarlo(
                         break;
                     }
                     let st = starts[k];
-                    let b0 = spherecal::calib::DegM(st).params();
+                    let b0 = spherecal::georef::DegM(st).params();
                     for (w, o) in work.iter_mut().zip(&obs) {
                         w.copy_from_slice(o);
                     }

@@ -3,7 +3,11 @@
 
 use crate::pipeline::Closest;
 use spherecal::calib::solve::{Lost, Refusal};
-use spherecal::calib::NAMES;
+use spherecal::georef::NAMES;
+
+/// The words of a refusal a located stretch may explain, once every candidate stretch was set
+/// aside in turn and none left the rest clean (`crate::stretches`).
+pub const NO_STRETCH: &str = "; no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1";
 
 /// A refusal in words; `dt_estimated`: the time offset was estimated with the mounting (else
 /// held), so that a refusal does not blame an offset that was not left out.
@@ -67,11 +71,11 @@ pub fn refusal_text_clock(
             )
         }
         Refusal::Remnant { sphere, kept, rounds } => format!(
-            "sphere {}: the last extraction, around its surveyed centre, kept {kept} of the {rounds} returns the rounds kept around where the returns put it: somewhere the navigation puts the sphere elsewhere than its returns do (a GNSS outage the INS status did not show, a sphere moved); no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1",
+            "sphere {}: the last extraction, around its surveyed centre, kept {kept} of the {rounds} returns the rounds kept around where the returns put it: somewhere the navigation puts the sphere elsewhere than its returns do (a GNSS outage the INS status did not show, a sphere moved){NO_STRETCH}",
             ids.get(*sphere).map_or("?", |s| s.as_str())
         ),
         Refusal::Noisier { factor, limit } => format!(
-            "the returns scatter {factor:.1}x the white noise the noise model declares (limit {limit:.1}): somewhere the navigation errors are not the declared ones (a GNSS outage, multipath); no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1, or declare the INS's errors in the site's [ins.correlated]"
+            "the returns scatter {factor:.1}x the white noise the noise model declares (limit {limit:.1}): somewhere the navigation errors are not the declared ones (a GNSS outage, multipath){NO_STRETCH}, or declare the INS's errors in the site's [ins.correlated]"
         ),
         Refusal::Ambiguous(a) => {
             let d = (a.offset[0].powi(2) + a.offset[1].powi(2) + a.offset[2].powi(2)).sqrt();
@@ -112,7 +116,7 @@ pub fn refusal_text_clock(
         Refusal::Unsettled { lost, first, slices } => format!(
             "the detect-and-solve rounds did not settle: they lost sphere {} and ended as \"{}\" (the spheres detected in {} slices); started again from the a-priori mounting they left the bounds ({} slices): no mounting explains the spheres together. Check the a-priori values and the site; from the air, spheres resting on the ground are hard to tell from it under a wrong mounting: put them on tripods (`spherecal plan --design`)",
             ids.get(*lost).map_or("?", |s| s.as_str()),
-            first.words(),
+            first.termination().words(),
             slices[0],
             slices[1]
         ),

@@ -4,7 +4,7 @@
 
 use crate::calibrate::ClockOptions;
 use crate::{calibrate, config, georef, html, output, pipeline, plot, report};
-use spherecal::calib::DegM;
+use spherecal::georef::DegM;
 use std::path::PathBuf;
 
 /// What `spherecal calibrate` reads.
@@ -116,7 +116,7 @@ struct Written<'a> {
     ids: &'a [String],
     obs: &'a [Vec<spherecal::align::window::Observation>],
     sol: &'a spherecal::calib::Solution,
-    b0: &'a spherecal::calib::Params,
+    b0: &'a spherecal::georef::Params,
     inp: &'a pipeline::Inputs,
 }
 
@@ -244,7 +244,7 @@ pub fn run_calibrate(
             (stats, obs, sol, rep) = second;
             rep.held = weak
                 .iter()
-                .map(|&i| spherecal::calib::NAMES[i].into())
+                .map(|&i| spherecal::georef::NAMES[i].into())
                 .collect();
             inp = again;
         }

@@ -8,7 +8,8 @@
 //! and the others' sigmas carry their uncertainty. Nothing undetermined: the refusal stands.
 
 use crate::config::site::Site;
-use spherecal::calib::{Refusal, Solution, NAMES, P};
+use spherecal::calib::{Refusal, Solution};
+use spherecal::georef::{NAMES, P};
 
 /// An undetermined angle's prior when the site measured none [deg].
 pub const HOLD_DEG: f64 = 5.0;

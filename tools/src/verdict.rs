@@ -10,7 +10,7 @@ use crate::report::Report;
 use serde::{Deserialize, Serialize};
 use spherecal::align::window::Observation;
 use spherecal::calib::solve::Solution;
-use spherecal::calib::{NAMES, P};
+use spherecal::georef::{NAMES, P};
 
 /// A pass counts when it holds this many kept returns.
 pub const MIN_PASS_RETURNS: usize = 10;
@@ -162,7 +162,7 @@ pub fn predicted_sigma(
     if let Some(n) = nav_plan(targets, obs, sol, settings) {
         p.sigma = n.sigma(|_, _| true).unwrap_or([f64::INFINITY; P + 1]);
     }
-    let d = spherecal::calib::Params(core::array::from_fn(|i| p.sigma[i]))
+    let d = spherecal::georef::Params(core::array::from_fn(|i| p.sigma[i]))
         .deg_m()
         .0;
     core::array::from_fn(|i| if i < 6 { d[i] } else { p.sigma[6] })

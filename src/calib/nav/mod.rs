@@ -11,19 +11,22 @@
 //! with the rest). A parameter the data no longer pin (all centres free over flat water: the
 //! vertical lever arm) shows as a condition number no survey passes.
 
-use super::lm::{conditioning, Clock, LmResult, Mat6, MatQ, Vec6, DRIFT, Q};
-use super::objective::{NavCorrection, Problem};
-use super::P;
+use super::lm::{conditioning, Clock, LmResult, Mat6, MatQ, DRIFT, Q};
+use super::objective::Problem;
 use crate::align::window::MAX_TARGETS;
+use crate::georef::P;
 use crate::time::GpsTime;
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector};
 
 mod joint;
+mod pieces;
 mod robust;
 #[cfg(test)]
 mod tests;
 
 use joint::{iterate, Joint};
+use pieces::piece_of;
+pub use pieces::{cut, cut_for, Piece};
 
 /// The navigation errors' model: per axis a first-order Gauss-Markov process.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,137 +95,6 @@ type VecG = SVector<f64, G>;
 type MatG6 = SMatrix<f64, G, 6>;
 /// 6 x (G + 1): a piece's rows of `M^-1 [B^T | g]`.
 type Mat6G1 = SMatrix<f64, 6, { G + 1 }>;
-
-/// One piece of the time line: its span, its navigation error (the estimate) and the
-/// elimination's scratch.
-#[derive(Debug, Clone, Copy)]
-pub struct Piece {
-    /// First and last return's time.
-    pub start: GpsTime,
-    /// See `start`.
-    pub end: GpsTime,
-    /// Returns in it.
-    pub n: usize,
-    /// The estimated navigation error: N, E, D [m], rotation about N, E, D [rad].
-    pub error: [f64; 6],
-    /// Its 1 sigma (posterior) once [`refine`] returns; during the iterations the step
-    /// [`Joint::step`] last computed for it.
-    pub sigma: [f64; 6],
-    /// [`escape_steps`]' copies of `error`: the minimum found, the best other start's.
-    kept: [f64; 6],
-    best: [f64; 6],
-    d: Mat6,
-    b: MatG6,
-    g: Vec6,
-    c: Mat6,
-    y: Mat6G1,
-    /// The chain's own posterior block (of `M^-1`: the globals held), [`Joint::chain_blocks`].
-    s: Mat6,
-}
-
-impl Piece {
-    /// An empty piece.
-    pub const EMPTY: Self = Self {
-        start: GpsTime(0),
-        end: GpsTime(0),
-        n: 0,
-        error: [0.0; 6],
-        sigma: [0.0; 6],
-        kept: [0.0; 6],
-        best: [0.0; 6],
-        d: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
-        b: MatG6::from_array_storage(nalgebra::ArrayStorage([[0.0; G]; 6])),
-        g: Vec6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 1])),
-        c: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
-        y: Mat6G1::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; G + 1])),
-        s: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
-    };
-
-    /// Its span [s].
-    fn len_s(&self) -> f64 {
-        (self.end.0 - self.start.0) as f64 * 1e-9
-    }
-
-    fn mid_s(&self) -> f64 {
-        (self.start.0 as f64 + self.end.0 as f64) * 0.5e-9
-    }
-
-    /// Its error taken out of a return on a sphere whose centre moved by `centre`.
-    fn correction(&self, centre: Vector3<f64>) -> NavCorrection {
-        let e = self.error;
-        NavCorrection {
-            position: Vector3::new(e[0], e[1], e[2]),
-            rotation: Vector3::new(e[3], e[4], e[5]),
-            centre,
-        }
-    }
-}
-
-/// Cut the returns' time line into pieces of at most `len_s` (a gap over 1 s ends one too)
-/// into `out`; the number made, or `None` when more would be needed than `out` holds.
-pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
-    let len_ns = (len_s * 1e9) as i64;
-    let gap_ns = 1_000_000_000i64.min(len_ns);
-    // A k-way merge of the spheres' returns (each in time order).
-    let mut at = [0usize; MAX_TARGETS];
-    let mut m = 0usize;
-    let mut cur: Option<(i64, i64, usize)> = None;
-    loop {
-        let mut best: Option<(usize, i64)> = None;
-        for (j, s) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
-            if let Some(o) = s.obs.get(at[j]) {
-                if best.is_none_or(|(_, t)| o.time.0 < t) {
-                    best = Some((j, o.time.0));
-                }
-            }
-        }
-        let Some((j, t)) = best else { break };
-        at[j] += 1;
-        cur = match cur {
-            Some((s, e, n)) if t - s <= len_ns && t - e <= gap_ns => Some((s, t, n + 1)),
-            Some((s, e, n)) => {
-                *out.get_mut(m)? = Piece {
-                    start: GpsTime(s),
-                    end: GpsTime(e),
-                    n,
-                    ..Piece::EMPTY
-                };
-                m += 1;
-                Some((t, t, 1))
-            }
-            None => Some((t, t, 1)),
-        };
-    }
-    if let Some((s, e, n)) = cur {
-        *out.get_mut(m)? = Piece {
-            start: GpsTime(s),
-            end: GpsTime(e),
-            n,
-            ..Piece::EMPTY
-        };
-        m += 1;
-    }
-    Some(m)
-}
-
-/// Cut into at most `out.len()` pieces: `model`'s length, doubled until they fit.
-pub fn cut_for(pb: &Problem<'_>, model: &NavModel, out: &mut [Piece]) -> usize {
-    let mut len = model.piece_s();
-    for _ in 0..20 {
-        if let Some(m) = cut(pb, len, out) {
-            return m;
-        }
-        len *= 2.0;
-    }
-    0
-}
-
-/// The piece of a return at `t` (the pieces cover every return, in order).
-fn piece_of(pieces: &[Piece], t: GpsTime) -> usize {
-    pieces
-        .partition_point(|p| p.end.0 < t.0)
-        .min(pieces.len().saturating_sub(1))
-}
 
 /// What the navigation model's least squares found besides [`LmResult`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,7 +2,8 @@
 //! honesty on exact returns.
 
 use super::*;
-use crate::calib::objective::Linearised;
+use crate::calib::objective::{Linearised, NavCorrection};
+use nalgebra::Vector3;
 
 mod rows {
     use super::*;

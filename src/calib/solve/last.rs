@@ -7,12 +7,12 @@ use super::passes::pass_of;
 use super::rounds::{Data, Rounds};
 use super::{partition, with_problem};
 use crate::align::window::{Observation, MAX_TARGETS};
+use crate::calib::extract;
 use crate::calib::extract::{Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
 use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
 use crate::calib::objective::{Linearised, Problem};
-use crate::calib::{extract, Params, P};
-use crate::georef::Mount;
+use crate::georef::{Mount, Params, P};
 use crate::time::GpsTime;
 
 impl Rounds {

@@ -9,7 +9,7 @@ use crate::calib::lm::LmResult;
 use crate::calib::nav::NavFit;
 use crate::calib::nelder_mead::NmResult;
 use crate::calib::objective::TimeOffset;
-use crate::calib::{Params, P};
+use crate::georef::{Params, P};
 use crate::time::GpsTime;
 use nalgebra::Vector3;
 
@@ -183,7 +183,7 @@ pub enum Refusal {
         /// The first sphere the first start lost.
         lost: usize,
         /// How the first start's rounds ended.
-        first: Termination,
+        first: Unfinished,
         /// The slices each start's last round detected the spheres in.
         slices: [u32; 2],
     },
@@ -299,7 +299,7 @@ pub struct Round {
 }
 
 /// How the detect-and-solve rounds ended (argmin's `TerminationReason`, for these rounds).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Termination {
     /// No round ran: fewer than two spheres were given.
     #[default]
@@ -311,54 +311,86 @@ pub enum Termination {
     Cycle,
     /// A round found fewer than two spheres.
     TooFewSpheres,
-    /// The rounds could not go on: the spheres are ambiguous or the mounting left its bounds
-    /// (the refusal says which).
-    Stopped,
+    /// The rounds could not go on, for this reason: the spheres are ambiguous, the mounting
+    /// left its bounds, or neither start settled.
+    Stopped(Refusal),
     /// `Settings::max_rounds` rounds ran without settling.
     MaxRounds,
 }
 
-impl Termination {
-    /// Every way the rounds end.
-    pub const ALL: [Termination; 6] = [
-        Termination::NotStarted,
-        Termination::Settled,
-        Termination::Cycle,
-        Termination::TooFewSpheres,
-        Termination::Stopped,
-        Termination::MaxRounds,
-    ];
+/// Every way the rounds end, in [`Termination`]'s order: its stable name (the report's
+/// `termination` key) and its words.
+pub const TERMINATIONS: [(&str, &str); 6] = [
+    ("not_started", "no round ran (fewer than two spheres given)"),
+    ("settled", "the kept returns and the mounting settled"),
+    (
+        "cycle",
+        "the kept returns went round a cycle (returns at the shell's edge in and out)",
+    ),
+    ("too_few_spheres", "a round found fewer than two spheres"),
+    (
+        "stopped",
+        "the rounds could not go on (ambiguous spheres or a mounting out of bounds)",
+    ),
+    (
+        "max_rounds",
+        "the rounds reached their limit without settling",
+    ),
+];
 
-    /// The one with this [`Termination::name`] (a report's `termination`).
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|t| t.name() == name)
+impl Termination {
+    /// Its row of [`TERMINATIONS`].
+    fn index(self) -> usize {
+        match self {
+            Termination::NotStarted => 0,
+            Termination::Settled => 1,
+            Termination::Cycle => 2,
+            Termination::TooFewSpheres => 3,
+            Termination::Stopped(_) => 4,
+            Termination::MaxRounds => 5,
+        }
     }
 
     /// A stable name (the report's `termination` key).
     pub fn name(self) -> &'static str {
-        match self {
-            Termination::NotStarted => "not_started",
-            Termination::Settled => "settled",
-            Termination::Cycle => "cycle",
-            Termination::TooFewSpheres => "too_few_spheres",
-            Termination::Stopped => "stopped",
-            Termination::MaxRounds => "max_rounds",
-        }
+        TERMINATIONS[self.index()].0
     }
 
     /// In words.
     pub fn words(self) -> &'static str {
+        TERMINATIONS[self.index()].1
+    }
+
+    /// The words of the termination named `name` (a report's `termination`).
+    pub fn words_of(name: &str) -> Option<&'static str> {
+        TERMINATIONS.iter().find(|t| t.0 == name).map(|t| t.1)
+    }
+
+    /// Why the rounds could not go on, when they were stopped.
+    pub fn refusal(self) -> Option<Refusal> {
         match self {
-            Termination::NotStarted => "no round ran (fewer than two spheres given)",
-            Termination::Settled => "the kept returns and the mounting settled",
-            Termination::Cycle => {
-                "the kept returns went round a cycle (returns at the shell's edge in and out)"
-            }
-            Termination::TooFewSpheres => "a round found fewer than two spheres",
-            Termination::Stopped => {
-                "the rounds could not go on (ambiguous spheres or a mounting out of bounds)"
-            }
-            Termination::MaxRounds => "the rounds reached their limit without settling",
+            Termination::Stopped(r) => Some(r),
+            _ => None,
+        }
+    }
+}
+
+/// How a start's rounds ended without settling and without being stopped (the first start of
+/// a [`Refusal::Unsettled`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unfinished {
+    /// A round found fewer than two spheres.
+    TooFewSpheres,
+    /// The rounds reached their limit.
+    MaxRounds,
+}
+
+impl Unfinished {
+    /// The termination it is.
+    pub fn termination(self) -> Termination {
+        match self {
+            Unfinished::TooFewSpheres => Termination::TooFewSpheres,
+            Unfinished::MaxRounds => Termination::MaxRounds,
         }
     }
 }
@@ -499,8 +531,7 @@ mod tests {
     /// The names are the report's contract: distinct, stable, and each has words.
     #[test]
     fn termination_names_are_distinct_and_said() {
-        let all = T::ALL;
-        let names: Vec<&str> = all.iter().map(|t| t.name()).collect();
+        let names: Vec<&str> = super::TERMINATIONS.iter().map(|t| t.0).collect();
         assert_eq!(
             names,
             [
@@ -512,12 +543,27 @@ mod tests {
                 "max_rounds"
             ]
         );
+        let stopped = T::Stopped(super::Refusal::TooFewTargets { given: 1 });
+        let all = [
+            T::NotStarted,
+            T::Settled,
+            T::Cycle,
+            T::TooFewSpheres,
+            stopped,
+            T::MaxRounds,
+        ];
         for (i, a) in all.iter().enumerate() {
+            assert_eq!(a.name(), names[i]);
             assert!(!a.words().is_empty());
             assert!(all[i + 1..].iter().all(|b| b.words() != a.words()));
+            assert_eq!(T::words_of(a.name()), Some(a.words()));
         }
         assert_eq!(T::default(), T::NotStarted);
-        assert!(all.iter().all(|t| T::from_name(t.name()) == Some(*t)));
-        assert_eq!(T::from_name("converged"), None);
+        assert_eq!(T::words_of("converged"), None);
+        assert_eq!(
+            stopped.refusal(),
+            Some(super::Refusal::TooFewTargets { given: 1 })
+        );
+        assert_eq!(T::Settled.refusal(), None);
     }
 }

@@ -9,13 +9,13 @@
 //! widest shell, three times it as the prior); the start whose last round detects the spheres
 //! in more slices is the answer's.
 
-use super::outcome::{PassReport, Refusal, Round, SecondStart, Solution, Termination};
+use super::outcome::{PassReport, Refusal, Round, SecondStart, Solution, Termination, Unfinished};
 use super::rounds::{run_rounds, Data, Rounds};
 use super::{reach, time_order};
 use crate::align::window::MAX_TARGETS;
+use crate::calib::extract;
 use crate::calib::solve::rounds::Observe;
-use crate::calib::{extract, Params};
-use crate::georef::Mount;
+use crate::georef::{Mount, Params};
 
 /// The second start's rounds are taken when they detect the spheres in at least this share
 /// of the first start's slices (and find as many spheres).
@@ -61,8 +61,9 @@ pub(super) fn second_start(
     let slices = |r: &Rounds| r.counts[..n].iter().map(|c| c.1).sum::<u32>();
     let found = |r: &Rounds| r.kept[..n].iter().filter(|&&k| k > 0).count();
     let (first, second) = (slices(r), slices(&again));
-    let taken =
-        again.end.is_none() && second * BETTER.1 >= first * BETTER.0 && found(&again) >= found(r);
+    let taken = again.stopped().is_none()
+        && second * BETTER.1 >= first * BETTER.0
+        && found(&again) >= found(r);
     sol.second_start = Some(SecondStart {
         first,
         second,
@@ -72,15 +73,20 @@ pub(super) fn second_start(
     if taken {
         *r = again;
         sol.termination = log.termination;
-    } else if again.end.is_some() && !first_settled {
+    } else if again.stopped().is_some() && !first_settled {
         // Neither start settled: nothing confirms the first start's mounting.
-        r.end = Some(Refusal::Unsettled {
+        // (Not settled and not stopped: a round found fewer than two spheres, or the limit.)
+        let first_end = match sol.termination {
+            Termination::TooFewSpheres => Unfinished::TooFewSpheres,
+            _ => Unfinished::MaxRounds,
+        };
+        r.ended = Some(Termination::Stopped(Refusal::Unsettled {
             lost: (0..n)
                 .find(|&j| windowed[j] > 0 && r.kept[j] == 0)
                 .unwrap_or(0),
-            first: sol.termination,
+            first: first_end,
             slices: [first, second],
-        });
+        }));
     }
     watch.ended(sol.termination, sol.rounds);
     if taken {

@@ -12,13 +12,12 @@ use super::{
 };
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
+use crate::calib::extract;
 use crate::calib::extract::{Directions, ReturnClass};
 use crate::calib::lm::refine;
 use crate::calib::nelder_mead::{minimize, NmResult};
 use crate::calib::objective::TimeOffset;
-use crate::calib::{extract, DegM};
-use crate::calib::{Params, P};
-use crate::georef::Mount;
+use crate::georef::{DegM, Mount, Params, P};
 use crate::time::GpsTime;
 
 /// What a solve tells whoever watches it (argmin's `Observe`): every round as it ends and how
@@ -59,8 +58,6 @@ pub(super) struct Rounds {
     pub(super) bounds: Bounds,
     /// The first round's consensus.
     pub(super) consensus: Option<Consensus>,
-    /// Why the rounds could not go on (the solution is refused).
-    pub(super) end: Option<Refusal>,
     /// Rounds run so far.
     pub(super) round: usize,
     /// Nelder-Mead's work over the rounds from afar.
@@ -69,8 +66,9 @@ pub(super) struct Rounds {
     prints: heapless::Vec<u64, 4>,
     /// The returns kept in the round before.
     last_kept: Option<usize>,
-    /// How the rounds ended, once they have.
-    ended: Option<Termination>,
+    /// How the rounds ended, once they have (stopped: why they could not go on, and the
+    /// solution is refused).
+    pub(super) ended: Option<Termination>,
     /// Each sphere's returns kept in the latest round.
     pub(super) kept: [usize; MAX_TARGETS],
 }
@@ -97,7 +95,6 @@ impl Rounds {
             counts: [(0, 0); MAX_TARGETS],
             bounds,
             consensus: None,
-            end: None,
             round: 0,
             nm: None,
             prints: heapless::Vec::new(),
@@ -105,6 +102,11 @@ impl Rounds {
             ended: None,
             kept: [0; MAX_TARGETS],
         }
+    }
+
+    /// Why the rounds could not go on, when they were stopped.
+    pub(super) fn stopped(&self) -> Option<Refusal> {
+        self.ended.and_then(Termination::refusal)
     }
 
     /// Whether the rounds are over, and how (argmin's `terminate`): a round ended them, or
@@ -127,16 +129,11 @@ impl Rounds {
         self.round += 1;
         let (b_before, dt_before) = (self.b, self.time.dt);
         let Some((total, print, next_prior, entry)) = self.one_round(d, passes) else {
-            self.ended = Some(if self.end.is_some() {
-                Termination::Stopped
-            } else {
-                Termination::TooFewSpheres
-            });
+            self.ended = self.ended.or(Some(Termination::TooFewSpheres));
             return None;
         };
         if let Some(out) = self.out_of_bounds() {
-            self.end = Some(out);
-            self.ended = Some(Termination::Stopped);
+            self.ended = Some(Termination::Stopped(out));
             return Some(entry);
         }
         let moved = Params(self.b)
@@ -341,7 +338,7 @@ impl Rounds {
         };
         self.consensus = Some(c);
         if let Some(a) = c.ambiguous {
-            self.end = Some(Refusal::Ambiguous(a));
+            self.ended = Some(Termination::Stopped(Refusal::Ambiguous(a)));
             return None;
         }
         // Keep the returns of the chosen candidates (slices and candidates are in one order).

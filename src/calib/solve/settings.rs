@@ -7,7 +7,7 @@ use crate::calib::lm::Clock;
 use crate::calib::nav::NavModel;
 use crate::calib::nelder_mead::NmSettings;
 use crate::calib::objective::Noise;
-use crate::calib::P;
+use crate::georef::P;
 
 /// Solver settings.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -3,7 +3,7 @@
 
 use crate::pipeline::{run, BatchMsg, Inputs, RunStats};
 use spherecal::align::window::{Observation, Target};
-use spherecal::calib::Params;
+use spherecal::georef::Params;
 
 /// Windowed returns a collection holds before it tries to let go of what cannot be a sphere's
 /// ([`collect_bounded`]): ~50 MB of observations.

@@ -13,8 +13,8 @@ use crate::report::{Report, SearchCandidate};
 use crate::session::{settings_for, settings_under, Session};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::solve::{Refusal, Solution};
-use spherecal::calib::Params;
 use spherecal::calib::Settings;
+use spherecal::georef::Params;
 
 /// One calibration's collections over the files of `inp`, and what the first decided.
 pub(super) struct Collections<'a> {

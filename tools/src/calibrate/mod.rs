@@ -5,7 +5,7 @@ use crate::pipeline::{targets, Inputs, RunStats};
 use crate::report::{InputsReport, Report};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::solve::Solution;
-use spherecal::calib::Params;
+use spherecal::georef::Params;
 use std::fmt::Write as _;
 
 mod collect;

@@ -114,7 +114,7 @@ pub fn run(a: Args) -> ExitCode {
         search: a.search_time_offset,
     };
     crate::output::remove_partial_on_interrupt();
-    match crate::survey::run_calibrate(survey, init.map(spherecal::calib::DegM), clock, &out, None)
+    match crate::survey::run_calibrate(survey, init.map(spherecal::georef::DegM), clock, &out, None)
     {
         Ok(c) => {
             say!("{}", c.text);

@@ -3,7 +3,7 @@
 //! refused with the key's name).
 
 use serde::{Deserialize, Serialize};
-use spherecal::calib::DegM;
+use spherecal::georef::DegM;
 
 pub mod board;
 pub mod checks;

@@ -2,8 +2,8 @@
 
 use super::crs::{Crs, SiteCrs};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::DegM;
 use spherecal::frames::{Geodetic, LocalFrame};
+use spherecal::georef::DegM;
 
 /// Site origin.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -5,7 +5,7 @@
 
 use super::{escape, num};
 use crate::report::{utc, Report};
-use spherecal::calib::{NAMES, P};
+use spherecal::georef::{NAMES, P};
 use std::fmt::Write as _;
 
 /// The cover sheet.

@@ -279,7 +279,7 @@ mod tests {
                 &mut storage,
                 &targets,
                 0.5,
-                Mount::from_params(&spherecal::calib::Params([0.0; 6])),
+                Mount::from_params(&spherecal::georef::Params([0.0; 6])),
                 18,
                 InsWait::Latency(Duration::from_millis(300)),
                 &clock,

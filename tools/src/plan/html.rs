@@ -8,7 +8,7 @@ use crate::config::scenario::Scenario;
 use crate::html::escape;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
-use spherecal::calib::{NAMES, P};
+use spherecal::georef::{NAMES, P};
 use std::fmt::Write as _;
 
 fn e<E: std::fmt::Display>(x: E) -> String {

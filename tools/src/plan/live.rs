@@ -14,7 +14,7 @@ use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::predict::{Info, Predicted};
 use spherecal::calib::solve::Solution;
-use spherecal::calib::{Params, P};
+use spherecal::georef::{Params, P};
 
 /// Another pass that improves no sigma by more than this share is not worth driving (on
 /// table1-noisy the best fifth pass gains 22 %, a sixth 16 %, a seventh 15 %, then 10 %).
@@ -286,7 +286,7 @@ impl Live {
             };
             Some(format!(
                 "the board's targets are out of reach: with four more passes the planner predicts {} sigma {} against {t} {unit} (the sensors' noise: range {} m, INS {} deg / {} m); relax [calibration] in the board",
-                spherecal::calib::NAMES[worst],
+                spherecal::georef::NAMES[worst],
                 super::sigma_text(p.sigma_deg_m[worst], worst, true).unwrap_or_else(|| "undetermined".into()),
                 self.noise.range_m,
                 self.noise.attitude_deg,
@@ -307,6 +307,6 @@ impl Live {
 
     /// The latest solution's mounting the candidates were traced with.
     pub fn traced_for(&self) -> Option<Params> {
-        self.traced_for.map(|d| spherecal::calib::DegM(d).params())
+        self.traced_for.map(|d| spherecal::georef::DegM(d).params())
     }
 }

@@ -24,7 +24,7 @@ pub use observe::{
 use crate::config::scenario::Scenario;
 use serde::{Deserialize, Serialize};
 use spherecal::calib::predict::{NoiseModel, Predicted};
-use spherecal::calib::{Params, NAMES, P};
+use spherecal::georef::{Params, NAMES, P};
 
 /// Half the span of the central differences that give each return's velocity and turn rate
 /// (the pipeline's, [`spherecal::align::history`]) [s].

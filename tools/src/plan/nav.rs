@@ -13,7 +13,7 @@ use spherecal::align::window::{Observation, Target};
 use spherecal::calib::lm::Clock;
 use spherecal::calib::nav::{cut_for, predict, NavModel, Piece};
 use spherecal::calib::objective::{Linearised, Noise, Problem, SphereObs};
-use spherecal::calib::P;
+use spherecal::georef::P;
 
 /// How far apart in time candidate passes are driven after the survey [s] (beyond a few
 /// correlation times: each brings its own navigation errors).

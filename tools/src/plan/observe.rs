@@ -75,7 +75,7 @@ impl Geometry {
         if let Some(nav) = &self.nav {
             p.sigma = nav
                 .sigma(|_, j| keep(j))
-                .unwrap_or([f64::INFINITY; spherecal::calib::P + 1]);
+                .unwrap_or([f64::INFINITY; spherecal::georef::P + 1]);
         }
         p
     }

@@ -11,7 +11,7 @@ use crate::config::goal::Goal;
 use crate::config::scenario::{PassSpec, Scenario, SphereSpec};
 use serde::{Deserialize, Serialize};
 use spherecal::calib::predict::{Info, Predicted};
-use spherecal::calib::P;
+use spherecal::georef::P;
 
 /// Most changes proposed in a row.
 pub const MAX_STEPS: usize = 4;
@@ -331,7 +331,7 @@ fn sigma_words(before: &Prediction, after: &Prediction, goal: &Goal) -> String {
     let cond = |p: &Prediction| p.condition.map_or("inf".into(), |c| format!("{c:.0}"));
     format!(
         "{} sigma {} -> {}, condition {} -> {}",
-        spherecal::calib::NAMES[i],
+        spherecal::georef::NAMES[i],
         f(before),
         f(after),
         cond(before),

@@ -8,8 +8,7 @@ use crate::report::Report;
 use plotters::prelude::*;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::solve::Solution;
-use spherecal::calib::Params;
-use spherecal::georef::Mount;
+use spherecal::georef::{Mount, Params};
 use std::path::Path;
 
 mod nav;

@@ -14,7 +14,7 @@ pub mod solved;
 
 use crate::pipeline::{Inputs, RunStats};
 use serde::{Deserialize, Serialize};
-use spherecal::calib::P;
+use spherecal::georef::P;
 use std::collections::BTreeMap;
 use std::path::Path;
 

@@ -7,7 +7,7 @@ use super::{
 use crate::reasons::{lost_name, refusal_text};
 use spherecal::calib::nav::Piece;
 use spherecal::calib::solve::{PassReport, Settings, Solution, SphereReport};
-use spherecal::calib::{Params, NAMES, P};
+use spherecal::georef::{Params, NAMES, P};
 
 impl Report {
     /// The report of `sol`, solved from `b0` with settings `s` over the spheres `ids` in

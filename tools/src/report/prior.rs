@@ -3,7 +3,7 @@
 
 use super::Report;
 use serde::{Deserialize, Serialize};
-use spherecal::calib::NAMES;
+use spherecal::georef::NAMES;
 
 /// One measured parameter of the mounting.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

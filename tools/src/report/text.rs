@@ -2,15 +2,13 @@
 //! sigmas, the passes, spheres and checks) and a Monte Carlo run's.
 
 use super::{McReport, Report};
-use spherecal::calib::{NAMES, P};
+use spherecal::georef::{NAMES, P};
 use std::fmt::Write as _;
 
 /// A report's `termination` in words ("the rounds ended: ...").
 pub fn termination_words(name: &str) -> String {
-    spherecal::calib::Termination::from_name(name).map_or_else(
-        || format!("ended: {name}"),
-        |t| format!("ended: {}", t.words()),
-    )
+    spherecal::calib::Termination::words_of(name)
+        .map_or_else(|| format!("ended: {name}"), |w| format!("ended: {w}"))
 }
 
 /// GPS seconds as UTC, `YYYY-MM-DD hh:mm:ss UTC` (`leap`: GPS - UTC [s]).

@@ -2,7 +2,7 @@
 
 use super::watch::Steer;
 use super::*;
-use spherecal::calib::Params;
+use spherecal::georef::Params;
 
 /// Anything that arrived is solved with at most this long after the last solve [s].
 pub(super) const RESOLVE_S: u64 = 5;

@@ -2,7 +2,7 @@
 //! sender publishes, each receiver sees the latest value once after every change. The rig's
 //! one back-edge, solver -> aligner, is a [`Watch<Steer>`].
 
-use spherecal::calib::Params;
+use spherecal::georef::Params;
 use std::sync::Mutex;
 
 /// What the solver tells the aligner after a converged solve.

@@ -12,7 +12,8 @@ use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
 use spherecal::calib::solve::{ClockFacts, Observe};
-use spherecal::calib::{Params, Settings, Solution};
+use spherecal::calib::{Settings, Solution};
+use spherecal::georef::Params;
 
 /// After a converged solve, a store keeps only the windowed returns this close to a sphere's
 /// surface (with that solution) [m]: the clutter farther out cannot matter any more, and a

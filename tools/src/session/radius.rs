@@ -141,8 +141,9 @@ pub fn name_first(
     let Some(why) = disagreement(radii, targets, ids) else {
         return false;
     };
+    // (No stretch is set aside for a wrong radius: the refusal's words say none was tried.)
     rep.reason = Some(match rep.reason.take() {
-        Some(r) => format!("{why}; so: {r}"),
+        Some(r) => format!("{why}; so: {}", r.replace(crate::reasons::NO_STRETCH, "")),
         None => why,
     });
     true

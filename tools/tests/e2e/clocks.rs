@@ -144,7 +144,7 @@ fn noisy_ins_late_is_within_three_sigma() {
         assert!(
             (got[i] - want[i]).abs() <= 3.0 * sg[i],
             "{}: {} vs {} sigma {}",
-            spherecal::calib::NAMES[i],
+            spherecal::georef::NAMES[i],
             got[i],
             want[i],
             sg[i]

@@ -134,7 +134,7 @@ pub fn assert_within(got: &[f64; 6], want: &[f64; 6], tol: f64, what: &str) {
         assert!(
             (got[i] - want[i]).abs() <= tol,
             "{what}: {} {} vs {} (error {:.2e})",
-            spherecal::calib::NAMES[i],
+            spherecal::georef::NAMES[i],
             got[i],
             want[i],
             got[i] - want[i]

@@ -377,7 +377,7 @@ fn a_lost_sphere_starts_the_rounds_again_from_the_apriori() {
 /// sigma (the rule does not refuse what the rounds confirmed).
 #[test]
 fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
-    use spherecal::calib::solve::{Refusal, Termination};
+    use spherecal::calib::solve::{Refusal, Unfinished};
     let truth = noisy_truth();
     let runs = trial_of(
         "grounded",
@@ -390,7 +390,7 @@ fn spheres_all_on_the_grass_are_refused_when_neither_start_settles() {
         matches!(
             fault.refusal,
             Some(Refusal::Unsettled {
-                first: Termination::TooFewSpheres,
+                first: Unfinished::TooFewSpheres,
                 ..
             })
         ),

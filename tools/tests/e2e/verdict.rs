@@ -79,7 +79,7 @@ fn verdict_turns_ready_with_the_passes_that_make_it() {
                 let r = predicted[i] / reported[i];
                 eprintln!(
                     "until {until} s: {} predicted / reported {r:.2}",
-                    spherecal::calib::NAMES[i]
+                    spherecal::georef::NAMES[i]
                 );
                 assert!(
                     (0.7..1.4).contains(&r),
