@@ -2,7 +2,12 @@
 //! data packets), the solver's word applied between batches ([`super::watch`]), the batches
 //! to the solver, the counters published for the status line.
 
-use super::*;
+use super::shared::Shared;
+use crate::pipeline::{BatchMsg, InsItem, LidarItem, LidarPacket, RingAligner, BATCH};
+use heapless::spsc::Consumer;
+use spherecal::align::window::Observation;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 /// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
 /// with the time offset they were collected at; a full channel drops the batch (counted).

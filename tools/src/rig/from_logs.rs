@@ -1,7 +1,12 @@
 //! The rig's final answer: the file engine over the run's own logs (what `calibrate` gives on
 //! them), not the live store, which is pruned and rebased as the data come.
 
-use super::*;
+use super::inputs::Plan;
+use super::RunOptions;
+use crate::config::site::Site;
+use crate::report::Report;
+use spherecal_hal::velodyne::Ports;
+use std::path::PathBuf;
 
 /// The calibration of the run's logs (`files`: its pcaps, and its serial logs for a VN-200)
 /// as `calibrate` makes it: the same settings, the board's mounting to start from, its ports,

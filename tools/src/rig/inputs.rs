@@ -2,7 +2,23 @@
 //! the raw logs from the board ([`RigIo`]), the site's targets and the solver's settings
 //! ([`Plan`]), and the rings between the threads ([`Rings`]).
 
-use super::*;
+use super::logger::RawLog;
+use super::{
+    parse_addr, stamp_now, RunOptions, SerialChunk, UdpLogItem, DATA_LOG_RING, DATA_RING,
+    POSITION_RING, POSMV_LOG_RING, READ_TIMEOUT, SERIAL_LOG_RING,
+};
+use crate::pipeline::{targets, Accept, InsItem, LidarItem, INS_RING};
+use heapless::spsc::Queue;
+use spherecal::align::window::Target;
+use spherecal::calib::Settings;
+use spherecal::frames::LocalFrame;
+use spherecal::georef::Params;
+use spherecal_hal::rawlog::{McapLog, PcapLog, SerialLog};
+use spherecal_hal::serial::SerialSource;
+use spherecal_hal::udp::UdpSource;
+use spherecal_hal::velodyne::Ports;
+use std::net::Ipv4Addr;
+use std::path::PathBuf;
 
 /// The rig's inputs and raw logs, opened from the board (and the command line's overrides).
 pub(super) struct RigIo {

@@ -1,7 +1,17 @@
 //! The raw logger (every datagram and serial read into rotating files: pcap + serial log, or
 //! MCAP) and the thread that syncs them to disk twice a second.
 
-use super::*;
+use super::shared::Shared;
+use super::{SerialChunk, UdpLogItem};
+use heapless::spsc::Consumer;
+use spherecal_hal::packet::HostTime;
+use spherecal_hal::rawlog::{McapLog, PcapLog, SerialLog};
+use spherecal_hal::serial::RxStamp;
+use std::net::Ipv4Addr;
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// The raw logs of a run.
 pub(super) enum RawLog {

@@ -17,11 +17,10 @@
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
-    enqueue, targets, Accept, AlignStorage, BatchMsg, InsItem, InsOutcome, InsRing, InsWait,
-    LidarItem, LidarPacket, Overflow, RingAligner, Vn200Feed, BATCH, INS_RING,
+    AlignStorage, BatchMsg, InsItem, InsWait, LidarItem, LidarPacket, RingAligner, BATCH,
 };
 use crate::report::Report;
-use crate::state::{ClockState, InsState};
+use crate::state::InsState;
 
 mod align;
 pub mod check;
@@ -38,30 +37,21 @@ mod summary;
 pub mod watch;
 
 use inputs::{Plan, RigIo, Rings};
-use shared::{ins_name, pps_name, AlignerGuard, ReaderGuard, Shared};
+use shared::{pps_name, AlignerGuard, Shared};
 
-use heapless::spsc::{Consumer, Producer, Queue};
-use logger::{logger, syncer, RawLog};
+use heapless::spsc::Consumer;
+use logger::{logger, syncer};
 use readers::{posmv_reader, serial_reader, udp_reader, LidarPort};
-use serde::Serialize;
 use solver::solver;
-use spherecal::align::window::{Observation, Target};
-use spherecal::calib::Settings;
-use spherecal::frames::LocalFrame;
-use spherecal::georef::Params;
-use spherecal::vn200::binary::Masks;
-use spherecal::vn200::fields::Group;
-use spherecal::vn200::Item;
+use spherecal::align::window::Observation;
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{Datagram, HostTime};
-use spherecal_hal::rawlog::{McapLog, PcapLog, SerialLog};
-use spherecal_hal::serial::{RxStamp, SerialSource};
-use spherecal_hal::udp::UdpSource;
-use spherecal_hal::velodyne::{Ports, SkipStats};
+use spherecal_hal::serial::RxStamp;
+use spherecal_hal::velodyne::SkipStats;
 use status::{show, snapshot, status_loop};
 use std::net::Ipv4Addr;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use summary::Ended;

@@ -1,8 +1,24 @@
 //! The rig's readers: one per socket and the serial port, each into its rings (never blocking: a full ring drops and counts).
 
-use super::*;
-use crate::pipeline::{end_lidar, ins_reader, lidar_reader, InsEnd, LidarRing};
+use super::shared::{ReaderGuard, Shared};
+use super::{SerialChunk, UdpLogItem, MAX_INS_GAP_NS, SERIAL_CHUNK};
+use crate::pipeline::{
+    end_lidar, enqueue, ins_reader, lidar_reader, Accept, InsEnd, InsItem, InsOutcome, InsRing,
+    LidarItem, LidarRing, Overflow, Vn200Feed,
+};
+use crate::state::InsState;
+use heapless::spsc::Producer;
+use spherecal::frames::LocalFrame;
+use spherecal::vn200::binary::Masks;
+use spherecal::vn200::fields::Group;
+use spherecal::vn200::Item;
+use spherecal_hal::packet::Datagram;
+use spherecal_hal::serial::{RxStamp, SerialSource};
+use spherecal_hal::udp::UdpSource;
+use spherecal_hal::velodyne::SkipStats;
 use spherecal_hal::Tap;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 /// The LiDAR's two ports, each with its socket, reader and counters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

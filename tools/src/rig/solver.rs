@@ -1,8 +1,16 @@
 //! The rig's solver thread: collects the windowed batches, solves when the windows hold enough, keeps the time offset and the report current.
 
+use super::shared::Shared;
 use super::watch::Steer;
-use super::*;
+use super::{LIVE_MARGIN_FLOOR_M, LIVE_MARGIN_RMS, MAX_OBS_PER_SPHERE};
+use crate::pipeline::BatchMsg;
+use crate::report::Report;
+use spherecal::align::window::{Observation, Target};
+use spherecal::calib::Settings;
 use spherecal::georef::Params;
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 /// Anything that arrived is solved with at most this long after the last solve [s].
 pub(super) const RESOLVE_S: u64 = 5;

@@ -23,9 +23,12 @@
 //!
 //! [`status_loop`] writes it once a second from a snapshot of the rig's shared counters.
 
-use super::*;
+use super::shared::{ins_name, pps_name, Shared};
 use spherecal_hal::console::Console;
 use std::fmt::Write as _;
+use std::net::Ipv4Addr;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 /// What the status line shows.
 #[derive(Debug, Clone, Default, PartialEq)]

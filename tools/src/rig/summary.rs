@@ -1,6 +1,13 @@
 //! What a run did, in numbers (`<stamp>-run.json`) and in words.
 
-use super::*;
+use super::shared::Shared;
+use crate::report::Report;
+use crate::state::{ClockState, InsState};
+use serde::Serialize;
+use spherecal_hal::velodyne::SkipStats;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
 
 /// Counts of a run (also written as `<log dir>/<stamp>-run.json`).
 #[derive(Debug, Clone, Default, Serialize)]
