@@ -32,6 +32,7 @@ impl Batches<'_, '_, '_> {
             offset_ns: self.applied.get(),
         }) {
             self.sh
+                .aligner
                 .batch_drops
                 .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
         }
@@ -50,7 +51,7 @@ pub(super) fn align_until_end(
     sh: &Shared<'_>,
 ) {
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
-    let mut steer = sh.steer.receiver();
+    let mut steer = sh.solver.steer.receiver();
     let mut windows_moved = 0;
     let mut published = Instant::now();
     let mut unpublished = false;
@@ -97,19 +98,20 @@ pub(super) fn align_until_end(
             LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
             LidarPacket::Points(c) => al.points(c, ins_c, None, &mut emit),
         }
-        sh.aligned
+        sh.aligner
+            .aligned
             .store(al.core.stats.data_packets, Ordering::Relaxed);
         if let Some(p) = al.core.pps {
-            sh.pps.store(p.to_byte(), Ordering::Relaxed);
+            sh.aligner.pps.store(p.to_byte(), Ordering::Relaxed);
         }
         if let Some(l) = al.core.lag_ns {
-            sh.lag_ns.store(l, Ordering::Relaxed);
+            sh.aligner.lag_ns.store(l, Ordering::Relaxed);
         }
-        for (i, w) in sh.windowed.iter().enumerate() {
+        for (i, w) in sh.aligner.windowed.iter().enumerate() {
             w.store(al.core.windowed_now(i), Ordering::Relaxed);
         }
         let w = &al.core.stats.window;
-        sh.without_pose.store(
+        sh.aligner.without_pose.store(
             w.before_history + w.after_history + w.in_gap,
             Ordering::Relaxed,
         );
@@ -118,7 +120,7 @@ pub(super) fn align_until_end(
 
 /// The LiDAR clock's state and the data's first GPS time, for the solver's clock facts.
 fn publish_clock(al: &RingAligner<'_>, sh: &Shared<'_>) {
-    if let Ok(mut c) = sh.clock.lock() {
+    if let Ok(mut c) = sh.aligner.clock.lock() {
         *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
     }
 }

@@ -104,7 +104,7 @@ pub(super) fn logger(
         }
     };
     loop {
-        let done = sh.readers.load(Ordering::Acquire) == 0;
+        let done = sh.readers.running.load(Ordering::Acquire) == 0;
         let mut n = 0usize;
         loop {
             // Merge the sockets' datagrams in receive order.
@@ -190,7 +190,8 @@ pub(super) fn syncer(to_sync: &Mutex<Vec<std::fs::File>>, sh: &Shared<'_>) {
                 sh.error(format!("raw log sync: {e}"));
             }
         }
-        if sh.readers.load(Ordering::Acquire) == 0 && sh.logger_done.load(Ordering::Acquire) {
+        if sh.readers.running.load(Ordering::Acquire) == 0 && sh.logger_done.load(Ordering::Acquire)
+        {
             return;
         }
         std::thread::sleep(Duration::from_millis(200));

@@ -205,7 +205,8 @@ fn wind_down(
         clock: al.clock_state(),
     };
     // The last line, with the final counts and calibration.
-    sh.aligned
+    sh.aligner
+        .aligned
         .store(al.core.stats.data_packets, Ordering::Relaxed);
     match w.status.join() {
         Ok(c) => {
@@ -302,7 +303,8 @@ fn run_rig(
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some()) + usize::from(io.posmv.is_some());
     let sh = Shared::new(stop, readers, plan.ids.len(), probes, io.accept.ports);
-    sh.ins_watch
+    sh.readers
+        .ins_watch
         .stale_bytes
         .store(io.stale_serial_bytes, Ordering::Relaxed);
     let started = Instant::now();
@@ -479,7 +481,7 @@ fn run_threads(
         };
         align::align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, sh);
         al.finish(&mut |i, o| out.emit(i, o));
-        for (w, n) in sh.windowed.iter().zip(&al.core.windowed) {
+        for (w, n) in sh.aligner.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);
         }
         drop(out);

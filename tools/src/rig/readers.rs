@@ -52,8 +52,8 @@ pub(super) fn udp_reader(
     let _alive = ReaderGuard(sh);
     let port = sock.port();
     let log_datagram = |d: &Datagram<'_>| {
-        sh.received[port_of.index()].fetch_add(1, Ordering::Relaxed);
-        if let Ok(mut h) = sh.heard[port_of.index()].lock() {
+        sh.readers.received[port_of.index()].fetch_add(1, Ordering::Relaxed);
+        if let Ok(mut h) = sh.readers.heard[port_of.index()].lock() {
             h.see(d, accept.ports);
         }
         enqueue(
@@ -68,7 +68,7 @@ pub(super) fn udp_reader(
         ring: &mut ring,
         policy: Overflow::Drop,
         full: sh.ring_drops.lidar(port_of),
-        queued: &sh.enqueued[port_of.index()],
+        queued: &sh.readers.enqueued[port_of.index()],
     };
     let (skips, r) = lidar_reader(&mut src, &mut out, accept, sh.stop);
     if let Err(e) = r {
@@ -81,7 +81,7 @@ pub(super) fn udp_reader(
     sh.poll_kernel_drops();
     if ends_stream {
         // The aligner runs until it sees this (unless it is gone).
-        end_lidar(&mut ring, &sh.aligner_gone);
+        end_lidar(&mut ring, &sh.aligner.gone);
     }
     (skips, src.get_ref().kernel_stamped)
 }
@@ -143,17 +143,21 @@ pub(super) fn serial_reader(
         }
         if let InsOutcome::Pose(_, status) = out {
             if let Some(m) = status {
-                sh.ins_mode.store((m & 0b11) as u8, Ordering::Relaxed);
+                sh.readers
+                    .ins_mode
+                    .store((m & 0b11) as u8, Ordering::Relaxed);
             }
             // Usable: tracking (or kept although not, when asked).
             if keep_untracked || status.and_then(crate::state::excluded_by).is_none() {
-                sh.ins_watch.pose();
+                sh.readers.ins_watch.pose();
             }
         }
     };
     let mut log_chunk = |b: &[u8], stamp: Option<RxStamp>| {
-        sh.ins_watch.bytes();
-        sh.ins_bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
+        sh.readers.ins_watch.bytes();
+        sh.readers
+            .ins_bytes
+            .fetch_add(b.len() as u64, Ordering::Relaxed);
         let mut chunk = SerialChunk {
             stamp: stamp.unwrap_or_else(RxStamp::now),
             len: b.len() as u16,
@@ -176,20 +180,20 @@ pub(super) fn serial_reader(
             sh.stop,
             &mut log_chunk,
             &mut seen,
-            &mut |steps| sh.ins_watch.set_clock_steps(steps),
+            &mut |steps| sh.readers.ins_watch.set_clock_steps(steps),
         ) {
             Ok(InsEnd::Stopped) => break,
             Ok(InsEnd::SourceEnded) => "its stream ended".to_string(),
             Err(e) => e.to_string(),
         };
-        sh.ins_watch.lost(format!(
+        sh.readers.ins_watch.lost(format!(
             "WARNING: serial {dev}: the device went away ({why}); opening it again"
         ));
         let gone = Instant::now();
         match reopen(dev, baud, sh) {
             Some(s) => {
                 src = s;
-                sh.ins_watch.reopened(format!(
+                sh.readers.ins_watch.reopened(format!(
                     "serial {dev}: reopened after {:.1} s",
                     gone.elapsed().as_secs_f64()
                 ));
@@ -224,7 +228,7 @@ fn reopen(dev: &str, baud: u32, sh: &Shared<'_>) -> Option<SerialSource> {
 
 /// End the INS ring: wait for room for the End, unless the aligner is gone.
 fn end_ins(ring: &mut Producer<'_, InsItem>, sh: &Shared<'_>) {
-    while ring.enqueue(InsItem::End).is_err() && !sh.aligner_gone.load(Ordering::Acquire) {
+    while ring.enqueue(InsItem::End).is_err() && !sh.aligner.gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
 }
@@ -265,8 +269,9 @@ pub(super) fn posmv_reader(
         while !sh.stop.load(Ordering::Relaxed) {
             match sock.next_record() {
                 Ok(Some(Record::Udp(d))) => {
-                    sh.ins_watch.bytes();
-                    sh.ins_bytes
+                    sh.readers.ins_watch.bytes();
+                    sh.readers
+                        .ins_bytes
                         .fetch_add(d.payload.len() as u64, Ordering::Relaxed);
                     enqueue(
                         &mut log,
@@ -277,7 +282,7 @@ pub(super) fn posmv_reader(
                     let before = feed.poses_used();
                     feed.feed(d.payload, Some(d.time), &mut out);
                     if feed.poses_used() > before {
-                        sh.ins_watch.pose();
+                        sh.readers.ins_watch.pose();
                     }
                     // The status line's INS mode: tracking in full navigation.
                     let mode = match feed.alignment() {
@@ -286,7 +291,7 @@ pub(super) fn posmv_reader(
                         Some(_) => 1,
                         None => continue,
                     };
-                    sh.ins_mode.store(mode, Ordering::Relaxed);
+                    sh.readers.ins_mode.store(mode, Ordering::Relaxed);
                 }
                 Ok(Some(_)) => {}
                 Ok(None) => break,

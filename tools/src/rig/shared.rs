@@ -44,46 +44,88 @@ impl RingDrops {
     }
 }
 
-/// What the threads share (counters only: no locks on the packet path).
+/// What the threads share, grouped by the thread that writes it (counters and latest values:
+/// no locks on the packet path); each group is read by the status line and the summary.
 pub(super) struct Shared<'a> {
+    /// Set by the status thread (SIGINT, SIGTERM, `--duration`) or a failing thread.
     pub(super) stop: &'a AtomicBool,
-    pub(super) readers: AtomicUsize,
-    pub(super) aligner_gone: AtomicBool,
+    /// The readers' counts.
+    pub(super) readers: ReadersOut,
+    /// The aligner's.
+    pub(super) aligner: AlignerOut,
+    /// The solver's.
+    pub(super) solver: SolverOut,
+    /// Items dropped by full rings (the readers' and the logger's).
+    pub(super) ring_drops: RingDrops,
+    /// The logger has written everything it was given.
     pub(super) logger_done: AtomicBool,
+    /// Errors and warnings said on the console.
+    pub(super) said: Said,
+}
+
+/// What the readers write.
+pub(super) struct ReadersOut {
+    /// Readers still running (the logger runs until every reader is out).
+    pub(super) running: AtomicUsize,
+    /// Datagrams received per LiDAR port (data, position).
     pub(super) received: [AtomicU64; 2],
+    /// ... and put on the aligner's rings.
     pub(super) enqueued: [AtomicU64; 2],
+    /// The kernel's own drops per socket (read through `drop_probes`).
     pub(super) kernel_drops: [AtomicU64; 2],
     pub(super) drop_probes: [DropProbe; 2],
-    pub(super) ring_drops: RingDrops,
+    /// INS bytes read.
     pub(super) ins_bytes: AtomicU64,
-    pub(super) pps: AtomicU8,
+    /// The INS's latest mode ([`NONE_U8`]: none yet).
     pub(super) ins_mode: AtomicU8,
+    /// What each port hears: data, position.
+    pub(super) heard: [Mutex<hearing::Heard>; 2],
+    /// Whether the INS speaks.
+    pub(super) ins_watch: ins_watch::InsWatch,
+}
+
+/// What the aligner writes.
+pub(super) struct AlignerOut {
+    /// Set when the aligner's loop is left ([`AlignerGuard`]).
+    pub(super) gone: AtomicBool,
+    /// The latest PPS status ([`NONE_U8`]: none yet).
+    pub(super) pps: AtomicU8,
+    /// The latest packet's lag behind the INS [ns] (`i64::MIN`: none yet).
     pub(super) lag_ns: AtomicI64,
+    /// Data packets aligned.
     pub(super) aligned: AtomicU64,
+    /// Returns windowed per sphere.
     pub(super) windowed: Vec<AtomicU64>,
+    /// Returns that got no pose so far.
+    pub(super) without_pose: AtomicU64,
+    /// Returns dropped because the solver's batch channel was full.
     pub(super) batch_drops: AtomicU64,
+    /// The LiDAR clock as the position packets told it so far and the LiDAR data's first GPS
+    /// time [s] (the solver's clock facts read them).
+    pub(super) clock: Mutex<(crate::state::ClockState, Option<f64>)>,
+}
+
+/// What the solver writes.
+pub(super) struct SolverOut {
+    /// Solves run.
     pub(super) solves: AtomicU64,
     /// The solve under way (`r<N>`: its round N) or how the last one ended (`<how>:<rounds>`).
     pub(super) solve_state: Mutex<String>,
+    /// The latest calibration: the parameters and their sigmas (deg, m).
     pub(super) calibration: Mutex<Option<([f64; 6], [f64; 6])>>,
     /// The back-edge: the time offset and windows the solver tells the aligner to use.
     pub(super) steer: watch::Watch<watch::Steer>,
     /// The latest estimate of the time offset and its sigma [s].
     pub(super) time_offset: Mutex<Option<(f64, f64)>>,
-    pub(super) errors: Mutex<Vec<String>>,
-    /// What each port hears: data, position.
-    pub(super) heard: [Mutex<hearing::Heard>; 2],
     /// The verdict after the latest solve.
     pub(super) verdict: Mutex<Option<crate::verdict::Verdict>>,
-    /// Whether the INS speaks.
-    pub(super) ins_watch: ins_watch::InsWatch,
-    /// Returns that got no pose so far.
-    pub(super) without_pose: AtomicU64,
-    /// Warnings said on the console (run.json keeps them).
+}
+
+/// Errors and warnings said on the console (run.json keeps them).
+#[derive(Default)]
+pub(super) struct Said {
+    pub(super) errors: Mutex<Vec<String>>,
     pub(super) warnings: Mutex<Vec<String>>,
-    /// The LiDAR clock as the position packets told it so far and the LiDAR data's first GPS
-    /// time [s] (the aligner publishes them, the solver's clock facts read them).
-    pub(super) clock: Mutex<(crate::state::ClockState, Option<f64>)>,
 }
 
 /// Counts a reader out however it ends (the logger runs until every reader is out).
@@ -91,7 +133,7 @@ pub(super) struct ReaderGuard<'s, 'a>(pub(super) &'s Shared<'a>);
 
 impl Drop for ReaderGuard<'_, '_> {
     fn drop(&mut self) {
-        self.0.readers.fetch_sub(1, Ordering::Release);
+        self.0.readers.running.fetch_sub(1, Ordering::Release);
     }
 }
 
@@ -105,7 +147,7 @@ impl Drop for AlignerGuard<'_, '_> {
             self.0.error("the aligner failed; stopping".into());
             self.0.stop.store(true, Ordering::Relaxed);
         }
-        self.0.aligner_gone.store(true, Ordering::Release);
+        self.0.aligner.gone.store(true, Ordering::Release);
     }
 }
 
@@ -121,39 +163,45 @@ impl<'a> Shared<'a> {
     ) -> Self {
         Self {
             stop,
-            readers: AtomicUsize::new(readers),
-            aligner_gone: AtomicBool::new(false),
-            logger_done: AtomicBool::new(false),
-            received: Default::default(),
-            enqueued: Default::default(),
-            kernel_drops: Default::default(),
-            drop_probes,
+            readers: ReadersOut {
+                running: AtomicUsize::new(readers),
+                received: Default::default(),
+                enqueued: Default::default(),
+                kernel_drops: Default::default(),
+                drop_probes,
+                ins_bytes: AtomicU64::new(0),
+                ins_mode: AtomicU8::new(NONE_U8),
+                heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
+                ins_watch: ins_watch::InsWatch::default(),
+            },
+            aligner: AlignerOut {
+                gone: AtomicBool::new(false),
+                pps: AtomicU8::new(NONE_U8),
+                lag_ns: AtomicI64::new(i64::MIN),
+                aligned: AtomicU64::new(0),
+                windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
+                without_pose: AtomicU64::new(0),
+                batch_drops: AtomicU64::new(0),
+                clock: Mutex::new((crate::state::ClockState::default(), None)),
+            },
+            solver: SolverOut {
+                solves: AtomicU64::new(0),
+                solve_state: Mutex::new(String::new()),
+                calibration: Mutex::new(None),
+                steer: watch::Watch::new(),
+                time_offset: Mutex::new(None),
+                verdict: Mutex::new(None),
+            },
             ring_drops: Default::default(),
-            ins_bytes: AtomicU64::new(0),
-            pps: AtomicU8::new(NONE_U8),
-            ins_mode: AtomicU8::new(NONE_U8),
-            lag_ns: AtomicI64::new(i64::MIN),
-            aligned: AtomicU64::new(0),
-            windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
-            batch_drops: AtomicU64::new(0),
-            solves: AtomicU64::new(0),
-            solve_state: Mutex::new(String::new()),
-            calibration: Mutex::new(None),
-            steer: watch::Watch::new(),
-            time_offset: Mutex::new(None),
-            errors: Mutex::new(Vec::new()),
-            heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
-            verdict: Mutex::new(None),
-            ins_watch: ins_watch::InsWatch::default(),
-            without_pose: AtomicU64::new(0),
-            clock: Mutex::new((crate::state::ClockState::default(), None)),
-            warnings: Mutex::new(Vec::new()),
+            logger_done: AtomicBool::new(false),
+            said: Said::default(),
         }
     }
 
     /// Read the sockets' kernel drop counts (a closed socket keeps its last count).
     pub(super) fn poll_kernel_drops(&self) {
-        for (p, k) in self.drop_probes.iter().zip(&self.kernel_drops) {
+        let r = &self.readers;
+        for (p, k) in r.drop_probes.iter().zip(&r.kernel_drops) {
             if let Some(n) = p.read() {
                 k.store(n, Ordering::Relaxed);
             }
@@ -161,14 +209,14 @@ impl<'a> Shared<'a> {
     }
 
     pub(super) fn error(&self, e: String) {
-        if let Ok(mut v) = self.errors.lock() {
+        if let Ok(mut v) = self.said.errors.lock() {
             v.push(e);
         }
     }
 
     /// A warning said on the console, kept for run.json (the first 200).
     pub(super) fn warn(&self, w: String) {
-        if let Ok(mut v) = self.warnings.lock() {
+        if let Ok(mut v) = self.said.warnings.lock() {
             if v.len() < 200 {
                 v.push(w);
             }

@@ -105,8 +105,13 @@ impl<'p, 's> LiveSolve<'p, 's> {
         let (plan, sh) = (self.plan, self.sh);
         // The clocks as the position packets and the INS stream told them so far: the live
         // verdict claims and refuses by the same rule as `calibrate`.
-        let (clock, first) = sh.clock.lock().map(|c| c.clone()).unwrap_or_default();
-        let steps = sh.ins_watch.clock_steps();
+        let (clock, first) = sh
+            .aligner
+            .clock
+            .lock()
+            .map(|c| c.clone())
+            .unwrap_or_default();
+        let steps = sh.readers.ins_watch.clock_steps();
         let clocks = crate::session::clock_facts(
             &clock,
             &steps,
@@ -118,7 +123,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
             .session
             .solve(&self.start, clocks, &mut StatusRounds(sh));
         rep.targets = Some(crate::report::TargetsReport::of(&rep, plan.accuracy));
-        sh.solves.fetch_add(1, Ordering::Relaxed);
+        sh.solver.solves.fetch_add(1, Ordering::Relaxed);
         self.judge(&sol, &rep);
         if rep.converged {
             self.follow(&sol, &rep);
@@ -140,7 +145,11 @@ impl<'p, 's> LiveSolve<'p, 's> {
         let (info, returns) = crate::verdict::data_info(targets, store, sol, settings, rate);
         let predicted = crate::verdict::predicted_sigma(targets, store, sol, settings, rate);
         if self.planner.is_none() {
-            let rpm = sh.heard[0].lock().ok().and_then(|h| h.rpm).unwrap_or(600.0);
+            let rpm = sh.readers.heard[0]
+                .lock()
+                .ok()
+                .and_then(|h| h.rpm)
+                .unwrap_or(600.0);
             let l =
                 crate::plan::live::Live::new(targets, plan.ids, plan.model, rpm, rate, settings);
             match l {
@@ -161,7 +170,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
         let verdict = self
             .session
             .claim(sol, rep, goal, Some(&predicted), advice.as_ref());
-        if let Ok(mut v) = sh.verdict.lock() {
+        if let Ok(mut v) = sh.solver.verdict.lock() {
             *v = Some(verdict);
         }
     }
@@ -171,7 +180,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
     /// solution as tight as its residuals allow, the store pruned, the calibration shown.
     fn follow(&mut self, sol: &spherecal::calib::Solution, rep: &Report) {
         let sh = self.sh;
-        if let Ok(mut t) = sh.time_offset.lock() {
+        if let Ok(mut t) = sh.solver.time_offset.lock() {
             *t = Some((rep.time_offset_s, rep.sigma.time_offset_s));
         }
         let offset = self.session.wants_offset(sol);
@@ -187,7 +196,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
         let margin = (LIVE_MARGIN_RMS * rms)
             .clamp(LIVE_MARGIN_FLOOR_M, crate::session::KEEP_NEAR_M)
             .min(self.plan.apriori_margin);
-        sh.steer.send_if(|now| {
+        sh.solver.steer.send_if(|now| {
             let moved = now.windows.is_none_or(|(b, m)| {
                 (m - margin).abs() > 0.05
                     || b.0.iter().zip(sol.b.0).any(|(a, c)| (a - c).abs() > 1e-4)
@@ -209,7 +218,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
         let d = sol.b.deg_m().0;
         // The sigmas are in the parameters' units.
         let s = sol.lm.map_or([f64::NAN; 6], |l| Params(l.sigma).deg_m().0);
-        if let Ok(mut c) = sh.calibration.lock() {
+        if let Ok(mut c) = sh.solver.calibration.lock() {
             *c = Some((d, s));
         }
     }
@@ -241,7 +250,9 @@ pub(super) fn solver(
                 // Aligned at an older offset (in flight when it moved): the session moves it
                 // to the store's.
                 let dropped = live.session.add(m.sphere, &m.obs, m.offset_ns);
-                sh.batch_drops.fetch_add(dropped as u64, Ordering::Relaxed);
+                sh.aligner
+                    .batch_drops
+                    .fetch_add(dropped as u64, Ordering::Relaxed);
                 let _ = pool.try_send(m.obs);
                 false
             }
@@ -284,12 +295,12 @@ struct StatusRounds<'a, 'b>(&'a Shared<'b>);
 
 impl spherecal::calib::solve::Observe for StatusRounds<'_, '_> {
     fn round(&mut self, n: usize, _: &spherecal::calib::solve::Round) {
-        if let Ok(mut s) = self.0.solve_state.lock() {
+        if let Ok(mut s) = self.0.solver.solve_state.lock() {
             *s = format!("r{n}");
         }
     }
     fn ended(&mut self, how: spherecal::calib::Termination, rounds: usize) {
-        if let Ok(mut s) = self.0.solve_state.lock() {
+        if let Ok(mut s) = self.0.solver.solve_state.lock() {
             *s = format!("{}:{rounds}", how.name());
         }
     }

@@ -204,10 +204,11 @@ pub(super) fn snapshot(
     started: Instant,
     last: &mut [u64; 2],
 ) -> Status {
-    let aligned = sh.aligned.load(Ordering::Relaxed);
-    let received = sh.received[0].load(Ordering::Relaxed);
-    let lag = sh.lag_ns.load(Ordering::Relaxed);
+    let aligned = sh.aligner.aligned.load(Ordering::Relaxed);
+    let received = sh.readers.received[0].load(Ordering::Relaxed);
+    let lag = sh.aligner.lag_ns.load(Ordering::Relaxed);
     let (verdict, coverage) = sh
+        .solver
         .verdict
         .lock()
         .ok()
@@ -230,24 +231,27 @@ pub(super) fn snapshot(
             sh.ring_drops.datagram_log.load(Ordering::Relaxed)
                 + sh.ring_drops.serial_log.load(Ordering::Relaxed),
         ],
-        kernel_drops: sh.kernel_drops[0].load(Ordering::Relaxed)
-            + sh.kernel_drops[1].load(Ordering::Relaxed),
-        pps: pps_name(sh.pps.load(Ordering::Relaxed)).into(),
-        ins: match sh.ins_watch.speaking() {
-            super::ins_watch::Speaking::Yes => ins_name(sh.ins_mode.load(Ordering::Relaxed)).into(),
+        kernel_drops: sh.readers.kernel_drops[0].load(Ordering::Relaxed)
+            + sh.readers.kernel_drops[1].load(Ordering::Relaxed),
+        pps: pps_name(sh.aligner.pps.load(Ordering::Relaxed)).into(),
+        ins: match sh.readers.ins_watch.speaking() {
+            super::ins_watch::Speaking::Yes => {
+                ins_name(sh.readers.ins_mode.load(Ordering::Relaxed)).into()
+            }
             super::ins_watch::Speaking::Silent(s) => format!("silent:{s:.1}s"),
             super::ins_watch::Speaking::Unusable(s) => format!("unusable:{s:.1}s"),
             super::ins_watch::Speaking::Lost(s) => format!("lost:{s:.1}s"),
         },
-        without_pose: sh.without_pose.load(Ordering::Relaxed),
+        without_pose: sh.aligner.without_pose.load(Ordering::Relaxed),
         lag_ms: (lag != i64::MIN).then_some(lag as f64 * 1e-6),
         windows: ids
             .iter()
-            .zip(&sh.windowed)
+            .zip(&sh.aligner.windowed)
             .map(|(id, n)| (id.clone(), n.load(Ordering::Relaxed)))
             .collect(),
-        calibration: sh.calibration.lock().ok().and_then(|c| *c),
+        calibration: sh.solver.calibration.lock().ok().and_then(|c| *c),
         time_offset_ms: sh
+            .solver
             .time_offset
             .lock()
             .ok()
@@ -256,6 +260,7 @@ pub(super) fn snapshot(
         verdict,
         coverage,
         solve: sh
+            .solver
             .solve_state
             .lock()
             .ok()
@@ -287,7 +292,13 @@ struct Hearing {
 impl Hearing {
     fn lines(&mut self, sh: &Shared<'_>, t: u64) -> Vec<String> {
         let mut out = Vec::new();
-        if self.first.is_none() && sh.received.iter().any(|r| r.load(Ordering::Relaxed) > 0) {
+        if self.first.is_none()
+            && sh
+                .readers
+                .received
+                .iter()
+                .any(|r| r.load(Ordering::Relaxed) > 0)
+        {
             self.first = Some(t);
         }
         // A few seconds of what arrives (or of silence).
@@ -296,7 +307,7 @@ impl Hearing {
             return out;
         }
         for (k, what) in ["data", "position"].into_iter().enumerate() {
-            let Ok(h) = sh.heard[k].lock().map(|h| h.clone()) else {
+            let Ok(h) = sh.readers.heard[k].lock().map(|h| h.clone()) else {
                 continue;
             };
             let due = match self.silent[k] {
@@ -309,7 +320,7 @@ impl Hearing {
             }
             self.silent[k] = Some(h.datagrams == 0);
             let secs = (t - self.first.unwrap_or(0).min(t)) as f64;
-            let data_heard = sh.received[0].load(Ordering::Relaxed) > 0;
+            let data_heard = sh.readers.received[0].load(Ordering::Relaxed) > 0;
             let (text, warnings) = h.describe(what, self.sensor, secs, data_heard);
             out.push(format!("heard: {text}"));
             out.extend(warnings.into_iter().map(|w| format!("WARNING: {w}")));
@@ -358,7 +369,7 @@ pub(super) fn status_loop<'c>(
             sh.stop.store(true, Ordering::Relaxed);
         }
         if sh.stop.load(Ordering::Relaxed) {
-            silence.close(&sh.ins_watch);
+            silence.close(&sh.readers.ins_watch);
             // The caller shows the last line once everything has stopped.
             return console;
         }
@@ -366,14 +377,16 @@ pub(super) fn status_loop<'c>(
         sh.poll_kernel_drops();
         let s = snapshot(sh, ids, started, &mut last);
         let mut said = hearing.lines(sh, s.t_s);
-        said.extend(sh.ins_watch.take_said());
+        said.extend(sh.readers.ins_watch.take_said());
         // The INS: silent or unusable for a second is said, and again while it lasts (not
         // before the ports have had the time to be heard).
-        let now = sh.ins_watch.speaking();
+        let now = sh.readers.ins_watch.speaking();
         if s.t_s > HEAR_S {
-            if let Some(l) =
-                silence.tick(&sh.ins_watch, now, sh.without_pose.load(Ordering::Relaxed))
-            {
+            if let Some(l) = silence.tick(
+                &sh.readers.ins_watch,
+                now,
+                sh.aligner.without_pose.load(Ordering::Relaxed),
+            ) {
                 said.push(l);
             }
         }
@@ -386,7 +399,7 @@ pub(super) fn status_loop<'c>(
             }
         }
         // The windows moved around the calibration: said when their margin changes.
-        if let Some((_, m)) = sh.steer.get().windows {
+        if let Some((_, m)) = sh.solver.steer.get().windows {
             if said_margin.is_none_or(|s| (s - m).abs() > 0.05) {
                 let line = format!(
                     "windows: around the calibration now, {m:.2} m beyond the spheres (less clutter in them)"
@@ -398,7 +411,7 @@ pub(super) fn status_loop<'c>(
             }
         }
         // The verdict in words, when what is missing changes.
-        if let Some(v) = sh.verdict.lock().ok().and_then(|v| v.clone()) {
+        if let Some(v) = sh.solver.verdict.lock().ok().and_then(|v| v.clone()) {
             if said_verdict.as_ref() != Some(&v.missing) {
                 let line = if v.ready {
                     format!("verdict: ready: {}", v.ready_because)

@@ -116,19 +116,20 @@ impl RunSummary {
         }
         let ld = |a: &[AtomicU64; 2]| a.each_ref().map(|x| x.load(Ordering::Relaxed));
         let w = &e.align.window;
-        let steer = sh.steer.get();
+        let steer = sh.solver.steer.get();
         Self {
             seconds: started.elapsed().as_secs_f64(),
-            received: ld(&sh.received),
+            received: ld(&sh.readers.received),
             windows_moved: steer.windows_moved,
             live_margin_m: steer.windows.map(|x| x.1),
             heard: sh
+                .readers
                 .heard
                 .each_ref()
                 .map(|h| h.lock().map(|h| h.clone()).unwrap_or_default()),
-            kernel_drops: ld(&sh.kernel_drops),
+            kernel_drops: ld(&sh.readers.kernel_drops),
             kernel_stamped: e.skips[0].1 + e.skips[1].1,
-            enqueued: ld(&sh.enqueued),
+            enqueued: ld(&sh.readers.enqueued),
             ring_drops: sh.ring_drops.snapshot(),
             skipped,
             data_packets: e.align.data_packets,
@@ -138,35 +139,39 @@ impl RunSummary {
             returns: w.points,
             georeferenced: w.georeferenced,
             without_pose: [w.before_history, w.after_history, w.in_gap],
-            ins_bytes: sh.ins_bytes.load(Ordering::Relaxed),
+            ins_bytes: sh.readers.ins_bytes.load(Ordering::Relaxed),
             clock_trusted: e.clock.trusted(),
             clock: e.clock,
             ins: e.ins,
             time_offset_s: steer.time_offset_ns as f64 * 1e-9,
             windowed: sh
+                .aligner
                 .windowed
                 .iter()
                 .map(|w| w.load(Ordering::Relaxed))
                 .collect(),
-            batch_drops: sh.batch_drops.load(Ordering::Relaxed),
-            solves: sh.solves.load(Ordering::Relaxed),
+            batch_drops: sh.aligner.batch_drops.load(Ordering::Relaxed),
+            solves: sh.solver.solves.load(Ordering::Relaxed),
             log_files: e.logged.0,
             logged: e.logged.1,
             calibration: e.calibration,
             warnings: sh
+                .said
                 .warnings
                 .lock()
                 .map(|mut v| std::mem::take(&mut *v))
                 .unwrap_or_default(),
             ins_silences: sh
+                .readers
                 .ins_watch
                 .silences
                 .lock()
                 .map(|v| v.clone())
                 .unwrap_or_default(),
-            stale_serial_bytes: sh.ins_watch.stale_bytes.load(Ordering::Relaxed),
-            serial_reopened: sh.ins_watch.reopens.load(Ordering::Relaxed),
+            stale_serial_bytes: sh.readers.ins_watch.stale_bytes.load(Ordering::Relaxed),
+            serial_reopened: sh.readers.ins_watch.reopens.load(Ordering::Relaxed),
             errors: sh
+                .said
                 .errors
                 .lock()
                 .map(|mut v| std::mem::take(&mut *v))
