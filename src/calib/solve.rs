@@ -327,35 +327,34 @@ fn solve_data(
         windowed[j] = obs[j].len();
     }
     let mut passes = prepare(targets, obs, b0, &s.extract, ws.keys.len());
-    let mut sol = Solution::start(b0, s.extract.tau0);
-    sol.bounds = bounds(obs, b0, s.margin);
+    let bounds = bounds(obs, b0, s.margin);
     if n < 2 {
+        let mut sol = Solution::start(b0, s.extract.tau0);
+        sol.bounds = bounds;
         sol.refusal = Some(Refusal::TooFewTargets { given: n });
         return sol;
     }
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
     let t_ref = middle_time(obs);
-    let mut r = Rounds::init(b0, windowed, s.extract.tau0, sol.bounds, t_ref);
-    sol.t_ref = t_ref;
+    let mut r = Rounds::init(b0, windowed, s.extract.tau0, bounds, t_ref);
     let mut d = Data {
         targets,
         obs,
         s,
         ws,
     };
-    run_rounds(&mut d, &passes, &mut r, &mut sol, watch);
+    run_rounds(&mut d, &passes, &mut r, watch);
+    let (mut second, mut unsettled) = (None, None);
     if s.second_start && r.stopped().is_none() && (0..n).any(|j| windowed[j] > 0 && r.kept[j] == 0)
     {
-        restart::second_start(&mut d, &passes, &mut r, &mut sol, b0, windowed, watch);
+        let (both, why) = restart::second_start(&mut d, &passes, &mut r, b0, windowed, watch);
+        (second, unsettled) = (Some(both), why);
     }
-    sol.shell = r.tau;
-    sol.consensus = r.consensus;
-    if let Some(end) = r.stopped() {
-        // The rounds could not go on: ambiguous spheres or a mounting out of bounds.
-        sol.b = Params(r.b);
-        sol.dt = r.time.dt;
-        sol.drift = r.time.drift;
-        sol.t_ref = r.time.t_ref;
+    let mut sol = Solution::from_rounds(&r, b0);
+    sol.second_start = second;
+    if let Some(end) = r.stopped().or(unsettled) {
+        // The rounds could not go on (ambiguous spheres or a mounting out of bounds), or
+        // neither start settled.
         let none = [0usize; MAX_TARGETS];
         let per = PerSphere {
             windowed: &windowed,

@@ -22,6 +22,26 @@ pub(super) struct Answer<'a, 'o> {
     pub(super) time: &'a TimeOffset,
 }
 
+impl<'a> Answer<'a, '_> {
+    /// Pass `p`'s sphere and its kept returns within the pass (None: a sphere not given).
+    fn pass(
+        &self,
+        p: &PassReport,
+    ) -> Option<(
+        &'a Target,
+        impl Iterator<Item = &'a Observation> + Clone + 'a,
+    )> {
+        let j = usize::from(p.sphere);
+        let (t, v) = (self.targets.get(j)?, self.obs.get(j)?);
+        let v: &'a [Observation] = v.get(..*self.used.get(j)?)?;
+        let (start, end) = (p.start, p.end);
+        Some((
+            t,
+            v.iter().filter(move |o| o.time >= start && o.time <= end),
+        ))
+    }
+}
+
 /// Each pass's sphere centre (fitted, radius fixed, to its kept returns with the solution)
 /// against the surveyed one: its offset, along-track component and chi-square into `passes`;
 /// returns the worst pass as a refusal if any fails (beyond `max_pass_chi2` and
@@ -32,19 +52,13 @@ pub(super) fn consistency(
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
-    let Answer {
-        targets, obs, used, ..
-    } = *at;
     let mount = Mount::from_params(&Params(*at.b));
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {
         let j = usize::from(p.sphere);
-        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+        let Some((t, kept)) = at.pass(p) else {
             continue;
         };
-        let kept = v[..used[j]]
-            .iter()
-            .filter(|o| o.time >= p.start && o.time <= p.end);
         let Some(fit) = fit_with_covariance(kept.clone(), &mount, at.time, t) else {
             continue;
         };
@@ -52,7 +66,7 @@ pub(super) fn consistency(
         // Clusters of 20 ms: returns within one share INS errors.
         let mut clusters = 0usize;
         let mut last = i64::MIN;
-        for o in kept {
+        for o in kept.clone() {
             let c = o.time.0.div_euclid(s.cluster_ns.max(1));
             if c != last {
                 clusters += 1;
@@ -65,7 +79,7 @@ pub(super) fn consistency(
             // Under the navigation model the pass's centre is also off by the pass's
             // navigation error and the survey's: its covariance adds theirs.
             Some(m) => {
-                let arm = t.center - mean_position(v[..used[j]].iter(), p);
+                let arm = t.center - mean_position(kept.clone());
                 let extra = nav_offset_covariance(m, &arm)
                     + Matrix3::identity() * s.centre_sigma[j] * s.centre_sigma[j];
                 jtj.try_inverse()
@@ -110,28 +124,19 @@ pub(super) fn pass_clocks(
     s: &Settings,
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
-    let Answer {
-        targets,
-        obs,
-        used,
-        b,
-        time,
-    } = *at;
+    let Answer { b, time, .. } = *at;
     let lin = super::super::objective::Linearised::at(b);
     let first = passes.iter().map(|p| p.start.0).min().unwrap_or(0);
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {
         let j = usize::from(p.sphere);
-        let (Some(t), Some(v)) = (targets.get(j), obs.get(j)) else {
+        let Some((t, kept)) = at.pass(p) else {
             continue;
         };
-        let kept = v[..used[j]]
-            .iter()
-            .filter(|o| o.time >= p.start && o.time <= p.end);
         // Sums for the two-parameter fit, and the clusters.
         let (mut n, mut sj, mut sr, mut sjj, mut sjr, mut srr) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut clusters, mut last) = (0usize, i64::MIN);
-        for o in kept {
+        for o in kept.clone() {
             let Some(row) = lin.row(o, t, time.at(o)) else {
                 continue;
             };
@@ -168,7 +173,7 @@ pub(super) fn pass_clocks(
         if let Some(m) = &s.nav {
             // The pass's navigation error along the track looks like a clock shift of that
             // distance over the speed.
-            sigma = libm::sqrt(sigma * sigma + nav_shift_variance(m, v[..used[j]].iter(), p));
+            sigma = libm::sqrt(sigma * sigma + nav_shift_variance(m, kept.clone()));
         }
         let shift = -kk;
         p.dt_shift = shift as f32;
@@ -198,10 +203,10 @@ pub(super) fn pass_clocks(
     worst.map(|(_, r)| r)
 }
 
-/// The returns' mean INS position over pass `p`.
-fn mean_position<'a>(obs: impl Iterator<Item = &'a Observation>, p: &PassReport) -> Vector3<f64> {
+/// The mean INS position of a pass's returns.
+fn mean_position<'a>(obs: impl Iterator<Item = &'a Observation>) -> Vector3<f64> {
     let (mut sum, mut n) = (Vector3::zeros(), 0.0);
-    for o in obs.filter(|o| o.time >= p.start && o.time <= p.end) {
+    for o in obs {
         sum += o.position;
         n += 1.0;
     }
@@ -229,13 +234,9 @@ fn nav_offset_covariance(m: &NavModel, arm: &Vector3<f64>) -> Matrix3<f64> {
 /// The variance [s^2] a navigation error puts on a pass's own clock shift: its displacement
 /// along the track (the position's horizontal sigma, the rotations' at the pass's mean range)
 /// over the pass's mean speed.
-fn nav_shift_variance<'a>(
-    m: &NavModel,
-    obs: impl Iterator<Item = &'a Observation>,
-    p: &PassReport,
-) -> f64 {
+fn nav_shift_variance<'a>(m: &NavModel, obs: impl Iterator<Item = &'a Observation>) -> f64 {
     let (mut speed, mut range, mut n) = (0.0, 0.0, 0.0);
-    for o in obs.filter(|o| o.time >= p.start && o.time <= p.end) {
+    for o in obs {
         speed += f64::from(o.velocity.norm());
         range += f64::from(o.range);
         n += 1.0;

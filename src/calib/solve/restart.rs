@@ -9,7 +9,7 @@
 //! widest shell, three times it as the prior); the start whose last round detects the spheres
 //! in more slices is the answer's.
 
-use super::outcome::{PassReport, Refusal, Round, SecondStart, Solution, Termination, Unfinished};
+use super::outcome::{PassReport, Refusal, Round, SecondStart, Termination, Unfinished};
 use super::rounds::{run_rounds, Data, Rounds};
 use super::{reach, time_order};
 use crate::align::window::MAX_TARGETS;
@@ -21,18 +21,19 @@ use crate::georef::{Mount, Params};
 /// of the first start's slices (and find as many spheres).
 const BETTER: (u32, u32) = (5, 4);
 
-/// Run the rounds again from `b0`, close; keep in `r` and `sol` the start that explains more
-/// and record both in `sol.second_start`. The returns are left as the kept start's rounds see
-/// them (its active set again at its last mounting when the first start stays).
+/// Run the rounds again from `b0`, close; keep in `r` the start that explains more, its log
+/// and count holding both starts' rounds (and the first start's Nelder-Mead work). The
+/// returns are left as the kept start's rounds see them (its active set again at its last
+/// mounting when the first start stays). Both starts, and when neither settled the refusal
+/// ([`Refusal::Unsettled`]: the first start's termination stays the answer's).
 pub(super) fn second_start(
     d: &mut Data<'_, '_, '_>,
     passes: &[PassReport],
     r: &mut Rounds,
-    sol: &mut Solution,
     b0: &Params,
     windowed: [usize; MAX_TARGETS],
     watch: &mut impl Observe,
-) {
+) -> (SecondStart, Option<Refusal>) {
     let n = d.targets.len();
     let widest =
         d.s.extract
@@ -41,56 +42,57 @@ pub(super) fn second_start(
     in_time_order(d, &windowed);
     let mut again = Rounds::init(b0, windowed, widest, r.bounds, r.time.t_ref);
     again.prior = Some(3.0 * widest);
-    let mut log = Solution::start(b0, widest);
-    log.bounds = sol.bounds;
-    log.t_ref = sol.t_ref;
+    let after = r.round;
     run_rounds(
         d,
         passes,
         &mut again,
-        &mut log,
         &mut Continued {
             inner: watch,
-            after: sol.rounds,
+            after,
         },
     );
-    for entry in &log.log {
-        let _ = sol.log.push(*entry);
+    let mut log = r.log.clone();
+    for entry in &again.log {
+        let _ = log.push(*entry);
     }
-    sol.rounds += log.rounds;
+    let rounds = r.round + again.round;
     let slices = |r: &Rounds| r.counts[..n].iter().map(|c| c.1).sum::<u32>();
     let found = |r: &Rounds| r.kept[..n].iter().filter(|&&k| k > 0).count();
     let (first, second) = (slices(r), slices(&again));
     let taken = again.stopped().is_none()
         && second * BETTER.1 >= first * BETTER.0
         && found(&again) >= found(r);
-    sol.second_start = Some(SecondStart {
+    let both = SecondStart {
         first,
         second,
         taken,
-    });
-    let first_settled = matches!(sol.termination, Termination::Settled | Termination::Cycle);
+    };
+    let first_settled = matches!(r.ended, Some(Termination::Settled | Termination::Cycle));
+    let mut unsettled = None;
     if taken {
+        again.nm = r.nm;
         *r = again;
-        sol.termination = log.termination;
     } else if again.stopped().is_some() && !first_settled {
-        // Neither start settled: nothing confirms the first start's mounting.
-        // (Not settled and not stopped: a round found fewer than two spheres, or the limit.)
-        let first_end = match sol.termination {
-            Termination::TooFewSpheres => Unfinished::TooFewSpheres,
+        // Neither start settled: nothing confirms the first start's mounting. (Not settled
+        // and not stopped: a round found fewer than two spheres, or the limit.)
+        let first_end = match r.ended {
+            Some(Termination::TooFewSpheres) => Unfinished::TooFewSpheres,
             _ => Unfinished::MaxRounds,
         };
-        r.ended = Some(Termination::Stopped(Refusal::Unsettled {
+        unsettled = Some(Refusal::Unsettled {
             lost: (0..n)
                 .find(|&j| windowed[j] > 0 && r.kept[j] == 0)
                 .unwrap_or(0),
             first: first_end,
             slices: [first, second],
-        }));
+        });
     }
-    watch.ended(sol.termination, sol.rounds);
+    r.log = log;
+    r.round = rounds;
+    watch.ended(r.ended.unwrap_or_default(), r.round);
     if taken {
-        return;
+        return (both, unsettled);
     }
     // The first start's returns as its rounds left them: every windowed return in time order
     // at its last mounting, then its rule for the returns still taking part.
@@ -104,6 +106,7 @@ pub(super) fn second_start(
             None => w,
         };
     }
+    (both, unsettled)
 }
 
 /// Every windowed return back in time order (as [`prepare`] sorted them: a slice's returns

@@ -71,6 +71,8 @@ pub(super) struct Rounds {
     pub(super) ended: Option<Termination>,
     /// Each sphere's returns kept in the latest round.
     pub(super) kept: [usize; MAX_TARGETS],
+    /// What each round did (both starts', in order, once a second start is merged in).
+    pub(super) log: heapless::Vec<Round, 32>,
 }
 
 impl Rounds {
@@ -101,6 +103,7 @@ impl Rounds {
             last_kept: None,
             ended: None,
             kept: [0; MAX_TARGETS],
+            log: heapless::Vec::new(),
         }
     }
 
@@ -186,12 +189,11 @@ impl Rounds {
 }
 
 /// The rounds from `r`'s state to their end (argmin's executor): each round's entry into the
-/// solution's log and to `watch`.
+/// state's log and to `watch`; the state counts the rounds and keeps how they ended.
 pub(super) fn run_rounds(
     d: &mut Data<'_, '_, '_>,
     passes: &[PassReport],
     r: &mut Rounds,
-    sol: &mut Solution,
     watch: &mut impl Observe,
 ) {
     let how = loop {
@@ -199,16 +201,35 @@ pub(super) fn run_rounds(
             break how;
         }
         if let Some(entry) = r.next_iter(d, passes) {
-            let _ = sol.log.push(entry);
+            let _ = r.log.push(entry);
             watch.round(r.round, &entry);
         }
     };
-    sol.rounds = r.round;
-    sol.termination = how;
-    if let Some(nm) = r.nm {
-        sol.nm = nm;
-    }
+    r.ended = Some(how);
     watch.ended(how, r.round);
+}
+
+impl Solution {
+    /// The answer as the rounds' final state `r` leaves it (argmin's result from its state):
+    /// the mounting, the time offset model, the shell, the first round's consensus, the box,
+    /// the rounds run with their log, how they ended and Nelder-Mead's work; the rest as
+    /// nothing solved yet from `b0`.
+    pub(super) fn from_rounds(r: &Rounds, b0: &Params) -> Self {
+        let mut sol = Solution::start(b0, r.tau);
+        sol.b = Params(r.b);
+        sol.dt = r.time.dt;
+        sol.drift = r.time.drift;
+        sol.t_ref = r.time.t_ref;
+        if let Some(nm) = r.nm {
+            sol.nm = nm;
+        }
+        sol.rounds = r.round;
+        sol.termination = r.ended.unwrap_or_default();
+        sol.log = r.log.clone();
+        sol.consensus = r.consensus;
+        sol.bounds = r.bounds;
+        sol
+    }
 }
 
 impl Rounds {
@@ -575,11 +596,12 @@ mod tests {
             ws: &mut ws,
         };
         let mut r = state();
-        let mut sol = Solution::start(&Params([0.0; P]), 0.1);
         let mut watch = Count::default();
-        run_rounds(&mut d, &[], &mut r, &mut sol, &mut watch);
+        run_rounds(&mut d, &[], &mut r, &mut watch);
+        let sol = Solution::from_rounds(&r, &Params([0.0; P]));
         assert_eq!(sol.termination, Termination::TooFewSpheres);
         assert_eq!(sol.rounds, 1);
+        assert!(sol.log.is_empty());
         assert_eq!(watch.rounds, 0, "no round finished a solve");
         assert_eq!(watch.ended, Some((Termination::TooFewSpheres, 1)));
         // With no round allowed the limit is the end.
@@ -589,7 +611,8 @@ mod tests {
         };
         d.s = &s0;
         let mut r = state();
-        run_rounds(&mut d, &[], &mut r, &mut sol, &mut watch);
+        run_rounds(&mut d, &[], &mut r, &mut watch);
         assert_eq!(watch.ended, Some((Termination::MaxRounds, 0)));
+        assert_eq!(r.ended, Some(Termination::MaxRounds));
     }
 }

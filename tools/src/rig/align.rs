@@ -2,7 +2,7 @@
 //! data packets), the solver's word applied between batches ([`super::watch`]), the batches
 //! to the solver, the counters published for the status line.
 
-use super::shared::Shared;
+use super::shared::AlignerHandle;
 use crate::pipeline::{BatchMsg, InsItem, LidarItem, LidarPacket, RingAligner, BATCH};
 use heapless::spsc::Consumer;
 use spherecal::align::window::Observation;
@@ -11,14 +11,14 @@ use std::time::{Duration, Instant};
 
 /// Where the aligner's batches go: to the solver in buffers recycled through `pool`, tagged
 /// with the time offset they were collected at; a full channel drops the batch (counted).
-pub(super) struct Batches<'p, 's, 'a> {
+pub(super) struct Batches<'p, 's> {
     pub(super) tx: crossbeam_channel::Sender<BatchMsg>,
     pub(super) pool: &'p crossbeam_channel::Receiver<Vec<Observation>>,
     pub(super) applied: std::cell::Cell<i64>,
-    pub(super) sh: &'s Shared<'a>,
+    pub(super) sh: AlignerHandle<'s>,
 }
 
-impl Batches<'_, '_, '_> {
+impl Batches<'_, '_> {
     pub(super) fn emit(&self, sphere: usize, obs: &[Observation]) {
         let mut v = self
             .pool
@@ -47,8 +47,8 @@ pub(super) fn align_until_end(
     pos_c: &mut Consumer<'_, LidarItem>,
     ins_c: &mut Consumer<'_, InsItem>,
     data_c: &mut Consumer<'_, LidarItem>,
-    out: &Batches<'_, '_, '_>,
-    sh: &Shared<'_>,
+    out: &Batches<'_, '_>,
+    sh: AlignerHandle<'_>,
 ) {
     let mut emit = |i: usize, o: &[Observation]| out.emit(i, o);
     let mut steer = sh.solver.steer.receiver();
@@ -119,7 +119,7 @@ pub(super) fn align_until_end(
 }
 
 /// The LiDAR clock's state and the data's first GPS time, for the solver's clock facts.
-fn publish_clock(al: &RingAligner<'_>, sh: &Shared<'_>) {
+fn publish_clock(al: &RingAligner<'_>, sh: AlignerHandle<'_>) {
     if let Ok(mut c) = sh.aligner.clock.lock() {
         *c = (al.clock_state(), al.core.stats.lidar_span.map(|s| s.0));
     }

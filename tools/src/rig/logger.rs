@@ -1,7 +1,7 @@
 //! The raw logger (every datagram and serial read into rotating files: pcap + serial log, or
 //! MCAP) and the thread that syncs them to disk twice a second.
 
-use super::shared::Shared;
+use super::shared::LoggerHandle;
 use super::{SerialChunk, UdpLogItem};
 use heapless::spsc::Consumer;
 use spherecal_hal::packet::HostTime;
@@ -93,13 +93,13 @@ pub(super) fn logger(
     mut ser: Consumer<'_, SerialChunk>,
     dst: Ipv4Addr,
     to_sync: &Mutex<Vec<std::fs::File>>,
-    sh: &Shared<'_>,
+    sh: LoggerHandle<'_>,
 ) {
     let mut synced = Instant::now();
     let mut failed = false;
     let fail = |e: std::io::Error, failed: &mut bool| {
         if !*failed {
-            sh.error(format!("raw log: {e}; logging stopped"));
+            sh.said.error(format!("raw log: {e}; logging stopped"));
             *failed = true;
         }
     };
@@ -179,7 +179,7 @@ pub(super) fn logger(
 
 /// Makes the logs durable: `fdatasync` on the handles the logger last flushed, every 200 ms,
 /// until the readers and the logger are done (the logger syncs its last bytes itself).
-pub(super) fn syncer(to_sync: &Mutex<Vec<std::fs::File>>, sh: &Shared<'_>) {
+pub(super) fn syncer(to_sync: &Mutex<Vec<std::fs::File>>, sh: LoggerHandle<'_>) {
     loop {
         let files = to_sync
             .lock()
@@ -187,7 +187,7 @@ pub(super) fn syncer(to_sync: &Mutex<Vec<std::fs::File>>, sh: &Shared<'_>) {
             .unwrap_or_default();
         for f in &files {
             if let Err(e) = f.sync_data() {
-                sh.error(format!("raw log sync: {e}"));
+                sh.said.error(format!("raw log sync: {e}"));
             }
         }
         if sh.readers.running.load(Ordering::Acquire) == 0 && sh.logger_done.load(Ordering::Acquire)

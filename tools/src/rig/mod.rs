@@ -212,7 +212,7 @@ fn wind_down(
         Ok(c) => {
             let mut last = [u64::MAX; 2];
             if let Err(e) = show(c, &snapshot(sh, &plan.ids, started, &mut last)) {
-                sh.error(format!("console: {e}"));
+                sh.said.error(format!("console: {e}"));
             }
         }
         Err(_) => panicked.push("status"),
@@ -325,17 +325,17 @@ fn run_rig(
                     crate::report::termination_words(&rep.termination)
                 );
                 if let Err(e) = console.write_line(&line) {
-                    sh.error(format!("console: {e}"));
+                    sh.said.error(format!("console: {e}"));
                 }
                 if let Some(p) = &opts.report {
                     if let Err(e) = crate::report::write_json_atomically(p, &rep) {
-                        sh.error(e.to_string());
+                        sh.said.error(e.to_string());
                     }
                 }
                 ended.calibration = Some(rep);
             }
             Ok(None) => {}
-            Err(e) => sh.error(format!(
+            Err(e) => sh.said.error(format!(
                 "the final calibration from the logs: {e} (the live one is kept)"
             )),
         }
@@ -388,7 +388,15 @@ fn run_threads(
     );
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
-            udp_reader(data_sock, data_p, dlog_p, accept, LidarPort::Data, sh, true)
+            udp_reader(
+                data_sock,
+                data_p,
+                dlog_p,
+                accept,
+                LidarPort::Data,
+                sh.reader(),
+                true,
+            )
         });
         let pos = spawn(sc, "udp-position", move || {
             udp_reader(
@@ -397,7 +405,7 @@ fn run_threads(
                 plog_p,
                 accept,
                 LidarPort::Position,
-                sh,
+                sh.reader(),
                 false,
             )
         });
@@ -414,14 +422,14 @@ fn run_threads(
                     keep,
                     ins_p,
                     slog_p,
-                    sh,
+                    sh.reader(),
                 )
             })),
             (None, Some(sock)) => Some(spawn(sc, "udp-posmv", move || {
                 let b = &opts.board;
                 let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
                 let (group, leap) = (b.ins.posmv_group, b.leap_seconds);
-                posmv_reader(sock, frame, group, keep, leap, ins_p, ilog_p, sh)
+                posmv_reader(sock, frame, group, keep, leap, ins_p, ilog_p, sh.reader())
             })),
             (None, None) => {
                 let _ = ins_p.enqueue(InsItem::End);
@@ -429,7 +437,7 @@ fn run_threads(
             }
         };
         let to_sync = &to_sync;
-        let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh));
+        let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh.logger()));
         let logger = spawn(sc, "logger", move || {
             logger(
                 &mut raw_log,
@@ -437,7 +445,7 @@ fn run_threads(
                 slog_c,
                 bind,
                 to_sync,
-                sh,
+                sh.logger(),
             );
             raw_log.written()
         });
@@ -446,7 +454,7 @@ fn run_threads(
                 rx,
                 pool_tx,
                 &solver::SolverPlan::of(opts, plan, accuracy),
-                sh,
+                sh.solver(),
             )
         });
         let status = spawn(sc, "status", move || {
@@ -477,9 +485,16 @@ fn run_threads(
             tx,
             pool: &pool_rx,
             applied: std::cell::Cell::new(0),
-            sh,
+            sh: sh.aligner(),
         };
-        align::align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, sh);
+        align::align_until_end(
+            &mut al,
+            &mut pos_c,
+            &mut ins_c,
+            &mut data_c,
+            &out,
+            sh.aligner(),
+        );
         al.finish(&mut |i, o| out.emit(i, o));
         for (w, n) in sh.aligner.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);

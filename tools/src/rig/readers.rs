@@ -1,6 +1,6 @@
 //! The rig's readers: one per socket and the serial port, each into its rings (never blocking: a full ring drops and counts).
 
-use super::shared::{ReaderGuard, Shared};
+use super::shared::{ReaderGuard, ReaderHandle};
 use super::{SerialChunk, UdpLogItem, MAX_INS_GAP_NS, SERIAL_CHUNK};
 use crate::pipeline::{
     end_lidar, enqueue, ins_reader, lidar_reader, Accept, InsEnd, InsItem, InsOutcome, InsRing,
@@ -46,10 +46,10 @@ pub(super) fn udp_reader(
     mut log: Producer<'_, UdpLogItem>,
     accept: Accept,
     port_of: LidarPort,
-    sh: &Shared<'_>,
+    sh: ReaderHandle<'_>,
     ends_stream: bool,
 ) -> (SkipStats, u64) {
-    let _alive = ReaderGuard(sh);
+    let _alive = ReaderGuard(sh.readers);
     let port = sock.port();
     let log_datagram = |d: &Datagram<'_>| {
         sh.readers.received[port_of.index()].fetch_add(1, Ordering::Relaxed);
@@ -72,13 +72,13 @@ pub(super) fn udp_reader(
     };
     let (skips, r) = lidar_reader(&mut src, &mut out, accept, sh.stop);
     if let Err(e) = r {
-        sh.error(format!("UDP port {port}: {e}"));
+        sh.said.error(format!("UDP port {port}: {e}"));
         if ends_stream {
             // Without the data socket there is no survey: wind everything down.
             sh.stop.store(true, Ordering::Relaxed);
         }
     }
-    sh.poll_kernel_drops();
+    sh.readers.poll_kernel_drops();
     if ends_stream {
         // The aligner runs until it sees this (unless it is gone).
         end_lidar(&mut ring, &sh.aligner.gone);
@@ -94,7 +94,7 @@ pub(super) fn check_outputs(
     last: &mut Option<Masks>,
     expected: &[(String, Group, u8)],
     dev: &str,
-    sh: &Shared<'_>,
+    sh: ReaderHandle<'_>,
 ) {
     if *last == Some(*m) {
         return;
@@ -106,7 +106,7 @@ pub(super) fn check_outputs(
         .map(|(name, _, _)| name.as_str())
         .collect();
     if !missing.is_empty() {
-        sh.error(format!(
+        sh.said.error(format!(
             "serial {dev}: the VN-200 frame at byte {offset} lacks the outputs {} that the board expects (ins.fields)",
             missing.join(", ")
         ));
@@ -131,9 +131,9 @@ pub(super) fn serial_reader(
     keep_untracked: bool,
     mut ring: Producer<'_, InsItem>,
     mut log: Producer<'_, SerialChunk>,
-    sh: &Shared<'_>,
+    sh: ReaderHandle<'_>,
 ) -> InsState {
-    let _alive = ReaderGuard(sh);
+    let _alive = ReaderGuard(sh.readers);
     let mut feed = Vn200Feed::new(*frame, keep_untracked, MAX_INS_GAP_NS);
     let mut buf = [0u8; SERIAL_CHUNK];
     let mut last_masks: Option<Masks> = None;
@@ -199,7 +199,7 @@ pub(super) fn serial_reader(
                 ));
             }
             None => {
-                sh.error(format!(
+                sh.said.error(format!(
                     "serial {dev}: the device went away ({why}) and was not back before the end"
                 ));
                 break;
@@ -211,7 +211,7 @@ pub(super) fn serial_reader(
 }
 
 /// Open `dev` again until it opens (`None`: the run stopped first), waiting [`REOPEN_MS`].
-fn reopen(dev: &str, baud: u32, sh: &Shared<'_>) -> Option<SerialSource> {
+fn reopen(dev: &str, baud: u32, sh: ReaderHandle<'_>) -> Option<SerialSource> {
     let mut wait = REOPEN_MS.0;
     while !sh.stop.load(Ordering::Relaxed) {
         if let Ok(s) = SerialSource::open(dev, baud, super::READ_TIMEOUT) {
@@ -227,7 +227,7 @@ fn reopen(dev: &str, baud: u32, sh: &Shared<'_>) -> Option<SerialSource> {
 }
 
 /// End the INS ring: wait for room for the End, unless the aligner is gone.
-fn end_ins(ring: &mut Producer<'_, InsItem>, sh: &Shared<'_>) {
+fn end_ins(ring: &mut Producer<'_, InsItem>, sh: ReaderHandle<'_>) {
     while ring.enqueue(InsItem::End).is_err() && !sh.aligner.gone.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -246,11 +246,11 @@ pub(super) fn posmv_reader(
     leap_seconds: i64,
     mut ring: Producer<'_, InsItem>,
     mut log: Producer<'_, UdpLogItem>,
-    sh: &Shared<'_>,
+    sh: ReaderHandle<'_>,
 ) -> InsState {
     use spherecal::posmv::Alignment;
     use spherecal_hal::{PacketSource, Record};
-    let _alive = ReaderGuard(sh);
+    let _alive = ReaderGuard(sh.readers);
     let port = sock.port();
     let mut feed = crate::pipeline::posmv::PosmvFeed::new(
         *frame,
@@ -296,7 +296,7 @@ pub(super) fn posmv_reader(
                 Ok(Some(_)) => {}
                 Ok(None) => break,
                 Err(e) => {
-                    sh.error(format!("POS MV UDP port {port}: {e}"));
+                    sh.said.error(format!("POS MV UDP port {port}: {e}"));
                     break;
                 }
             }

@@ -128,12 +128,92 @@ pub(super) struct Said {
     pub(super) warnings: Mutex<Vec<String>>,
 }
 
-/// Counts a reader out however it ends (the logger runs until every reader is out).
-pub(super) struct ReaderGuard<'s, 'a>(pub(super) &'s Shared<'a>);
+/// A reader thread's handle (as embassy-sync's `Watch` hands each task its sender or
+/// receiver): what it writes, its counts, the rings' drops and its errors, and what it reads,
+/// the stop and the aligner's end.
+#[derive(Clone, Copy)]
+pub(super) struct ReaderHandle<'s> {
+    pub(super) readers: &'s ReadersOut,
+    pub(super) ring_drops: &'s RingDrops,
+    pub(super) aligner: &'s AlignerOut,
+    pub(super) stop: &'s AtomicBool,
+    pub(super) said: &'s Said,
+}
 
-impl Drop for ReaderGuard<'_, '_> {
+/// The logger's and the syncer's handle: the log rings' drops, its end and its errors, and
+/// the readers still running.
+#[derive(Clone, Copy)]
+pub(super) struct LoggerHandle<'s> {
+    pub(super) readers: &'s ReadersOut,
+    pub(super) ring_drops: &'s RingDrops,
+    pub(super) logger_done: &'s AtomicBool,
+    pub(super) said: &'s Said,
+}
+
+/// The aligner's handle: what it writes, and the solver's steer it reads.
+#[derive(Clone, Copy)]
+pub(super) struct AlignerHandle<'s> {
+    pub(super) aligner: &'s AlignerOut,
+    pub(super) solver: &'s SolverOut,
+}
+
+/// The solver's handle: what it writes and its errors, and what it reads: what the ports
+/// hear and the INS watch (the readers'), the LiDAR clock (the aligner's).
+#[derive(Clone, Copy)]
+pub(super) struct SolverHandle<'s> {
+    pub(super) solver: &'s SolverOut,
+    pub(super) readers: &'s ReadersOut,
+    pub(super) aligner: &'s AlignerOut,
+    pub(super) said: &'s Said,
+}
+
+impl Shared<'_> {
+    /// A reader thread's handle.
+    pub(super) fn reader(&self) -> ReaderHandle<'_> {
+        ReaderHandle {
+            readers: &self.readers,
+            ring_drops: &self.ring_drops,
+            aligner: &self.aligner,
+            stop: self.stop,
+            said: &self.said,
+        }
+    }
+
+    /// The logger's handle.
+    pub(super) fn logger(&self) -> LoggerHandle<'_> {
+        LoggerHandle {
+            readers: &self.readers,
+            ring_drops: &self.ring_drops,
+            logger_done: &self.logger_done,
+            said: &self.said,
+        }
+    }
+
+    /// The aligner's handle.
+    pub(super) fn aligner(&self) -> AlignerHandle<'_> {
+        AlignerHandle {
+            aligner: &self.aligner,
+            solver: &self.solver,
+        }
+    }
+
+    /// The solver's handle.
+    pub(super) fn solver(&self) -> SolverHandle<'_> {
+        SolverHandle {
+            solver: &self.solver,
+            readers: &self.readers,
+            aligner: &self.aligner,
+            said: &self.said,
+        }
+    }
+}
+
+/// Counts a reader out however it ends (the logger runs until every reader is out).
+pub(super) struct ReaderGuard<'s>(pub(super) &'s ReadersOut);
+
+impl Drop for ReaderGuard<'_> {
     fn drop(&mut self) {
-        self.0.readers.running.fetch_sub(1, Ordering::Release);
+        self.0.running.fetch_sub(1, Ordering::Release);
     }
 }
 
@@ -144,7 +224,7 @@ pub(super) struct AlignerGuard<'s, 'a>(pub(super) &'s Shared<'a>);
 impl Drop for AlignerGuard<'_, '_> {
     fn drop(&mut self) {
         if std::thread::panicking() {
-            self.0.error("the aligner failed; stopping".into());
+            self.0.said.error("the aligner failed; stopping".into());
             self.0.stop.store(true, Ordering::Relaxed);
         }
         self.0.aligner.gone.store(true, Ordering::Release);
@@ -197,26 +277,30 @@ impl<'a> Shared<'a> {
             said: Said::default(),
         }
     }
+}
 
+impl ReadersOut {
     /// Read the sockets' kernel drop counts (a closed socket keeps its last count).
     pub(super) fn poll_kernel_drops(&self) {
-        let r = &self.readers;
-        for (p, k) in r.drop_probes.iter().zip(&r.kernel_drops) {
+        for (p, k) in self.drop_probes.iter().zip(&self.kernel_drops) {
             if let Some(n) = p.read() {
                 k.store(n, Ordering::Relaxed);
             }
         }
     }
+}
 
+impl Said {
+    /// An error, said in the summary (run.json keeps them).
     pub(super) fn error(&self, e: String) {
-        if let Ok(mut v) = self.said.errors.lock() {
+        if let Ok(mut v) = self.errors.lock() {
             v.push(e);
         }
     }
 
     /// A warning said on the console, kept for run.json (the first 200).
     pub(super) fn warn(&self, w: String) {
-        if let Ok(mut v) = self.said.warnings.lock() {
+        if let Ok(mut v) = self.warnings.lock() {
             if v.len() < 200 {
                 v.push(w);
             }

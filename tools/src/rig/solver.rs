@@ -1,6 +1,6 @@
 //! The rig's solver thread: collects the windowed batches, solves when the windows hold enough, keeps the time offset and the report current.
 
-use super::shared::Shared;
+use super::shared::{SolverHandle, SolverOut};
 use super::watch::Steer;
 use super::{LIVE_MARGIN_FLOOR_M, LIVE_MARGIN_RMS, MAX_OBS_PER_SPHERE};
 use crate::pipeline::BatchMsg;
@@ -68,9 +68,9 @@ impl<'a> SolverPlan<'a> {
 }
 
 /// The live calibration: the session, the start and the live planner, solved on demand.
-struct LiveSolve<'p, 's> {
+struct LiveSolve<'p> {
     plan: &'p SolverPlan<'p>,
-    sh: &'p Shared<'s>,
+    sh: SolverHandle<'p>,
     session: crate::session::Session,
     start: Params,
     /// The planner on the survey under way (built at the first solve: the LiDAR's rpm is
@@ -79,9 +79,9 @@ struct LiveSolve<'p, 's> {
     goal: crate::config::goal::Goal,
 }
 
-impl<'p, 's> LiveSolve<'p, 's> {
+impl<'p> LiveSolve<'p> {
     /// The session with the same settings, workspace and offset rule as `calibrate`.
-    fn new(plan: &'p SolverPlan<'p>, sh: &'p Shared<'s>) -> Self {
+    fn new(plan: &'p SolverPlan<'p>, sh: SolverHandle<'p>) -> Self {
         let session = crate::session::Session::new(
             plan.targets.to_vec(),
             plan.ids.to_vec(),
@@ -121,7 +121,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
         );
         let (sol, mut rep) = self
             .session
-            .solve(&self.start, clocks, &mut StatusRounds(sh));
+            .solve(&self.start, clocks, &mut StatusRounds(sh.solver));
         rep.targets = Some(crate::report::TargetsReport::of(&rep, plan.accuracy));
         sh.solver.solves.fetch_add(1, Ordering::Relaxed);
         self.judge(&sol, &rep);
@@ -130,7 +130,7 @@ impl<'p, 's> LiveSolve<'p, 's> {
         }
         if let Some(p) = plan.report {
             if let Err(e) = crate::report::write_json_atomically(p, &rep) {
-                sh.error(e.to_string());
+                sh.said.error(e.to_string());
             }
         }
         rep
@@ -154,13 +154,13 @@ impl<'p, 's> LiveSolve<'p, 's> {
                 crate::plan::live::Live::new(targets, plan.ids, plan.model, rpm, rate, settings);
             match l {
                 Ok(l) => self.planner = Some(l),
-                Err(e) => sh.error(format!("the live planner: {e}")),
+                Err(e) => sh.said.error(format!("the live planner: {e}")),
             }
         }
         let goal = Some(&self.goal);
         let advice = self.planner.as_mut().and_then(|l| {
             if let Err(e) = l.update(sol, store) {
-                sh.error(format!("the live planner: {e}"));
+                sh.said.error(format!("the live planner: {e}"));
                 return None;
             }
             let nav = crate::verdict::nav_plan(targets, store, sol, settings);
@@ -230,7 +230,7 @@ pub(super) fn solver(
     rx: crossbeam_channel::Receiver<BatchMsg>,
     pool: crossbeam_channel::Sender<Vec<Observation>>,
     plan: &SolverPlan<'_>,
-    sh: &Shared<'_>,
+    sh: SolverHandle<'_>,
 ) -> Option<Report> {
     let n = plan.targets.len();
     let mut live = LiveSolve::new(plan, sh);
@@ -291,16 +291,16 @@ pub(super) fn solver(
 }
 
 /// The solve's rounds on the status line's `solve=` (the core's observer hook).
-struct StatusRounds<'a, 'b>(&'a Shared<'b>);
+struct StatusRounds<'a>(&'a SolverOut);
 
-impl spherecal::calib::solve::Observe for StatusRounds<'_, '_> {
+impl spherecal::calib::solve::Observe for StatusRounds<'_> {
     fn round(&mut self, n: usize, _: &spherecal::calib::solve::Round) {
-        if let Ok(mut s) = self.0.solver.solve_state.lock() {
+        if let Ok(mut s) = self.0.solve_state.lock() {
             *s = format!("r{n}");
         }
     }
     fn ended(&mut self, how: spherecal::calib::Termination, rounds: usize) {
-        if let Ok(mut s) = self.0.solver.solve_state.lock() {
+        if let Ok(mut s) = self.0.solve_state.lock() {
             *s = format!("{}:{rounds}", how.name());
         }
     }

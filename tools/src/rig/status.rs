@@ -374,7 +374,7 @@ pub(super) fn status_loop<'c>(
             return console;
         }
         tick += 1;
-        sh.poll_kernel_drops();
+        sh.readers.poll_kernel_drops();
         let s = snapshot(sh, ids, started, &mut last);
         let mut said = hearing.lines(sh, s.t_s);
         said.extend(sh.readers.ins_watch.take_said());
@@ -392,10 +392,10 @@ pub(super) fn status_loop<'c>(
         }
         for l in said {
             if l.starts_with("WARNING") {
-                sh.warn(format!("t={}s {l}", s.t_s));
+                sh.said.warn(format!("t={}s {l}", s.t_s));
             }
             if let Err(e) = console.write_line(&l) {
-                sh.error(format!("console: {e}"));
+                sh.said.error(format!("console: {e}"));
             }
         }
         // The windows moved around the calibration: said when their margin changes.
@@ -405,7 +405,7 @@ pub(super) fn status_loop<'c>(
                     "windows: around the calibration now, {m:.2} m beyond the spheres (less clutter in them)"
                 );
                 if let Err(e) = console.write_line(&line) {
-                    sh.error(format!("console: {e}"));
+                    sh.said.error(format!("console: {e}"));
                 }
                 said_margin = Some(m);
             }
@@ -419,13 +419,13 @@ pub(super) fn status_loop<'c>(
                     format!("verdict: collecting: {}", v.missing.join("; "))
                 };
                 if let Err(e) = console.write_line(&line) {
-                    sh.error(format!("console: {e}"));
+                    sh.said.error(format!("console: {e}"));
                 }
                 said_verdict = Some(v.missing);
             }
         }
         if let Err(e) = show(console, &s) {
-            sh.error(format!("console: {e}"));
+            sh.said.error(format!("console: {e}"));
         }
     }
 }
