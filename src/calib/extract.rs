@@ -23,6 +23,7 @@ pub use detect::{detect, detect_all, keep, Candidates, MAX_CANDIDATES};
 pub use ground::reject_ground_on_sweeps;
 pub use radius::detections_at_radii;
 pub use scan::{assign_slices, runs, slices, SliceCursor};
+pub(crate) use sphere::apparent_offsets;
 pub use sphere::{compact, extract_sphere, Extraction};
 
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).

@@ -65,43 +65,6 @@ fn with_problem<R>(
     })
 }
 
-/// A median of positive values to 1 % from 256 log-spaced bins between 1e-5 and 100 m.
-struct Histogram {
-    bins: [u32; 256],
-    n: u32,
-}
-
-impl Histogram {
-    const LO: f64 = 1e-5;
-    const DECADES: f64 = 7.0;
-    fn new() -> Self {
-        Self {
-            bins: [0; 256],
-            n: 0,
-        }
-    }
-    fn add(&mut self, v: f64) {
-        let x = libm::log10(v.max(Self::LO) / Self::LO) / Self::DECADES * 256.0;
-        let i = if x.is_finite() {
-            (x as usize).min(255)
-        } else {
-            255
-        };
-        self.bins[i] += 1;
-        self.n += 1;
-    }
-    fn median(&self) -> f64 {
-        let mut acc = 0;
-        for (i, &c) in self.bins.iter().enumerate() {
-            acc += c;
-            if 2 * acc >= self.n {
-                return Self::LO * libm::pow(10.0, (i as f64 + 0.5) / 256.0 * Self::DECADES);
-            }
-        }
-        Self::LO * libm::pow(10.0, Self::DECADES)
-    }
-}
-
 /// Signed residual of one observation.
 fn residual(o: &Observation, t: &Target, b: &[f64; P], time: &TimeOffset) -> f64 {
     let m = Mount::from_params(&Params(*b));
@@ -179,27 +142,6 @@ pub struct Workspace<'a> {
     /// The navigation model's pieces of the time line (128 suit a survey of a few minutes at
     /// a correlation time of seconds; with fewer the pieces are made longer).
     pub nav: &'a mut [crate::calib::nav::Piece],
-}
-
-/// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
-/// the surveyed one with the current mounting, into `h` (slices with eight or more kept
-/// returns: a slice's fit is poor with fewer). `v` holds kept returns grouped by slice.
-fn apparent_offsets(v: &[Observation], r: f64, h: &mut Histogram) {
-    for sl in extract::slices(v) {
-        let kept = v[sl].iter().map(|o| {
-            Vector3::new(
-                f64::from(o.work.x[0]),
-                f64::from(o.work.x[1]),
-                f64::from(o.work.x[2]),
-            )
-        });
-        if kept.len() < 8 {
-            continue;
-        }
-        if let Some(c) = fit_center(kept, r, Vector3::zeros()) {
-            h.add(c.norm());
-        }
-    }
 }
 
 /// Copy the kept returns of every sphere into `buf` (at most its length, evenly spread when

@@ -1,14 +1,18 @@
 //! One sphere's extraction over its windowed returns: every slice's detection and the returns
 //! it keeps ([`extract_sphere`]), and the returns that can no longer be the sphere's set
-//! behind the others ([`compact`]). docs/extraction.md, section 2.
+//! behind the others ([`compact`]), and how far the slices' apparent spheres lie from the
+//! surveyed one ([`apparent_offsets`]). docs/extraction.md, section 2.
 
 use super::attach::set_aside_ground;
 use super::detect::{detect, keep};
-use super::scan::SliceCursor;
+use super::scan::{slices, SliceCursor};
 use super::{tag, Detection, Directions, ExtractSettings, ReturnClass};
 use crate::align::window::{Observation, Target};
+use crate::calib::histogram::Histogram;
 use crate::calib::objective::Noise;
+use crate::calib::sphere_fit::fit_center;
 use crate::time::GpsTime;
+use nalgebra::Vector3;
 
 /// How one sphere is extracted: the shell, the prior, around what, and the settings.
 #[derive(Debug, Clone, Copy)]
@@ -94,4 +98,25 @@ pub fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
         }
     }
     w
+}
+
+/// How far the slices' apparent spheres (fitted to their kept returns, fixed radius) lie from
+/// the surveyed one with the current mounting, into `h` (slices with eight or more kept
+/// returns: a slice's fit is poor with fewer). `v` holds kept returns grouped by slice.
+pub(crate) fn apparent_offsets(v: &[Observation], r: f64, h: &mut Histogram) {
+    for sl in slices(v) {
+        let kept = v[sl].iter().map(|o| {
+            Vector3::new(
+                f64::from(o.work.x[0]),
+                f64::from(o.work.x[1]),
+                f64::from(o.work.x[2]),
+            )
+        });
+        if kept.len() < 8 {
+            continue;
+        }
+        if let Some(c) = fit_center(kept, r, Vector3::zeros()) {
+            h.add(c.norm());
+        }
+    }
 }

@@ -6,14 +6,13 @@
 use super::checks::weights;
 use super::outcome::{PassReport, Refusal, Round, Solution, Termination};
 use super::settings::Settings;
-use super::{
-    apparent_offsets, fingerprint, gather, reach, split_ranges, time_order, with_problem,
-    Histogram, Workspace,
-};
+use super::{fingerprint, gather, reach, split_ranges, time_order, with_problem, Workspace};
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
 use crate::calib::extract;
+use crate::calib::extract::apparent_offsets;
 use crate::calib::extract::{Directions, ReturnClass};
+use crate::calib::histogram::Histogram;
 use crate::calib::lm::refine;
 use crate::calib::nelder_mead::{minimize, NmResult};
 use crate::calib::objective::TimeOffset;
@@ -519,7 +518,11 @@ impl Rounds {
             extract::georeference(part[j], &targets[j], &mount, &self.time);
             apparent_offsets(part[j], targets[j].radius, &mut offsets);
         }
-        let off = if offsets.n > 0 { offsets.median() } else { 1.0 };
+        let off = if offsets.count() > 0 {
+            offsets.median()
+        } else {
+            1.0
+        };
         (4.0 * off).max(3.0 * self.tau).max(0.02)
     }
 }
