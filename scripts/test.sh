@@ -159,7 +159,7 @@ else
   say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
   $RUNNER -E "$RIG" &
   rig_pid=$!
-  # The last CPU is the side job's until it ends (measured: ~390 s in, the rig tests ~565 s):
+  # The last CPU is the side job's until it ends (measured: minutes before the rig tests end):
   # then the rest of the tests start there (their output follows the rig tests').
   while kill -0 "$rig_pid" 2>/dev/null && kill -0 "$side_pid" 2>/dev/null; do
     sleep 1

@@ -380,23 +380,11 @@ fn run_threads(
         mut raw_log,
         ..
     } = io;
-    // The targets: the site's [calibration], else the board's, else the default (as
-    // `calibrate` judges).
-    let accuracy = &crate::config::goal::TargetChoice::of(
-        opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
-        Some(&opts.board.calibration),
-    );
+    // Each thread's handle: what it writes and reads of the shared state.
+    let (rh, lh, ah) = (sh.reader(), sh.logger(), sh.aligner());
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
-            udp_reader(
-                data_sock,
-                data_p,
-                dlog_p,
-                accept,
-                LidarPort::Data,
-                sh.reader(),
-                true,
-            )
+            udp_reader(data_sock, data_p, dlog_p, accept, LidarPort::Data, rh, true)
         });
         let pos = spawn(sc, "udp-position", move || {
             udp_reader(
@@ -405,7 +393,7 @@ fn run_threads(
                 plog_p,
                 accept,
                 LidarPort::Position,
-                sh.reader(),
+                rh,
                 false,
             )
         });
@@ -422,14 +410,14 @@ fn run_threads(
                     keep,
                     ins_p,
                     slog_p,
-                    sh.reader(),
+                    rh,
                 )
             })),
             (None, Some(sock)) => Some(spawn(sc, "udp-posmv", move || {
                 let b = &opts.board;
                 let (frame, keep) = (&plan.frame, opts.keep_untracked_ins);
                 let (group, leap) = (b.ins.posmv_group, b.leap_seconds);
-                posmv_reader(sock, frame, group, keep, leap, ins_p, ilog_p, sh.reader())
+                posmv_reader(sock, frame, group, keep, leap, ins_p, ilog_p, rh)
             })),
             (None, None) => {
                 let _ = ins_p.enqueue(InsItem::End);
@@ -437,7 +425,7 @@ fn run_threads(
             }
         };
         let to_sync = &to_sync;
-        let syncer = spawn(sc, "syncer", move || syncer(to_sync, sh.logger()));
+        let syncer = spawn(sc, "syncer", move || syncer(to_sync, lh));
         let logger = spawn(sc, "logger", move || {
             logger(
                 &mut raw_log,
@@ -445,7 +433,7 @@ fn run_threads(
                 slog_c,
                 bind,
                 to_sync,
-                sh.logger(),
+                lh,
             );
             raw_log.written()
         });
@@ -453,7 +441,7 @@ fn run_threads(
             solver(
                 rx,
                 pool_tx,
-                &solver::SolverPlan::of(opts, plan, accuracy),
+                &solver::SolverPlan::of(opts, plan),
                 sh.solver(),
             )
         });
@@ -485,16 +473,9 @@ fn run_threads(
             tx,
             pool: &pool_rx,
             applied: std::cell::Cell::new(0),
-            sh: sh.aligner(),
+            sh: ah,
         };
-        align::align_until_end(
-            &mut al,
-            &mut pos_c,
-            &mut ins_c,
-            &mut data_c,
-            &out,
-            sh.aligner(),
-        );
+        align::align_until_end(&mut al, &mut pos_c, &mut ins_c, &mut data_c, &out, ah);
         al.finish(&mut |i, o| out.emit(i, o));
         for (w, n) in sh.aligner.windowed.iter().zip(&al.core.windowed) {
             w.store(*n, Ordering::Relaxed);

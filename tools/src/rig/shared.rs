@@ -167,7 +167,30 @@ pub(super) struct SolverHandle<'s> {
     pub(super) said: &'s Said,
 }
 
-impl Shared<'_> {
+/// Counts a reader out however it ends (the logger runs until every reader is out).
+pub(super) struct ReaderGuard<'s>(pub(super) &'s ReadersOut);
+
+impl Drop for ReaderGuard<'_> {
+    fn drop(&mut self) {
+        self.0.running.fetch_sub(1, Ordering::Release);
+    }
+}
+
+/// Set when the aligner's loop is left, by its end or by a panic: readers stop waiting to
+/// hand it their End, and (on a panic) everything stops.
+pub(super) struct AlignerGuard<'s, 'a>(pub(super) &'s Shared<'a>);
+
+impl Drop for AlignerGuard<'_, '_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.said.error("the aligner failed; stopping".into());
+            self.0.stop.store(true, Ordering::Relaxed);
+        }
+        self.0.aligner.gone.store(true, Ordering::Release);
+    }
+}
+
+impl<'a> Shared<'a> {
     /// A reader thread's handle.
     pub(super) fn reader(&self) -> ReaderHandle<'_> {
         ReaderHandle {
@@ -206,32 +229,7 @@ impl Shared<'_> {
             said: &self.said,
         }
     }
-}
 
-/// Counts a reader out however it ends (the logger runs until every reader is out).
-pub(super) struct ReaderGuard<'s>(pub(super) &'s ReadersOut);
-
-impl Drop for ReaderGuard<'_> {
-    fn drop(&mut self) {
-        self.0.running.fetch_sub(1, Ordering::Release);
-    }
-}
-
-/// Set when the aligner's loop is left, by its end or by a panic: readers stop waiting to
-/// hand it their End, and (on a panic) everything stops.
-pub(super) struct AlignerGuard<'s, 'a>(pub(super) &'s Shared<'a>);
-
-impl Drop for AlignerGuard<'_, '_> {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            self.0.said.error("the aligner failed; stopping".into());
-            self.0.stop.store(true, Ordering::Relaxed);
-        }
-        self.0.aligner.gone.store(true, Ordering::Release);
-    }
-}
-
-impl<'a> Shared<'a> {
     /// Nothing counted yet; `readers` threads to wait for, `spheres` windows, the two sockets'
     /// kernel drop counts read through `drop_probes`.
     pub(super) fn new(

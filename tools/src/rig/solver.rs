@@ -29,8 +29,9 @@ pub(super) struct SolverPlan<'a> {
     pub(super) nav_source: &'a str,
     /// The INS's output rate [Hz].
     pub(super) ins_rate_hz: f64,
-    /// The targets the verdict judges by.
-    pub(super) accuracy: &'a crate::config::goal::TargetChoice,
+    /// The targets the verdict judges by: the site's [calibration], else the board's, else the
+    /// default (as `calibrate` judges).
+    pub(super) accuracy: crate::config::goal::TargetChoice,
     /// The LiDAR model.
     pub(super) model: spherecal::velodyne::Model,
     /// The a-priori window margin [m].
@@ -44,12 +45,12 @@ pub(super) struct SolverPlan<'a> {
 }
 
 impl<'a> SolverPlan<'a> {
-    /// The run's plan and options, judged by `accuracy`.
-    pub(super) fn of(
-        opts: &'a super::RunOptions,
-        plan: &'a super::inputs::Plan,
-        accuracy: &'a crate::config::goal::TargetChoice,
-    ) -> Self {
+    /// The run's plan and options.
+    pub(super) fn of(opts: &'a super::RunOptions, plan: &'a super::inputs::Plan) -> Self {
+        let accuracy = crate::config::goal::TargetChoice::of(
+            opts.site.as_ref().and_then(|s| s.calibration.as_ref()),
+            Some(&opts.board.calibration),
+        );
         Self {
             targets: &plan.targets,
             ids: &plan.ids,
@@ -122,7 +123,7 @@ impl<'p> LiveSolve<'p> {
         let (sol, mut rep) = self
             .session
             .solve(&self.start, clocks, &mut StatusRounds(sh.solver));
-        rep.targets = Some(crate::report::TargetsReport::of(&rep, plan.accuracy));
+        rep.targets = Some(crate::report::TargetsReport::of(&rep, &plan.accuracy));
         sh.solver.solves.fetch_add(1, Ordering::Relaxed);
         self.judge(&sol, &rep);
         if rep.converged {

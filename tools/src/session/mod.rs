@@ -309,7 +309,8 @@ impl Session {
             let mount = spherecal::georef::Mount::from_params(b0);
             let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
             let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);
-            if radius::disagreement(&radii, &self.targets, &self.ids).is_none() {
+            let wrong = radius::disagreement(&radii, &self.targets, &self.ids);
+            if wrong.is_none() {
                 if let Some(found) = self.set_aside(b0, &s, &sol) {
                     (sol, rep) = (found.0, found.1);
                     let sp = found.2;
@@ -318,8 +319,8 @@ impl Session {
                 }
             }
             if !rep.converged {
-                let (targets, ids) = (&self.targets, &self.ids);
-                self.radius_named = radius::name_first(&mut rep, &radii, targets, ids);
+                self.radius_named = wrong.is_some();
+                radius::name_first(&mut rep, &radii, wrong);
             }
         }
         rep.set_aside = self

@@ -127,24 +127,23 @@ pub fn disagreement(
     })
 }
 
-/// On a refusal: each sphere's apparent radius into `rep.per_sphere`, and a radius the returns
-/// do not show named before the refusal's own reason; whether one was.
+/// On a refusal: each sphere's apparent radius into `rep.per_sphere`, and the radii the
+/// returns do not show (`wrong`, [`disagreement`]'s words) named before the refusal's own
+/// reason.
 pub fn name_first(
     rep: &mut crate::report::Report,
     radii: &[Option<ApparentRadius>],
-    targets: &[Target],
-    ids: &[String],
-) -> bool {
+    wrong: Option<String>,
+) {
     for (p, a) in rep.per_sphere.iter_mut().zip(radii) {
         p.apparent_radius_m = a.map(|a| a.radius_m);
     }
-    let Some(why) = disagreement(radii, targets, ids) else {
-        return false;
+    let Some(why) = wrong else {
+        return;
     };
     // (No stretch is set aside for a wrong radius: the refusal's words say none was tried.)
     rep.reason = Some(match rep.reason.take() {
         Some(r) => format!("{why}; so: {}", r.replace(crate::reasons::NO_STRETCH, "")),
         None => why,
     });
-    true
 }
