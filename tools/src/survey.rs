@@ -228,15 +228,19 @@ pub fn run_calibrate(
     inp.keep_untracked_ins = clock.keep_untracked_ins;
     inp.exclude = survey.exclude.clone();
     let (targets, ids) = calibrate::site_targets(&inp);
+    // Hashed for the provenance on the other core once the data are in (the solve uses one).
+    let mut hashing = report::provenance::Hashing::new(input_files(&inp)?);
     let (mut stats, mut obs, mut sol, mut rep) =
-        calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock)?;
+        calibrate::calibrate(&mut inp, &targets, &ids, &b0, clock, &mut || {
+            hashing.start()
+        })?;
     // A parameter the data cannot determine: held at its a-priori value, the rest calibrated.
     let candidates = crate::undetermined::candidates(&sol, &inp.site);
     let mut held = String::new();
     if !candidates.is_empty() {
         let mut again = inp.clone();
         again.site = crate::undetermined::holding(&inp.site, &candidates);
-        let second = calibrate::calibrate(&mut again, &targets, &ids, &b0, clock)?;
+        let second = calibrate::calibrate(&mut again, &targets, &ids, &b0, clock, &mut || {})?;
         let weak = crate::undetermined::undetermined(&candidates, &second.3.sigma.deg_m());
         if second.3.converged && !weak.is_empty() {
             let why = rep.reason.clone().unwrap_or_default();
@@ -282,7 +286,7 @@ pub fn run_calibrate(
     rep.conventions = Some(report::conventions::Conventions::of(&sol.b.0));
     // What the site measured (not the holds).
     rep.mounting_prior = report::prior::of(&surveyed.apriori, &rep);
-    let mut prov = provenance(&inp, &survey.site, &surveyed, &datums, &stats)?;
+    let mut prov = provenance(&inp, hashing, &survey.site, &surveyed, &datums, &stats)?;
     prov.platform = report::provenance::Platform::of(board.as_ref(), survey.operator.as_deref())?;
     rep.provenance = Some(prov);
     text.push_str(&report::render(&rep, truth.as_ref()));
@@ -322,34 +326,45 @@ pub struct Calibrated {
     pub output_errors: Vec<String>,
 }
 
-/// Where this calibration came from: the command line, the build, each input file with its
-/// hash and the span its data cover, the site as surveyed and the datums' transformation.
-fn provenance(
-    inp: &pipeline::Inputs,
-    site_path: &std::path::Path,
-    surveyed: &config::site::Site,
-    datums: &str,
-    stats: &pipeline::RunStats,
-) -> Result<report::provenance::Provenance, crate::Error> {
-    use report::provenance::{InputFile, Provenance, SiteProvenance};
-    let mut inputs: Vec<InputFile> = Vec::new();
-    for (role, files, span) in [
-        ("lidar", &inp.pcap, stats.align.lidar_span),
-        ("ins", inp.ins_files(), stats.ins.span),
-    ] {
-        // A bag is one input (its folder's files hashed together).
+/// The input files of `inp` for the provenance, `(role, path)`: each capture and INS file once
+/// (a bag as one input: its folder's files hashed together), then the accuracy file.
+fn input_files(inp: &pipeline::Inputs) -> Result<Vec<(String, std::path::PathBuf)>, crate::Error> {
+    let mut out: Vec<(String, std::path::PathBuf)> = Vec::new();
+    for (role, files) in [("lidar", &inp.pcap), ("ins", inp.ins_files())] {
         let paths = match pipeline::as_bag(files) {
             Some(b) => vec![b.to_path_buf()],
             None => files.expand()?,
         };
         for f in paths {
-            if !inputs.iter().any(|i| i.path == f.display().to_string()) {
-                inputs.push(InputFile::of(role, &f, span)?);
+            if !out.iter().any(|(_, p)| *p == f) {
+                out.push((role.into(), f));
             }
         }
     }
     if let Some(a) = &inp.accuracy {
-        inputs.push(InputFile::of("accuracy", a, None)?);
+        out.push(("accuracy".into(), a.clone()));
+    }
+    Ok(out)
+}
+
+/// Where this calibration came from: the command line, the build, each input file with its
+/// hash and the span its data cover, the site as surveyed and the datums' transformation.
+fn provenance(
+    inp: &pipeline::Inputs,
+    hashed: report::provenance::Hashing,
+    site_path: &std::path::Path,
+    surveyed: &config::site::Site,
+    datums: &str,
+    stats: &pipeline::RunStats,
+) -> Result<report::provenance::Provenance, crate::Error> {
+    use report::provenance::{Provenance, SiteProvenance};
+    let mut inputs = hashed.finish()?;
+    for i in &mut inputs {
+        i.gps_span_s = match i.role.as_str() {
+            "lidar" => stats.align.lidar_span,
+            "ins" => stats.ins.span,
+            _ => None,
+        };
     }
     Ok(Provenance {
         command: std::env::args().collect(),

@@ -38,6 +38,8 @@ pub(super) struct Collections<'a> {
     site_spec: Option<CorrelatedSpec>,
     /// The rounds on a spinner (on a terminal only).
     pub(super) spinner: indicatif::ProgressBar,
+    /// Called after each collection, before its solve.
+    collected: &'a mut dyn FnMut(),
 }
 
 impl<'a> Collections<'a> {
@@ -49,6 +51,7 @@ impl<'a> Collections<'a> {
         ids: &'a [String],
         b0: &'a Params,
         clock: ClockOptions,
+        collected: &'a mut dyn FnMut(),
     ) -> Result<Self, crate::Error> {
         if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
             inp.model = Some(m);
@@ -88,6 +91,7 @@ impl<'a> Collections<'a> {
             site_spec,
             spinner: crate::progress::spinner("solving"),
             inp,
+            collected,
         })
     }
 
@@ -97,6 +101,7 @@ impl<'a> Collections<'a> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let settings = self.session.as_ref().map_or(&self.base, Session::settings);
         let (stats, mut obs) = collect_bounded(inp, self.targets, self.b0, settings, STORE_CAP)?;
+        (self.collected)();
         let session = match &mut self.session {
             Some(s) => s,
             None => {

@@ -129,15 +129,17 @@ fn unsettled_offset(found: &[(f64, f64)]) -> Option<String> {
 /// PPS-locked with valid RMCs starts from the offset its RMCs give, and is searched around it
 /// (`clock.search`, default 2 s: a coarse 1-D search, see [`search_time_offset`]); its solution
 /// is refused unless `clock.allow_unlocked` and the offset found explains the RMC
-/// disagreement. The report records the inputs' state.
+/// disagreement. The report records the inputs' state. `collected` is called after each
+/// collection (the solve that follows uses one core: the caller's work for the other).
 pub fn calibrate(
     inp: &mut Inputs,
     targets: &[Target],
     ids: &[String],
     b0: &Params,
     clock: ClockOptions,
+    collected: &mut dyn FnMut(),
 ) -> Result<Calibrated, crate::Error> {
-    let mut c = Collections::new(inp, targets, ids, b0, clock)?;
+    let mut c = Collections::new(inp, targets, ids, b0, clock, collected)?;
     let (start, first, searched) = c.first()?;
     let ((stats, obs, sol, mut rep), unsettled) = c.settle(start, first)?;
     if let (true, Some(why)) = (rep.converged, unsettled) {

@@ -71,6 +71,7 @@ pub(super) fn final_from_logs(
         allow_unlocked: opts.allow_unlocked_clock,
         ..Default::default()
     };
-    let (_, _, _, rep) = crate::calibrate::calibrate(&mut inp, &targets, &ids, &plan.b0, clock)?;
+    let (_, _, _, rep) =
+        crate::calibrate::calibrate(&mut inp, &targets, &ids, &plan.b0, clock, &mut || {})?;
     Ok(Some(rep))
 }

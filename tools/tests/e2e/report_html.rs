@@ -164,6 +164,27 @@ fn html_report_converged_and_refused() {
         "python3",
     );
     assert_eq!(pl.board.unwrap().sha256, sha.trim());
+    // Each input's hash (made on a thread beside the solve) as hashlib gives it, with its span.
+    let inputs = &rep.provenance.as_ref().unwrap().inputs;
+    assert_eq!(inputs.len(), 2, "{inputs:?}");
+    for i in inputs {
+        let p = std::path::Path::new(&i.path);
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            dir.join(p)
+        };
+        let sha = common::python(
+            &format!(
+                "import hashlib\nprint(hashlib.sha256(open({:?}, 'rb').read()).hexdigest())",
+                p.display().to_string()
+            ),
+            "python3",
+        );
+        assert_eq!(i.sha256, sha.trim(), "{}", i.path);
+        assert_eq!(i.bytes, std::fs::metadata(&p).unwrap().len());
+        assert!(i.gps_span_s.is_some_and(|(a, b)| b > a), "{i:?}");
+    }
     let t = rep.targets.as_ref().unwrap();
     assert_eq!(
         (t.sigma_deg, t.source.as_str()),
