@@ -78,6 +78,9 @@ impl<'a, 'p> Joint<'a, 'p> {
         for p in pieces.iter_mut() {
             p.error = [0.0; 6];
         }
+        for i in 0..pieces.len() {
+            (pieces[i].own, pieces[i].link) = chain_of(model, pieces, i);
+        }
         Self {
             pb,
             z,
@@ -130,34 +133,10 @@ impl Joint<'_, '_> {
     }
 
     /// The chain prior's diagonal information per axis of piece `i` (`own`) and the link to
-    /// piece `i + 1` (`link`, negative), for the axes with a sigma.
+    /// piece `i + 1` (`link`, negative), for the axes with a sigma ([`chain_of`], made once by
+    /// [`Self::start`]: it depends on the pieces' times alone).
     pub(super) fn chain(&self, pieces: &[Piece], i: usize) -> ([f64; 6], [f64; 6]) {
-        let sig = self.model.sigmas();
-        let phi = |a: usize, b: usize| self.model.phi(&pieces[a], &pieces[b]);
-        let mut own = [0.0; 6];
-        let mut link = [0.0; 6];
-        for k in 0..6 {
-            let s2 = sig[k] * sig[k];
-            if s2 <= 0.0 {
-                own[k] = 1e12;
-                continue;
-            }
-            // Own: the first piece's marginal, or the step from the previous one; plus the
-            // next piece's step's phi^2 q.
-            own[k] = if i == 0 {
-                1.0 / s2
-            } else {
-                let f = phi(i - 1, i);
-                1.0 / ((1.0 - f * f).max(1e-9) * s2)
-            };
-            if i + 1 < pieces.len() {
-                let f = phi(i, i + 1);
-                let q = 1.0 / ((1.0 - f * f).max(1e-9) * s2);
-                own[k] += f * f * q;
-                link[k] = -f * q;
-            }
-        }
-        (own, link)
+        (pieces[i].own, pieces[i].link)
     }
 
     /// Each return's linearised row at the state, in the spheres' order and each sphere's
@@ -209,32 +188,44 @@ impl Joint<'_, '_> {
         self.each_row(pieces, |p, r| {
             let (jq, jc, je, res, w) = (&r.jq, &r.jc, &r.je, r.res, r.w);
             let cj = Q + 3 * r.sphere;
-            for a in 0..Q {
-                for b in 0..=a {
-                    s.a[(a, b)] += jq[a] * jq[b] * w;
+            // Column by column (the matrices are column-major); each sum takes its terms in
+            // the rows' order, as `(x y) w`.
+            let a = s.a.as_mut_slice();
+            for (b, col) in a.chunks_exact_mut(G).take(Q).enumerate() {
+                let jb = jq[b];
+                for (c, &ja) in col[b..Q].iter_mut().zip(&jq.as_slice()[b..]) {
+                    *c += ja * jb * w;
                 }
-                for (k, jck) in jc.iter().enumerate() {
-                    s.a[(cj + k, a)] += jck * jq[a] * w;
+                for (c, jck) in col[cj..cj + 3].iter_mut().zip(jc) {
+                    *c += jck * jb * w;
                 }
-                s.g[a] += jq[a] * res * w;
             }
-            for k in 0..3 {
-                for l in 0..=k {
-                    s.a[(cj + k, cj + l)] += jc[k] * jc[l] * w;
+            for (k, col) in a.chunks_exact_mut(G).skip(cj).take(3).enumerate() {
+                for (c, jcl) in col[cj + k..cj + 3].iter_mut().zip(&jc[k..]) {
+                    *c += jcl * jc[k] * w;
                 }
-                s.g[cj + k] += jc[k] * res * w;
             }
-            for a in 0..6 {
-                for b in 0..6 {
-                    p.d[(a, b)] += je[a] * je[b] * w;
+            for (ga, ja) in s.g.as_mut_slice()[..Q].iter_mut().zip(jq.iter()) {
+                *ga += ja * res * w;
+            }
+            for (gc, jck) in s.g.as_mut_slice()[cj..cj + 3].iter_mut().zip(jc) {
+                *gc += jck * res * w;
+            }
+            for (b, col) in p.d.as_mut_slice().chunks_exact_mut(6).enumerate() {
+                for (c, ja) in col.iter_mut().zip(je.iter()) {
+                    *c += ja * je[b] * w;
                 }
-                for q in 0..Q {
-                    p.b[(q, a)] += jq[q] * je[a] * w;
+            }
+            for (a, col) in p.b.as_mut_slice().chunks_exact_mut(G).enumerate() {
+                for (c, jqq) in col[..Q].iter_mut().zip(jq.iter()) {
+                    *c += jqq * je[a] * w;
                 }
-                for (k, jck) in jc.iter().enumerate() {
-                    p.b[(cj + k, a)] += jck * je[a] * w;
+                for (c, jck) in col[cj..cj + 3].iter_mut().zip(jc) {
+                    *c += jck * je[a] * w;
                 }
-                p.g[a] += je[a] * res * w;
+            }
+            for (ga, ja) in p.g.iter_mut().zip(je.iter()) {
+                *ga += ja * res * w;
             }
             s.cost += w * res * res;
             s.raw += res * res;
@@ -281,13 +272,13 @@ impl Joint<'_, '_> {
         let m = pieces.len();
         for i in 0..m {
             let (own, link) = self.chain(pieces, i);
+            let prev = if i > 0 { pieces[i - 1].link } else { [0.0; 6] };
             for k in 0..6 {
                 let mut le = own[k] * pieces[i].error[k];
                 if i + 1 < m {
                     le += link[k] * pieces[i + 1].error[k];
                 }
                 if i > 0 {
-                    let (_, prev) = self.chain(pieces, i - 1);
                     le += prev[k] * pieces[i - 1].error[k];
                 }
                 pieces[i].g[k] += le;
@@ -302,6 +293,10 @@ impl Joint<'_, '_> {
     /// recursion. `None` when a block is singular.
     pub(super) fn step(&self, s: &Sums, pieces: &mut [Piece], lambda: f64) -> Option<VecG> {
         let m = pieces.len();
+        // Only the globals in use and the gradient: `B`'s rows past them are zero, and so are
+        // `Y`'s columns.
+        let na = self.active();
+        let cols = (0..na).chain(core::iter::once(G));
         // Forward: C_i = M_ii - L_(i-1) C_(i-1)^-1 L_(i-1); Y'_i = R_i - L_(i-1) C_(i-1)^-1 Y'_(i-1).
         let mut prev_link = [0.0; 6];
         for i in 0..m {
@@ -313,18 +308,25 @@ impl Joint<'_, '_> {
             }
             let mut y = Mat6G1::zeros();
             for a in 0..6 {
-                for q in 0..G {
+                for q in 0..na {
                     y[(a, q)] = pieces[i].b[(q, a)];
                 }
                 y[(a, G)] = pieces[i].g[a];
             }
             if i > 0 {
-                let ch = Cholesky::new(pieces[i - 1].c)?;
+                let ch = Cholesky::pack_dirty(pieces[i - 1].chol);
                 let l = Mat6::from_diagonal(&Vec6::from(prev_link));
                 let inv_l = ch.solve(&l);
                 c -= l * inv_l;
-                y -= l * ch.solve(&pieces[i - 1].y);
+                for q in cols.clone() {
+                    let mut col: Vec6 = pieces[i - 1].y.column(q).into_owned();
+                    ch.solve_mut(&mut col);
+                    for k in 0..6 {
+                        y[(k, q)] -= prev_link[k] * col[k];
+                    }
+                }
             }
+            pieces[i].chol = Cholesky::new(c)?.unpack_dirty();
             pieces[i].c = c;
             pieces[i].y = y;
             prev_link = link;
@@ -332,11 +334,17 @@ impl Joint<'_, '_> {
         // Backward: Y_i = C_i^-1 (Y'_i - L_i Y_(i+1)).
         for i in (0..m).rev() {
             let (_, link) = self.chain(pieces, i);
-            let mut y = pieces[i].y;
-            if i + 1 < m {
-                y -= Mat6::from_diagonal(&Vec6::from(link)) * pieces[i + 1].y;
+            let ch = Cholesky::pack_dirty(pieces[i].chol);
+            for q in cols.clone() {
+                let mut col: Vec6 = pieces[i].y.column(q).into_owned();
+                if i + 1 < m {
+                    for k in 0..6 {
+                        col[k] -= link[k] * pieces[i + 1].y[(k, q)];
+                    }
+                }
+                ch.solve_mut(&mut col);
+                pieces[i].y.set_column(q, &col);
             }
-            pieces[i].y = Cholesky::new(pieces[i].c)?.solve(&y);
         }
         // The reduced system: (A - B Y_B) dz = -(g - B Y_g).
         let mut h = s.a;
@@ -344,7 +352,6 @@ impl Joint<'_, '_> {
             h[(k, k)] *= 1.0 + lambda;
         }
         let mut rhs = s.g;
-        let na = self.active();
         for p in pieces.iter() {
             less_piece(&mut h, p, na);
             rhs -= p.b * p.y.column(G);
@@ -358,16 +365,39 @@ impl Joint<'_, '_> {
         Some(dz)
     }
 
-    /// Move the state by the step: the globals by `sign dz`, each piece by `sign` its step
-    /// (in its `sigma` scratch, where [`Self::step`] leaves it).
-    pub(super) fn apply(&mut self, dz: &VecG, pieces: &mut [Piece], sign: f64) {
+    /// Move the state by the step: the globals by `dz`, each piece by its step (in its
+    /// `sigma` scratch, where [`Self::step`] leaves it).
+    pub(super) fn apply(&mut self, dz: &VecG, pieces: &mut [Piece]) {
         for k in 0..G {
-            self.z[k] += sign * dz[k];
+            self.z[k] += dz[k];
         }
         for p in pieces.iter_mut() {
             for k in 0..6 {
-                p.error[k] += sign * p.sigma[k];
+                p.error[k] += p.sigma[k];
             }
+        }
+    }
+
+    /// Keep every piece's sums and error before a trial step: returns the globals to put back
+    /// with [`Self::put_back`].
+    pub(super) fn keep(&self, pieces: &mut [Piece]) -> [f64; G] {
+        for p in pieces.iter_mut() {
+            p.before = super::pieces::BeforeTrial {
+                d: p.d,
+                b: p.b,
+                g: p.g,
+                error: p.error,
+            };
+        }
+        self.z
+    }
+
+    /// Back to the state [`Self::keep`] kept (its sums too: no evaluation needed).
+    pub(super) fn put_back(&mut self, z: [f64; G], pieces: &mut [Piece]) {
+        self.z = z;
+        for p in pieces.iter_mut() {
+            let k = &p.before;
+            (p.d, p.b, p.g, p.error) = (k.d, k.b, k.g, k.error);
         }
     }
 
@@ -413,6 +443,38 @@ impl Joint<'_, '_> {
     }
 }
 
+/// The chain prior's diagonal information per axis of piece `i` (`own`) and the link to piece
+/// `i + 1` (`link`, negative), for the axes with a sigma: the first-order Gauss-Markov
+/// process between the pieces' middles.
+fn chain_of(model: &NavModel, pieces: &[Piece], i: usize) -> ([f64; 6], [f64; 6]) {
+    let sig = model.sigmas();
+    let phi = |a: usize, b: usize| model.phi(&pieces[a], &pieces[b]);
+    let mut own = [0.0; 6];
+    let mut link = [0.0; 6];
+    for k in 0..6 {
+        let s2 = sig[k] * sig[k];
+        if s2 <= 0.0 {
+            own[k] = 1e12;
+            continue;
+        }
+        // Own: the first piece's marginal, or the step from the previous one; plus the
+        // next piece's step's phi^2 q.
+        own[k] = if i == 0 {
+            1.0 / s2
+        } else {
+            let f = phi(i - 1, i);
+            1.0 / ((1.0 - f * f).max(1e-9) * s2)
+        };
+        if i + 1 < pieces.len() {
+            let f = phi(i, i + 1);
+            let q = 1.0 / ((1.0 - f * f).max(1e-9) * s2);
+            own[k] += f * f * q;
+            link[k] = -f * q;
+        }
+    }
+    (own, link)
+}
+
 /// `h -= B_p (Y_B)_p` over the first `na` rows and columns (the rest of `B_p` is zero: a
 /// sphere slot past the survey's), the Schur complement's share of one piece.
 fn less_piece(h: &mut MatG, p: &Piece, na: usize) {
@@ -429,7 +491,8 @@ fn less_piece(h: &mut MatG, p: &Piece, na: usize) {
 }
 
 /// Levenberg-Marquardt steps on the joint state (as [`super::lm`]'s): the last sums, the
-/// iterations and whether a negligible step or decrease ended them.
+/// iterations and whether a negligible step or decrease ended them. A rejected step puts the
+/// state and its sums back as they were ([`Joint::keep`]), without evaluating again.
 pub(super) fn iterate(
     at: &mut Joint<'_, '_>,
     pieces: &mut [Piece],
@@ -450,7 +513,8 @@ pub(super) fn iterate(
             continue;
         };
         // Try the step (the pieces' steps are in their `sigma` scratch).
-        at.apply(&dz, pieces, 1.0);
+        let z0 = at.keep(pieces);
+        at.apply(&dz, pieces);
         let trial = at.evaluate(pieces);
         if trial.cost <= sums.cost && trial.cost.is_finite() {
             let small = dz.iter().all(|d| d.abs() < 1e-11)
@@ -462,22 +526,21 @@ pub(super) fn iterate(
                 break;
             }
         } else {
-            at.apply(&dz, pieces, -1.0);
+            at.put_back(z0, pieces);
             lambda *= 10.0;
-            sums = at.evaluate(pieces);
             if lambda > 1e8 && !tried_gn {
                 // Marquardt's steps fail: one undamped Gauss-Newton step before giving up.
                 tried_gn = true;
                 if let Some(dz) = at.step(&sums, pieces, 0.0) {
-                    at.apply(&dz, pieces, 1.0);
+                    let z0 = at.keep(pieces);
+                    at.apply(&dz, pieces);
                     let trial = at.evaluate(pieces);
                     if trial.cost.is_finite() && trial.cost < sums.cost {
                         sums = trial;
                         lambda = 1e-6;
                         continue;
                     }
-                    at.apply(&dz, pieces, -1.0);
-                    sums = at.evaluate(pieces);
+                    at.put_back(z0, pieces);
                 }
             }
             if lambda > 1e8 {
@@ -502,7 +565,8 @@ pub(super) fn iterate(
             let Some(dz) = at.step(&sums, pieces, 0.0) else {
                 break;
             };
-            at.apply(&dz, pieces, 1.0);
+            let z0 = at.keep(pieces);
+            at.apply(&dz, pieces);
             let trial = at.evaluate(pieces);
             if trial.cost.is_finite() && trial.cost <= sums.cost {
                 let gain = sums.cost - trial.cost;
@@ -512,8 +576,7 @@ pub(super) fn iterate(
                     break;
                 }
             } else {
-                at.apply(&dz, pieces, -1.0);
-                sums = at.evaluate(pieces);
+                at.put_back(z0, pieces);
                 break;
             }
         }

@@ -34,6 +34,24 @@ pub struct Piece {
     pub(super) y: Mat6G1,
     /// The chain's own posterior block (of `M^-1`: the globals held), [`Joint::chain_blocks`].
     pub(super) s: Mat6,
+    /// The chain prior's diagonal information of its own error and of its link to the next
+    /// piece ([`Joint::chain`]), set once per solve by [`Joint::start`].
+    pub(super) own: [f64; 6],
+    pub(super) link: [f64; 6],
+    /// The Cholesky factor of `c` ([`Joint::step`]'s forward recursion), packed.
+    pub(super) chol: Mat6,
+    /// Its sums and error before a trial step, put back when the step is rejected.
+    pub(super) before: BeforeTrial,
+}
+
+/// A piece's sums `(d, b, g)` and error before a trial step of [`super::joint::iterate`]:
+/// a rejected step puts them back instead of evaluating again.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct BeforeTrial {
+    pub(super) d: Mat6,
+    pub(super) b: MatG6,
+    pub(super) g: Vec6,
+    pub(super) error: [f64; 6],
 }
 
 impl Piece {
@@ -52,6 +70,15 @@ impl Piece {
         c: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
         y: Mat6G1::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; G + 1])),
         s: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
+        own: [0.0; 6],
+        link: [0.0; 6],
+        chol: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
+        before: BeforeTrial {
+            d: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
+            b: MatG6::from_array_storage(nalgebra::ArrayStorage([[0.0; G]; 6])),
+            g: Vec6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 1])),
+            error: [0.0; 6],
+        },
     };
 
     /// Its span [s].

@@ -84,7 +84,7 @@ fn trial_mount(
         ..*settings
     };
     let mut slices: Vec<&mut [Observation]> = obs.iter_mut().map(|v| v.as_mut_slice()).collect();
-    let mut scratch = crate::session::scratch::Scratch::default();
+    let mut scratch = crate::session::scratch::Scratch::for_settings(&s);
     let sol =
         spherecal::calib::solve::solve(targets, &mut slices, b0, &s, &mut scratch.workspace());
     (sol.refusal.is_none() && sol.lm.is_some_and(|l| l.converged)).then(|| (sol.b.mount(), sol.dt))

@@ -174,7 +174,7 @@ impl Session {
             targets,
             ids,
             settings,
-            scratch: Scratch::default(),
+            scratch: Scratch::for_settings(&settings),
             store: vec![Vec::new(); n],
             offset_ns: 0,
             capacity: usize::MAX,
@@ -477,7 +477,15 @@ pub fn solve_report(
     b0: &Params,
     s: &Settings,
 ) -> (Solution, Report) {
-    solve_report_in(targets, ids, obs, b0, s, &mut Scratch::default(), &mut ())
+    solve_report_in(
+        targets,
+        ids,
+        obs,
+        b0,
+        s,
+        &mut Scratch::for_settings(s),
+        &mut (),
+    )
 }
 
 /// [`solve_report`] in a lent scratch (the core's workspace, ~9 MB: the rig keeps one for all

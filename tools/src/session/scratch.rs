@@ -26,11 +26,12 @@ pub struct Scratch {
     nav: Vec<spherecal::calib::nav::Piece>,
 }
 
-/// Pieces of the navigation model's time line (each ~6 kB; 0.25-0.5 s each: 1,024 hold
+/// Pieces of the navigation model's time line (each ~10 kB; 0.25-0.5 s each: 1,024 hold
 /// 4-8 minutes of sphere returns).
 pub const NAV_PIECES: usize = 1024;
 
 impl Default for Scratch {
+    /// With the navigation model's pieces.
     fn default() -> Self {
         Self {
             grid: vec![0; GRID_CELLS],
@@ -44,6 +45,22 @@ impl Default for Scratch {
 }
 
 impl Scratch {
+    /// For solves under `s`: the navigation model's pieces (10 MB, written as they are
+    /// allocated) only when `s` has one.
+    pub fn for_settings(s: &spherecal::calib::Settings) -> Self {
+        if s.nav.is_some() {
+            return Self::default();
+        }
+        Self {
+            grid: vec![0; GRID_CELLS],
+            kept: vec![Observation::default(); KEPT_CAPACITY],
+            keys: vec![(0.0, 0); SLICE_CAPACITY],
+            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
+            idx: vec![0; CANDIDATE_CAPACITY],
+            nav: Vec::new(),
+        }
+    }
+
     /// The workspace the core's solve borrows.
     pub fn workspace(&mut self) -> Workspace<'_> {
         Workspace {
