@@ -8,7 +8,7 @@
 
 use super::history::{PoseHistory, PoseSample};
 use crate::align::window::{
-    Batch, GeoPoint, Observation, Target, WindowStats, Windowing, MAX_TARGETS,
+    Batch, GeoPoint, Observation, Reach, Target, WindowStats, Windowing, MAX_TARGETS,
 };
 use crate::georef::Mount;
 use crate::time::{GpsTime, HostTime, LidarClock};
@@ -57,6 +57,9 @@ pub struct AlignStats {
     /// Data packets not decoded because their model is unknown or their product byte
     /// disagrees with their period ([`Identity`]); a run with any is not to be trusted.
     pub model_refused: u64,
+    /// Data packets (of `data_packets`) whose firings all miss every window: their returns
+    /// counted, not decoded ([`Reach`]).
+    pub spared: u64,
 }
 
 /// The align stage over a history of `H` poses and batches of `B` observations.
@@ -76,6 +79,8 @@ pub struct Aligner<'a, const H: usize, const B: usize> {
     /// GPS time for returns timed by the host ([`Aligner::points`]).
     host_to_gps: Option<(i64, GpsTime)>,
     data_seen: u32,
+    /// The azimuths that reach a window over the last INS segment a packet fell in.
+    reach: Option<Reach>,
     model: Option<Model>,
     detector: velodyne::Detector,
     /// Counts.
@@ -119,6 +124,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
             ins_offset_ns: None,
             host_to_gps: None,
             data_seen: 0,
+            reach: None,
             model: None,
             detector: velodyne::Detector::new(),
             stats: AlignStats::default(),
@@ -269,10 +275,59 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
                 }
             }
         };
+        // Without a point cloud to make, a packet whose azimuths miss every window is counted,
+        // not decoded (calibration keeps a few percent of a scan).
+        if each.is_none() && self.counted_beyond_reach(p, model, t0, host) {
+            return;
+        }
         if velodyne::decode_as(p, model, &mut self.points).is_err() {
             return;
         }
         self.window(index, t0, None, host, each, emit);
+    }
+
+    /// When no return of `p` (as `model`, first firing at `t0` on the INS clock) can reach a
+    /// window ([`Reach`], made once per INS segment): the packet counted as [`Self::window`]
+    /// would count it.
+    fn counted_beyond_reach<T: AsRef<[u8]>>(
+        &mut self,
+        p: &DataPacket<T>,
+        model: Model,
+        t0: GpsTime,
+        host: Option<HostTime>,
+    ) -> bool {
+        let Ok(e) = velodyne::extent(p, model) else {
+            return false;
+        };
+        let end =
+            GpsTime(t0.0.saturating_add(i64::from(model.block_ns()) * e.azimuth.len() as i64));
+        if !self
+            .reach
+            .as_ref()
+            .is_some_and(|r| r.holds(t0, end, self.history))
+        {
+            let (targets, mount) = (self.targets, &self.mount);
+            self.reach = Reach::at(targets, self.margin, mount, t0, self.history);
+        }
+        let reach = self.reach.as_ref();
+        if !reach.is_some_and(|r| r.holds(t0, end, self.history) && r.misses(&e.azimuth)) {
+            return false;
+        }
+        self.seen(t0, host);
+        self.stats.spared += 1;
+        let n = e.returns as u64;
+        self.stats.window.points += n;
+        self.stats.window.georeferenced += n;
+        self.stats.rollovers = self.clock.rollovers;
+        true
+    }
+
+    /// A data packet aligned at `t0`: counted, and the clocks' lag taken.
+    fn seen(&mut self, t0: GpsTime, host: Option<HostTime>) {
+        self.stats.data_packets += 1;
+        if let (Some(o), Some(h)) = (self.ins_offset_ns, host) {
+            self.lag_ns = Some(t0.0.saturating_sub(h.0).saturating_sub(o));
+        }
     }
 
     /// GPS time minus host time as the poses' host stamps bound it [ns] (see [`Self::points`]).
@@ -327,11 +382,8 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
+        self.seen(t0, host);
         let points = points.unwrap_or(self.points.as_slice());
-        self.stats.data_packets += 1;
-        if let (Some(o), Some(h)) = (self.ins_offset_ns, host) {
-            self.lag_ns = Some(t0.0.saturating_sub(h.0).saturating_sub(o));
-        }
         let mut win = Windowing {
             targets: self.targets,
             margin: self.margin,
@@ -357,6 +409,7 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
     pub fn set_windows(&mut self, mount: Mount, margin: f64) {
         self.mount = mount;
         self.margin = margin;
+        self.reach = None;
     }
 
     /// The window margin in use [m].

@@ -417,6 +417,94 @@ impl<const CAP: usize> Windowing<'_, CAP> {
     }
 }
 
+/// Which azimuths from the LiDAR can reach a window while the platform is within one INS
+/// segment: a data packet whose firings all miss them would only be counted by
+/// [`Windowing::add_packet`] (seen, and georeferenced by its broad phase), so its decoding can
+/// be spared. Conservative: each window's centre is allowed to move in the LiDAR frame as far
+/// as the segment's speed and turn can move it from the pose it was taken at, and 0.1 deg
+/// more; only packets inside the segment (every return with a pose, the rates the segment's).
+#[derive(Debug, Clone)]
+pub struct Reach {
+    segment: (GpsTime, GpsTime),
+    /// Each window's azimuth and half-width [rad]; `None`: a window is reachable at every
+    /// azimuth (seen from above, below or inside).
+    windows: Option<heapless::Vec<(f64, f64), MAX_TARGETS>>,
+}
+
+impl Reach {
+    /// Over the INS segment holding `t0`, for these windows (`targets`, `margin`, `mount`);
+    /// `None` where `t0` has no pose.
+    pub fn at<const N: usize>(
+        targets: &[Target],
+        margin: f64,
+        mount: &Mount,
+        t0: GpsTime,
+        history: &PoseHistory<N>,
+    ) -> Option<Self> {
+        let a = history.interpolate(t0).ok()?;
+        let sq = Sequence::new(&a, t0, mount, targets, margin);
+        let span = (a.segment.1 .0 - a.segment.0 .0) as f64 * 1e-9;
+        let turn = a.rate.norm() * span;
+        let lever = mount.lever.norm();
+        let mut windows = heapless::Vec::new();
+        for &(c, r2) in &sq.windows {
+            let c = Vector3::new(f64::from(c[0]), f64::from(c[1]), f64::from(c[2]));
+            // How far the centre can move in the LiDAR frame within the segment.
+            let moved = a.velocity.norm() * span + turn * (c.norm() + lever) + 0.01;
+            let reach = f64::from(r2).sqrt() + moved;
+            let rho = libm::hypot(c.x, c.y);
+            // Seen from (nearly) above or below, or from inside (or not a number): every
+            // azimuth may reach it.
+            let beside = rho > reach * 1.001 + 0.01;
+            if !beside {
+                return Some(Self {
+                    segment: a.segment,
+                    windows: None,
+                });
+            }
+            let half = libm::asin(reach / rho) + 0.1f64.to_radians();
+            let _ = windows.push((libm::atan2(c.x, c.y), half));
+        }
+        Some(Self {
+            segment: a.segment,
+            windows: Some(windows),
+        })
+    }
+
+    /// Whether this holds returns fired from `t0` to `end`: the segment (its first sample
+    /// still in `history`, whose samples only ever come after) holds them, short of its end
+    /// (a firing at the next sample's time takes the next segment).
+    pub fn holds<const N: usize>(
+        &self,
+        t0: GpsTime,
+        end: GpsTime,
+        history: &PoseHistory<N>,
+    ) -> bool {
+        let kept = history
+            .span()
+            .is_some_and(|(first, _)| first <= self.segment.0);
+        kept && self.segment.0 <= t0 && end < self.segment.1
+    }
+
+    /// Whether no firing within these azimuths [rad] (each block's lowest and highest,
+    /// [`crate::velodyne::extent`]) can reach a window.
+    pub fn misses(&self, blocks: &[(f32, f32)]) -> bool {
+        let Some(windows) = &self.windows else {
+            return false;
+        };
+        let tau = core::f64::consts::TAU;
+        windows.iter().all(|&(centre, half)| {
+            blocks.iter().all(|&(lo, hi)| {
+                let (lo, hi) = (f64::from(lo), f64::from(hi));
+                // The middle's angle from the window's, in -pi..pi.
+                let d = 0.5 * (lo + hi) - centre;
+                let d = d - tau * libm::round(d / tau);
+                d.abs() > half + 0.5 * (hi - lo)
+            })
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -126,6 +126,20 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
         le16(self.block(block), at)
     }
 
+    /// How many of a block's 32 channels hold a return (a distance other than 0).
+    #[inline]
+    pub fn returns_in_block(&self, block: usize) -> usize {
+        let ch = &self.block(block)[field::CHANNEL0..];
+        let Ok(ch) = <&[u8; field::CHANNELS * field::CHANNEL_LEN]>::try_from(ch) else {
+            return 0;
+        };
+        let mut n = 0;
+        for c in 0..field::CHANNELS {
+            n += usize::from(ch[3 * c] | ch[3 * c + 1] != 0);
+        }
+        n
+    }
+
     /// Distance of a channel in metres.
     #[inline]
     pub fn distance_m(&self, block: usize, channel: usize) -> f32 {

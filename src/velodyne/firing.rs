@@ -175,7 +175,7 @@ impl PointBuf {
     }
 }
 
-const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;
+pub(super) const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;
 
 const TWO_PI: f32 = core::f32::consts::TAU;
 /// Above this block-to-block azimuth step (about 5.7 deg; a VLP-16 at 1200 rpm turns 0.8 deg per
@@ -185,7 +185,7 @@ const SERIES_MAX_GAP_RAD: f32 = 0.1;
 /// A block's azimuth in 0.01 deg, 0..=35999: real units also send 36000, which the ROS driver
 /// and velodyne_decoder read as 0 (PROTOCOLS.md).
 #[inline]
-fn azimuth_cdeg<T: AsRef<[u8]>>(p: &DataPacket<T>, b: usize) -> u16 {
+pub(super) fn azimuth_cdeg<T: AsRef<[u8]>>(p: &DataPacket<T>, b: usize) -> u16 {
     let a = p.azimuth_raw(b);
     if a == 36_000 {
         0
@@ -203,7 +203,7 @@ const MAX_RATE_CDEG_PER_NS: f64 = 1.5 * 720_000.0 * 1e-9;
 /// can make in a block of `block_ns` (a block azimuth out of line with its neighbours, as a
 /// stray 36000 is) is replaced by the median of the packet's plausible steps, so one bad
 /// azimuth does not smear its neighbour's firings round the circle.
-fn azimuth_gaps<T: AsRef<[u8]>>(
+pub(super) fn azimuth_gaps<T: AsRef<[u8]>>(
     p: &DataPacket<T>,
     mode: ReturnMode,
     block_ns: u32,

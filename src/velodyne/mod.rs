@@ -15,6 +15,7 @@
 
 pub mod beam;
 pub mod data;
+pub mod extent;
 pub mod firing;
 pub mod model;
 pub mod position;
@@ -22,6 +23,7 @@ mod tables;
 
 pub use beam::Beam;
 pub use data::{BlockRepr, DataPacket, DataRepr};
+pub use extent::{extent, Extent};
 pub use firing::{decode, decode_as, Point, PointBuf, Return, POINTS_PER_PACKET};
 pub use model::{Detector, Identity, Model, MAX_LASERS};
 pub use position::{NmeaTime, PositionPacket, PositionRepr, PpsStatus};

@@ -420,13 +420,15 @@ pub fn run<C: Send>(
         let mut backoff = Backoff::default();
         let mut stamp_minus_host = crate::state::Spread::default();
         loop {
-            let Some(item) = lc.dequeue() else {
+            // Used where it lies in the ring (an item is 1.3 kB), then let go.
+            let Some(item) = lc.peek() else {
                 backoff.wait();
                 continue;
             };
             backoff.reset();
+            let end = matches!(item.packet(), LidarPacket::End);
             match item.packet() {
-                LidarPacket::End => break,
+                LidarPacket::End => {}
                 LidarPacket::Position(p) => al.position(&p),
                 LidarPacket::Data(p) => {
                     if let (true, Some(h)) = (from_bag, item.host) {
@@ -435,6 +437,10 @@ pub fn run<C: Send>(
                     al.data(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
                 LidarPacket::Points(c) => al.points(c, &mut ic, each.as_deref_mut(), &mut emit),
+            }
+            lc.dequeue();
+            if end {
+                break;
             }
         }
         al.finish(&mut emit);
