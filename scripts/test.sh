@@ -21,6 +21,13 @@ if ! python3 -c "import laspy, numpy, pyproj, rosbags, mcap" >/dev/null 2>&1; th
     || python3 -m pip install --quiet --break-system-packages $PY_TEST_PACKAGES \
     || echo "warning: could not install $PY_TEST_PACKAGES: the LAS, site import and ROS 2 bag tests will fail"
 fi
+# qemu-system-arm for the core on an emulated Cortex-M (scripts/qemu-check.sh, at the end),
+# fetched beside the build.
+qemu_pid=
+if ! command -v qemu-system-arm >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm) >/dev/null 2>&1 &
+  qemu_pid=$!
+fi
 RUNNER="cargo test --workspace"
 if cargo nextest --version >/dev/null 2>&1; then
   RUNNER="cargo nextest run --workspace --no-fail-fast"
@@ -188,4 +195,9 @@ else
   [ "$side_rc" -eq 0 ] || echo "error: clippy, a bare-metal build or a fuzz target failed (above)" >&2
   [ "$rig_rc" -eq 0 ] && [ "$rest_rc" -eq 0 ] && [ "$side_rc" -eq 0 ] || exit 1
 fi
+# The core on emulated Cortex-M7 and Cortex-M4 chips, its digests equal to the host's and
+# the M7's budgets (issue 49).
+[ -z "$qemu_pid" ] || wait "$qemu_pid" || true
+say "the core on an emulated Cortex-M (scripts/qemu-check.sh)"
+scripts/qemu-check.sh || exit 1
 say "done"

@@ -451,7 +451,7 @@ impl Reach {
             let c = Vector3::new(f64::from(c[0]), f64::from(c[1]), f64::from(c[2]));
             // How far the centre can move in the LiDAR frame within the segment.
             let moved = a.velocity.norm() * span + turn * (c.norm() + lever) + 0.01;
-            let reach = f64::from(r2).sqrt() + moved;
+            let reach = libm::sqrt(f64::from(r2)) + moved;
             let rho = libm::hypot(c.x, c.y);
             // Seen from (nearly) above or below, or from inside (or not a number): every
             // azimuth may reach it.
