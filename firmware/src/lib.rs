@@ -28,6 +28,14 @@ pub static CAPTURE: &[u8] = include_bytes!("../../tests/data/vlp16/mrpt_vlp16_gp
 /// at 5 Hz with time, attitude and INS position.
 pub static INS: &[u8] = include_bytes!("../../tests/data/vn200/vn310_gnss.bin");
 
+/// The stored batch the simplex stage solves on: table1's returns, 200 on each of its two
+/// spheres (`tools/examples/firmware_batch.rs` wrote it; its layout there).
+pub static BATCH_FILE: &[u8] = include_bytes!("../data/table1-batch.bin");
+/// Returns the stored batch holds at most.
+pub const BATCH_RETURNS: usize = 400;
+/// The simplex's iterations (a fixed number: no tolerance stops it).
+pub const SIMPLEX_ITERATIONS: usize = 300;
+
 /// Poses the history holds.
 pub const HISTORY: usize = 64;
 /// Returns a batch holds before it is handed on.
@@ -97,6 +105,18 @@ pub struct Digest {
     pub windowed_hash: u64,
     /// Packets the windowing spared decoding.
     pub spared: u64,
+    /// The stored batch's returns, and the hash of what was read of them.
+    pub batch_returns: u64,
+    /// See `batch_returns`.
+    pub batch_hash: u64,
+    /// The simplex's iterations and evaluations.
+    pub simplex_iterations: u64,
+    /// See `simplex_iterations`.
+    pub simplex_evaluations: u64,
+    /// Its best vertex (the six, deg and m) and value, hashed.
+    pub simplex_hash: u64,
+    /// Its value, eq. 6's L1 sum, in micrometres (to read).
+    pub simplex_l1_um: u64,
 }
 
 /// Each field of `d` as `name value`, in one order for the chip and the host.
@@ -115,9 +135,17 @@ pub fn lines(d: &Digest, mut f: impl FnMut(&str, u64)) {
     f("windowed sphere 1", d.windowed[0]);
     f("windowed sphere 2", d.windowed[1]);
     f("windowed hash", d.windowed_hash);
+    f("batch returns", d.batch_returns);
+    f("batch hash", d.batch_hash);
+    f("simplex iterations", d.simplex_iterations);
+    f("simplex evaluations", d.simplex_evaluations);
+    f("simplex l1 um", d.simplex_l1_um);
+    f("simplex hash", d.simplex_hash);
 }
 
 /// Counts time on the chip (SysTick under QEMU's instruction counting); nothing on the host.
+/// [`run`] times the aligner's work per data packet with one meter and the simplex with the
+/// other.
 pub trait Meter {
     /// Start timing.
     fn start(&mut self) {}
@@ -159,7 +187,7 @@ fn datagrams(pcap: &[u8], mut f: impl FnMut(u16, &[u8])) {
 
 /// Every stage over the embedded bytes; `meter` times the aligner's work on each data packet
 /// (decode, timing, georeferencing, windowing).
-pub fn run(meter: &mut impl Meter) -> Digest {
+pub fn run(meter: &mut impl Meter, simplex: &mut impl Meter) -> Digest {
     let mut d = Digest::default();
     // 1. The INS: framed, each frame's pose into the site frame (origin at the first pose).
     let mut framer: Framer<2048> = Framer::new();
@@ -275,7 +303,148 @@ pub fn run(meter: &mut impl Meter) -> Digest {
     d.georeferenced = stats.0.window.georeferenced;
     d.windowed = [stats.1[0], stats.1[1]];
     d.spared = stats.0.spared;
+    let _ = solve_stored(&mut d, simplex);
     d
+}
+
+/// Little-endian reads from the stored batch.
+struct Reader<'a>(&'a [u8]);
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let (head, rest) = self.0.split_first_chunk::<N>()?;
+        self.0 = rest;
+        Some(*head)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.take().map(f64::from_le_bytes)
+    }
+    fn f32(&mut self) -> Option<f32> {
+        self.take().map(f32::from_le_bytes)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+}
+
+/// The stored batch: its two spheres with their returns' counts, the start (deg, m), and the
+/// returns into `obs`.
+fn read_batch(obs: &mut [Observation]) -> Option<([(Target, usize); 2], [f64; 6], [f64; 6])> {
+    let mut r = Reader(BATCH_FILE);
+    if r.take::<4>()? != *b"SCB1" || r.u32()? != 2 {
+        return None;
+    }
+    let none = Target {
+        center: nalgebra::Vector3::zeros(),
+        radius: 0.0,
+    };
+    let mut spheres = [(none, 0usize); 2];
+    for s in &mut spheres {
+        let c = nalgebra::Vector3::new(r.f64()?, r.f64()?, r.f64()?);
+        s.0 = Target {
+            center: c,
+            radius: r.f64()?,
+        };
+        s.1 = r.u32()? as usize;
+    }
+    let start: [f64; 6] = core::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+    let truth: [f64; 6] = core::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+    let n = (spheres[0].1 + spheres[1].1).min(obs.len());
+    for o in &mut obs[..n] {
+        o.time = GpsTime(i64::from_le_bytes(r.take()?));
+        o.q_l = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
+        o.position = nalgebra::Vector3::new(r.f64()?, r.f64()?, r.f64()?);
+        o.r_ig = nalgebra::Matrix3::from_iterator((0..9).map(|_| r.f32().unwrap_or(f32::NAN)));
+        o.velocity = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
+        o.omega = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
+        o.range = r.f32()?;
+    }
+    Some((spheres, start, truth))
+}
+
+/// 4. The simplex on the stored batch: Nelder-Mead on eq. 6 (L1) over the six from the
+/// site's a-priori mounting, [`SIMPLEX_ITERATIONS`] iterations (timed by `meter`). Returns
+/// the six found and the truth the file holds (deg, m).
+pub fn solve_stored(d: &mut Digest, meter: &mut impl Meter) -> Option<([f64; 6], [f64; 6])> {
+    use spherecal::calib::nelder_mead::{minimize, NmSettings};
+    use spherecal::calib::objective::{Problem, SphereObs};
+    use spherecal::georef::DegM;
+    let mut obs = [Observation::default(); BATCH_RETURNS];
+    let (spheres, start, truth) = read_batch(&mut obs)?;
+    let n0 = spheres[0].1.min(BATCH_RETURNS);
+    let n1 = spheres[1].1.min(BATCH_RETURNS - n0);
+    d.batch_returns = (n0 + n1) as u64;
+    let mut h = Fnv::default();
+    for o in &obs[..n0 + n1] {
+        h.u64(o.time.0 as u64);
+        for v in o.q_l.iter().chain(o.r_ig.iter()) {
+            h.f32(*v);
+        }
+        for v in o.position.iter() {
+            h.f64(*v);
+        }
+    }
+    d.batch_hash = h.0;
+    let sets = [
+        SphereObs {
+            target: spheres[0].0,
+            obs: &obs[..n0],
+        },
+        SphereObs {
+            target: spheres[1].0,
+            obs: &obs[n0..n0 + n1],
+        },
+    ];
+    let pb = Problem {
+        spheres: &sets,
+        stride: 1,
+        dt: 0.0,
+        drift: 0.0,
+        t_ref: obs[0].time,
+        weights: None,
+    };
+    let settings = NmSettings {
+        max_iter: SIMPLEX_ITERATIONS,
+        tol_x: 0.0,
+        tol_f: 0.0,
+        restarts: 0,
+    };
+    meter.start();
+    let nm = minimize::<6, 7>(
+        |x| pb.l1(&DegM(*x).params().0),
+        &start,
+        &[1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
+        &settings,
+    );
+    meter.stop();
+    d.simplex_iterations = nm.iterations as u64;
+    d.simplex_evaluations = nm.evaluations as u64;
+    d.simplex_l1_um = (nm.f * 1e6) as u64;
+    let mut h = Fnv::default();
+    for v in nm.x.iter().chain([nm.f].iter()) {
+        h.f64(*v);
+    }
+    d.simplex_hash = h.0;
+    Some((nm.x, truth))
+}
+
+#[cfg(test)]
+mod tests {
+    /// The stored batch's simplex lands on the mounting table1 was simulated with (its truth,
+    /// written beside the returns): 2.3 to 2.5 deg and 0.19 to 0.40 m from where it starts.
+    #[test]
+    fn the_stored_batch_solves_to_its_truth() {
+        let mut d = super::Digest::default();
+        let (x, truth) = super::solve_stored(&mut d, &mut ()).unwrap();
+        assert_eq!(d.batch_returns, 400);
+        for i in 0..3 {
+            assert!((x[i] - truth[i]).abs() < 0.05, "{x:?} against {truth:?}");
+            assert!(
+                (x[i + 3] - truth[i + 3]).abs() < 0.005,
+                "{x:?} against {truth:?}"
+            );
+        }
+    }
 }
 
 /// The capture's data packets through an aligner over `poses`, windowing around `targets`

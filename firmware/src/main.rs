@@ -8,7 +8,7 @@
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    let d = spherecal_firmware::run(&mut ());
+    let d = spherecal_firmware::run(&mut (), &mut ());
     spherecal_firmware::lines(&d, |name, v| println!("{name} {v}"));
 }
 
@@ -103,7 +103,12 @@ mod chip {
             at: 0,
             packets: 0,
         };
-        let d = spherecal_firmware::run(&mut ticks);
+        let mut simplex = Ticks {
+            total: 0,
+            at: 0,
+            packets: 0,
+        };
+        let d = spherecal_firmware::run(&mut ticks, &mut simplex);
         spherecal_firmware::lines(&d, |name, v| hprintln!("{} {}", name, v));
         // The lowest word that lost its paint.
         let mut used = low;
@@ -121,6 +126,11 @@ mod chip {
         hprintln!(
             "instructions per data packet {}",
             ticks.total * per_tick / ticks.packets.max(1)
+        );
+        hprintln!(
+            "instructions per simplex iteration {} ({} returns)",
+            simplex.total * per_tick / d.simplex_iterations.max(1),
+            d.batch_returns
         );
         debug::exit(debug::EXIT_SUCCESS);
         loop {
