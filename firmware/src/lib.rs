@@ -22,6 +22,12 @@ use spherecal::velodyne::{self, DataPacket, Model, PointBuf, PositionPacket};
 use spherecal::vn200::framer::{Framer, Item};
 use spherecal::vn200::pose::Pose;
 
+mod batch;
+mod pcap;
+
+pub use batch::solve_stored;
+use pcap::datagrams;
+
 /// The vendored MRPT VLP-16 capture (BSD-3-Clause, tests/data/vlp16/README.md).
 pub static CAPTURE: &[u8] = include_bytes!("../../tests/data/vlp16/mrpt_vlp16_gps.pcap");
 /// The vendored INSTINCT VN-310 binary stream (MPL-2.0, tests/data/vn200/README.md): 12 frames
@@ -155,36 +161,6 @@ pub trait Meter {
 
 impl Meter for () {}
 
-/// A datagram of a classic pcap (Ethernet, IPv4, UDP): its destination port and payload.
-/// Little-endian microsecond pcaps only (the capture's); anything else ends the walk.
-fn datagrams(pcap: &[u8], mut f: impl FnMut(u16, &[u8])) {
-    if pcap.len() < 24 || pcap[..4] != [0xd4, 0xc3, 0xb2, 0xa1] {
-        return;
-    }
-    let mut at = 24;
-    while let Some(head) = pcap.get(at..at + 16) {
-        let caplen = u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as usize;
-        let Some(frame) = pcap.get(at + 16..at + 16 + caplen) else {
-            return;
-        };
-        at += 16 + caplen;
-        // Ethernet II, IPv4 (its header length), UDP.
-        if frame.len() < 14 + 20 || frame[12..14] != [0x08, 0x00] || frame[14 + 9] != 17 {
-            continue;
-        }
-        let ip_len = usize::from(frame[14] & 0x0f) * 4;
-        let udp = 14 + ip_len;
-        let Some(h) = frame.get(udp..udp + 8) else {
-            continue;
-        };
-        let port = u16::from_be_bytes([h[2], h[3]]);
-        let len = usize::from(u16::from_be_bytes([h[4], h[5]])).saturating_sub(8);
-        if let Some(payload) = frame.get(udp + 8..udp + 8 + len) {
-            f(port, payload);
-        }
-    }
-}
-
 /// Every stage over the embedded bytes; `meter` times the aligner's work on each data packet
 /// (decode, timing, georeferencing, windowing).
 pub fn run(meter: &mut impl Meter, simplex: &mut impl Meter) -> Digest {
@@ -303,148 +279,8 @@ pub fn run(meter: &mut impl Meter, simplex: &mut impl Meter) -> Digest {
     d.georeferenced = stats.0.window.georeferenced;
     d.windowed = [stats.1[0], stats.1[1]];
     d.spared = stats.0.spared;
-    let _ = solve_stored(&mut d, simplex);
+    let _ = batch::solve_stored(&mut d, simplex);
     d
-}
-
-/// Little-endian reads from the stored batch.
-struct Reader<'a>(&'a [u8]);
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
-        let (head, rest) = self.0.split_first_chunk::<N>()?;
-        self.0 = rest;
-        Some(*head)
-    }
-    fn f64(&mut self) -> Option<f64> {
-        self.take().map(f64::from_le_bytes)
-    }
-    fn f32(&mut self) -> Option<f32> {
-        self.take().map(f32::from_le_bytes)
-    }
-    fn u32(&mut self) -> Option<u32> {
-        self.take().map(u32::from_le_bytes)
-    }
-}
-
-/// The stored batch: its two spheres with their returns' counts, the start (deg, m), and the
-/// returns into `obs`.
-fn read_batch(obs: &mut [Observation]) -> Option<([(Target, usize); 2], [f64; 6], [f64; 6])> {
-    let mut r = Reader(BATCH_FILE);
-    if r.take::<4>()? != *b"SCB1" || r.u32()? != 2 {
-        return None;
-    }
-    let none = Target {
-        center: nalgebra::Vector3::zeros(),
-        radius: 0.0,
-    };
-    let mut spheres = [(none, 0usize); 2];
-    for s in &mut spheres {
-        let c = nalgebra::Vector3::new(r.f64()?, r.f64()?, r.f64()?);
-        s.0 = Target {
-            center: c,
-            radius: r.f64()?,
-        };
-        s.1 = r.u32()? as usize;
-    }
-    let start: [f64; 6] = core::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
-    let truth: [f64; 6] = core::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
-    let n = (spheres[0].1 + spheres[1].1).min(obs.len());
-    for o in &mut obs[..n] {
-        o.time = GpsTime(i64::from_le_bytes(r.take()?));
-        o.q_l = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
-        o.position = nalgebra::Vector3::new(r.f64()?, r.f64()?, r.f64()?);
-        o.r_ig = nalgebra::Matrix3::from_iterator((0..9).map(|_| r.f32().unwrap_or(f32::NAN)));
-        o.velocity = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
-        o.omega = nalgebra::Vector3::new(r.f32()?, r.f32()?, r.f32()?);
-        o.range = r.f32()?;
-    }
-    Some((spheres, start, truth))
-}
-
-/// 4. The simplex on the stored batch: Nelder-Mead on eq. 6 (L1) over the six from the
-/// site's a-priori mounting, [`SIMPLEX_ITERATIONS`] iterations (timed by `meter`). Returns
-/// the six found and the truth the file holds (deg, m).
-pub fn solve_stored(d: &mut Digest, meter: &mut impl Meter) -> Option<([f64; 6], [f64; 6])> {
-    use spherecal::calib::nelder_mead::{minimize, NmSettings};
-    use spherecal::calib::objective::{Problem, SphereObs};
-    use spherecal::georef::DegM;
-    let mut obs = [Observation::default(); BATCH_RETURNS];
-    let (spheres, start, truth) = read_batch(&mut obs)?;
-    let n0 = spheres[0].1.min(BATCH_RETURNS);
-    let n1 = spheres[1].1.min(BATCH_RETURNS - n0);
-    d.batch_returns = (n0 + n1) as u64;
-    let mut h = Fnv::default();
-    for o in &obs[..n0 + n1] {
-        h.u64(o.time.0 as u64);
-        for v in o.q_l.iter().chain(o.r_ig.iter()) {
-            h.f32(*v);
-        }
-        for v in o.position.iter() {
-            h.f64(*v);
-        }
-    }
-    d.batch_hash = h.0;
-    let sets = [
-        SphereObs {
-            target: spheres[0].0,
-            obs: &obs[..n0],
-        },
-        SphereObs {
-            target: spheres[1].0,
-            obs: &obs[n0..n0 + n1],
-        },
-    ];
-    let pb = Problem {
-        spheres: &sets,
-        stride: 1,
-        dt: 0.0,
-        drift: 0.0,
-        t_ref: obs[0].time,
-        weights: None,
-    };
-    let settings = NmSettings {
-        max_iter: SIMPLEX_ITERATIONS,
-        tol_x: 0.0,
-        tol_f: 0.0,
-        restarts: 0,
-    };
-    meter.start();
-    let nm = minimize::<6, 7>(
-        |x| pb.l1(&DegM(*x).params().0),
-        &start,
-        &[1.0, 1.0, 1.0, 0.1, 0.1, 0.1],
-        &settings,
-    );
-    meter.stop();
-    d.simplex_iterations = nm.iterations as u64;
-    d.simplex_evaluations = nm.evaluations as u64;
-    d.simplex_l1_um = (nm.f * 1e6) as u64;
-    let mut h = Fnv::default();
-    for v in nm.x.iter().chain([nm.f].iter()) {
-        h.f64(*v);
-    }
-    d.simplex_hash = h.0;
-    Some((nm.x, truth))
-}
-
-#[cfg(test)]
-mod tests {
-    /// The stored batch's simplex lands on the mounting table1 was simulated with (its truth,
-    /// written beside the returns): 2.3 to 2.5 deg and 0.19 to 0.40 m from where it starts.
-    #[test]
-    fn the_stored_batch_solves_to_its_truth() {
-        let mut d = super::Digest::default();
-        let (x, truth) = super::solve_stored(&mut d, &mut ()).unwrap();
-        assert_eq!(d.batch_returns, 400);
-        for i in 0..3 {
-            assert!((x[i] - truth[i]).abs() < 0.05, "{x:?} against {truth:?}");
-            assert!(
-                (x[i + 3] - truth[i + 3]).abs() < 0.005,
-                "{x:?} against {truth:?}"
-            );
-        }
-    }
 }
 
 /// The capture's data packets through an aligner over `poses`, windowing around `targets`
