@@ -6,7 +6,7 @@
 use super::data::field::{BLOCKS, CHANNELS};
 #[cfg(doc)]
 use super::firing::decode_as;
-use super::firing::{azimuth_cdeg, azimuth_gaps, CDEG_TO_RAD};
+use super::firing::{azimuth_cdeg, mode_and_gaps, CDEG_TO_RAD};
 use super::model::Model;
 use super::{DataPacket, Error, POINTS_PER_PACKET};
 
@@ -23,17 +23,7 @@ pub struct Extent {
 /// The packet's [`Extent`] as `model`; fails where [`decode_as`] fails (an unknown return
 /// mode, a block azimuth above 36000).
 pub fn extent<T: AsRef<[u8]>>(packet: &DataPacket<T>, model: Model) -> Result<Extent, Error> {
-    let mode = packet.return_mode()?;
-    for b in 0..BLOCKS {
-        let found = packet.azimuth_raw(b);
-        if found > 36_000 {
-            return Err(Error::BadAzimuth {
-                block: b as u8,
-                found,
-            });
-        }
-    }
-    let gaps = azimuth_gaps(packet, mode, model.block_ns());
+    let (_, gaps) = mode_and_gaps(packet, model)?;
     let channels = model.channels();
     let beams = model.beams();
     // The lasers' azimuth offsets' extremes (0 included: the block's own azimuth), and the

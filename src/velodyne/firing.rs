@@ -203,7 +203,7 @@ const MAX_RATE_CDEG_PER_NS: f64 = 1.5 * 720_000.0 * 1e-9;
 /// can make in a block of `block_ns` (a block azimuth out of line with its neighbours, as a
 /// stray 36000 is) is replaced by the median of the packet's plausible steps, so one bad
 /// azimuth does not smear its neighbour's firings round the circle.
-pub(super) fn azimuth_gaps<T: AsRef<[u8]>>(
+fn azimuth_gaps<T: AsRef<[u8]>>(
     p: &DataPacket<T>,
     mode: ReturnMode,
     block_ns: u32,
@@ -268,6 +268,25 @@ pub fn decode<T: AsRef<[u8]>>(packet: &DataPacket<T>, out: &mut PointBuf) -> Res
     decode_as(packet, model, out)
 }
 
+/// The packet's return mode and each block's azimuth gap ([`azimuth_gaps`]); fails on an
+/// unknown return mode or a block azimuth above 36000.
+pub(super) fn mode_and_gaps<T: AsRef<[u8]>>(
+    packet: &DataPacket<T>,
+    model: Model,
+) -> Result<(ReturnMode, [u16; BLOCKS]), Error> {
+    let mode = packet.return_mode()?;
+    for b in 0..BLOCKS {
+        let found = packet.azimuth_raw(b);
+        if found > 36_000 {
+            return Err(Error::BadAzimuth {
+                block: b as u8,
+                found,
+            });
+        }
+    }
+    Ok((mode, azimuth_gaps(packet, mode, model.block_ns())))
+}
+
 /// Decode every non-zero return of a data packet as `model` into `out` (cleared first); returns
 /// the count.
 ///
@@ -279,17 +298,7 @@ pub fn decode_as<T: AsRef<[u8]>>(
     out: &mut PointBuf,
 ) -> Result<usize, Error> {
     out.len = 0;
-    let mode = packet.return_mode()?;
-    for b in 0..BLOCKS {
-        let found = packet.azimuth_raw(b);
-        if found > 36_000 {
-            return Err(Error::BadAzimuth {
-                block: b as u8,
-                found,
-            });
-        }
-    }
-    let gaps = azimuth_gaps(packet, mode, model.block_ns());
+    let (mode, gaps) = mode_and_gaps(packet, model)?;
     let channels = model.channels();
     let beams = model.beams();
     let unit = model.distance_unit_m() as f32;

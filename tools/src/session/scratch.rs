@@ -33,14 +33,7 @@ pub const NAV_PIECES: usize = 1024;
 impl Default for Scratch {
     /// With the navigation model's pieces.
     fn default() -> Self {
-        Self {
-            grid: vec![0; GRID_CELLS],
-            kept: vec![Observation::default(); KEPT_CAPACITY],
-            keys: vec![(0.0, 0); SLICE_CAPACITY],
-            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
-            idx: vec![0; CANDIDATE_CAPACITY],
-            nav: vec![spherecal::calib::nav::Piece::EMPTY; NAV_PIECES],
-        }
+        Self::with_pieces(NAV_PIECES)
     }
 }
 
@@ -48,16 +41,17 @@ impl Scratch {
     /// For solves under `s`: the navigation model's pieces (10 MB, written as they are
     /// allocated) only when `s` has one.
     pub fn for_settings(s: &spherecal::calib::Settings) -> Self {
-        if s.nav.is_some() {
-            return Self::default();
-        }
+        Self::with_pieces(if s.nav.is_some() { NAV_PIECES } else { 0 })
+    }
+
+    fn with_pieces(pieces: usize) -> Self {
         Self {
             grid: vec![0; GRID_CELLS],
             kept: vec![Observation::default(); KEPT_CAPACITY],
             keys: vec![(0.0, 0); SLICE_CAPACITY],
             cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
             idx: vec![0; CANDIDATE_CAPACITY],
-            nav: Vec::new(),
+            nav: vec![spherecal::calib::nav::Piece::EMPTY; pieces],
         }
     }
 
