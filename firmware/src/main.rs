@@ -20,8 +20,11 @@ mod chip {
 
     /// What an unused stack word holds.
     const STACK_PAINT: u32 = 0x5a5a_a5a5;
-    /// How far below the stack pointer at entry the stack is painted [bytes] (the budget).
+    /// How far below the stack pointer at entry the stack is painted [bytes] (the budget: a
+    /// deeper stack reads as this, and fails it).
     const PAINTED: usize = 512 * 1024;
+    /// Where RAM starts (memory.x).
+    const RAM_ORIGIN: usize = 0x2000_0000;
 
     extern "C" {
         static __sheap: u32;
@@ -120,7 +123,7 @@ mod chip {
             used += 4;
         }
         hprintln!("flash {} bytes", sidata + (edata - sdata));
-        hprintln!("ram {} bytes", heap - 0x2000_0000);
+        hprintln!("ram {} bytes", heap - RAM_ORIGIN);
         hprintln!("stack {} bytes", top - used);
         hprintln!("instructions per systick tick {}", per_tick);
         hprintln!(
