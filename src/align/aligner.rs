@@ -318,13 +318,13 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         let n = e.returns as u64;
         self.stats.window.points += n;
         self.stats.window.georeferenced += n;
-        self.stats.rollovers = self.clock.rollovers;
         true
     }
 
-    /// A data packet aligned at `t0`: counted, and the clocks' lag taken.
+    /// A data packet aligned at `t0`: counted, and the clocks' lag and rollovers taken.
     fn seen(&mut self, t0: GpsTime, host: Option<HostTime>) {
         self.stats.data_packets += 1;
+        self.stats.rollovers = self.clock.rollovers;
         if let (Some(o), Some(h)) = (self.ins_offset_ns, host) {
             self.lag_ns = Some(t0.0.saturating_sub(h.0).saturating_sub(o));
         }
@@ -393,7 +393,6 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         };
         win.add_packet(index, t0, points, self.history, each);
         self.stats.window = win.stats;
-        self.stats.rollovers = self.clock.rollovers;
         for (i, b) in self.batches.iter_mut().enumerate() {
             if b.obs.len() >= B / 2 {
                 self.windowed[i] += b.obs.len() as u64;

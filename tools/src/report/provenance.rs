@@ -33,8 +33,9 @@ pub struct InputFile {
 }
 
 impl InputFile {
-    /// `path` read whole for its hash (a folder: each file in it, in name order, into one hash).
-    pub fn of(role: &str, path: &Path, gps_span_s: Option<(f64, f64)>) -> Result<Self, String> {
+    /// `path` read whole for its hash (a folder: each file in it, in name order, into one hash);
+    /// no span (the caller adds it where the role has one).
+    pub fn of(role: &str, path: &Path) -> Result<Self, String> {
         let mut h = Sha256::new();
         let mut bytes = 0u64;
         let mut files: Vec<std::path::PathBuf> = if path.is_dir() {
@@ -66,7 +67,7 @@ impl InputFile {
             path: path.display().to_string(),
             bytes,
             sha256: h.finalize().iter().map(|b| format!("{b:02x}")).collect(),
-            gps_span_s,
+            gps_span_s: None,
         })
     }
 }
@@ -97,7 +98,7 @@ impl Hashing {
             self.running = Some(std::thread::spawn(move || {
                 files
                     .iter()
-                    .map(|(role, path)| InputFile::of(role, path, None))
+                    .map(|(role, path)| InputFile::of(role, path))
                     .collect()
             }));
         }
@@ -199,9 +200,7 @@ impl Platform {
             return Ok(None);
         }
         Ok(Some(Self {
-            board: board
-                .map(|(p, _)| InputFile::of("board", p, None))
-                .transpose()?,
+            board: board.map(|(p, _)| InputFile::of("board", p)).transpose()?,
             board_name: board.map(|b| b.1.name.clone()),
             vessel: board.and_then(|b| b.1.vessel.clone()),
             operator: operator
@@ -252,7 +251,7 @@ impl SiteProvenance {
             moved.origin.h_m,
         ));
         Ok(Self {
-            file: InputFile::of("site", path, None)?,
+            file: InputFile::of("site", path)?,
             crs: crs.map(|c| format!("EPSG:{}", c.epsg)),
             heights,
             survey_datum: site.datum().label(),
