@@ -257,15 +257,23 @@ fn iterate<'p, 'o>(mut at: At<'p, 'o>, max_iter: usize) -> (At<'p, 'o>, Normal, 
                 // in the metric of the covariance, `g^T (J^T J)^-1 g / s^2`, under 0.04: the
                 // spread grows by under 2 % in quadrature), else a stall. (Under 1e-6 of the
                 // cost, as it was, refused 2 % of noisy table1 surveys stalled at 0.07 sigma.)
-                let predicted =
-                    Cholesky::new(jtj).map_or(f64::INFINITY, |c| jtr.dot(&c.solve(&jtr)));
-                let s2 = cost / n.saturating_sub(Q).max(1) as f64;
-                converged = predicted <= STALL_SIGMA2 * s2.max(1e-300);
+                converged = within_a_fifth(&jtj, &jtr, cost, n);
                 break;
             }
         }
     }
+    if !converged && iterations >= max_iter {
+        // Still lowering the cost at the cap: a minimum by the same rule.
+        converged = within_a_fifth(&jtj, &jtr, cost, n);
+    }
     (at, Normal { jtj, cost, n, raw }, iterations, converged)
+}
+
+/// Whether the Gauss-Newton step left is within a fifth of a sigma (see [`iterate`]).
+fn within_a_fifth(jtj: &MatQ, jtr: &VecQ, cost: f64, n: usize) -> bool {
+    let predicted = Cholesky::new(*jtj).map_or(f64::INFINITY, |c| jtr.dot(&c.solve(jtr)));
+    let s2 = cost / n.saturating_sub(Q).max(1) as f64;
+    predicted <= STALL_SIGMA2 * s2.max(1e-300)
 }
 
 /// The condition number of the normal matrix of the six (and the time offset when estimated)

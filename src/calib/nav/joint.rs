@@ -490,6 +490,17 @@ fn less_piece(h: &mut MatG, p: &Piece, na: usize) {
     }
 }
 
+/// Whether the Gauss-Newton step from the state moves the mounting (and the clock) by under
+/// half its sigma: its spread grows by at most 12 % in quadrature.
+fn half_sigma_step(at: &mut Joint<'_, '_>, sums: &Sums, pieces: &mut [Piece]) -> bool {
+    match (at.step(sums, pieces, 0.0), at.reduced(sums, pieces)) {
+        (Some(dz), Some(h)) => h
+            .try_inverse()
+            .is_some_and(|c| (0..=P).all(|k| dz[k].abs() <= 0.5 * libm::sqrt(c[(k, k)].max(0.0)))),
+        _ => false,
+    }
+}
+
 /// Levenberg-Marquardt steps on the joint state (as [`super::lm`]'s): the last sums, the
 /// iterations and whether a negligible step or decrease ended them. A rejected step puts the
 /// state and its sums back as they were ([`Joint::keep`]), without evaluating again.
@@ -548,15 +559,15 @@ pub(super) fn iterate(
                 // corrected attitude fixed, so at the minimum the gradient is not quite zero):
                 // a minimum if the Gauss-Newton step left moves the mounting (and the clock)
                 // by under half its sigma (its spread grows by at most 12 % in quadrature), else a stall.
-                converged = match (at.step(&sums, pieces, 0.0), at.reduced(&sums, pieces)) {
-                    (Some(dz), Some(h)) => h.try_inverse().is_some_and(|c| {
-                        (0..=P).all(|k| dz[k].abs() <= 0.5 * libm::sqrt(c[(k, k)].max(0.0)))
-                    }),
-                    _ => false,
-                };
+                converged = half_sigma_step(at, &sums, pieces);
                 break;
             }
         }
+    }
+    if !converged && iterations >= max_iter {
+        // Steps still lowering the cost at the cap (a crawl along the pieces' weakly damped
+        // directions): a minimum by the same rule.
+        converged = half_sigma_step(at, &sums, pieces);
     }
     // Gauss-Newton to the end: the pieces' and centres' directions are nearly linear and
     // weakly damped by their priors alone, where Marquardt's steps crawl.

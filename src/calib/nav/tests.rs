@@ -324,4 +324,89 @@ mod honesty {
             "the classic sigmas are honest here too? {classic:?}"
         );
     }
+
+    /// Capped before its steps turn negligible (a crawl along the pieces' weakly damped
+    /// directions), the solve is a minimum when the Gauss-Newton step left moves the mounting
+    /// by under half its sigma, else not: each capped answer called converged lies within half
+    /// a sigma of the uncapped one, some capped answer is called converged, and a solve
+    /// stopped after its first step from 0.5 deg and 5 cm off is not.
+    #[test]
+    fn a_capped_solve_is_converged_only_within_half_a_sigma() {
+        let c = Correlated {
+            position_sigma: [0.016, 0.033],
+            attitude_sigma: [0.011f64.to_radians(), 0.037f64.to_radians()],
+            correlation_s: 30.0,
+        };
+        let model = NavModel {
+            position_sigma: c.position_sigma,
+            attitude_sigma: c.attitude_sigma,
+            correlation_s: c.correlation_s,
+        };
+        let (obs, _) = survey(3, &c, 0.009, false);
+        let s = [
+            SphereObs {
+                target: SPHERES[0],
+                obs: &obs[0],
+            },
+            SphereObs {
+                target: SPHERES[1],
+                obs: &obs[1],
+            },
+        ];
+        let pb = Problem {
+            spheres: &s,
+            stride: 1,
+            dt: 0.0,
+            drift: 0.0,
+            t_ref: crate::time::GpsTime(0),
+            weights: Some(Noise {
+                range: 0.009,
+                attitude: 0.0,
+                position: 0.0,
+            }),
+        };
+        let mut pieces = std::vec![Piece::EMPTY; 256];
+        let m = cut_for(&pb, &model, &mut pieces);
+        let start: [f64; P] =
+            core::array::from_fn(|i| TRUTH[i] + if i < 3 { 0.5f64.to_radians() } else { 0.05 });
+        let mut solve = |cap: usize| {
+            refine(
+                &pb,
+                &start,
+                &model,
+                &[0.02, 0.02],
+                &MountPrior::default(),
+                &mut pieces[..m],
+                cap,
+                20_000_000,
+                Clock::default(),
+            )
+            .0
+        };
+        let best = solve(100);
+        assert!(best.converged, "{best:?}");
+        let first = solve(1);
+        assert!(!first.converged, "one step from 0.5 deg off: {:?}", first.b);
+        let mut capped = 0;
+        for cap in 2..=8 {
+            let l = solve(cap);
+            std::eprintln!(
+                "cap {cap}: converged {} after {}",
+                l.converged,
+                l.iterations
+            );
+            if l.converged {
+                for i in 0..P {
+                    assert!(
+                        (l.b[i] - best.b[i]).abs() <= 0.5 * best.sigma[i],
+                        "cap {cap}: {:?} against {:?}",
+                        l.b,
+                        best.b
+                    );
+                }
+                capped += 1;
+            }
+        }
+        assert!(capped > 0, "no capped solve called converged");
+    }
 }
