@@ -21,6 +21,15 @@ if ! python3 -c "import laspy, numpy, pyproj, rosbags, mcap" >/dev/null 2>&1; th
     || python3 -m pip install --quiet --break-system-packages $PY_TEST_PACKAGES \
     || echo "warning: could not install $PY_TEST_PACKAGES: the LAS, site import and ROS 2 bag tests will fail"
 fi
+# ouster-sdk: Ouster's own decoder, the reference for the Ouster captures' test
+# (scripts/ouster_xyz.py); fetched beside the build (it is used only by that test).
+ouster_pid=
+if ! python3 -c "import ouster.sdk" >/dev/null 2>&1; then
+  (python3 -m pip install --quiet ouster-sdk==1.0.1 2>/dev/null \
+    || python3 -m pip install --quiet --break-system-packages ouster-sdk==1.0.1 \
+    || echo "warning: could not install ouster-sdk: the Ouster decoding test will fail") &
+  ouster_pid=$!
+fi
 # qemu-system-arm for the core on an emulated Cortex-M (scripts/qemu-check.sh, at the end),
 # fetched beside the build.
 qemu_pid=
@@ -152,6 +161,7 @@ if [ "$RUNNER" = "cargo test --workspace" ]; then
   say "doc tests"
   cargo test --workspace --doc -q
   say "tests (cargo test: nextest is not installed)"
+  [ -z "$ouster_pid" ] || wait "$ouster_pid" || true
   $RUNNER
   fuzz_stage
 else
@@ -175,6 +185,7 @@ else
   if kill -0 "$rig_pid" 2>/dev/null && command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
     rest_pin=(taskset -c "$(($(nproc) - 1))")
   fi
+  [ -z "$ouster_pid" ] || wait "$ouster_pid" || true
   say "tests: the rest start (on the last CPU while the rig tests run)"
   "${rest_pin[@]}" $RUNNER -E "not ($RIG)" >"$work/rest.out" 2>&1 &
   rest_pid=$!

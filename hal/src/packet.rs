@@ -60,6 +60,8 @@ pub enum SkipReason {
     },
     /// The bytes have the right length but are not a valid VLP-16 packet.
     Vlp16(spherecal::velodyne::Error),
+    /// An Ouster lidar packet that is not the format its metadata declares.
+    Ouster(spherecal::ouster::Error),
     /// A ROS 2 message (a bag's `VelodyneScan`) that does not parse as its type.
     BadMessage(spherecal::ros2::cdr::Error),
     /// A bag's `PointCloud2` that does not parse, or whose fields are not the ones read.
@@ -83,6 +85,10 @@ impl SkipReason {
             SkipReason::OtherSender(_) => "other sender",
             SkipReason::WrongPayloadLength { .. } => "wrong payload length",
             SkipReason::Vlp16(e) => e.reason(),
+            SkipReason::Ouster(spherecal::ouster::Error::PacketType { .. }) => {
+                "not an Ouster lidar packet"
+            }
+            SkipReason::Ouster(_) => "not the metadata's packet format",
             SkipReason::BadMessage(_) => "ROS message not parsed",
             SkipReason::BadCloud(_) => "point cloud not read",
             SkipReason::EmptyCell => "empty cell of a point cloud",
@@ -119,6 +125,7 @@ impl fmt::Display for SkipReason {
                 )
             }
             SkipReason::Vlp16(e) => write!(f, "{e}"),
+            SkipReason::Ouster(e) => write!(f, "{e}"),
             SkipReason::BadMessage(e) => write!(f, "ROS 2 message: {e}"),
             SkipReason::BadCloud(e) => write!(f, "ROS 2 PointCloud2: {e}"),
             SkipReason::EmptyCell => write!(f, "a cell with no return (NaN)"),

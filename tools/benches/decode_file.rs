@@ -75,5 +75,62 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// An Ouster capture's lidar packets (classic Ethernet pcap, fixed 42-byte headers) decoded by
+/// the core's views and turned into sensor-frame points with the metadata's geometry, in
+/// memory: the Ouster path's counterpart of the VLP-16 core decode (issue 50 item 7).
+fn ouster(c: &mut Criterion) {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/ouster/");
+    for name in [
+        "OS-1-32-G_v2.1.1_1024x10",
+        "OS-0-32-U1_v2.2.0_1024x10",
+        "windowed_frame1",
+    ] {
+        let m = spherecal_tools::ouster::Metadata::load(std::path::Path::new(&format!(
+            "{root}{name}.json"
+        )))
+        .unwrap();
+        let b = std::fs::read(format!("{root}{name}.pcap")).unwrap();
+        let (mut off, mut packets) = (24, Vec::new());
+        while off + 16 <= b.len() {
+            let incl = u32::from_le_bytes(b[off + 8..off + 12].try_into().unwrap()) as usize;
+            let frame = &b[off + 16..off + 16 + incl];
+            if frame.len() == 42 + m.format.packet_len() {
+                packets.push(frame[42..].to_vec());
+            }
+            off += 16 + incl;
+        }
+        let decode = |packets: &[Vec<u8>]| {
+            let mut n = 0usize;
+            let mut acc = 0.0;
+            for p in packets {
+                let p = spherecal::ouster::LidarPacket::new_checked(&p[..], m.format).unwrap();
+                for col in p.columns().filter(|c| c.valid()) {
+                    let geo = m.intrinsics.column(col.measurement_id());
+                    for ch in 0..m.format.pixels {
+                        for r in col
+                            .range_mm(ch)
+                            .into_iter()
+                            .take(m.format.profile.returns())
+                        {
+                            if r > 0 {
+                                acc += geo.xyz(ch, r)[0];
+                                n += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            (n, acc)
+        };
+        let returns = decode(&packets).0;
+        let mut g = c.benchmark_group("ouster");
+        g.throughput(Throughput::Elements(returns as u64));
+        g.bench_function(format!("decode_{name}_in_memory"), |bch| {
+            bch.iter(|| black_box(decode(black_box(&packets))))
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench, ouster);
 criterion_main!(benches);

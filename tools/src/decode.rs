@@ -421,7 +421,7 @@ pub(crate) fn write_rows(
 }
 
 /// `v` in decimal.
-fn push_u64(out: &mut Vec<u8>, mut v: u64) {
+pub(crate) fn push_u64(out: &mut Vec<u8>, mut v: u64) {
     let mut digits = [0u8; 20];
     let mut i = digits.len();
     loop {
@@ -436,7 +436,7 @@ fn push_u64(out: &mut Vec<u8>, mut v: u64) {
 }
 
 /// `v` (below 10^width) with leading zeros to `width` digits.
-fn push_padded(out: &mut Vec<u8>, v: u64, width: u32) {
+pub(crate) fn push_padded(out: &mut Vec<u8>, v: u64, width: u32) {
     let mut p = 10u64.pow(width.saturating_sub(1));
     while p > 0 {
         out.push(b'0' + ((v / p) % 10) as u8);
@@ -447,7 +447,7 @@ fn push_padded(out: &mut Vec<u8>, v: u64, width: u32) {
 /// `v` with `decimals` (at most 9) digits after the point, rounded half away from zero (as
 /// `{:.N}` but for exact decimal ties, where it may differ in the last digit); values beyond
 /// +-9e9 and non-finite ones go through the float formatter.
-fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: u32) {
+pub(crate) fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: u32) {
     let d = decimals.min(9);
     if !v.is_finite() || v.abs() >= 9e9 {
         out.extend_from_slice(format!("{v:.*}", d as usize).as_bytes());

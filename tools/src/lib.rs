@@ -14,6 +14,7 @@ pub mod georef;
 pub mod html;
 pub mod ins;
 pub mod montecarlo;
+pub mod ouster;
 pub mod output;
 pub mod pipeline;
 pub mod plan;

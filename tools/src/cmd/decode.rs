@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Decode Velodyne packets (VLP-16, Puck Hi-Res, HDL-32E, VLP-32C) from a pcap/pcapng
-/// capture or a ROS 2 bag's VelodyneScan topic; print counts, optionally list points.
+/// capture or a ROS 2 bag's VelodyneScan topic, or an Ouster's (OS0/OS1/OS2) lidar packets with
+/// the sensor's metadata JSON; print counts, optionally list points.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Capture file (classic pcap or pcapng).
@@ -24,6 +25,11 @@ pub struct Args {
     /// byte, checked against their period.
     #[arg(long, value_parser = super::parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
+    /// An Ouster capture's metadata JSON (its packet format, beams and ports): decode the
+    /// capture as that Ouster's. The CSV then adds `frame_id,measurement_id,channel`, x y z in
+    /// the sensor frame, a dual profile's second return as its own row (`return` = second).
+    #[arg(long, conflicts_with_all = ["bag", "model"])]
+    pub metadata: Option<PathBuf>,
 }
 
 /// Run it.
@@ -33,6 +39,9 @@ pub fn run(a: Args) -> ExitCode {
         Err(code) => return code,
     };
     crate::output::remove_partial_on_interrupt();
+    if let (Some(meta), Some(f)) = (&a.metadata, &a.file) {
+        return ouster(f, meta, out);
+    }
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
     let (path, decoded) = match (&a.bag, &a.file) {
         (Some(b), _) => (
@@ -60,5 +69,35 @@ pub fn run(a: Args) -> ExitCode {
             }
         }
         Err(e) => fail("decode", e),
+    }
+}
+
+/// An Ouster capture with its metadata.
+fn ouster(
+    f: &std::path::Path,
+    meta: &std::path::Path,
+    mut out: Option<crate::output::Staged>,
+) -> ExitCode {
+    let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
+    let m = match crate::ouster::Metadata::load(meta) {
+        Ok(m) => m,
+        Err(e) => return fail("decode", e),
+    };
+    let s = match crate::ouster::decode::decode_file(f, &m, w) {
+        Ok(s) => s,
+        Err(e) => return fail("decode", e),
+    };
+    let path = f.display().to_string();
+    say!("{}", s.render(&path, &m));
+    if let Some(why) = s.mismatch(&m) {
+        // The listing is not written (dropped uncommitted).
+        return fail("decode", format!("{path}: {why}"));
+    }
+    if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
+        return fail("decode", e);
+    }
+    match &s.stopped {
+        Some(stop) => fail("decode", format!("{path}: {stop}")),
+        None => ExitCode::SUCCESS,
     }
 }

@@ -18,6 +18,7 @@ mod georef;
 mod layers;
 mod multi_file;
 mod nav_errors;
+mod ouster;
 mod plan;
 mod plan_site;
 mod posmv;

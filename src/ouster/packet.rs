@@ -1,0 +1,344 @@
+//! The lidar packet view: a checked [`LidarPacket`] over the UDP payload, its [`Column`]s and
+//! their [`Pixel`]s, every field little-endian (firmware manual, "Lidar Data Packet Format"
+//! and "Lidar Data Profiles").
+//!
+//! ```text
+//! packet header (32 B, not in LEGACY)
+//!   standard: 0 packet type u16 (1) | 2 frame id u16 | 4 init id u24 | 7 serial u40
+//!   FuSa:     0 packet type u8  | 1 init id u24 | 4 frame id u32 | 11 serial u40
+//! column header
+//!   LEGACY:   0 timestamp u64 [ns] | 8 measurement id u16 | 10 frame id u16 | 12 encoder u32
+//!   others:   0 timestamp u64 [ns] | 8 measurement id u16 | 10 status u16 (bit 0: valid)
+//! pixel (bits of the little-endian words)
+//!   LEGACY      12 B: range 0..20 [mm] | reflectivity 32..40 | signal 48..64 | NIR 64..80
+//!   RNG19..     12 B: range 0..19 [mm] | reflectivity 32..40 | signal 48..64 | NIR 64..80
+//!   RNG19.._DUAL 16 B: range 0..19 | refl 24..32 | range2 32..51 | refl2 56..64 |
+//!                      signal 64..80 | signal2 80..96 | NIR 96..112
+//!   RNG15_RFL8_NIR8 4 B: range 0..15 [8 mm] | refl 16..24 | NIR 24..32 [x16]
+//!   RNG15_RFL8_NIR8_DUAL 8 B: as above, then range2 32..47 [8 mm] | refl2 48..56
+//! column footer (LEGACY only): status u32, 0xFFFFFFFF valid
+//! packet footer (32 B, not in LEGACY)
+//! ```
+
+use super::profile::{Format, HeaderKind, Profile};
+use super::Error;
+
+#[inline(always)]
+fn le16(b: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([b[at], b[at + 1]])
+}
+
+#[inline(always)]
+fn le32(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+#[inline(always)]
+fn le_n(b: &[u8], at: usize, n: usize) -> u64 {
+    let mut v = 0u64;
+    for i in (0..n).rev() {
+        v = (v << 8) | u64::from(b[at + i]);
+    }
+    v
+}
+
+/// A lidar packet of a known [`Format`]. Built with [`LidarPacket::new_checked`], every
+/// accessor is infallible: column and pixel indices are reduced modulo the format's counts.
+#[derive(Debug, Clone, Copy)]
+pub struct LidarPacket<T: AsRef<[u8]>> {
+    buffer: T,
+    format: Format,
+}
+
+impl<T: AsRef<[u8]>> LidarPacket<T> {
+    /// Wrap `buffer` as a packet of `format`: exactly the format's length, and (with a packet
+    /// header) a lidar packet type.
+    pub fn new_checked(buffer: T, format: Format) -> Result<Self, Error> {
+        let got = buffer.as_ref().len();
+        let expected = format.packet_len();
+        if got != expected {
+            return Err(Error::Length { expected, got });
+        }
+        let p = Self { buffer, format };
+        match p.packet_type() {
+            Some(1) | None => Ok(p),
+            Some(found) => Err(Error::PacketType { found }),
+        }
+    }
+
+    /// The format it was checked against.
+    pub fn format(&self) -> Format {
+        self.format
+    }
+
+    /// The bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.buffer.as_ref()
+    }
+
+    /// The header's packet type (`None` in LEGACY, which has no header).
+    pub fn packet_type(&self) -> Option<u16> {
+        let b = self.buffer.as_ref();
+        match self.format.header {
+            HeaderKind::Legacy => None,
+            HeaderKind::Standard => Some(le16(b, 0)),
+            HeaderKind::Fusa => Some(u16::from(b[0])),
+        }
+    }
+
+    /// The frame (one rotation) the packet belongs to; in LEGACY, the first column's.
+    pub fn frame_id(&self) -> u32 {
+        let b = self.buffer.as_ref();
+        match self.format.header {
+            HeaderKind::Legacy => u32::from(le16(b, 10)),
+            HeaderKind::Standard => u32::from(le16(b, 2)),
+            HeaderKind::Fusa => le32(b, 4),
+        }
+    }
+
+    /// The sensor's initialisation id (changes on a reset; `None` in LEGACY).
+    pub fn init_id(&self) -> Option<u32> {
+        let b = self.buffer.as_ref();
+        match self.format.header {
+            HeaderKind::Legacy => None,
+            HeaderKind::Standard => Some(le_n(b, 4, 3) as u32),
+            HeaderKind::Fusa => Some(le_n(b, 1, 3) as u32),
+        }
+    }
+
+    /// The sensor's serial number (`None` in LEGACY).
+    pub fn serial(&self) -> Option<u64> {
+        let b = self.buffer.as_ref();
+        match self.format.header {
+            HeaderKind::Legacy => None,
+            HeaderKind::Standard => Some(le_n(b, 7, 5)),
+            HeaderKind::Fusa => Some(le_n(b, 11, 5)),
+        }
+    }
+
+    /// Column `i` (modulo the format's columns).
+    #[inline]
+    pub fn column(&self, i: usize) -> Column<'_> {
+        let f = &self.format;
+        let at = f.header_len() + (i % f.columns) * f.column_len();
+        Column {
+            bytes: &self.buffer.as_ref()[at..at + f.column_len()],
+            format: *f,
+        }
+    }
+
+    /// The columns in packet order.
+    pub fn columns(&self) -> impl Iterator<Item = Column<'_>> + '_ {
+        (0..self.format.columns).map(move |i| self.column(i))
+    }
+}
+
+/// One column: one azimuth step of every beam, fired at one time.
+#[derive(Debug, Clone, Copy)]
+pub struct Column<'a> {
+    bytes: &'a [u8],
+    format: Format,
+}
+
+impl Column<'_> {
+    /// The column's timestamp [ns] (in the sensor's `timestamp_mode`'s clock).
+    #[inline]
+    pub fn timestamp_ns(&self) -> u64 {
+        le_n(self.bytes, 0, 8)
+    }
+
+    /// Its index within the frame (0 .. columns per frame - 1).
+    #[inline]
+    pub fn measurement_id(&self) -> u16 {
+        le16(self.bytes, 8)
+    }
+
+    /// Whether the column holds data (LEGACY: its status word is 0xFFFFFFFF; others: status
+    /// bit 0). A column outside the sensor's `column_window` is sent invalid, zero-filled.
+    #[inline]
+    pub fn valid(&self) -> bool {
+        match self.format.header {
+            HeaderKind::Legacy => le32(self.bytes, self.bytes.len() - 4) == 0xFFFF_FFFF,
+            _ => le16(self.bytes, 10) & 1 == 1,
+        }
+    }
+
+    /// LEGACY's encoder count (90,112 ticks a turn; `None` in the other profiles).
+    pub fn encoder_count(&self) -> Option<u32> {
+        (self.format.header == HeaderKind::Legacy).then(|| le32(self.bytes, 12))
+    }
+
+    /// The ranges [mm] of pixel `ch`'s returns (0: none), without its other fields: what a
+    /// pass that skips empty pixels reads first.
+    #[inline]
+    pub fn range_mm(&self, ch: usize) -> [u32; 2] {
+        let f = &self.format;
+        let n = f.profile.pixel_len();
+        let at = f.column_header_len() + (ch % f.pixels) * n;
+        let b = &self.bytes[at..at + n];
+        match f.profile {
+            Profile::Legacy => [le32(b, 0) & 0x000F_FFFF, 0],
+            Profile::Single => [le32(b, 0) & 0x0007_FFFF, 0],
+            Profile::Dual => [le32(b, 0) & 0x0007_FFFF, le32(b, 4) & 0x0007_FFFF],
+            Profile::LowRate => [u32::from(le16(b, 0) & 0x7FFF) << 3, 0],
+            Profile::LowRateDual => [
+                u32::from(le16(b, 0) & 0x7FFF) << 3,
+                u32::from(le16(b, 4) & 0x7FFF) << 3,
+            ],
+        }
+    }
+
+    /// Pixel `ch` (the beam, modulo the column's pixels).
+    #[inline]
+    pub fn pixel(&self, ch: usize) -> Pixel {
+        let f = &self.format;
+        let n = f.profile.pixel_len();
+        let at = f.column_header_len() + (ch % f.pixels) * n;
+        let b = &self.bytes[at..at + n];
+        match f.profile {
+            Profile::Legacy => Pixel {
+                range_mm: [le32(b, 0) & 0x000F_FFFF, 0],
+                reflectivity: [b[4], 0],
+                signal: [le16(b, 6), 0],
+                nir: le16(b, 8),
+            },
+            Profile::Single => Pixel {
+                range_mm: [le32(b, 0) & 0x0007_FFFF, 0],
+                reflectivity: [b[4], 0],
+                signal: [le16(b, 6), 0],
+                nir: le16(b, 8),
+            },
+            Profile::Dual => Pixel {
+                range_mm: [le32(b, 0) & 0x0007_FFFF, le32(b, 4) & 0x0007_FFFF],
+                reflectivity: [b[3], b[7]],
+                signal: [le16(b, 8), le16(b, 10)],
+                nir: le16(b, 12),
+            },
+            Profile::LowRate => Pixel {
+                range_mm: [u32::from(le16(b, 0) & 0x7FFF) << 3, 0],
+                reflectivity: [b[2], 0],
+                signal: [0, 0],
+                nir: u16::from(b[3]) << 4,
+            },
+            Profile::LowRateDual => Pixel {
+                range_mm: [
+                    u32::from(le16(b, 0) & 0x7FFF) << 3,
+                    u32::from(le16(b, 4) & 0x7FFF) << 3,
+                ],
+                reflectivity: [b[2], b[6]],
+                signal: [0, 0],
+                nir: u16::from(b[3]) << 4,
+            },
+        }
+    }
+}
+
+/// One beam's measurement in a column: up to two returns (the second zero in single-return
+/// profiles, and where there was none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Pixel {
+    /// Range of the first and second return [mm]; 0: no return.
+    pub range_mm: [u32; 2],
+    /// Calibrated reflectivity of each return (0-255).
+    pub reflectivity: [u8; 2],
+    /// Signal photons of each return (0 in the low-data-rate profiles).
+    pub signal: [u16; 2],
+    /// Near-infrared ambient photons.
+    pub nir: u16,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn legacy32() -> Format {
+        Format::new(Profile::Legacy, HeaderKind::Legacy, 16, 32).unwrap()
+    }
+
+    /// A packet of another length or type is refused naming both, and indices wrap: no
+    /// input panics.
+    #[test]
+    fn wrong_lengths_and_types_are_refused() {
+        let f = legacy32();
+        let short = [0u8; 100];
+        assert_eq!(
+            LidarPacket::new_checked(&short[..], f).unwrap_err(),
+            Error::Length {
+                expected: 6464,
+                got: 100
+            }
+        );
+        let g = Format::new(Profile::LowRate, HeaderKind::Standard, 16, 16).unwrap();
+        let mut b = std::vec![0u8; g.packet_len()];
+        b[0] = 2;
+        assert_eq!(
+            LidarPacket::new_checked(&b[..], g).unwrap_err(),
+            Error::PacketType { found: 2 }
+        );
+        b[0] = 1;
+        let p = LidarPacket::new_checked(&b[..], g).unwrap();
+        let c = p.column(1000);
+        assert_eq!(c.pixel(999), Pixel::default());
+        assert!(!c.valid());
+    }
+
+    /// Each profile's fields at their bits, hand-packed: LEGACY's 20-bit range beside its
+    /// flag bits, the low-data-rate range in 8 mm units and NIR in 16s, the dual's second
+    /// return.
+    #[test]
+    fn fields_sit_at_their_bits() {
+        // LEGACY: range 0xABCDE mm with the flag nibble set above it.
+        let f = legacy32();
+        let mut b = std::vec![0u8; f.packet_len()];
+        let col = f.column_len();
+        let at = col + 16 + 3 * 12; // column 1, pixel 3
+        b[at..at + 4].copy_from_slice(&(0xF00A_BCDEu32).to_le_bytes());
+        b[at + 4] = 77;
+        b[at + 6..at + 8].copy_from_slice(&1234u16.to_le_bytes());
+        b[at + 8..at + 10].copy_from_slice(&555u16.to_le_bytes());
+        b[col..col + 8].copy_from_slice(&123_456_789u64.to_le_bytes());
+        b[col + 8..col + 10].copy_from_slice(&513u16.to_le_bytes());
+        b[10..12].copy_from_slice(&42u16.to_le_bytes());
+        b[2 * col - 4..2 * col].copy_from_slice(&[0xFF; 4]);
+        let p = LidarPacket::new_checked(&b[..], f).unwrap();
+        assert_eq!(p.frame_id(), 42);
+        let c = p.column(1);
+        assert!(c.valid() && !p.column(0).valid());
+        assert_eq!((c.timestamp_ns(), c.measurement_id()), (123_456_789, 513));
+        assert_eq!(
+            c.pixel(3),
+            Pixel {
+                range_mm: [0xABCDE, 0],
+                reflectivity: [77, 0],
+                signal: [1234, 0],
+                nir: 555
+            }
+        );
+        // RNG15_RFL8_NIR8_DUAL: 15-bit ranges in 8 mm units under their flag bits.
+        let g = Format::new(Profile::LowRateDual, HeaderKind::Standard, 16, 16).unwrap();
+        let mut b = std::vec![0u8; g.packet_len()];
+        b[0] = 1;
+        b[2..4].copy_from_slice(&700u16.to_le_bytes());
+        b[7..12].copy_from_slice(&[0x11, 0x22, 0x33, 0x44, 0x55]);
+        let at = 32 + 12 + 8 * 5; // column 0, pixel 5
+        b[at..at + 2].copy_from_slice(&(0x8000u16 | 1000).to_le_bytes());
+        b[at + 2] = 9;
+        b[at + 3] = 3;
+        b[at + 4..at + 6].copy_from_slice(&(0x8000u16 | 2000).to_le_bytes());
+        b[at + 6] = 10;
+        b[32 + 10] = 1;
+        let p = LidarPacket::new_checked(&b[..], g).unwrap();
+        assert_eq!((p.frame_id(), p.serial()), (700, Some(0x55_4433_2211)));
+        let c = p.column(0);
+        assert!(c.valid());
+        assert_eq!(
+            c.pixel(5),
+            Pixel {
+                range_mm: [8000, 16000],
+                reflectivity: [9, 10],
+                signal: [0, 0],
+                nir: 48
+            }
+        );
+    }
+}

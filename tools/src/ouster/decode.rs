@@ -1,0 +1,283 @@
+//! `spherecal decode CAPTURE --metadata META.json [--csv OUT]` for an Ouster: every lidar
+//! packet of the capture checked against the metadata's format, counted, and listed one row per
+//! return (the first, and in the dual profiles the second as its own row).
+
+use super::Metadata;
+use crate::decode::{push_fixed, push_padded, push_u64, CSV_HEADER};
+use spherecal::ouster::{LidarPacket, Pixel};
+use spherecal_hal::pcap::PcapSource;
+use spherecal_hal::velodyne::SkipStats;
+use spherecal_hal::{PacketSource, Record, SkipReason};
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::Path;
+
+/// The Ouster CSV's columns: the Velodyne listing's, then where the return is in the frame.
+pub fn csv_header() -> String {
+    format!("{CSV_HEADER},frame_id,measurement_id,channel")
+}
+
+/// What an Ouster decode found.
+#[derive(Debug, Default, Clone)]
+pub struct OusterSummary {
+    /// Lidar packets decoded.
+    pub lidar_packets: u64,
+    /// IMU packets seen (not decoded).
+    pub imu_packets: u64,
+    /// Frames (distinct frame ids).
+    pub frames: u64,
+    /// Columns with data, and those sent invalid (outside the column window, or blocked).
+    pub columns: [u64; 2],
+    /// Returns (range > 0): first and second.
+    pub returns: [u64; 2],
+    /// First and last column timestamp [ns].
+    pub span_ns: Option<(u64, u64)>,
+    /// Everything skipped.
+    pub skips: SkipStats,
+    /// Payload lengths seen on the lidar port that were not the format's, with counts.
+    pub wrong_lengths: Vec<(usize, u64)>,
+    /// Columns whose measurement id is beyond the frame's columns.
+    pub bad_measurement_ids: u64,
+    /// A file that stopped early: where and why.
+    pub stopped: Option<String>,
+}
+
+impl OusterSummary {
+    /// The summary as printed.
+    pub fn render(&self, path: &str, m: &Metadata) -> String {
+        let mut o = String::new();
+        let _ = writeln!(o, "file: {path}");
+        let _ = writeln!(
+            o,
+            "sensor: Ouster {} (serial {}, firmware {}), {} beams, {} columns per frame, profile {}{}",
+            if m.product.is_empty() { "?" } else { &m.product },
+            if m.serial.is_empty() { "?" } else { &m.serial },
+            if m.firmware.is_empty() { "?" } else { &m.firmware },
+            m.format.pixels,
+            m.columns_per_frame,
+            m.profile_name,
+            m.timestamp_mode
+                .as_deref()
+                .map_or(String::new(), |t| format!(", timestamps {t}"))
+        );
+        let _ = writeln!(
+            o,
+            "lidar packets: {} (UDP {}), frames: {}, columns: {} with data, {} invalid; IMU packets: {}",
+            self.lidar_packets, m.lidar_port, self.frames, self.columns[0], self.columns[1], self.imu_packets
+        );
+        let _ = writeln!(
+            o,
+            "points: {} (first returns {}, second {})",
+            self.returns[0] + self.returns[1],
+            self.returns[0],
+            self.returns[1]
+        );
+        if let Some((a, b)) = self.span_ns {
+            let _ = writeln!(
+                o,
+                "column timestamps: {:.6} s to {:.6} s",
+                a as f64 * 1e-9,
+                b as f64 * 1e-9
+            );
+        }
+        if self.bad_measurement_ids > 0 {
+            let _ = writeln!(
+                o,
+                "columns with a measurement id beyond the frame's {}: {}",
+                m.columns_per_frame, self.bad_measurement_ids
+            );
+        }
+        let _ = writeln!(o, "skipped: {}", self.skips.total());
+        for l in self.skips.lines() {
+            let _ = writeln!(
+                o,
+                "  {}: {} (first at byte {}: {})",
+                l.reason, l.count, l.first_offset, l.first
+            );
+        }
+        if let Some(s) = &self.stopped {
+            let _ = writeln!(o, "stopped early: {s}");
+        }
+        o
+    }
+
+    /// Why the capture does not go with its metadata: packets on the lidar port, none of the
+    /// metadata's format.
+    pub fn mismatch(&self, m: &Metadata) -> Option<String> {
+        if self.lidar_packets > 0 || self.wrong_lengths.is_empty() {
+            return None;
+        }
+        let seen: Vec<String> = self
+            .wrong_lengths
+            .iter()
+            .map(|(len, n)| format!("{n} of {len} bytes"))
+            .collect();
+        Some(format!(
+            "the capture's packets on UDP {} ({}) are not the metadata's format: {} of {} pixels x {} columns is {} bytes; is this the capture's own metadata?",
+            m.lidar_port,
+            seen.join(", "),
+            m.profile_name,
+            m.format.pixels,
+            m.format.columns,
+            m.format.packet_len()
+        ))
+    }
+}
+
+/// Decode the capture at `path` with its metadata `m`, listing returns into `csv`.
+pub fn decode_file(
+    path: &Path,
+    m: &Metadata,
+    csv: Option<&mut dyn Write>,
+) -> Result<OusterSummary, crate::Error> {
+    let src = PcapSource::open(path)
+        .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))?;
+    decode_source(src, m, csv)
+        .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))
+}
+
+/// [`decode_file`] over any packet source.
+pub fn decode_source<S: PacketSource>(
+    mut src: S,
+    m: &Metadata,
+    mut csv: Option<&mut dyn Write>,
+) -> Result<OusterSummary, std::io::Error> {
+    let mut s = OusterSummary::default();
+    let mut frames = BTreeSet::new();
+    let mut line: Vec<u8> = Vec::with_capacity(1 << 16);
+    if let Some(w) = csv.as_deref_mut() {
+        writeln!(w, "{}", csv_header())?;
+    }
+    loop {
+        let rec = match src.next_record() {
+            Ok(Some(r)) => r,
+            Ok(None) => break,
+            Err(e) => {
+                s.stopped = Some(e.to_string());
+                break;
+            }
+        };
+        let d = match rec {
+            Record::Skipped { offset, reason } => {
+                s.skips.count(offset, &reason);
+                continue;
+            }
+            Record::Udp(d) => d,
+            Record::Idle => continue,
+        };
+        if d.dst_port == m.imu_port && d.dst_port != m.lidar_port {
+            s.imu_packets += 1;
+            continue;
+        }
+        if d.dst_port != m.lidar_port {
+            s.skips.count(d.offset, &SkipReason::OtherPort(d.dst_port));
+            continue;
+        }
+        let p = match LidarPacket::new_checked(d.payload, m.format) {
+            Ok(p) => p,
+            Err(e) => {
+                if let spherecal::ouster::Error::Length { got, .. } = e {
+                    match s.wrong_lengths.iter_mut().find(|(l, _)| *l == got) {
+                        Some((_, n)) => *n += 1,
+                        None => s.wrong_lengths.push((got, 1)),
+                    }
+                }
+                s.skips.count(d.offset, &SkipReason::Ouster(e));
+                continue;
+            }
+        };
+        let index = s.lidar_packets;
+        s.lidar_packets += 1;
+        frames.insert(p.frame_id());
+        line.clear();
+        for (block, c) in p.columns().enumerate() {
+            if !c.valid() {
+                s.columns[1] += 1;
+                continue;
+            }
+            s.columns[0] += 1;
+            let mid = c.measurement_id();
+            if usize::from(mid) >= m.columns_per_frame {
+                s.bad_measurement_ids += 1;
+                continue;
+            }
+            let t = c.timestamp_ns();
+            let geo = m.intrinsics.column(mid);
+            s.span_ns = Some(s.span_ns.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+            for ch in 0..m.format.pixels {
+                let px = c.pixel(ch);
+                for r in 0..m.format.profile.returns() {
+                    if px.range_mm[r] == 0 {
+                        continue;
+                    }
+                    s.returns[r] += 1;
+                    if csv.is_some() {
+                        row(
+                            &mut line,
+                            &geo,
+                            index,
+                            block,
+                            p.frame_id(),
+                            mid,
+                            ch,
+                            r,
+                            t,
+                            &px,
+                        );
+                    }
+                }
+            }
+        }
+        if let Some(w) = csv.as_deref_mut() {
+            w.write_all(&line)?;
+        }
+    }
+    s.frames = frames.len() as u64;
+    Ok(s)
+}
+
+/// One CSV row: the return `r` of pixel `px` (beam `ch`) of column `block` of packet `index`.
+#[allow(clippy::too_many_arguments)]
+fn row(
+    line: &mut Vec<u8>,
+    geo: &spherecal::ouster::ColumnGeometry<'_>,
+    index: u64,
+    block: usize,
+    frame: u32,
+    mid: u16,
+    ch: usize,
+    r: usize,
+    t: u64,
+    px: &Pixel,
+) {
+    let mm = px.range_mm[r];
+    let b = geo.point(ch, mm);
+    for v in [index, block as u64, 0, ch as u64] {
+        push_u64(line, v);
+        line.push(b',');
+    }
+    line.extend_from_slice(if r == 0 { b"first," } else { b"second," });
+    push_u64(line, t / 1000);
+    line.push(b'.');
+    push_padded(line, t % 1000, 3);
+    line.push(b',');
+    push_fixed(line, b.azimuth_deg, 4);
+    line.push(b',');
+    push_fixed(line, b.elevation_deg, 3);
+    line.push(b',');
+    push_u64(line, u64::from(mm / 1000));
+    line.push(b'.');
+    push_padded(line, u64::from(mm % 1000), 3);
+    line.push(b',');
+    push_u64(line, u64::from(px.reflectivity[r]));
+    for v in b.xyz {
+        line.push(b',');
+        push_fixed(line, v, 6);
+    }
+    for v in [u64::from(frame), u64::from(mid), ch as u64] {
+        line.push(b',');
+        push_u64(line, v);
+    }
+    line.push(b'\n');
+}

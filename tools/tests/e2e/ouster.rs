@@ -1,0 +1,165 @@
+//! `spherecal decode CAPTURE --metadata META.json` on real Ouster captures (tests/data/ouster),
+//! against Ouster's own SDK (PyPI `ouster-sdk`, `scripts/ouster_xyz.py`) on the same files.
+
+use crate::common;
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+/// The vendored captures: every profile spherecal reads, both metadata layouts, both headers.
+const CAPTURES: [&str; 5] = [
+    "OS-1-32-G_v2.1.1_1024x10",
+    "OS-0-32-U1_v2.2.0_1024x10",
+    "shot_limiting_test",
+    "windowed_frame1",
+    "OS-1-128_767798045_1024x10_20230712_120049",
+];
+
+fn files(name: &str) -> (PathBuf, PathBuf) {
+    (
+        common::test_data(&format!("ouster/{name}.pcap")),
+        common::test_data(&format!("ouster/{name}.json")),
+    )
+}
+
+/// (frame id, measurement id, channel, return) -> x y z [m].
+type Returns = HashMap<(u32, u32, u32, String), [f64; 3]>;
+
+/// What Ouster's SDK decodes from the capture.
+fn reference(pcap: &PathBuf, meta: &PathBuf) -> Returns {
+    let script = common::repo_root().join("scripts/ouster_xyz.py");
+    let out = std::process::Command::new("python3")
+        .arg(&script)
+        .arg(pcap)
+        .arg(meta)
+        .output()
+        .expect("python3");
+    assert!(
+        out.status.success(),
+        "ouster-sdk must be installed (scripts/test.sh does it): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut r = Returns::new();
+    for l in String::from_utf8(out.stdout).unwrap().lines() {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        let p = |i: usize| f[i].parse::<f64>().unwrap();
+        let key = (
+            f[0].parse().unwrap(),
+            f[1].parse().unwrap(),
+            f[2].parse().unwrap(),
+            f[3].to_string(),
+        );
+        assert!(
+            r.insert(key, [p(4), p(5), p(6)]).is_none(),
+            "a return twice: {l}"
+        );
+    }
+    r
+}
+
+/// Every return of every vendored capture as Ouster's SDK decodes it: none missing, none
+/// extra, x y z in the sensor frame within 1 mm; the summary counts them; the CSV's columns.
+#[test]
+fn every_capture_decodes_as_ousters_sdk_does() {
+    for name in CAPTURES {
+        let (pcap, meta) = files(name);
+        let csv = common::tmp("ouster", &format!("{name}.csv"));
+        let stdout = common::stdout_of(
+            common::spherecal()
+                .arg("decode")
+                .arg(&pcap)
+                .arg("--metadata")
+                .arg(&meta)
+                .arg("--csv")
+                .arg(&csv),
+        );
+        let want = reference(&pcap, &meta);
+        assert!(!want.is_empty(), "{name}: the SDK decoded nothing");
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap();
+        assert_eq!(
+            header,
+            "packet,block,sequence,laser,return,time_us,azimuth_deg,elevation_deg,distance_m,intensity,x_m,y_m,z_m,frame_id,measurement_id,channel"
+        );
+        let mut got = Returns::new();
+        for l in lines {
+            let f: Vec<&str> = l.split(',').collect();
+            let p = |i: usize| f[i].parse::<f64>().unwrap();
+            let key = (
+                f[13].parse().unwrap(),
+                f[14].parse().unwrap(),
+                f[15].parse().unwrap(),
+                f[4].to_string(),
+            );
+            assert!(
+                got.insert(key, [p(10), p(11), p(12)]).is_none(),
+                "{name}: a row twice: {l}"
+            );
+        }
+        let missing = want.keys().filter(|k| !got.contains_key(*k)).count();
+        let extra = got.keys().filter(|k| !want.contains_key(*k)).count();
+        assert_eq!(
+            (missing, extra),
+            (0, 0),
+            "{name}: {} returns against the SDK's {}",
+            got.len(),
+            want.len()
+        );
+        let worst = want
+            .iter()
+            .map(|(k, w)| (0..3).map(|i| (w[i] - got[k][i]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        assert!(worst <= 1e-3, "{name}: {worst} m off the SDK");
+        let seconds = want.keys().filter(|k| k.3 == "second").count();
+        assert!(
+            stdout.contains(&format!(
+                "points: {} (first returns {}, second {seconds})",
+                want.len(),
+                want.len() - seconds
+            )),
+            "{name}: {stdout}"
+        );
+        eprintln!(
+            "{name}: {} returns ({seconds} second), worst {worst:.1e} m",
+            want.len()
+        );
+    }
+}
+
+/// A capture decoded with another sensor's metadata is refused naming the mismatch, and
+/// writes no listing; metadata that is not a sensor's names the key.
+#[test]
+fn a_capture_with_other_metadata_is_refused_by_name() {
+    let (pcap, _) = files("OS-1-32-G_v2.1.1_1024x10");
+    let (_, other) = files("OS-0-32-U1_v2.2.0_1024x10");
+    let csv = common::tmp("ouster", "mismatch.csv");
+    let out = common::spherecal()
+        .arg("decode")
+        .arg(&pcap)
+        .arg("--metadata")
+        .arg(&other)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("(64 of 6464 bytes) are not the metadata's format: RNG19_RFL8_SIG16_NIR16_DUAL of 32 pixels x 16 columns is 8448 bytes"),
+        "{err}"
+    );
+    assert!(!csv.exists());
+    let bad = common::tmp("ouster", "bad.json");
+    for (text, says) in [
+        ("{\"data_format\": {\"pixels_per_column\": 32}}", "`columns_per_packet` missing"),
+        ("[1, 2]", "not an Ouster sensor's metadata"),
+        ("{\"lidar_data_format\": {\"pixels_per_column\": 32, \"columns_per_packet\": 16, \"columns_per_frame\": 1024, \"udp_profile_lidar\": \"FIVE_WORD_PIXEL\"}}", "FIVE_WORD_PIXEL: spherecal reads"),
+        ("not json", "not JSON"),
+    ] {
+        std::fs::write(&bad, text).unwrap();
+        let out = common::spherecal().arg("decode").arg(&pcap).arg("--metadata").arg(&bad).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{text}: {err}");
+        assert!(err.contains(says), "{text}: {err}");
+    }
+}
