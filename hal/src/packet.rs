@@ -88,6 +88,7 @@ impl SkipReason {
             SkipReason::Ouster(spherecal::ouster::Error::PacketType { .. }) => {
                 "not an Ouster lidar packet"
             }
+            SkipReason::Ouster(spherecal::ouster::Error::Crc { .. }) => "Ouster CRC-64 mismatch",
             SkipReason::Ouster(_) => "not the metadata's packet format",
             SkipReason::BadMessage(_) => "ROS message not parsed",
             SkipReason::BadCloud(_) => "point cloud not read",

@@ -45,6 +45,13 @@ pub enum Error {
         /// What the header holds.
         found: u16,
     },
+    /// The footer's CRC-64 disagrees with the packet (a packet of firmware 3.x damaged).
+    Crc {
+        /// The footer's.
+        stored: u64,
+        /// The packet's.
+        computed: u64,
+    },
     /// A format outside what a sensor sends (beams, columns, or a packet over 65,535 bytes).
     Format,
 }
@@ -59,6 +66,10 @@ impl fmt::Display for Error {
             Error::PacketType { found } => write!(
                 f,
                 "Ouster packet type {found:#06x} where a lidar packet has 0x0001"
+            ),
+            Error::Crc { stored, computed } => write!(
+                f,
+                "Ouster packet footer CRC-64 {stored:#018x} where the packet's is {computed:#018x}"
             ),
             Error::Format => write!(
                 f,

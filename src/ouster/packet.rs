@@ -23,6 +23,9 @@
 use super::profile::{Format, HeaderKind, Profile};
 use super::Error;
 
+/// The footer's CRC (firmware 3.x): CRC-64/XZ.
+const CRC64: crc::Crc<u64, crc::Table<16>> = crc::Crc::<u64, crc::Table<16>>::new(&crc::CRC_64_XZ);
+
 #[inline(always)]
 fn le16(b: &[u8], at: usize) -> u16 {
     u16::from_le_bytes([b[at], b[at + 1]])
@@ -114,6 +117,18 @@ impl<T: AsRef<[u8]>> LidarPacket<T> {
             HeaderKind::Standard => Some(le_n(b, 7, 5)),
             HeaderKind::Fusa => Some(le_n(b, 11, 5)),
         }
+    }
+
+    /// The footer's last eight bytes and the CRC-64/XZ (ECMA-182, reflected) of the bytes
+    /// before them: firmware 3.x sends the CRC there; older firmware zeros or other bytes.
+    /// `None` in LEGACY (no footer).
+    pub fn crc(&self) -> Option<(u64, u64)> {
+        if self.format.header == HeaderKind::Legacy {
+            return None;
+        }
+        let b = self.buffer.as_ref();
+        let n = b.len() - 8;
+        Some((le_n(b, n, 8), CRC64.checksum(&b[..n])))
     }
 
     /// Column `i` (modulo the format's columns).

@@ -37,6 +37,11 @@ pub struct OusterSummary {
     pub skips: SkipStats,
     /// Payload lengths seen on the lidar port that were not the format's, with counts.
     pub wrong_lengths: Vec<(usize, u64)>,
+    /// Packets whose footer's CRC-64 agreed (firmware 3.x sends it; once one agrees, a packet
+    /// that disagrees is skipped as damaged).
+    pub crc_agreed: u64,
+    /// Packets whose header's serial number is not the metadata's `prod_sn` (the first seen).
+    pub other_serial: Option<(u64, u64)>,
     /// Columns whose measurement id is beyond the frame's columns.
     pub bad_measurement_ids: u64,
     /// A file that stopped early: where and why.
@@ -81,6 +86,13 @@ impl OusterSummary {
                 b as f64 * 1e-9
             );
         }
+        if self.crc_agreed > 0 {
+            let _ = writeln!(
+                o,
+                "footer CRC-64 (firmware 3.x): {} packets agree",
+                self.crc_agreed
+            );
+        }
         if self.bad_measurement_ids > 0 {
             let _ = writeln!(
                 o,
@@ -105,6 +117,12 @@ impl OusterSummary {
     /// Why the capture does not go with its metadata: packets on the lidar port, none of the
     /// metadata's format.
     pub fn mismatch(&self, m: &Metadata) -> Option<String> {
+        if let Some((sn, n)) = self.other_serial {
+            return Some(format!(
+                "{n} lidar packets come from the sensor with serial number {sn}, the metadata describes {}: decode with that sensor's metadata (its beam angles are its own)",
+                m.serial
+            ));
+        }
         if self.lidar_packets > 0 || self.wrong_lengths.is_empty() {
             return None;
         }
@@ -187,6 +205,23 @@ pub fn decode_source<S: PacketSource>(
                 continue;
             }
         };
+        let meta_sn = m.serial.parse::<u64>().ok();
+        if let (Some(sn), Some(want)) = (p.serial(), meta_sn) {
+            if sn != want && sn != 0 {
+                let o = s.other_serial.get_or_insert((sn, 0));
+                o.1 += 1;
+                continue;
+            }
+        }
+        if let Some((stored, computed)) = p.crc() {
+            if stored == computed {
+                s.crc_agreed += 1;
+            } else if s.crc_agreed > 0 {
+                let e = spherecal::ouster::Error::Crc { stored, computed };
+                s.skips.count(d.offset, &SkipReason::Ouster(e));
+                continue;
+            }
+        }
         let index = s.lidar_packets;
         s.lidar_packets += 1;
         frames.insert(p.frame_id());

@@ -149,6 +149,26 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
         "{err}"
     );
     assert!(!csv.exists());
+    // The same format, another unit's metadata (its serial number): its beam angles are not
+    // this sensor's.
+    let (pcap2, meta2) = files("windowed_frame1");
+    let text = std::fs::read_to_string(&meta2).unwrap();
+    assert!(text.contains("\"992108000265\""));
+    let other = common::tmp("ouster", "other-unit.json");
+    std::fs::write(&other, text.replace("\"992108000265\"", "\"992108000999\"")).unwrap();
+    let out = common::spherecal()
+        .arg("decode")
+        .arg(&pcap2)
+        .arg("--metadata")
+        .arg(&other)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("17 lidar packets come from the sensor with serial number 992108000265, the metadata describes 992108000999"),
+        "{err}"
+    );
     let bad = common::tmp("ouster", "bad.json");
     for (text, says) in [
         ("{\"data_format\": {\"pixels_per_column\": 32}}", "`columns_per_packet` missing"),
@@ -162,4 +182,42 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
         assert_eq!(out.status.code(), Some(2), "{text}: {err}");
         assert!(err.contains(says), "{text}: {err}");
     }
+}
+
+/// Firmware 3.x ends each packet with a CRC-64 of it (shot_limiting_test's agrees): once a
+/// packet's agreed, a damaged one (one bit flipped in a copy of the real packet) is skipped
+/// and counted by name, not decoded into wrong points.
+#[test]
+fn a_damaged_packet_of_a_crc_firmware_is_skipped_by_name() {
+    let (pcap, meta) = files("shot_limiting_test");
+    let b = std::fs::read(&pcap).unwrap();
+    // The capture: a 24-byte header and one record (16-byte header + frame).
+    let record = &b[24..];
+    let mut two = b.clone();
+    let mut damaged = record.to_vec();
+    damaged[16 + 42 + 1000] ^= 0x10;
+    two.extend_from_slice(&damaged);
+    let path = common::tmp("ouster", "damaged.pcap");
+    std::fs::write(&path, &two).unwrap();
+    let run = |p: &PathBuf| {
+        common::stdout_of(
+            common::spherecal()
+                .arg("decode")
+                .arg(p)
+                .arg("--metadata")
+                .arg(&meta),
+        )
+    };
+    let one = run(&pcap);
+    assert!(
+        one.contains("footer CRC-64 (firmware 3.x): 1 packets agree"),
+        "{one}"
+    );
+    let out = run(&path);
+    assert!(out.contains("lidar packets: 1 "), "{out}");
+    assert!(
+        out.contains("skipped: 1\n  Ouster CRC-64 mismatch: 1 (first at byte"),
+        "{out}"
+    );
+    assert!(out.contains("points: 2048 "), "{out}");
 }
