@@ -16,13 +16,14 @@ use std::fmt;
 use std::io;
 
 pub mod chain;
+pub mod defrag;
 pub mod read;
 pub mod slice;
 pub mod write;
 
 pub use chain::{ChainError, ChainFault, PcapChain};
 pub use read::PcapSource;
-pub use slice::{build_udp_frame, slice_udp, UdpEndpoints};
+pub use slice::{build_udp_frame, slice_fragment, slice_udp, Fragment, UdpEndpoints};
 pub use write::PcapWriter;
 
 /// Largest record or block we accept; anything larger means a corrupt length field.

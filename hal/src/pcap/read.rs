@@ -1,6 +1,7 @@
 //! The streaming capture reader: classic libpcap and pcapng through a fixed working buffer.
 
-use super::slice::slice_udp;
+use super::defrag::{Added, Reassembly};
+use super::slice::{slice_fragment, slice_udp};
 use super::{PcapError, MAX_RECORD};
 use crate::packet::{Datagram, HostTime, PacketSource, Record, SkipReason};
 use pcap_file::pcap::PcapParser;
@@ -36,6 +37,26 @@ pub struct PcapSource<R: Read> {
     eof: bool,
     done: bool,
     format: Format,
+    /// IPv4 datagrams larger than the link's MTU, put back together.
+    defrag: Reassembly,
+}
+
+/// A record read: where its frame is in the buffer and what the record header said.
+struct FrameAt {
+    link: u32,
+    data: std::ops::Range<usize>,
+    captured: u32,
+    original: u32,
+    time: HostTime,
+    offset: u64,
+}
+
+/// What the next record is.
+enum Raw {
+    /// A frame.
+    Frame(FrameAt),
+    /// The end, or a record that is not a frame.
+    Other(Option<Record<'static>>),
 }
 
 impl PcapSource<io::BufReader<std::fs::File>> {
@@ -67,6 +88,7 @@ impl<R: Read> PcapSource<R> {
             eof: false,
             done: false,
             format: Format::Pending,
+            defrag: Reassembly::default(),
         };
         s.fill(24)?;
         let head = &s.buf[..s.end];
@@ -240,7 +262,7 @@ impl<R: Read> PcapSource<R> {
         Ok(Some(len))
     }
 
-    fn truncated_tail(&mut self) -> Option<Record<'_>> {
+    fn truncated_tail(&mut self) -> Option<Record<'static>> {
         if self.done {
             return None;
         }
@@ -256,9 +278,9 @@ impl<R: Read> PcapSource<R> {
 
 impl<R: Read> PcapSource<R> {
     /// The next classic pcap record (16-byte header, then the frame).
-    fn next_classic(&mut self) -> Result<Option<Record<'_>>, PcapError> {
+    fn next_classic(&mut self) -> Result<Raw, PcapError> {
         let Format::Classic { big, .. } = self.format else {
-            return Ok(None);
+            return Ok(Raw::Other(None));
         };
         let len_of = move |s: &Self| {
             let b = &s.buf[s.start + 8..s.start + 12];
@@ -271,7 +293,7 @@ impl<R: Read> PcapSource<R> {
                 } as usize)
         };
         let Some(len) = self.whole_record(16, len_of)? else {
-            return Ok(self.truncated_tail());
+            return Ok(Raw::Other(self.truncated_tail()));
         };
         let offset = self.offset();
         let at = self.start;
@@ -283,7 +305,7 @@ impl<R: Read> PcapSource<R> {
             ..
         } = self.format
         else {
-            return Ok(None);
+            return Ok(Raw::Other(None));
         };
         let (_, raw) = parser
             .next_raw_packet(&self.buf[at..at + len])
@@ -298,14 +320,15 @@ impl<R: Read> PcapSource<R> {
             std::borrow::Cow::Borrowed(d) => d,
             std::borrow::Cow::Owned(_) => &self.buf[at + 16..at + len],
         };
-        Ok(Some(frame_record(
+        let from = data.as_ptr() as usize - self.buf.as_ptr() as usize;
+        Ok(Raw::Frame(FrameAt {
             link,
-            data,
-            raw.incl_len,
-            raw.orig_len,
+            data: from..from + data.len(),
+            captured: raw.incl_len,
+            original: raw.orig_len,
             time,
             offset,
-        )))
+        }))
     }
 
     /// Walk past pcapng blocks that carry no packet (section and interface headers update the
@@ -351,15 +374,15 @@ impl<R: Read> PcapSource<R> {
 
     /// The next pcapng packet (enhanced, simple or obsolete packet block), timed with its
     /// interface's resolution.
-    fn next_ng(&mut self) -> Result<Option<Record<'_>>, PcapError> {
+    fn next_ng(&mut self) -> Result<Raw, PcapError> {
         let Some(len) = self.ng_next_packet_block()? else {
-            return Ok(self.truncated_tail());
+            return Ok(Raw::Other(self.truncated_tail()));
         };
         let offset = self.offset();
         let at = self.start;
         self.start += len;
         let Format::Ng { ref mut parser, .. } = self.format else {
-            return Ok(None);
+            return Ok(Raw::Other(None));
         };
         let corrupt = |what: String| PcapError::Corrupt { offset, what };
         let (_, block) = parser
@@ -391,14 +414,15 @@ impl<R: Read> PcapSource<R> {
         let std::borrow::Cow::Borrowed(data) = data else {
             return Err(corrupt("unexpected owned packet data".into()));
         };
-        Ok(Some(frame_record(
+        let from = data.as_ptr() as usize - self.buf.as_ptr() as usize;
+        Ok(Raw::Frame(FrameAt {
             link,
-            data,
-            data.len() as u32,
-            orig,
+            data: from..from + data.len(),
+            captured: data.len() as u32,
+            original: orig,
             time,
             offset,
-        )))
+        }))
     }
 }
 
@@ -406,13 +430,52 @@ impl<R: Read> PacketSource for PcapSource<R> {
     type Error = PcapError;
 
     fn next_record(&mut self) -> Result<Option<Record<'_>>, PcapError> {
-        if self.done {
-            return Ok(None);
-        }
-        match self.format {
-            Format::Pending => Ok(None),
-            Format::Classic { .. } => self.next_classic(),
-            Format::Ng { .. } => self.next_ng(),
+        loop {
+            if self.done {
+                return Ok(None);
+            }
+            let raw = match self.format {
+                Format::Pending => return Ok(None),
+                Format::Classic { .. } => self.next_classic()?,
+                Format::Ng { .. } => self.next_ng()?,
+            };
+            let f = match raw {
+                Raw::Other(r) => return Ok(r),
+                Raw::Frame(f) => f,
+            };
+            // An IPv4 fragment: held until its datagram is whole (frames of one record never
+            // reach the caller; the datagram is timed and placed at its last fragment).
+            if f.captured >= f.original {
+                if let Some(frag) = slice_fragment(f.link, &self.buf[f.data.clone()]) {
+                    match self.defrag.add(&frag) {
+                        Added::Held => continue,
+                        Added::Bad => {
+                            return Ok(Some(Record::Skipped {
+                                offset: f.offset,
+                                reason: SkipReason::IpFragment,
+                            }))
+                        }
+                        Added::Complete if frag.protocol != 17 => {
+                            return Ok(Some(Record::Skipped {
+                                offset: f.offset,
+                                reason: SkipReason::NotIpv4Udp,
+                            }))
+                        }
+                        Added::Complete => {
+                            let payload = self.defrag.payload();
+                            return Ok(Some(datagram_record(frag.src, payload, f.time, f.offset)));
+                        }
+                    }
+                }
+            }
+            return Ok(Some(frame_record(
+                f.link,
+                &self.buf[f.data],
+                f.captured,
+                f.original,
+                f.time,
+                f.offset,
+            )));
         }
     }
 }
@@ -446,6 +509,38 @@ fn ng_time_ns(units: u128, resol: u8) -> i64 {
         0
     };
     i64::try_from(ns).unwrap_or(i64::MAX)
+}
+
+/// A reassembled datagram's IP payload as a UDP datagram (the UDP header, then the data up
+/// to the UDP length), or why not.
+fn datagram_record(
+    src_addr: std::net::Ipv4Addr,
+    ip_payload: &[u8],
+    time: HostTime,
+    offset: u64,
+) -> Record<'_> {
+    if ip_payload.len() < 8 {
+        return Record::Skipped {
+            offset,
+            reason: SkipReason::NotIpv4Udp,
+        };
+    }
+    let be = |i: usize| u16::from_be_bytes([ip_payload[i], ip_payload[i + 1]]);
+    let len = usize::from(be(4));
+    let data = &ip_payload[8..];
+    let payload = if len >= 8 && len - 8 <= data.len() {
+        &data[..len - 8]
+    } else {
+        data
+    };
+    Record::Udp(Datagram {
+        time,
+        src_addr,
+        src_port: be(0),
+        dst_port: be(2),
+        payload,
+        offset,
+    })
 }
 
 /// Slice a captured frame down to its UDP payload, or say why not.

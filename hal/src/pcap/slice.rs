@@ -65,6 +65,52 @@ pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]),
     ))
 }
 
+/// One fragment of an IPv4 datagram (RFC 791): its datagram's key, where its bytes go in the
+/// datagram's payload, whether more follow, its bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct Fragment<'a> {
+    /// Sender.
+    pub src: Ipv4Addr,
+    /// Receiver.
+    pub dst: Ipv4Addr,
+    /// The datagram's identification.
+    pub id: u16,
+    /// The payload's protocol (17: UDP).
+    pub protocol: u8,
+    /// Byte offset in the datagram's payload (the header's fragment offset x 8).
+    pub offset: usize,
+    /// "More fragments".
+    pub more: bool,
+    /// The bytes.
+    pub payload: &'a [u8],
+}
+
+/// The IPv4 fragment `frame` carries (`None`: not an IPv4 fragment).
+pub fn slice_fragment(link: u32, frame: &[u8]) -> Option<Fragment<'_>> {
+    let sliced = match DataLink::from(link) {
+        DataLink::ETHERNET => LaxSlicedPacket::from_ethernet(frame).ok()?,
+        DataLink::RAW | DataLink::IPV4 => LaxSlicedPacket::from_ip(frame).ok()?,
+        DataLink::NULL | DataLink::LOOP => LaxSlicedPacket::from_ip(frame.get(4..)?).ok()?,
+        _ => return None,
+    };
+    let Some(LaxNetSlice::Ipv4(ip)) = &sliced.net else {
+        return None;
+    };
+    let h = ip.header();
+    if !h.is_fragmenting_payload() {
+        return None;
+    }
+    Some(Fragment {
+        src: h.source_addr(),
+        dst: h.destination_addr(),
+        id: h.identification(),
+        protocol: h.protocol().0,
+        offset: usize::from(h.fragments_offset().value()) * 8,
+        more: h.more_fragments(),
+        payload: ip.payload().payload,
+    })
+}
+
 /// Addresses of a sensor's UDP frames (VLP-16 factory defaults: 192.168.1.201 broadcasting to
 /// 255.255.255.255, source MAC 60:76:88 Velodyne OUI).
 #[derive(Debug, Clone, Copy)]

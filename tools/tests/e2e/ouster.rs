@@ -221,3 +221,85 @@ fn a_damaged_packet_of_a_crc_firmware_is_skipped_by_name() {
     );
     assert!(out.contains("points: 2048 "), "{out}");
 }
+
+/// The capture recorded as a 1500-byte link delivers it: every lidar packet (6,464 bytes) in
+/// five IPv4 fragments, one packet's in reverse order, one stray fragment that never
+/// completes. The reader puts the datagrams back together: the listing is the whole capture's,
+/// row for row.
+#[test]
+fn a_capture_of_ip_fragments_decodes_as_the_whole_one() {
+    let (pcap, meta) = files("OS-1-32-G_v2.1.1_1024x10");
+    let b = std::fs::read(&pcap).unwrap();
+    let mut out = b[..24].to_vec();
+    let (mut off, mut n) = (24, 0);
+    let checksum = |h: &[u8]| {
+        let mut sum = 0u32;
+        for w in h.chunks(2) {
+            sum += u32::from(u16::from_be_bytes([w[0], w[1]]));
+        }
+        while sum > 0xFFFF {
+            sum = (sum & 0xFFFF) + (sum >> 16);
+        }
+        !(sum as u16)
+    };
+    let mut record = |out: &mut Vec<u8>, ts: &[u8], frame: &[u8]| {
+        out.extend_from_slice(ts);
+        out.extend_from_slice(&(frame.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(frame.len() as u32).to_le_bytes());
+        out.extend_from_slice(frame);
+    };
+    while off + 16 <= b.len() {
+        let incl = u32::from_le_bytes(b[off + 8..off + 12].try_into().unwrap()) as usize;
+        let (ts, frame) = (&b[off..off + 8], &b[off + 16..off + 16 + incl]);
+        off += 16 + incl;
+        let (eth, ip, body) = (&frame[..14], &frame[14..34], &frame[34..]);
+        let mut frags: Vec<Vec<u8>> = body
+            .chunks(1480)
+            .enumerate()
+            .map(|(i, chunk)| {
+                let more = (i + 1) * 1480 < body.len();
+                let mut h = ip.to_vec();
+                h[2..4].copy_from_slice(&(20 + chunk.len() as u16).to_be_bytes());
+                let word = (u16::from(more) << 13) | (i * 1480 / 8) as u16;
+                h[6..8].copy_from_slice(&word.to_be_bytes());
+                h[10..12].copy_from_slice(&[0, 0]);
+                let c = checksum(&h);
+                h[10..12].copy_from_slice(&c.to_be_bytes());
+                [eth, &h[..], chunk].concat()
+            })
+            .collect();
+        assert_eq!(frags.len(), 5);
+        if n == 3 {
+            frags.reverse();
+            // A stray first fragment of a datagram whose rest never comes.
+            let mut stray = frags[4].clone();
+            stray[14 + 4] ^= 0x55;
+            frags.push(stray);
+        }
+        for f in &frags {
+            record(&mut out, ts, f);
+        }
+        n += 1;
+    }
+    let fragmented = common::tmp("ouster", "fragmented.pcap");
+    std::fs::write(&fragmented, &out).unwrap();
+    let csv = |p: &PathBuf, name: &str| {
+        let c = common::tmp("ouster", name);
+        let s = common::stdout_of(
+            common::spherecal()
+                .arg("decode")
+                .arg(p)
+                .arg("--metadata")
+                .arg(&meta)
+                .arg("--csv")
+                .arg(&c),
+        );
+        (s, std::fs::read_to_string(&c).unwrap())
+    };
+    let (whole_sum, whole) = csv(&pcap, "whole.csv");
+    let (frag_sum, frag) = csv(&fragmented, "fragments.csv");
+    assert!(frag_sum.contains("lidar packets: 64 "), "{frag_sum}");
+    assert!(whole_sum.contains("points: 27310 "), "{whole_sum}");
+    assert_eq!(whole.lines().count(), frag.lines().count());
+    assert!(whole == frag, "the listings differ");
+}
