@@ -30,7 +30,8 @@ pub enum SkipReason {
     UnsupportedLinkType(u32),
     /// Not an IPv4 packet carrying UDP (ARP, IPv6, TCP, ...).
     NotIpv4Udp,
-    /// An IPv4 fragment: VLP-16 packets are never fragmented.
+    /// An IPv4 fragment no datagram can hold (beyond 65,535 bytes, or past its datagram's end);
+    /// the others are put back together by the capture reader.
     IpFragment,
     /// Fewer bytes were captured than were on the wire (snap length).
     TruncatedRecord {
