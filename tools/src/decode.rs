@@ -537,18 +537,24 @@ impl DecodeSummary {
                 let _ = writeln!(o, "RMC times: none");
             }
         }
-        let _ = writeln!(o, "skipped: {}", self.skips.total());
-        for l in self.skips.lines() {
-            let _ = writeln!(
-                o,
-                "  {}: {} (first at byte {}: {})",
-                l.reason, l.count, l.first_offset, l.first
-            );
-        }
-        if let Some(s) = &self.stopped {
-            let _ = writeln!(o, "stopped early: {s}");
-        }
+        render_skips(&mut o, &self.skips, self.stopped.as_deref());
         o
+    }
+}
+
+/// The summary's last lines: what was skipped, by reason with the first's byte offset, and
+/// where a file stopped early.
+pub(crate) fn render_skips(o: &mut String, skips: &SkipStats, stopped: Option<&str>) {
+    let _ = writeln!(o, "skipped: {}", skips.total());
+    for l in skips.lines() {
+        let _ = writeln!(
+            o,
+            "  {}: {} (first at byte {}: {})",
+            l.reason, l.count, l.first_offset, l.first
+        );
+    }
+    if let Some(s) = stopped {
+        let _ = writeln!(o, "stopped early: {s}");
     }
 }
 

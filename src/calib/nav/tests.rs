@@ -171,16 +171,9 @@ mod honesty {
         (out, truth)
     }
 
-    /// Over `runs` surveys with errors of correlation time `tau`: each parameter's RMS
-    /// z-score and the fraction within 3 sigma under the navigation model, and the RMS
-    /// z-score of the white-noise solve (`lm::refine`, cluster-robust) on the same returns.
-    /// With the pieces' RMS z-scores per axis (estimate against the truth's mean over the
-    /// piece).
-    /// And the RMS z-score of the classic sigmas (the information's inverse alone).
-    /// Per parameter (and per piece axis) figures of a Monte Carlo.
-    type Figures = ([f64; P], [f64; P], [f64; P], [f64; 6], [f64; P], [f64; P]);
-
-    fn monte_carlo(tau: f64, runs: u64, hetero: bool) -> Figures {
+    /// The navigation errors simulated (the paper's smrmsg levels) at correlation time `tau`
+    /// [s], and the model that declares them.
+    fn errors(tau: f64) -> (Correlated, NavModel) {
         let c = Correlated {
             position_sigma: [0.016, 0.033],
             attitude_sigma: [0.011f64.to_radians(), 0.037f64.to_radians()],
@@ -191,6 +184,40 @@ mod honesty {
             attitude_sigma: c.attitude_sigma,
             correlation_s: c.correlation_s,
         };
+        (c, model)
+    }
+
+    /// The two spheres' returns as the solver takes them.
+    fn spheres(obs: &[Vec<Observation>]) -> [SphereObs<'_>; 2] {
+        core::array::from_fn(|j| SphereObs {
+            target: SPHERES[j],
+            obs: &obs[j],
+        })
+    }
+
+    /// The problem over `s` at the true clock, weighted by `noise`.
+    fn problem<'a>(s: &'a [SphereObs<'a>], noise: Noise) -> Problem<'a> {
+        Problem {
+            spheres: s,
+            stride: 1,
+            dt: 0.0,
+            drift: 0.0,
+            t_ref: crate::time::GpsTime(0),
+            weights: Some(noise),
+        }
+    }
+
+    /// Over `runs` surveys with errors of correlation time `tau`: each parameter's RMS
+    /// z-score and the fraction within 3 sigma under the navigation model, and the RMS
+    /// z-score of the white-noise solve (`lm::refine`, cluster-robust) on the same returns.
+    /// With the pieces' RMS z-scores per axis (estimate against the truth's mean over the
+    /// piece).
+    /// And the RMS z-score of the classic sigmas (the information's inverse alone).
+    /// Per parameter (and per piece axis) figures of a Monte Carlo.
+    type Figures = ([f64; P], [f64; P], [f64; P], [f64; 6], [f64; P], [f64; P]);
+
+    fn monte_carlo(tau: f64, runs: u64, hetero: bool) -> Figures {
+        let (c, model) = errors(tau);
         let noise = Noise {
             range: 0.009,
             attitude: 0.0,
@@ -202,24 +229,8 @@ mod honesty {
         let mut pieces = std::vec![Piece::EMPTY; 256];
         for seed in 0..runs {
             let (obs, truth) = survey(seed + 1, &c, 0.009, hetero);
-            let s = [
-                SphereObs {
-                    target: SPHERES[0],
-                    obs: &obs[0],
-                },
-                SphereObs {
-                    target: SPHERES[1],
-                    obs: &obs[1],
-                },
-            ];
-            let pb = Problem {
-                spheres: &s,
-                stride: 1,
-                dt: 0.0,
-                drift: 0.0,
-                t_ref: crate::time::GpsTime(0),
-                weights: Some(noise),
-            };
+            let s = spheres(&obs);
+            let pb = problem(&s, noise);
             let m = cut_for(&pb, &model, &mut pieces);
             let clock = Clock::default();
             let p = predict(&pb, &TRUTH, &model, &[0.02, 0.02], &mut pieces[..m], clock)
@@ -332,39 +343,15 @@ mod honesty {
     /// stopped after its first step from 0.5 deg and 5 cm off is not.
     #[test]
     fn a_capped_solve_is_converged_only_within_half_a_sigma() {
-        let c = Correlated {
-            position_sigma: [0.016, 0.033],
-            attitude_sigma: [0.011f64.to_radians(), 0.037f64.to_radians()],
-            correlation_s: 30.0,
-        };
-        let model = NavModel {
-            position_sigma: c.position_sigma,
-            attitude_sigma: c.attitude_sigma,
-            correlation_s: c.correlation_s,
-        };
+        let (c, model) = errors(30.0);
         let (obs, _) = survey(3, &c, 0.009, false);
-        let s = [
-            SphereObs {
-                target: SPHERES[0],
-                obs: &obs[0],
-            },
-            SphereObs {
-                target: SPHERES[1],
-                obs: &obs[1],
-            },
-        ];
-        let pb = Problem {
-            spheres: &s,
-            stride: 1,
-            dt: 0.0,
-            drift: 0.0,
-            t_ref: crate::time::GpsTime(0),
-            weights: Some(Noise {
-                range: 0.009,
-                attitude: 0.0,
-                position: 0.0,
-            }),
+        let s = spheres(&obs);
+        let noise = Noise {
+            range: 0.009,
+            attitude: 0.0,
+            position: 0.0,
         };
+        let pb = problem(&s, noise);
         let mut pieces = std::vec![Piece::EMPTY; 256];
         let m = cut_for(&pb, &model, &mut pieces);
         let start: [f64; P] =

@@ -100,17 +100,7 @@ impl OusterSummary {
                 m.columns_per_frame, self.bad_measurement_ids
             );
         }
-        let _ = writeln!(o, "skipped: {}", self.skips.total());
-        for l in self.skips.lines() {
-            let _ = writeln!(
-                o,
-                "  {}: {} (first at byte {}: {})",
-                l.reason, l.count, l.first_offset, l.first
-            );
-        }
-        if let Some(s) = &self.stopped {
-            let _ = writeln!(o, "stopped early: {s}");
-        }
+        crate::decode::render_skips(&mut o, &self.skips, self.stopped.as_deref());
         o
     }
 
