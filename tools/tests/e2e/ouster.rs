@@ -242,7 +242,7 @@ fn a_capture_of_ip_fragments_decodes_as_the_whole_one() {
         }
         !(sum as u16)
     };
-    let mut record = |out: &mut Vec<u8>, ts: &[u8], frame: &[u8]| {
+    let record = |out: &mut Vec<u8>, ts: &[u8], frame: &[u8]| {
         out.extend_from_slice(ts);
         out.extend_from_slice(&(frame.len() as u32).to_le_bytes());
         out.extend_from_slice(&(frame.len() as u32).to_le_bytes());
