@@ -22,12 +22,14 @@ if ! python3 -c "import laspy, numpy, pyproj, rosbags, mcap" >/dev/null 2>&1; th
     || echo "warning: could not install $PY_TEST_PACKAGES: the LAS, site import and ROS 2 bag tests will fail"
 fi
 # ouster-sdk: Ouster's own decoder, the reference for the Ouster captures' test
-# (scripts/ouster_xyz.py); fetched beside the build (it is used only by that test).
+# (scripts/ouster_xyz.py), in a folder of its own (target/py-ouster: it pins an older rosbags
+# than the ROS 2 tests use); fetched beside the build (it is used only by that test).
+OUSTER_PY=$PWD/target/py-ouster
 ouster_pid=
-if ! python3 -c "import ouster.sdk" >/dev/null 2>&1; then
-  (python3 -m pip install --quiet ouster-sdk==1.0.1 2>/dev/null \
-    || python3 -m pip install --quiet --break-system-packages ouster-sdk==1.0.1 \
-    || echo "warning: could not install ouster-sdk: the Ouster decoding test will fail") &
+if ! PYTHONPATH=$OUSTER_PY python3 -c "import ouster.sdk" >/dev/null 2>&1; then
+  (python3 -m pip install --quiet --target "$OUSTER_PY" ouster-sdk==1.0.1 2>/dev/null \
+    || python3 -m pip install --quiet --break-system-packages --target "$OUSTER_PY" ouster-sdk==1.0.1 \
+    || echo "warning: could not install ouster-sdk: the Ouster decoding test will fail") >/dev/null 2>&1 &
   ouster_pid=$!
 fi
 # qemu-system-arm for the core on an emulated Cortex-M (scripts/qemu-check.sh, at the end),

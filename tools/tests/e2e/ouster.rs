@@ -27,7 +27,14 @@ type Returns = HashMap<(u32, u32, u32, String), [f64; 3]>;
 /// What Ouster's SDK decodes from the capture.
 fn reference(pcap: &PathBuf, meta: &PathBuf) -> Returns {
     let script = common::repo_root().join("scripts/ouster_xyz.py");
-    let out = std::process::Command::new("python3")
+    // scripts/test.sh installs the SDK in a folder of its own (its pins are not the other
+    // reference packages').
+    let own = common::repo_root().join("target/py-ouster");
+    let mut cmd = std::process::Command::new("python3");
+    if own.is_dir() {
+        cmd.env("PYTHONPATH", &own);
+    }
+    let out = cmd
         .arg(&script)
         .arg(pcap)
         .arg(meta)
