@@ -39,6 +39,11 @@ fuzz_target!(|data: &[u8]| {
         let _ = (p.frame_id(), p.init_id(), p.serial());
         for c in p.columns() {
             let _ = (c.valid(), c.timestamp_ns(), c.encoder_count());
+            let mut n = 0usize;
+            c.for_each_return(|ch, r, mm| {
+                assert!(ch < pixels && r < 2 && mm > 0);
+                n += 1;
+            });
             for ch in 0..pixels {
                 let px = c.pixel(ch);
                 if let Some(g) = &geometry {

@@ -106,18 +106,10 @@ fn ouster(c: &mut Criterion) {
                 let p = spherecal::ouster::LidarPacket::new_checked(&p[..], m.format).unwrap();
                 for col in p.columns().filter(|c| c.valid()) {
                     let geo = m.intrinsics.column(col.measurement_id());
-                    for ch in 0..m.format.pixels {
-                        for r in col
-                            .range_mm(ch)
-                            .into_iter()
-                            .take(m.format.profile.returns())
-                        {
-                            if r > 0 {
-                                acc += geo.xyz(ch, r)[0];
-                                n += 1;
-                            }
-                        }
-                    }
+                    col.for_each_return(|ch, _, r| {
+                        acc += geo.xyz(ch, r)[0];
+                        n += 1;
+                    });
                 }
             }
             (n, acc)

@@ -230,29 +230,14 @@ pub fn decode_source<S: PacketSource>(
             let t = c.timestamp_ns();
             let geo = m.intrinsics.column(mid);
             s.span_ns = Some(s.span_ns.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
-            for ch in 0..m.format.pixels {
-                let px = c.pixel(ch);
-                for r in 0..m.format.profile.returns() {
-                    if px.range_mm[r] == 0 {
-                        continue;
-                    }
-                    s.returns[r] += 1;
-                    if csv.is_some() {
-                        row(
-                            &mut line,
-                            &geo,
-                            index,
-                            block,
-                            p.frame_id(),
-                            mid,
-                            ch,
-                            r,
-                            t,
-                            &px,
-                        );
-                    }
+            let (listing, frame) = (csv.is_some(), p.frame_id());
+            c.for_each_return(|ch, r, _| {
+                s.returns[r] += 1;
+                if listing {
+                    let px = c.pixel(ch);
+                    row(&mut line, &geo, index, block, frame, mid, ch, r, t, &px);
                 }
-            }
+            });
         }
         if let Some(w) = csv.as_deref_mut() {
             w.write_all(&line)?;
