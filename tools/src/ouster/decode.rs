@@ -85,6 +85,7 @@ impl OusterSummary {
                 a as f64 * 1e-9,
                 b as f64 * 1e-9
             );
+            let _ = writeln!(o, "clock: {}", clock(m.timestamp_mode.as_deref(), a));
         }
         if self.crc_agreed > 0 {
             let _ = writeln!(
@@ -130,6 +131,46 @@ impl OusterSummary {
             m.format.columns,
             m.format.packet_len()
         ))
+    }
+}
+
+/// TAI - UTC since 2017-01-01 [s] (GPS - UTC 18 + TAI - GPS 19).
+const TAI_UTC_S: i64 = 37;
+/// 2000-01-01 in seconds after 1970: a synchronised clock's times are later.
+const YEAR_2000_S: u64 = 946_684_800;
+
+/// What the column timestamps say of the sensor's clock (`timestamp_mode`, and the first
+/// column's time [ns]): synchronised (the first column in UTC), or free-running - counting
+/// from power-on (`TIME_FROM_INTERNAL_OSC`, or a PTP or sync-pulse mode whose source never
+/// locked) - which a calibration treats as an unlocked clock.
+pub fn clock(mode: Option<&str>, first_ns: u64) -> String {
+    let synced = first_ns / 1_000_000_000 >= YEAR_2000_S;
+    let utc = |tai: bool| {
+        let s = (first_ns / 1_000_000_000) as i64 - if tai { TAI_UTC_S } else { 0 };
+        chrono::DateTime::from_timestamp(s, (first_ns % 1_000_000_000) as u32)
+            .map_or(String::from("?"), |t| {
+                t.format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string()
+            })
+    };
+    match (mode, synced) {
+        (Some("TIME_FROM_PTP_1588"), true) => {
+            format!("synchronised by PTP: the first column at {} (TAI - 37 s)", utc(true))
+        }
+        (Some("TIME_FROM_SYNC_PULSE_IN"), true) => {
+            format!("synchronised by the sync pulse and NMEA: the first column at {}", utc(false))
+        }
+        (Some(m @ ("TIME_FROM_PTP_1588" | "TIME_FROM_SYNC_PULSE_IN")), false) => format!(
+            "{m}, but the times count from power-on ({:.0} s): its source never locked - free-running, an unlocked clock",
+            first_ns as f64 * 1e-9
+        ),
+        (Some("TIME_FROM_INTERNAL_OSC"), _) => {
+            "the sensor's own oscillator, counting from power-on: free-running, an unlocked clock".into()
+        }
+        (_, true) => format!("times from 1970 (first column {} if UTC): a synchronised clock", utc(false)),
+        (_, false) => format!(
+            "no timestamp_mode in the metadata; the times count from power-on ({:.0} s): free-running, an unlocked clock",
+            first_ns as f64 * 1e-9
+        ),
     }
 }
 
@@ -290,4 +331,23 @@ fn row(
         push_u64(line, v);
     }
     line.push(b'\n');
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clock;
+
+    /// A PTP clock's TAI time is 37 s ahead of UTC; the sync pulse's NMEA gives UTC; a PTP or
+    /// sync-pulse mode counting from power-on never locked.
+    #[test]
+    fn the_clock_is_read_from_the_mode_and_the_times() {
+        // 2024-03-21T12:00:37 TAI = 12:00:00 UTC.
+        let t = (1_711_022_400 + 37) * 1_000_000_000 + 250_000_000;
+        assert!(clock(Some("TIME_FROM_PTP_1588"), t).contains("2024-03-21T12:00:00.250Z"));
+        let u = 1_711_022_400 * 1_000_000_000;
+        assert!(clock(Some("TIME_FROM_SYNC_PULSE_IN"), u).contains("2024-03-21T12:00:00.000Z"));
+        assert!(clock(Some("TIME_FROM_PTP_1588"), 866_100_516_000).contains("never locked"));
+        assert!(clock(Some("TIME_FROM_INTERNAL_OSC"), u).contains("unlocked"));
+        assert!(clock(None, 3_577_133_606_620).contains("free-running"));
+    }
 }
