@@ -65,6 +65,14 @@ pub fn run(a: Args) -> ExitCode {
             match (&s.stopped, s.truncation(&path)) {
                 (Some(stop), _) => fail("decode", format!("{path}: {stop}")),
                 (None, Some(w)) => fail("decode", w),
+                (None, None) if looks_ouster(&s) => fail(
+                    "decode",
+                    format!(
+                        "{path}: no Velodyne packet, and its first other datagram went to UDP {} or {}, an Ouster's lidar and IMU ports: decode it with the sensor's metadata JSON (--metadata META.json)",
+                        spherecal::ouster::LIDAR_PORT,
+                        spherecal::ouster::IMU_PORT
+                    ),
+                ),
                 (None, None) => ExitCode::SUCCESS,
             }
         }
@@ -100,4 +108,18 @@ fn ouster(
         Some(stop) => fail("decode", format!("{path}: {stop}")),
         None => ExitCode::SUCCESS,
     }
+}
+
+/// A capture with no Velodyne packet whose first datagram on another port went to an Ouster's
+/// default lidar or IMU port.
+fn looks_ouster(s: &crate::decode::DecodeSummary) -> bool {
+    let ports = [spherecal::ouster::LIDAR_PORT, spherecal::ouster::IMU_PORT];
+    s.data_packets == 0
+        && s.position_packets == 0
+        && s.skips.lines().iter().any(|l| {
+            l.reason == "other port"
+                && ports
+                    .iter()
+                    .any(|p| l.first == format!("UDP port {p} is neither data nor position"))
+        })
 }

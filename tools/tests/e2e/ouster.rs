@@ -161,6 +161,18 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
         "{err}"
     );
     assert!(!csv.exists());
+    // Without metadata: no Velodyne packet, and the way on said.
+    let out = common::spherecal()
+        .arg("decode")
+        .arg(&pcap)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("an Ouster's lidar and IMU ports: decode it with the sensor's metadata JSON (--metadata META.json)"),
+        "{err}"
+    );
     // The same format, another unit's metadata (its serial number): its beam angles are not
     // this sensor's.
     let (pcap2, meta2) = files("windowed_frame1");
