@@ -19,8 +19,8 @@ use nalgebra::{Matrix3, Vector3};
 
 /// Most beams a sensor has (OS0/OS1/OS2-128).
 pub const MAX_BEAMS: usize = 128;
-/// Most columns per frame (the 2048x10 mode).
-pub const MAX_COLUMNS: usize = 2048;
+/// Most columns per frame (the 4096x5 mode of Rev 7 sensors).
+pub const MAX_COLUMNS: usize = 4096;
 
 /// A sensor's beam geometry, its transform to the sensor frame and the tables of the encoder
 /// angle's sine and cosine per measurement id.
@@ -62,7 +62,7 @@ pub struct BeamPoint {
 
 impl Intrinsics {
     /// From the metadata's tables: `altitude_deg` and `azimuth_deg` per beam (as long as each
-    /// other, 1-128), `columns` per frame (512, 1024 or 2048, at most [`MAX_COLUMNS`]), the
+    /// other, 1-128), `columns` per frame (512, 1024, 2048 or 4096, at most [`MAX_COLUMNS`]), the
     /// beam origin offset `[n_x, n_z]` [mm] and the row-major 4x4 `lidar_to_sensor` [mm].
     /// `None` when the tables are not a sensor's (lengths, non-finite values).
     pub fn new(

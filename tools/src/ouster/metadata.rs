@@ -18,7 +18,7 @@ pub struct Metadata {
     pub profile_name: String,
     /// The beams' geometry.
     pub intrinsics: Intrinsics,
-    /// Columns per frame (512, 1024, 2048).
+    /// Columns per frame (512, 1024, 2048, 4096).
     pub columns_per_frame: usize,
     /// The measurement ids the sensor sends valid (`column_window`, inclusive).
     pub column_window: [u16; 2],
@@ -89,7 +89,11 @@ impl Metadata {
         };
         let pixels = count("pixels_per_column", 1.0, 128.0)?;
         let columns = count("columns_per_packet", 1.0, 64.0)?;
-        let per_frame = count("columns_per_frame", 1.0, 2048.0)?;
+        let per_frame = count(
+            "columns_per_frame",
+            1.0,
+            spherecal::ouster::MAX_COLUMNS as f64,
+        )?;
         let profile_name = fmt
             .get("udp_profile_lidar")
             .or_else(|| config.get("udp_profile_lidar"))
