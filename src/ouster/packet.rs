@@ -23,6 +23,18 @@
 use super::profile::{Format, HeaderKind, Profile};
 use super::Error;
 
+/// A range's bits in its little-endian word (the bits above them are flags).
+mod range {
+    /// LEGACY: 20 bits [mm].
+    pub const LEGACY: u32 = 0x000F_FFFF;
+    /// RNG19 profiles: 19 bits [mm].
+    pub const RNG19: u32 = 0x0007_FFFF;
+    /// RNG15 profiles: 15 bits of 8 mm ...
+    pub const RNG15: u32 = 0x7FFF;
+    /// ... shifted by this into mm.
+    pub const RNG15_SHIFT: u32 = 3;
+}
+
 /// The footer's CRC (firmware 3.x): CRC-64/XZ.
 const CRC64: crc::Crc<u64, crc::Table<16>> = crc::Crc::<u64, crc::Table<16>>::new(&crc::CRC_64_XZ);
 
@@ -98,16 +110,6 @@ impl<T: AsRef<[u8]>> LidarPacket<T> {
             Some(1) | None => Ok(p),
             Some(found) => Err(Error::PacketType { found }),
         }
-    }
-
-    /// The format it was checked against.
-    pub fn format(&self) -> Format {
-        self.format
-    }
-
-    /// The bytes.
-    pub fn as_bytes(&self) -> &[u8] {
-        self.buffer.as_ref()
     }
 
     /// The header's packet type (`None` in LEGACY, which has no header).
@@ -214,26 +216,6 @@ impl Column<'_> {
         (self.format.header == HeaderKind::Legacy).then(|| le32(self.bytes, 12))
     }
 
-    /// The ranges [mm] of pixel `ch`'s returns (0: none), without its other fields: what a
-    /// pass that skips empty pixels reads first.
-    #[inline]
-    pub fn range_mm(&self, ch: usize) -> [u32; 2] {
-        let f = &self.format;
-        let n = f.profile.pixel_len();
-        let at = f.column_header_len() + (ch % f.pixels) * n;
-        let b = &self.bytes[at..at + n];
-        match f.profile {
-            Profile::Legacy => [le32(b, 0) & 0x000F_FFFF, 0],
-            Profile::Single => [le32(b, 0) & 0x0007_FFFF, 0],
-            Profile::Dual => [le32(b, 0) & 0x0007_FFFF, le32(b, 4) & 0x0007_FFFF],
-            Profile::LowRate => [u32::from(le16(b, 0) & 0x7FFF) << 3, 0],
-            Profile::LowRateDual => [
-                u32::from(le16(b, 0) & 0x7FFF) << 3,
-                u32::from(le16(b, 4) & 0x7FFF) << 3,
-            ],
-        }
-    }
-
     /// Every return of the column, in beam order: `f(beam, return 0 or 1, range_mm)` for each
     /// range that is not 0 (the profile decided once for the column, not per pixel).
     #[inline]
@@ -243,11 +225,13 @@ impl Column<'_> {
         let at = fm.column_header_len();
         let px = &self.bytes[at..at + fm.pixels * n];
         match fm.profile {
-            Profile::Legacy => scan::<12, false, 0>(px, 0x000F_FFFF, 0, &mut f),
-            Profile::Single => scan::<12, false, 0>(px, 0x0007_FFFF, 0, &mut f),
-            Profile::Dual => scan::<16, false, 4>(px, 0x0007_FFFF, 0, &mut f),
-            Profile::LowRate => scan::<4, true, 0>(px, 0x7FFF, 3, &mut f),
-            Profile::LowRateDual => scan::<8, true, 4>(px, 0x7FFF, 3, &mut f),
+            Profile::Legacy => scan::<12, false, 0>(px, range::LEGACY, 0, &mut f),
+            Profile::Single => scan::<12, false, 0>(px, range::RNG19, 0, &mut f),
+            Profile::Dual => scan::<16, false, 4>(px, range::RNG19, 0, &mut f),
+            Profile::LowRate => scan::<4, true, 0>(px, range::RNG15, range::RNG15_SHIFT, &mut f),
+            Profile::LowRateDual => {
+                scan::<8, true, 4>(px, range::RNG15, range::RNG15_SHIFT, &mut f)
+            }
         }
     }
 
@@ -258,36 +242,34 @@ impl Column<'_> {
         let n = f.profile.pixel_len();
         let at = f.column_header_len() + (ch % f.pixels) * n;
         let b = &self.bytes[at..at + n];
+        let rng15 = |at: usize| (u32::from(le16(b, at)) & range::RNG15) << range::RNG15_SHIFT;
         match f.profile {
             Profile::Legacy => Pixel {
-                range_mm: [le32(b, 0) & 0x000F_FFFF, 0],
+                range_mm: [le32(b, 0) & range::LEGACY, 0],
                 reflectivity: [b[4], 0],
                 signal: [le16(b, 6), 0],
                 nir: le16(b, 8),
             },
             Profile::Single => Pixel {
-                range_mm: [le32(b, 0) & 0x0007_FFFF, 0],
+                range_mm: [le32(b, 0) & range::RNG19, 0],
                 reflectivity: [b[4], 0],
                 signal: [le16(b, 6), 0],
                 nir: le16(b, 8),
             },
             Profile::Dual => Pixel {
-                range_mm: [le32(b, 0) & 0x0007_FFFF, le32(b, 4) & 0x0007_FFFF],
+                range_mm: [le32(b, 0) & range::RNG19, le32(b, 4) & range::RNG19],
                 reflectivity: [b[3], b[7]],
                 signal: [le16(b, 8), le16(b, 10)],
                 nir: le16(b, 12),
             },
             Profile::LowRate => Pixel {
-                range_mm: [u32::from(le16(b, 0) & 0x7FFF) << 3, 0],
+                range_mm: [rng15(0), 0],
                 reflectivity: [b[2], 0],
                 signal: [0, 0],
                 nir: u16::from(b[3]) << 4,
             },
             Profile::LowRateDual => Pixel {
-                range_mm: [
-                    u32::from(le16(b, 0) & 0x7FFF) << 3,
-                    u32::from(le16(b, 4) & 0x7FFF) << 3,
-                ],
+                range_mm: [rng15(0), rng15(4)],
                 reflectivity: [b[2], b[6]],
                 signal: [0, 0],
                 nir: u16::from(b[3]) << 4,

@@ -97,15 +97,19 @@ impl Reassembly {
         }
         s.data[start..end].copy_from_slice(f.payload);
         s.have.push((start, end));
+        // Merged in place: touching or overlapping ranges become one.
         s.have.sort_unstable();
-        let mut merged: Vec<(usize, usize)> = Vec::with_capacity(s.have.len());
-        for &(a, b) in &s.have {
-            match merged.last_mut() {
-                Some(m) if a <= m.1 => m.1 = m.1.max(b),
-                _ => merged.push((a, b)),
+        let mut w = 0;
+        for i in 0..s.have.len() {
+            let (a, b) = s.have[i];
+            if w > 0 && a <= s.have[w - 1].1 {
+                s.have[w - 1].1 = s.have[w - 1].1.max(b);
+            } else {
+                s.have[w] = (a, b);
+                w += 1;
             }
         }
-        s.have = merged;
+        s.have.truncate(w);
         match s.total {
             Some(t) if s.have.first() == Some(&(0, t)) => {
                 std::mem::swap(&mut self.done, &mut s.data);

@@ -7,9 +7,10 @@ use pcap_file::DataLink;
 use std::io;
 use std::net::Ipv4Addr;
 
-/// Link layer -> IPv4 -> UDP, laxly; the payload runs to the UDP length or the captured end.
-pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]), SkipReason> {
-    let sliced = match DataLink::from(link) {
+/// The frame's network and transport layers below its link layer (`link`: the capture's
+/// LINKTYPE), laxly.
+fn sliced(link: u32, frame: &[u8]) -> Result<LaxSlicedPacket<'_>, SkipReason> {
+    Ok(match DataLink::from(link) {
         DataLink::ETHERNET => {
             LaxSlicedPacket::from_ethernet(frame).map_err(|_| SkipReason::NotIpv4Udp)?
         }
@@ -36,7 +37,12 @@ pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]),
             )
         }
         _ => return Err(SkipReason::UnsupportedLinkType(link)),
-    };
+    })
+}
+
+/// Link layer -> IPv4 -> UDP, laxly; the payload runs to the UDP length or the captured end.
+pub fn slice_udp(link: u32, frame: &[u8]) -> Result<(Ipv4Addr, u16, u16, &[u8]), SkipReason> {
+    let sliced = sliced(link, frame)?;
     let Some(LaxNetSlice::Ipv4(ip)) = &sliced.net else {
         return Err(SkipReason::NotIpv4Udp);
     };
@@ -87,12 +93,7 @@ pub struct Fragment<'a> {
 
 /// The IPv4 fragment `frame` carries (`None`: not an IPv4 fragment).
 pub fn slice_fragment(link: u32, frame: &[u8]) -> Option<Fragment<'_>> {
-    let sliced = match DataLink::from(link) {
-        DataLink::ETHERNET => LaxSlicedPacket::from_ethernet(frame).ok()?,
-        DataLink::RAW | DataLink::IPV4 => LaxSlicedPacket::from_ip(frame).ok()?,
-        DataLink::NULL | DataLink::LOOP => LaxSlicedPacket::from_ip(frame.get(4..)?).ok()?,
-        _ => return None,
-    };
+    let sliced = sliced(link, frame).ok()?;
     let Some(LaxNetSlice::Ipv4(ip)) = &sliced.net else {
         return None;
     };

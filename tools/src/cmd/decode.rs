@@ -120,6 +120,6 @@ fn looks_ouster(s: &crate::decode::DecodeSummary) -> bool {
             l.reason == "other port"
                 && ports
                     .iter()
-                    .any(|p| l.first == format!("UDP port {p} is neither data nor position"))
+                    .any(|&p| l.first == spherecal_hal::SkipReason::OtherPort(p).to_string())
         })
 }

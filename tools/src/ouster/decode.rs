@@ -2,13 +2,12 @@
 //! packet of the capture checked against the metadata's format, counted, and listed one row per
 //! return (the first, and in the dual profiles the second as its own row).
 
-use super::Metadata;
+use super::{Metadata, TimestampMode};
 use crate::decode::{push_fixed, push_padded, push_u64, CSV_HEADER};
 use spherecal::ouster::{LidarPacket, Pixel};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::velodyne::SkipStats;
 use spherecal_hal::{PacketSource, Record, SkipReason};
-use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
@@ -63,8 +62,8 @@ impl OusterSummary {
             m.columns_per_frame,
             m.profile_name,
             m.timestamp_mode
-                .as_deref()
-                .map_or(String::new(), |t| format!(", timestamps {t}"))
+                .as_ref()
+                .map_or(String::new(), |t| format!(", timestamps {}", t.name()))
         );
         let _ = writeln!(
             o,
@@ -85,7 +84,7 @@ impl OusterSummary {
                 a as f64 * 1e-9,
                 b as f64 * 1e-9
             );
-            let _ = writeln!(o, "clock: {}", clock(m.timestamp_mode.as_deref(), a));
+            let _ = writeln!(o, "clock: {}", clock(m.timestamp_mode.as_ref(), a));
         }
         if self.crc_agreed > 0 {
             let _ = writeln!(
@@ -143,7 +142,7 @@ const YEAR_2000_S: u64 = 946_684_800;
 /// column's time [ns]): synchronised (the first column in UTC), or free-running - counting
 /// from power-on (`TIME_FROM_INTERNAL_OSC`, or a PTP or sync-pulse mode whose source never
 /// locked) - which a calibration treats as an unlocked clock.
-pub fn clock(mode: Option<&str>, first_ns: u64) -> String {
+pub fn clock(mode: Option<&TimestampMode>, first_ns: u64) -> String {
     let synced = first_ns / 1_000_000_000 >= YEAR_2000_S;
     let utc = |tai: bool| {
         let s = (first_ns / 1_000_000_000) as i64 - if tai { TAI_UTC_S } else { 0 };
@@ -152,24 +151,25 @@ pub fn clock(mode: Option<&str>, first_ns: u64) -> String {
                 t.format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string()
             })
     };
+    let since_power_on = first_ns as f64 * 1e-9;
     match (mode, synced) {
-        (Some("TIME_FROM_PTP_1588"), true) => {
+        (Some(TimestampMode::Ptp), true) => {
             format!("synchronised by PTP: the first column at {} (TAI - 37 s)", utc(true))
         }
-        (Some("TIME_FROM_SYNC_PULSE_IN"), true) => {
+        (Some(TimestampMode::SyncPulseIn), true) => {
             format!("synchronised by the sync pulse and NMEA: the first column at {}", utc(false))
         }
-        (Some(m @ ("TIME_FROM_PTP_1588" | "TIME_FROM_SYNC_PULSE_IN")), false) => format!(
-            "{m}, but the times count from power-on ({:.0} s): its source never locked - free-running, an unlocked clock",
-            first_ns as f64 * 1e-9
+        (Some(m @ (TimestampMode::Ptp | TimestampMode::SyncPulseIn)), false) => format!(
+            "{}, but the times count from power-on ({since_power_on:.0} s): its source never locked - free-running, an unlocked clock",
+            m.name()
         ),
-        (Some("TIME_FROM_INTERNAL_OSC"), _) => {
+        (Some(TimestampMode::InternalOsc), _) => {
             "the sensor's own oscillator, counting from power-on: free-running, an unlocked clock".into()
         }
         (_, true) => format!("times from 1970 (first column {} if UTC): a synchronised clock", utc(false)),
         (_, false) => format!(
-            "no timestamp_mode in the metadata; the times count from power-on ({:.0} s): free-running, an unlocked clock",
-            first_ns as f64 * 1e-9
+            "{}; the times count from power-on ({since_power_on:.0} s): free-running, an unlocked clock",
+            mode.map_or("no timestamp_mode in the metadata", TimestampMode::name)
         ),
     }
 }
@@ -193,7 +193,8 @@ pub fn decode_source<S: PacketSource>(
     mut csv: Option<&mut dyn Write>,
 ) -> Result<OusterSummary, std::io::Error> {
     let mut s = OusterSummary::default();
-    let mut frames = BTreeSet::new();
+    let serial = m.serial.parse::<u64>().ok();
+    let mut last_frame = None;
     let mut line: Vec<u8> = Vec::with_capacity(1 << 16);
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{}", csv_header())?;
@@ -215,103 +216,142 @@ pub fn decode_source<S: PacketSource>(
             Record::Udp(d) => d,
             Record::Idle => continue,
         };
-        if d.dst_port == m.imu_port && d.dst_port != m.lidar_port {
-            s.imu_packets += 1;
+        let Some(p) = s.accept(&d, m, serial) else {
             continue;
+        };
+        // Frames: where the frame id changes (it wraps at 65,536 in the standard header).
+        if last_frame.replace(p.frame_id()) != Some(p.frame_id()) {
+            s.frames += 1;
+        }
+        line.clear();
+        s.count_columns(&p, m, csv.is_some().then_some(&mut line));
+        if let Some(w) = csv.as_deref_mut() {
+            w.write_all(&line)?;
+        }
+    }
+    Ok(s)
+}
+
+/// Where a row's return is: its packet (index among the lidar packets), column in the packet,
+/// frame, measurement id and the column's time [ns].
+struct At {
+    packet: u64,
+    block: usize,
+    frame: u32,
+    mid: u16,
+    t: u64,
+}
+
+impl OusterSummary {
+    /// The datagram `d` as a lidar packet of the metadata `m` (`serial`: its `prod_sn`), or
+    /// counted as what it is: an IMU packet, another port, another format, another unit, a
+    /// damaged packet (once the footer's CRC-64 has agreed).
+    fn accept<'d>(
+        &mut self,
+        d: &spherecal_hal::Datagram<'d>,
+        m: &Metadata,
+        serial: Option<u64>,
+    ) -> Option<LidarPacket<&'d [u8]>> {
+        if d.dst_port == m.imu_port && d.dst_port != m.lidar_port {
+            self.imu_packets += 1;
+            return None;
         }
         if d.dst_port != m.lidar_port {
-            s.skips.count(d.offset, &SkipReason::OtherPort(d.dst_port));
-            continue;
+            self.skips
+                .count(d.offset, &SkipReason::OtherPort(d.dst_port));
+            return None;
         }
         let p = match LidarPacket::new_checked(d.payload, m.format) {
             Ok(p) => p,
             Err(e) => {
                 if let spherecal::ouster::Error::Length { got, .. } = e {
-                    match s.wrong_lengths.iter_mut().find(|(l, _)| *l == got) {
+                    match self.wrong_lengths.iter_mut().find(|(l, _)| *l == got) {
                         Some((_, n)) => *n += 1,
-                        None => s.wrong_lengths.push((got, 1)),
+                        None => self.wrong_lengths.push((got, 1)),
                     }
                 }
-                s.skips.count(d.offset, &SkipReason::Ouster(e));
-                continue;
+                self.skips.count(d.offset, &SkipReason::Ouster(e));
+                return None;
             }
         };
-        let meta_sn = m.serial.parse::<u64>().ok();
-        if let (Some(sn), Some(want)) = (p.serial(), meta_sn) {
+        if let (Some(sn), Some(want)) = (p.serial(), serial) {
             if sn != want && sn != 0 {
-                let o = s.other_serial.get_or_insert((sn, 0));
-                o.1 += 1;
-                continue;
+                self.other_serial.get_or_insert((sn, 0)).1 += 1;
+                return None;
             }
         }
         if let Some((stored, computed)) = p.crc() {
             if stored == computed {
-                s.crc_agreed += 1;
-            } else if s.crc_agreed > 0 {
+                self.crc_agreed += 1;
+            } else if self.crc_agreed > 0 {
                 let e = spherecal::ouster::Error::Crc { stored, computed };
-                s.skips.count(d.offset, &SkipReason::Ouster(e));
-                continue;
+                self.skips.count(d.offset, &SkipReason::Ouster(e));
+                return None;
             }
         }
-        let index = s.lidar_packets;
-        s.lidar_packets += 1;
-        frames.insert(p.frame_id());
-        line.clear();
+        self.lidar_packets += 1;
+        Some(p)
+    }
+
+    /// Count the columns and returns of packet `p`, and list them into `line` if given.
+    fn count_columns(
+        &mut self,
+        p: &LidarPacket<&[u8]>,
+        m: &Metadata,
+        mut line: Option<&mut Vec<u8>>,
+    ) {
+        let (packet, frame) = (self.lidar_packets - 1, p.frame_id());
         for (block, c) in p.columns().enumerate() {
             if !c.valid() {
-                s.columns[1] += 1;
+                self.columns[1] += 1;
                 continue;
             }
-            s.columns[0] += 1;
+            self.columns[0] += 1;
             let mid = c.measurement_id();
             if usize::from(mid) >= m.columns_per_frame {
-                s.bad_measurement_ids += 1;
+                self.bad_measurement_ids += 1;
                 continue;
             }
             let t = c.timestamp_ns();
+            self.span_ns = Some(self.span_ns.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
             let geo = m.intrinsics.column(mid);
-            s.span_ns = Some(s.span_ns.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
-            let (listing, frame) = (csv.is_some(), p.frame_id());
+            let at = At {
+                packet,
+                block,
+                frame,
+                mid,
+                t,
+            };
+            let returns = &mut self.returns;
             c.for_each_return(|ch, r, _| {
-                s.returns[r] += 1;
-                if listing {
-                    let px = c.pixel(ch);
-                    row(&mut line, &geo, index, block, frame, mid, ch, r, t, &px);
+                returns[r] += 1;
+                if let Some(line) = line.as_deref_mut() {
+                    row(line, &geo, &at, ch, r, &c.pixel(ch));
                 }
             });
         }
-        if let Some(w) = csv.as_deref_mut() {
-            w.write_all(&line)?;
-        }
     }
-    s.frames = frames.len() as u64;
-    Ok(s)
 }
 
-/// One CSV row: the return `r` of pixel `px` (beam `ch`) of column `block` of packet `index`.
-#[allow(clippy::too_many_arguments)]
+/// One CSV row: the return `r` of pixel `px` (beam `ch`) at `at`.
 fn row(
     line: &mut Vec<u8>,
     geo: &spherecal::ouster::ColumnGeometry<'_>,
-    index: u64,
-    block: usize,
-    frame: u32,
-    mid: u16,
+    at: &At,
     ch: usize,
     r: usize,
-    t: u64,
     px: &Pixel,
 ) {
     let mm = px.range_mm[r];
     let b = geo.point(ch, mm);
-    for v in [index, block as u64, 0, ch as u64] {
+    for v in [at.packet, at.block as u64, 0, ch as u64] {
         push_u64(line, v);
         line.push(b',');
     }
     line.extend_from_slice(if r == 0 { b"first," } else { b"second," });
-    push_u64(line, t / 1000);
+    push_u64(line, at.t / 1000);
     line.push(b'.');
-    push_padded(line, t % 1000, 3);
+    push_padded(line, at.t % 1000, 3);
     line.push(b',');
     push_fixed(line, b.azimuth_deg, 4);
     line.push(b',');
@@ -326,7 +366,7 @@ fn row(
         line.push(b',');
         push_fixed(line, v, 6);
     }
-    for v in [u64::from(frame), u64::from(mid), ch as u64] {
+    for v in [u64::from(at.frame), u64::from(at.mid), ch as u64] {
         line.push(b',');
         push_u64(line, v);
     }
@@ -335,7 +375,7 @@ fn row(
 
 #[cfg(test)]
 mod tests {
-    use super::clock;
+    use super::{clock, TimestampMode};
 
     /// A PTP clock's TAI time is 37 s ahead of UTC; the sync pulse's NMEA gives UTC; a PTP or
     /// sync-pulse mode counting from power-on never locked.
@@ -343,11 +383,11 @@ mod tests {
     fn the_clock_is_read_from_the_mode_and_the_times() {
         // 2024-03-21T12:00:37 TAI = 12:00:00 UTC.
         let t = (1_711_022_400 + 37) * 1_000_000_000 + 250_000_000;
-        assert!(clock(Some("TIME_FROM_PTP_1588"), t).contains("2024-03-21T12:00:00.250Z"));
+        assert!(clock(Some(&TimestampMode::Ptp), t).contains("2024-03-21T12:00:00.250Z"));
         let u = 1_711_022_400 * 1_000_000_000;
-        assert!(clock(Some("TIME_FROM_SYNC_PULSE_IN"), u).contains("2024-03-21T12:00:00.000Z"));
-        assert!(clock(Some("TIME_FROM_PTP_1588"), 866_100_516_000).contains("never locked"));
-        assert!(clock(Some("TIME_FROM_INTERNAL_OSC"), u).contains("unlocked"));
+        assert!(clock(Some(&TimestampMode::SyncPulseIn), u).contains("2024-03-21T12:00:00.000Z"));
+        assert!(clock(Some(&TimestampMode::Ptp), 866_100_516_000).contains("never locked"));
+        assert!(clock(Some(&TimestampMode::InternalOsc), u).contains("unlocked"));
         assert!(clock(None, 3_577_133_606_620).contains("free-running"));
     }
 }

@@ -9,6 +9,41 @@ use serde_json::Value;
 use spherecal::ouster::{Format, Intrinsics, Profile};
 use std::path::Path;
 
+/// Where the column timestamps come from (`timestamp_mode`, firmware manual "Time Modes").
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum TimestampMode {
+    /// `TIME_FROM_INTERNAL_OSC`: the sensor's oscillator, from power-on.
+    InternalOsc,
+    /// `TIME_FROM_SYNC_PULSE_IN`: a pulse per second (with NMEA: UTC).
+    SyncPulseIn,
+    /// `TIME_FROM_PTP_1588`: a PTP grandmaster (TAI).
+    Ptp,
+    /// A mode spherecal does not know, by its name.
+    Other(String),
+}
+
+impl TimestampMode {
+    /// From the metadata's name.
+    pub fn from_name(name: &str) -> Self {
+        match name {
+            "TIME_FROM_INTERNAL_OSC" => Self::InternalOsc,
+            "TIME_FROM_SYNC_PULSE_IN" => Self::SyncPulseIn,
+            "TIME_FROM_PTP_1588" => Self::Ptp,
+            other => Self::Other(other.into()),
+        }
+    }
+
+    /// The metadata's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Self::InternalOsc => "TIME_FROM_INTERNAL_OSC",
+            Self::SyncPulseIn => "TIME_FROM_SYNC_PULSE_IN",
+            Self::Ptp => "TIME_FROM_PTP_1588",
+            Self::Other(n) => n,
+        }
+    }
+}
+
 /// What a capture's metadata says.
 #[derive(Debug, Clone)]
 pub struct Metadata {
@@ -20,15 +55,12 @@ pub struct Metadata {
     pub intrinsics: Intrinsics,
     /// Columns per frame (512, 1024, 2048, 4096).
     pub columns_per_frame: usize,
-    /// The measurement ids the sensor sends valid (`column_window`, inclusive).
-    pub column_window: [u16; 2],
     /// UDP ports of lidar and IMU packets.
     pub lidar_port: u16,
     /// UDP port of IMU packets.
     pub imu_port: u16,
-    /// `timestamp_mode` (`TIME_FROM_INTERNAL_OSC`, `TIME_FROM_SYNC_PULSE_IN`,
-    /// `TIME_FROM_PTP_1588`), when the metadata gives it.
-    pub timestamp_mode: Option<String>,
+    /// `timestamp_mode`, when the metadata gives it.
+    pub timestamp_mode: Option<TimestampMode>,
     /// `prod_line` (e.g. `OS-1-64`), the serial number and the firmware.
     pub product: String,
     /// `prod_sn`.
@@ -60,85 +92,16 @@ impl Metadata {
             .get("lidar_data_format")
             .or_else(|| v.get("data_format"))
             .ok_or("no `lidar_data_format` (or `data_format`): not an Ouster sensor's metadata")?;
-        let beams = sec("beam_intrinsics");
-        let lidar = sec("lidar_intrinsics");
         let config = sec("config_params");
         let info = sec("sensor_info");
-        let num = |o: &Value, k: &str| -> Result<f64, String> {
-            o.get(k)
-                .and_then(Value::as_f64)
-                .filter(|x| x.is_finite())
-                .ok_or(format!("`{k}` missing or not a number"))
-        };
-        let list = |o: &Value, k: &str| -> Result<Vec<f64>, String> {
-            let a = o
-                .get(k)
-                .and_then(Value::as_array)
-                .ok_or(format!("`{k}` missing or not a list"))?;
-            a.iter()
-                .map(|x| x.as_f64().filter(|x| x.is_finite()))
-                .collect::<Option<Vec<f64>>>()
-                .ok_or(format!("`{k}` holds a value that is not a number"))
-        };
-        let count = |k: &str, lo: f64, hi: f64| -> Result<usize, String> {
-            let x = num(fmt, k)?;
-            if x.fract() != 0.0 || !(lo..=hi).contains(&x) {
-                return Err(format!("`{k}` = {x}: expected a whole number {lo}-{hi}"));
-            }
-            Ok(x as usize)
-        };
-        let pixels = count("pixels_per_column", 1.0, 128.0)?;
-        let columns = count("columns_per_packet", 1.0, 64.0)?;
-        let per_frame = count(
-            "columns_per_frame",
-            1.0,
-            spherecal::ouster::MAX_COLUMNS as f64,
+        let (format, profile_name) = format_of(fmt, config)?;
+        let per_frame = count(fmt, "columns_per_frame", spherecal::ouster::MAX_COLUMNS)?;
+        let intrinsics = intrinsics_of(
+            sec("beam_intrinsics"),
+            sec("lidar_intrinsics"),
+            format.pixels,
+            per_frame,
         )?;
-        let profile_name = fmt
-            .get("udp_profile_lidar")
-            .or_else(|| config.get("udp_profile_lidar"))
-            .and_then(Value::as_str)
-            .unwrap_or("LEGACY")
-            .to_string();
-        let (profile, header) = Profile::from_name(&profile_name).ok_or(format!(
-            "`udp_profile_lidar` = {profile_name}: spherecal reads LEGACY, RNG19_RFL8_SIG16_NIR16(_DUAL) and RNG15_RFL8_NIR8(_DUAL)"
-        ))?;
-        let format = Format::new(profile, header, columns, pixels)
-            .map_err(|e| format!("the data format: {e}"))?;
-        let alt = list(beams, "beam_altitude_angles")?;
-        let az = list(beams, "beam_azimuth_angles")?;
-        if alt.len() != pixels || az.len() != pixels {
-            return Err(format!(
-                "{} altitude and {} azimuth angles for {pixels} pixels per column",
-                alt.len(),
-                az.len()
-            ));
-        }
-        // The beam origin: `beam_to_lidar_transform`'s translation (x, z), else the older
-        // `lidar_origin_to_beam_origin_mm` along x.
-        let origin = match list(beams, "beam_to_lidar_transform") {
-            Ok(t) if t.len() == 16 => [t[3], t[11]],
-            Ok(t) => {
-                return Err(format!(
-                    "`beam_to_lidar_transform` has {} values, not 16",
-                    t.len()
-                ))
-            }
-            Err(_) => [num(beams, "lidar_origin_to_beam_origin_mm")?, 0.0],
-        };
-        let l2s = list(lidar, "lidar_to_sensor_transform")?;
-        let l2s: [f64; 16] = l2s.try_into().map_err(|t: Vec<f64>| {
-            format!("`lidar_to_sensor_transform` has {} values, not 16", t.len())
-        })?;
-        let intrinsics = Intrinsics::new(&alt, &az, per_frame, origin, &l2s)
-            .ok_or("the beam tables are not a sensor's")?;
-        let window = match list(fmt, "column_window") {
-            Ok(w) if w.len() == 2 && w.iter().all(|x| (0.0..per_frame as f64).contains(x)) => {
-                [w[0] as u16, w[1] as u16]
-            }
-            Ok(w) => return Err(format!("`column_window` = {w:?} outside 0..{per_frame}")),
-            Err(_) => [0, (per_frame - 1) as u16],
-        };
         let port = |k: &str, default: u16| -> Result<u16, String> {
             match config.get(k).or_else(|| v.get(k)) {
                 None | Some(Value::Null) => Ok(default),
@@ -155,13 +118,98 @@ impl Metadata {
             profile_name,
             intrinsics,
             columns_per_frame: per_frame,
-            column_window: window,
             lidar_port: port("udp_port_lidar", spherecal::ouster::LIDAR_PORT)?,
             imu_port: port("udp_port_imu", spherecal::ouster::IMU_PORT)?,
-            timestamp_mode: text(config, "timestamp_mode"),
+            timestamp_mode: text(config, "timestamp_mode").map(|t| TimestampMode::from_name(&t)),
             product: text(info, "prod_line").unwrap_or_default(),
             serial: text(info, "prod_sn").unwrap_or_default(),
             firmware: text(info, "build_rev").unwrap_or_default(),
         })
     }
+}
+
+/// Number `k` of `o`, finite.
+fn num(o: &Value, k: &str) -> Result<f64, String> {
+    o.get(k)
+        .and_then(Value::as_f64)
+        .filter(|x| x.is_finite())
+        .ok_or(format!("`{k}` missing or not a number"))
+}
+
+/// List `k` of `o`, every value a finite number.
+fn list(o: &Value, k: &str) -> Result<Vec<f64>, String> {
+    let a = o
+        .get(k)
+        .and_then(Value::as_array)
+        .ok_or(format!("`{k}` missing or not a list"))?;
+    a.iter()
+        .map(|x| x.as_f64().filter(|x| x.is_finite()))
+        .collect::<Option<Vec<f64>>>()
+        .ok_or(format!("`{k}` holds a value that is not a number"))
+}
+
+/// Whole number `k` of `o`, 1 to `hi`.
+fn count(o: &Value, k: &str, hi: usize) -> Result<usize, String> {
+    let x = num(o, k)?;
+    if x.fract() != 0.0 || !(1.0..=hi as f64).contains(&x) {
+        return Err(format!("`{k}` = {x}: expected a whole number 1-{hi}"));
+    }
+    Ok(x as usize)
+}
+
+/// The packet format the data format (`fmt`) and the configuration declare, and the profile's
+/// name (no `udp_profile_lidar`: firmware 2.0-2.1's LEGACY).
+fn format_of(fmt: &Value, config: &Value) -> Result<(Format, String), String> {
+    let pixels = count(fmt, "pixels_per_column", spherecal::ouster::MAX_BEAMS)?;
+    let columns = count(fmt, "columns_per_packet", 64)?;
+    let name = fmt
+        .get("udp_profile_lidar")
+        .or_else(|| config.get("udp_profile_lidar"))
+        .and_then(Value::as_str)
+        .unwrap_or("LEGACY")
+        .to_string();
+    let (profile, header) = Profile::from_name(&name).ok_or(format!(
+        "`udp_profile_lidar` = {name}: spherecal reads LEGACY, RNG19_RFL8_SIG16_NIR16(_DUAL) and RNG15_RFL8_NIR8(_DUAL)"
+    ))?;
+    let format = Format::new(profile, header, columns, pixels)
+        .map_err(|e| format!("the data format: {e}"))?;
+    Ok((format, name))
+}
+
+/// The beams' geometry (`beams`: their angles and origin; `lidar`: the lidar-to-sensor
+/// transform) for `pixels` beams and `per_frame` columns.
+fn intrinsics_of(
+    beams: &Value,
+    lidar: &Value,
+    pixels: usize,
+    per_frame: usize,
+) -> Result<Intrinsics, String> {
+    let alt = list(beams, "beam_altitude_angles")?;
+    let az = list(beams, "beam_azimuth_angles")?;
+    if alt.len() != pixels || az.len() != pixels {
+        return Err(format!(
+            "{} altitude and {} azimuth angles for {pixels} pixels per column",
+            alt.len(),
+            az.len()
+        ));
+    }
+    // The beam origin: `beam_to_lidar_transform`'s translation (x, z), else the older
+    // `lidar_origin_to_beam_origin_mm` along x.
+    let origin = match list(beams, "beam_to_lidar_transform") {
+        Ok(t) if t.len() == 16 => [t[3], t[11]],
+        Ok(t) => {
+            return Err(format!(
+                "`beam_to_lidar_transform` has {} values, not 16",
+                t.len()
+            ))
+        }
+        Err(_) => [num(beams, "lidar_origin_to_beam_origin_mm")?, 0.0],
+    };
+    let l2s: [f64; 16] = list(lidar, "lidar_to_sensor_transform")?
+        .try_into()
+        .map_err(|t: Vec<f64>| {
+            format!("`lidar_to_sensor_transform` has {} values, not 16", t.len())
+        })?;
+    Intrinsics::new(&alt, &az, per_frame, origin, &l2s)
+        .ok_or("the beam tables are not a sensor's".into())
 }

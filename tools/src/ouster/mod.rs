@@ -4,4 +4,4 @@
 pub mod decode;
 pub mod metadata;
 
-pub use metadata::Metadata;
+pub use metadata::{Metadata, TimestampMode};

@@ -3,7 +3,7 @@
 
 use crate::common;
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The vendored captures: every profile spherecal reads, both metadata layouts, both headers.
 const CAPTURES: [&str; 5] = [
@@ -19,6 +19,21 @@ fn files(name: &str) -> (PathBuf, PathBuf) {
         common::test_data(&format!("ouster/{name}.pcap")),
         common::test_data(&format!("ouster/{name}.json")),
     )
+}
+
+/// `spherecal decode PCAP --metadata META` (with more arguments to add).
+fn decode(pcap: &Path, meta: &Path) -> std::process::Command {
+    let mut c = common::spherecal();
+    c.arg("decode").arg(pcap).arg("--metadata").arg(meta);
+    c
+}
+
+/// A refusal (exit 2): its stderr.
+fn refused(c: &mut std::process::Command) -> String {
+    let out = c.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    err
 }
 
 /// (frame id, measurement id, channel, return) -> x y z [m].
@@ -70,15 +85,7 @@ fn every_capture_decodes_as_ousters_sdk_does() {
     for name in CAPTURES {
         let (pcap, meta) = files(name);
         let csv = common::tmp("ouster", &format!("{name}.csv"));
-        let stdout = common::stdout_of(
-            common::spherecal()
-                .arg("decode")
-                .arg(&pcap)
-                .arg("--metadata")
-                .arg(&meta)
-                .arg("--csv")
-                .arg(&csv),
-        );
+        let stdout = common::stdout_of(decode(&pcap, &meta).arg("--csv").arg(&csv));
         let want = reference(&pcap, &meta);
         assert!(!want.is_empty(), "{name}: the SDK decoded nothing");
         let text = std::fs::read_to_string(&csv).unwrap();
@@ -145,30 +152,14 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
     let (pcap, _) = files("OS-1-32-G_v2.1.1_1024x10");
     let (_, other) = files("OS-0-32-U1_v2.2.0_1024x10");
     let csv = common::tmp("ouster", "mismatch.csv");
-    let out = common::spherecal()
-        .arg("decode")
-        .arg(&pcap)
-        .arg("--metadata")
-        .arg(&other)
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused(decode(&pcap, &other).arg("--csv").arg(&csv));
     assert!(
         err.contains("(64 of 6464 bytes) are not the metadata's format: RNG19_RFL8_SIG16_NIR16_DUAL of 32 pixels x 16 columns is 8448 bytes"),
         "{err}"
     );
     assert!(!csv.exists());
     // Without metadata: no Velodyne packet, and the way on said.
-    let out = common::spherecal()
-        .arg("decode")
-        .arg(&pcap)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused(common::spherecal().arg("decode").arg(&pcap));
     assert!(
         err.contains("an Ouster's lidar and IMU ports: decode it with the sensor's metadata JSON (--metadata META.json)"),
         "{err}"
@@ -180,15 +171,7 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
     assert!(text.contains("\"992108000265\""));
     let other = common::tmp("ouster", "other-unit.json");
     std::fs::write(&other, text.replace("\"992108000265\"", "\"992108000999\"")).unwrap();
-    let out = common::spherecal()
-        .arg("decode")
-        .arg(&pcap2)
-        .arg("--metadata")
-        .arg(&other)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused(&mut decode(&pcap2, &other));
     assert!(
         err.contains("17 lidar packets come from the sensor with serial number 992108000265, the metadata describes 992108000999"),
         "{err}"
@@ -201,9 +184,7 @@ fn a_capture_with_other_metadata_is_refused_by_name() {
         ("not json", "not JSON"),
     ] {
         std::fs::write(&bad, text).unwrap();
-        let out = common::spherecal().arg("decode").arg(&pcap).arg("--metadata").arg(&bad).output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{text}: {err}");
+        let err = refused(&mut decode(&pcap, &bad));
         assert!(err.contains(says), "{text}: {err}");
     }
 }
@@ -223,15 +204,7 @@ fn a_damaged_packet_of_a_crc_firmware_is_skipped_by_name() {
     two.extend_from_slice(&damaged);
     let path = common::tmp("ouster", "damaged.pcap");
     std::fs::write(&path, &two).unwrap();
-    let run = |p: &PathBuf| {
-        common::stdout_of(
-            common::spherecal()
-                .arg("decode")
-                .arg(p)
-                .arg("--metadata")
-                .arg(&meta),
-        )
-    };
+    let run = |p: &PathBuf| common::stdout_of(&mut decode(p, &meta));
     let one = run(&pcap);
     assert!(
         one.contains("footer CRC-64 (firmware 3.x): 1 packets agree"),
@@ -309,15 +282,7 @@ fn a_capture_of_ip_fragments_decodes_as_the_whole_one() {
     std::fs::write(&fragmented, &out).unwrap();
     let csv = |p: &PathBuf, name: &str| {
         let c = common::tmp("ouster", name);
-        let s = common::stdout_of(
-            common::spherecal()
-                .arg("decode")
-                .arg(p)
-                .arg("--metadata")
-                .arg(&meta)
-                .arg("--csv")
-                .arg(&c),
-        );
+        let s = common::stdout_of(decode(p, &meta).arg("--csv").arg(&c));
         (s, std::fs::read_to_string(&c).unwrap())
     };
     let (whole_sum, whole) = csv(&pcap, "whole.csv");
