@@ -16,6 +16,7 @@ pub mod calib;
 pub mod frames;
 pub mod framing;
 pub mod georef;
+pub mod hesai;
 pub mod ouster;
 pub mod posmv;
 pub mod ros2;

@@ -63,6 +63,8 @@ pub enum SkipReason {
     Vlp16(spherecal::velodyne::Error),
     /// An Ouster lidar packet that is not the format its metadata declares.
     Ouster(spherecal::ouster::Error),
+    /// A Hesai data or GPS packet that is damaged or of a layout not read.
+    Hesai(spherecal::hesai::Error),
     /// A ROS 2 message (a bag's `VelodyneScan`) that does not parse as its type.
     BadMessage(spherecal::ros2::cdr::Error),
     /// A bag's `PointCloud2` that does not parse, or whose fields are not the ones read.
@@ -91,6 +93,9 @@ impl SkipReason {
             }
             SkipReason::Ouster(spherecal::ouster::Error::Crc { .. }) => "Ouster CRC-64 mismatch",
             SkipReason::Ouster(_) => "not the metadata's packet format",
+            SkipReason::Hesai(spherecal::hesai::Error::Layout { .. }) => "not a Hesai model read",
+            SkipReason::Hesai(spherecal::hesai::Error::Crc { .. }) => "Hesai CRC-32 mismatch",
+            SkipReason::Hesai(_) => "not a Hesai packet",
             SkipReason::BadMessage(_) => "ROS message not parsed",
             SkipReason::BadCloud(_) => "point cloud not read",
             SkipReason::EmptyCell => "empty cell of a point cloud",
@@ -128,6 +133,7 @@ impl fmt::Display for SkipReason {
             }
             SkipReason::Vlp16(e) => write!(f, "{e}"),
             SkipReason::Ouster(e) => write!(f, "{e}"),
+            SkipReason::Hesai(e) => write!(f, "{e}"),
             SkipReason::BadMessage(e) => write!(f, "ROS 2 message: {e}"),
             SkipReason::BadCloud(e) => write!(f, "ROS 2 PointCloud2: {e}"),
             SkipReason::EmptyCell => write!(f, "a cell with no return (NaN)"),

@@ -1,14 +1,18 @@
 //! ROS 2 messages of the sensors' drivers, as a rosbag2 stores them (CDR, [`cdr`]): the
 //! Velodyne driver's raw packets (`velodyne_msgs/msg/VelodyneScan`, ros-drivers/velodyne branch
 //! `ros2`) and the VectorNav driver's parsed groups (`vectornav_msgs/msg/CommonGroup`,
-//! `TimeGroup`, `InsGroup`, `AttitudeGroup`, dawonn/vectornav branch `ros2`). Views over borrowed bytes, parsed once and
+//! `TimeGroup`, `InsGroup`, `AttitudeGroup`, dawonn/vectornav branch `ros2`) and a Hesai's raw
+//! packets (`pandar_msgs/msg/PandarScan`, tier4/nebula, [`pandar`]). Views over borrowed bytes, parsed once and
 //! checked: a truncated or malformed message is an [`cdr::Error`] with its offset, never a
 //! panic (PROTOCOLS.md "ROS 2 messages").
 
 pub mod cdr;
 pub mod cloud;
 pub mod nav;
+pub mod pandar;
 pub mod raw;
+
+pub use pandar::PandarScan;
 
 use cdr::{Error, Reader};
 

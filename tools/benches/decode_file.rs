@@ -124,5 +124,57 @@ fn ouster(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench, ouster);
+/// A Hesai's data packets (tier4/nebula's XT32 and QT64 bags) decoded by the core's view and
+/// turned into sensor-frame points with the unit's corrections, in memory (issue 50 item 7).
+fn hesai(c: &mut Criterion) {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/hesai/");
+    for (dir, csv) in [("xt32", "PandarXT32.csv"), ("qt64", "PandarQT64.csv")] {
+        let corr = spherecal_tools::hesai::corrections::load(std::path::Path::new(&format!(
+            "{root}{csv}"
+        )))
+        .unwrap();
+        let bag_dir = std::fs::read_dir(format!("{root}{dir}"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.is_dir())
+            .unwrap();
+        let bag = spherecal_hal::rosbag::Bag::open(&bag_dir).unwrap();
+        let mut src =
+            spherecal_hal::rosbag::sources::ScanPackets::pandar(bag.messages(&["/pandar_packets"]));
+        let mut packets = Vec::new();
+        while let Some(rec) = src.next_record().unwrap() {
+            if let Record::Udp(d) = rec {
+                packets.push(d.payload.to_vec());
+            }
+        }
+        let decode = |packets: &[Vec<u8>]| {
+            let (mut n, mut acc) = (0usize, 0.0);
+            for p in packets {
+                let p = spherecal::hesai::DataPacket::new_checked(&p[..]).unwrap();
+                let m = p.model();
+                let unit = f64::from(p.distance_unit_mm()) * 1e-3;
+                for b in 0..m.blocks() {
+                    let geo = corr.block(p.azimuth(b));
+                    for ch in 0..m.channels() {
+                        let (d, _) = p.unit(b, ch);
+                        if d != 0 {
+                            acc += geo.xyz(ch, f64::from(d) * unit)[0];
+                            n += 1;
+                        }
+                    }
+                }
+            }
+            (n, acc)
+        };
+        let returns = decode(&packets).0;
+        let mut g = c.benchmark_group("hesai");
+        g.throughput(Throughput::Elements(returns as u64));
+        g.bench_function(format!("decode_{dir}_in_memory"), |bch| {
+            bch.iter(|| black_box(decode(black_box(&packets))))
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench, ouster, hesai);
 criterion_main!(benches);

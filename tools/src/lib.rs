@@ -11,6 +11,7 @@ pub mod decode;
 pub mod error;
 pub mod fixtures;
 pub mod georef;
+pub mod hesai;
 pub mod html;
 pub mod ins;
 pub mod montecarlo;

@@ -8,22 +8,27 @@
 use super::{BagError, Messages};
 use crate::packet::{Datagram, HostTime, PacketSource, Record, SkipReason};
 use crate::serial::{ByteSource, ReadOutcome, RxStamp};
-use spherecal::ros2::{AttitudeGroup, CommonGroup, InsGroup, VelodyneScan, VN200_FRAME_MAX};
+use spherecal::ros2::{
+    AttitudeGroup, CommonGroup, InsGroup, PandarScan, VelodyneScan, VN200_FRAME_MAX,
+};
 use std::net::Ipv4Addr;
 
 /// The address a bag's packets are said to come from (the sensor's factory default; a bag
 /// does not keep it).
 pub const SENSOR_ADDR: Ipv4Addr = Ipv4Addr::new(192, 168, 1, 201);
 
-/// The packets of a topic of `velodyne_msgs/msg/VelodyneScan`, in order.
+/// The packets of a topic of `velodyne_msgs/msg/VelodyneScan` (or a Hesai's
+/// `pandar_msgs/msg/PandarScan`), in order.
 pub struct ScanPackets {
     msgs: Messages,
+    /// The scans are `PandarScan`s.
+    pandar: bool,
     /// A topic of `spherecal_msgs/msg/Datagram` read too (an MCAP raw log's position packets).
     datagrams: Option<String>,
     /// The current scan's bytes.
     buf: Vec<u8>,
-    /// Its packets: stamp and offset in `buf`.
-    packets: Vec<(HostTime, usize)>,
+    /// Its packets: stamp, offset in `buf` and length.
+    packets: Vec<(HostTime, usize, usize)>,
     next: usize,
     /// Where the current scan is in its file.
     at: u64,
@@ -41,6 +46,7 @@ impl ScanPackets {
     pub fn with_datagrams(msgs: Messages, datagrams: Option<&str>) -> Self {
         Self {
             msgs,
+            pandar: false,
             datagrams: datagrams.map(Into::into),
             buf: Vec::new(),
             packets: Vec::new(),
@@ -51,19 +57,30 @@ impl ScanPackets {
     }
 }
 
+impl ScanPackets {
+    /// Over `msgs` (one topic of a Hesai's `PandarScan`s): each packet to the Hesai's data
+    /// port.
+    pub fn pandar(msgs: Messages) -> Self {
+        Self {
+            pandar: true,
+            ..Self::new(msgs)
+        }
+    }
+}
+
 impl PacketSource for ScanPackets {
     type Error = BagError;
 
     fn next_record(&mut self) -> Result<Option<Record<'_>>, BagError> {
         loop {
-            if let Some(&(time, off)) = self.packets.get(self.next) {
+            if let Some(&(time, off, len)) = self.packets.get(self.next) {
                 self.next += 1;
                 return Ok(Some(Record::Udp(Datagram {
                     time,
                     src_addr: SENSOR_ADDR,
                     src_port: spherecal::velodyne::DATA_PORT,
                     dst_port: spherecal::velodyne::DATA_PORT,
-                    payload: &self.buf[off..off + spherecal::ros2::PACKET],
+                    payload: &self.buf[off..off + len],
                     offset: self.at,
                 })));
             }
@@ -94,14 +111,19 @@ impl PacketSource for ScanPackets {
                 ));
             }
             self.scans += 1;
-            match VelodyneScan::parse(&self.buf) {
-                Ok(s) => {
-                    let base = self.buf.as_ptr() as usize;
-                    for (t, d) in s.packets() {
-                        let off = d.as_ptr() as usize - base;
-                        self.packets.push((HostTime(t.ns()), off));
-                    }
-                }
+            let base = self.buf.as_ptr() as usize;
+            let mut push = |t: spherecal::ros2::Time, d: &[u8]| {
+                let off = d.as_ptr() as usize - base;
+                self.packets.push((HostTime(t.ns()), off, d.len()));
+            };
+            let parsed = if self.pandar {
+                PandarScan::parse(&self.buf).map(|s| s.packets().for_each(|(t, d)| push(t, d)))
+            } else {
+                VelodyneScan::parse(&self.buf)
+                    .map(|s| s.packets().for_each(|(t, d)| push(t, &d[..])))
+            };
+            match parsed {
+                Ok(()) => {}
                 Err(e) => {
                     return Ok(Some(Record::Skipped {
                         offset: self.at,

@@ -573,3 +573,41 @@ fn a_folder_of_unrelated_recordings_is_refused_naming_them() {
     assert!(Bag::open(&d).is_ok());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A Hesai's bag as tier4/nebula's driver records it (tests/data/hesai/qt64): every
+/// `PandarScan` parses, its packets are the QT64's 1,072 bytes, the source hands them on in
+/// order; a message cut anywhere is an error, not a panic.
+#[test]
+fn a_hesai_bags_pandar_scans_are_its_packets() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/data/hesai/qt64/1673401195788312575");
+    let bag = Bag::open(&dir).unwrap();
+    let mut msgs = bag.messages(&["/pandar_packets"]);
+    let mut first = None;
+    let mut n = 0;
+    while let Some(m) = msgs.next().unwrap() {
+        let s = spherecal::ros2::PandarScan::parse(m.data).unwrap();
+        for (_, p) in s.packets() {
+            assert_eq!((p.len(), &p[..2]), (1072, &[0xEE, 0xFF][..]));
+            n += 1;
+        }
+        first.get_or_insert_with(|| m.data.to_vec());
+    }
+    assert_eq!(n, 1200);
+    let first = first.unwrap();
+    for cut in (0..first.len()).step_by(97) {
+        assert!(
+            spherecal::ros2::PandarScan::parse(&first[..cut]).is_err(),
+            "{cut}"
+        );
+    }
+    let mut src = ScanPackets::pandar(bag.messages(&["/pandar_packets"]));
+    let mut k = 0;
+    while let Some(rec) = src.next_record().unwrap() {
+        if let Record::Udp(d) = rec {
+            assert_eq!((d.dst_port, d.payload.len()), (2368, 1072));
+            k += 1;
+        }
+    }
+    assert_eq!(k, 1200);
+}

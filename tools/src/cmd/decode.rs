@@ -5,8 +5,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Decode Velodyne packets (VLP-16, Puck Hi-Res, HDL-32E, VLP-32C) from a pcap/pcapng
-/// capture or a ROS 2 bag's VelodyneScan topic, or an Ouster's (OS0/OS1/OS2) lidar packets with
-/// the sensor's metadata JSON; print counts, optionally list points.
+/// capture or a ROS 2 bag's VelodyneScan topic, an Ouster's (OS0/OS1/OS2) lidar packets with
+/// the sensor's metadata JSON, or a Hesai's (PandarXT16/XT32/QT64/QT128) data packets from a capture
+/// or a bag's PandarScan topic with the unit's angle correction CSV; print counts, optionally
+/// list points.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Capture file (classic pcap or pcapng).
@@ -15,8 +17,9 @@ pub struct Args {
     /// A ROS 2 bag (a rosbag2 folder, a `.mcap` or a `.db3`): its VelodyneScan packets.
     #[arg(long)]
     pub bag: Option<PathBuf>,
-    /// The bag's topic of VelodyneScan messages (default: the only one).
-    #[arg(long, requires = "bag")]
+    /// The bag's topic of VelodyneScan (or, with a Hesai's corrections, PandarScan) messages
+    /// (default: the only one).
+    #[arg(long)]
     pub lidar_topic: Option<String>,
     /// Write one row per returned point to this CSV file.
     #[arg(long)]
@@ -25,10 +28,12 @@ pub struct Args {
     /// byte, checked against their period.
     #[arg(long, value_parser = super::parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
-    /// An Ouster capture's metadata JSON (its packet format, beams and ports): decode the
-    /// capture as that Ouster's. The CSV then adds `frame_id,measurement_id,channel`, x y z in
-    /// the sensor frame, a dual profile's second return as its own row (`return` = second).
-    #[arg(long, conflicts_with_all = ["bag", "model"])]
+    /// The sensor's own description: an Ouster's metadata JSON (its packet format, beams and
+    /// ports; the CSV then adds `frame_id,measurement_id,channel`, a dual profile's second
+    /// return as its own row, `return` = second), or a Hesai unit's angle correction CSV
+    /// (`Channel,Elevation,Azimuth`; `laser` is the channel from 0, a dual mode's block as its
+    /// `return`). x y z in the sensor frame.
+    #[arg(long, conflicts_with = "model")]
     pub metadata: Option<PathBuf>,
 }
 
@@ -39,7 +44,13 @@ pub fn run(a: Args) -> ExitCode {
         Err(code) => return code,
     };
     crate::output::remove_partial_on_interrupt();
-    if let (Some(meta), Some(f)) = (&a.metadata, &a.file) {
+    if let (Some(meta), Some(f)) = (&a.metadata, a.file.as_ref().or(a.bag.as_ref())) {
+        if meta
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+        {
+            return hesai(f, a.lidar_topic.as_deref(), meta, out);
+        }
         return ouster(f, meta, out);
     }
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
@@ -57,6 +68,9 @@ pub fn run(a: Args) -> ExitCode {
     };
     match decoded {
         Ok(s) => {
+            let hesai = (s.data_packets == 0 && !spherecal_hal::rosbag::is_bag(path))
+                .then(|| crate::hesai::decode::sniff(path))
+                .flatten();
             let path = path.display().to_string();
             say!("{}", s.render(&path));
             if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
@@ -65,6 +79,13 @@ pub fn run(a: Args) -> ExitCode {
             match (&s.stopped, s.truncation(&path)) {
                 (Some(stop), _) => fail("decode", format!("{path}: {stop}")),
                 (None, Some(w)) => fail("decode", w),
+                (None, None) if s.data_packets == 0 && hesai.is_some() => fail(
+                    "decode",
+                    format!(
+                        "{path}: no Velodyne packet, but {} data packets: decode them with the unit's angle correction file (--metadata CORRECTIONS.csv)",
+                        hesai.map_or("Hesai", spherecal::hesai::Model::name)
+                    ),
+                ),
                 (None, None) if looks_ouster(&s) => fail(
                     "decode",
                     format!(
@@ -100,6 +121,42 @@ fn ouster(
     if let Some(why) = s.mismatch(&m) {
         // The listing is not written (dropped uncommitted).
         return fail("decode", format!("{path}: {why}"));
+    }
+    if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
+        return fail("decode", e);
+    }
+    match &s.stopped {
+        Some(stop) => fail("decode", format!("{path}: {stop}")),
+        None => ExitCode::SUCCESS,
+    }
+}
+
+/// A Hesai capture or bag with the unit's angle corrections.
+fn hesai(
+    f: &std::path::Path,
+    topic: Option<&str>,
+    corrections: &std::path::Path,
+    mut out: Option<crate::output::Staged>,
+) -> ExitCode {
+    let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
+    let c = match crate::hesai::corrections::load(corrections) {
+        Ok(c) => c,
+        Err(e) => return fail("decode", e),
+    };
+    let s = match crate::hesai::decode::decode_file(f, topic, &c, w) {
+        Ok(s) => s,
+        Err(e) => return fail("decode", e),
+    };
+    let path = f.display().to_string();
+    say!("{}", s.render(&path, c.channels()));
+    if let Some(why) = s.mismatch(&c) {
+        return fail("decode", format!("{path}: {why}"));
+    }
+    if s.data_packets == 0 {
+        return fail(
+            "decode",
+            format!("{path}: no Hesai data packet (PandarXT16, XT32, QT64 or QT128) to decode"),
+        );
     }
     if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
         return fail("decode", e);

@@ -15,6 +15,7 @@ mod drone;
 mod extraction;
 mod faults;
 mod georef;
+mod hesai;
 mod layers;
 mod multi_file;
 mod nav_errors;

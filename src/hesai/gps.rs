@@ -1,0 +1,105 @@
+//! The GPS packet view (UDP 10110, 512 bytes; PandarXT-32 manual 3.2, PandarQT manual 3.2.2).
+//!
+//! ```text
+//! 0   header 0xFF 0xEE
+//! 2   date: year (since 2000), month, day - two ASCII digits each, the ones digit first
+//! 8   time: second, minute, hour - the same
+//! 14  microseconds u32 (reserved on the XT)
+//! 18  the NMEA sentence ($GPRMC or $GPGGA) the unit took its time from, 84 bytes
+//! 102 reserved (0xDF)
+//! 506 positioning status: 'A' valid, 'V' invalid, 0 no GPS (from $GPRMC)
+//! 507 PPS lock: 1 locked, 0 not
+//! 508 reserved
+//! ```
+
+use super::Error;
+use crate::time::UtcDateTime;
+
+/// The packet's length.
+pub const GPS_PACKET_LEN: usize = 512;
+
+mod field {
+    pub const DATE: usize = 2;
+    pub const TIME: usize = 8;
+    pub const NMEA: core::ops::Range<usize> = 18..102;
+    pub const STATUS: usize = 506;
+    pub const PPS: usize = 507;
+}
+
+/// A checked GPS packet.
+#[derive(Debug, Clone, Copy)]
+pub struct GpsPacket<T: AsRef<[u8]>> {
+    buffer: T,
+}
+
+impl<T: AsRef<[u8]>> GpsPacket<T> {
+    /// Wrap `buffer`: 512 bytes starting 0xFF 0xEE.
+    pub fn new_checked(buffer: T) -> Result<Self, Error> {
+        let b = buffer.as_ref();
+        if b.len() != GPS_PACKET_LEN {
+            return Err(Error::Length {
+                expected: GPS_PACKET_LEN,
+                got: b.len(),
+            });
+        }
+        if b[0] != 0xFF || b[1] != 0xEE {
+            return Err(Error::Start {
+                found: [b[0], b[1]],
+            });
+        }
+        Ok(Self { buffer })
+    }
+
+    /// Three two-digit ASCII numbers from `at`, each its ones digit first; `None` when a byte
+    /// is not a digit.
+    fn digits(&self, at: usize) -> Option<[u8; 3]> {
+        let b = self.buffer.as_ref();
+        let mut v = [0u8; 3];
+        for (k, x) in v.iter_mut().enumerate() {
+            let (ones, tens) = (b[at + 2 * k], b[at + 2 * k + 1]);
+            if !ones.is_ascii_digit() || !tens.is_ascii_digit() {
+                return None;
+            }
+            *x = (tens - b'0') * 10 + (ones - b'0');
+        }
+        Some(v)
+    }
+
+    /// The UTC date and time to the second the unit holds (its PPS's second); `None` when the
+    /// fields are not digits or not a date.
+    pub fn utc(&self) -> Option<UtcDateTime> {
+        let [y, mo, d] = self.digits(field::DATE)?;
+        let [s, mi, h] = self.digits(field::TIME)?;
+        if !(1..=12).contains(&mo) || !(1..=31).contains(&d) || h > 23 || mi > 59 || s > 60 {
+            return None;
+        }
+        Some(UtcDateTime {
+            year: 2000 + i32::from(y),
+            month: mo,
+            day: d,
+            hour: h,
+            minute: mi,
+            second: s,
+            nanos: 0,
+        })
+    }
+
+    /// The NMEA sentence, up to the two checksum digits after `*` (the rest is padding).
+    pub fn nmea(&self) -> &[u8] {
+        let n = &self.buffer.as_ref()[field::NMEA];
+        match n.iter().position(|&c| c == b'*') {
+            Some(star) => &n[..(star + 3).min(n.len())],
+            None => n,
+        }
+    }
+
+    /// The positioning status byte: `b'A'` valid, `b'V'` invalid, 0 no GPS.
+    pub fn positioning(&self) -> u8 {
+        self.buffer.as_ref()[field::STATUS]
+    }
+
+    /// Whether the unit's clock is locked to the PPS.
+    pub fn pps_locked(&self) -> bool {
+        self.buffer.as_ref()[field::PPS] == 1
+    }
+}
