@@ -1,4 +1,4 @@
-//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, CommonGroup, TimeGroup, InsGroup,
+//! Any bytes as the ROS 2 messages a bag holds (VelodyneScan, PandarScan, PacketMsg, CommonGroup, TimeGroup, InsGroup,
 //! AttitudeGroup, PointCloud2, Imu, NavSatFix, TimeReference, and the MCAP raw log's Datagram and
 //! SerialChunk): an error or a message, never a panic; a scan's packets are all
 //! there when it parses; every cell of a cloud that parses reads, and becomes a return or a
@@ -15,6 +15,10 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(s) = VelodyneScan::parse(data) {
         assert_eq!(s.packets().count() as u32, s.count);
     }
+    if let Ok(s) = spherecal::ros2::PandarScan::parse(data) {
+        assert_eq!(s.packets().count() as u32, s.count);
+    }
+    let _ = spherecal::ros2::PacketMsg::parse(data);
     if let Ok(c) = CommonGroup::parse(data) {
         let _ = c.insstatus.word();
     }

@@ -1,8 +1,9 @@
 //! ROS 2 messages of the sensors' drivers, as a rosbag2 stores them (CDR, [`cdr`]): the
 //! Velodyne driver's raw packets (`velodyne_msgs/msg/VelodyneScan`, ros-drivers/velodyne branch
 //! `ros2`) and the VectorNav driver's parsed groups (`vectornav_msgs/msg/CommonGroup`,
-//! `TimeGroup`, `InsGroup`, `AttitudeGroup`, dawonn/vectornav branch `ros2`) and a Hesai's raw
-//! packets (`pandar_msgs/msg/PandarScan`, tier4/nebula, [`pandar`]). Views over borrowed bytes, parsed once and
+//! `TimeGroup`, `InsGroup`, `AttitudeGroup`, dawonn/vectornav branch `ros2`) and the Hesai's and
+//! Ouster's raw packets (`pandar_msgs/msg/PandarScan`, `ouster_sensor_msgs/msg/PacketMsg`,
+//! [`pandar`]). Views over borrowed bytes, parsed once and
 //! checked: a truncated or malformed message is an [`cdr::Error`] with its offset, never a
 //! panic (PROTOCOLS.md "ROS 2 messages").
 
@@ -12,7 +13,7 @@ pub mod nav;
 pub mod pandar;
 pub mod raw;
 
-pub use pandar::PandarScan;
+pub use pandar::{PacketMsg, PandarScan};
 
 use cdr::{Error, Reader};
 

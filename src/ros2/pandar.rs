@@ -1,6 +1,7 @@
-//! `pandar_msgs/msg/PandarScan` (tier4/nebula, `src/nebula_hesai/pandar_msgs`): a Hesai's raw
-//! packets as its ROS 2 driver records them, each `builtin_interfaces/Time stamp` +
-//! `uint8[1500] data` + `uint32 size` (the packet's own length within `data`).
+//! The raw packets of the other LiDARs' ROS 2 drivers: `pandar_msgs/msg/PandarScan`
+//! (tier4/nebula, `src/nebula_hesai/pandar_msgs`: a Hesai's packets, each
+//! `builtin_interfaces/Time stamp` + `uint8[1500] data` + `uint32 size`, the packet's own length
+//! within `data`) and `ouster_sensor_msgs/msg/PacketMsg` (ouster-ros: one packet, `uint8[] buf`).
 
 use super::cdr::{Error, Reader};
 use super::{Header, Time};
@@ -53,6 +54,26 @@ impl<'a> PandarScan<'a> {
             let d = r.bytes(PANDAR_DATA, "packet data").ok()?;
             let n = r.u32("packet size").ok()? as usize;
             Some((t, d.get(..n)?))
+        })
+    }
+}
+
+/// `ouster_sensor_msgs/msg/PacketMsg` (ouster-ros): one lidar or IMU packet, `uint8[] buf`.
+/// ouster-ros sizes `buf` one byte longer than the packet (its client's read buffer); the
+/// decoder takes the packet from its start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PacketMsg<'a> {
+    /// The bytes as recorded.
+    pub buf: &'a [u8],
+}
+
+impl<'a> PacketMsg<'a> {
+    /// Parse a CDR message.
+    pub fn parse(b: &'a [u8]) -> Result<Self, Error> {
+        let mut r = Reader::new(b)?;
+        let n = r.count(1, "buf")? as usize;
+        Ok(Self {
+            buf: r.bytes(n, "buf")?,
         })
     }
 }

@@ -9,7 +9,7 @@ use super::{BagError, Messages};
 use crate::packet::{Datagram, HostTime, PacketSource, Record, SkipReason};
 use crate::serial::{ByteSource, ReadOutcome, RxStamp};
 use spherecal::ros2::{
-    AttitudeGroup, CommonGroup, InsGroup, PandarScan, VelodyneScan, VN200_FRAME_MAX,
+    AttitudeGroup, CommonGroup, InsGroup, PacketMsg, PandarScan, VelodyneScan, VN200_FRAME_MAX,
 };
 use std::net::Ipv4Addr;
 
@@ -18,11 +18,11 @@ use std::net::Ipv4Addr;
 pub const SENSOR_ADDR: Ipv4Addr = Ipv4Addr::new(192, 168, 1, 201);
 
 /// The packets of a topic of `velodyne_msgs/msg/VelodyneScan` (or a Hesai's
-/// `pandar_msgs/msg/PandarScan`), in order.
+/// `pandar_msgs/msg/PandarScan`, or an Ouster's `ouster_sensor_msgs/msg/PacketMsg`), in order.
 pub struct ScanPackets {
     msgs: Messages,
-    /// The scans are `PandarScan`s.
-    pandar: bool,
+    /// What the messages are.
+    kind: Kind,
     /// A topic of `spherecal_msgs/msg/Datagram` read too (an MCAP raw log's position packets).
     datagrams: Option<String>,
     /// The current scan's bytes.
@@ -46,7 +46,7 @@ impl ScanPackets {
     pub fn with_datagrams(msgs: Messages, datagrams: Option<&str>) -> Self {
         Self {
             msgs,
-            pandar: false,
+            kind: Kind::Velodyne,
             datagrams: datagrams.map(Into::into),
             buf: Vec::new(),
             packets: Vec::new(),
@@ -57,12 +57,30 @@ impl ScanPackets {
     }
 }
 
+/// The message type of a [`ScanPackets`]' topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Velodyne,
+    Pandar,
+    /// One packet a message, said to go to this port.
+    Ouster(u16),
+}
+
 impl ScanPackets {
     /// Over `msgs` (one topic of a Hesai's `PandarScan`s): each packet to the Hesai's data
     /// port.
     pub fn pandar(msgs: Messages) -> Self {
         Self {
-            pandar: true,
+            kind: Kind::Pandar,
+            ..Self::new(msgs)
+        }
+    }
+
+    /// Over `msgs` (an Ouster's `PacketMsg` topic): each message's bytes, stamped with its log
+    /// time, to `port` (the metadata's lidar or IMU port).
+    pub fn ouster(msgs: Messages, port: u16) -> Self {
+        Self {
+            kind: Kind::Ouster(port),
             ..Self::new(msgs)
         }
     }
@@ -79,7 +97,10 @@ impl PacketSource for ScanPackets {
                     time,
                     src_addr: SENSOR_ADDR,
                     src_port: spherecal::velodyne::DATA_PORT,
-                    dst_port: spherecal::velodyne::DATA_PORT,
+                    dst_port: match self.kind {
+                        Kind::Ouster(port) => port,
+                        _ => spherecal::velodyne::DATA_PORT,
+                    },
                     payload: &self.buf[off..off + len],
                     offset: self.at,
                 })));
@@ -116,11 +137,17 @@ impl PacketSource for ScanPackets {
                 let off = d.as_ptr() as usize - base;
                 self.packets.push((HostTime(t.ns()), off, d.len()));
             };
-            let parsed = if self.pandar {
-                PandarScan::parse(&self.buf).map(|s| s.packets().for_each(|(t, d)| push(t, d)))
-            } else {
-                VelodyneScan::parse(&self.buf)
-                    .map(|s| s.packets().for_each(|(t, d)| push(t, &d[..])))
+            let parsed = match self.kind {
+                Kind::Pandar => {
+                    PandarScan::parse(&self.buf).map(|s| s.packets().for_each(|(t, d)| push(t, d)))
+                }
+                Kind::Velodyne => VelodyneScan::parse(&self.buf)
+                    .map(|s| s.packets().for_each(|(t, d)| push(t, &d[..]))),
+                Kind::Ouster(_) => PacketMsg::parse(&self.buf).map(|p| {
+                    let off = p.buf.as_ptr() as usize - base;
+                    self.packets
+                        .push((HostTime(m.log_time_ns), off, p.buf.len()));
+                }),
             };
             match parsed {
                 Ok(()) => {}

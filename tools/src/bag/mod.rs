@@ -48,6 +48,9 @@ fn not_read(type_name: &str) -> Option<&'static str> {
             "not needed (the CommonGroup holds the GPS time, attitude, position and INS status)"
         }
         "velodyne_msgs/msg/VelodynePacket" => "single packets without their scan: not read",
+        "ouster_sensor_msgs/msg/PacketMsg" => {
+            "an Ouster's packets: decoded with `spherecal decode BAG --metadata META.json`; georeferencing and calibration read a Velodyne's (VelodyneScan) so far"
+        }
         "pandar_msgs/msg/PandarScan" => {
             "a Hesai's packets: decoded with `spherecal decode BAG --metadata CORRECTIONS.csv`; georeferencing and calibration read a Velodyne's (VelodyneScan) so far"
         }

@@ -51,7 +51,7 @@ pub fn run(a: Args) -> ExitCode {
         {
             return hesai(f, a.lidar_topic.as_deref(), meta, out);
         }
-        return ouster(f, meta, out);
+        return ouster(f, a.lidar_topic.as_deref(), meta, out);
     }
     let w = out.as_mut().map(|w| w as &mut dyn std::io::Write);
     let (path, decoded) = match (&a.bag, &a.file) {
@@ -104,6 +104,7 @@ pub fn run(a: Args) -> ExitCode {
 /// An Ouster capture with its metadata.
 fn ouster(
     f: &std::path::Path,
+    topic: Option<&str>,
     meta: &std::path::Path,
     mut out: Option<crate::output::Staged>,
 ) -> ExitCode {
@@ -112,7 +113,7 @@ fn ouster(
         Ok(m) => m,
         Err(e) => return fail("decode", e),
     };
-    let s = match crate::ouster::decode::decode_file(f, &m, w) {
+    let s = match crate::ouster::decode::decode_file(f, topic, &m, w) {
         Ok(s) => s,
         Err(e) => return fail("decode", e),
     };

@@ -174,23 +174,71 @@ pub fn clock(mode: Option<&TimestampMode>, first_ns: u64) -> String {
     }
 }
 
-/// Decode the capture at `path` with its metadata `m`, listing returns into `csv`.
+/// The ROS 2 message of ouster-ros's raw packets.
+pub const PACKET_MSG: &str = "ouster_sensor_msgs/msg/PacketMsg";
+
+/// Decode the capture at `path`, or the bag's `PacketMsg` lidar topic (`topic`, else the one
+/// named `*lidar_packets`, else the only one), with its metadata `m`, listing returns into
+/// `csv`.
 pub fn decode_file(
     path: &Path,
+    topic: Option<&str>,
     m: &Metadata,
     csv: Option<&mut dyn Write>,
 ) -> Result<OusterSummary, crate::Error> {
-    let src = PcapSource::open(path)
-        .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))?;
-    decode_source(src, m, csv)
-        .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))
+    let at =
+        |e: &dyn std::fmt::Display| crate::Error::bad_input(format!("{}: {e}", path.display()));
+    if !spherecal_hal::rosbag::is_bag(path) {
+        let src = PcapSource::open(path).map_err(|e| at(&e))?;
+        return decode_source(src, m, csv, false).map_err(|e| at(&e));
+    }
+    let bag = spherecal_hal::rosbag::Bag::open(path).map_err(|e| at(&e))?;
+    let topics = bag.topic_list().map_err(|e| at(&e))?;
+    let of: Vec<&spherecal_hal::rosbag::TopicStats> = topics
+        .iter()
+        .filter(|t| t.topic.type_name == PACKET_MSG)
+        .collect();
+    let named = |suffix: &str| {
+        of.iter()
+            .find(|t| t.topic.name.ends_with(suffix))
+            .map(|t| t.topic.name.clone())
+    };
+    let lidar = match (topic, of.as_slice()) {
+        (Some(t), _) => of
+            .iter()
+            .find(|s| s.topic.name == t)
+            .map(|s| s.topic.name.clone())
+            .ok_or_else(|| at(&format!("no {PACKET_MSG} topic named {t}")))?,
+        (None, [one]) => one.topic.name.clone(),
+        (None, []) => {
+            return Err(at(&format!(
+                "no {PACKET_MSG} topic (ouster-ros's /ouster/lidar_packets)"
+            )))
+        }
+        (None, _) => named("lidar_packets").ok_or_else(|| {
+            at(&format!(
+                "{} topics of {PACKET_MSG}: say which is the lidar's with --lidar-topic",
+                of.len()
+            ))
+        })?,
+    };
+    let imu = named("imu_packets").filter(|n| *n != lidar);
+    let src =
+        spherecal_hal::rosbag::sources::ScanPackets::ouster(bag.messages(&[&lidar]), m.lidar_port);
+    let mut s = decode_source(src, m, csv, true).map_err(|e| at(&e))?;
+    s.imu_packets = imu
+        .and_then(|n| of.iter().find(|t| t.topic.name == n))
+        .map_or(0, |t| t.count);
+    Ok(s)
 }
 
-/// [`decode_file`] over any packet source.
+/// [`decode_file`] over any packet source; `trailing`: a packet may carry one byte past the
+/// format's length (ouster-ros's `PacketMsg` does).
 pub fn decode_source<S: PacketSource>(
     mut src: S,
     m: &Metadata,
     mut csv: Option<&mut dyn Write>,
+    trailing: bool,
 ) -> Result<OusterSummary, std::io::Error> {
     let mut s = OusterSummary::default();
     let serial = m.serial.parse::<u64>().ok();
@@ -215,6 +263,13 @@ pub fn decode_source<S: PacketSource>(
             }
             Record::Udp(d) => d,
             Record::Idle => continue,
+        };
+        let d = match trailing && d.payload.len() == m.format.packet_len() + 1 {
+            true => spherecal_hal::Datagram {
+                payload: &d.payload[..m.format.packet_len()],
+                ..d
+            },
+            false => d,
         };
         let Some(p) = s.accept(&d, m, serial) else {
             continue;

@@ -292,3 +292,62 @@ fn a_capture_of_ip_fragments_decodes_as_the_whole_one() {
     assert_eq!(whole.lines().count(), frag.lines().count());
     assert!(whole == frag, "the listings differ");
 }
+
+/// Every vendored capture as ouster-ros records it (`ouster_sensor_msgs/msg/PacketMsg`, written
+/// by PyPI `rosbags` through scripts/ouster-bag.py: each packet with ouster-ros's one byte
+/// more; one bag in MCAP with the packets exact): the bag decodes row for row as the capture,
+/// its IMU topic counted.
+#[test]
+fn an_ouster_ros_bag_decodes_as_its_capture() {
+    for (k, name) in CAPTURES.iter().enumerate() {
+        let (pcap, meta) = files(name);
+        let listing = |input: &Path, csv: &str| {
+            let c = common::tmp("ouster-bag", csv);
+            let s = common::stdout_of(decode(input, &meta).arg("--csv").arg(&c));
+            (s, std::fs::read_to_string(&c).unwrap())
+        };
+        let (from_pcap, rows) = listing(&pcap, &format!("{name}.csv"));
+        let port = |line: &str| {
+            let at = line.find("(UDP ").unwrap() + 5;
+            line[at..].split(')').next().unwrap().to_string()
+        };
+        let lidar_port = port(
+            from_pcap
+                .lines()
+                .find(|l| l.starts_with("lidar packets"))
+                .unwrap(),
+        );
+        let bag = common::tmp("ouster-bag", &format!("{name}.bag"));
+        let _ = std::fs::remove_dir_all(&bag);
+        let mcap = k == 1;
+        let o = std::process::Command::new("python3")
+            .arg(common::repo_root().join("scripts/ouster-bag.py"))
+            .arg(&pcap)
+            .arg(&bag)
+            .args(["--lidar-port", &lidar_port])
+            .args(if mcap {
+                &["--storage", "mcap", "--exact"][..]
+            } else {
+                &[][..]
+            })
+            .output()
+            .expect("python3");
+        assert!(
+            o.status.success(),
+            "scripts/ouster-bag.py needs python3 with rosbags (scripts/test.sh installs it): {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let (from_bag, bag_rows) = listing(&bag, &format!("{name}-bag.csv"));
+        assert!(
+            rows == bag_rows,
+            "{name}: the bag's listing differs from the capture's"
+        );
+        let counts = |s: &str| {
+            s.lines()
+                .filter(|l| l.starts_with("lidar packets") || l.starts_with("points"))
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(counts(&from_bag), counts(&from_pcap), "{name}");
+    }
+}
