@@ -17,6 +17,7 @@ pub mod frames;
 pub mod framing;
 pub mod georef;
 pub mod hesai;
+mod le;
 pub mod ouster;
 pub mod posmv;
 pub mod ros2;

@@ -70,18 +70,7 @@ impl<T: AsRef<[u8]>> GpsPacket<T> {
     pub fn utc(&self) -> Option<UtcDateTime> {
         let [y, mo, d] = self.digits(field::DATE)?;
         let [s, mi, h] = self.digits(field::TIME)?;
-        if !(1..=12).contains(&mo) || !(1..=31).contains(&d) || h > 23 || mi > 59 || s > 60 {
-            return None;
-        }
-        Some(UtcDateTime {
-            year: 2000 + i32::from(y),
-            month: mo,
-            day: d,
-            hour: h,
-            minute: mi,
-            second: s,
-            nanos: 0,
-        })
+        super::date_time(2000 + i32::from(y), [mo, d, h, mi, s])
     }
 
     /// The NMEA sentence, up to the two checksum digits after `*` (the rest is padding).

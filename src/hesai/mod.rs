@@ -23,7 +23,27 @@ pub use geometry::{BlockGeometry, Corrections, MAX_CHANNELS};
 pub use gps::GpsPacket;
 pub use packet::{DataPacket, Model, ReturnMode};
 
+use crate::time::UtcDateTime;
 use core::fmt;
+
+/// A date and time as a Hesai sends them (`year` in full; month, day, hour, minute, second),
+/// `None` when they are not one.
+fn date_time(year: i32, [month, day, hour, minute, second]: [u8; 5]) -> Option<UtcDateTime> {
+    let ok = (1..=12).contains(&month)
+        && (1..=31).contains(&day)
+        && hour < 24
+        && minute < 60
+        && second <= 60;
+    ok.then_some(UtcDateTime {
+        year,
+        month,
+        day,
+        hour,
+        minute,
+        second,
+        nanos: 0,
+    })
+}
 
 /// UDP destination port of point cloud data packets (the factory default "LiDAR
 /// Destination Port").

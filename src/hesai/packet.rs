@@ -20,6 +20,7 @@
 //! ```
 
 use super::Error;
+use crate::le::{le16, le32};
 
 /// Where the header's fields are.
 mod field {
@@ -246,16 +247,6 @@ impl ReturnMode {
     }
 }
 
-#[inline(always)]
-fn le16(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
-}
-
-#[inline(always)]
-fn le32(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
-}
-
 /// A data packet of a known [`Model`]. Built with [`DataPacket::new_checked`], every accessor
 /// is infallible: block and channel indices are reduced modulo the model's counts.
 #[derive(Debug, Clone, Copy)]
@@ -372,21 +363,10 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
     pub fn unix_ns(&self) -> Option<i64> {
         let [y, mo, d, h, mi, s] = self.date_time();
         let micros = self.micros();
-        if !(1..=12).contains(&mo) || !(1..=31).contains(&d) || h > 23 || mi > 59 || s > 60 {
-            return None;
-        }
         if micros >= 1_000_000 {
             return None;
         }
-        let t = crate::time::UtcDateTime {
-            year: 1900 + i32::from(y),
-            month: mo,
-            day: d,
-            hour: h,
-            minute: mi,
-            second: s,
-            nanos: 0,
-        };
+        let t = super::date_time(1900 + i32::from(y), [mo, d, h, mi, s])?;
         Some(t.unix_seconds() * 1_000_000_000 + i64::from(micros) * 1000)
     }
 

@@ -22,6 +22,7 @@
 
 use super::profile::{Format, HeaderKind, Profile};
 use super::Error;
+use crate::le::{le16, le32, le_n};
 
 /// A range's bits in its little-endian word (the bits above them are flags).
 mod range {
@@ -37,25 +38,6 @@ mod range {
 
 /// The footer's CRC (firmware 3.x): CRC-64/XZ.
 const CRC64: crc::Crc<u64, crc::Table<16>> = crc::Crc::<u64, crc::Table<16>>::new(&crc::CRC_64_XZ);
-
-#[inline(always)]
-fn le16(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
-}
-
-#[inline(always)]
-fn le32(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
-}
-
-#[inline(always)]
-fn le_n(b: &[u8], at: usize, n: usize) -> u64 {
-    let mut v = 0u64;
-    for i in (0..n).rev() {
-        v = (v << 8) | u64::from(b[at + i]);
-    }
-    v
-}
 
 /// The ranges of pixels of `N` bytes: the first return's word at 0 and (`SECOND` > 0) the
 /// second's at `SECOND`, 16 or 32 bits, masked and shifted into mm; `f` for each non-zero.

@@ -15,6 +15,7 @@
 //! ```
 
 use super::Error;
+pub(crate) use crate::le::{le16, le32};
 
 /// Byte layout of the frame (ICD Tables 2, 3).
 pub mod field {
@@ -120,16 +121,6 @@ impl Default for TimeFields {
             distance_type: 1,
         }
     }
-}
-
-#[inline]
-pub(crate) fn le16(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
-}
-
-#[inline]
-pub(crate) fn le32(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
 #[inline]

@@ -12,6 +12,7 @@
 //! ```
 
 use super::{Error, Model, ReturnMode};
+use crate::le::le16;
 
 /// Byte layout of a data packet (manual figure 9-3).
 pub mod field {
@@ -52,11 +53,6 @@ pub const DATA_PACKET_LEN: usize = field::LEN;
 #[derive(Debug, Clone, Copy)]
 pub struct DataPacket<T: AsRef<[u8]>> {
     buffer: T,
-}
-
-#[inline(always)]
-fn le16(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
 }
 
 impl<T: AsRef<[u8]>> DataPacket<T> {

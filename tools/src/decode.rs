@@ -266,6 +266,32 @@ pub fn decode_source<R: Read>(
     })
 }
 
+/// What a capture's walk meets: a UDP datagram, or a record skipped (where, why).
+pub(crate) enum Step<'a> {
+    /// A datagram.
+    Udp(spherecal_hal::Datagram<'a>),
+    /// A record passed over: its offset and why.
+    Skipped(u64, spherecal_hal::SkipReason),
+}
+
+/// Every record of `src` to `each`, in order (idle records passed over). A read error ends the
+/// walk and is returned (`Ok(Some(e))`: what came before was walked); an error of `each` stops
+/// it and is the result.
+pub(crate) fn each_record<S: PacketSource, E>(
+    src: &mut S,
+    mut each: impl FnMut(Step<'_>) -> Result<(), E>,
+) -> Result<Option<S::Error>, E> {
+    loop {
+        match src.next_record() {
+            Ok(Some(Record::Udp(d))) => each(Step::Udp(d))?,
+            Ok(Some(Record::Skipped { offset, reason })) => each(Step::Skipped(offset, reason))?,
+            Ok(Some(Record::Idle)) => {}
+            Ok(None) => return Ok(None),
+            Err(e) => return Ok(Some(e)),
+        }
+    }
+}
+
 /// [`decode_source`] over any packet source: `soft` says which of its errors stop the
 /// decoding with what was decoded so far (`Ok(why)`) and which fail it.
 pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
@@ -286,22 +312,13 @@ pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
     }
     let bar = crate::progress::counter("data packets decoded");
     let ports = Ports::default();
-    loop {
-        let rec = match src.next_record() {
-            Ok(Some(r)) => r,
-            Ok(None) => break,
-            Err(e) => {
-                s.stopped = Some(soft(e)?);
-                break;
-            }
-        };
-        let d = match rec {
-            Record::Skipped { offset, reason } => {
+    let end = each_record(&mut src, |step| {
+        let d = match step {
+            Step::Skipped(offset, reason) => {
                 s.skips.count(offset, &reason);
-                continue;
+                return Ok::<(), E>(());
             }
-            Record::Udp(d) => d,
-            Record::Idle => continue,
+            Step::Udp(d) => d,
         };
         match classify(&d, ports) {
             Err(reason) => s.skips.count(d.offset, &reason),
@@ -353,6 +370,10 @@ pub(crate) fn decode_packets<S: PacketSource, E: From<io::Error>>(
                 }
             }
         }
+        Ok(())
+    })?;
+    if let Some(e) = end {
+        s.stopped = Some(soft(e)?);
     }
     if let Some(w) = csv {
         w.flush()?;

@@ -2,7 +2,7 @@
 //! packet of a capture (or a bag's `pandar_msgs/msg/PandarScan` topic) checked, counted and
 //! listed one row per return, and the GPS packets' time and PPS lock.
 
-use crate::decode::{push_fixed, push_padded, push_u64, CSV_HEADER};
+use crate::decode::{each_record, push_fixed, push_padded, push_u64, Step, CSV_HEADER};
 use spherecal::hesai::{Corrections, DataPacket, GpsPacket, Model, ReturnMode};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::velodyne::SkipStats;
@@ -212,36 +212,27 @@ pub fn decode_source<S: PacketSource>(
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{CSV_HEADER}")?;
     }
-    loop {
-        let rec = match src.next_record() {
-            Ok(Some(r)) => r,
-            Ok(None) => break,
-            Err(e) => {
-                s.stopped = Some(e.to_string());
-                break;
-            }
-        };
-        let d = match rec {
-            Record::Skipped { offset, reason } => {
+    let end = each_record(&mut src, |step| {
+        let d = match step {
+            Step::Skipped(offset, reason) => {
                 s.skips.count(offset, &reason);
-                continue;
+                return Ok(());
             }
-            Record::Udp(d) => d,
-            Record::Idle => continue,
+            Step::Udp(d) => d,
         };
         if d.dst_port == spherecal::hesai::GPS_PORT {
             s.gps_packet(&d);
-            continue;
+            return Ok(());
         }
         if d.dst_port != spherecal::hesai::DATA_PORT {
             s.skips.count(d.offset, &SkipReason::OtherPort(d.dst_port));
-            continue;
+            return Ok(());
         }
         let p = match DataPacket::new_checked(d.payload) {
             Ok(p) => p,
             Err(e) => {
                 s.skips.count(d.offset, &SkipReason::Hesai(e));
-                continue;
+                return Ok(());
             }
         };
         if let Some(crcs) = p.crc() {
@@ -249,7 +240,7 @@ pub fn decode_source<S: PacketSource>(
                 Some(&(stored, computed)) => {
                     let e = spherecal::hesai::Error::Crc { stored, computed };
                     s.skips.count(d.offset, &SkipReason::Hesai(e));
-                    continue;
+                    return Ok(());
                 }
                 None => s.crc_agreed += 1,
             }
@@ -257,7 +248,7 @@ pub fn decode_source<S: PacketSource>(
         let (model, _) = *s.model.get_or_insert((p.model(), p.return_mode()));
         if p.model() != model {
             s.other_model += 1;
-            continue;
+            return Ok(());
         }
         s.data_packets += 1;
         line.clear();
@@ -265,7 +256,9 @@ pub fn decode_source<S: PacketSource>(
         if let Some(w) = csv.as_deref_mut() {
             w.write_all(&line)?;
         }
-    }
+        Ok::<(), std::io::Error>(())
+    })?;
+    s.stopped = end.map(|e| e.to_string());
     Ok(s)
 }
 

@@ -3,11 +3,11 @@
 //! return (the first, and in the dual profiles the second as its own row).
 
 use super::{Metadata, TimestampMode};
-use crate::decode::{push_fixed, push_padded, push_u64, CSV_HEADER};
+use crate::decode::{each_record, push_fixed, push_padded, push_u64, Step, CSV_HEADER};
 use spherecal::ouster::{LidarPacket, Pixel};
 use spherecal_hal::pcap::PcapSource;
 use spherecal_hal::velodyne::SkipStats;
-use spherecal_hal::{PacketSource, Record, SkipReason};
+use spherecal_hal::{PacketSource, SkipReason};
 use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
@@ -247,22 +247,13 @@ pub fn decode_source<S: PacketSource>(
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{}", csv_header())?;
     }
-    loop {
-        let rec = match src.next_record() {
-            Ok(Some(r)) => r,
-            Ok(None) => break,
-            Err(e) => {
-                s.stopped = Some(e.to_string());
-                break;
-            }
-        };
-        let d = match rec {
-            Record::Skipped { offset, reason } => {
+    let end = each_record(&mut src, |step| {
+        let d = match step {
+            Step::Skipped(offset, reason) => {
                 s.skips.count(offset, &reason);
-                continue;
+                return Ok(());
             }
-            Record::Udp(d) => d,
-            Record::Idle => continue,
+            Step::Udp(d) => d,
         };
         let d = match trailing && d.payload.len() == m.format.packet_len() + 1 {
             true => spherecal_hal::Datagram {
@@ -272,7 +263,7 @@ pub fn decode_source<S: PacketSource>(
             false => d,
         };
         let Some(p) = s.accept(&d, m, serial) else {
-            continue;
+            return Ok(());
         };
         // Frames: where the frame id changes (it wraps at 65,536 in the standard header).
         if last_frame.replace(p.frame_id()) != Some(p.frame_id()) {
@@ -283,7 +274,9 @@ pub fn decode_source<S: PacketSource>(
         if let Some(w) = csv.as_deref_mut() {
             w.write_all(&line)?;
         }
-    }
+        Ok::<(), std::io::Error>(())
+    })?;
+    s.stopped = end.map(|e| e.to_string());
     Ok(s)
 }
 
