@@ -347,6 +347,37 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         }
     }
 
+    /// Whether more poses are needed before returns fired from `t0` (LiDAR clock) to `span_ns`
+    /// later can be aligned (see [`Self::wants_poses`]).
+    pub fn wants_poses_at(&self, t0: GpsTime, span_ns: i64) -> bool {
+        let Some((_, newest)) = self.history.span() else {
+            return true;
+        };
+        newest.0
+            <= t0
+                .0
+                .saturating_add(self.time_offset_ns + span_ns + self.lookahead_ns)
+    }
+
+    /// Returns already decoded and timed by a LiDAR whose clock is on GPS time (a Hesai's or an
+    /// Ouster's, synchronised): `points` fired their `offset_ns` after `t0` (LiDAR clock),
+    /// received at `host`.
+    pub fn timed(
+        &mut self,
+        t0: GpsTime,
+        points: &[Point],
+        host: Option<HostTime>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let index = self.data_seen;
+        self.data_seen = self.data_seen.wrapping_add(1);
+        let s = t0.as_secs_f64();
+        self.stats.lidar_span = Some(self.stats.lidar_span.map_or((s, s), |(a, _)| (a, s)));
+        let t0 = GpsTime(t0.0.saturating_add(self.time_offset_ns));
+        self.window(index, t0, Some(points), host, each, emit);
+    }
+
     /// Returns already decoded and timed on the host's clock (a ROS 2 `PointCloud2`): `points`
     /// fired their `offset_ns` after `t0_host`. The INS poses' host stamps map host time to GPS
     /// time (the upper envelope of GPS minus host time: the least-delayed pose); without them

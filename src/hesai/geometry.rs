@@ -110,3 +110,63 @@ impl BlockGeometry<'_> {
         (az, self.c.el_deg[i])
     }
 }
+
+/// The returns of `p` as points of the Velodyne decoder's kind (sensor frame, its axes;
+/// `offset_ns` after the packet's first firing; `laser` and `channel` the Hesai channel) into
+/// `out`: what georeferencing takes from any LiDAR. Returns that first firing's time after the
+/// packet's absolute time [ns] (negative: before it). A dual firing's return identical to its
+/// other block's is put once (the later block's); a channel the corrections lack is skipped.
+pub fn points<T: AsRef<[u8]>>(
+    p: &super::DataPacket<T>,
+    c: &Corrections,
+    out: &mut crate::velodyne::PointBuf,
+) -> i64 {
+    use crate::velodyne::{Point, Return};
+    out.clear();
+    let model = p.model();
+    let n = p.return_mode().returns();
+    let mut first = i64::MAX;
+    for b in 0..model.blocks() {
+        for ch in 0..model.channels() {
+            first = first.min(p.firing_offset_ns(b, ch));
+        }
+    }
+    let unit_m = f64::from(p.distance_unit_mm()) * 1e-3;
+    let single = match p.return_mode() {
+        super::ReturnMode::Single(0x38) => Return::Last,
+        _ => Return::Strongest,
+    };
+    for b in 0..model.blocks() {
+        let geo = c.block(p.azimuth(b));
+        for ch in 0..model.channels().min(c.channels()) {
+            let (dist, refl) = p.unit(b, ch);
+            if dist == 0 || (n == 2 && b % 2 == 0 && p.unit(b + 1, ch) == (dist, refl)) {
+                continue;
+            }
+            let range = f64::from(dist) * unit_m;
+            let [x, y, z] = geo.xyz(ch, range);
+            let (az, _) = geo.angles_deg(ch);
+            let ret = match (n, b % 2) {
+                (1, _) => single,
+                (_, 0) => Return::DualLast,
+                _ => Return::DualStrongest,
+            };
+            let offset = p.firing_offset_ns(b, ch) - first;
+            let _ = out.push(Point {
+                x: x as f32,
+                y: y as f32,
+                z: z as f32,
+                azimuth: az.to_radians() as f32,
+                offset_ns: u32::try_from(offset).unwrap_or(u32::MAX),
+                distance_raw: dist,
+                range: range as f32,
+                intensity: refl,
+                block: b as u8,
+                channel: ch as u8,
+                laser: ch as u8,
+                ret,
+            });
+        }
+    }
+    first
+}

@@ -19,7 +19,7 @@ pub mod geometry;
 pub mod gps;
 pub mod packet;
 
-pub use geometry::{BlockGeometry, Corrections, MAX_CHANNELS};
+pub use geometry::{points, BlockGeometry, Corrections, MAX_CHANNELS};
 pub use gps::GpsPacket;
 pub use packet::{DataPacket, Model, ReturnMode};
 

@@ -302,6 +302,11 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
         self.buffer.as_ref()
     }
 
+    /// The packet's bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.buffer.as_ref()
+    }
+
     /// The model the header says.
     pub fn model(&self) -> Model {
         self.model

@@ -173,6 +173,25 @@ impl PointBuf {
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
+
+    /// Empty it (another decoder's points follow: an Ouster's or a Hesai's).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// Add a point; false (and not added) when the buffer is full.
+    #[inline]
+    pub fn push(&mut self, p: Point) -> bool {
+        match self.points.get_mut(self.len) {
+            Some(slot) => {
+                *slot = p;
+                self.len += 1;
+                true
+            }
+            None => false,
+        }
+    }
 }
 
 pub(super) const CDEG_TO_RAD: f32 = core::f32::consts::PI / 18_000.0;

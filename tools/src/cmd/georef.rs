@@ -36,6 +36,11 @@ pub struct Args {
     /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
     #[arg(long)]
     pub keep_untracked_ins: bool,
+    /// A Hesai unit's angle correction CSV: the capture holds that Hesai's data packets
+    /// (PandarXT16 / XT32 / QT64 / QT128), timed by their date-time and microseconds as UTC (a
+    /// clock synchronised by GPS or PTP). Calibrating a Hesai rig is not supported yet.
+    #[arg(long, conflicts_with = "model")]
+    pub metadata: Option<PathBuf>,
 }
 
 /// Run it.
@@ -64,6 +69,11 @@ pub fn run(a: Args) -> ExitCode {
     let site = match crate::config::site::Site::load(&site) {
         Ok(s) => s,
         Err(e) => return fail("georef", e),
+    };
+    let hesai = match a.metadata.as_deref().map(crate::hesai::corrections::load) {
+        Some(Ok(c)) => Some(c),
+        Some(Err(e)) => return fail("georef", e),
+        None => None,
     };
     let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
     let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
@@ -96,6 +106,7 @@ pub fn run(a: Args) -> ExitCode {
         accuracy: None,
         ports,
         exclude: Vec::new(),
+        hesai,
         site,
     };
     match crate::georef::georef(

@@ -47,6 +47,12 @@ pub struct RingAligner<'a> {
     /// nothing: [`Closest`]).
     centres: Vec<nalgebra::Vector3<f64>>,
     closest: Vec<Closest>,
+    /// A Hesai's angle corrections (its packets are decoded here), and the points of the last.
+    hesai: Option<(
+        spherecal::hesai::Corrections,
+        Box<spherecal::velodyne::PointBuf>,
+    )>,
+    leap_seconds: i64,
 }
 
 /// How close the trajectory (the INS's reference point) came to a sphere's centre, and when.
@@ -98,7 +104,15 @@ impl<'a> RingAligner<'a> {
                 };
                 targets.len()
             ],
+            hesai: None,
+            leap_seconds,
         }
+    }
+
+    /// Decode Hesai data packets with the unit's corrections `c`.
+    pub fn with_hesai(mut self, c: spherecal::hesai::Corrections) -> Self {
+        self.hesai = Some((c, Box::default()));
+        self
     }
 
     /// Move every pose waiting on the ring into the history (live input between packets).
@@ -157,6 +171,34 @@ impl<'a> RingAligner<'a> {
     ) {
         self.pull_poses(host, ic, |core| core.wants_poses(p));
         self.core.data(p, host, each, emit);
+    }
+
+    /// A Hesai data packet received at `host`, its date-time and microseconds taken as UTC
+    /// (a clock synchronised by GPS or PTP): its returns decoded and timed, poses pulled as for
+    /// [`Self::data`], then the core aligns them ([`CoreAligner::timed`]). Without corrections,
+    /// or with a date-time that is no date, the packet is counted as without time.
+    pub fn hesai(
+        &mut self,
+        p: &spherecal::hesai::DataPacket<&[u8]>,
+        host: Option<HostTime>,
+        ic: &mut Consumer<'_, InsItem>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let (Some((c, points)), Some(unix)) = (&mut self.hesai, p.unix_ns()) else {
+            self.core.stats.packets_without_time += 1;
+            return;
+        };
+        let first = spherecal::hesai::points(p, c, points);
+        let t0 = spherecal::time::unix_ns_to_gps(unix + first, self.leap_seconds);
+        let span = points
+            .as_slice()
+            .last()
+            .map_or(0, |q| i64::from(q.offset_ns));
+        self.pull_poses(host, ic, |core| core.wants_poses_at(t0, span));
+        if let Some((_, points)) = &self.hesai {
+            self.core.timed(t0, points.as_slice(), host, each, emit);
+        }
     }
 
     /// Returns of a point cloud, timed on the host's clock: poses are pulled as for

@@ -13,6 +13,8 @@ pub enum LidarKind {
     Position,
     /// Returns of a point cloud.
     Points,
+    /// A Hesai data packet (its length held beside it).
+    Hesai,
     /// The stream ended.
     End,
 }
@@ -25,6 +27,8 @@ pub struct LidarItem {
     kind: LidarKind,
     /// When the host received it, if known.
     pub host: Option<HostTime>,
+    /// The payload's length (a Hesai packet's 568-1127 bytes).
+    len: u16,
     payload: Payload,
 }
 
@@ -44,6 +48,8 @@ pub enum LidarPacket<'a> {
     Position(PositionPacket<&'a [u8]>),
     /// Returns of a point cloud, timed on the host's clock.
     Points(&'a Chunk),
+    /// A Hesai data packet.
+    Hesai(spherecal::hesai::DataPacket<&'a [u8]>),
     /// The stream ended.
     End,
 }
@@ -56,6 +62,7 @@ impl LidarItem {
         Self {
             kind,
             host,
+            len: n as u16,
             payload: Payload::Bytes(bytes),
         }
     }
@@ -65,8 +72,17 @@ impl LidarItem {
         Self {
             kind: LidarKind::Points,
             host: Some(c.t0),
+            len: 0,
             payload: Payload::Points(*c),
         }
+    }
+
+    /// A Hesai data packet received at `host`.
+    pub fn hesai<T: AsRef<[u8]>>(
+        p: &spherecal::hesai::DataPacket<T>,
+        host: Option<HostTime>,
+    ) -> Self {
+        Self::holding(LidarKind::Hesai, host, p.as_bytes())
     }
 
     /// A data packet received at `host`.
@@ -103,6 +119,12 @@ impl LidarItem {
                 LidarPacket::Position(PositionPacket::new_unchecked(&b[..512]))
             }
             (Payload::Points(c), _) => LidarPacket::Points(c),
+            (Payload::Bytes(b), LidarKind::Hesai) => {
+                match spherecal::hesai::DataPacket::new_checked(&b[..usize::from(self.len)]) {
+                    Ok(p) => LidarPacket::Hesai(p),
+                    Err(_) => LidarPacket::End,
+                }
+            }
             _ => LidarPacket::End,
         }
     }

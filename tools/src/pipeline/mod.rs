@@ -118,6 +118,9 @@ pub struct Inputs {
     /// Spans to leave out of the calibration (`--exclude`): GPS seconds since 1980-01-06, or
     /// of the data's GPS week ([`crate::stretches::in_week_of`]).
     pub exclude: Vec<(f64, f64)>,
+    /// The LiDAR is a Hesai with these angle corrections (`georef --metadata`): its data
+    /// packets are read instead of a Velodyne's, its clock taken as synchronised UTC.
+    pub hesai: Option<spherecal::hesai::Corrections>,
 }
 
 impl Inputs {
@@ -147,6 +150,7 @@ impl Inputs {
             ports: Ports::default(),
             lidar_topic: None,
             exclude: Vec::new(),
+            hesai: None,
             site,
         }
     }
@@ -156,6 +160,9 @@ impl Inputs {
 /// data packets say (product byte checked against period: [`crate::decode::identify_file`]);
 /// Err, naming the file, byte and `--model`, when they cannot be trusted. None: no data packet.
 pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
+    if inp.hesai.is_some() {
+        return Ok(None);
+    }
     let Some(m) = inp.model else {
         return identify(inp);
     };
@@ -363,6 +370,7 @@ pub fn run<C: Send>(
             let accept = Accept {
                 ports: inp.ports,
                 sensor: None,
+                hesai: inp.hesai.is_some(),
             };
             let (mut skips, r) = match &mut pcap {
                 Captures::Clouds(c) => cloud_reader(c, &mut out),
@@ -407,6 +415,9 @@ pub fn run<C: Send>(
             InsWait::UntilEnd,
             &SystemClock,
         );
+        if let Some(c) = &inp.hesai {
+            al = al.with_hesai(c.clone());
+        }
         al.core.time_offset_ns = inp.time_offset_ns;
         al.core.set_model(model);
         let offset_ns = inp.time_offset_ns;
@@ -437,6 +448,9 @@ pub fn run<C: Send>(
                     al.data(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
                 LidarPacket::Points(c) => al.points(c, &mut ic, each.as_deref_mut(), &mut emit),
+                LidarPacket::Hesai(p) => {
+                    al.hesai(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
+                }
             }
             lc.dequeue();
             if end {

@@ -29,6 +29,8 @@ pub struct Accept {
     pub ports: Ports,
     /// The sensor's address.
     pub sensor: Option<Ipv4Addr>,
+    /// The sensor is a Hesai: its data packets (on the data port) instead of a Velodyne's.
+    pub hesai: bool,
 }
 
 impl Accept {
@@ -36,6 +38,13 @@ impl Accept {
     pub fn item(&self, d: &Datagram<'_>) -> Result<LidarItem, SkipReason> {
         match self.sensor {
             Some(a) if a != d.src_addr => Err(SkipReason::OtherSender(d.src_addr)),
+            _ if self.hesai => match d.dst_port == self.ports.data {
+                true => spherecal::hesai::DataPacket::new_checked(d.payload)
+                    .map(|p| LidarItem::hesai(&p, Some(d.time)))
+                    .map_err(SkipReason::Hesai),
+                false if d.dst_port == spherecal::hesai::GPS_PORT => Err(SkipReason::HesaiGps),
+                false => Err(SkipReason::OtherPort(d.dst_port)),
+            },
             _ => LidarItem::classify(d, self.ports),
         }
     }

@@ -114,7 +114,11 @@ impl RigIo {
             },
         };
         Ok(Self {
-            accept: Accept { ports, sensor },
+            accept: Accept {
+                ports,
+                sensor,
+                hesai: false,
+            },
             bind,
             data_sock,
             pos_sock,

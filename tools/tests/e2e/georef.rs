@@ -52,6 +52,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         ports: Default::default(),
         lidar_topic: None,
         exclude: Vec::new(),
+        hesai: None,
     }
 }
 

@@ -292,6 +292,20 @@ fn as_pcap(
     out
 }
 
+/// The XT32 bag's packets as a pcap in the scratch folder of `group`, after one GPS packet
+/// (the PandarQT manual's example date and time, position valid, PPS locked).
+fn xt32_pcap(group: &str) -> PathBuf {
+    let (bag, _, _) = paths(&CASES[1]);
+    let mut gps = vec![0xDFu8; 512];
+    gps[..14].copy_from_slice(b"\xff\xee912062354511");
+    gps[14..18].fill(0);
+    gps[506] = b'A';
+    gps[507] = 1;
+    let pcap = common::tmp(group, "xt32.pcap");
+    std::fs::write(&pcap, as_pcap(&bag, Some(&gps), |_, _| {})).unwrap();
+    pcap
+}
+
 /// The XT32's packets recorded from the link (a pcap, with the unit's GPS packet: the PandarQT
 /// manual's example, PPS locked) decode row for row as from the bag; a QT128 packet damaged on
 /// the way is skipped by its CRC-32; another unit's corrections, none, or a broken file are
@@ -299,13 +313,7 @@ fn as_pcap(
 #[test]
 fn a_capture_decodes_as_its_bag_and_damage_or_other_corrections_are_named() {
     let (bag, _, corr) = paths(&CASES[1]);
-    let mut gps = vec![0xDFu8; 512];
-    gps[..14].copy_from_slice(b"\xff\xee912062354511");
-    gps[14..18].fill(0);
-    gps[506] = b'A';
-    gps[507] = 1;
-    let pcap = common::tmp("hesai", "xt32.pcap");
-    std::fs::write(&pcap, as_pcap(&bag, Some(&gps), |_, _| {})).unwrap();
+    let pcap = xt32_pcap("hesai");
     let listing = |input: &std::path::Path, name: &str| {
         let csv = common::tmp("hesai", name);
         let out = common::stdout_of(
@@ -389,5 +397,136 @@ fn a_capture_decodes_as_its_bag_and_damage_or_other_corrections_are_named() {
     assert!(
         e.contains("line 3: channel 2's elevation is not a number"),
         "{e}"
+    );
+}
+
+/// `georef` of a Hesai's capture (`--metadata CORRECTIONS.csv`): the XT32's real packets, its
+/// clock taken as UTC (the GPS packet says the PPS is locked), against a trajectory moving
+/// north at 2 m/s (an SBET, level, the mounting zero): every point of the LAS is a decoded
+/// return (the same capture's `decode` listing, checked against nebula) at its firing time
+/// (UTC + the 18 leap seconds) placed at the trajectory's position then, within 1 mm.
+#[test]
+fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
+    let (_, _, corr) = paths(&CASES[1]);
+    let pcap = xt32_pcap("hesai-georef");
+    let csv = common::tmp("hesai-georef", "xt32.csv");
+    common::stdout_of(
+        common::spherecal()
+            .arg("decode")
+            .arg(&pcap)
+            .arg("--metadata")
+            .arg(&corr)
+            .arg("--csv")
+            .arg(&csv),
+    );
+    // Each decoded return: UTC [ns since 1970] and x y z [m] in the sensor frame.
+    let rows: Vec<(i64, [f64; 3])> = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let (us, frac) = f[5].split_once('.').unwrap();
+            let ns = us.parse::<i64>().unwrap() * 1000 + frac.parse::<i64>().unwrap();
+            let p = |i: usize| f[i].parse::<f64>().unwrap();
+            (ns, [p(10), p(11), p(12)])
+        })
+        .collect();
+    let (first, last) = (
+        rows.iter().map(|r| r.0).min().unwrap(),
+        rows.iter().map(|r| r.0).max().unwrap(),
+    );
+    // GPS time = UTC + 18 s (2017-2026) from the GPS epoch 1980-01-06.
+    const GPS_UNIX_S: i64 = 315_964_800;
+    let gps_s = |unix_ns: i64| (unix_ns as f64) * 1e-9 - GPS_UNIX_S as f64 + 18.0;
+    let t_ref = gps_s(first);
+    let week = (t_ref / 604_800.0).floor();
+    // The trajectory: from the site's origin, north at 2 m/s, 200 Hz, a second either side.
+    let (lat0, lon0, h0) = (48.38f64, -4.49f64, 52.0f64);
+    let (a, e2) = (6_378_137.0f64, 6.694_379_990_14e-3f64);
+    let s2 = lat0.to_radians().sin().powi(2);
+    let m_radius = a * (1.0 - e2) / (1.0 - e2 * s2).powf(1.5) + h0;
+    let v = 2.0;
+    let mut sbet = Vec::new();
+    let n = ((gps_s(last) - t_ref + 2.0) * 200.0) as i64;
+    for k in 0..=n {
+        let t = t_ref - 1.0 + k as f64 / 200.0;
+        let north = v * (t - t_ref);
+        let lat = lat0.to_radians() + north / m_radius;
+        let rec = spherecal_hal::sbet::SbetRecord {
+            tow_s: t - week * 604_800.0,
+            lat,
+            lon: lon0.to_radians(),
+            h: h0,
+            roll: 0.0,
+            pitch: 0.0,
+            platform_heading: 0.0,
+            wander: 0.0,
+        };
+        sbet.extend_from_slice(&rec.emit());
+    }
+    let sbet_path = common::tmp("hesai-georef", "sbet.out");
+    std::fs::write(&sbet_path, sbet).unwrap();
+    let site = common::tmp("hesai-georef", "site.toml");
+    std::fs::write(
+        &site,
+        format!(
+            "leap_seconds = 18\n\n[origin]\nlat_deg = {lat0}\nlon_deg = {lon0}\nh_m = {h0}\n\n[[sphere]]\nid = \"S1\"\nlat_deg = 48.38009\nlon_deg = -4.49\nh_m = 53.0\nradius_m = 0.2\n\n[[sphere]]\nid = \"S2\"\nlat_deg = 48.37991\nlon_deg = -4.49\nh_m = 53.0\nradius_m = 0.2\n\n[apriori]\nboresight_deg = [0.0, 0.0, 0.0]\nlever_arm_m = [0.0, 0.0, 0.0]\nwindow_margin_m = 3.0\n"
+        ),
+    )
+    .unwrap();
+    let las = common::tmp("hesai-georef", "cloud.las");
+    let out = common::stdout_of(
+        common::spherecal()
+            .arg("georef")
+            .arg("--pcap")
+            .arg(&pcap)
+            .arg("--metadata")
+            .arg(&corr)
+            .arg("--sbet")
+            .arg(&sbet_path)
+            .arg("--gps-week")
+            .arg(format!("{week}"))
+            .arg("--site")
+            .arg(&site)
+            .args([
+                "--trajectory-datum",
+                "WGS84",
+                "--las-frame",
+                "local",
+                "--las",
+            ])
+            .arg(&las),
+    );
+    let mut r = las::Reader::from_path(&las).unwrap();
+    let n = r.header().number_of_points();
+    let data = r.read_points(n).unwrap();
+    let pts: Vec<las::Point> = data.points().map(|p| p.unwrap()).collect();
+    assert_eq!(pts.len(), rows.len(), "{out}");
+    assert!(out.contains("skipped Hesai GPS packet: 1"), "{out}");
+    // The decoded returns by firing time (1 us bins: LAS holds GPS time - 1e9 s as an f64,
+    // to some 30 ns).
+    let mut by_time: HashMap<i64, Vec<[f64; 3]>> = HashMap::new();
+    for (ns, q) in &rows {
+        by_time.entry(ns.div_euclid(1000)).or_default().push(*q);
+    }
+    let mut worst = 0.0f64;
+    for p in &pts {
+        let t = p.gps_time.unwrap() + 1e9;
+        let unix_ns = (p.gps_time.unwrap() * 1e9).round() as i64
+            + (1_000_000_000 + GPS_UNIX_S - 18) * 1_000_000_000;
+        // The sensor-frame point the LAS implies: NED = P(t) + q (the mounting zero, level).
+        let q = [p.y - v * (t - t_ref), p.x, -p.z];
+        let bin = unix_ns.div_euclid(1000);
+        let best = (bin - 1..=bin + 1)
+            .filter_map(|b| by_time.get(&b))
+            .flatten()
+            .map(|c| (0..3).map(|i| (c[i] - q[i]).abs()).fold(0.0, f64::max))
+            .fold(f64::INFINITY, f64::min);
+        worst = worst.max(best);
+    }
+    assert!(
+        worst < 1e-3,
+        "a LAS point {worst} m from its decoded return at its time"
     );
 }
