@@ -37,6 +37,10 @@ pub struct ClockState {
     /// The bag's LiDAR topic holds point clouds: returns timed on the host's clock.
     #[serde(default)]
     pub clouds: bool,
+    /// The LiDAR is a Hesai (`georef --metadata`): its packets' date-time and microseconds
+    /// taken as UTC.
+    #[serde(default)]
+    pub hesai: bool,
     /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
     /// them, wrapped into the hour [s], the smallest and largest. A PPS-synchronised LiDAR and
     /// an NTP-synchronised recorder keep it at minus a few ms, constant; a free-running LiDAR
@@ -121,6 +125,9 @@ impl ClockState {
     /// One line for people.
     pub fn describe(&self) -> String {
         let n = self.packets();
+        if self.hesai {
+            return "Hesai: each packet's date-time and microseconds taken as UTC (a clock synchronised by GPS and PPS, or PTP: its GPS packets' PPS lock is not checked here; `spherecal decode` says it)".into();
+        }
         if self.clouds {
             return "host clock (ROS 2 point clouds: each return at its cloud's stamp plus its time; no LiDAR clock or PPS is recorded), mapped to GPS time by the INS messages' stamps (the least-delayed); the rest is the estimated time offset".into();
         }

@@ -474,6 +474,7 @@ pub fn run<C: Send>(
         let mut stats = al.run_stats(skips, ins, ring_full);
         stats.clock.bag = from_bag;
         stats.clock.clouds = clouds;
+        stats.clock.hesai = inp.hesai.is_some();
         stats.clock.stamp_minus_host_s = stamp_minus_host.range();
         let c = consumer
             .join()

@@ -126,7 +126,23 @@ impl RunStats {
                 ins.display()
             ));
         }
+        if self.align.data_packets == 0 && self.clock.hesai {
+            return Some(format!(
+                "{}: no Hesai data packet could be timed ({} skipped; {} whose date-time is no date)",
+                pcap.display(),
+                self.skips.total(),
+                self.align.packets_without_time
+            ));
+        }
         if self.align.data_packets == 0 {
+            let first = pcap.expand().ok().and_then(|f| f.first().cloned());
+            if let Some(m) = first.and_then(|f| crate::hesai::decode::sniff(&f)) {
+                return Some(format!(
+                    "{}: no Velodyne data packet, but {} data packets: `georef --metadata CORRECTIONS.csv` (the unit's angle correction file) georeferences them; calibrating a Hesai rig is not supported yet",
+                    pcap.display(),
+                    m.name()
+                ));
+            }
             return Some(format!(
                 "{}: no Velodyne data packet could be timed ({} skipped; {} without a time)",
                 pcap.display(),

@@ -476,26 +476,26 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
     )
     .unwrap();
     let las = common::tmp("hesai-georef", "cloud.las");
-    let out = common::stdout_of(
-        common::spherecal()
-            .arg("georef")
+    // `spherecal COMMAND` on the capture and the trajectory.
+    let survey = |command: &str| {
+        let mut c = common::spherecal();
+        c.arg(command)
             .arg("--pcap")
             .arg(&pcap)
-            .arg("--metadata")
-            .arg(&corr)
             .arg("--sbet")
             .arg(&sbet_path)
             .arg("--gps-week")
             .arg(format!("{week}"))
             .arg("--site")
             .arg(&site)
-            .args([
-                "--trajectory-datum",
-                "WGS84",
-                "--las-frame",
-                "local",
-                "--las",
-            ])
+            .args(["--trajectory-datum", "WGS84"]);
+        c
+    };
+    let out = common::stdout_of(
+        survey("georef")
+            .arg("--metadata")
+            .arg(&corr)
+            .args(["--las-frame", "local", "--las"])
             .arg(&las),
     );
     let mut r = las::Reader::from_path(&las).unwrap();
@@ -528,5 +528,17 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
     assert!(
         worst < 1e-3,
         "a LAS point {worst} m from its decoded return at its time"
+    );
+    assert!(
+        out.contains("clock: Hesai: each packet's date-time"),
+        "{out}"
+    );
+    // Without the corrections (or to calibrate): refused, saying what the capture holds.
+    let o = survey("calibrate").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("PandarXT32 data packets") && err.contains("not supported yet"),
+        "{err}"
     );
 }
