@@ -193,8 +193,10 @@ impl<'a> RingAligner<'a> {
         let t0 = spherecal::time::unix_ns_to_gps(unix + first, self.leap_seconds);
         let span = points
             .as_slice()
-            .last()
-            .map_or(0, |q| i64::from(q.offset_ns));
+            .iter()
+            .map(|q| i64::from(q.offset_ns))
+            .max()
+            .unwrap_or(0);
         self.pull_poses(host, ic, |core| core.wants_poses_at(t0, span));
         if let Some((_, points)) = &self.hesai {
             self.core.timed(t0, points.as_slice(), host, each, emit);
