@@ -119,17 +119,7 @@ fn ouster(
     };
     let path = f.display().to_string();
     say!("{}", s.render(&path, &m));
-    if let Some(why) = s.mismatch(&m) {
-        // The listing is not written (dropped uncommitted).
-        return fail("decode", format!("{path}: {why}"));
-    }
-    if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
-        return fail("decode", e);
-    }
-    match &s.stopped {
-        Some(stop) => fail("decode", format!("{path}: {stop}")),
-        None => ExitCode::SUCCESS,
-    }
+    finish(&path, s.mismatch(&m), out, s.stopped.as_deref())
 }
 
 /// A Hesai capture or bag with the unit's angle corrections.
@@ -150,19 +140,26 @@ fn hesai(
     };
     let path = f.display().to_string();
     say!("{}", s.render(&path, c.channels()));
-    if let Some(why) = s.mismatch(&c) {
+    let none = (s.data_packets == 0)
+        .then(|| "no Hesai data packet (PandarXT16, XT32, QT64 or QT128) to decode".to_string());
+    finish(&path, s.mismatch(&c).or(none), out, s.stopped.as_deref())
+}
+
+/// The end of an Ouster's or a Hesai's decode, its summary printed: refused for `why` (the
+/// listing dropped, not written), else the listing kept and a file that stopped early said.
+fn finish(
+    path: &str,
+    why: Option<String>,
+    out: Option<crate::output::Staged>,
+    stopped: Option<&str>,
+) -> ExitCode {
+    if let Some(why) = why {
         return fail("decode", format!("{path}: {why}"));
-    }
-    if s.data_packets == 0 {
-        return fail(
-            "decode",
-            format!("{path}: no Hesai data packet (PandarXT16, XT32, QT64 or QT128) to decode"),
-        );
     }
     if let Some(Err(e)) = out.map(crate::output::Staged::commit) {
         return fail("decode", e);
     }
-    match &s.stopped {
+    match stopped {
         Some(stop) => fail("decode", format!("{path}: {stop}")),
         None => ExitCode::SUCCESS,
     }
