@@ -92,3 +92,41 @@ impl<T: AsRef<[u8]>> GpsPacket<T> {
         self.buffer.as_ref()[field::PPS] == 1
     }
 }
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> GpsPacket<T> {
+    /// Write a GPS packet into `buffer` (512 bytes, else `None`): the UTC second `utc` (years
+    /// 2000-2099), the NMEA sentence it came from (cut to 84 bytes), the positioning status
+    /// (`b'A'`, `b'V'` or 0) and the PPS lock.
+    pub fn emit(
+        mut buffer: T,
+        utc: &UtcDateTime,
+        nmea: &[u8],
+        status: u8,
+        pps_locked: bool,
+    ) -> Option<Self> {
+        let b = buffer.as_mut();
+        if b.len() != GPS_PACKET_LEN || !(2000..2100).contains(&utc.year) {
+            return None;
+        }
+        b.fill(0xDF);
+        b[..field::NMEA.end].fill(0);
+        b[..2].copy_from_slice(&[0xFF, 0xEE]);
+        let two = |v: u8| [b'0' + v % 10, b'0' + v / 10 % 10];
+        let fields = [
+            (utc.year - 2000) as u8,
+            utc.month,
+            utc.day,
+            utc.second,
+            utc.minute,
+            utc.hour,
+        ];
+        for (k, v) in fields.into_iter().enumerate() {
+            b[field::DATE + 2 * k..field::DATE + 2 * k + 2].copy_from_slice(&two(v));
+        }
+        let n = nmea.len().min(field::NMEA.len());
+        b[field::NMEA.start..field::NMEA.start + n].copy_from_slice(&nmea[..n]);
+        b[field::STATUS] = status;
+        b[field::PPS] = u8::from(pps_locked);
+        Some(Self { buffer })
+    }
+}

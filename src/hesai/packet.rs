@@ -412,3 +412,107 @@ impl<T: AsRef<[u8]>> DataPacket<T> {
         ])
     }
 }
+
+impl Model {
+    /// The header's protocol version.
+    const fn version(self) -> [u8; 2] {
+        match self {
+            Model::Xt16 | Model::Xt32 => [6, 1],
+            Model::Qt64 => [3, 1],
+            Model::Qt128 => [3, 2],
+        }
+    }
+
+    /// The length of a packet [`DataPacket::emit`] writes: with the UDP sequence (the XT's and
+    /// QT64's flagged one; the QT128's is in its tail) and no signature.
+    pub const fn emitted_len(self) -> usize {
+        match self {
+            Model::Qt128 => self.packet_len(),
+            _ => self.packet_len() + 4,
+        }
+    }
+}
+
+/// The emit side: what a unit writes (the simulator).
+impl<T: AsRef<[u8]> + AsMut<[u8]>> DataPacket<T> {
+    /// Write an empty packet of `model` in `mode` into `buffer` (exactly
+    /// [`Model::emitted_len`] bytes, else `None`): the pre-header, header (distance unit 4 mm,
+    /// the UDP sequence flagged), no return in any block, the tail's return mode and
+    /// `sequence`. The fields are then set; [`Self::seal`] last.
+    pub fn emit(mut buffer: T, model: Model, mode: ReturnMode, sequence: u32) -> Option<Self> {
+        let b = buffer.as_mut();
+        if b.len() != model.emitted_len() {
+            return None;
+        }
+        b.fill(0);
+        let [major, minor] = model.version();
+        b[..field::BODY].copy_from_slice(&[
+            0xEE,
+            0xFF,
+            major,
+            minor,
+            0,
+            0,
+            model.channels() as u8,
+            model.blocks() as u8,
+            1,
+            4,
+            mode.returns() as u8,
+            u8::from(model != Model::Qt128),
+        ]);
+        let (tail, [m, ..]) = (model.tail_at(), model.tail_fields());
+        b[tail + m] = match mode {
+            ReturnMode::Single(x) | ReturnMode::Dual(x) => x,
+        };
+        match model {
+            Model::Qt128 => b[tail + 26..tail + 30].copy_from_slice(&sequence.to_le_bytes()),
+            _ => b[model.packet_len()..].copy_from_slice(&sequence.to_le_bytes()),
+        }
+        Some(Self {
+            buffer,
+            model,
+            mode,
+        })
+    }
+
+    fn bytes_mut(&mut self) -> &mut [u8] {
+        self.buffer.as_mut()
+    }
+
+    /// Set block `b`'s azimuth [0.01 deg].
+    pub fn set_azimuth(&mut self, b: usize, centideg: u16) {
+        let at = self.block_at(b);
+        self.bytes_mut()[at..at + 2].copy_from_slice(&centideg.to_le_bytes());
+    }
+
+    /// Set channel `ch`'s return in block `b`: distance [4 mm; 0: none] and reflectivity.
+    pub fn set_unit(&mut self, b: usize, ch: usize, distance: u16, reflectivity: u8) {
+        let at = self.block_at(b) + 2 + (ch % self.model.channels()) * field::UNIT;
+        let s = self.bytes_mut();
+        s[at..at + 2].copy_from_slice(&distance.to_le_bytes());
+        s[at + 2] = reflectivity;
+    }
+
+    /// Set the tail's motor speed [rpm], UTC date-time (year since 1900, month, day, hour,
+    /// minute, second) and microseconds within the second.
+    pub fn set_time(&mut self, rpm: u16, date_time: [u8; 6], micros: u32) {
+        let (tail, [_, r, d, us]) = (self.model.tail_at(), self.model.tail_fields());
+        let s = self.bytes_mut();
+        s[tail + r..tail + r + 2].copy_from_slice(&rpm.to_le_bytes());
+        s[tail + d..tail + d + 6].copy_from_slice(&date_time);
+        s[tail + us..tail + us + 4].copy_from_slice(&micros.to_le_bytes());
+    }
+
+    /// The QT128's CRCs of its body and tail (nothing for the others): call last.
+    pub fn seal(&mut self) {
+        if self.model != Model::Qt128 {
+            return;
+        }
+        let (end, tail) = (self.model.body_end(), self.model.tail_at());
+        let s = self.bytes_mut();
+        let body = CRC32.checksum(&s[field::BODY..end]);
+        s[end..end + 4].copy_from_slice(&body.to_le_bytes());
+        let t = CRC32.checksum(&s[tail..tail + 30]);
+        s[tail + 30..tail + 34].copy_from_slice(&t.to_le_bytes());
+    }
+}

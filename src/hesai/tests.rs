@@ -180,6 +180,60 @@ fn the_manuals_gps_example_reads_as_its_date_and_time() {
     assert!(GpsPacket::new_checked(&g[..511]).is_err());
 }
 
+/// The emit side writes the manual's example byte for byte.
+#[test]
+fn an_emitted_gps_packet_is_the_manuals_example() {
+    let mut g = std::vec![0xDFu8; 512];
+    g[..2].copy_from_slice(&[0xFF, 0xEE]);
+    g[2..14].copy_from_slice(b"912062354511");
+    g[14..102].fill(0);
+    let nmea = b"$GPRMC,115453.00,A,3101.7,N,12112.1,E,0.0,0.0,260219,,,A*6A";
+    g[18..18 + nmea.len()].copy_from_slice(nmea);
+    (g[506], g[507]) = (b'A', 1);
+    let utc = crate::time::UtcDateTime {
+        year: 2019,
+        month: 2,
+        day: 26,
+        hour: 11,
+        minute: 54,
+        second: 53,
+        nanos: 0,
+    };
+    let mut out = [0u8; 512];
+    assert!(GpsPacket::emit(&mut out[..], &utc, nmea, b'A', true).is_some());
+    assert_eq!(out[..], g[..]);
+    assert!(GpsPacket::emit(&mut out[..511], &utc, nmea, b'A', true).is_none());
+}
+
+/// The emit side writes the manual's layout: the hand-built XT32 packet (its factory byte
+/// aside, which a unit writes and the emit side leaves 0) and a QT128 whose CRCs agree.
+#[test]
+fn an_emitted_packet_is_the_manuals_layout() {
+    let mut want = xt32(0x39, true);
+    want[8] = 1; // the first block's return, as real units send it
+    want[1075] = 0; // the factory byte
+    let mut out = std::vec![0u8; Model::Xt32.emitted_len()];
+    let mut p = DataPacket::emit(&mut out[..], Model::Xt32, ReturnMode::Dual(0x39), 77).unwrap();
+    for b in 0..8u16 {
+        p.set_azimuth(usize::from(b), 100 * b + 1000);
+        for c in 0..32u16 {
+            p.set_unit(usize::from(b), usize::from(c), 10 * b + c + 1, c as u8);
+        }
+    }
+    p.set_time(600, [123, 1, 11, 1, 31, 17], 802_009);
+    p.seal();
+    assert_eq!(out, want);
+    let mut q = std::vec![0u8; Model::Qt128.emitted_len()];
+    let mut p = DataPacket::emit(&mut q[..], Model::Qt128, ReturnMode::Single(0x37), 9).unwrap();
+    p.set_unit(1, 5, 1234, 7);
+    p.seal();
+    let p = DataPacket::new_checked(&q[..]).unwrap();
+    let [(s0, c0), (s1, c1)] = p.crc().unwrap();
+    assert_eq!((s0, s1, p.udp_sequence()), (c0, c1, Some(9)));
+    assert_eq!(p.unit(1, 5), (1234, 7));
+    assert!(DataPacket::emit(&mut q[..10], Model::Qt128, ReturnMode::Single(0x37), 9).is_none());
+}
+
 /// A channel with no offsets points along the block's azimuth; the angle-sum tables agree with
 /// direct trigonometry at every offset.
 #[test]

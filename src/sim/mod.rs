@@ -11,7 +11,7 @@ pub mod trajectory;
 pub mod visibility;
 
 pub use ins::{InsConfig, InsSim};
-pub use lidar::{LidarConfig, LidarSim, SimPacket};
+pub use lidar::{LidarConfig, LidarSim, Scanner, SimPacket};
 pub use rng::Rng;
 pub use scene::{Frame, Object, Shape, Water};
 pub use trajectory::{Motion, Pass, State, Trajectory};

@@ -5,7 +5,6 @@
 
 use super::scene::{Frame, Shape};
 use super::World;
-use crate::velodyne::Model;
 use nalgebra::Vector3;
 
 /// What the samples found for one sphere.
@@ -52,7 +51,7 @@ impl Shape {
 /// objects with their velocity.
 pub fn visibility(
     world: &World<'_>,
-    model: Model,
+    scanner: super::lidar::Scanner,
     max_range: f64,
     target: u8,
     step_s: f64,
@@ -66,7 +65,6 @@ pub fn visibility(
     else {
         return v;
     };
-    let beams = model.beams();
     let mut blocked = [0u32; 64];
     let mut blocked_other = (0usize, 0u32);
     let mut inside = (usize::MAX, 0u32);
@@ -107,7 +105,7 @@ pub fn visibility(
             Some((a, b)) => (a.min(el), b.max(el)),
             None => (el, el),
         });
-        if !beams.iter().any(|b| (b.elevation_deg - el).abs() <= half) {
+        if !(0..scanner.lasers()).any(|k| (scanner.beam(k).elevation_deg - el).abs() <= half) {
             continue;
         }
         v.on_a_laser += 1;

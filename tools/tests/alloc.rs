@@ -61,7 +61,7 @@ fn steady_state() {
     let mut sim = LidarSim::new(&w, s.lidar_config());
     let mut p = [0u8; 1206];
     while let Some(k) = sim.next_packet(&mut p) {
-        let (_, len) = k.port_len();
+        let (_, len) = sim.port_len(&k);
         packets.push((matches!(k, SimPacket::Data { .. }), p[..len].to_vec()));
     }
     let targets: Vec<Target> = objects

@@ -22,9 +22,9 @@ impl LidarSim<'_, '_> {
                 continue;
             };
             let mut table = [[0u64; BODY_WORDS]; MAX_LASERS];
-            let model = self.cfg.model;
-            for (laser, row) in table.iter_mut().enumerate().take(model.lasers()) {
-                let beam = model.beam(laser);
+            let lasers = self.cfg.scanner.lasers();
+            for (laser, row) in table.iter_mut().enumerate().take(lasers) {
+                let beam = &self.beams[laser];
                 let o = mount.lever + mount.r_li * beam_origin_l(beam);
                 for k in 0..BODY_BINS {
                     // The bin is in the laser's own azimuth (its offset included).

@@ -1,4 +1,4 @@
-//! The LiDAR side of the simulator, for any [`Model`]: the firing schedule (the model's
+//! The LiDAR side of the simulator, for any [`Scanner`]: the firing schedule (the model's
 //! timing, manual appendix B, PROTOCOLS.md),
 //! ray tracing of every firing at the time and along the azimuth a decoder reconstructs from
 //! the packet (integer-microsecond stamps, block azimuths quantized to 0.01 deg, per-block
@@ -38,18 +38,20 @@ use super::scene::{Frame, Water};
 use super::World;
 use crate::georef::{beam_origin_l, beam_unit, PlatformPose};
 use crate::time::{gps_to_unix_ns, micros_past_hour, unix_ns_to_gps, GpsTime, UtcDateTime};
-use crate::velodyne::data::{field, DATA_PACKET_LEN};
-use crate::velodyne::firing::firing_offset_ns;
-use crate::velodyne::position::{write_gprmc, POSITION_PACKET_LEN};
-use crate::velodyne::{
-    DataPacket, Model, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, MAX_LASERS, POSITION_PORT,
-};
+use crate::velodyne::{Beam as Laser, PpsStatus, ReturnMode, MAX_LASERS};
 use core::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, Vector3};
+use scanner::{Stamp, Writer, MAX_BLOCKS};
 
 mod body;
 mod receiver;
+mod scanner;
 mod trace;
+
+pub use scanner::Scanner;
+
+/// The longest packet any scanner's simulation writes.
+pub const MAX_PACKET_LEN: usize = 1206;
 
 /// Most target spheres a scene may have.
 pub const MAX_TARGETS: usize = 16;
@@ -72,8 +74,8 @@ type BodyTable = [[u64; BODY_WORDS]; MAX_LASERS];
 /// LiDAR settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LidarConfig {
-    /// The sensor model: its lasers, timing, range unit and product byte.
-    pub model: Model,
+    /// The scanner: its lasers, timing, range unit and packets.
+    pub scanner: Scanner,
     /// Rotation rate, 300..=1200 rpm.
     pub rpm: f64,
     /// Return mode.
@@ -136,7 +138,7 @@ pub struct LidarConfig {
 impl Default for LidarConfig {
     fn default() -> Self {
         Self {
-            model: Model::Vlp16,
+            scanner: Scanner::Velodyne(crate::velodyne::Model::Vlp16),
             rpm: 600.0,
             mode: ReturnMode::Strongest,
             start_azimuth: 0.0,
@@ -167,28 +169,19 @@ impl Default for LidarConfig {
 /// What [`LidarSim::next_packet`] wrote.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SimPacket {
-    /// A data packet (1206 bytes, UDP 2368), sent at `time`, or lost on the way.
+    /// A data packet, sent at `time`, or lost on the way.
     Data {
         /// GPS time of the packet's first firing (= its timestamp).
         time: GpsTime,
         /// The packet was lost: do not write it.
         dropped: bool,
     },
-    /// A position packet (512 bytes, UDP 8308).
+    /// The once-a-second time packet: a Velodyne's position packet (512 bytes, UDP 8308), a
+    /// Hesai's GPS packet (512 bytes, UDP 10110).
     Position {
         /// GPS time it was sent.
         time: GpsTime,
     },
-}
-
-impl SimPacket {
-    /// UDP destination port and payload length.
-    pub fn port_len(&self) -> (u16, usize) {
-        match self {
-            SimPacket::Data { .. } => (DATA_PORT, DATA_PACKET_LEN),
-            SimPacket::Position { .. } => (POSITION_PORT, POSITION_PACKET_LEN),
-        }
-    }
 }
 
 /// Counts of a run.
@@ -198,7 +191,7 @@ pub struct LidarStats {
     pub data_packets: u64,
     /// Data packets lost.
     pub dropped: u64,
-    /// Position packets made.
+    /// Position (Hesai: GPS) packets made.
     pub position_packets: u64,
     /// Firings (rays) traced or culled.
     pub rays: u64,
@@ -344,6 +337,8 @@ pub struct LidarSim<'w, 'a> {
     glint_cos: f64,
     /// Vessel parts: object index and the firings that can hit it.
     body: heapless::Vec<(u16, BodyTable), MAX_BODY_TABLES>,
+    /// Each laser's geometry.
+    beams: [Laser; MAX_LASERS],
     /// Each laser's beam origin in the body frame: `a + R_li v_k e_z`.
     origins: [Vector3<f64>; MAX_LASERS],
     /// Counts so far.
@@ -355,11 +350,6 @@ pub struct LidarSim<'w, 'a> {
     trace_rng: Rng,
     /// Each laser's arc on a target (the leading-edge dropout).
     arcs: [Arc; MAX_LASERS],
-}
-
-/// Packet period [ns]: 12 firing cycles (single) or 6 pairs (dual) of the model's.
-pub fn packet_period_ns(model: Model, mode: ReturnMode) -> i64 {
-    i64::from(model.packet_period_ns(mode == ReturnMode::Dual))
 }
 
 /// An angle wrapped into [-pi, pi).
@@ -414,7 +404,8 @@ impl Beam {
 impl<'w, 'a> LidarSim<'w, 'a> {
     /// A simulator over the whole trajectory.
     pub fn new(world: &'w World<'a>, cfg: LidarConfig) -> Self {
-        let period_ns = packet_period_ns(cfg.model, cfg.mode);
+        let period_ns = cfg.scanner.packet_period_ns(cfg.mode);
+        let beams: [Laser; MAX_LASERS] = core::array::from_fn(|k| cfg.scanner.beam(k));
         let packets = (world.trajectory.duration() * 1e9 / period_ns as f64) as u64;
         let start_unix = gps_to_unix_ns(world.start, world.leap_seconds);
         Self {
@@ -437,8 +428,9 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             glint_cos: world.water.map_or(2.0, |w| libm::cos(w.specular)),
             body: heapless::Vec::new(),
             origins: core::array::from_fn(|k| {
-                world.mount.lever + world.mount.r_li * beam_origin_l(cfg.model.beam(k))
+                world.mount.lever + world.mount.r_li * beam_origin_l(&beams[k])
             }),
+            beams,
             stats: LidarStats::default(),
             hits: heapless::Vec::new(),
             traced: heapless::Vec::new(),
@@ -475,16 +467,21 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         (libm::ceil(t * 1e9 / self.period_ns as f64).max(0.0) as u64).min(self.packets)
     }
 
-    /// The sensor's timestamp of a true GPS time: microseconds past its hour, on its clock.
-    fn stamp(&self, t: GpsTime) -> u32 {
+    /// A true GPS time on the sensor's clock.
+    fn on_clock(&self, t: GpsTime) -> GpsTime {
         let drift = (self.cfg.clock_drift_ppm * 1e-6 * (t.0 - self.world.start.0) as f64) as i64;
-        micros_past_hour(
-            GpsTime(
-                t.0.saturating_add(self.cfg.clock_offset_ns)
-                    .saturating_add(drift),
-            ),
-            self.world.leap_seconds,
+        GpsTime(
+            t.0.saturating_add(self.cfg.clock_offset_ns)
+                .saturating_add(drift),
         )
+    }
+
+    /// UDP destination port and payload length of a packet this simulator wrote.
+    pub fn port_len(&self, p: &SimPacket) -> (u16, usize) {
+        match p {
+            SimPacket::Data { .. } => self.cfg.scanner.data_port_len(),
+            SimPacket::Position { .. } => self.cfg.scanner.time_port_len(),
+        }
     }
 
     /// Sensor azimuth [rad] at a GPS time.
@@ -500,7 +497,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         }
     }
 
-    /// Write the next packet into `out` (at least 1206 bytes); `None` at the end.
+    /// Write the next packet into `out` (at least [`MAX_PACKET_LEN`] bytes); `None` at the end.
     pub fn next_packet(&mut self, out: &mut [u8]) -> Option<SimPacket> {
         self.next(out, None, false)
     }
@@ -520,7 +517,8 @@ impl<'w, 'a> LidarSim<'w, 'a> {
     }
 
     fn next(&mut self, out: &mut [u8], replay: Option<&[Traced]>, skip: bool) -> Option<SimPacket> {
-        if self.k >= self.packets || out.len() < DATA_PACKET_LEN {
+        let (_, len) = self.cfg.scanner.data_port_len();
+        if self.k >= self.packets || out.len() < len.max(512) {
             return None;
         }
         let t = self.packet_time(self.k);
@@ -549,77 +547,78 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 dropped: true,
             });
         }
-        self.write_data(t, dropped, replay, &mut out[..DATA_PACKET_LEN]);
+        self.write_data(t, dropped, replay, &mut out[..len]);
         Some(SimPacket::Data { time: t, dropped })
     }
 
     fn write_position(&self, time: GpsTime, out: &mut [u8]) {
-        let buf = &mut out[..POSITION_PACKET_LEN];
-        buf.fill(0);
         let utc = UtcDateTime::from_unix_ns(gps_to_unix_ns(time, self.world.leap_seconds));
         let whole = UtcDateTime { nanos: 0, ..utc };
         let g = self.world.site.to_geodetic(&self.pose(time).position);
-        let mut s = [0u8; 96];
-        let n = write_gprmc(
-            &mut s,
+        scanner::write_time_packet(
+            self.cfg.scanner,
+            out,
             &whole,
-            g.lat.to_degrees(),
-            g.lon.to_degrees(),
+            (g.lat.to_degrees(), g.lon.to_degrees()),
             self.cfg.rmc_valid,
-        )
-        .unwrap_or(0);
-        let mut p = PositionPacket::new_unchecked(buf);
-        p.set_timestamp_us(self.stamp(time));
-        p.set_pps(self.cfg.pps);
-        p.set_nmea(&s[..n]);
+            micros_past_hour(self.on_clock(time), self.world.leap_seconds),
+            self.cfg.pps,
+        );
     }
 
-    /// The azimuth [rad] the decoder reconstructs for channel `ch` of block `b` (PROTOCOLS.md:
-    /// interpolated per block; the step to the next block or pair, the last reuses the
-    /// previous; plus the laser's azimuth offset), and the step from the first block's [rad].
+    /// The azimuth [rad] the decoder reconstructs for channel `ch` of block `b`, and the
+    /// step from the first block's [rad]. A Velodyne's is interpolated per block (PROTOCOLS.md:
+    /// the step to the next block or pair, the last reuses the previous) plus the laser's
+    /// azimuth offset; a Hesai's is its block's plus its correction.
     fn firing_azimuth(
-        model: Model,
-        az: &[u16; field::BLOCKS],
+        scanner: Scanner,
+        beams: &[Laser; MAX_LASERS],
+        az: &[u16; MAX_BLOCKS],
         b: usize,
         stride: usize,
         ch: usize,
     ) -> (f64, f64) {
-        let next = b + stride;
         let gap = |i: usize, j: usize| {
             f64::from(((36_000 + u32::from(az[j]) - u32::from(az[i])) % 36_000) as u16)
         };
-        let step = if next < field::BLOCKS {
-            gap(b, next)
-        } else {
-            gap(b - stride, b)
+        let laser = scanner.laser_of(ch);
+        let off = beams[laser].azimuth_offset_deg * 100.0;
+        let interpolated = match scanner {
+            Scanner::Velodyne(model) => {
+                let step = if b + stride < scanner.blocks() {
+                    gap(b, b + stride)
+                } else {
+                    gap(b - stride, b)
+                };
+                let c = model.channels()[ch % MAX_LASERS];
+                step * f64::from(c.offset_ns) / f64::from(model.block_ns())
+            }
+            Scanner::Hesai(_) => 0.0,
         };
-        let c = model.channels()[ch % field::CHANNELS];
-        let f = f64::from(c.offset_ns) / f64::from(model.block_ns());
-        let off = model.beam(usize::from(c.laser)).azimuth_offset_deg * 100.0;
-        let a = (f64::from(az[b]) + step * f + off).to_radians() / 100.0;
-        let rel = (gap(0, b) + step * f + off).to_radians() / 100.0;
+        let a = (f64::from(az[b]) + interpolated + off).to_radians() / 100.0;
+        let rel = (gap(0, b) + interpolated + off).to_radians() / 100.0;
         (a, rel)
     }
 
     fn write_data(&mut self, t: GpsTime, dropped: bool, replay: Option<&[Traced]>, buf: &mut [u8]) {
-        let (model, mode) = (self.cfg.model, self.cfg.mode);
+        let (scanner, mode) = (self.cfg.scanner, self.cfg.mode);
         self.hits.clear();
         self.traced.clear();
-        buf.fill(0);
-        let mut p = DataPacket::new_unchecked(buf);
-        let mut az = [0u16; field::BLOCKS];
-        for (b, a) in az.iter_mut().enumerate() {
-            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, 0)));
+        let stamp = Stamp {
+            first: self.on_clock(t),
+            leap_seconds: self.world.leap_seconds,
+            sequence: self.k as u32,
+            rpm: libm::round(self.cfg.rpm) as u16,
+        };
+        let mut az = [0u16; MAX_BLOCKS];
+        let blocks = scanner.blocks();
+        for (b, a) in az.iter_mut().enumerate().take(blocks) {
+            let tb = GpsTime(t.0 + scanner.firing_offset_ns(mode, b, 0));
             let cdeg = libm::round(self.azimuth_at(tb).to_degrees() * 100.0) as i64;
             *a = cdeg.rem_euclid(36_000) as u16;
-            p.set_flag(b);
-            p.set_azimuth_raw(b, *a);
         }
-        p.set_timestamp_us(self.stamp(t));
-        p.set_return_mode(mode);
-        p.set_product_raw(model.product());
         let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
-        self.stats.rays += (field::BLOCKS / stride * field::CHANNELS) as u64;
+        self.stats.rays += (blocks / stride * scanner.channels()) as u64;
         // What the firings return: traced now (also for a lost packet, so that a trace does
         // not depend on the noise seed), or as an earlier trace found it.
         match replay {
@@ -629,8 +628,16 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             }
             None => self.trace_packet(t, &az, stride),
         }
-        if !dropped {
-            self.emit(&mut p, t, &az, stride);
+        if dropped {
+            return;
         }
+        let Some(mut p) = Writer::new(scanner, mode, buf, stamp) else {
+            return;
+        };
+        for (b, &a) in az.iter().enumerate().take(blocks) {
+            p.set_azimuth(b, a);
+        }
+        self.emit(&mut p, t, &az, stride);
+        p.finish();
     }
 }

@@ -78,7 +78,7 @@ impl LidarSim<'_, '_> {
             }
         };
         for (block, i) in picks {
-            if block >= field::BLOCKS {
+            if block >= self.cfg.scanner.blocks() {
                 continue;
             }
             let e = echoes[i];
@@ -98,13 +98,13 @@ impl LidarSim<'_, '_> {
     /// list.
     pub(super) fn emit(
         &mut self,
-        p: &mut DataPacket<&mut [u8]>,
+        p: &mut Writer<'_>,
         t: GpsTime,
-        az: &[u16; field::BLOCKS],
+        az: &[u16; MAX_BLOCKS],
         stride: usize,
     ) {
-        let (model, mode) = (self.cfg.model, self.cfg.mode);
-        let unit = model.distance_unit_m();
+        let (scanner, mode) = (self.cfg.scanner, self.cfg.mode);
+        let unit = scanner.distance_unit_m();
         for k in 0..self.traced.len() {
             let e = self.traced[k];
             let target = self
@@ -121,20 +121,20 @@ impl LidarSim<'_, '_> {
             let (block, ch) = (usize::from(e.block), usize::from(e.channel));
             // The firing's block: in dual mode the pair's even one.
             let fb = block - block % stride;
-            let (a, _) = Self::firing_azimuth(model, az, fb, stride, ch);
-            let tf = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, fb, ch)));
+            let (a, _) = Self::firing_azimuth(scanner, &self.beams, az, fb, stride, ch);
+            let tf = GpsTime(t.0 + scanner.firing_offset_ns(mode, fb, ch));
             let energy = f64::from(e.energy);
             let cos = f64::from(e.cos);
             let mut weak = 1.0;
             if target.is_some() {
-                let laser = ch % model.lasers();
+                let laser = scanner.laser_of(ch);
                 match self.arc_step(laser, e.obj, tf.0) {
                     ArcStep::Lost => continue,
                     ArcStep::Leading
                         if self.cfg.edge_dropout > 0.0
                             && self.rng.chance(self.cfg.edge_dropout) =>
                     {
-                        self.arcs[laser].drop_ns = tf.0 + i64::from(model.laser_period_ns());
+                        self.arcs[laser].drop_ns = tf.0 + i64::from(scanner.laser_period_ns());
                         weak = self.rng.range(0.1, 0.35);
                         self.stats.edge_dropouts += 1;
                     }
@@ -180,7 +180,7 @@ impl LidarSim<'_, '_> {
     /// leading edge (the laser's previous firing was not on it), a firing the arc loses, or
     /// on along it.
     fn arc_step(&mut self, laser: usize, obj: u16, t_ns: i64) -> ArcStep {
-        let period = i64::from(self.cfg.model.laser_period_ns());
+        let period = i64::from(self.cfg.scanner.laser_period_ns());
         let arc = &mut self.arcs[laser % MAX_LASERS];
         let along = arc.obj == obj && t_ns.saturating_sub(arc.last_ns) <= period + period / 2;
         (arc.obj, arc.last_ns) = (obj, t_ns);

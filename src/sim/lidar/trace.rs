@@ -9,7 +9,8 @@ impl LidarSim<'_, '_> {
     /// (and the object moves) in half the span.
     pub(super) fn cache_windows(&mut self, t: GpsTime) {
         self.windows.clear();
-        let span = self.period_ns * CACHE_PACKETS as i64 + 2 * i64::from(self.cfg.model.block_ns());
+        let span =
+            self.period_ns * CACHE_PACKETS as i64 + 2 * i64::from(self.cfg.scanner.block_ns());
         let (p0, p1) = (self.pose(t), self.pose(GpsTime(t.0 + span)));
         let mid = GpsTime(t.0 + span / 2);
         let pose = self.pose(mid);
@@ -20,7 +21,7 @@ impl LidarSim<'_, '_> {
         let origin = pose.position + pose.r_ig * mount.lever;
         let to_l = (pose.r_ig * mount.r_li).transpose();
         let t_mid = self.world.t_of(mid);
-        let (lo, hi) = self.cfg.model.elevation_span_deg();
+        let (lo, hi) = self.cfg.scanner.elevation_span_deg();
         let (lo, hi) = ((lo - 1.0).to_radians(), (hi + 1.0).to_radians());
         let all = !self.cfg.cull;
         for (i, obj) in self.world.objects.iter().enumerate().take(MAX_OBJECTS) {
@@ -68,13 +69,14 @@ impl LidarSim<'_, '_> {
     }
 
     /// Trace every firing of the packet at `t` (block azimuths `az`) into `self.traced`.
-    pub(super) fn trace_packet(&mut self, t: GpsTime, az: &[u16; field::BLOCKS], stride: usize) {
-        let (model, mode) = (self.cfg.model, self.cfg.mode);
+    pub(super) fn trace_packet(&mut self, t: GpsTime, az: &[u16; MAX_BLOCKS], stride: usize) {
+        let (scanner, mode) = (self.cfg.scanner, self.cfg.mode);
+        let blocks = scanner.blocks();
 
         // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm), their
         // centres made relative to the first block's azimuth (no wrapping per firing).
         let a0 = f64::from(az[0]).to_radians() / 100.0;
-        let a1 = f64::from(az[field::BLOCKS - 1]).to_radians() / 100.0;
+        let a1 = f64::from(az[blocks - 1]).to_radians() / 100.0;
         let span_half = wrap_pi(a1 - a0).abs() / 2.0 + 0.01;
         let mid = a0 + wrap_pi(a1 - a0) / 2.0;
         self.live.clear();
@@ -109,22 +111,22 @@ impl LidarSim<'_, '_> {
         let mut pose_a: Option<(GpsTime, PlatformPose, PlatformPose)> = None;
         let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
         let mut b = 0;
-        while b < field::BLOCKS {
-            let tb = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, 0)));
+        while b < blocks {
+            let tb = GpsTime(t.0 + scanner.firing_offset_ns(mode, b, 0));
             let (ta, pa, pe) = match pose_a {
                 Some((ta, pa, pe)) if ta == tb => (ta, pa, pe),
                 _ => {
                     let pa = self.pose(tb);
-                    let pe = self.pose(GpsTime(tb.0 + i64::from(model.block_ns())));
+                    let pe = self.pose(GpsTime(tb.0 + i64::from(scanner.block_ns())));
                     pose_a = Some((tb, pa, pe));
                     (tb, pa, pe)
                 }
             };
             // Nadir in the LiDAR frame (for the water's glints).
             let nadir_l = (pa.r_ig * self.world.mount.r_li).tr_mul(&Vector3::z());
-            for ch in 0..field::CHANNELS {
-                let laser = usize::from(model.channels()[ch].laser);
-                let (a, rel) = Self::firing_azimuth(model, az, b, stride, ch);
+            for ch in 0..scanner.channels() {
+                let laser = scanner.laser_of(ch);
+                let (a, rel) = Self::firing_azimuth(scanner, &self.beams, az, b, stride, ch);
                 // The objects whose windows hold this firing (vessel parts by their tables).
                 near.clear();
                 let bin = Self::body_bin(a);
@@ -146,14 +148,14 @@ impl LidarSim<'_, '_> {
                     continue;
                 }
                 let (sa, ca) = libm::sincos(a);
-                let u = beam_unit(model.beam(laser), sa, ca);
+                let u = beam_unit(&self.beams[laser], sa, ca);
                 let glint = glints && u.dot(&nadir_l) >= self.glint_cos;
                 if near.is_empty() && !glint {
                     continue;
                 }
                 self.stats.candidates += 1;
-                let tf = GpsTime(t.0 + i64::from(firing_offset_ns(model, mode, b, ch)));
-                let f = (tf.0 - ta.0) as f64 / f64::from(model.block_ns());
+                let tf = GpsTime(t.0 + scanner.firing_offset_ns(mode, b, ch));
+                let f = (tf.0 - ta.0) as f64 / f64::from(scanner.block_ns());
                 let pf = PlatformPose {
                     position: pa.position + (pe.position - pa.position) * f,
                     r_ig: pa.r_ig + (pe.r_ig - pa.r_ig) * f,
@@ -182,11 +184,11 @@ impl LidarSim<'_, '_> {
         echoes: &mut heapless::Vec<Echo, 5>,
     ) {
         let mount = &self.world.mount;
-        let beam = self.cfg.model.beam(laser);
-        let u = beam_unit(beam, s, c);
+        let beam = self.beams[laser % MAX_LASERS];
+        let u = beam_unit(&beam, s, c);
         let sig = [self.cfg.divergence[0] / 4.0, self.cfg.divergence[1] / 4.0];
         let in_l = Beam {
-            o: beam_origin_l(beam),
+            o: beam_origin_l(&beam),
             d: u,
             along: Vector3::zeros(),
             across: Vector3::zeros(),

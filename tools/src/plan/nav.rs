@@ -61,7 +61,7 @@ impl NavPlan {
             }
         }
         let b = s.truth_mount().params().0;
-        let unit = s.model().unwrap_or_default().distance_unit_m();
+        let unit = s.scanner().unwrap_or_default().distance_unit_m();
         Some(Self {
             model: NavModel {
                 position_sigma: c.position_sigma,

@@ -10,7 +10,6 @@ use spherecal::align::window::{Observation, Target};
 use spherecal::calib::predict::{Info, Predicted};
 use spherecal::georef::{beam_origin_l, beam_unit};
 use spherecal::sim::{LidarSim, SimPacket, World};
-use spherecal::velodyne::data::field;
 
 /// A stretch of the trajectory: a pass, or the turn after one.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -153,8 +152,8 @@ fn observe_packets(
     }
     let mut sim = LidarSim::new(world, cfg);
     sim.restrict(first, end);
-    let model = cfg.model;
-    let mut buf = [0u8; 1206];
+    let scanner = cfg.scanner;
+    let mut buf = [0u8; spherecal::sim::lidar::MAX_PACKET_LEN];
     let state = |t: f64| world.trajectory.state(t);
     while let Some(p) = sim.next_packet(&mut buf) {
         let SimPacket::Data { time, .. } = p else {
@@ -174,10 +173,11 @@ fn observe_packets(
             let velocity = (b.position - a.position) / (2.0 * RATE_HALF_S);
             let turn = Rotation3::from_matrix_unchecked(b.r_ig() * a.r_ig().transpose());
             let omega: Vector3<f64> = turn.scaled_axis() / (2.0 * RATE_HALF_S);
-            let laser = model.channels()[usize::from(h.channel) % field::CHANNELS].laser;
-            let beam = model.beam(usize::from(laser));
+            let laser = scanner.laser_of(usize::from(h.channel));
+            let beam = scanner.beam(laser);
             let (sa, ca) = h.azimuth.sin_cos();
-            let q = beam_unit(beam, sa, ca) * h.range + beam_origin_l(beam);
+            let q = beam_unit(&beam, sa, ca) * h.range + beam_origin_l(&beam);
+            let laser = laser as u8;
             out.push((
                 t,
                 j,
@@ -256,7 +256,7 @@ pub fn geometry_of(
     segs: Vec<(Segment, f64, f64)>,
 ) -> Geometry {
     let targets = targets_of_scenario(s);
-    let model = noise.model(s.model().unwrap_or_default().distance_unit_m());
+    let model = noise.model(s.scanner().unwrap_or_default().distance_unit_m());
     let b = s.truth_mount().params().0;
     let keep = 1.0 - s.lidar.drop_prob;
     let mut cells = vec![vec![Cell::default(); targets.len()]; segs.len()];

@@ -385,7 +385,7 @@ fn write_lidar(
             }
             SimPacket::Position { time } => time,
         };
-        let (port, len) = pkt.port_len();
+        let (port, len) = lidar.port_len(&pkt);
         build_udp_frame(&mut frame, &ep, port, port, &payload[..len])
             .map_err(|e| io(&pcap_path, e))?;
         let host = HostTime(gps_to_unix_ns(time, s.leap_seconds) + NETWORK_DELAY_NS);
@@ -417,7 +417,7 @@ pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
     let lidar = s.lidar_config();
     let v = s
         .with_world(|w| {
-            spherecal::sim::visibility::visibility(w, lidar.model, lidar.max_range, j as u8, 0.25)
+            spherecal::sim::visibility::visibility(w, lidar.scanner, lidar.max_range, j as u8, 0.25)
         })
         .ok()?;
     let name = |i: usize| {
@@ -446,7 +446,7 @@ pub fn why_unseen(s: &Scenario, j: usize) -> Option<String> {
     }
     if v.on_a_laser == 0 {
         let (a, b) = v.elevation_deg.unwrap_or((0.0, 0.0));
-        let (lo, hi) = lidar.model.elevation_span_deg();
+        let (lo, hi) = lidar.scanner.elevation_span_deg();
         return Some(format!(
             "{id}: never on a laser: it is {a:.1} to {b:.1} deg above the LiDAR's equator, its lasers {lo:.1} to {hi:.1} deg"
         ));

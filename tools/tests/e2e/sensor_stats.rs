@@ -84,7 +84,7 @@ fn sweeps(s: &Scenario) -> Vec<Sweep> {
                 let o = nalgebra::Vector3::new(
                     0.0,
                     0.0,
-                    cfg.model.beam(usize::from(q.laser)).vertical_offset_m,
+                    cfg.scanner.beam(usize::from(q.laser)).vertical_offset_m,
                 );
                 let p = nalgebra::Vector3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
                 let range = (p - o).norm();
@@ -195,7 +195,7 @@ impl Stats {
 /// The statistics of scenario `name`'s sphere returns.
 fn stats(name: &str) -> Stats {
     let s = Scenario::load(name).unwrap();
-    let period = i64::from(s.lidar_config().model.laser_period_ns());
+    let period = i64::from(s.lidar_config().scanner.laser_period_ns());
     let sweeps = sweeps(&s);
     // Per range bin (5-12, 12-22, 22-35 m): the central returns' range residuals; every
     // residual for the tails; blooming returns (missing the sphere) apart.

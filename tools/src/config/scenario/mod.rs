@@ -435,9 +435,14 @@ impl Scenario {
             + tr.turn_s * tr.pass.len().saturating_sub(1) as f64
     }
 
-    /// The LiDAR model.
+    /// The scanner simulated (`lidar.model`: a Velodyne's key, `xt16` or `xt32`).
+    pub fn scanner(&self) -> Option<spherecal::sim::Scanner> {
+        spherecal::sim::Scanner::parse(&self.lidar.model)
+    }
+
+    /// The Velodyne model, when the scanner is one.
     pub fn model(&self) -> Option<spherecal::velodyne::Model> {
-        spherecal::velodyne::Model::parse(&self.lidar.model)
+        self.scanner().and_then(|s| s.velodyne())
     }
 
     /// The return mode.
@@ -655,10 +660,10 @@ impl Scenario {
 
     /// LiDAR configuration.
     pub fn lidar_config(&self) -> LidarConfig {
-        let model = self.model().unwrap_or_default();
+        let scanner = self.scanner().unwrap_or_default();
         LidarConfig {
-            model,
-            max_range: model.max_range_m(),
+            scanner,
+            max_range: scanner.max_range_m(),
             rpm: self.lidar.rpm,
             mode: self.return_mode().unwrap_or(ReturnMode::Strongest),
             range_sigma: self.lidar.range_sigma_m,

@@ -110,9 +110,9 @@ impl Scenario {
     /// The LiDAR model.
     fn validate_lidar(&self) -> Result<(), ScenarioError> {
         check(
-            self.model().is_some(),
+            self.scanner().is_some(),
             "lidar.model",
-            "expected vlp16, puck-hires, hdl32e or vlp32c",
+            "expected vlp16, puck-hires, hdl32e, vlp32c, xt16 or xt32",
         )?;
         check(
             (300.0..=1200.0).contains(&self.lidar.rpm),

@@ -1,0 +1,347 @@
+//! What the simulator needs of a scanner, for each family it writes: the beams, the firing
+//! schedule, the azimuth a decoder gives each firing, and the packets.
+//!
+//! - Velodyne (VLP-16, Puck Hi-Res, HDL-32E, VLP-32C): 12 blocks of 32 channels, the packet
+//!   stamped at its first firing (microseconds past the hour), the azimuth interpolated within
+//!   a block (manual 9.5); position packets with `$GPRMC` and the PPS state (UDP 8308).
+//! - Hesai PandarXT16 / XT32: 8 blocks of 16 / 32 channels, a firing every 50 us, the packet's
+//!   absolute time (UTC date-time + microseconds) the trigger of its last firing, a channel's
+//!   azimuth its block's plus its correction, 4 mm distances (PandarXT-32 manual 3.1.2 and the
+//!   appendix "Absolute Time and Laser Firing Time"); GPS packets once a second (UDP 10110).
+//!   The beams are the manual's nominal channel table (elevation 15 deg down in 1 deg steps
+//!   (XT32) or 2 deg steps (XT16), no azimuth correction), which [`Scanner::correction_row`]
+//!   writes as the unit's correction file.
+
+use crate::hesai;
+use crate::time::{gps_to_unix_ns, micros_past_hour, GpsTime, UtcDateTime};
+use crate::velodyne::position::{write_gprmc, POSITION_PACKET_LEN};
+use crate::velodyne::{
+    self, Beam, Model, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, MAX_LASERS, POSITION_PORT,
+};
+
+/// Most blocks a packet of any scanner has.
+pub const MAX_BLOCKS: usize = 12;
+
+/// The Hesai XT's time between firings [ns] (20 kHz).
+const HESAI_FIRING_NS: u32 = 50_000;
+
+/// A scanner the simulator writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scanner {
+    /// A Velodyne.
+    Velodyne(Model),
+    /// A Hesai PandarXT16 or XT32 (the QT's are read, not simulated).
+    Hesai(hesai::Model),
+}
+
+impl Default for Scanner {
+    fn default() -> Self {
+        Scanner::Velodyne(Model::Vlp16)
+    }
+}
+
+impl From<Model> for Scanner {
+    fn from(m: Model) -> Self {
+        Scanner::Velodyne(m)
+    }
+}
+
+impl Scanner {
+    /// Every scanner the simulator writes.
+    pub const ALL: [Scanner; 6] = [
+        Scanner::Velodyne(Model::Vlp16),
+        Scanner::Velodyne(Model::PuckHiRes),
+        Scanner::Velodyne(Model::Hdl32e),
+        Scanner::Velodyne(Model::Vlp32c),
+        Scanner::Hesai(hesai::Model::Xt16),
+        Scanner::Hesai(hesai::Model::Xt32),
+    ];
+
+    /// The scanner of a scenario's key: a Velodyne model's (`vlp16` ...), `xt16` or `xt32`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "xt16" | "pandarxt16" | "pandarxt-16" => Some(Scanner::Hesai(hesai::Model::Xt16)),
+            "xt32" | "pandarxt32" | "pandarxt-32" => Some(Scanner::Hesai(hesai::Model::Xt32)),
+            _ => Model::parse(s).map(Scanner::Velodyne),
+        }
+    }
+
+    /// The key [`Self::parse`] takes.
+    pub fn key(self) -> &'static str {
+        match self {
+            Scanner::Velodyne(m) => m.key(),
+            Scanner::Hesai(hesai::Model::Xt16) => "xt16",
+            Scanner::Hesai(_) => "xt32",
+        }
+    }
+
+    /// The Velodyne model, if it is one.
+    pub fn velodyne(self) -> Option<Model> {
+        match self {
+            Scanner::Velodyne(m) => Some(m),
+            Scanner::Hesai(_) => None,
+        }
+    }
+
+    /// Lasers (Hesai: channels).
+    pub fn lasers(self) -> usize {
+        match self {
+            Scanner::Velodyne(m) => m.lasers(),
+            Scanner::Hesai(m) => m.channels(),
+        }
+    }
+
+    /// Laser `laser`'s geometry.
+    pub fn beam(self, laser: usize) -> Beam {
+        match self {
+            Scanner::Velodyne(m) => *m.beam(laser),
+            Scanner::Hesai(m) => {
+                let step = if m == hesai::Model::Xt16 { 2.0 } else { 1.0 };
+                let el = 15.0 - step * (laser % m.channels()) as f64;
+                let (sin_el, cos_el) = libm::sincos(el.to_radians());
+                Beam {
+                    elevation_deg: el,
+                    azimuth_offset_deg: 0.0,
+                    vertical_offset_m: 0.0,
+                    cos_el,
+                    sin_el,
+                    cos_az: 1.0,
+                    sin_az: 0.0,
+                }
+            }
+        }
+    }
+
+    /// Row `laser` of the unit's correction file (`channel,elevation,azimuth`, channel from
+    /// 1), for the Hesai; `None` for a Velodyne or beyond the channels.
+    pub fn correction_row(self, laser: usize) -> Option<(usize, f64, f64)> {
+        match self {
+            Scanner::Hesai(m) if laser < m.channels() => {
+                let b = self.beam(laser);
+                Some((laser + 1, b.elevation_deg, b.azimuth_offset_deg))
+            }
+            _ => None,
+        }
+    }
+
+    /// The lowest and highest elevation [deg].
+    pub fn elevation_span_deg(self) -> (f64, f64) {
+        (0..self.lasers())
+            .map(|k| self.beam(k).elevation_deg)
+            .fold((f64::MAX, f64::MIN), |(lo, hi), e| (lo.min(e), hi.max(e)))
+    }
+
+    /// Blocks per packet.
+    pub fn blocks(self) -> usize {
+        match self {
+            Scanner::Velodyne(_) => velodyne::data::field::BLOCKS,
+            Scanner::Hesai(m) => m.blocks(),
+        }
+    }
+
+    /// Channels per block.
+    pub fn channels(self) -> usize {
+        match self {
+            Scanner::Velodyne(_) => velodyne::data::field::CHANNELS,
+            Scanner::Hesai(m) => m.channels(),
+        }
+    }
+
+    /// The laser of a block's channel `ch`.
+    pub fn laser_of(self, ch: usize) -> usize {
+        match self {
+            Scanner::Velodyne(m) => usize::from(m.channels()[ch % MAX_LASERS].laser),
+            Scanner::Hesai(m) => ch % m.channels(),
+        }
+    }
+
+    /// Time from one firing (block) to the next [ns].
+    pub fn block_ns(self) -> u32 {
+        match self {
+            Scanner::Velodyne(m) => m.block_ns(),
+            Scanner::Hesai(_) => HESAI_FIRING_NS,
+        }
+    }
+
+    /// Time between two firings of one laser [ns].
+    pub fn laser_period_ns(self) -> u32 {
+        match self {
+            Scanner::Velodyne(m) => m.laser_period_ns(),
+            Scanner::Hesai(_) => HESAI_FIRING_NS,
+        }
+    }
+
+    /// Time between two data packets [ns].
+    pub fn packet_period_ns(self, mode: ReturnMode) -> i64 {
+        let dual = mode == ReturnMode::Dual;
+        match self {
+            Scanner::Velodyne(m) => i64::from(m.packet_period_ns(dual)),
+            Scanner::Hesai(m) => {
+                i64::from(HESAI_FIRING_NS) * (m.blocks() / if dual { 2 } else { 1 }) as i64
+            }
+        }
+    }
+
+    /// Firing time of channel `ch` in block `b` after the packet's first firing [ns].
+    pub fn firing_offset_ns(self, mode: ReturnMode, b: usize, ch: usize) -> i64 {
+        match self {
+            Scanner::Velodyne(m) => i64::from(velodyne::firing::firing_offset_ns(m, mode, b, ch)),
+            Scanner::Hesai(m) => {
+                let n = if mode == ReturnMode::Dual { 2 } else { 1 };
+                m.firing_offset_ns(b, ch, n, 1) - m.firing_offset_ns(0, 0, n, 1)
+            }
+        }
+    }
+
+    /// Distance unit [m].
+    pub fn distance_unit_m(self) -> f64 {
+        match self {
+            Scanner::Velodyne(m) => m.distance_unit_m(),
+            Scanner::Hesai(_) => 0.004,
+        }
+    }
+
+    /// The farthest range reported [m] (the XT's datasheet: 120 m at 80 % reflectivity).
+    pub fn max_range_m(self) -> f64 {
+        match self {
+            Scanner::Velodyne(m) => m.max_range_m(),
+            Scanner::Hesai(_) => 120.0,
+        }
+    }
+
+    /// A data packet's UDP port and length.
+    pub fn data_port_len(self) -> (u16, usize) {
+        match self {
+            Scanner::Velodyne(_) => (DATA_PORT, velodyne::data::DATA_PACKET_LEN),
+            Scanner::Hesai(m) => (hesai::DATA_PORT, m.emitted_len()),
+        }
+    }
+
+    /// The once-a-second time packet's UDP port and length (Velodyne position, Hesai GPS).
+    pub fn time_port_len(self) -> (u16, usize) {
+        match self {
+            Scanner::Velodyne(_) => (POSITION_PORT, POSITION_PACKET_LEN),
+            Scanner::Hesai(_) => (hesai::GPS_PORT, hesai::gps::GPS_PACKET_LEN),
+        }
+    }
+
+    /// The Hesai's return mode byte of a simulated mode (dual: last and strongest, the even
+    /// block the last as a Velodyne's).
+    fn hesai_mode(mode: ReturnMode) -> hesai::ReturnMode {
+        match mode {
+            ReturnMode::Strongest => hesai::ReturnMode::Single(0x37),
+            ReturnMode::Last => hesai::ReturnMode::Single(0x38),
+            ReturnMode::Dual => hesai::ReturnMode::Dual(0x39),
+        }
+    }
+}
+
+/// What the sensor's clock says at a firing, for the packet's time fields.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Stamp {
+    /// The packet's first firing on the sensor's clock.
+    pub first: GpsTime,
+    /// The site's leap seconds (GPS - UTC).
+    pub leap_seconds: i64,
+    /// Sequence number of the packet.
+    pub sequence: u32,
+    /// Motor speed [rpm].
+    pub rpm: u16,
+}
+
+/// A data packet being written.
+pub(super) enum Writer<'b> {
+    Velodyne(velodyne::DataPacket<&'b mut [u8]>),
+    Hesai(hesai::DataPacket<&'b mut [u8]>),
+}
+
+impl<'b> Writer<'b> {
+    /// An empty packet of `scanner` in `buf` (its length exactly), stamped.
+    pub fn new(scanner: Scanner, mode: ReturnMode, buf: &'b mut [u8], s: Stamp) -> Option<Self> {
+        match scanner {
+            Scanner::Velodyne(m) => {
+                buf.fill(0);
+                let mut p = velodyne::DataPacket::new_unchecked(buf);
+                p.set_timestamp_us(micros_past_hour(s.first, s.leap_seconds));
+                p.set_return_mode(mode);
+                p.set_product_raw(m.product());
+                Some(Writer::Velodyne(p))
+            }
+            Scanner::Hesai(m) => {
+                let hm = Scanner::hesai_mode(mode);
+                let mut p = hesai::DataPacket::emit(buf, m, hm, s.sequence)?;
+                // The absolute time is the trigger of the packet's last firing.
+                let abs = s.first.0 - m.firing_offset_ns(0, 0, hm.returns(), 1);
+                let utc = UtcDateTime::from_unix_ns(gps_to_unix_ns(GpsTime(abs), s.leap_seconds));
+                let date = [
+                    (utc.year - 1900).clamp(0, 255) as u8,
+                    utc.month,
+                    utc.day,
+                    utc.hour,
+                    utc.minute,
+                    utc.second,
+                ];
+                p.set_time(s.rpm, date, utc.nanos / 1000);
+                Some(Writer::Hesai(p))
+            }
+        }
+    }
+
+    /// Block `b`'s azimuth [0.01 deg].
+    pub fn set_azimuth(&mut self, b: usize, centideg: u16) {
+        match self {
+            Writer::Velodyne(p) => {
+                p.set_flag(b);
+                p.set_azimuth_raw(b, centideg);
+            }
+            Writer::Hesai(p) => p.set_azimuth(b, centideg),
+        }
+    }
+
+    /// Channel `ch`'s return in block `b`: distance [the unit] and intensity.
+    pub fn set_channel(&mut self, b: usize, ch: usize, raw: u16, intensity: u8) {
+        match self {
+            Writer::Velodyne(p) => p.set_channel(b, ch, raw, intensity),
+            Writer::Hesai(p) => p.set_unit(b, ch, raw, intensity),
+        }
+    }
+
+    /// Done: the checksums, where the layout has any.
+    pub fn finish(self) {
+        if let Writer::Hesai(mut p) = self {
+            p.seal();
+        }
+    }
+}
+
+/// Write the once-a-second time packet of `scanner` into `out`: the UTC second `whole`, the
+/// `$GPRMC` at `lat`/`lon` [deg], the stamp `stamp_us` (Velodyne: microseconds past the hour on
+/// its clock) and the PPS state. Returns its length.
+pub(super) fn write_time_packet(
+    scanner: Scanner,
+    out: &mut [u8],
+    whole: &UtcDateTime,
+    lat_lon: (f64, f64),
+    rmc_valid: bool,
+    stamp_us: u32,
+    pps: PpsStatus,
+) -> usize {
+    let mut s = [0u8; 96];
+    let n = write_gprmc(&mut s, whole, lat_lon.0, lat_lon.1, rmc_valid).unwrap_or(0);
+    let (_, len) = scanner.time_port_len();
+    let buf = &mut out[..len];
+    match scanner {
+        Scanner::Velodyne(_) => {
+            buf.fill(0);
+            let mut p = PositionPacket::new_unchecked(buf);
+            p.set_timestamp_us(stamp_us);
+            p.set_pps(pps);
+            p.set_nmea(&s[..n]);
+        }
+        Scanner::Hesai(_) => {
+            let status = if rmc_valid { b'A' } else { b'V' };
+            let _ = hesai::GpsPacket::emit(buf, whole, &s[..n], status, pps == PpsStatus::Locked);
+        }
+    }
+    len
+}
