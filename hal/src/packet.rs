@@ -65,8 +65,6 @@ pub enum SkipReason {
     Ouster(spherecal::ouster::Error),
     /// A Hesai data or GPS packet that is damaged or of a layout not read.
     Hesai(spherecal::hesai::Error),
-    /// A Hesai's GPS packet where only its data packets are read (georeferencing).
-    HesaiGps,
     /// A ROS 2 message (a bag's `VelodyneScan`) that does not parse as its type.
     BadMessage(spherecal::ros2::cdr::Error),
     /// A bag's `PointCloud2` that does not parse, or whose fields are not the ones read.
@@ -98,7 +96,6 @@ impl SkipReason {
             SkipReason::Hesai(spherecal::hesai::Error::Layout { .. }) => "not a Hesai model read",
             SkipReason::Hesai(spherecal::hesai::Error::Crc { .. }) => "Hesai CRC-32 mismatch",
             SkipReason::Hesai(_) => "not a Hesai packet",
-            SkipReason::HesaiGps => "Hesai GPS packet",
             SkipReason::BadMessage(_) => "ROS message not parsed",
             SkipReason::BadCloud(_) => "point cloud not read",
             SkipReason::EmptyCell => "empty cell of a point cloud",
@@ -137,10 +134,6 @@ impl fmt::Display for SkipReason {
             SkipReason::Vlp16(e) => write!(f, "{e}"),
             SkipReason::Ouster(e) => write!(f, "{e}"),
             SkipReason::Hesai(e) => write!(f, "{e}"),
-            SkipReason::HesaiGps => write!(
-                f,
-                "a Hesai GPS packet: its PPS lock is not read here (`spherecal decode` says it)"
-            ),
             SkipReason::BadMessage(e) => write!(f, "ROS 2 message: {e}"),
             SkipReason::BadCloud(e) => write!(f, "ROS 2 PointCloud2: {e}"),
             SkipReason::EmptyCell => write!(f, "a cell with no return (NaN)"),

@@ -50,6 +50,11 @@ impl<T: AsRef<[u8]>> GpsPacket<T> {
         Ok(Self { buffer })
     }
 
+    /// The packet's bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.buffer.as_ref()
+    }
+
     /// Three two-digit ASCII numbers from `at`, each its ones digit first; `None` when a byte
     /// is not a digit.
     fn digits(&self, at: usize) -> Option<[u8; 3]> {
@@ -80,6 +85,13 @@ impl<T: AsRef<[u8]>> GpsPacket<T> {
             Some(star) => &n[..(star + 3).min(n.len())],
             None => n,
         }
+    }
+
+    /// The time of its NMEA sentence; `None` when it is not a readable `$GPRMC` or `$GPGGA`
+    /// with a good checksum.
+    pub fn nmea_time(&self) -> Option<crate::velodyne::NmeaTime> {
+        let s = core::str::from_utf8(self.nmea()).ok()?;
+        crate::velodyne::position::nmea_time(s).ok()
     }
 
     /// The positioning status byte: `b'A'` valid, `b'V'` invalid, 0 no GPS.

@@ -106,6 +106,27 @@ impl Model {
         }
     }
 
+    /// The model of a correction file's channel count.
+    pub fn of_channels(n: usize) -> Option<Self> {
+        match n {
+            16 => Some(Model::Xt16),
+            32 => Some(Model::Xt32),
+            64 => Some(Model::Qt64),
+            128 => Some(Model::Qt128),
+            _ => None,
+        }
+    }
+
+    /// Time between two firings of one channel [ns]: 50 us (XT), 166.67 us (QT64), two
+    /// firings of 111.11 us (QT128: each channel fires in one of its two sequences).
+    pub const fn laser_period_ns(self) -> u32 {
+        match self {
+            Model::Xt16 | Model::Xt32 => 50_000,
+            Model::Qt64 => 166_667,
+            Model::Qt128 => 222_220,
+        }
+    }
+
     /// Channels.
     pub const fn channels(self) -> usize {
         match self {

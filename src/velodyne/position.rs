@@ -174,40 +174,45 @@ impl<T: AsRef<[u8]>> PositionPacket<T> {
     /// Parse the sentence (checksum verified by the `nmea` crate): RMC gives date and time,
     /// GGA time of day only.
     pub fn nmea_time(&self) -> Result<NmeaTime, Error> {
-        let s = self.nmea_str().ok_or(Error::BadNmea)?;
-        match nmea::parse_str(s).map_err(|_| Error::BadNmea)? {
-            nmea::ParseResult::RMC(rmc) => {
-                let t = rmc.fix_time.ok_or(Error::BadNmea)?;
-                let date = rmc
-                    .fix_date
-                    .map(|d| (d.year(), d.month() as u8, d.day() as u8));
-                Ok(NmeaTime {
-                    is_rmc: true,
-                    valid: !matches!(
-                        rmc.status_of_fix,
-                        nmea::sentences::rmc::RmcStatusOfFix::Invalid
-                    ),
-                    date,
-                    hour: t.hour() as u8,
-                    minute: t.minute() as u8,
-                    second: t.second() as u8,
-                    nanos: t.nanosecond(),
-                })
-            }
-            nmea::ParseResult::GGA(gga) => {
-                let t = gga.fix_time.ok_or(Error::BadNmea)?;
-                Ok(NmeaTime {
-                    is_rmc: false,
-                    valid: gga.fix_type.is_some_and(|f| f.is_valid()),
-                    date: None,
-                    hour: t.hour() as u8,
-                    minute: t.minute() as u8,
-                    second: t.second() as u8,
-                    nanos: t.nanosecond(),
-                })
-            }
-            _ => Err(Error::BadNmea),
+        nmea_time(self.nmea_str().ok_or(Error::BadNmea)?)
+    }
+}
+
+/// The time of an NMEA sentence (checksum verified by the `nmea` crate): RMC gives date and
+/// time, GGA time of day only.
+pub fn nmea_time(s: &str) -> Result<NmeaTime, Error> {
+    match nmea::parse_str(s).map_err(|_| Error::BadNmea)? {
+        nmea::ParseResult::RMC(rmc) => {
+            let t = rmc.fix_time.ok_or(Error::BadNmea)?;
+            let date = rmc
+                .fix_date
+                .map(|d| (d.year(), d.month() as u8, d.day() as u8));
+            Ok(NmeaTime {
+                is_rmc: true,
+                valid: !matches!(
+                    rmc.status_of_fix,
+                    nmea::sentences::rmc::RmcStatusOfFix::Invalid
+                ),
+                date,
+                hour: t.hour() as u8,
+                minute: t.minute() as u8,
+                second: t.second() as u8,
+                nanos: t.nanosecond(),
+            })
         }
+        nmea::ParseResult::GGA(gga) => {
+            let t = gga.fix_time.ok_or(Error::BadNmea)?;
+            Ok(NmeaTime {
+                is_rmc: false,
+                valid: gga.fix_type.is_some_and(|f| f.is_valid()),
+                date: None,
+                hour: t.hour() as u8,
+                minute: t.minute() as u8,
+                second: t.second() as u8,
+                nanos: t.nanosecond(),
+            })
+        }
+        _ => Err(Error::BadNmea),
     }
 }
 

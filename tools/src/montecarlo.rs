@@ -47,8 +47,12 @@ pub fn montecarlo(
     let (_, obs) = collect(&inp)?;
     let (_, tg) = targets(&site);
     // As `calibrate` would (the mounting held to the clock: the simulated one has PPS).
-    let settings =
-        crate::session::settings_for(&site, scenario.model(), false, site.apriori.window_margin_m);
+    let settings = crate::session::settings_for(
+        &site,
+        scenario.scanner().map(|s| i64::from(s.laser_period_ns())),
+        false,
+        site.apriori.window_margin_m,
+    );
     let t = &scenario.mount.truth;
     let truth = t.deg_m().0;
     let mut rng = Rng::new(seed);

@@ -37,8 +37,8 @@ pub struct ClockState {
     /// The bag's LiDAR topic holds point clouds: returns timed on the host's clock.
     #[serde(default)]
     pub clouds: bool,
-    /// The LiDAR is a Hesai (`georef --metadata`): its packets' date-time and microseconds
-    /// taken as UTC.
+    /// The LiDAR is a Hesai (`--metadata`): its packets' date-time and microseconds taken as
+    /// UTC; its GPS packets counted as position packets.
     #[serde(default)]
     pub hesai: bool,
     /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
@@ -82,19 +82,37 @@ impl ClockState {
             PpsStatus::Unknown(_) => 4,
         };
         self.pps[k] += 1;
-        match p.nmea_time() {
-            Ok(t) if t.is_rmc && t.valid => {
+        let stamp = f64::from(p.timestamp_us()) * 1e-6;
+        self.count_rmc(p.nmea_time().ok(), Some(stamp));
+    }
+
+    /// Count a Hesai's GPS packet (its PPS lock: locked or absent; its NMEA sentence). Its
+    /// date-time is the unit's PPS second, named by the same RMC: the difference is counted
+    /// at the middle of that second, as a position packet's stamp would be, so that a clock
+    /// that agrees shows an offset of 0 ([`Self::rmc_offset_s`]).
+    pub fn count_hesai(&mut self, p: &spherecal::hesai::GpsPacket<&[u8]>) {
+        self.pps[if p.pps_locked() { 2 } else { 0 }] += 1;
+        let stamp = p
+            .utc()
+            .map(|u| f64::from(u32::from(u.minute) * 60 + u32::from(u.second)) + 0.5);
+        self.count_rmc(p.nmea_time(), stamp);
+    }
+
+    /// Count a time packet's NMEA time against its stamp `stamp` [s past the hour].
+    fn count_rmc(&mut self, t: Option<spherecal::velodyne::NmeaTime>, stamp: Option<f64>) {
+        match t {
+            Some(t) if t.is_rmc && t.valid => {
                 self.rmc_valid += 1;
                 let rmc = f64::from(u32::from(t.minute) * 60 + u32::from(t.second))
                     + f64::from(t.nanos) * 1e-9;
-                let stamp = f64::from(p.timestamp_us()) * 1e-6;
+                let Some(stamp) = stamp else { return };
                 let d = (stamp - rmc + 1800.0).rem_euclid(3600.0) - 1800.0;
                 self.stamp_minus_rmc_s = Some(match self.stamp_minus_rmc_s {
                     Some((a, b)) => (a.min(d), b.max(d)),
                     None => (d, d),
                 });
             }
-            Ok(t) if t.is_rmc => self.rmc_void += 1,
+            Some(t) if t.is_rmc => self.rmc_void += 1,
             _ => self.rmc_none += 1,
         }
     }
@@ -125,8 +143,19 @@ impl ClockState {
     /// One line for people.
     pub fn describe(&self) -> String {
         let n = self.packets();
+        if self.hesai && n == 0 {
+            return "Hesai, no GPS packet (UDP 10110): the data packets' date-time is the unit's own (PTP, or free-running from power-on) and cannot be checked".into();
+        }
         if self.hesai {
-            return "Hesai: each packet's date-time and microseconds taken as UTC (a clock synchronised by GPS and PPS, or PTP: its GPS packets' PPS lock is not checked here; `spherecal decode` says it)".into();
+            return format!(
+                "Hesai, {n} GPS packets: {} with the PPS locked, {} with a valid $GPRMC{}; each return timed by its packet's date-time and microseconds as UTC",
+                self.pps[2],
+                self.rmc_valid,
+                match self.trusted() {
+                    true => " (synchronised to GPS time)",
+                    false => "",
+                }
+            );
         }
         if self.clouds {
             return "host clock (ROS 2 point clouds: each return at its cloud's stamp plus its time; no LiDAR clock or PPS is recorded), mapped to GPS time by the INS messages' stamps (the least-delayed); the rest is the estimated time offset".into();

@@ -18,6 +18,8 @@ pub struct Survey {
     pub bag: Option<(pipeline::Files, Option<String>)>,
     /// The LiDAR model (None: as the packets say, checked against their period).
     pub model: Option<spherecal::velodyne::Model>,
+    /// A Hesai's angle correction file (`--metadata`): the capture is that Hesai's.
+    pub metadata: Option<PathBuf>,
     /// VN-200 serial bytes (raw or serial logs) ...
     pub ins: Option<pipeline::Files>,
     /// ... or Applanix SBET files and their GPS week (None: from the capture's RMC date).
@@ -53,6 +55,7 @@ impl Survey {
             lidar_topic: None,
             bag: None,
             model: None,
+            metadata: Some(dir.join(crate::synth::CORRECTIONS)).filter(|p| p.exists()),
             ins: Some(dir.join("ins.bin").into()),
             sbet: None,
             posmv: None,
@@ -221,6 +224,10 @@ pub fn run_calibrate(
     }
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
+    inp.hesai = match &survey.metadata {
+        Some(p) => Some(crate::hesai::corrections::load(p)?),
+        None => None,
+    };
     inp.ports = survey.ports;
     inp.lidar_topic = survey.lidar_topic;
     inp.accuracy = accuracy;

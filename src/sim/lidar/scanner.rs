@@ -75,6 +75,14 @@ impl Scanner {
         }
     }
 
+    /// The maker's name of the model.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scanner::Velodyne(m) => m.name(),
+            Scanner::Hesai(m) => m.name(),
+        }
+    }
+
     /// The Velodyne model, if it is one.
     pub fn velodyne(self) -> Option<Model> {
         match self {

@@ -56,7 +56,7 @@ impl<'a> Collections<'a> {
         if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
             inp.model = Some(m);
         }
-        let settings = settings_for(&inp.site, inp.model, clock.estimate, inp.margin);
+        let settings = settings_for(&inp.site, inp.laser_period_ns(), clock.estimate, inp.margin);
         let accuracy = match (&inp.accuracy, &inp.ins) {
             (Some(p), InsInput::Sbet(_, week)) => Some(Accuracy::load(
                 p,
@@ -120,7 +120,8 @@ impl<'a> Collections<'a> {
                     self.kind,
                 )?;
                 let (site, est) = (&inp.site, self.clock.estimate);
-                let settings = settings_under(site, inp.model, est, inp.margin, c.model);
+                let settings =
+                    settings_under(site, inp.laser_period_ns(), est, inp.margin, c.model);
                 let (t, ids) = (self.targets.to_vec(), self.ids.to_vec());
                 self.session
                     .insert(Session::new(t, ids, settings, &c.source))

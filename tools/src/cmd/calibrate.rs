@@ -79,6 +79,7 @@ pub fn run(a: Args) -> ExitCode {
         lidar_topic,
         bag,
         model: s.model,
+        metadata: s.metadata,
         ins: (!s.ins.is_empty()).then(|| s.ins.into()),
         sbet: (!s.sbet.is_empty()).then(|| s.sbet.into()),
         posmv: (!s.posmv.is_empty()).then(|| (s.posmv.into(), s.posmv_group)),

@@ -36,11 +36,6 @@ pub struct Args {
     /// Use VN-200 poses whose InsStatus says not tracking, aligning, GNSS lost or no fix.
     #[arg(long)]
     pub keep_untracked_ins: bool,
-    /// A Hesai unit's angle correction CSV: the capture holds that Hesai's data packets
-    /// (PandarXT16 / XT32 / QT64 / QT128), timed by their date-time and microseconds as UTC (a
-    /// clock synchronised by GPS or PTP). Calibrating a Hesai rig is not supported yet.
-    #[arg(long, conflicts_with = "model")]
-    pub metadata: Option<PathBuf>,
 }
 
 /// Run it.
@@ -70,7 +65,12 @@ pub fn run(a: Args) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail("georef", e),
     };
-    let hesai = match a.metadata.as_deref().map(crate::hesai::corrections::load) {
+    let hesai = match a
+        .survey
+        .metadata
+        .as_deref()
+        .map(crate::hesai::corrections::load)
+    {
         Some(Ok(c)) => Some(c),
         Some(Err(e)) => return fail("georef", e),
         None => None,

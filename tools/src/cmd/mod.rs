@@ -103,6 +103,11 @@ pub struct SurveyArgs {
     /// byte, checked against their period.
     #[arg(long, value_parser = parse_model)]
     pub model: Option<spherecal::velodyne::Model>,
+    /// A Hesai unit's angle correction CSV: the capture holds that Hesai's data packets
+    /// (PandarXT16 / XT32 / QT64 / QT128, UDP 2368) and GPS packets (UDP 10110), each return
+    /// timed by its packet's date-time and microseconds as UTC.
+    #[arg(long, conflicts_with = "model")]
+    pub metadata: Option<PathBuf>,
     /// VN-200 serial bytes (raw or serial logs): files or patterns, in name order.
     #[arg(
         long,
@@ -242,6 +247,17 @@ pub(crate) fn parse_model(s: &str) -> Result<spherecal::velodyne::Model, String>
             "unknown LiDAR model {s:?}: expected {}",
             crate::decode::model_keys()
         )
+    })
+}
+
+/// A simulated scanner's key (a Velodyne's, `xt16`, `xt32`).
+pub(crate) fn parse_scanner(s: &str) -> Result<spherecal::sim::Scanner, String> {
+    spherecal::sim::Scanner::parse(s).ok_or_else(|| {
+        let keys: Vec<&str> = spherecal::sim::Scanner::ALL
+            .iter()
+            .map(|m| m.key())
+            .collect();
+        format!("unknown LiDAR model {s:?}: expected {}", keys.join(", "))
     })
 }
 

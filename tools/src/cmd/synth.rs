@@ -15,10 +15,11 @@ pub struct Args {
     /// Output folder.
     #[arg(long, required_unless_present = "print_scenario")]
     pub out: Option<PathBuf>,
-    /// The LiDAR model to simulate (vlp16, puck-hires, hdl32e, vlp32c), instead of the
+    /// The LiDAR model to simulate (vlp16, puck-hires, hdl32e, vlp32c; xt16, xt32: a Hesai
+    /// PandarXT, its angle correction file written as corrections.csv), instead of the
     /// scenario's `[lidar] model`.
-    #[arg(long, value_parser = super::parse_model)]
-    pub model: Option<spherecal::velodyne::Model>,
+    #[arg(long, value_parser = super::parse_scanner)]
+    pub model: Option<spherecal::sim::Scanner>,
     /// The INS to simulate, instead of the scenario's `[ins] kind`: `vn200`, or `posmv` (an
     /// Applanix POS MV: its UDP datagrams in lidar.pcap, its logged stream ins.posmv, and the
     /// same samples post-processed: sbet_ins.out with smrmsg_ins.out).
@@ -67,7 +68,7 @@ pub fn run(a: Args) -> ExitCode {
                 "{}: {:.1} s of scanning with a {}, {} data + {} position packets, {} VN-200 frames, {} rays in {:.2} s",
                 s.name,
                 s.duration_s(),
-                s.model().unwrap_or_default(),
+                s.scanner().unwrap_or_default().name(),
                 t.data_packets,
                 t.position_packets,
                 t.ins_frames,

@@ -52,6 +52,8 @@ pub struct RingAligner<'a> {
         spherecal::hesai::Corrections,
         Box<spherecal::velodyne::PointBuf>,
     )>,
+    /// The Hesai model the data packets said.
+    hesai_model: Option<spherecal::hesai::Model>,
     leap_seconds: i64,
 }
 
@@ -105,6 +107,7 @@ impl<'a> RingAligner<'a> {
                 targets.len()
             ],
             hesai: None,
+            hesai_model: None,
             leap_seconds,
         }
     }
@@ -158,6 +161,11 @@ impl<'a> RingAligner<'a> {
         self.core.position(p);
     }
 
+    /// A Hesai GPS packet: its PPS lock and RMC counted.
+    pub fn hesai_gps(&mut self, p: &spherecal::hesai::GpsPacket<&[u8]>) {
+        self.clock.count_hesai(p);
+    }
+
     /// A data packet received at `host`: poses are pulled until the history covers it, the
     /// INS ends, or (live) the latency allowed after its receive time has passed; then the core
     /// aligns it.
@@ -189,6 +197,7 @@ impl<'a> RingAligner<'a> {
             self.core.stats.packets_without_time += 1;
             return;
         };
+        self.hesai_model = Some(p.model());
         let first = spherecal::hesai::points(p, c, points);
         let t0 = spherecal::time::unix_ns_to_gps(unix + first, self.leap_seconds);
         let span = points
@@ -274,6 +283,7 @@ impl<'a> RingAligner<'a> {
             ins,
             ring_full,
             model: self.core.model(),
+            hesai: self.hesai_model,
             closest: self.closest.clone(),
             pruned: 0,
         }

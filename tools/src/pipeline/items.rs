@@ -15,6 +15,8 @@ pub enum LidarKind {
     Points,
     /// A Hesai data packet (its length held beside it).
     Hesai,
+    /// A Hesai GPS packet (512 bytes).
+    HesaiGps,
     /// The stream ended.
     End,
 }
@@ -50,6 +52,8 @@ pub enum LidarPacket<'a> {
     Points(&'a Chunk),
     /// A Hesai data packet.
     Hesai(spherecal::hesai::DataPacket<&'a [u8]>),
+    /// A Hesai GPS packet.
+    HesaiGps(spherecal::hesai::GpsPacket<&'a [u8]>),
     /// The stream ended.
     End,
 }
@@ -83,6 +87,14 @@ impl LidarItem {
         host: Option<HostTime>,
     ) -> Self {
         Self::holding(LidarKind::Hesai, host, p.as_bytes())
+    }
+
+    /// A Hesai GPS packet received at `host`.
+    pub fn hesai_gps<T: AsRef<[u8]>>(
+        p: &spherecal::hesai::GpsPacket<T>,
+        host: Option<HostTime>,
+    ) -> Self {
+        Self::holding(LidarKind::HesaiGps, host, p.as_bytes())
     }
 
     /// A data packet received at `host`.
@@ -122,6 +134,12 @@ impl LidarItem {
             (Payload::Bytes(b), LidarKind::Hesai) => {
                 match spherecal::hesai::DataPacket::new_checked(&b[..usize::from(self.len)]) {
                     Ok(p) => LidarPacket::Hesai(p),
+                    Err(_) => LidarPacket::End,
+                }
+            }
+            (Payload::Bytes(b), LidarKind::HesaiGps) => {
+                match spherecal::hesai::GpsPacket::new_checked(&b[..512]) {
+                    Ok(p) => LidarPacket::HesaiGps(p),
                     Err(_) => LidarPacket::End,
                 }
             }

@@ -124,6 +124,16 @@ pub struct Inputs {
 }
 
 impl Inputs {
+    /// The LiDAR's time between two firings of one laser [ns]: the Hesai's (its model from
+    /// its corrections' channel count), else the Velodyne model's; `None` while unknown.
+    pub fn laser_period_ns(&self) -> Option<i64> {
+        match &self.hesai {
+            Some(c) => spherecal::hesai::Model::of_channels(c.channels())
+                .map(|m| i64::from(m.laser_period_ns())),
+            None => self.model.map(|m| i64::from(m.laser_period_ns())),
+        }
+    }
+
     /// The trajectory's files.
     pub fn ins_files(&self) -> &Files {
         match &self.ins {
@@ -451,6 +461,7 @@ pub fn run<C: Send>(
                 LidarPacket::Hesai(p) => {
                     al.hesai(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
+                LidarPacket::HesaiGps(p) => al.hesai_gps(&p),
             }
             lc.dequeue();
             if end {

@@ -21,6 +21,8 @@ pub struct RunStats {
     pub ring_full: [u64; 2],
     /// The model the data packets were decoded as.
     pub model: Option<Model>,
+    /// The Hesai model the data packets said (`--metadata`).
+    pub hesai: Option<spherecal::hesai::Model>,
     /// How close the trajectory came to each sphere.
     pub closest: Vec<Closest>,
     /// Windowed returns let go because they were farther than `session::KEEP_NEAR_M` from
@@ -29,6 +31,13 @@ pub struct RunStats {
 }
 
 impl RunStats {
+    /// The LiDAR's model as its maker names it, once its data packets said.
+    pub fn lidar_name(&self) -> Option<&'static str> {
+        self.model
+            .map(Model::name)
+            .or(self.hesai.map(spherecal::hesai::Model::name))
+    }
+
     /// What the inputs held, for people: the capture, the LiDAR clock, the INS stream, their
     /// overlap and the returns that could not be georeferenced.
     pub fn describe_inputs(&self, pcap: &Files, ins: &Files) -> String {
@@ -45,7 +54,7 @@ impl RunStats {
                 "data packets"
             }
         );
-        if let Some(m) = self.model {
+        if let Some(m) = self.lidar_name() {
             let _ = write!(o, " ({m})");
         }
         if let Some((a, b)) = self.align.lidar_span {
@@ -138,7 +147,7 @@ impl RunStats {
             let first = pcap.expand().ok().and_then(|f| f.first().cloned());
             if let Some(m) = first.and_then(|f| crate::hesai::decode::sniff(&f)) {
                 return Some(format!(
-                    "{}: no Velodyne data packet, but {} data packets: `georef --metadata CORRECTIONS.csv` (the unit's angle correction file) georeferences them; calibrating a Hesai rig is not supported yet",
+                    "{}: no Velodyne data packet, but {} data packets: give the unit's angle correction file with --metadata CORRECTIONS.csv to read them",
                     pcap.display(),
                     m.name()
                 ));

@@ -551,7 +551,7 @@ impl InputsReport {
         let w = &stats.align.window;
         Self {
             pcap: inp.pcap.display(),
-            lidar_model: stats.model.map(|m| m.name().to_string()),
+            lidar_model: stats.lidar_name().map(str::to_string),
             ins: inp.ins_files().display(),
             data_packets: stats.align.data_packets,
             skipped: stats

@@ -97,8 +97,11 @@ pub(super) fn align_until_end(
             }
             LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
             LidarPacket::Points(c) => al.points(c, ins_c, None, &mut emit),
-            // The rig's boards read Velodynes (its readers make no Hesai items).
-            LidarPacket::Hesai(_) => {}
+            LidarPacket::Hesai(p) => al.hesai(&p, item.host, ins_c, None, &mut emit),
+            LidarPacket::HesaiGps(p) => {
+                al.hesai_gps(&p);
+                unpublished = true;
+            }
         }
         sh.aligner
             .aligned

@@ -189,9 +189,13 @@ impl Plan {
             source: e.to_string(),
         });
         let settings = match &opts.site {
-            Some(site) => {
-                crate::session::settings_under(site, b.lidar_model(), true, margin, nav.model)
-            }
+            Some(site) => crate::session::settings_under(
+                site,
+                b.lidar_model().map(|m| i64::from(m.laser_period_ns())),
+                true,
+                margin,
+                nav.model,
+            ),
             None => Settings::default(),
         };
         Self {

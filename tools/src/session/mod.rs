@@ -71,13 +71,13 @@ pub const OFFSET_REACH_S: f64 = 2.0;
 /// it declares one): [`settings_under`].
 pub fn settings_for(
     site: &Site,
-    model: Option<spherecal::velodyne::Model>,
+    firing_ns: Option<i64>,
     estimate_dt: bool,
     margin: f64,
 ) -> Settings {
     settings_under(
         site,
-        model,
+        firing_ns,
         estimate_dt,
         margin,
         site.nav_model().ok().flatten(),
@@ -86,8 +86,8 @@ pub fn settings_for(
 
 /// The solver's settings for a survey under the navigation model `nav` (`None`: white INS
 /// errors): the site's noise model (`[noise]`, else the sensors' specified values), the window
-/// margin (the bounds the mounting must stay in), the LiDAR model's laser period (the
-/// extraction's scan lines), and whether the time offset is estimated.
+/// margin (the bounds the mounting must stay in), the LiDAR's laser period `firing_ns` (the
+/// extraction's scan lines; [`crate::pipeline::Inputs::laser_period_ns`]), and whether the time offset is estimated.
 ///
 /// The white noise: the site's `[noise]` if it has one; else, under a model, the INS's errors
 /// are in the model and the white noise left is the LiDAR's; without one, the sensors'
@@ -97,7 +97,7 @@ pub fn settings_for(
 /// as parameters ([`NavModel::WHITE`]).
 pub fn settings_under(
     site: &Site,
-    model: Option<spherecal::velodyne::Model>,
+    firing_ns: Option<i64>,
     estimate_dt: bool,
     margin: f64,
     nav: Option<NavModel>,
@@ -107,8 +107,8 @@ pub fn settings_under(
         margin,
         ..Default::default()
     };
-    if let Some(m) = model {
-        s.extract.firing_ns = i64::from(m.laser_period_ns());
+    if let Some(f) = firing_ns {
+        s.extract.firing_ns = f;
     }
     let declared = |j: usize| site.sphere.get(j).and_then(|sp| sp.sigma_m);
     s.mount_prior = site.apriori.prior();

@@ -2,7 +2,8 @@
 //! recorded: `lidar.pcap`, `ins.bin` (and the same bytes as `ins.vnlog`, a serial log with
 //! receive times, so that `replay` can pace both streams on one clock), plus `site.toml`,
 //! `truth.json`, with `[ins.correlated]` `nav-errors.csv` (the wandering navigation errors the
-//! INS stream carries) and, for tests only, `labels.bin`: which object each return came from.
+//! INS stream carries), for a Hesai its angle correction file `corrections.csv` (what
+//! `--metadata` takes) and, for tests only, `labels.bin`: which object each return came from.
 //!
 //! `labels.bin` (little-endian): a 16-byte header `SCLABELS`, u32 version = 1, u32 record size
 //! = 12; then one record per return in file order: u32 data packet index (from 0, in file
@@ -209,7 +210,7 @@ pub fn trace(s: &Scenario) -> Result<TraceCache, crate::Error> {
             echoes: Vec::new(),
             keep: None,
         };
-        let mut payload = [0u8; 1206];
+        let mut payload = [0u8; spherecal::sim::lidar::MAX_PACKET_LEN];
         while let Some(p) = lidar.next_packet(&mut payload) {
             if let SimPacket::Data { .. } = p {
                 cache.echoes.extend_from_slice(&lidar.traced);
@@ -251,6 +252,9 @@ fn write_files(
     let mut files = Vec::new();
     let (lidar, written) = write_lidar(s, world, dir, cache, &mut files)?;
     let ins = write_ins(s, world, dir, &mut files)?;
+    if let Some(csv) = corrections_csv(s) {
+        files.push(staged_bytes(&dir.join(CORRECTIONS), csv.as_bytes())?);
+    }
     let site_path = dir.join("site.toml");
     files.push(staged_bytes(&site_path, site_of(s).to_toml().as_bytes())?);
     let truth = truth_of(s, &lidar, &ins);
@@ -265,6 +269,9 @@ fn write_files(
 /// The files a scenario's [`synth`] writes, by name (the POS MV's log only with a POS MV).
 pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     let mut v = vec!["lidar.pcap", "labels.bin", "ins.bin", "ins.vnlog"];
+    if corrections_csv(s).is_some() {
+        v.push(CORRECTIONS);
+    }
     if s.ins.kind == "posmv" {
         v.extend(["ins.posmv", SBET, SMRMSG]);
     }
@@ -273,6 +280,22 @@ pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     }
     v.extend(["site.toml", "truth.json"]);
     v
+}
+
+/// A Hesai's angle correction file, as `synth` names it.
+pub const CORRECTIONS: &str = "corrections.csv";
+
+/// The simulated Hesai's angle correction file (`Channel,Elevation,Azimuth`, the header
+/// tier4/nebula's and Hesai's XT files have); `None` for a Velodyne.
+fn corrections_csv(s: &Scenario) -> Option<String> {
+    let sc = s.scanner()?;
+    let mut out = String::from("Channel,Elevation,Azimuth\n");
+    let mut k = 0;
+    while let Some((ch, el, az)) = sc.correction_row(k) {
+        out += &format!("{ch},{el},{az}\n");
+        k += 1;
+    }
+    (k > 0).then_some(out)
 }
 
 fn staged_bytes(p: &Path, bytes: &[u8]) -> Result<Staged, crate::Error> {
@@ -320,7 +343,7 @@ fn write_lidar(
     labels.write_all(&head).map_err(|e| io(&labels_path, e))?;
     let mut packet_index = 0u32;
     let ep = UdpEndpoints::default();
-    let mut payload = [0u8; 1206];
+    let mut payload = [0u8; spherecal::sim::lidar::MAX_PACKET_LEN];
     let mut frame = Vec::with_capacity(1300);
     // A POS MV on the same network: its datagrams (one per sample, as the Real-Time Data Port
     // sends them) merged in receive order.

@@ -210,7 +210,12 @@ fn trial_of(
             let out = edits
                 .iter()
                 .map(|edit| {
-                    let mut settings = settings_for(&inp.site, s.model(), true, inp.margin);
+                    let mut settings = settings_for(
+                        &inp.site,
+                        s.scanner().map(|s| i64::from(s.laser_period_ns())),
+                        true,
+                        inp.margin,
+                    );
                     edit(&mut settings);
                     let mut o = obs.clone();
                     let (sol, _) = solve_report_in(

@@ -16,6 +16,7 @@ mod extraction;
 mod faults;
 mod georef;
 mod hesai;
+mod hesai_sim;
 mod layers;
 mod multi_file;
 mod nav_errors;
