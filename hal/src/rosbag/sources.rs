@@ -67,6 +67,11 @@ enum Kind {
 }
 
 impl ScanPackets {
+    /// Its topic holds a Hesai's `PandarScan`s.
+    pub fn is_pandar(&self) -> bool {
+        self.kind == Kind::Pandar
+    }
+
     /// Over `msgs` (one topic of a Hesai's `PandarScan`s): each packet to the Hesai's data
     /// port.
     pub fn pandar(msgs: Messages) -> Self {

@@ -15,6 +15,8 @@ use std::path::Path;
 pub const SCAN: &str = "velodyne_msgs/msg/VelodyneScan";
 /// velodyne_pointcloud's points (read when no raw packets were recorded).
 pub const CLOUD: &str = "sensor_msgs/msg/PointCloud2";
+/// A Hesai's scans (tier4/nebula's `pandar_msgs`): read with `--metadata CORRECTIONS.csv`.
+pub const PANDAR: &str = "pandar_msgs/msg/PandarScan";
 /// spherecal's MCAP raw log: the datagrams that are not data packets ...
 pub const DATAGRAM: &str = spherecal_hal::rawlog::mcap_log::DATAGRAM_TYPE;
 /// ... and the serial reads.
@@ -51,8 +53,8 @@ fn not_read(type_name: &str) -> Option<&'static str> {
         "ouster_sensor_msgs/msg/PacketMsg" => {
             "an Ouster's packets: decoded with `spherecal decode BAG --metadata META.json`; georeferencing and calibration read a Velodyne's (VelodyneScan) so far"
         }
-        "pandar_msgs/msg/PandarScan" => {
-            "a Hesai's packets: decoded with `spherecal decode BAG --metadata CORRECTIONS.csv`; georeferencing and calibration read a Velodyne's (VelodyneScan) so far"
+        PANDAR => {
+            "a Hesai's packets: read with --metadata CORRECTIONS.csv (the unit's angle correction file) when no VelodyneScan topic is chosen"
         }
         _ => return None,
     })
@@ -65,6 +67,8 @@ pub struct Chosen {
     pub lidar: Option<(String, String)>,
     /// The LiDAR topic holds point clouds, not packets.
     pub lidar_cloud: bool,
+    /// The LiDAR topic holds a Hesai's scans (`PandarScan`).
+    pub lidar_pandar: bool,
     /// The INS's Common group, and why.
     pub common: Option<(String, String)>,
     /// Its INS group (PosU), if recorded.
@@ -164,12 +168,20 @@ pub fn choose(
             .find(|t| t.topic.name == n)
             .map(|t| t.topic.type_name.as_str())
     };
-    // Raw packets first; a named topic may be either.
-    let lidar_cloud = match lidar_topic {
-        Some(n) => type_of(n) == Some(CLOUD),
-        None => pick(topics, SCAN, None, "--lidar-topic")?.is_none(),
+    // Raw packets first (a Velodyne's, else a Hesai's); a named topic may be any.
+    let (lidar_cloud, lidar_pandar) = match lidar_topic {
+        Some(n) => (type_of(n) == Some(CLOUD), type_of(n) == Some(PANDAR)),
+        None if pick(topics, SCAN, None, "--lidar-topic")?.is_some() => (false, false),
+        None => match pick(topics, PANDAR, None, "--lidar-topic")? {
+            Some(_) => (false, true),
+            None => (true, false),
+        },
     };
-    let lidar_type = if lidar_cloud { CLOUD } else { SCAN };
+    let lidar_type = match (lidar_cloud, lidar_pandar) {
+        (true, _) => CLOUD,
+        (_, true) => PANDAR,
+        _ => SCAN,
+    };
     let serial = match ins_topic {
         Some(n) => (type_of(n) == Some(SERIAL)).then(|| n.to_string()),
         None => only(SERIAL),
@@ -199,6 +211,7 @@ pub fn choose(
     Ok(Chosen {
         lidar: pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
         lidar_cloud,
+        lidar_pandar,
         datagrams: (!lidar_cloud).then(|| only(DATAGRAM)).flatten(),
         serial,
         common,
@@ -334,6 +347,11 @@ impl Opened {
     /// The LiDAR source: the scans' packets.
     pub fn packets(&self) -> Result<spherecal_hal::rosbag::sources::ScanPackets, crate::Error> {
         let t = self.lidar()?;
+        if self.chosen.lidar_pandar {
+            return Ok(spherecal_hal::rosbag::sources::ScanPackets::pandar(
+                self.bag.messages(&[t]),
+            ));
+        }
         Ok(match &self.chosen.datagrams {
             Some(d) => spherecal_hal::rosbag::sources::ScanPackets::with_datagrams(
                 self.bag.messages(&[t, d]),
@@ -437,6 +455,7 @@ impl Opened {
             "LiDAR: {}",
             match &self.chosen.lidar {
                 Some((t, why)) if self.chosen.lidar_cloud => format!("{t} ({why}), velodyne_pointcloud's returns (x y z ring time); clock: the host's (the cloud's stamp plus each point's time), mapped to GPS time by the INS messages' stamps, the time offset estimated; lost against packets: the sensor's clock, the azimuth's precision (0.01 deg), returns inside the driver's min_range"),
+                Some((t, why)) if self.chosen.lidar_pandar => format!("{t} ({why}), a Hesai's packets (with --metadata CORRECTIONS.csv); clock: each packet's date-time and microseconds, its PPS lock unknown (the driver records no GPS packet), the time offset estimated"),
                 Some((t, why)) if self.chosen.datagrams.is_some() => format!("{t} ({why}) with {} (spherecal's MCAP raw log); clock: from the logged position packets (PPS, RMC), as a capture's", self.chosen.datagrams.as_deref().unwrap_or("")),
                 Some((t, why)) => format!("{t} ({why}); clock: PPS unknown (ROS 2 bag: the driver does not record the position packets), the hour from the INS's GPS time, the time offset estimated"),
                 None => "none".into(),
@@ -505,6 +524,7 @@ impl Opened {
         }
         if type_name == SCAN
             || type_name == COMMON
+            || (type_name == PANDAR && self.chosen.lidar_pandar)
             || (type_name == CLOUD && self.chosen.lidar_cloud)
         {
             return "not read: another topic of this type was chosen".into();

@@ -362,6 +362,19 @@ pub fn run<C: Send>(
     let (tx, rx) = crossbeam_channel::bounded::<BatchMsg>(64);
     let model = resolve_model(inp)?.map(|m| m.0);
     let mut pcap = open_captures(&inp.pcap, inp.lidar_topic.as_deref(), model)?;
+    if let Captures::Bag(b) = &pcap {
+        match (b.is_pandar(), inp.hesai.is_some()) {
+            (true, false) => return Err(format!(
+                "{}: its LiDAR topic holds a Hesai's PandarScan messages: give the unit's angle correction file with --metadata CORRECTIONS.csv",
+                inp.pcap.display()
+            ).into()),
+            (false, true) => return Err(format!(
+                "--metadata gives a Hesai's corrections, but {}'s LiDAR topic is not a Hesai's PandarScan (name it with --lidar-topic)",
+                inp.pcap.display()
+            ).into()),
+            _ => {}
+        }
+    }
     let from_bag = matches!(pcap, Captures::Bag(_) | Captures::Clouds(_));
     let clouds = matches!(pcap, Captures::Clouds(_));
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;

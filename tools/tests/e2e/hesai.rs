@@ -528,15 +528,48 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
         worst < 1e-3,
         "a LAS point {worst} m from its decoded return at its time"
     );
-    // The GPS packet read: the manual's example, PPS locked, but its sentence's checksum *6A
-    // is not its text's (0x53: the manual shortened the coordinates), so no valid RMC and
-    // the clock is not trusted.
+    // The GPS packet read: PPS locked, but no sentence in its NMEA field (0xDF bytes), so no
+    // valid RMC and the clock is not trusted.
     assert!(
         out.contains(
             "clock: Hesai, 1 GPS packets: 1 with the PPS locked, 0 with a valid $GPRMC; each"
         ),
         "{out}"
     );
+    // The bag the capture was written from: the same LAS, point for point (the packets' own
+    // times; the bag records no GPS packet).
+    let (bag, _, _) = paths(&CASES[1]);
+    let bag_las = common::tmp("hesai-georef", "bag.las");
+    let by_bag = |extra: &[&std::ffi::OsStr]| {
+        let mut c = common::spherecal();
+        c.arg("georef")
+            .arg("--bag")
+            .arg(&bag)
+            .arg("--sbet")
+            .arg(&sbet_path)
+            .arg("--gps-week")
+            .arg(format!("{week}"))
+            .arg("--site")
+            .arg(&site)
+            .args(["--trajectory-datum", "WGS84", "--las-frame", "local", "--las"])
+            .arg(&bag_las)
+            .args(extra);
+        c
+    };
+    let out = common::stdout_of(&mut by_bag(&["--metadata".as_ref(), corr.as_os_str()]));
+    assert!(out.contains("clock: Hesai, no GPS packet"), "{out}");
+    let mut r = las::Reader::from_path(&bag_las).unwrap();
+    let n = r.header().number_of_points();
+    let from_bag: Vec<las::Point> = r.read_points(n).unwrap().points().map(|p| p.unwrap()).collect();
+    assert_eq!(from_bag.len(), pts.len());
+    for (a, b) in from_bag.iter().zip(&pts) {
+        assert_eq!((a.x, a.y, a.z, a.gps_time), (b.x, b.y, b.z, b.gps_time));
+    }
+    // ... and without the corrections, refused naming them.
+    let o = by_bag(&[]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("PandarScan messages: give the unit's angle correction file with --metadata"), "{err}");
     // Without the corrections: refused, saying what the capture holds and what reads it.
     let o = survey("calibrate").output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
