@@ -163,6 +163,67 @@ impl<T: AsRef<[u8]>> LidarPacket<T> {
     }
 }
 
+/// The emit side (the simulator): a packet of the standard header and the single-return
+/// RNG19_RFL8_SIG16_NIR16 profile, as firmware 2.2+ sends it.
+impl<T: AsRef<[u8]> + AsMut<[u8]>> LidarPacket<T> {
+    /// Write an empty packet of `format` into `buffer` (exactly its length; `None` for
+    /// another length or a format other than the standard header's single-return profile):
+    /// packet type 1, `frame_id`, `init_id` (24 bits), `serial` (40 bits); every column
+    /// invalid until [`Self::set_column`].
+    pub fn emit(
+        mut buffer: T,
+        format: Format,
+        frame_id: u16,
+        init_id: u32,
+        serial: u64,
+    ) -> Option<Self> {
+        let b = buffer.as_mut();
+        if b.len() != format.packet_len()
+            || format.header != HeaderKind::Standard
+            || format.profile != Profile::Single
+        {
+            return None;
+        }
+        b.fill(0);
+        b[..2].copy_from_slice(&1u16.to_le_bytes());
+        b[2..4].copy_from_slice(&frame_id.to_le_bytes());
+        b[4..7].copy_from_slice(&init_id.to_le_bytes()[..3]);
+        b[7..12].copy_from_slice(&serial.to_le_bytes()[..5]);
+        Some(Self { buffer, format })
+    }
+
+    fn column_at(&self, i: usize) -> usize {
+        self.format.header_len() + (i % self.format.columns) * self.format.column_len()
+    }
+
+    /// Column `i`'s timestamp [ns], measurement id and status (valid).
+    pub fn set_column(&mut self, i: usize, timestamp_ns: u64, measurement_id: u16) {
+        let at = self.column_at(i);
+        let b = self.buffer.as_mut();
+        b[at..at + 8].copy_from_slice(&timestamp_ns.to_le_bytes());
+        b[at + 8..at + 10].copy_from_slice(&measurement_id.to_le_bytes());
+        b[at + 10..at + 12].copy_from_slice(&1u16.to_le_bytes());
+    }
+
+    /// Pixel `px` of column `i`: its range [mm, 19 bits] and reflectivity.
+    pub fn set_return(&mut self, i: usize, px: usize, range_mm: u32, reflectivity: u8) {
+        let f = self.format;
+        let at =
+            self.column_at(i) + f.column_header_len() + (px % f.pixels) * f.profile.pixel_len();
+        let b = self.buffer.as_mut();
+        b[at..at + 4].copy_from_slice(&(range_mm & range::RNG19).to_le_bytes());
+        b[at + 4] = reflectivity;
+    }
+
+    /// The footer's CRC-64/XZ (firmware 3.x): call last.
+    pub fn seal(&mut self) {
+        let b = self.buffer.as_mut();
+        let n = b.len() - 8;
+        let c = CRC64.checksum(&b[..n]);
+        b[n..].copy_from_slice(&c.to_le_bytes());
+    }
+}
+
 /// One column: one azimuth step of every beam, fired at one time.
 #[derive(Debug, Clone, Copy)]
 pub struct Column<'a> {
@@ -353,6 +414,44 @@ mod tests {
                 assert_eq!(got, want, "{p:?}");
             }
         }
+    }
+
+    /// The emit side writes the standard header and the single-return profile where the
+    /// manual puts them (hand-packed here), and a CRC-64/XZ its reader agrees with.
+    #[test]
+    fn an_emitted_packet_is_the_manuals_layout() {
+        let f = Format::new(Profile::Single, HeaderKind::Standard, 16, 64).unwrap();
+        let mut out = std::vec![0u8; f.packet_len()];
+        let mut p = LidarPacket::emit(&mut out[..], f, 700, 0x12_3456, 0x55_4433_2211).unwrap();
+        p.set_column(2, 987_654_321_000, 513);
+        p.set_return(2, 7, 0x7_ABCD, 77);
+        p.seal();
+        let mut want = std::vec![0u8; f.packet_len()];
+        want[..12].copy_from_slice(&[
+            1, 0, 0xBC, 0x02, 0x56, 0x34, 0x12, 0x11, 0x22, 0x33, 0x44, 0x55,
+        ]);
+        let col = 32 + 2 * (12 + 64 * 12);
+        want[col..col + 8].copy_from_slice(&987_654_321_000u64.to_le_bytes());
+        want[col + 8..col + 12].copy_from_slice(&[0x01, 0x02, 1, 0]);
+        let px = col + 12 + 7 * 12;
+        want[px..px + 5].copy_from_slice(&[0xCD, 0xAB, 0x07, 0, 77]);
+        let n = want.len() - 8;
+        assert_eq!(out[..n], want[..n]);
+        let p = LidarPacket::new_checked(&out[..], f).unwrap();
+        let (sent, computed) = p.crc().unwrap();
+        assert_eq!(sent, computed);
+        assert_eq!(
+            (p.frame_id(), p.init_id(), p.serial()),
+            (700, Some(0x12_3456), Some(0x55_4433_2211))
+        );
+        let c = p.column(2);
+        assert!(c.valid() && !p.column(1).valid());
+        assert_eq!(
+            (c.pixel(7).range_mm[0], c.pixel(7).reflectivity[0]),
+            (0x7_ABCD, 77)
+        );
+        let legacy = Format::new(Profile::Legacy, HeaderKind::Legacy, 16, 64).unwrap();
+        assert!(LidarPacket::emit(&mut out[..], legacy, 0, 0, 0).is_none());
     }
 
     /// Each profile's fields at their bits, hand-packed: LEGACY's 20-bit range beside its

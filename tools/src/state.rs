@@ -41,6 +41,9 @@ pub struct ClockState {
     /// UTC; its GPS packets counted as position packets.
     #[serde(default)]
     pub hesai: bool,
+    /// The LiDAR is an Ouster (`--metadata META.json`): how its column times were read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ouster: Option<crate::pipeline::OusterClock>,
     /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
     /// them, wrapped into the hour [s], the smallest and largest. A PPS-synchronised LiDAR and
     /// an NTP-synchronised recorder keep it at minus a few ms, constant; a free-running LiDAR
@@ -125,6 +128,9 @@ impl ClockState {
     /// The clock can be trusted: position packets seen, every one PPS-locked with a valid RMC
     /// that agrees with its stamp (within 1.5 s: the RMC names a whole second).
     pub fn trusted(&self) -> bool {
+        if let Some(o) = &self.ouster {
+            return o.trusted();
+        }
         let n = self.packets();
         n > 0
             && self.pps[2] == n
@@ -143,6 +149,17 @@ impl ClockState {
     /// One line for people.
     pub fn describe(&self) -> String {
         let n = self.packets();
+        if let Some(o) = &self.ouster {
+            let mode = if o.mode.is_empty() {
+                "no timestamp_mode"
+            } else {
+                o.mode.as_str()
+            };
+            return match o.trusted() {
+                true => format!("Ouster, {mode}: {} columns timed by the synchronised clock (PTP: GPS = TAI - 19 s; sync pulse: UTC + the leap seconds)", o.synchronised),
+                false => format!("Ouster, {mode}: {} of {} columns timed by a clock counting from power-on (free-running: unlocked), placed by the capture's receive time of its first packet", o.free_running, o.free_running + o.synchronised),
+            };
+        }
         if self.hesai && n == 0 {
             return "Hesai, no GPS packet (UDP 10110): the data packets' date-time is the unit's own (PTP, or free-running from power-on) and cannot be checked".into();
         }

@@ -55,7 +55,10 @@ impl Survey {
             lidar_topic: None,
             bag: None,
             model: None,
-            metadata: Some(dir.join(crate::synth::CORRECTIONS)).filter(|p| p.exists()),
+            metadata: [crate::synth::CORRECTIONS, crate::synth::OUSTER_METADATA]
+                .iter()
+                .map(|f| dir.join(f))
+                .find(|p| p.exists()),
             ins: Some(dir.join("ins.bin").into()),
             sbet: None,
             posmv: None,
@@ -224,10 +227,9 @@ pub fn run_calibrate(
     }
     let mut inp = Inputs::apriori(survey.pcap, ins, site);
     inp.model = survey.model;
-    inp.hesai = match &survey.metadata {
-        Some(p) => Some(crate::hesai::corrections::load(p)?),
-        None => None,
-    };
+    if let Some(p) = &survey.metadata {
+        inp.set_metadata(p)?;
+    }
     inp.ports = survey.ports;
     inp.lidar_topic = survey.lidar_topic;
     inp.accuracy = accuracy;

@@ -35,6 +35,26 @@ impl Default for Chunk {
 }
 
 impl Chunk {
+    /// An empty chunk whose returns fire after `t0`.
+    pub fn new(t0: HostTime) -> Self {
+        Self {
+            t0,
+            ..Self::default()
+        }
+    }
+
+    /// Add a return (its `offset_ns` after `t0`); `false` when the chunk is full.
+    pub fn push(&mut self, p: Point) -> bool {
+        match self.points.get_mut(self.len) {
+            Some(slot) => {
+                *slot = p;
+                self.len += 1;
+                true
+            }
+            None => false,
+        }
+    }
+
     /// The returns (firing time after `t0` in each `offset_ns`).
     pub fn points(&self) -> &[Point] {
         &self.points[..self.len]

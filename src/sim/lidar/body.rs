@@ -17,7 +17,10 @@ impl LidarSim<'_, '_> {
             }
             let (c, r) = obj.bound();
             let far = (mount.r_li.tr_mul(&(c - mount.lever))).norm() + r;
-            let grow = far * (bin * 0.75 + self.spread * 1.2) + 1e-3;
+            // (An origin that turns with the column moves by up to twice its radius.)
+            let grow = far * (bin * 0.75 + self.spread * 1.2)
+                + 1e-3
+                + 2.0 * self.cfg.scanner.beam_origin_radius_m();
             let Some(grown) = obj.shape.offset(grow) else {
                 continue;
             };

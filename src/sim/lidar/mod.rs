@@ -38,21 +38,23 @@ use super::scene::{Frame, Water};
 use super::World;
 use crate::georef::{beam_origin_l, beam_unit, PlatformPose};
 use crate::time::{gps_to_unix_ns, micros_past_hour, unix_ns_to_gps, GpsTime, UtcDateTime};
-use crate::velodyne::{Beam as Laser, PpsStatus, ReturnMode, MAX_LASERS};
+use crate::velodyne::{Beam as Laser, PpsStatus, ReturnMode};
 use core::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, Vector3};
-use scanner::{Stamp, Writer, MAX_BLOCKS};
+use scanner::{Stamp, Writer, MAX_BLOCKS, SIM_LASERS as MAX_LASERS};
 
 mod body;
 mod receiver;
-mod scanner;
+pub mod scanner;
 mod trace;
 
-pub use scanner::Scanner;
+pub use scanner::{Ouster, Scanner, OS1_BEAM_ORIGIN_M, OS1_LIDAR_Z_M};
 
 /// The longest packet any scanner's simulation writes.
-pub const MAX_PACKET_LEN: usize = 1206;
+pub const MAX_PACKET_LEN: usize = 32 + 16 * (12 + 64 * 12) + 32;
 
+/// Most returns a data packet holds (an OS1-64's 16 columns of 64 pixels).
+pub const MAX_RETURNS: usize = 1024;
 /// Most target spheres a scene may have.
 pub const MAX_TARGETS: usize = 16;
 /// Most objects (targets, scenery and vessel parts) a scene may have.
@@ -235,9 +237,9 @@ impl Arc {
 /// One return of the last data packet, before range noise and quantization.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
-    /// Block 0..11.
+    /// Block (an Ouster's column in the packet).
     pub block: u8,
-    /// Channel 0..31.
+    /// Channel (an Ouster's pixel).
     pub channel: u8,
     /// Firing time.
     pub time: GpsTime,
@@ -344,12 +346,15 @@ pub struct LidarSim<'w, 'a> {
     /// Counts so far.
     pub stats: LidarStats,
     /// The returns of the last data packet (for labels, tests and truth checks).
-    pub hits: heapless::Vec<Hit, 384>,
+    pub hits: heapless::Vec<Hit, MAX_RETURNS>,
     /// The last data packet's echoes before noise (traced, or replayed).
-    pub traced: heapless::Vec<Traced, 384>,
+    pub traced: heapless::Vec<Traced, MAX_RETURNS>,
     trace_rng: Rng,
     /// Each laser's arc on a target (the leading-edge dropout).
     arcs: [Arc; MAX_LASERS],
+    /// An Ouster's columns per frame and the measurement id of the first column.
+    columns_per_frame: u32,
+    first_m: u32,
 }
 
 /// An angle wrapped into [-pi, pi).
@@ -436,6 +441,13 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             traced: heapless::Vec::new(),
             trace_rng: Rng::new(cfg.trace_seed),
             arcs: [Arc::NONE; MAX_LASERS],
+            columns_per_frame: cfg.scanner.columns_per_frame(cfg.rpm).max(1),
+            // The column whose azimuth is the start's: A = 2 pi m / W - pi / 2.
+            first_m: {
+                let w = f64::from(cfg.scanner.columns_per_frame(cfg.rpm).max(1));
+                let turns = (cfg.start_azimuth + PI / 2.0) / TAU;
+                (libm::round((turns - libm::floor(turns)) * w) as u32) % w as u32
+            },
         }
         .with_body_tables()
     }
@@ -524,7 +536,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let t = self.packet_time(self.k);
         let pos_unix = self.next_position_s * 1_000_000_000 + 100_000_000;
         let pos_time = unix_ns_to_gps(pos_unix, self.world.leap_seconds);
-        if pos_time <= t {
+        if pos_time <= t && self.cfg.scanner.time_port_len().1 > 0 {
             self.next_position_s += 1;
             self.stats.position_packets += 1;
             self.write_position(pos_time, out);
@@ -547,7 +559,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 dropped: true,
             });
         }
-        self.write_data(t, dropped, replay, &mut out[..len]);
+        self.write_data(self.k - 1, t, dropped, replay, &mut out[..len]);
         Some(SimPacket::Data { time: t, dropped })
     }
 
@@ -566,23 +578,42 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         );
     }
 
+    /// A block's azimuth [rad] from its code: a Velodyne's or Hesai's 0.01 deg, an Ouster's
+    /// measurement id (its column at `2 pi m / W - pi / 2`, module docs of `scanner`).
+    fn block_azimuth(&self, code: u16) -> f64 {
+        match self.cfg.scanner {
+            Scanner::Ouster(_) => {
+                TAU * f64::from(code) / f64::from(self.columns_per_frame) - PI / 2.0
+            }
+            _ => f64::from(code).to_radians() / 100.0,
+        }
+    }
+
     /// The azimuth [rad] the decoder reconstructs for channel `ch` of block `b`, and the
     /// step from the first block's [rad]. A Velodyne's is interpolated per block (PROTOCOLS.md:
     /// the step to the next block or pair, the last reuses the previous) plus the laser's
-    /// azimuth offset; a Hesai's is its block's plus its correction.
+    /// azimuth offset; a Hesai's is its block's plus its correction; an Ouster's its column's
+    /// plus its beam's azimuth.
     fn firing_azimuth(
-        scanner: Scanner,
-        beams: &[Laser; MAX_LASERS],
+        &self,
         az: &[u16; MAX_BLOCKS],
         b: usize,
         stride: usize,
         ch: usize,
     ) -> (f64, f64) {
+        let scanner = self.cfg.scanner;
+        let laser = scanner.laser_of(ch);
+        if let Scanner::Ouster(_) = scanner {
+            let w = self.columns_per_frame;
+            let off = self.beams[laser % MAX_LASERS].azimuth_offset_rad();
+            let steps = (u32::from(az[b]) + w - u32::from(az[0]) % w) % w;
+            let rel = TAU * f64::from(steps) / f64::from(w) + off;
+            return (self.block_azimuth(az[b]) + off, rel);
+        }
         let gap = |i: usize, j: usize| {
             f64::from(((36_000 + u32::from(az[j]) - u32::from(az[i])) % 36_000) as u16)
         };
-        let laser = scanner.laser_of(ch);
-        let off = beams[laser].azimuth_offset_deg * 100.0;
+        let off = self.beams[laser % MAX_LASERS].azimuth_offset_deg * 100.0;
         let interpolated = match scanner {
             Scanner::Velodyne(model) => {
                 let step = if b + stride < scanner.blocks() {
@@ -590,32 +621,57 @@ impl<'w, 'a> LidarSim<'w, 'a> {
                 } else {
                     gap(b - stride, b)
                 };
-                let c = model.channels()[ch % MAX_LASERS];
+                let c = model.channels()[ch % 32];
                 step * f64::from(c.offset_ns) / f64::from(model.block_ns())
             }
-            Scanner::Hesai(_) => 0.0,
+            _ => 0.0,
         };
         let a = (f64::from(az[b]) + interpolated + off).to_radians() / 100.0;
         let rel = (gap(0, b) + interpolated + off).to_radians() / 100.0;
         (a, rel)
     }
 
-    fn write_data(&mut self, t: GpsTime, dropped: bool, replay: Option<&[Traced]>, buf: &mut [u8]) {
+    /// The code of block `b` of data packet `k` fired at `tb`: its azimuth in 0.01 deg, an
+    /// Ouster's measurement id.
+    fn block_code(&self, k: u64, b: usize, tb: GpsTime) -> u16 {
+        match self.cfg.scanner {
+            Scanner::Ouster(_) => {
+                let col = k * Scanner::OUSTER_COLUMNS_U64 + b as u64 + u64::from(self.first_m);
+                (col % u64::from(self.columns_per_frame)) as u16
+            }
+            _ => {
+                let cdeg = libm::round(self.azimuth_at(tb).to_degrees() * 100.0) as i64;
+                cdeg.rem_euclid(36_000) as u16
+            }
+        }
+    }
+
+    fn write_data(
+        &mut self,
+        k: u64,
+        t: GpsTime,
+        dropped: bool,
+        replay: Option<&[Traced]>,
+        buf: &mut [u8],
+    ) {
         let (scanner, mode) = (self.cfg.scanner, self.cfg.mode);
         self.hits.clear();
         self.traced.clear();
+        let first_col = k * Scanner::OUSTER_COLUMNS_U64 + u64::from(self.first_m);
         let stamp = Stamp {
             first: self.on_clock(t),
             leap_seconds: self.world.leap_seconds,
-            sequence: self.k as u32,
+            sequence: k as u32,
             rpm: libm::round(self.cfg.rpm) as u16,
+            frame_id: (first_col / u64::from(self.columns_per_frame)) as u16,
+            power_on: (self.cfg.pps != PpsStatus::Locked)
+                .then(|| GpsTime(self.world.start.0 - scanner::OUSTER_POWER_ON_S * 1_000_000_000)),
         };
         let mut az = [0u16; MAX_BLOCKS];
         let blocks = scanner.blocks();
         for (b, a) in az.iter_mut().enumerate().take(blocks) {
             let tb = GpsTime(t.0 + scanner.firing_offset_ns(mode, b, 0));
-            let cdeg = libm::round(self.azimuth_at(tb).to_degrees() * 100.0) as i64;
-            *a = cdeg.rem_euclid(36_000) as u16;
+            *a = self.block_code(k, b, tb);
         }
         let stride = if mode == ReturnMode::Dual { 2 } else { 1 };
         self.stats.rays += (blocks / stride * scanner.channels()) as u64;
@@ -635,7 +691,11 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             return;
         };
         for (b, &a) in az.iter().enumerate().take(blocks) {
-            p.set_azimuth(b, a);
+            p.set_block(
+                b,
+                a,
+                GpsTime(stamp.first.0 + scanner.firing_offset_ns(mode, b, 0)),
+            );
         }
         self.emit(&mut p, t, &az, stride);
         p.finish();

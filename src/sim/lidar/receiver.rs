@@ -121,7 +121,7 @@ impl LidarSim<'_, '_> {
             let (block, ch) = (usize::from(e.block), usize::from(e.channel));
             // The firing's block: in dual mode the pair's even one.
             let fb = block - block % stride;
-            let (a, _) = Self::firing_azimuth(scanner, &self.beams, az, fb, stride, ch);
+            let (a, _) = self.firing_azimuth(az, fb, stride, ch);
             let tf = GpsTime(t.0 + scanner.firing_offset_ns(mode, fb, ch));
             let energy = f64::from(e.energy);
             let cos = f64::from(e.cos);

@@ -11,19 +11,51 @@
 //!   The beams are the manual's nominal channel table (elevation 15 deg down in 1 deg steps
 //!   (XT32) or 2 deg steps (XT16), no azimuth correction), which [`Scanner::correction_row`]
 //!   writes as the unit's correction file.
+//! - Ouster OS1-64 (firmware 2.2+, the RNG19_RFL8_SIG16_NIR16 profile, 16 columns a packet, UDP
+//!   7502): a column of 64 pixels every 97.656 us (10,240 columns a second: 1024x10 at 600 rpm,
+//!   512x20 at 1200), every beam of a column fired at the column's timestamp (PTP: TAI
+//!   nanoseconds), measurement id `m` at the encoder angle `2 pi (1 - m / W)`; a beam's point
+//!   per the firmware manual's "Lidar Range to XYZ" with the OS1's beam origin (15.806 mm
+//!   from the axis) and lidar-to-sensor transform (x and y turned over, z + 36.18 mm). In the
+//!   sensor frame with the Velodyne's azimuth (clockwise from +y) that is: the column's
+//!   azimuth `A = 2 pi m / W - pi / 2`, the beam's `A + azimuth_i`, the point `r u + 15.806 mm
+//!   (sin A, cos A, 0) + (0, 0, 36.18 mm) - 15.806 mm u`. Nominal tables: altitudes 16.6 deg
+//!   down to -16.6 deg evenly, azimuths staggered 3.1, 1.0, -1.0, -3.1 deg (a Gen 1 OS1-64's
+//!   shape), which `synth` writes into the sensor's metadata JSON.
 
-use crate::hesai;
 use crate::time::{gps_to_unix_ns, micros_past_hour, GpsTime, UtcDateTime};
 use crate::velodyne::position::{write_gprmc, POSITION_PACKET_LEN};
 use crate::velodyne::{
-    self, Beam, Model, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, MAX_LASERS, POSITION_PORT,
+    self, Beam, Model, PositionPacket, PpsStatus, ReturnMode, DATA_PORT, POSITION_PORT,
 };
+use crate::{hesai, ouster};
 
 /// Most blocks a packet of any scanner has.
-pub const MAX_BLOCKS: usize = 12;
+pub const MAX_BLOCKS: usize = 16;
 
 /// The Hesai XT's time between firings [ns] (20 kHz).
 const HESAI_FIRING_NS: u32 = 50_000;
+
+/// Most lasers (pixels per column) of a scanner simulated.
+pub const SIM_LASERS: usize = 64;
+
+/// An Ouster's columns a second (1024x10, 512x20, 2048x5).
+pub const OUSTER_COLUMN_HZ: u32 = 10_240;
+/// ... columns per packet.
+pub const OUSTER_COLUMNS: usize = 16;
+/// The OS1's beam origin's distance from the axis [m] (`lidar_origin_to_beam_origin_mm`).
+pub const OS1_BEAM_ORIGIN_M: f64 = 0.015_806;
+/// The OS1's lidar-to-sensor height [m] (`lidar_to_sensor_transform`'s z).
+pub const OS1_LIDAR_Z_M: f64 = 0.036_18;
+/// The nominal OS1-64's beam azimuths [deg], by beam modulo 4.
+const OS1_AZIMUTHS: [f64; 4] = [3.1, 1.0, -1.0, -3.1];
+
+/// An Ouster model simulated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ouster {
+    /// OS1-64 (Gen 1 beam layout).
+    Os1_64,
+}
 
 /// A scanner the simulator writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,6 +64,8 @@ pub enum Scanner {
     Velodyne(Model),
     /// A Hesai PandarXT16 or XT32 (the QT's are read, not simulated).
     Hesai(hesai::Model),
+    /// An Ouster.
+    Ouster(Ouster),
 }
 
 impl Default for Scanner {
@@ -47,14 +81,18 @@ impl From<Model> for Scanner {
 }
 
 impl Scanner {
+    /// [`OUSTER_COLUMNS`] as a `u64`.
+    pub(super) const OUSTER_COLUMNS_U64: u64 = OUSTER_COLUMNS as u64;
+
     /// Every scanner the simulator writes.
-    pub const ALL: [Scanner; 6] = [
+    pub const ALL: [Scanner; 7] = [
         Scanner::Velodyne(Model::Vlp16),
         Scanner::Velodyne(Model::PuckHiRes),
         Scanner::Velodyne(Model::Hdl32e),
         Scanner::Velodyne(Model::Vlp32c),
         Scanner::Hesai(hesai::Model::Xt16),
         Scanner::Hesai(hesai::Model::Xt32),
+        Scanner::Ouster(Ouster::Os1_64),
     ];
 
     /// The scanner of a scenario's key: a Velodyne model's (`vlp16` ...), `xt16` or `xt32`.
@@ -62,6 +100,7 @@ impl Scanner {
         match s.to_ascii_lowercase().as_str() {
             "xt16" | "pandarxt16" | "pandarxt-16" => Some(Scanner::Hesai(hesai::Model::Xt16)),
             "xt32" | "pandarxt32" | "pandarxt-32" => Some(Scanner::Hesai(hesai::Model::Xt32)),
+            "os1-64" | "os164" | "os-1-64" => Some(Scanner::Ouster(Ouster::Os1_64)),
             _ => Model::parse(s).map(Scanner::Velodyne),
         }
     }
@@ -72,6 +111,7 @@ impl Scanner {
             Scanner::Velodyne(m) => m.key(),
             Scanner::Hesai(hesai::Model::Xt16) => "xt16",
             Scanner::Hesai(_) => "xt32",
+            Scanner::Ouster(Ouster::Os1_64) => "os1-64",
         }
     }
 
@@ -80,6 +120,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.name(),
             Scanner::Hesai(m) => m.name(),
+            Scanner::Ouster(Ouster::Os1_64) => "OS-1-64",
         }
     }
 
@@ -87,7 +128,7 @@ impl Scanner {
     pub fn velodyne(self) -> Option<Model> {
         match self {
             Scanner::Velodyne(m) => Some(m),
-            Scanner::Hesai(_) => None,
+            _ => None,
         }
     }
 
@@ -96,6 +137,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.lasers(),
             Scanner::Hesai(m) => m.channels(),
+            Scanner::Ouster(_) => 64,
         }
     }
 
@@ -117,6 +159,39 @@ impl Scanner {
                     sin_az: 0.0,
                 }
             }
+            Scanner::Ouster(_) => {
+                let i = laser % 64;
+                let el = 16.6 - 33.2 * i as f64 / 63.0;
+                let az = OS1_AZIMUTHS[i % 4];
+                let (sin_el, cos_el) = libm::sincos(el.to_radians());
+                let (sin_az, cos_az) = libm::sincos(az.to_radians());
+                Beam {
+                    elevation_deg: el,
+                    azimuth_offset_deg: az,
+                    vertical_offset_m: OS1_LIDAR_Z_M,
+                    cos_el,
+                    sin_el,
+                    cos_az,
+                    sin_az,
+                }
+            }
+        }
+    }
+
+    /// The beam origin's distance from the spin axis [m]: an Ouster's origin turns with the
+    /// column (`n (sin A, cos A, 0) - n u`); 0 for the others.
+    pub fn beam_origin_radius_m(self) -> f64 {
+        match self {
+            Scanner::Ouster(_) => OS1_BEAM_ORIGIN_M,
+            _ => 0.0,
+        }
+    }
+
+    /// Columns per frame at `rpm` (an Ouster's `columns_per_frame`; 0 for the others).
+    pub fn columns_per_frame(self, rpm: f64) -> u32 {
+        match self {
+            Scanner::Ouster(_) => libm::round(f64::from(OUSTER_COLUMN_HZ) * 60.0 / rpm) as u32,
+            _ => 0,
         }
     }
 
@@ -144,6 +219,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => velodyne::data::field::BLOCKS,
             Scanner::Hesai(m) => m.blocks(),
+            Scanner::Ouster(_) => OUSTER_COLUMNS,
         }
     }
 
@@ -152,14 +228,16 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => velodyne::data::field::CHANNELS,
             Scanner::Hesai(m) => m.channels(),
+            Scanner::Ouster(_) => 64,
         }
     }
 
     /// The laser of a block's channel `ch`.
     pub fn laser_of(self, ch: usize) -> usize {
         match self {
-            Scanner::Velodyne(m) => usize::from(m.channels()[ch % MAX_LASERS].laser),
+            Scanner::Velodyne(m) => usize::from(m.channels()[ch % 32].laser),
             Scanner::Hesai(m) => ch % m.channels(),
+            Scanner::Ouster(_) => ch % 64,
         }
     }
 
@@ -168,12 +246,14 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.block_ns(),
             Scanner::Hesai(_) => HESAI_FIRING_NS,
+            Scanner::Ouster(_) => 1_000_000_000 / OUSTER_COLUMN_HZ,
         }
     }
 
     /// Time between two firings of one laser [ns].
     pub fn laser_period_ns(self) -> u32 {
         match self {
+            Scanner::Ouster(_) => self.block_ns(),
             Scanner::Velodyne(m) => m.laser_period_ns(),
             Scanner::Hesai(_) => HESAI_FIRING_NS,
         }
@@ -187,6 +267,9 @@ impl Scanner {
             Scanner::Hesai(m) => {
                 i64::from(HESAI_FIRING_NS) * (m.blocks() / if dual { 2 } else { 1 }) as i64
             }
+            Scanner::Ouster(_) => {
+                OUSTER_COLUMNS as i64 * 1_000_000_000 / i64::from(OUSTER_COLUMN_HZ)
+            }
         }
     }
 
@@ -198,6 +281,10 @@ impl Scanner {
                 let n = if mode == ReturnMode::Dual { 2 } else { 1 };
                 m.firing_offset_ns(b, ch, n, 1) - m.firing_offset_ns(0, 0, n, 1)
             }
+            // Every beam of a column at its timestamp, the columns evenly in the packet.
+            Scanner::Ouster(_) => {
+                self.packet_period_ns(mode) * (b % OUSTER_COLUMNS) as i64 / OUSTER_COLUMNS as i64
+            }
         }
     }
 
@@ -206,6 +293,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.distance_unit_m(),
             Scanner::Hesai(_) => 0.004,
+            Scanner::Ouster(_) => 0.001,
         }
     }
 
@@ -213,7 +301,7 @@ impl Scanner {
     pub fn max_range_m(self) -> f64 {
         match self {
             Scanner::Velodyne(m) => m.max_range_m(),
-            Scanner::Hesai(_) => 120.0,
+            Scanner::Hesai(_) | Scanner::Ouster(_) => 120.0,
         }
     }
 
@@ -222,6 +310,17 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => (DATA_PORT, velodyne::data::DATA_PACKET_LEN),
             Scanner::Hesai(m) => (hesai::DATA_PORT, m.emitted_len()),
+            Scanner::Ouster(_) => (ouster::LIDAR_PORT, Self::ouster_format().packet_len()),
+        }
+    }
+
+    /// The simulated Ouster's packet format: RNG19_RFL8_SIG16_NIR16, 16 columns of 64 pixels.
+    pub fn ouster_format() -> ouster::Format {
+        ouster::Format {
+            profile: ouster::Profile::Single,
+            header: ouster::HeaderKind::Standard,
+            columns: OUSTER_COLUMNS,
+            pixels: 64,
         }
     }
 
@@ -230,6 +329,8 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => (POSITION_PORT, POSITION_PACKET_LEN),
             Scanner::Hesai(_) => (hesai::GPS_PORT, hesai::gps::GPS_PACKET_LEN),
+            // (An Ouster sends none: its clock is in its metadata's timestamp mode.)
+            Scanner::Ouster(_) => (ouster::IMU_PORT, 0),
         }
     }
 
@@ -255,13 +356,27 @@ pub(super) struct Stamp {
     pub sequence: u32,
     /// Motor speed [rpm].
     pub rpm: u16,
+    /// An Ouster's frame id.
+    pub frame_id: u16,
+    /// An Ouster whose clock is not synchronised (its PPS state is not locked): its column
+    /// timestamps count from its power-on, this GPS time ([`OUSTER_POWER_ON_S`] before the
+    /// survey), in `TIME_FROM_INTERNAL_OSC`.
+    pub power_on: Option<GpsTime>,
 }
+
+/// How long before the survey's start a free-running Ouster was powered on [s].
+pub const OUSTER_POWER_ON_S: i64 = 516;
 
 /// A data packet being written.
 pub(super) enum Writer<'b> {
     Velodyne(velodyne::DataPacket<&'b mut [u8]>),
     Hesai(hesai::DataPacket<&'b mut [u8]>),
+    Ouster(ouster::LidarPacket<&'b mut [u8]>, Option<GpsTime>),
 }
+
+/// The simulated Ouster's serial number and initialisation id.
+pub const OUSTER_SERIAL: u64 = 992_345_000_064;
+const OUSTER_INIT_ID: u32 = 0x5C_A1E0;
 
 impl<'b> Writer<'b> {
     /// An empty packet of `scanner` in `buf` (its length exactly), stamped.
@@ -292,17 +407,33 @@ impl<'b> Writer<'b> {
                 p.set_time(s.rpm, date, utc.nanos / 1000);
                 Some(Writer::Hesai(p))
             }
+            Scanner::Ouster(_) => ouster::LidarPacket::emit(
+                buf,
+                Scanner::ouster_format(),
+                s.frame_id,
+                OUSTER_INIT_ID,
+                OUSTER_SERIAL,
+            )
+            .map(|p| Writer::Ouster(p, s.power_on)),
         }
     }
 
-    /// Block `b`'s azimuth [0.01 deg].
-    pub fn set_azimuth(&mut self, b: usize, centideg: u16) {
+    /// Block `b`: its azimuth [0.01 deg] (an Ouster's column: its measurement id, and its
+    /// timestamp from `t` on the sensor's clock: PTP's TAI nanoseconds, GPS + 19 s).
+    pub fn set_block(&mut self, b: usize, code: u16, t: GpsTime) {
         match self {
             Writer::Velodyne(p) => {
                 p.set_flag(b);
-                p.set_azimuth_raw(b, centideg);
+                p.set_azimuth_raw(b, code);
             }
-            Writer::Hesai(p) => p.set_azimuth(b, centideg),
+            Writer::Hesai(p) => p.set_azimuth(b, code),
+            Writer::Ouster(p, power_on) => {
+                let ns = match power_on {
+                    Some(on) => t.0 - on.0,
+                    None => gps_to_unix_ns(t, 0) + 19_000_000_000,
+                };
+                p.set_column(b, u64::try_from(ns).unwrap_or(0), code);
+            }
         }
     }
 
@@ -311,13 +442,16 @@ impl<'b> Writer<'b> {
         match self {
             Writer::Velodyne(p) => p.set_channel(b, ch, raw, intensity),
             Writer::Hesai(p) => p.set_unit(b, ch, raw, intensity),
+            Writer::Ouster(p, _) => p.set_return(b, ch, u32::from(raw), intensity),
         }
     }
 
     /// Done: the checksums, where the layout has any.
     pub fn finish(self) {
-        if let Writer::Hesai(mut p) = self {
-            p.seal();
+        match self {
+            Writer::Hesai(mut p) => p.seal(),
+            Writer::Ouster(mut p, _) => p.seal(),
+            Writer::Velodyne(_) => {}
         }
     }
 }
@@ -350,6 +484,7 @@ pub(super) fn write_time_packet(
             let status = if rmc_valid { b'A' } else { b'V' };
             let _ = hesai::GpsPacket::emit(buf, whole, &s[..n], status, pps == PpsStatus::Locked);
         }
+        Scanner::Ouster(_) => {}
     }
     len
 }

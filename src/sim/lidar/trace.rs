@@ -3,6 +3,16 @@
 
 use super::*;
 
+/// One firing as [`LidarSim::trace`] takes it: its time, azimuth (sin, cos), laser, and the
+/// shift of its origin in the LiDAR frame where that turns with the column (an Ouster's).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Firing {
+    t: GpsTime,
+    sin_cos: (f64, f64),
+    laser: usize,
+    shift: Option<Vector3<f64>>,
+}
+
 impl LidarSim<'_, '_> {
     /// The broad-phase windows for the packets from `t` on: each object's bounding sphere in
     /// the LiDAR frame at the span's middle, widened by how far the platform turns and moves
@@ -75,8 +85,8 @@ impl LidarSim<'_, '_> {
 
         // The windows over this packet's azimuth span (12 blocks, ~2.4 deg at 600 rpm), their
         // centres made relative to the first block's azimuth (no wrapping per firing).
-        let a0 = f64::from(az[0]).to_radians() / 100.0;
-        let a1 = f64::from(az[blocks - 1]).to_radians() / 100.0;
+        let a0 = self.block_azimuth(az[0]);
+        let a1 = self.block_azimuth(az[blocks - 1]);
         let span_half = wrap_pi(a1 - a0).abs() / 2.0 + 0.01;
         let mid = a0 + wrap_pi(a1 - a0) / 2.0;
         self.live.clear();
@@ -126,7 +136,7 @@ impl LidarSim<'_, '_> {
             let nadir_l = (pa.r_ig * self.world.mount.r_li).tr_mul(&Vector3::z());
             for ch in 0..scanner.channels() {
                 let laser = scanner.laser_of(ch);
-                let (a, rel) = Self::firing_azimuth(scanner, &self.beams, az, b, stride, ch);
+                let (a, rel) = self.firing_azimuth(az, b, stride, ch);
                 // The objects whose windows hold this firing (vessel parts by their tables).
                 near.clear();
                 let bin = Self::body_bin(a);
@@ -161,7 +171,18 @@ impl LidarSim<'_, '_> {
                     r_ig: pa.r_ig + (pe.r_ig - pa.r_ig) * f,
                 };
                 let mut echoes: heapless::Vec<Echo, 5> = heapless::Vec::new();
-                self.trace(&pf, tf, (sa, ca), laser, &near, &mut echoes);
+                let radius = scanner.beam_origin_radius_m();
+                let shift = (radius > 0.0).then(|| {
+                    let (sb, cb) = libm::sincos(self.block_azimuth(az[b]));
+                    Vector3::new(sb, cb, 0.0) * radius - u * radius
+                });
+                let firing = Firing {
+                    t: tf,
+                    sin_cos: (sa, ca),
+                    laser,
+                    shift,
+                };
+                self.trace(&pf, firing, &near, &mut echoes);
                 self.pick(b, ch, mode, &echoes);
             }
             b += stride;
@@ -177,23 +198,32 @@ impl LidarSim<'_, '_> {
     pub(super) fn trace(
         &mut self,
         pf: &PlatformPose,
-        tf: GpsTime,
-        (s, c): (f64, f64),
-        laser: usize,
+        firing: Firing,
         cand: &[u16],
         echoes: &mut heapless::Vec<Echo, 5>,
     ) {
+        let Firing {
+            t: tf,
+            sin_cos: (s, c),
+            laser,
+            shift,
+        } = firing;
         let mount = &self.world.mount;
         let beam = self.beams[laser % MAX_LASERS];
         let u = beam_unit(&beam, s, c);
         let sig = [self.cfg.divergence[0] / 4.0, self.cfg.divergence[1] / 4.0];
-        let in_l = Beam {
+        let mut in_l = Beam {
             o: beam_origin_l(&beam),
             d: u,
             along: Vector3::zeros(),
             across: Vector3::zeros(),
         };
-        let o_body = self.origins[laser % MAX_LASERS];
+        let mut o_body = self.origins[laser % MAX_LASERS];
+        // An origin that turns with the column (an Ouster's).
+        if let Some(v) = shift {
+            in_l.o += v;
+            o_body += mount.r_li * v;
+        }
         let d_body = mount.r_li * u;
         let mut body = Beam::centre(o_body, d_body);
         // (The interpolated attitude is orthonormal to 1e-8: the direction is renormalised.)

@@ -65,16 +65,6 @@ pub fn run(a: Args) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail("georef", e),
     };
-    let hesai = match a
-        .survey
-        .metadata
-        .as_deref()
-        .map(crate::hesai::corrections::load)
-    {
-        Some(Ok(c)) => Some(c),
-        Some(Err(e)) => return fail("georef", e),
-        None => None,
-    };
     let b = a.boresight.unwrap_or(site.apriori.boresight_deg);
     let l = a.lever.unwrap_or(site.apriori.lever_arm_m);
     let ins = match (ins.is_empty(), sbet.is_empty(), posmv.is_empty()) {
@@ -93,7 +83,7 @@ pub fn run(a: Args) -> ExitCode {
             Err(e) => return fail("georef", e),
         };
     sayln!("{datums}");
-    let inp = Inputs {
+    let mut inp = Inputs {
         pcap,
         lidar_topic,
         model,
@@ -106,9 +96,15 @@ pub fn run(a: Args) -> ExitCode {
         accuracy: None,
         ports,
         exclude: Vec::new(),
-        hesai,
+        hesai: None,
+        ouster: None,
         site,
     };
+    if let Some(p) = &a.survey.metadata {
+        if let Err(e) = inp.set_metadata(p) {
+            return fail("georef", e);
+        }
+    }
     match crate::georef::georef(
         &inp,
         a.las.as_deref().map(|p| (p, a.las_frame)),

@@ -67,6 +67,8 @@ pub struct Metadata {
     pub serial: String,
     /// `build_rev`.
     pub firmware: String,
+    /// Frames a second (`lidar_mode`'s second number: 1024x10 is 10; 10 when not said).
+    pub frame_hz: u32,
 }
 
 /// Why a metadata file cannot be used.
@@ -75,6 +77,11 @@ fn bad(path: &Path, what: impl std::fmt::Display) -> crate::Error {
 }
 
 impl Metadata {
+    /// Time from one column to the next [ns]: a frame's period over its columns.
+    pub fn column_period_ns(&self) -> i64 {
+        1_000_000_000 / (i64::from(self.frame_hz) * self.columns_per_frame as i64).max(1)
+    }
+
     /// Read `path`.
     pub fn load(path: &Path) -> Result<Self, crate::Error> {
         let text = std::fs::read_to_string(path)
@@ -124,6 +131,10 @@ impl Metadata {
             product: text(info, "prod_line").unwrap_or_default(),
             serial: text(info, "prod_sn").unwrap_or_default(),
             firmware: text(info, "build_rev").unwrap_or_default(),
+            frame_hz: text(config, "lidar_mode")
+                .and_then(|m| m.split_once('x').and_then(|(_, hz)| hz.parse().ok()))
+                .filter(|hz| (1..=100).contains(hz))
+                .unwrap_or(10),
         })
     }
 }

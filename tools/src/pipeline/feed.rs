@@ -212,6 +212,22 @@ impl<'a> RingAligner<'a> {
         }
     }
 
+    /// Returns the reader decoded and timed (an Ouster's), fired after `t0` (GPS time): poses
+    /// are pulled as for [`Self::data`], then the core aligns them ([`CoreAligner::timed`]).
+    pub fn timed(
+        &mut self,
+        t0: spherecal::time::GpsTime,
+        c: &spherecal_hal::rosbag::clouds::Chunk,
+        host: Option<HostTime>,
+        ic: &mut Consumer<'_, InsItem>,
+        each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
+        emit: &mut dyn FnMut(usize, &[Observation]),
+    ) {
+        let span = c.span_ns();
+        self.pull_poses(host, ic, |core| core.wants_poses_at(t0, span));
+        self.core.timed(t0, c.points(), host, each, emit);
+    }
+
     /// Returns of a point cloud, timed on the host's clock: poses are pulled as for
     /// [`Self::data`], then the core aligns them ([`CoreAligner::points`]).
     pub fn points(
@@ -284,6 +300,7 @@ impl<'a> RingAligner<'a> {
             ring_full,
             model: self.core.model(),
             hesai: self.hesai_model,
+            ouster: None,
             closest: self.closest.clone(),
             pruned: 0,
         }

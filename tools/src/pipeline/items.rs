@@ -2,6 +2,7 @@
 //! [`LidarPacket`]), and poses ([`InsItem`]).
 
 use super::*;
+use spherecal::time::GpsTime;
 use spherecal_hal::rosbag::clouds::Chunk;
 
 /// What a LiDAR ring item holds (set once, by its checked constructors).
@@ -17,6 +18,8 @@ pub enum LidarKind {
     Hesai,
     /// A Hesai GPS packet (512 bytes).
     HesaiGps,
+    /// Returns decoded and timed by the reader (an Ouster's), on GPS time.
+    Timed,
     /// The stream ended.
     End,
 }
@@ -31,6 +34,8 @@ pub struct LidarItem {
     pub host: Option<HostTime>,
     /// The payload's length (a Hesai packet's 568-1127 bytes).
     len: u16,
+    /// A timed chunk's first return [GPS ns].
+    gps_ns: i64,
     payload: Payload,
 }
 
@@ -54,6 +59,8 @@ pub enum LidarPacket<'a> {
     Hesai(spherecal::hesai::DataPacket<&'a [u8]>),
     /// A Hesai GPS packet.
     HesaiGps(spherecal::hesai::GpsPacket<&'a [u8]>),
+    /// Returns fired after a GPS time (each its `offset_ns` later), decoded by the reader.
+    Timed(GpsTime, &'a Chunk),
     /// The stream ended.
     End,
 }
@@ -67,7 +74,19 @@ impl LidarItem {
             kind,
             host,
             len: n as u16,
+            gps_ns: 0,
             payload: Payload::Bytes(bytes),
+        }
+    }
+
+    /// Returns fired after `t0` (GPS), received at `host`.
+    pub fn timed(t0: GpsTime, c: &Chunk, host: Option<HostTime>) -> Self {
+        Self {
+            kind: LidarKind::Timed,
+            host,
+            len: 0,
+            gps_ns: t0.0,
+            payload: Payload::Points(*c),
         }
     }
 
@@ -77,6 +96,7 @@ impl LidarItem {
             kind: LidarKind::Points,
             host: Some(c.t0),
             len: 0,
+            gps_ns: 0,
             payload: Payload::Points(*c),
         }
     }
@@ -130,6 +150,7 @@ impl LidarItem {
             (Payload::Bytes(b), LidarKind::Position) => {
                 LidarPacket::Position(PositionPacket::new_unchecked(&b[..512]))
             }
+            (Payload::Points(c), LidarKind::Timed) => LidarPacket::Timed(GpsTime(self.gps_ns), c),
             (Payload::Points(c), _) => LidarPacket::Points(c),
             (Payload::Bytes(b), LidarKind::Hesai) => {
                 match spherecal::hesai::DataPacket::new_checked(&b[..usize::from(self.len)]) {

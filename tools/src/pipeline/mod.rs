@@ -20,6 +20,7 @@ pub mod bag_decode;
 mod feed;
 mod files;
 mod items;
+mod ouster_reader;
 pub mod posmv;
 mod readers;
 mod stats;
@@ -27,6 +28,7 @@ mod stats;
 pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
+pub use ouster_reader::OusterClock;
 pub use readers::{
     cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose,
     Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
@@ -118,15 +120,21 @@ pub struct Inputs {
     /// Spans to leave out of the calibration (`--exclude`): GPS seconds since 1980-01-06, or
     /// of the data's GPS week ([`crate::stretches::in_week_of`]).
     pub exclude: Vec<(f64, f64)>,
-    /// The LiDAR is a Hesai with these angle corrections (`georef --metadata`): its data
-    /// packets are read instead of a Velodyne's, its clock taken as synchronised UTC.
+    /// The LiDAR is a Hesai with these angle corrections (`--metadata CORRECTIONS.csv`): its
+    /// data packets are read instead of a Velodyne's, timed by their UTC date-time.
     pub hesai: Option<spherecal::hesai::Corrections>,
+    /// The LiDAR is an Ouster with this metadata (`--metadata META.json`): its lidar packets
+    /// decoded by the reader ([`ouster_reader`]).
+    pub ouster: Option<Box<crate::ouster::Metadata>>,
 }
 
 impl Inputs {
     /// The LiDAR's time between two firings of one laser [ns]: the Hesai's (its model from
     /// its corrections' channel count), else the Velodyne model's; `None` while unknown.
     pub fn laser_period_ns(&self) -> Option<i64> {
+        if let Some(m) = &self.ouster {
+            return Some(m.column_period_ns());
+        }
         match &self.hesai {
             Some(c) => spherecal::hesai::Model::of_channels(c.channels())
                 .map(|m| i64::from(m.laser_period_ns())),
@@ -161,8 +169,22 @@ impl Inputs {
             lidar_topic: None,
             exclude: Vec::new(),
             hesai: None,
+            ouster: None,
             site,
         }
+    }
+
+    /// The LiDAR's own file beside the capture (`--metadata`): a Hesai's angle correction
+    /// CSV or an Ouster's metadata JSON (told by its first character), into `hesai` or
+    /// `ouster`.
+    pub fn set_metadata(&mut self, path: &std::path::Path) -> Result<(), crate::Error> {
+        let head = std::fs::read(path)
+            .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))?;
+        match head.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{') => self.ouster = Some(Box::new(crate::ouster::Metadata::load(path)?)),
+            _ => self.hesai = Some(crate::hesai::corrections::load(path)?),
+        }
+        Ok(())
     }
 }
 
@@ -170,7 +192,7 @@ impl Inputs {
 /// data packets say (product byte checked against period: [`crate::decode::identify_file`]);
 /// Err, naming the file, byte and `--model`, when they cannot be trusted. None: no data packet.
 pub fn resolve_model(inp: &Inputs) -> Result<Option<(Model, String)>, crate::Error> {
-    if inp.hesai.is_some() {
+    if inp.hesai.is_some() || inp.ouster.is_some() {
         return Ok(None);
     }
     let Some(m) = inp.model else {
@@ -379,9 +401,11 @@ pub fn run<C: Send>(
     let clouds = matches!(pcap, Captures::Clouds(_));
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
+    let ouster_clock = std::sync::Mutex::new(None);
     std::thread::scope(|sc| {
         // The readers: each ends its ring with End, even when it fails.
         let full_ref = &full;
+        let ouster_clock = &ouster_clock;
         let lidar = sc.spawn(move || {
             let (queued, never) = (AtomicU64::new(0), AtomicBool::new(false));
             let mut out = LidarRing {
@@ -395,9 +419,17 @@ pub fn run<C: Send>(
                 sensor: None,
                 hesai: inp.hesai.is_some(),
             };
-            let (mut skips, r) = match &mut pcap {
-                Captures::Clouds(c) => cloud_reader(c, &mut out),
-                src => {
+            let (mut skips, r) = match (&mut pcap, &inp.ouster) {
+                (Captures::Clouds(c), _) => cloud_reader(c, &mut out),
+                (src, Some(m)) => {
+                    let (skips, clock, r) =
+                        ouster_reader::ouster_reader(src, &mut out, m, leap, &never);
+                    if let Ok(mut c) = ouster_clock.lock() {
+                        *c = Some(clock);
+                    }
+                    (skips, r.map_err(|e| e.to_string()))
+                }
+                (src, None) => {
                     let (skips, r) = lidar_reader(src, &mut out, accept, &never);
                     (skips, r.map_err(|e| e.to_string()))
                 }
@@ -475,6 +507,9 @@ pub fn run<C: Send>(
                     al.hesai(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
                 LidarPacket::HesaiGps(p) => al.hesai_gps(&p),
+                LidarPacket::Timed(t0, c) => {
+                    al.timed(t0, c, item.host, &mut ic, each.as_deref_mut(), &mut emit)
+                }
             }
             lc.dequeue();
             if end {
@@ -499,6 +534,8 @@ pub fn run<C: Send>(
         stats.clock.bag = from_bag;
         stats.clock.clouds = clouds;
         stats.clock.hesai = inp.hesai.is_some();
+        stats.clock.ouster = ouster_clock.lock().ok().and_then(|mut c| c.take());
+        stats.ouster = inp.ouster.as_ref().map(|m| m.product.clone());
         stats.clock.stamp_minus_host_s = stamp_minus_host.range();
         let c = consumer
             .join()

@@ -23,6 +23,8 @@ pub struct RunStats {
     pub model: Option<Model>,
     /// The Hesai model the data packets said (`--metadata`).
     pub hesai: Option<spherecal::hesai::Model>,
+    /// The Ouster's product line its metadata names (`--metadata`).
+    pub ouster: Option<String>,
     /// How close the trajectory came to each sphere.
     pub closest: Vec<Closest>,
     /// Windowed returns let go because they were farther than `session::KEEP_NEAR_M` from
@@ -32,10 +34,11 @@ pub struct RunStats {
 
 impl RunStats {
     /// The LiDAR's model as its maker names it, once its data packets said.
-    pub fn lidar_name(&self) -> Option<&'static str> {
+    pub fn lidar_name(&self) -> Option<&str> {
         self.model
             .map(Model::name)
             .or(self.hesai.map(spherecal::hesai::Model::name))
+            .or(self.ouster.as_deref())
     }
 
     /// What the inputs held, for people: the capture, the LiDAR clock, the INS stream, their
@@ -50,6 +53,8 @@ impl RunStats {
             self.align.data_packets,
             if self.clock.clouds {
                 "chunks of point-cloud returns"
+            } else if self.clock.ouster.is_some() {
+                "chunks of returns of lidar packets"
             } else {
                 "data packets"
             }

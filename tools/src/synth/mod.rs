@@ -128,7 +128,7 @@ fn named(keys: [&str; 3], v: [f64; 3]) -> BTreeMap<String, f64> {
 }
 
 /// Delay between the first firing of a packet and its capture on the rig's computer.
-const NETWORK_DELAY_NS: i64 = 1_400_000;
+pub const NETWORK_DELAY_NS: i64 = 1_400_000;
 /// A POS MV group's delay from its time of validity to its datagram's arrival (the ICD's
 /// real-time port emphasises latency; a few milliseconds).
 const POSMV_DELAY_NS: i64 = 3_000_000;
@@ -255,6 +255,9 @@ fn write_files(
     if let Some(csv) = corrections_csv(s) {
         files.push(staged_bytes(&dir.join(CORRECTIONS), csv.as_bytes())?);
     }
+    if let Some(json) = ouster_metadata(s) {
+        files.push(staged_bytes(&dir.join(OUSTER_METADATA), json.as_bytes())?);
+    }
     let site_path = dir.join("site.toml");
     files.push(staged_bytes(&site_path, site_of(s).to_toml().as_bytes())?);
     let truth = truth_of(s, &lidar, &ins);
@@ -271,6 +274,9 @@ pub fn file_names(s: &Scenario) -> Vec<&'static str> {
     let mut v = vec!["lidar.pcap", "labels.bin", "ins.bin", "ins.vnlog"];
     if corrections_csv(s).is_some() {
         v.push(CORRECTIONS);
+    }
+    if ouster_metadata(s).is_some() {
+        v.push(OUSTER_METADATA);
     }
     if s.ins.kind == "posmv" {
         v.extend(["ins.posmv", SBET, SMRMSG]);
@@ -296,6 +302,75 @@ fn corrections_csv(s: &Scenario) -> Option<String> {
         k += 1;
     }
     (k > 0).then_some(out)
+}
+
+/// An Ouster's metadata JSON, as `synth` names it.
+pub const OUSTER_METADATA: &str = "metadata.json";
+
+/// The simulated Ouster's metadata JSON (firmware 2.4+/3.x's nested layout, as `ouster-cli`
+/// saves it): its beam tables, beam origin and lidar-to-sensor transform, the data format
+/// (RNG19_RFL8_SIG16_NIR16, 16 columns of 64 pixels), the lidar mode from the rotation rate
+/// and the clock (TIME_FROM_PTP_1588; with `[lidar] pps` not locked
+/// TIME_FROM_INTERNAL_OSC, counting from power-on); `None` for the others.
+fn ouster_metadata(s: &Scenario) -> Option<String> {
+    use spherecal::sim::lidar::scanner::{OUSTER_COLUMNS, OUSTER_SERIAL};
+    use spherecal::sim::lidar::{OS1_BEAM_ORIGIN_M, OS1_LIDAR_Z_M};
+    let sc = s.scanner()?;
+    let spherecal::sim::Scanner::Ouster(_) = sc else {
+        return None;
+    };
+    let w = sc.columns_per_frame(s.lidar.rpm);
+    let hz = (s.lidar.rpm / 60.0).round() as u32;
+    let n = sc.lasers();
+    let beams: Vec<_> = (0..n).map(|k| sc.beam(k)).collect();
+    let origin_mm = OS1_BEAM_ORIGIN_M * 1e3;
+    let v = serde_json::json!({
+        "beam_intrinsics": {
+            "beam_altitude_angles": beams.iter().map(|b| b.elevation_deg).collect::<Vec<_>>(),
+            "beam_azimuth_angles": beams.iter().map(|b| b.azimuth_offset_deg).collect::<Vec<_>>(),
+            "beam_to_lidar_transform": [1.0, 0.0, 0.0, origin_mm, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+            "lidar_origin_to_beam_origin_mm": origin_mm,
+        },
+        "calibration_status": {
+            "reflectivity": { "timestamp": "2024-01-01T00:00:00", "valid": true },
+        },
+        "config_params": {
+            "columns_per_packet": OUSTER_COLUMNS,
+            "lidar_mode": format!("{w}x{hz}"),
+            "timestamp_mode": match s.pps() {
+                Some(spherecal::velodyne::PpsStatus::Locked) => "TIME_FROM_PTP_1588",
+                _ => "TIME_FROM_INTERNAL_OSC",
+            },
+            "udp_port_imu": spherecal::ouster::IMU_PORT,
+            "udp_port_lidar": spherecal::ouster::LIDAR_PORT,
+            "udp_profile_imu": "LEGACY",
+            "udp_profile_lidar": "RNG19_RFL8_SIG16_NIR16",
+        },
+        "imu_intrinsics": {
+            "imu_to_sensor_transform": [1.0, 0.0, 0.0, 6.253, 0.0, 1.0, 0.0, -11.775, 0.0, 0.0, 1.0, 7.645, 0.0, 0.0, 0.0, 1.0],
+        },
+        "lidar_data_format": {
+            "column_window": [0, w - 1],
+            "columns_per_frame": w,
+            "columns_per_packet": OUSTER_COLUMNS,
+            "pixel_shift_by_row": (0..n).map(|i| [12, 4, -4, -12][i % 4] * w as i64 / 1024).collect::<Vec<_>>(),
+            "pixels_per_column": n,
+            "udp_profile_imu": "LEGACY",
+            "udp_profile_lidar": "RNG19_RFL8_SIG16_NIR16",
+        },
+        "lidar_intrinsics": {
+            "lidar_to_sensor_transform": [-1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, OS1_LIDAR_Z_M * 1e3, 0.0, 0.0, 0.0, 1.0],
+        },
+        "sensor_info": {
+            "build_rev": "v2.4.0",
+            "image_rev": "ousteros-image-prod-aries-v2.4.0 (spherecal synth)",
+            "initialization_id": 6_070_752,
+            "prod_line": sc.name(),
+            "prod_sn": OUSTER_SERIAL.to_string(),
+            "status": "RUNNING",
+        },
+    });
+    serde_json::to_string_pretty(&v).ok()
 }
 
 fn staged_bytes(p: &Path, bytes: &[u8]) -> Result<Staged, crate::Error> {

@@ -53,6 +53,7 @@ fn inputs(dir: &Path, ins: InsInput, mount: Mount, margin: f64) -> Inputs {
         lidar_topic: None,
         exclude: Vec::new(),
         hesai: None,
+        ouster: None,
     }
 }
 

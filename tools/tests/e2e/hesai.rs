@@ -551,7 +551,13 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
             .arg(format!("{week}"))
             .arg("--site")
             .arg(&site)
-            .args(["--trajectory-datum", "WGS84", "--las-frame", "local", "--las"])
+            .args([
+                "--trajectory-datum",
+                "WGS84",
+                "--las-frame",
+                "local",
+                "--las",
+            ])
             .arg(&bag_las)
             .args(extra);
         c
@@ -560,7 +566,12 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
     assert!(out.contains("clock: Hesai, no GPS packet"), "{out}");
     let mut r = las::Reader::from_path(&bag_las).unwrap();
     let n = r.header().number_of_points();
-    let from_bag: Vec<las::Point> = r.read_points(n).unwrap().points().map(|p| p.unwrap()).collect();
+    let from_bag: Vec<las::Point> = r
+        .read_points(n)
+        .unwrap()
+        .points()
+        .map(|p| p.unwrap())
+        .collect();
     assert_eq!(from_bag.len(), pts.len());
     for (a, b) in from_bag.iter().zip(&pts) {
         assert_eq!((a.x, a.y, a.z, a.gps_time), (b.x, b.y, b.z, b.gps_time));
@@ -569,7 +580,10 @@ fn georef_of_a_hesai_capture_puts_each_return_at_its_firing_time() {
     let o = by_bag(&[]).output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.contains("PandarScan messages: give the unit's angle correction file with --metadata"), "{err}");
+    assert!(
+        err.contains("PandarScan messages: give the unit's angle correction file with --metadata"),
+        "{err}"
+    );
     // Without the corrections: refused, saying what the capture holds and what reads it.
     let o = survey("calibrate").output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);

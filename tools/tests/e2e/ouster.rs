@@ -37,10 +37,10 @@ fn refused(c: &mut std::process::Command) -> String {
 }
 
 /// (frame id, measurement id, channel, return) -> x y z [m].
-type Returns = HashMap<(u32, u32, u32, String), [f64; 3]>;
+pub(crate) type Returns = HashMap<(u32, u32, u32, String), [f64; 3]>;
 
 /// What Ouster's SDK decodes from the capture.
-fn reference(pcap: &PathBuf, meta: &PathBuf) -> Returns {
+pub(crate) fn reference(pcap: &PathBuf, meta: &PathBuf) -> Returns {
     let script = common::repo_root().join("scripts/ouster_xyz.py");
     // scripts/test.sh installs the SDK in a folder of its own (its pins are not the other
     // reference packages').

@@ -112,8 +112,22 @@ impl Scenario {
         check(
             self.scanner().is_some(),
             "lidar.model",
-            "expected vlp16, puck-hires, hdl32e, vlp32c, xt16 or xt32",
+            "expected vlp16, puck-hires, hdl32e, vlp32c, xt16, xt32 or os1-64",
         )?;
+        // An Ouster runs 512, 1024 or 2048 columns a frame at 10,240 columns a second, one
+        // return a column in the profile simulated.
+        if let Some(spherecal::sim::Scanner::Ouster(_)) = self.scanner() {
+            check(
+                [300.0, 600.0, 1200.0].contains(&self.lidar.rpm),
+                "lidar.rpm",
+                "an Ouster turns at 300, 600 or 1200 rpm (its 2048x5, 1024x10 and 512x20 modes)",
+            )?;
+            check(
+                self.lidar.return_mode == "strongest",
+                "lidar.return_mode",
+                "an Ouster's single-return profile (RNG19_RFL8_SIG16_NIR16) reports the strongest",
+            )?;
+        }
         check(
             (300.0..=1200.0).contains(&self.lidar.rpm),
             "lidar.rpm",

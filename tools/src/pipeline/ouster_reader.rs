@@ -1,0 +1,207 @@
+//! An Ouster capture onto the LiDAR ring: its lidar packets (6-25 kB, larger than a ring item)
+//! decoded in the reader into chunks of returns, each timed from its column's timestamp
+//! ([`LidarItem::timed`]); the aligner takes them as they are ([`super::RingAligner::timed`]).
+//!
+//! The column timestamps by the metadata's `timestamp_mode` (firmware manual, "Time
+//! Synchronization"): `TIME_FROM_PTP_1588` counts TAI nanoseconds (GPS = TAI - 19 s);
+//! `TIME_FROM_SYNC_PULSE_IN` counts UTC from the pulse's NMEA (GPS = UTC + the site's leap
+//! seconds); `TIME_FROM_INTERNAL_OSC`, or any time before 2010 (a PTP or pulse the sensor never
+//! locked to: it counts from power-on), is free-running: the capture's receive time of the
+//! first packet places it, the clock is unlocked ([`OusterClock`]).
+
+use super::readers::LidarRing;
+use super::{enqueue, LidarItem};
+use crate::ouster::{Metadata, TimestampMode};
+use spherecal::ouster::LidarPacket;
+use spherecal::time::{unix_ns_to_gps, GpsTime};
+use spherecal::velodyne::{Point, Return};
+use spherecal_hal::packet::{HostTime, SkipReason};
+use spherecal_hal::rosbag::clouds::Chunk;
+use spherecal_hal::velodyne::SkipStats;
+use spherecal_hal::{PacketSource, Record};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// 2010-01-01T00:00:00Z [ns since 1970]: a synchronised clock's time is after it.
+const PLAUSIBLE_NS: u64 = 1_262_304_000_000_000_000;
+/// GPS epoch (1980-01-06) [s since 1970].
+const GPS_EPOCH_S: i64 = 315_964_800;
+
+/// How an Ouster's column times were read.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct OusterClock {
+    /// The metadata's `timestamp_mode` (empty: none).
+    pub mode: String,
+    /// Columns whose time was a synchronised clock's.
+    pub synchronised: u64,
+    /// Columns of a clock counting from power-on, placed by the capture's receive times.
+    pub free_running: u64,
+}
+
+impl OusterClock {
+    /// Every column's time was a synchronised clock's.
+    pub fn trusted(&self) -> bool {
+        self.synchronised > 0 && self.free_running == 0
+    }
+}
+
+/// Decodes an Ouster's lidar packets into timed chunks.
+struct Decoder<'m> {
+    meta: &'m Metadata,
+    leap_seconds: i64,
+    clock: OusterClock,
+    /// A free-running clock's offset to UTC [ns] (the first packet's receive time minus its
+    /// first column's timestamp).
+    free_offset: Option<i64>,
+    /// A packet's CRC-64 agreed: the others are checked.
+    crc_on: bool,
+}
+
+impl Decoder<'_> {
+    /// A column timestamp as GPS time, counting how it was read.
+    fn gps(&mut self, ts: u64, host: HostTime) -> GpsTime {
+        let synchronised = ts >= PLAUSIBLE_NS
+            && matches!(
+                self.meta.timestamp_mode,
+                Some(TimestampMode::Ptp | TimestampMode::SyncPulseIn)
+            );
+        let ts = ts as i64;
+        if synchronised {
+            self.clock.synchronised += 1;
+            return match self.meta.timestamp_mode {
+                Some(TimestampMode::Ptp) => GpsTime(ts - (GPS_EPOCH_S + 19) * 1_000_000_000),
+                _ => unix_ns_to_gps(ts, self.leap_seconds),
+            };
+        }
+        self.clock.free_running += 1;
+        let off = *self.free_offset.get_or_insert(host.0 - ts);
+        unix_ns_to_gps(ts + off, self.leap_seconds)
+    }
+
+    /// The packet's returns in chunks onto the ring; `Err` when it is no packet of the
+    /// metadata's format (or its CRC disagrees once they were seen to agree).
+    fn packet(
+        &mut self,
+        bytes: &[u8],
+        host: HostTime,
+        out: &mut LidarRing<'_, '_>,
+    ) -> Result<(), SkipReason> {
+        let p = LidarPacket::new_checked(bytes, self.meta.format).map_err(SkipReason::Ouster)?;
+        if let Some((sent, computed)) = p.crc() {
+            if sent == computed {
+                self.crc_on = true;
+            } else if self.crc_on {
+                return Err(SkipReason::Ouster(spherecal::ouster::Error::Crc {
+                    stored: sent,
+                    computed,
+                }));
+            }
+        }
+        let g = &self.meta.intrinsics;
+        let mut chunk: Option<(GpsTime, Chunk)> = None;
+        let flush = |c: Option<(GpsTime, Chunk)>, out: &mut LidarRing<'_, '_>| {
+            if let Some((t0, c)) = c.filter(|(_, c)| !c.points().is_empty()) {
+                if enqueue(
+                    out.ring,
+                    LidarItem::timed(t0, &c, Some(host)),
+                    out.policy,
+                    out.full,
+                ) {
+                    out.queued.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        };
+        for (i, col) in p.columns().enumerate() {
+            if !col.valid() {
+                continue;
+            }
+            let t = self.gps(col.timestamp_ns(), host);
+            let geo = g.column(col.measurement_id());
+            col.for_each_return(|beam, ret, range_mm| {
+                let (t0, c) = chunk.get_or_insert((t, Chunk::new(HostTime(0))));
+                let offset = t.0 - t0.0;
+                let px = col.pixel(beam);
+                let bp = geo.point(beam, range_mm);
+                let point = Point {
+                    x: bp.xyz[0] as f32,
+                    y: bp.xyz[1] as f32,
+                    z: bp.xyz[2] as f32,
+                    azimuth: bp.azimuth_deg.to_radians() as f32,
+                    offset_ns: u32::try_from(offset).unwrap_or(u32::MAX),
+                    distance_raw: u16::try_from(range_mm).unwrap_or(u16::MAX),
+                    range: range_mm as f32 * 1e-3,
+                    intensity: px.reflectivity[ret],
+                    block: i as u8,
+                    channel: beam as u8,
+                    laser: beam as u8,
+                    ret: if ret == 0 {
+                        Return::Strongest
+                    } else {
+                        Return::DualStrongest
+                    },
+                };
+                // A chunk holds returns of one second at most (offsets in u32 ns).
+                if !(0..1_000_000_000).contains(&offset) || !c.push(point) {
+                    let full = chunk.replace((t, Chunk::new(HostTime(0))));
+                    flush(full, out);
+                    if let Some((_, c)) = chunk.as_mut() {
+                        c.push(Point {
+                            offset_ns: 0,
+                            ..point
+                        });
+                    }
+                }
+            });
+        }
+        flush(chunk, out);
+        Ok(())
+    }
+}
+
+/// Every record of `src` until it ends, fails or `stop` is set: the metadata's lidar packets
+/// decoded onto the ring, the rest counted by reason (its IMU packets as another port's).
+pub fn ouster_reader<S: PacketSource>(
+    src: &mut S,
+    out: &mut LidarRing<'_, '_>,
+    meta: &Metadata,
+    leap_seconds: i64,
+    stop: &AtomicBool,
+) -> (SkipStats, OusterClock, Result<(), S::Error>) {
+    let mut skips = SkipStats::default();
+    let mut d = Decoder {
+        meta,
+        leap_seconds,
+        clock: OusterClock {
+            mode: meta
+                .timestamp_mode
+                .as_ref()
+                .map(|m| m.name().to_string())
+                .unwrap_or_default(),
+            ..OusterClock::default()
+        },
+        free_offset: None,
+        crc_on: false,
+    };
+    while !stop.load(Ordering::Relaxed) {
+        let rec = match src.next_record() {
+            Ok(Some(r)) => r,
+            Ok(None) => break,
+            Err(e) => return (skips, d.clock, Err(e)),
+        };
+        let dg = match rec {
+            Record::Skipped { offset, reason } => {
+                skips.count(offset, &reason);
+                continue;
+            }
+            Record::Idle => continue,
+            Record::Udp(dg) => dg,
+        };
+        let r = match dg.dst_port == meta.lidar_port {
+            true => d.packet(dg.payload, dg.time, out),
+            false => Err(SkipReason::OtherPort(dg.dst_port)),
+        };
+        if let Err(reason) = r {
+            skips.count(dg.offset, &reason);
+        }
+    }
+    (skips, d.clock, Ok(()))
+}
