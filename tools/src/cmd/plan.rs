@@ -23,9 +23,10 @@ pub struct Args {
     /// (two opposing lines over them, one lower, one crossing).
     #[arg(long, value_enum, default_value = "vessel")]
     pub platform: crate::plan::site::Platform,
-    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires; default vlp16).
-    #[arg(long, value_parser = super::parse_model)]
-    pub model: Option<spherecal::velodyne::Model>,
+    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires, xt16, xt32, os1-64; default
+    /// vlp16): its beams, firing times and range unit.
+    #[arg(long, value_parser = super::parse_scanner)]
+    pub model: Option<spherecal::sim::Scanner>,
     /// With --site: a vessel's INS height above the spheres' mean centre (default -1.5: below
     /// them), or a drone's working height above the ground (default 40) [m].
     #[arg(long, allow_hyphen_values = true, value_parser = super::finite)]
@@ -274,7 +275,7 @@ fn planned(
     let site = crate::config::site::Site::load(path)?;
     let o = crate::plan::site::Options {
         platform: a.platform,
-        model: a.model.unwrap_or(spherecal::velodyne::Model::Vlp16),
+        model: a.model.unwrap_or_default(),
         height_m: a.height,
         speed_mps: a.speed,
         side_deg: a.side,

@@ -23,6 +23,11 @@ pub struct LidarNet {
     /// packets' product byte says, checked against their period.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model: Option<String>,
+    /// A Hesai's angle correction file (CSV; a path from the working directory): the sensor is
+    /// that Hesai (PandarXT16 / XT32 / QT64 / QT128), its data packets on `data_port` and its
+    /// GPS packets on `position_port` (the unit's defaults: 2368 and 10110); no `model` then.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metadata: Option<String>,
 }
 
 fn any_address() -> String {
@@ -230,6 +235,34 @@ impl Board {
             .and_then(spherecal::velodyne::Model::parse)
     }
 
+    /// The Hesai's angle corrections the board names (`[lidar] metadata`); `None` for a
+    /// Velodyne. An Ouster's metadata is refused: `spherecal run` does not listen to one.
+    pub fn hesai_corrections(&self) -> Result<Option<spherecal::hesai::Corrections>, crate::Error> {
+        let Some(p) = self.lidar.metadata.as_deref() else {
+            return Ok(None);
+        };
+        let path = std::path::Path::new(p);
+        let text = std::fs::read(path).map_err(|e| format!("board: lidar.metadata {p}: {e}"))?;
+        if text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+            return Err(format!(
+                "board: lidar.metadata {p}: an Ouster's metadata: `spherecal run` listens to a Velodyne or a Hesai; an Ouster's capture is calibrated from its files (`calibrate --pcap CAPTURE --metadata {p}`)"
+            )
+            .into());
+        }
+        crate::hesai::corrections::load(path)
+            .map(Some)
+            .map_err(|e| format!("board: lidar.metadata: {e}").into())
+    }
+
+    /// The LiDAR's time between two firings of one laser [ns] (`hesai`: its corrections).
+    pub fn laser_period_ns(&self, hesai: Option<&spherecal::hesai::Corrections>) -> Option<i64> {
+        match hesai {
+            Some(c) => spherecal::hesai::Model::of_channels(c.channels())
+                .map(|m| i64::from(m.laser_period_ns())),
+            None => self.lidar_model().map(|m| i64::from(m.laser_period_ns())),
+        }
+    }
+
     /// Parse and check; errors name the key.
     pub fn from_toml(text: &str) -> Result<Self, crate::Error> {
         let b: Board = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
@@ -342,6 +375,18 @@ impl Board {
             if v.parse::<Ipv4Addr>().is_err() {
                 return bad(k, "expected an IPv4 address");
             }
+        }
+        if self.lidar.metadata.is_some() && self.lidar.model.is_some() {
+            return bad(
+                "lidar.model",
+                "a Hesai's board names its corrections (lidar.metadata), not a model",
+            );
+        }
+        if self.lidar.metadata.is_some() && self.log.format == LogFormat::Mcap {
+            return bad(
+                "log.format",
+                "a Hesai's datagrams are logged as pcap (format = \"pcap\")",
+            );
         }
         if let Some(m) = &self.lidar.model {
             if spherecal::velodyne::Model::parse(m).is_none() {

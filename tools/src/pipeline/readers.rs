@@ -42,7 +42,10 @@ impl Accept {
                 true => spherecal::hesai::DataPacket::new_checked(d.payload)
                     .map(|p| LidarItem::hesai(&p, Some(d.time)))
                     .map_err(SkipReason::Hesai),
-                false if d.dst_port == spherecal::hesai::GPS_PORT => {
+                false
+                    if d.dst_port == self.ports.position
+                        || d.dst_port == spherecal::hesai::GPS_PORT =>
+                {
                     spherecal::hesai::GpsPacket::new_checked(d.payload)
                         .map(|p| LidarItem::hesai_gps(&p, Some(d.time)))
                         .map_err(SkipReason::Hesai)

@@ -42,7 +42,7 @@ pub struct Options {
     /// The platform.
     pub platform: Platform,
     /// The LiDAR model.
-    pub model: spherecal::velodyne::Model,
+    pub model: spherecal::sim::Scanner,
     /// Vessel: the INS's height above the spheres' mean centre (negative: below); drone: the
     /// working height above the ground under the spheres [m].
     pub height_m: Option<f64>,

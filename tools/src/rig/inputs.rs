@@ -117,7 +117,7 @@ impl RigIo {
             accept: Accept {
                 ports,
                 sensor,
-                hesai: false,
+                hesai: b.hesai_corrections()?.is_some(),
             },
             bind,
             data_sock,
@@ -191,7 +191,7 @@ impl Plan {
         let settings = match &opts.site {
             Some(site) => crate::session::settings_under(
                 site,
-                b.lidar_model().map(|m| i64::from(m.laser_period_ns())),
+                b.laser_period_ns(b.hesai_corrections().ok().flatten().as_ref()),
                 true,
                 margin,
                 nav.model,

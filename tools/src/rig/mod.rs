@@ -469,6 +469,10 @@ fn run_threads(
             &spherecal_hal::clock::SystemClock,
         );
         al.core.set_model(opts.board.lidar_model());
+        if let Ok(Some(c)) = opts.board.hesai_corrections() {
+            al = al.with_hesai(c);
+            al.clock.hesai = true;
+        }
         let out = align::Batches {
             tx,
             pool: &pool_rx,
