@@ -72,6 +72,11 @@ impl ScanPackets {
         self.kind == Kind::Pandar
     }
 
+    /// Its topic holds an Ouster's `PacketMsg`s.
+    pub fn is_ouster(&self) -> bool {
+        matches!(self.kind, Kind::Ouster(_))
+    }
+
     /// Over `msgs` (one topic of a Hesai's `PandarScan`s): each packet to the Hesai's data
     /// port.
     pub fn pandar(msgs: Messages) -> Self {

@@ -17,6 +17,9 @@ pub const SCAN: &str = "velodyne_msgs/msg/VelodyneScan";
 pub const CLOUD: &str = "sensor_msgs/msg/PointCloud2";
 /// A Hesai's scans (tier4/nebula's `pandar_msgs`): read with `--metadata CORRECTIONS.csv`.
 pub const PANDAR: &str = "pandar_msgs/msg/PandarScan";
+/// An Ouster's packets (ouster-ros's `*/lidar_packets`; its `*/imu_packets` are the same
+/// type): read with `--metadata META.json`.
+pub const OUSTER: &str = crate::ouster::decode::PACKET_MSG;
 /// spherecal's MCAP raw log: the datagrams that are not data packets ...
 pub const DATAGRAM: &str = spherecal_hal::rawlog::mcap_log::DATAGRAM_TYPE;
 /// ... and the serial reads.
@@ -50,8 +53,8 @@ fn not_read(type_name: &str) -> Option<&'static str> {
             "not needed (the CommonGroup holds the GPS time, attitude, position and INS status)"
         }
         "velodyne_msgs/msg/VelodynePacket" => "single packets without their scan: not read",
-        "ouster_sensor_msgs/msg/PacketMsg" => {
-            "an Ouster's packets: decoded with `spherecal decode BAG --metadata META.json`; georeferencing and calibration read a Velodyne's (VelodyneScan) so far"
+        OUSTER => {
+            "an Ouster's packets: its */lidar_packets topic read with --metadata META.json (the sensor's metadata) when no VelodyneScan or PandarScan topic is chosen"
         }
         PANDAR => {
             "a Hesai's packets: read with --metadata CORRECTIONS.csv (the unit's angle correction file) when no VelodyneScan topic is chosen"
@@ -69,6 +72,8 @@ pub struct Chosen {
     pub lidar_cloud: bool,
     /// The LiDAR topic holds a Hesai's scans (`PandarScan`).
     pub lidar_pandar: bool,
+    /// The LiDAR topic holds an Ouster's lidar packets (`PacketMsg`).
+    pub lidar_ouster: bool,
     /// The INS's Common group, and why.
     pub common: Option<(String, String)>,
     /// Its INS group (PosU), if recorded.
@@ -168,20 +173,35 @@ pub fn choose(
             .find(|t| t.topic.name == n)
             .map(|t| t.topic.type_name.as_str())
     };
-    // Raw packets first (a Velodyne's, else a Hesai's); a named topic may be any.
-    let (lidar_cloud, lidar_pandar) = match lidar_topic {
-        Some(n) => (type_of(n) == Some(CLOUD), type_of(n) == Some(PANDAR)),
-        None if pick(topics, SCAN, None, "--lidar-topic")?.is_some() => (false, false),
-        None => match pick(topics, PANDAR, None, "--lidar-topic")? {
-            Some(_) => (false, true),
-            None => (true, false),
+    // Raw packets first (a Velodyne's, a Hesai's, an Ouster's lidar packets); a named topic
+    // may be any.
+    let ouster_lidar = || {
+        let of: Vec<&TopicStats> = topics
+            .iter()
+            .filter(|t| t.topic.type_name == OUSTER)
+            .collect();
+        match of.as_slice() {
+            [one] => Some(one.topic.name.clone()),
+            _ => of
+                .iter()
+                .find(|t| t.topic.name.ends_with("lidar_packets"))
+                .map(|t| t.topic.name.clone()),
+        }
+    };
+    let (lidar_type, ouster) = match lidar_topic {
+        Some(n) => match type_of(n) {
+            Some(OUSTER) => (OUSTER, Some(n.to_string())),
+            Some(t @ (CLOUD | PANDAR)) => (t, None),
+            _ => (SCAN, None),
+        },
+        None if pick(topics, SCAN, None, "--lidar-topic")?.is_some() => (SCAN, None),
+        None if pick(topics, PANDAR, None, "--lidar-topic")?.is_some() => (PANDAR, None),
+        None => match ouster_lidar() {
+            Some(n) => (OUSTER, Some(n)),
+            None => (CLOUD, None),
         },
     };
-    let lidar_type = match (lidar_cloud, lidar_pandar) {
-        (true, _) => CLOUD,
-        (_, true) => PANDAR,
-        _ => SCAN,
-    };
+    let (lidar_cloud, lidar_pandar) = (lidar_type == CLOUD, lidar_type == PANDAR);
     let serial = match ins_topic {
         Some(n) => (type_of(n) == Some(SERIAL)).then(|| n.to_string()),
         None => only(SERIAL),
@@ -209,9 +229,13 @@ pub fn choose(
         }
     };
     Ok(Chosen {
-        lidar: pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
+        lidar: match ouster {
+            Some(n) => Some((n, "ouster-ros's lidar packets".into())),
+            None => pick(topics, lidar_type, lidar_topic, "--lidar-topic")?,
+        },
         lidar_cloud,
         lidar_pandar,
+        lidar_ouster: lidar_type == OUSTER,
         datagrams: (!lidar_cloud).then(|| only(DATAGRAM)).flatten(),
         serial,
         common,
@@ -352,6 +376,12 @@ impl Opened {
                 self.bag.messages(&[t]),
             ));
         }
+        if self.chosen.lidar_ouster {
+            return Ok(spherecal_hal::rosbag::sources::ScanPackets::ouster(
+                self.bag.messages(&[t]),
+                spherecal::ouster::LIDAR_PORT,
+            ));
+        }
         Ok(match &self.chosen.datagrams {
             Some(d) => spherecal_hal::rosbag::sources::ScanPackets::with_datagrams(
                 self.bag.messages(&[t, d]),
@@ -455,6 +485,7 @@ impl Opened {
             "LiDAR: {}",
             match &self.chosen.lidar {
                 Some((t, why)) if self.chosen.lidar_cloud => format!("{t} ({why}), velodyne_pointcloud's returns (x y z ring time); clock: the host's (the cloud's stamp plus each point's time), mapped to GPS time by the INS messages' stamps, the time offset estimated; lost against packets: the sensor's clock, the azimuth's precision (0.01 deg), returns inside the driver's min_range"),
+                Some((t, why)) if self.chosen.lidar_ouster => format!("{t} ({why}), an Ouster's lidar packets (with --metadata META.json); clock: the column timestamps by the metadata's timestamp_mode"),
                 Some((t, why)) if self.chosen.lidar_pandar => format!("{t} ({why}), a Hesai's packets (with --metadata CORRECTIONS.csv); clock: each packet's date-time and microseconds, its PPS lock unknown (the driver records no GPS packet), the time offset estimated"),
                 Some((t, why)) if self.chosen.datagrams.is_some() => format!("{t} ({why}) with {} (spherecal's MCAP raw log); clock: from the logged position packets (PPS, RMC), as a capture's", self.chosen.datagrams.as_deref().unwrap_or("")),
                 Some((t, why)) => format!("{t} ({why}); clock: PPS unknown (ROS 2 bag: the driver does not record the position packets), the hour from the INS's GPS time, the time offset estimated"),

@@ -385,6 +385,14 @@ pub fn run<C: Send>(
     let model = resolve_model(inp)?.map(|m| m.0);
     let mut pcap = open_captures(&inp.pcap, inp.lidar_topic.as_deref(), model)?;
     if let Captures::Bag(b) = &pcap {
+        if b.is_ouster() != inp.ouster.is_some() {
+            return Err(format!(
+                "{}: its LiDAR topic {} an Ouster's PacketMsg: --metadata META.json (the sensor's metadata) reads one and only one",
+                inp.pcap.display(),
+                if b.is_ouster() { "holds" } else { "is not" }
+            )
+            .into());
+        }
         match (b.is_pandar(), inp.hesai.is_some()) {
             (true, false) => return Err(format!(
                 "{}: its LiDAR topic holds a Hesai's PandarScan messages: give the unit's angle correction file with --metadata CORRECTIONS.csv",
@@ -423,7 +431,7 @@ pub fn run<C: Send>(
                 (Captures::Clouds(c), _) => cloud_reader(c, &mut out),
                 (src, Some(m)) => {
                     let (skips, clock, r) =
-                        ouster_reader::ouster_reader(src, &mut out, m, leap, &never);
+                        ouster_reader::ouster_reader(src, &mut out, m, leap, from_bag, &never);
                     if let Ok(mut c) = ouster_clock.lock() {
                         *c = Some(clock);
                     }

@@ -54,6 +54,9 @@ struct Decoder<'m> {
     free_offset: Option<i64>,
     /// A packet's CRC-64 agreed: the others are checked.
     crc_on: bool,
+    /// The packets come from a bag's lidar topic: each is a lidar packet, ouster-ros's with one
+    /// byte more than the format's length (`buf.resize(lidar_packet_size + 1)`).
+    from_bag: bool,
 }
 
 impl Decoder<'_> {
@@ -85,6 +88,11 @@ impl Decoder<'_> {
         host: HostTime,
         out: &mut LidarRing<'_, '_>,
     ) -> Result<(), SkipReason> {
+        let n = self.meta.format.packet_len();
+        let bytes = match bytes.len() {
+            len if self.from_bag && len == n + 1 => &bytes[..n],
+            _ => bytes,
+        };
         let p = LidarPacket::new_checked(bytes, self.meta.format).map_err(SkipReason::Ouster)?;
         if let Some((sent, computed)) = p.crc() {
             if sent == computed {
@@ -164,6 +172,7 @@ pub fn ouster_reader<S: PacketSource>(
     out: &mut LidarRing<'_, '_>,
     meta: &Metadata,
     leap_seconds: i64,
+    from_bag: bool,
     stop: &AtomicBool,
 ) -> (SkipStats, OusterClock, Result<(), S::Error>) {
     let mut skips = SkipStats::default();
@@ -180,6 +189,7 @@ pub fn ouster_reader<S: PacketSource>(
         },
         free_offset: None,
         crc_on: false,
+        from_bag,
     };
     while !stop.load(Ordering::Relaxed) {
         let rec = match src.next_record() {
@@ -195,7 +205,7 @@ pub fn ouster_reader<S: PacketSource>(
             Record::Idle => continue,
             Record::Udp(dg) => dg,
         };
-        let r = match dg.dst_port == meta.lidar_port {
+        let r = match from_bag || dg.dst_port == meta.lidar_port {
             true => d.packet(dg.payload, dg.time, out),
             false => Err(SkipReason::OtherPort(dg.dst_port)),
         };

@@ -119,15 +119,17 @@ fn scenes_calibrate_to_the_truth(c: &Case) {
             assert!(csv.starts_with("Channel,Elevation,Azimuth\n1,15,0\n2,14,0\n"));
             assert!(csv.ends_with("32,-16,0\n"), "{csv}");
         } else if scene == "table1" {
-            sdk_decodes_the_start_as_decode_does(&dir);
+            let start = sdk_decodes_the_start_as_decode_does(&dir);
+            a_bag_georeferences_as_its_capture(&dir, &start);
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
 
-/// The first four frames of the simulated OS1-64 capture, decoded by Ouster's SDK with the
-/// metadata `synth` wrote: the same returns as `decode` lists, x y z within 1 mm.
-fn sdk_decodes_the_start_as_decode_does(dir: &Path) {
+/// The first four frames of the simulated OS1-64 capture (written to a pcap of their own,
+/// returned), decoded by Ouster's SDK with the metadata `synth` wrote: the same returns as
+/// `decode` lists, x y z within 1 mm.
+fn sdk_decodes_the_start_as_decode_does(dir: &Path) -> std::path::PathBuf {
     let all = std::fs::read(dir.join("lidar.pcap")).unwrap();
     let (mut at, mut n) = (24, 0);
     while n < 4 * 64 && at + 16 <= all.len() {
@@ -174,6 +176,59 @@ fn sdk_decodes_the_start_as_decode_does(dir: &Path) {
             "{k:?}: {g:?} vs {w:?}"
         );
     }
+    pcap
+}
+
+/// The capture `pcap` as ouster-ros records it (scripts/ouster-bag.py: PyPI rosbags, each
+/// packet one byte longer) georeferences as the capture: `georef --bag BAG --metadata` and
+/// `georef --pcap` write the same LAS.
+fn a_bag_georeferences_as_its_capture(dir: &Path, pcap: &Path) {
+    let bag = dir.join("start-bag");
+    let o = std::process::Command::new("python3")
+        .arg(common::repo_root().join("scripts/ouster-bag.py"))
+        .arg(pcap)
+        .arg(&bag)
+        .output()
+        .expect("python3");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let las = |input: &str, path: &Path, name: &str| {
+        let out = dir.join(name);
+        common::stdout_of(
+            common::spherecal()
+                .arg("georef")
+                .arg(input)
+                .arg(path)
+                .arg("--ins")
+                .arg(dir.join("ins.bin"))
+                .arg("--site")
+                .arg(dir.join("site.toml"))
+                .arg("--metadata")
+                .arg(dir.join("metadata.json"))
+                .args(["--las-frame", "local", "--las"])
+                .arg(&out),
+        );
+        let mut r = las::Reader::from_path(&out).unwrap();
+        let n = r.header().number_of_points();
+        r.read_points(n)
+            .unwrap()
+            .points()
+            .map(|p| {
+                let p = p.unwrap();
+                (p.x, p.y, p.z, p.gps_time)
+            })
+            .collect::<Vec<_>>()
+    };
+    let (a, b) = (
+        las("--pcap", pcap, "pcap.las"),
+        las("--bag", &bag, "bag.las"),
+    );
+    assert!(a.len() > 10_000, "{}", a.len());
+    assert!(
+        a == b,
+        "{} points from the capture, {} from the bag",
+        a.len(),
+        b.len()
+    );
 }
 
 #[test]
