@@ -13,6 +13,24 @@ fn secs(t: GpsTime) -> f64 {
     t.as_secs_f64()
 }
 
+/// How an Ouster's column times were read.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct OusterClock {
+    /// The metadata's `timestamp_mode` (empty: none).
+    pub mode: String,
+    /// Columns whose time was a synchronised clock's.
+    pub synchronised: u64,
+    /// Columns of a clock counting from power-on, placed by the capture's receive times.
+    pub free_running: u64,
+}
+
+impl OusterClock {
+    /// Every column's time was a synchronised clock's.
+    pub fn trusted(&self) -> bool {
+        self.synchronised > 0 && self.free_running == 0
+    }
+}
+
 /// The LiDAR clock as its position packets tell it.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ClockState {
@@ -43,7 +61,7 @@ pub struct ClockState {
     pub hesai: bool,
     /// The LiDAR is an Ouster (`--metadata META.json`): how its column times were read.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ouster: Option<crate::pipeline::OusterClock>,
+    pub ouster: Option<OusterClock>,
     /// A bag's data packets: their stamp (time past the hour) minus the recorder's stamp of
     /// them, wrapped into the hour [s], the smallest and largest. A PPS-synchronised LiDAR and
     /// an NTP-synchronised recorder keep it at minus a few ms, constant; a free-running LiDAR

@@ -235,25 +235,6 @@ impl Board {
             .and_then(spherecal::velodyne::Model::parse)
     }
 
-    /// The Hesai's angle corrections the board names (`[lidar] metadata`); `None` for a
-    /// Velodyne. An Ouster's metadata is refused: `spherecal run` does not listen to one.
-    pub fn hesai_corrections(&self) -> Result<Option<spherecal::hesai::Corrections>, crate::Error> {
-        let Some(p) = self.lidar.metadata.as_deref() else {
-            return Ok(None);
-        };
-        let path = std::path::Path::new(p);
-        let text = std::fs::read(path).map_err(|e| format!("board: lidar.metadata {p}: {e}"))?;
-        if text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
-            return Err(format!(
-                "board: lidar.metadata {p}: an Ouster's metadata: `spherecal run` listens to a Velodyne or a Hesai; an Ouster's capture is calibrated from its files (`calibrate --pcap CAPTURE --metadata {p}`)"
-            )
-            .into());
-        }
-        crate::hesai::corrections::load(path)
-            .map(Some)
-            .map_err(|e| format!("board: lidar.metadata: {e}").into())
-    }
-
     /// The LiDAR's time between two firings of one laser [ns] (`hesai`: its corrections).
     pub fn laser_period_ns(&self, hesai: Option<&spherecal::hesai::Corrections>) -> Option<i64> {
         match hesai {
@@ -515,11 +496,23 @@ mod tests {
     }
 
     #[test]
-    fn the_three_boards_parse() {
-        for n in ["rig-vn200", "vessel-posmv", "sim"] {
+    fn the_boards_parse() {
+        for n in ["rig-vn200", "rig-xt32", "vessel-posmv", "sim"] {
             let b = Board::from_toml(&board(n)).unwrap_or_else(|e| panic!("{n}: {e}"));
             assert_eq!(b.name, n);
         }
+        // A Hesai's board: its corrections, no model, pcap logs.
+        let t = board("rig-xt32");
+        for (from, to, key) in [
+            ("[lidar]\n", "[lidar]\nmodel = \"vlp16\"\n", "lidar.model"),
+            ("format = \"pcap\"", "format = \"mcap\"", "log.format"),
+        ] {
+            let e = Board::from_toml(&t.replacen(from, to, 1))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with(key), "{e}");
+        }
+        assert!(Board::from_toml(&t).is_ok());
     }
 
     /// The `[calibration]` targets: NaN, infinite, zero and negative sigmas are refused by key

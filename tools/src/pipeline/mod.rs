@@ -28,7 +28,6 @@ mod stats;
 pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
 pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
-pub use ouster_reader::OusterClock;
 pub use readers::{
     cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose,
     Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,

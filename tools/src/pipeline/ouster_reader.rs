@@ -12,6 +12,7 @@
 use super::readers::LidarRing;
 use super::{enqueue, LidarItem};
 use crate::ouster::{Metadata, TimestampMode};
+use crate::state::OusterClock;
 use spherecal::ouster::LidarPacket;
 use spherecal::time::{unix_ns_to_gps, GpsTime};
 use spherecal::velodyne::{Point, Return};
@@ -25,24 +26,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 const PLAUSIBLE_NS: u64 = 1_262_304_000_000_000_000;
 /// GPS epoch (1980-01-06) [s since 1970].
 const GPS_EPOCH_S: i64 = 315_964_800;
-
-/// How an Ouster's column times were read.
-#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct OusterClock {
-    /// The metadata's `timestamp_mode` (empty: none).
-    pub mode: String,
-    /// Columns whose time was a synchronised clock's.
-    pub synchronised: u64,
-    /// Columns of a clock counting from power-on, placed by the capture's receive times.
-    pub free_running: u64,
-}
-
-impl OusterClock {
-    /// Every column's time was a synchronised clock's.
-    pub fn trusted(&self) -> bool {
-        self.synchronised > 0 && self.free_running == 0
-    }
-}
 
 /// Decodes an Ouster's lidar packets into timed chunks.
 struct Decoder<'m> {

@@ -55,7 +55,7 @@ pub(super) fn final_from_logs(
     let mut inp =
         crate::pipeline::Inputs::apriori(crate::pipeline::Files(pcaps), ins, site.clone());
     inp.model = b.lidar_model();
-    inp.hesai = b.hesai_corrections()?;
+    inp.hesai = super::inputs::hesai_corrections(b)?;
     inp.ports = Ports {
         // In an MCAP log the data packets are the scans, which stand for the default port.
         data: match bag {

@@ -117,7 +117,7 @@ impl RigIo {
             accept: Accept {
                 ports,
                 sensor,
-                hesai: b.hesai_corrections()?.is_some(),
+                hesai: hesai_corrections(b)?.is_some(),
             },
             bind,
             data_sock,
@@ -191,7 +191,7 @@ impl Plan {
         let settings = match &opts.site {
             Some(site) => crate::session::settings_under(
                 site,
-                b.laser_period_ns(b.hesai_corrections().ok().flatten().as_ref()),
+                b.laser_period_ns(hesai_corrections(b).ok().flatten().as_ref()),
                 true,
                 margin,
                 nav.model,
@@ -234,4 +234,25 @@ impl Rings {
             serial_log: Box::new(Queue::new()),
         }
     }
+}
+
+/// The Hesai's angle corrections a board names (`[lidar] metadata`); `None` for a Velodyne.
+/// An Ouster's metadata is refused: `spherecal run` does not listen to one.
+pub fn hesai_corrections(
+    b: &crate::config::board::Board,
+) -> Result<Option<spherecal::hesai::Corrections>, crate::Error> {
+    let Some(p) = b.lidar.metadata.as_deref() else {
+        return Ok(None);
+    };
+    let path = std::path::Path::new(p);
+    let text = std::fs::read(path).map_err(|e| format!("board: lidar.metadata {p}: {e}"))?;
+    if text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
+        return Err(format!(
+            "board: lidar.metadata {p}: an Ouster's metadata: `spherecal run` listens to a Velodyne or a Hesai; an Ouster's capture is calibrated from its files (`calibrate --pcap CAPTURE --metadata {p}`)"
+        )
+        .into());
+    }
+    crate::hesai::corrections::load(path)
+        .map(Some)
+        .map_err(|e| format!("board: lidar.metadata: {e}").into())
 }

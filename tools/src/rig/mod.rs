@@ -469,7 +469,7 @@ fn run_threads(
             &spherecal_hal::clock::SystemClock,
         );
         al.core.set_model(opts.board.lidar_model());
-        if let Ok(Some(c)) = opts.board.hesai_corrections() {
+        if let Ok(Some(c)) = inputs::hesai_corrections(&opts.board) {
             al = al.with_hesai(c);
             al.clock.hesai = true;
         }
