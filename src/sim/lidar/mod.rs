@@ -320,7 +320,7 @@ const STENCIL: [(f64, f64, f64); 5] = [
 const R_REF: f64 = 100.0;
 const P_MIN: f64 = 0.1;
 
-/// The VLP-16 simulator: call [`Self::next_packet`] until it returns `None`.
+/// The LiDAR simulator (any [`Scanner`]): call [`Self::next_packet`] until it returns `None`.
 pub struct LidarSim<'w, 'a> {
     world: &'w World<'a>,
     cfg: LidarConfig,

@@ -97,11 +97,15 @@ impl Scanner {
 
     /// The scanner of a scenario's key: a Velodyne model's (`vlp16` ...), `xt16` or `xt32`.
     pub fn parse(s: &str) -> Option<Self> {
-        match s.to_ascii_lowercase().as_str() {
-            "xt16" | "pandarxt16" | "pandarxt-16" => Some(Scanner::Hesai(hesai::Model::Xt16)),
-            "xt32" | "pandarxt32" | "pandarxt-32" => Some(Scanner::Hesai(hesai::Model::Xt32)),
-            "os1-64" | "os164" | "os-1-64" => Some(Scanner::Ouster(Ouster::Os1_64)),
-            _ => Model::parse(s).map(Scanner::Velodyne),
+        let named = |names: &[&str]| names.iter().any(|n| n.eq_ignore_ascii_case(s));
+        if named(&["xt16", "pandarxt16", "pandarxt-16"]) {
+            Some(Scanner::Hesai(hesai::Model::Xt16))
+        } else if named(&["xt32", "pandarxt32", "pandarxt-32"]) {
+            Some(Scanner::Hesai(hesai::Model::Xt32))
+        } else if named(&["os1-64", "os164", "os-1-64"]) {
+            Some(Scanner::Ouster(Ouster::Os1_64))
+        } else {
+            Model::parse(s).map(Scanner::Velodyne)
         }
     }
 

@@ -80,9 +80,9 @@ pub struct TruthObject {
 pub struct Label {
     /// Data packet index in file order.
     pub packet: u32,
-    /// Block 0..11.
+    /// Block (an Ouster's column in its packet).
     pub block: u8,
-    /// Channel 0..31.
+    /// Channel (an Ouster's pixel).
     pub channel: u8,
     /// Object index (0xFFFE: water).
     pub object: u16,

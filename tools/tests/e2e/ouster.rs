@@ -39,6 +39,27 @@ fn refused(c: &mut std::process::Command) -> String {
 /// (frame id, measurement id, channel, return) -> x y z [m].
 pub(crate) type Returns = HashMap<(u32, u32, u32, String), [f64; 3]>;
 
+/// The rows of a `decode --csv` listing (its header skipped) by their Ouster keys; a row
+/// twice fails.
+pub(crate) fn listed<'a>(lines: impl Iterator<Item = &'a str>) -> Returns {
+    let mut got = Returns::new();
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        let p = |i: usize| f[i].parse::<f64>().unwrap();
+        let key = (
+            f[13].parse().unwrap(),
+            f[14].parse().unwrap(),
+            f[15].parse().unwrap(),
+            f[4].to_string(),
+        );
+        assert!(
+            got.insert(key, [p(10), p(11), p(12)]).is_none(),
+            "a row twice: {l}"
+        );
+    }
+    got
+}
+
 /// What Ouster's SDK decodes from the capture.
 pub(crate) fn reference(pcap: &PathBuf, meta: &PathBuf) -> Returns {
     let script = common::repo_root().join("scripts/ouster_xyz.py");
@@ -95,21 +116,7 @@ fn every_capture_decodes_as_ousters_sdk_does() {
             header,
             "packet,block,sequence,laser,return,time_us,azimuth_deg,elevation_deg,distance_m,intensity,x_m,y_m,z_m,frame_id,measurement_id,channel"
         );
-        let mut got = Returns::new();
-        for l in lines {
-            let f: Vec<&str> = l.split(',').collect();
-            let p = |i: usize| f[i].parse::<f64>().unwrap();
-            let key = (
-                f[13].parse().unwrap(),
-                f[14].parse().unwrap(),
-                f[15].parse().unwrap(),
-                f[4].to_string(),
-            );
-            assert!(
-                got.insert(key, [p(10), p(11), p(12)]).is_none(),
-                "{name}: a row twice: {l}"
-            );
-        }
+        let got = listed(lines);
         let missing = want.keys().filter(|k| !got.contains_key(*k)).count();
         let extra = got.keys().filter(|k| !want.contains_key(*k)).count();
         assert_eq!(

@@ -155,18 +155,7 @@ fn sdk_decodes_the_start_as_decode_does(dir: &Path) -> std::path::PathBuf {
             .arg(&csv),
     );
     let text = std::fs::read_to_string(&csv).unwrap();
-    let mut got = crate::ouster::Returns::new();
-    for l in text.lines().skip(1) {
-        let f: Vec<&str> = l.split(',').collect();
-        let p = |i: usize| f[i].parse::<f64>().unwrap();
-        let key = (
-            f[13].parse().unwrap(),
-            f[14].parse().unwrap(),
-            f[15].parse().unwrap(),
-            f[4].to_string(),
-        );
-        got.insert(key, [p(10), p(11), p(12)]);
-    }
+    let got = crate::ouster::listed(text.lines().skip(1));
     assert!(want.len() > 10_000, "{}", want.len());
     assert_eq!(got.len(), want.len());
     for (k, w) in &want {
