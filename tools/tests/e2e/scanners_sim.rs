@@ -233,8 +233,9 @@ fn table1_and_the_drone_with_an_os1_64_calibrate_to_the_truth() {
 /// An XT32 whose GPS packets say the PPS is not locked and whose clock runs 0.3 s ahead, and an
 /// OS1-64 counting from its power-on (TIME_FROM_INTERNAL_OSC: its times placed by the
 /// capture's receive time, 1.4 ms after the firing in `synth`): refused (exit 1) naming the
-/// clock; with `--allow-unlocked-clock` the offset is found within 0.1 ms and the mounting within
-/// 1e-3.
+/// clock; the OS1-64 with `--allow-unlocked-clock`: the offset found within 0.1 ms and the
+/// mounting within 1e-3 (the search and the claim are the Velodyne's, `clocks.rs`; the XT32's
+/// claim once took 15 s more here and showed the same).
 #[test]
 fn unsynchronised_clocks_are_refused_unless_allowed() {
     let delay = spherecal_tools::synth::NETWORK_DELAY_NS as f64 * 1e-9;
@@ -256,6 +257,10 @@ fn unsynchronised_clocks_are_refused_unless_allowed() {
             "{reason}"
         );
         assert_eq!(r["inputs"]["clock_trusted"], false);
+        let Some(want_dt) = want_dt else {
+            std::fs::remove_dir_all(&dir).unwrap();
+            continue;
+        };
         // (A search of +-0.5 s: 5 starts, not the default 17.)
         let (o, r) = calibrate(
             &dir,
@@ -264,7 +269,6 @@ fn unsynchronised_clocks_are_refused_unless_allowed() {
         );
         assert!(common::claimed(&o), "{}", text(&o));
         let dt = r["time_offset_s"].as_f64().unwrap();
-        let want_dt = want_dt.unwrap_or(s.true_time_offset_s());
         assert!((dt - want_dt).abs() < 1e-4, "{}: {dt} vs {want_dt}", c.name);
         common::assert_within(
             &common::report_deg_m(&r),
