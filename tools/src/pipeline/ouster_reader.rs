@@ -50,7 +50,8 @@ impl Decoder<'_> {
                 self.meta.timestamp_mode,
                 Some(TimestampMode::Ptp | TimestampMode::SyncPulseIn)
             );
-        let ts = ts as i64;
+        // (A timestamp beyond i64 is garbage: held at the end of time, never wrapped.)
+        let ts = i64::try_from(ts).unwrap_or(i64::MAX);
         if synchronised {
             self.clock.synchronised += 1;
             return match self.meta.timestamp_mode {
@@ -59,8 +60,8 @@ impl Decoder<'_> {
             };
         }
         self.clock.free_running += 1;
-        let off = *self.free_offset.get_or_insert(host.0 - ts);
-        unix_ns_to_gps(ts + off, self.leap_seconds)
+        let off = *self.free_offset.get_or_insert(host.0.saturating_sub(ts));
+        unix_ns_to_gps(ts.saturating_add(off), self.leap_seconds)
     }
 
     /// The packet's returns in chunks onto the ring; `Err` when it is no packet of the
@@ -109,7 +110,7 @@ impl Decoder<'_> {
             let geo = g.column(col.measurement_id());
             col.for_each_return(|beam, ret, range_mm| {
                 let (t0, c) = chunk.get_or_insert((t, Chunk::new(HostTime(0))));
-                let offset = t.0 - t0.0;
+                let offset = t.0.saturating_sub(t0.0);
                 let px = col.pixel(beam);
                 let bp = geo.point(beam, range_mm);
                 let point = Point {
@@ -197,4 +198,60 @@ pub fn ouster_reader<S: PacketSource>(
         }
     }
     (skips, d.clock, Ok(()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn meta(mode: &str) -> Metadata {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../tests/data/ouster/OS-0-32-U1_v2.2.0_1024x10.json"
+        ))
+        .unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["config_params"]["timestamp_mode"] = mode.into();
+        Metadata::parse(&v).unwrap()
+    }
+
+    /// PTP's TAI and the sync pulse's UTC to GPS time (2024-06-12T10:59:25Z is GPS
+    /// 1402225183 s: UTC + 18 s); a free-running count placed by the first receive time; any
+    /// timestamp, however wild, gives a time and no overflow.
+    #[test]
+    fn column_times_by_the_timestamp_mode() {
+        let utc_ns: i64 = 1_718_189_965_000_000_000;
+        let gps = GpsTime(1_402_225_183 * 1_000_000_000);
+        let host = HostTime(utc_ns + 1_400_000);
+        let m = meta("TIME_FROM_PTP_1588");
+        let mut d = Decoder {
+            meta: &m,
+            leap_seconds: 18,
+            clock: OusterClock::default(),
+            free_offset: None,
+            crc_on: false,
+            from_bag: false,
+        };
+        let tai = (utc_ns + 37_000_000_000) as u64;
+        assert_eq!(d.gps(tai, host), gps);
+        assert_eq!(d.gps(516_000_000_000, host), GpsTime(gps.0 + 1_400_000));
+        assert_eq!(d.gps(517_000_000_000, host), GpsTime(gps.0 + 1_001_400_000));
+        assert_eq!((d.clock.synchronised, d.clock.free_running), (1, 2));
+        assert!(!d.clock.trusted());
+        for wild in [0, u64::MAX, i64::MAX as u64 + 1, 1 << 62] {
+            let _ = d.gps(wild, host);
+        }
+        let m = meta("TIME_FROM_SYNC_PULSE_IN");
+        d.meta = &m;
+        assert_eq!(d.gps(utc_ns as u64, host), gps);
+        let m = meta("TIME_FROM_INTERNAL_OSC");
+        d.meta = &m;
+        let before = d.clock.free_running;
+        let _ = d.gps(utc_ns as u64, host);
+        assert_eq!(
+            d.clock.free_running,
+            before + 1,
+            "free-running whatever its value"
+        );
+    }
 }
