@@ -1,6 +1,7 @@
 //! What each LiDAR port hears, before any filtering: who sends, and what the packets say of the
 //! sensor (product, return mode, rotation rate from the azimuth advance; PPS and RMC from the
-//! position packets). The rig says it in words a few seconds after the start, and warns when a
+//! position packets; a Hesai's data and GPS packets likewise). The rig says it in words a few
+//! seconds after the start, and warns when a
 //! port is silent or another sender is talking: a factory VLP-16 broadcasts to
 //! 255.255.255.255, which a socket bound to one unicast address never receives.
 
@@ -40,6 +41,9 @@ pub struct Heard {
     /// What the data packets say of the model: product byte checked against their period.
     #[serde(skip)]
     pub identity: Option<Identity>,
+    /// A Hesai's data packets: their model and return mode, last seen.
+    #[serde(skip)]
+    pub hesai: Option<(spherecal::hesai::Model, spherecal::hesai::ReturnMode)>,
     #[serde(skip)]
     spin: Spin,
     #[serde(skip)]
@@ -89,7 +93,24 @@ impl Heard {
                 self.packets += 1;
                 self.position(&packet);
             }
-            Err(_) => {}
+            Err(_) => self.see_hesai(d),
+        }
+    }
+
+    /// A Hesai's data or GPS packet (PPS lock: locked, else absent; its NMEA sentence).
+    fn see_hesai(&mut self, d: &Datagram<'_>) {
+        if let Ok(p) = spherecal::hesai::DataPacket::new_checked(d.payload) {
+            self.packets += 1;
+            self.hesai = Some((p.model(), p.return_mode()));
+            self.turn(d.time, p.azimuth(0));
+        } else if let Ok(g) = spherecal::hesai::GpsPacket::new_checked(d.payload) {
+            self.packets += 1;
+            let pps = match g.pps_locked() {
+                true => PpsStatus::Locked,
+                false => PpsStatus::Absent,
+            };
+            self.pps = Some(pps.to_byte());
+            self.nmea_valid = g.nmea_time().map(|t| t.valid);
         }
     }
 
@@ -166,6 +187,12 @@ impl Heard {
         if let Some(m) = self.return_mode {
             let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {}", return_name(m)));
         }
+        if let Some((m, r)) = self.hesai {
+            let _ = std::fmt::Write::write_fmt(
+                &mut o,
+                format_args!(", Hesai {}, {} return", m.name(), r.name()),
+            );
+        }
         if let Some(r) = self.rpm {
             let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {r:.0} rpm"));
         }
@@ -180,7 +207,7 @@ impl Heard {
         }
         if self.packets == 0 {
             warn.push(format!(
-                "{head}: {} datagrams but none is a VLP-16 {what} packet (wrong port? another device?)",
+                "{head}: {} datagrams but none is a VLP-16 or Hesai {what} packet (wrong port? another device?)",
                 self.datagrams
             ));
         }
@@ -302,6 +329,50 @@ mod tests {
             warn[0].contains("nothing from the board's sensor_addr 192.168.1.55"),
             "{warn:?}"
         );
+        // A Hesai's data and GPS packets: counted, named, the rate and the PPS lock read.
+        let mut h = Heard::new(2368);
+        for k in 0..2000u32 {
+            let mut b = vec![0u8; spherecal::hesai::Model::Xt32.emitted_len()];
+            let mut p = spherecal::hesai::DataPacket::emit(
+                &mut b[..],
+                spherecal::hesai::Model::Xt32,
+                spherecal::hesai::ReturnMode::Single(0x37),
+                k,
+            )
+            .unwrap();
+            // 1.44 deg (8 firings of 0.18 deg) every 400 us: 600 rpm.
+            p.set_azimuth(0, (k * 144 % 36_000) as u16);
+            let d = Datagram {
+                time: HostTime(i64::from(k) * 400_000),
+                src_addr: sensor,
+                src_port: 2368,
+                dst_port: 2368,
+                payload: &b,
+                offset: 0,
+            };
+            h.see(&d, ports);
+        }
+        let (text, warn) = h.describe("data", Some(sensor), 3.0, true);
+        assert!(
+            text.contains("Hesai PandarXT32, strongest return, 600 rpm"),
+            "{text}"
+        );
+        assert!(warn.is_empty(), "{warn:?}");
+        let mut g = [0u8; 512];
+        let utc = spherecal::time::UtcDateTime::from_unix_ns(1_718_189_966_000_000_000);
+        spherecal::hesai::GpsPacket::emit(&mut g[..], &utc, b"", b'V', false).unwrap();
+        let mut h = Heard::new(10110);
+        let d = Datagram {
+            time: HostTime(0),
+            src_addr: sensor,
+            src_port: 10110,
+            dst_port: 10110,
+            payload: &g,
+            offset: 0,
+        };
+        h.see(&d, ports);
+        let (_, warn) = h.describe("position", Some(sensor), 3.0, true);
+        assert!(warn.iter().any(|w| w.contains("PPS absent")), "{warn:?}");
         // A silent port.
         let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
         assert!(
