@@ -67,6 +67,12 @@ impl Corrections {
         self.channels
     }
 
+    /// The time between two firings of one channel of the model with this many channels
+    /// [ns] ([`super::Model::laser_period_ns`]; `None` for a count no model has).
+    pub fn laser_period_ns(&self) -> Option<i64> {
+        super::Model::of_channels(self.channels).map(|m| i64::from(m.laser_period_ns()))
+    }
+
     /// The geometry of a block at azimuth `centideg` [0.01 deg].
     pub fn block(&self, centideg: u16) -> BlockGeometry<'_> {
         let deg = f64::from(centideg) * 0.01;

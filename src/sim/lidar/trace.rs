@@ -31,7 +31,12 @@ impl LidarSim<'_, '_> {
         let origin = pose.position + pose.r_ig * mount.lever;
         let to_l = (pose.r_ig * mount.r_li).transpose();
         let t_mid = self.world.t_of(mid);
-        let (lo, hi) = self.cfg.scanner.elevation_span_deg();
+        // (From the beams tabulated once, no trigonometry per cache span.)
+        let (lo, hi) = self.beams[..self.cfg.scanner.lasers().min(MAX_LASERS)]
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(lo, hi), b| {
+                (lo.min(b.elevation_deg), hi.max(b.elevation_deg))
+            });
         let (lo, hi) = ((lo - 1.0).to_radians(), (hi + 1.0).to_radians());
         let all = !self.cfg.cull;
         for (i, obj) in self.world.objects.iter().enumerate().take(MAX_OBJECTS) {

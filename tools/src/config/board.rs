@@ -238,8 +238,7 @@ impl Board {
     /// The LiDAR's time between two firings of one laser [ns] (`hesai`: its corrections).
     pub fn laser_period_ns(&self, hesai: Option<&spherecal::hesai::Corrections>) -> Option<i64> {
         match hesai {
-            Some(c) => spherecal::hesai::Model::of_channels(c.channels())
-                .map(|m| i64::from(m.laser_period_ns())),
+            Some(c) => c.laser_period_ns(),
             None => self.lidar_model().map(|m| i64::from(m.laser_period_ns())),
         }
     }

@@ -135,8 +135,7 @@ impl Inputs {
             return Some(m.column_period_ns());
         }
         match &self.hesai {
-            Some(c) => spherecal::hesai::Model::of_channels(c.channels())
-                .map(|m| i64::from(m.laser_period_ns())),
+            Some(c) => c.laser_period_ns(),
             None => self.model.map(|m| i64::from(m.laser_period_ns())),
         }
     }
