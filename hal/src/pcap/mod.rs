@@ -23,7 +23,10 @@ pub mod write;
 
 pub use chain::{ChainError, ChainFault, PcapChain};
 pub use read::PcapSource;
-pub use slice::{build_udp_frame, slice_fragment, slice_udp, Fragment, UdpEndpoints};
+pub use slice::{
+    build_fragment_frame, build_udp_frame, slice_fragment, slice_udp, udp_fragments, Fragment,
+    Piece, UdpEndpoints, FRAGMENT_BYTES,
+};
 pub use write::PcapWriter;
 
 /// Largest record or block we accept; anything larger means a corrupt length field.

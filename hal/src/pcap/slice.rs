@@ -137,6 +137,83 @@ impl Default for UdpEndpoints {
     }
 }
 
+/// Bytes of IP payload a fragment carries on a 1500-byte Ethernet link (the MTU less the
+/// 20-byte IPv4 header; a multiple of 8, as every fragment but the last must be).
+pub const FRAGMENT_BYTES: usize = 1480;
+
+/// One piece of a UDP datagram fragmented for the link ([`udp_fragments`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Piece<'a> {
+    /// Byte offset in the IP payload (the UDP header and the datagram's payload).
+    pub offset: usize,
+    /// More pieces follow.
+    pub more: bool,
+    /// The UDP header the first piece begins with (source and destination port, length,
+    /// checksum 0: none, as IPv4 allows).
+    pub udp_header: Option<[u8; 8]>,
+    /// Its share of the datagram's payload.
+    pub payload: &'a [u8],
+}
+
+/// The pieces of the UDP datagram (`src_port` -> `dst_port`, `payload`) in IPv4 fragments of
+/// [`FRAGMENT_BYTES`] as a sender on a 1500-byte link cuts it (RFC 791 3.2); one piece, whole,
+/// when it fits. `None` when it is too long for UDP (65,507 bytes).
+pub fn udp_fragments(
+    src_port: u16,
+    dst_port: u16,
+    payload: &[u8],
+) -> Option<impl Iterator<Item = Piece<'_>>> {
+    let len = u16::try_from(payload.len() + 8)
+        .ok()
+        .filter(|&l| l <= 65_515)?;
+    let mut h = [0u8; 8];
+    h[0..2].copy_from_slice(&src_port.to_be_bytes());
+    h[2..4].copy_from_slice(&dst_port.to_be_bytes());
+    h[4..6].copy_from_slice(&len.to_be_bytes());
+    let total = usize::from(len);
+    Some((0..total.div_ceil(FRAGMENT_BYTES)).map(move |k| {
+        let (a, b) = (k * FRAGMENT_BYTES, ((k + 1) * FRAGMENT_BYTES).min(total));
+        Piece {
+            offset: a,
+            more: b < total,
+            udp_header: (k == 0).then_some(h),
+            payload: &payload[a.saturating_sub(8)..b - 8],
+        }
+    }))
+}
+
+/// Build an Ethernet II / IPv4 frame around `bytes`, one fragment of a UDP datagram too long
+/// for the link (RFC 791: identification `id`, its place `offset` in the IP payload, a
+/// multiple of 8, and "more fragments"; the first fragment's bytes begin with the UDP
+/// header), into `out` (cleared first).
+pub fn build_fragment_frame(
+    out: &mut Vec<u8>,
+    ep: &UdpEndpoints,
+    (id, offset, more): (u16, usize, bool),
+    bytes: &[u8],
+) -> io::Result<()> {
+    out.clear();
+    let eth = etherparse::Ethernet2Header {
+        source: ep.src_mac,
+        destination: ep.dst_mac,
+        ether_type: EtherType::IPV4,
+    };
+    let len = u16::try_from(bytes.len()).map_err(io::Error::other)?;
+    let mut ip =
+        etherparse::Ipv4Header::new(len, 64, etherparse::IpNumber::UDP, ep.src_ip, ep.dst_ip)
+            .map_err(io::Error::other)?;
+    ip.identification = id;
+    ip.dont_fragment = false;
+    ip.more_fragments = more;
+    let units = u16::try_from(offset / 8).map_err(io::Error::other)?;
+    ip.fragment_offset = etherparse::IpFragOffset::try_new(units).map_err(io::Error::other)?;
+    out.reserve(14 + 20 + bytes.len());
+    eth.write(out)?;
+    ip.write(out)?;
+    out.extend_from_slice(bytes);
+    Ok(())
+}
+
 /// Build an Ethernet II / IPv4 / UDP frame around `payload` into `out` (cleared first), with
 /// correct lengths and IPv4 and UDP checksums. Fails only for a payload over 65507 bytes.
 pub fn build_udp_frame(

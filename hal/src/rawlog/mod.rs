@@ -9,7 +9,7 @@
 pub mod mcap_log;
 
 use crate::packet::HostTime;
-use crate::pcap::{build_udp_frame, PcapWriter, UdpEndpoints};
+use crate::pcap::{build_fragment_frame, build_udp_frame, PcapWriter, UdpEndpoints};
 use crate::serial::{LogWriter, RxStamp};
 pub use mcap_log::McapLog;
 use std::fs::File;
@@ -118,9 +118,10 @@ impl<F: Format> Rotating<F> {
     }
 
     /// Make room for a record of `need` bytes: start the next file (the current one synced to
-    /// the disk first) if this one would pass the limit; count the record.
-    fn room(&mut self, need: usize) -> io::Result<()> {
-        if self.written > F::HEADER && self.written + need as u64 > self.limit {
+    /// the disk first) if this one would pass the limit and a file may end here (`may_end`:
+    /// not inside a datagram's fragments); count the record.
+    fn room(&mut self, need: usize, may_end: bool) -> io::Result<()> {
+        if may_end && self.written > F::HEADER && self.written + need as u64 > self.limit {
             self.sync()?;
             let (path, file) = open(&self.dir, &self.prefix, F::EXT, self.files.len())?;
             self.out = self.format.start(file)?;
@@ -175,7 +176,34 @@ impl Rotating<Pcap> {
             ..UdpEndpoints::default()
         };
         build_udp_frame(&mut self.format.frame, &ep, src.1, dst.1, payload)?;
-        self.room(16 + self.format.frame.len())?;
+        self.room(16 + self.format.frame.len(), true)?;
+        self.out
+            .write_frame(time, &self.format.frame)
+            .map_err(io::Error::other)
+    }
+
+    /// Append one IPv4 fragment (`id`, byte `offset` in the IP payload, "more fragments") of a
+    /// UDP datagram from `src` to `dst` received at `time`, as the wire carried it
+    /// ([`build_fragment_frame`]; the capture reader reassembles them). A file rotates only
+    /// before a first fragment; only a datagram's last fragment counts as a record.
+    pub fn write_fragment(
+        &mut self,
+        time: HostTime,
+        (src, dst): (Ipv4Addr, Ipv4Addr),
+        frag: (u16, usize, bool),
+        bytes: &[u8],
+    ) -> io::Result<()> {
+        let ep = UdpEndpoints {
+            src_ip: src.octets(),
+            dst_ip: dst.octets(),
+            ..UdpEndpoints::default()
+        };
+        build_fragment_frame(&mut self.format.frame, &ep, frag, bytes)?;
+        // A datagram's fragments stay in one file (a reader reassembles them file by file).
+        self.room(16 + self.format.frame.len(), frag.1 == 0)?;
+        if frag.2 {
+            self.records -= 1;
+        }
         self.out
             .write_frame(time, &self.format.frame)
             .map_err(io::Error::other)
@@ -190,7 +218,7 @@ impl Rotating<Vnlog> {
 
     /// Append one read.
     pub fn write(&mut self, stamp: RxStamp, bytes: &[u8]) -> io::Result<()> {
-        self.room(crate::serial::RECORD_HEADER + bytes.len())?;
+        self.room(crate::serial::RECORD_HEADER + bytes.len(), true)?;
         self.out.record(stamp, bytes)
     }
 }
@@ -244,6 +272,58 @@ mod tests {
             }
         }
         assert_eq!(i, 100);
+    }
+
+    /// Datagrams longer than the link's MTU (an Ouster's 12,544-byte lidar packets, and one of
+    /// 65,507 bytes: UDP's most) written as the IPv4 fragments the sender cut, between whole
+    /// short ones: the capture reader reassembles each, whole, at its time; a record each.
+    #[test]
+    fn fragments_read_back_as_their_datagrams() {
+        let dir = tmp("fragments");
+        // (Files of 20 kB: they rotate between datagrams, never inside one.)
+        let mut log = PcapLog::create_pcap(&dir, "lidar", 20_000).unwrap();
+        let (src, dst) = (
+            Ipv4Addr::new(169, 254, 10, 2),
+            Ipv4Addr::new(169, 254, 10, 1),
+        );
+        let big = |n: usize, i: usize| (0..n).map(|k| (k * 7 + i) as u8).collect::<Vec<u8>>();
+        let sizes = [12_544, 100, 1472, 1473, 24_832, 65_507, 3];
+        for (i, &n) in sizes.iter().enumerate() {
+            let t = HostTime(1_700_000_000_000_000_000 + i as i64 * 1000);
+            let payload = big(n, i);
+            let pieces: Vec<_> = crate::pcap::udp_fragments(7502, 7502, &payload)
+                .unwrap()
+                .collect();
+            assert_eq!(pieces.len(), (n + 8).div_ceil(1480));
+            if pieces.len() == 1 {
+                log.write(t, (src, 7502), (dst, 7502), &payload).unwrap();
+                continue;
+            }
+            for p in pieces {
+                let mut bytes = p.udp_header.map(|h| h.to_vec()).unwrap_or_default();
+                bytes.extend_from_slice(p.payload);
+                assert!(p.offset % 8 == 0 && (bytes.len() == 1480 || !p.more));
+                log.write_fragment(t, (src, dst), (i as u16, p.offset, p.more), &bytes)
+                    .unwrap();
+            }
+        }
+        assert!(crate::pcap::udp_fragments(1, 2, &[0; 65_508]).is_none());
+        assert_eq!(log.records, sizes.len() as u64);
+        log.sync().unwrap();
+        assert!(log.files().len() >= 3, "{:?}", log.files());
+        let mut got = Vec::new();
+        for f in log.files() {
+            let mut s = PcapSource::open(f).unwrap();
+            while let Some(r) = s.next_record().unwrap() {
+                let Record::Udp(d) = r else { panic!("{r:?}") };
+                let i = got.len();
+                assert_eq!(d.payload, big(sizes[i], i).as_slice(), "datagram {i}");
+                assert_eq!((d.src_addr, d.dst_port), (src, 7502));
+                assert_eq!(d.time.0, 1_700_000_000_000_000_000 + i as i64 * 1000);
+                got.push(d.payload.len());
+            }
+        }
+        assert_eq!(got, sizes);
     }
 
     #[test]

@@ -48,13 +48,13 @@ mod receiver;
 pub mod scanner;
 mod trace;
 
-pub use scanner::{Ouster, Scanner, OS1_BEAM_ORIGIN_M, OS1_LIDAR_Z_M};
+pub use scanner::{Ouster, OusterSpec, Scanner};
 
 /// The longest packet any scanner's simulation writes.
-pub const MAX_PACKET_LEN: usize = 32 + 16 * (12 + 64 * 12) + 32;
+pub const MAX_PACKET_LEN: usize = 32 + 16 * (12 + 128 * 12) + 32;
 
-/// Most returns a data packet holds (an OS1-64's 16 columns of 64 pixels).
-pub const MAX_RETURNS: usize = 1024;
+/// Most returns a data packet holds (an Ouster's 16 columns of 128 pixels).
+pub const MAX_RETURNS: usize = 2048;
 /// Most target spheres a scene may have.
 pub const MAX_TARGETS: usize = 16;
 /// Most objects (targets, scenery and vessel parts) a scene may have.
@@ -64,8 +64,9 @@ pub const LABEL_WATER: u16 = 0xFFFE;
 /// Packets between two computations of the broad-phase windows.
 pub const CACHE_PACKETS: u64 = 8;
 /// Vessel parts (objects fixed to the body) with a table of the firings that can hit them;
-/// more are tested on every firing.
-pub const MAX_BODY_TABLES: usize = 32;
+/// more are tested on every firing. (The built-in vessels have 5-9; the tables of 128 lasers
+/// take 23.5 kB each.)
+pub const MAX_BODY_TABLES: usize = 16;
 /// Azimuth bins of those tables (0.25 deg).
 const BODY_BINS: usize = 1440;
 const BODY_WORDS: usize = BODY_BINS.div_ceil(64);

@@ -11,17 +11,17 @@
 //!   The beams are the manual's nominal channel table (elevation 15 deg down in 1 deg steps
 //!   (XT32) or 2 deg steps (XT16), no azimuth correction), which [`Scanner::correction_row`]
 //!   writes as the unit's correction file.
-//! - Ouster OS1-64 (firmware 2.2+, the RNG19_RFL8_SIG16_NIR16 profile, 16 columns a packet, UDP
-//!   7502): a column of 64 pixels every 97.656 us (10,240 columns a second: 1024x10 at 600 rpm,
+//! - Ouster OS0-128, OS1-64, OS1-128 and OS2-128 (firmware 2.2+, the RNG19_RFL8_SIG16_NIR16
+//!   profile, 16 columns a packet, UDP 7502): a column of 64 or 128 pixels every 97.656 us (10,240 columns a second: 1024x10 at 600 rpm,
 //!   512x20 at 1200), every beam of a column fired at the column's timestamp (PTP: TAI
 //!   nanoseconds), measurement id `m` at the encoder angle `2 pi (1 - m / W)`; a beam's point
-//!   per the firmware manual's "Lidar Range to XYZ" with the OS1's beam origin (15.806 mm
-//!   from the axis) and lidar-to-sensor transform (x and y turned over, z + 36.18 mm). In the
-//!   sensor frame with the Velodyne's azimuth (clockwise from +y) that is: the column's
-//!   azimuth `A = 2 pi m / W - pi / 2`, the beam's `A + azimuth_i`, the point `r u + 15.806 mm
-//!   (sin A, cos A, 0) + (0, 0, 36.18 mm) - 15.806 mm u`. Nominal tables: altitudes 16.6 deg
-//!   down to -16.6 deg evenly, azimuths staggered 3.1, 1.0, -1.0, -3.1 deg (a Gen 1 OS1-64's
-//!   shape), which `synth` writes into the sensor's metadata JSON.
+//!   per the firmware manual's "Lidar Range to XYZ" with the model's beam origin `n` (e.g. the
+//!   OS1's 15.806 mm from the axis) and lidar-to-sensor transform (x and y turned over, z +
+//!   `h`, e.g. 36.18 mm). In the sensor frame with the Velodyne's azimuth (clockwise from +y)
+//!   that is: the column's azimuth `A = 2 pi m / W - pi / 2`, the beam's `A + azimuth_i`, the
+//!   point `r u + n (sin A, cos A, 0) + (0, 0, h) - n u`. Nominal tables ([`OusterSpec`]):
+//!   altitudes evenly over the model's vertical field of view, azimuths staggered in fours
+//!   (the shape of the units' own tables), which `synth` writes into the metadata JSON.
 
 use crate::time::{gps_to_unix_ns, micros_past_hour, GpsTime, UtcDateTime};
 use crate::velodyne::position::{write_gprmc, POSITION_PACKET_LEN};
@@ -37,24 +37,109 @@ pub const MAX_BLOCKS: usize = 16;
 const HESAI_FIRING_NS: u32 = 50_000;
 
 /// Most lasers (pixels per column) of a scanner simulated.
-pub const SIM_LASERS: usize = 64;
+pub const SIM_LASERS: usize = 128;
 
 /// An Ouster's columns a second (1024x10, 512x20, 2048x5).
 pub const OUSTER_COLUMN_HZ: u32 = 10_240;
 /// ... columns per packet.
 pub const OUSTER_COLUMNS: usize = 16;
-/// The OS1's beam origin's distance from the axis [m] (`lidar_origin_to_beam_origin_mm`).
-pub const OS1_BEAM_ORIGIN_M: f64 = 0.015_806;
-/// The OS1's lidar-to-sensor height [m] (`lidar_to_sensor_transform`'s z).
-pub const OS1_LIDAR_Z_M: f64 = 0.036_18;
-/// The nominal OS1-64's beam azimuths [deg], by beam modulo 4.
-const OS1_AZIMUTHS: [f64; 4] = [3.1, 1.0, -1.0, -3.1];
-
 /// An Ouster model simulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ouster {
+    /// OS0-128 (90 deg vertical field).
+    Os0_128,
     /// OS1-64 (Gen 1 beam layout).
     Os1_64,
+    /// OS1-128 (45 deg).
+    Os1_128,
+    /// OS2-128 (22.5 deg).
+    Os2_128,
+}
+
+/// What the simulator takes of an Ouster model: nominal figures of the kind its metadata
+/// gives (the units' own tables differ by a few hundredths of a degree; the decoder and the
+/// calibration read them from the metadata `synth` writes, never from here).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OusterSpec {
+    /// `prod_line`.
+    pub name: &'static str,
+    /// `synth --model`'s key.
+    pub key: &'static str,
+    /// Pixels (beams) per column.
+    pub pixels: usize,
+    /// The top beam's altitude [deg]; the bottom one's is its negative.
+    pub top_deg: f64,
+    /// The beam azimuths [deg], by beam modulo 4.
+    pub azimuths_deg: [f64; 4],
+    /// `lidar_origin_to_beam_origin_mm` [m].
+    pub beam_origin_m: f64,
+    /// `lidar_to_sensor_transform`'s z [m].
+    pub lidar_z_m: f64,
+}
+
+impl Ouster {
+    /// The simulated packet format: RNG19_RFL8_SIG16_NIR16, 16 columns of the model's pixels.
+    pub fn format(self) -> ouster::Format {
+        ouster::Format {
+            profile: ouster::Profile::Single,
+            header: ouster::HeaderKind::Standard,
+            columns: OUSTER_COLUMNS,
+            pixels: self.spec().pixels,
+        }
+    }
+
+    /// Every Ouster model simulated.
+    pub const ALL: [Ouster; 4] = [
+        Ouster::Os0_128,
+        Ouster::Os1_64,
+        Ouster::Os1_128,
+        Ouster::Os2_128,
+    ];
+
+    /// The model's figures: fields of view from the datasheets (OS0 90 deg, OS1 45 deg (the
+    /// Gen 1 OS1-64 33.2 deg), OS2 22.5 deg), beam origins from the units' metadata (OS0
+    /// 27.67 mm, OS1 Gen 1 15.806 mm, OS1 rev 7 16.721 mm, OS2 13.762 mm), the azimuth stagger
+    /// scaled with the field as the vendored captures' tables are.
+    pub const fn spec(self) -> OusterSpec {
+        match self {
+            Ouster::Os0_128 => OusterSpec {
+                name: "OS-0-128",
+                key: "os0-128",
+                pixels: 128,
+                top_deg: 45.0,
+                azimuths_deg: [10.7, 3.6, -3.6, -10.7],
+                beam_origin_m: 0.027_67,
+                lidar_z_m: 0.036_18,
+            },
+            Ouster::Os1_64 => OusterSpec {
+                name: "OS-1-64",
+                key: "os1-64",
+                pixels: 64,
+                top_deg: 16.6,
+                azimuths_deg: [3.1, 1.0, -1.0, -3.1],
+                beam_origin_m: 0.015_806,
+                lidar_z_m: 0.036_18,
+            },
+            Ouster::Os1_128 => OusterSpec {
+                name: "OS-1-128",
+                key: "os1-128",
+                pixels: 128,
+                top_deg: 22.5,
+                azimuths_deg: [4.2, 1.4, -1.4, -4.2],
+                beam_origin_m: 0.016_721,
+                lidar_z_m: 0.038_195,
+            },
+            Ouster::Os2_128 => OusterSpec {
+                name: "OS-2-128",
+                key: "os2-128",
+                pixels: 128,
+                top_deg: 11.25,
+                azimuths_deg: [2.1, 0.7, -0.7, -2.1],
+                beam_origin_m: 0.013_762,
+                lidar_z_m: 0.036_18,
+            },
+        }
+    }
 }
 
 /// A scanner the simulator writes.
@@ -85,25 +170,32 @@ impl Scanner {
     pub(super) const OUSTER_COLUMNS_U64: u64 = OUSTER_COLUMNS as u64;
 
     /// Every scanner the simulator writes.
-    pub const ALL: [Scanner; 7] = [
+    pub const ALL: [Scanner; 10] = [
         Scanner::Velodyne(Model::Vlp16),
         Scanner::Velodyne(Model::PuckHiRes),
         Scanner::Velodyne(Model::Hdl32e),
         Scanner::Velodyne(Model::Vlp32c),
         Scanner::Hesai(hesai::Model::Xt16),
         Scanner::Hesai(hesai::Model::Xt32),
+        Scanner::Ouster(Ouster::Os0_128),
         Scanner::Ouster(Ouster::Os1_64),
+        Scanner::Ouster(Ouster::Os1_128),
+        Scanner::Ouster(Ouster::Os2_128),
     ];
 
-    /// The scanner of a scenario's key: a Velodyne model's (`vlp16` ...), `xt16` or `xt32`.
+    /// The scanner of a scenario's key: a Velodyne model's (`vlp16` ...), `xt16`, `xt32` or an
+    /// Ouster's (`os1-64`, or its `prod_line` `OS-1-64`).
     pub fn parse(s: &str) -> Option<Self> {
         let named = |names: &[&str]| names.iter().any(|n| n.eq_ignore_ascii_case(s));
         if named(&["xt16", "pandarxt16", "pandarxt-16"]) {
             Some(Scanner::Hesai(hesai::Model::Xt16))
         } else if named(&["xt32", "pandarxt32", "pandarxt-32"]) {
             Some(Scanner::Hesai(hesai::Model::Xt32))
-        } else if named(&["os1-64", "os164", "os-1-64"]) {
-            Some(Scanner::Ouster(Ouster::Os1_64))
+        } else if let Some(o) = Ouster::ALL
+            .into_iter()
+            .find(|o| named(&[o.spec().key, o.spec().name]))
+        {
+            Some(Scanner::Ouster(o))
         } else {
             Model::parse(s).map(Scanner::Velodyne)
         }
@@ -115,7 +207,7 @@ impl Scanner {
             Scanner::Velodyne(m) => m.key(),
             Scanner::Hesai(hesai::Model::Xt16) => "xt16",
             Scanner::Hesai(_) => "xt32",
-            Scanner::Ouster(Ouster::Os1_64) => "os1-64",
+            Scanner::Ouster(o) => o.spec().key,
         }
     }
 
@@ -124,7 +216,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.name(),
             Scanner::Hesai(m) => m.name(),
-            Scanner::Ouster(Ouster::Os1_64) => "OS-1-64",
+            Scanner::Ouster(o) => o.spec().name,
         }
     }
 
@@ -141,7 +233,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => m.lasers(),
             Scanner::Hesai(m) => m.channels(),
-            Scanner::Ouster(_) => 64,
+            Scanner::Ouster(o) => o.spec().pixels,
         }
     }
 
@@ -163,16 +255,17 @@ impl Scanner {
                     sin_az: 0.0,
                 }
             }
-            Scanner::Ouster(_) => {
-                let i = laser % 64;
-                let el = 16.6 - 33.2 * i as f64 / 63.0;
-                let az = OS1_AZIMUTHS[i % 4];
+            Scanner::Ouster(o) => {
+                let o = o.spec();
+                let i = laser % o.pixels;
+                let el = o.top_deg - 2.0 * o.top_deg * i as f64 / (o.pixels - 1) as f64;
+                let az = o.azimuths_deg[i % 4];
                 let (sin_el, cos_el) = libm::sincos(el.to_radians());
                 let (sin_az, cos_az) = libm::sincos(az.to_radians());
                 Beam {
                     elevation_deg: el,
                     azimuth_offset_deg: az,
-                    vertical_offset_m: OS1_LIDAR_Z_M,
+                    vertical_offset_m: o.lidar_z_m,
                     cos_el,
                     sin_el,
                     cos_az,
@@ -186,7 +279,7 @@ impl Scanner {
     /// column (`n (sin A, cos A, 0) - n u`); 0 for the others.
     pub fn beam_origin_radius_m(self) -> f64 {
         match self {
-            Scanner::Ouster(_) => OS1_BEAM_ORIGIN_M,
+            Scanner::Ouster(o) => o.spec().beam_origin_m,
             _ => 0.0,
         }
     }
@@ -232,7 +325,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => velodyne::data::field::CHANNELS,
             Scanner::Hesai(m) => m.channels(),
-            Scanner::Ouster(_) => 64,
+            Scanner::Ouster(o) => o.spec().pixels,
         }
     }
 
@@ -241,7 +334,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(m) => usize::from(m.channels()[ch % 32].laser),
             Scanner::Hesai(m) => ch % m.channels(),
-            Scanner::Ouster(_) => ch % 64,
+            Scanner::Ouster(o) => ch % o.spec().pixels,
         }
     }
 
@@ -314,17 +407,7 @@ impl Scanner {
         match self {
             Scanner::Velodyne(_) => (DATA_PORT, velodyne::data::DATA_PACKET_LEN),
             Scanner::Hesai(m) => (hesai::DATA_PORT, m.emitted_len()),
-            Scanner::Ouster(_) => (ouster::LIDAR_PORT, Self::ouster_format().packet_len()),
-        }
-    }
-
-    /// The simulated Ouster's packet format: RNG19_RFL8_SIG16_NIR16, 16 columns of 64 pixels.
-    pub fn ouster_format() -> ouster::Format {
-        ouster::Format {
-            profile: ouster::Profile::Single,
-            header: ouster::HeaderKind::Standard,
-            columns: OUSTER_COLUMNS,
-            pixels: 64,
+            Scanner::Ouster(o) => (ouster::LIDAR_PORT, o.format().packet_len()),
         }
     }
 
@@ -411,9 +494,9 @@ impl<'b> Writer<'b> {
                 p.set_time(s.rpm, date, utc.nanos / 1000);
                 Some(Writer::Hesai(p))
             }
-            Scanner::Ouster(_) => ouster::LidarPacket::emit(
+            Scanner::Ouster(o) => ouster::LidarPacket::emit(
                 buf,
-                Scanner::ouster_format(),
+                o.format(),
                 s.frame_id,
                 OUSTER_INIT_ID,
                 OUSTER_SERIAL,

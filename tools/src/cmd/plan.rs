@@ -23,8 +23,8 @@ pub struct Args {
     /// (two opposing lines over them, one lower, one crossing).
     #[arg(long, value_enum, default_value = "vessel")]
     pub platform: crate::plan::site::Platform,
-    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires, xt16, xt32, os1-64; default
-    /// vlp16): its beams, firing times and range unit.
+    /// With --site: the LiDAR (vlp16, hdl32e, vlp32c, puck-hires, xt16, xt32, os0-128,
+    /// os1-64, os1-128, os2-128; default vlp16): its beams, firing times and range unit.
     #[arg(long, value_parser = super::parse_scanner)]
     pub model: Option<spherecal::sim::Scanner>,
     /// With --site: a vessel's INS height above the spheres' mean centre (default -1.5: below

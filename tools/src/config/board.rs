@@ -235,14 +235,6 @@ impl Board {
             .and_then(spherecal::velodyne::Model::parse)
     }
 
-    /// The LiDAR's time between two firings of one laser [ns] (`hesai`: its corrections).
-    pub fn laser_period_ns(&self, hesai: Option<&spherecal::hesai::Corrections>) -> Option<i64> {
-        match hesai {
-            Some(c) => c.laser_period_ns(),
-            None => self.lidar_model().map(|m| i64::from(m.laser_period_ns())),
-        }
-    }
-
     /// Parse and check; errors name the key.
     pub fn from_toml(text: &str) -> Result<Self, crate::Error> {
         let b: Board = toml::from_str(text).map_err(|e| e.to_string().trim().to_string())?;
@@ -359,13 +351,13 @@ impl Board {
         if self.lidar.metadata.is_some() && self.lidar.model.is_some() {
             return bad(
                 "lidar.model",
-                "a Hesai's board names its corrections (lidar.metadata), not a model",
+                "a Hesai's or an Ouster's board names its sensor file (lidar.metadata), not a model",
             );
         }
         if self.lidar.metadata.is_some() && self.log.format == LogFormat::Mcap {
             return bad(
                 "log.format",
-                "a Hesai's datagrams are logged as pcap (format = \"pcap\")",
+                "a Hesai's or an Ouster's datagrams are logged as pcap (format = \"pcap\")",
             );
         }
         if let Some(m) = &self.lidar.model {

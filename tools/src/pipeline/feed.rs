@@ -213,16 +213,22 @@ impl<'a> RingAligner<'a> {
     }
 
     /// Returns the reader decoded and timed (an Ouster's), fired after `t0` (GPS time): poses
-    /// are pulled as for [`Self::data`], then the core aligns them ([`CoreAligner::timed`]).
+    /// are pulled as for [`Self::data`], then the core aligns them ([`CoreAligner::timed`]);
+    /// `columns` counted into the Ouster's clock.
+    #[allow(clippy::too_many_arguments)]
     pub fn timed(
         &mut self,
         t0: spherecal::time::GpsTime,
         c: &spherecal_hal::rosbag::clouds::Chunk,
+        columns: super::ColumnsTimed,
         host: Option<HostTime>,
         ic: &mut Consumer<'_, InsItem>,
         each: Option<&mut (dyn FnMut(&GeoPoint) + '_)>,
         emit: &mut dyn FnMut(usize, &[Observation]),
     ) {
+        let o = self.clock.ouster.get_or_insert_with(Default::default);
+        o.synchronised += u64::from(columns.synchronised);
+        o.free_running += u64::from(columns.free_running);
         let span = c.span_ns();
         self.pull_poses(host, ic, |core| core.wants_poses_at(t0, span));
         self.core.timed(t0, c.points(), host, each, emit);

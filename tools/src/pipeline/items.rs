@@ -36,7 +36,20 @@ pub struct LidarItem {
     len: u16,
     /// A timed chunk's first return [GPS ns].
     gps_ns: i64,
+    /// A timed chunk's clock: the columns timed since the previous chunk.
+    columns: ColumnsTimed,
     payload: Payload,
+}
+
+/// How many of an Ouster's columns were timed by a synchronised clock and how many by one
+/// counting from power-on, since the previous timed chunk (the aligner adds them up in its
+/// [`crate::state::OusterClock`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ColumnsTimed {
+    /// Columns timed by PTP or the sync pulse.
+    pub synchronised: u16,
+    /// Columns timed by a free-running clock.
+    pub free_running: u16,
 }
 
 /// What an item holds: a packet's bytes (data: all 1206; position: the first 512), or a
@@ -59,8 +72,9 @@ pub enum LidarPacket<'a> {
     Hesai(spherecal::hesai::DataPacket<&'a [u8]>),
     /// A Hesai GPS packet.
     HesaiGps(spherecal::hesai::GpsPacket<&'a [u8]>),
-    /// Returns fired after a GPS time (each its `offset_ns` later), decoded by the reader.
-    Timed(GpsTime, &'a Chunk),
+    /// Returns fired after a GPS time (each its `offset_ns` later), decoded by the reader, and
+    /// how the columns since the previous chunk were timed.
+    Timed(GpsTime, &'a Chunk, ColumnsTimed),
     /// The stream ended.
     End,
 }
@@ -75,17 +89,20 @@ impl LidarItem {
             host,
             len: n as u16,
             gps_ns: 0,
+            columns: ColumnsTimed::default(),
             payload: Payload::Bytes(bytes),
         }
     }
 
-    /// Returns fired after `t0` (GPS), received at `host`.
-    pub fn timed(t0: GpsTime, c: &Chunk, host: Option<HostTime>) -> Self {
+    /// Returns fired after `t0` (GPS), received at `host`; the columns timed since the
+    /// previous chunk.
+    pub fn timed(t0: GpsTime, c: &Chunk, host: Option<HostTime>, columns: ColumnsTimed) -> Self {
         Self {
             kind: LidarKind::Timed,
             host,
             len: 0,
             gps_ns: t0.0,
+            columns,
             payload: Payload::Points(*c),
         }
     }
@@ -97,6 +114,7 @@ impl LidarItem {
             host: Some(c.t0),
             len: 0,
             gps_ns: 0,
+            columns: ColumnsTimed::default(),
             payload: Payload::Points(*c),
         }
     }
@@ -150,7 +168,9 @@ impl LidarItem {
             (Payload::Bytes(b), LidarKind::Position) => {
                 LidarPacket::Position(PositionPacket::new_unchecked(&b[..512]))
             }
-            (Payload::Points(c), LidarKind::Timed) => LidarPacket::Timed(GpsTime(self.gps_ns), c),
+            (Payload::Points(c), LidarKind::Timed) => {
+                LidarPacket::Timed(GpsTime(self.gps_ns), c, self.columns)
+            }
             (Payload::Points(c), _) => LidarPacket::Points(c),
             (Payload::Bytes(b), LidarKind::Hesai) => {
                 match spherecal::hesai::DataPacket::new_checked(&b[..usize::from(self.len)]) {

@@ -21,13 +21,14 @@ mod feed;
 mod files;
 mod items;
 mod ouster_reader;
+pub use ouster_reader::{ouster_clock, ouster_reader};
 pub mod posmv;
 mod readers;
 mod stats;
 
 pub use feed::{AlignStorage, Closest, InsWait, RingAligner};
 pub use files::{as_bag, expand_files, open_captures, week_from_capture, Captures, Files};
-pub use items::{InsItem, LidarItem, LidarKind, LidarPacket};
+pub use items::{ColumnsTimed, InsItem, LidarItem, LidarKind, LidarPacket};
 pub use readers::{
     cloud_reader, end_lidar, ins_file_reader, ins_reader, lidar_reader, sbet_week, vn200_pose,
     Accept, InsEnd, InsFile, InsOutcome, InsRing, LidarRing, Vn200Feed,
@@ -172,17 +173,43 @@ impl Inputs {
         }
     }
 
-    /// The LiDAR's own file beside the capture (`--metadata`): a Hesai's angle correction
-    /// CSV or an Ouster's metadata JSON (told by its first character), into `hesai` or
+    /// The LiDAR's own file beside the capture (`--metadata`, [`SensorFile`]) into `hesai` or
     /// `ouster`.
     pub fn set_metadata(&mut self, path: &std::path::Path) -> Result<(), crate::Error> {
-        let head = std::fs::read(path)
-            .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))?;
-        match head.iter().find(|b| !b.is_ascii_whitespace()) {
-            Some(b'{') => self.ouster = Some(Box::new(crate::ouster::Metadata::load(path)?)),
-            _ => self.hesai = Some(crate::hesai::corrections::load(path)?),
+        match SensorFile::load(path)? {
+            SensorFile::Ouster(m) => self.ouster = Some(m),
+            SensorFile::Hesai(c) => self.hesai = Some(*c),
         }
         Ok(())
+    }
+}
+
+/// A LiDAR's own file (`--metadata`, a board's `[lidar] metadata`): a Hesai's angle
+/// correction CSV or an Ouster's metadata JSON, told apart by their first character.
+pub enum SensorFile {
+    /// A Hesai's angle corrections.
+    Hesai(Box<spherecal::hesai::Corrections>),
+    /// An Ouster's metadata.
+    Ouster(Box<crate::ouster::Metadata>),
+}
+
+impl SensorFile {
+    /// Read `path`.
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::Error> {
+        let head = std::fs::read(path)
+            .map_err(|e| crate::Error::bad_input(format!("{}: {e}", path.display())))?;
+        Ok(match head.iter().find(|b| !b.is_ascii_whitespace()) {
+            Some(b'{') => SensorFile::Ouster(Box::new(crate::ouster::Metadata::load(path)?)),
+            _ => SensorFile::Hesai(Box::new(crate::hesai::corrections::load(path)?)),
+        })
+    }
+
+    /// The time between two firings of one laser [ns] (an Ouster's: a column's period).
+    pub fn laser_period_ns(&self) -> Option<i64> {
+        match self {
+            SensorFile::Hesai(c) => c.laser_period_ns(),
+            SensorFile::Ouster(m) => Some(m.column_period_ns()),
+        }
     }
 }
 
@@ -407,11 +434,9 @@ pub fn run<C: Send>(
     let clouds = matches!(pcap, Captures::Clouds(_));
     let ins_src = InsFile::open(&inp.ins, &inp.pcap, leap)?;
 
-    let ouster_clock = std::sync::Mutex::new(None);
     std::thread::scope(|sc| {
         // The readers: each ends its ring with End, even when it fails.
         let full_ref = &full;
-        let ouster_clock = &ouster_clock;
         let lidar = sc.spawn(move || {
             let (queued, never) = (AtomicU64::new(0), AtomicBool::new(false));
             let mut out = LidarRing {
@@ -428,11 +453,8 @@ pub fn run<C: Send>(
             let (mut skips, r) = match (&mut pcap, &inp.ouster) {
                 (Captures::Clouds(c), _) => cloud_reader(c, &mut out),
                 (src, Some(m)) => {
-                    let (skips, clock, r) =
-                        ouster_reader::ouster_reader(src, &mut out, m, leap, from_bag, &never);
-                    if let Ok(mut c) = ouster_clock.lock() {
-                        *c = Some(clock);
-                    }
+                    let how = (from_bag, None);
+                    let (skips, r) = ouster_reader(src, &mut out, m, leap, how, &never);
                     (skips, r.map_err(|e| e.to_string()))
                 }
                 (src, None) => {
@@ -479,6 +501,7 @@ pub fn run<C: Send>(
         if let Some(c) = &inp.hesai {
             al = al.with_hesai(c.clone());
         }
+        al.clock.ouster = inp.ouster.as_deref().map(ouster_clock);
         al.core.time_offset_ns = inp.time_offset_ns;
         al.core.set_model(model);
         let offset_ns = inp.time_offset_ns;
@@ -513,8 +536,8 @@ pub fn run<C: Send>(
                     al.hesai(&p, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
                 LidarPacket::HesaiGps(p) => al.hesai_gps(&p),
-                LidarPacket::Timed(t0, c) => {
-                    al.timed(t0, c, item.host, &mut ic, each.as_deref_mut(), &mut emit)
+                LidarPacket::Timed(t0, c, n) => {
+                    al.timed(t0, c, n, item.host, &mut ic, each.as_deref_mut(), &mut emit)
                 }
             }
             lc.dequeue();
@@ -540,7 +563,6 @@ pub fn run<C: Send>(
         stats.clock.bag = from_bag;
         stats.clock.clouds = clouds;
         stats.clock.hesai = inp.hesai.is_some();
-        stats.clock.ouster = ouster_clock.lock().ok().and_then(|mut c| c.take());
         stats.ouster = inp.ouster.as_ref().map(|m| m.product.clone());
         stats.clock.stamp_minus_host_s = stamp_minus_host.range();
         let c = consumer

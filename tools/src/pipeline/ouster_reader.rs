@@ -7,10 +7,11 @@
 //! `TIME_FROM_SYNC_PULSE_IN` counts UTC from the pulse's NMEA (GPS = UTC + the site's leap
 //! seconds); `TIME_FROM_INTERNAL_OSC`, or any time before 2010 (a PTP or pulse the sensor never
 //! locked to: it counts from power-on), is free-running: the capture's receive time of the
-//! first packet places it, the clock is unlocked ([`OusterClock`]).
+//! first packet places it, the clock is unlocked ([`OusterClock`], counted by the aligner from
+//! each chunk's [`ColumnsTimed`]).
 
 use super::readers::LidarRing;
-use super::{enqueue, LidarItem};
+use super::{enqueue, ColumnsTimed, LidarItem};
 use crate::ouster::{Metadata, TimestampMode};
 use crate::state::OusterClock;
 use spherecal::ouster::LidarPacket;
@@ -31,7 +32,8 @@ const GPS_EPOCH_S: i64 = 315_964_800;
 struct Decoder<'m> {
     meta: &'m Metadata,
     leap_seconds: i64,
-    clock: OusterClock,
+    /// Columns timed since the last chunk went out.
+    columns: ColumnsTimed,
     /// A free-running clock's offset to UTC [ns] (the first packet's receive time minus its
     /// first column's timestamp).
     free_offset: Option<i64>,
@@ -53,13 +55,13 @@ impl Decoder<'_> {
         // (A timestamp beyond i64 is garbage: held at the end of time, never wrapped.)
         let ts = i64::try_from(ts).unwrap_or(i64::MAX);
         if synchronised {
-            self.clock.synchronised += 1;
+            self.columns.synchronised = self.columns.synchronised.saturating_add(1);
             return match self.meta.timestamp_mode {
                 Some(TimestampMode::Ptp) => GpsTime(ts - (GPS_EPOCH_S + 19) * 1_000_000_000),
                 _ => unix_ns_to_gps(ts, self.leap_seconds),
             };
         }
-        self.clock.free_running += 1;
+        self.columns.free_running = self.columns.free_running.saturating_add(1);
         let off = *self.free_offset.get_or_insert(host.0.saturating_sub(ts));
         unix_ns_to_gps(ts.saturating_add(off), self.leap_seconds)
     }
@@ -90,14 +92,12 @@ impl Decoder<'_> {
         }
         let g = &self.meta.intrinsics;
         let mut chunk: Option<(GpsTime, Chunk)> = None;
-        let flush = |c: Option<(GpsTime, Chunk)>, out: &mut LidarRing<'_, '_>| {
+        let flush = |c: Option<(GpsTime, Chunk)>,
+                     columns: &mut ColumnsTimed,
+                     out: &mut LidarRing<'_, '_>| {
             if let Some((t0, c)) = c.filter(|(_, c)| !c.points().is_empty()) {
-                if enqueue(
-                    out.ring,
-                    LidarItem::timed(t0, &c, Some(host)),
-                    out.policy,
-                    out.full,
-                ) {
+                let item = LidarItem::timed(t0, &c, Some(host), core::mem::take(columns));
+                if enqueue(out.ring, item, out.policy, out.full) {
                     out.queued.fetch_add(1, Ordering::Relaxed);
                 }
             }
@@ -107,6 +107,7 @@ impl Decoder<'_> {
                 continue;
             }
             let t = self.gps(col.timestamp_ns(), host);
+            let columns = &mut self.columns;
             let geo = g.column(col.measurement_id());
             col.for_each_return(|beam, ret, range_mm| {
                 let (t0, c) = chunk.get_or_insert((t, Chunk::new(HostTime(0))));
@@ -134,7 +135,7 @@ impl Decoder<'_> {
                 // A chunk holds returns of one second at most (offsets in u32 ns).
                 if !(0..1_000_000_000).contains(&offset) || !c.push(point) {
                     let full = chunk.replace((t, Chunk::new(HostTime(0))));
-                    flush(full, out);
+                    flush(full, columns, out);
                     if let Some((_, c)) = chunk.as_mut() {
                         c.push(Point {
                             offset_ns: 0,
@@ -144,33 +145,39 @@ impl Decoder<'_> {
                 }
             });
         }
-        flush(chunk, out);
+        flush(chunk, &mut self.columns, out);
         Ok(())
     }
 }
 
+/// An Ouster's clock as its metadata names it, nothing counted yet.
+pub fn ouster_clock(meta: &Metadata) -> OusterClock {
+    OusterClock {
+        mode: meta
+            .timestamp_mode
+            .as_ref()
+            .map(|m| m.name().to_string())
+            .unwrap_or_default(),
+        ..OusterClock::default()
+    }
+}
+
 /// Every record of `src` until it ends, fails or `stop` is set: the metadata's lidar packets
-/// decoded onto the ring, the rest counted by reason (its IMU packets as another port's).
+/// (from `sensor`, when given) decoded onto the ring, the rest counted by reason (its IMU
+/// packets as another port's).
 pub fn ouster_reader<S: PacketSource>(
     src: &mut S,
     out: &mut LidarRing<'_, '_>,
     meta: &Metadata,
     leap_seconds: i64,
-    from_bag: bool,
+    (from_bag, sensor): (bool, Option<std::net::Ipv4Addr>),
     stop: &AtomicBool,
-) -> (SkipStats, OusterClock, Result<(), S::Error>) {
+) -> (SkipStats, Result<(), S::Error>) {
     let mut skips = SkipStats::default();
     let mut d = Decoder {
         meta,
         leap_seconds,
-        clock: OusterClock {
-            mode: meta
-                .timestamp_mode
-                .as_ref()
-                .map(|m| m.name().to_string())
-                .unwrap_or_default(),
-            ..OusterClock::default()
-        },
+        columns: ColumnsTimed::default(),
         free_offset: None,
         crc_on: false,
         from_bag,
@@ -179,7 +186,7 @@ pub fn ouster_reader<S: PacketSource>(
         let rec = match src.next_record() {
             Ok(Some(r)) => r,
             Ok(None) => break,
-            Err(e) => return (skips, d.clock, Err(e)),
+            Err(e) => return (skips, Err(e)),
         };
         let dg = match rec {
             Record::Skipped { offset, reason } => {
@@ -189,15 +196,16 @@ pub fn ouster_reader<S: PacketSource>(
             Record::Idle => continue,
             Record::Udp(dg) => dg,
         };
-        let r = match from_bag || dg.dst_port == meta.lidar_port {
-            true => d.packet(dg.payload, dg.time, out),
-            false => Err(SkipReason::OtherPort(dg.dst_port)),
+        let r = match sensor {
+            Some(a) if a != dg.src_addr => Err(SkipReason::OtherSender(dg.src_addr)),
+            _ if from_bag || dg.dst_port == meta.lidar_port => d.packet(dg.payload, dg.time, out),
+            _ => Err(SkipReason::OtherPort(dg.dst_port)),
         };
         if let Err(reason) = r {
             skips.count(dg.offset, &reason);
         }
     }
-    (skips, d.clock, Ok(()))
+    (skips, Ok(()))
 }
 
 #[cfg(test)]
@@ -227,7 +235,7 @@ mod tests {
         let mut d = Decoder {
             meta: &m,
             leap_seconds: 18,
-            clock: OusterClock::default(),
+            columns: ColumnsTimed::default(),
             free_offset: None,
             crc_on: false,
             from_bag: false,
@@ -236,8 +244,7 @@ mod tests {
         assert_eq!(d.gps(tai, host), gps);
         assert_eq!(d.gps(516_000_000_000, host), GpsTime(gps.0 + 1_400_000));
         assert_eq!(d.gps(517_000_000_000, host), GpsTime(gps.0 + 1_001_400_000));
-        assert_eq!((d.clock.synchronised, d.clock.free_running), (1, 2));
-        assert!(!d.clock.trusted());
+        assert_eq!((d.columns.synchronised, d.columns.free_running), (1, 2));
         for wild in [0, u64::MAX, i64::MAX as u64 + 1, 1 << 62] {
             let _ = d.gps(wild, host);
         }
@@ -246,10 +253,10 @@ mod tests {
         assert_eq!(d.gps(utc_ns as u64, host), gps);
         let m = meta("TIME_FROM_INTERNAL_OSC");
         d.meta = &m;
-        let before = d.clock.free_running;
+        let before = d.columns.free_running;
         let _ = d.gps(utc_ns as u64, host);
         assert_eq!(
-            d.clock.free_running,
+            d.columns.free_running,
             before + 1,
             "free-running whatever its value"
         );

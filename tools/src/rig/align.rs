@@ -98,7 +98,10 @@ pub(super) fn align_until_end(
             LidarPacket::Data(p) => al.data(&p, item.host, ins_c, None, &mut emit),
             LidarPacket::Points(c) => al.points(c, ins_c, None, &mut emit),
             LidarPacket::Hesai(p) => al.hesai(&p, item.host, ins_c, None, &mut emit),
-            LidarPacket::Timed(t0, c) => al.timed(t0, c, item.host, ins_c, None, &mut emit),
+            LidarPacket::Timed(t0, c, n) => {
+                al.timed(t0, c, n, item.host, ins_c, None, &mut emit);
+                unpublished = true;
+            }
             LidarPacket::HesaiGps(p) => {
                 al.hesai_gps(&p);
                 unpublished = true;

@@ -55,7 +55,9 @@ pub(super) fn final_from_logs(
     let mut inp =
         crate::pipeline::Inputs::apriori(crate::pipeline::Files(pcaps), ins, site.clone());
     inp.model = b.lidar_model();
-    inp.hesai = super::inputs::hesai_corrections(b)?;
+    if let Some(p) = &b.lidar.metadata {
+        inp.set_metadata(std::path::Path::new(p))?;
+    }
     inp.ports = Ports {
         // In an MCAP log the data packets are the scans, which stand for the default port.
         data: match bag {

@@ -1,6 +1,7 @@
 //! What each LiDAR port hears, before any filtering: who sends, and what the packets say of the
 //! sensor (product, return mode, rotation rate from the azimuth advance; PPS and RMC from the
-//! position packets; a Hesai's data and GPS packets likewise). The rig says it in words a few
+//! position packets; a Hesai's data and GPS packets likewise; an Ouster's lidar packets in the
+//! format its metadata gives). The rig says it in words a few
 //! seconds after the start, and warns when a
 //! port is silent or another sender is talking: a factory VLP-16 broadcasts to
 //! 255.255.255.255, which a socket bound to one unicast address never receives.
@@ -44,6 +45,13 @@ pub struct Heard {
     /// A Hesai's data packets: their model and return mode, last seen.
     #[serde(skip)]
     pub hesai: Option<(spherecal::hesai::Model, spherecal::hesai::ReturnMode)>,
+    /// The Ouster's packet format and columns per frame (its metadata's), to know its
+    /// lidar packets by.
+    #[serde(skip)]
+    pub ouster_format: Option<(spherecal::ouster::Format, u32)>,
+    /// Lidar packets of that format heard.
+    #[serde(skip)]
+    pub ouster_packets: u64,
     #[serde(skip)]
     spin: Spin,
     #[serde(skip)]
@@ -93,7 +101,25 @@ impl Heard {
                 self.packets += 1;
                 self.position(&packet);
             }
-            Err(_) => self.see_hesai(d),
+            Err(_) => match self.ouster_format {
+                Some(f) => self.see_ouster(d, f),
+                None => self.see_hesai(d),
+            },
+        }
+    }
+
+    /// An Ouster's lidar packet in format `f` of `w` columns per frame: the rate from the
+    /// measurement id of its first valid column.
+    fn see_ouster(&mut self, d: &Datagram<'_>, (f, w): (spherecal::ouster::Format, u32)) {
+        let Ok(p) = spherecal::ouster::LidarPacket::new_checked(d.payload, f) else {
+            return;
+        };
+        self.packets += 1;
+        self.ouster_packets += 1;
+        let first = p.columns().find(|c| c.valid()).map(|c| c.measurement_id());
+        if let Some(m) = first {
+            let az = u64::from(m) * 36_000 / u64::from(w.max(1));
+            self.turn(d.time, u16::try_from(az).unwrap_or(u16::MAX));
         }
     }
 
@@ -193,6 +219,9 @@ impl Heard {
                 format_args!(", Hesai {}, {} return", m.name(), r.name()),
             );
         }
+        if self.ouster_packets > 0 {
+            o.push_str(", Ouster lidar packets of its metadata's format");
+        }
         if let Some(r) = self.rpm {
             let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {r:.0} rpm"));
         }
@@ -207,8 +236,12 @@ impl Heard {
         }
         if self.packets == 0 {
             warn.push(format!(
-                "{head}: {} datagrams but none is a VLP-16 or Hesai {what} packet (wrong port? another device?)",
-                self.datagrams
+                "{head}: {} datagrams but none is a VLP-16 or Hesai {what} packet{} (wrong port? another device?)",
+                self.datagrams,
+                match self.ouster_format {
+                    Some((f, _)) => format!(" nor an Ouster lidar packet of {} bytes", f.packet_len()),
+                    None => String::new(),
+                }
             ));
         }
         if let Some(s) = sensor {
@@ -297,6 +330,18 @@ mod tests {
 
     /// By hand: at 600 rpm (3600 deg/s) a packet every 1.327 ms advances 4.777 deg; 478
     /// hundredths a packet is 600.4 rpm.
+    /// An empty datagram from `sensor` to UDP 7502.
+    fn d_at(sensor: Ipv4Addr) -> Datagram<'static> {
+        Datagram {
+            time: HostTime(0),
+            src_addr: sensor,
+            src_port: 7502,
+            dst_port: 7502,
+            payload: &[],
+            offset: 0,
+        }
+    }
+
     #[test]
     fn rate_sender_and_product() {
         let mut h = Heard::new(2368);
@@ -373,6 +418,54 @@ mod tests {
         h.see(&d, ports);
         let (_, warn) = h.describe("position", Some(sensor), 3.0, true);
         assert!(warn.iter().any(|w| w.contains("PPS absent")), "{warn:?}");
+        // An Ouster's lidar packets in its metadata's format (16 columns of 64 pixels, 1024
+        // columns a frame): counted, named, the rate from the measurement ids; another length
+        // is no packet of it.
+        let f = spherecal::ouster::Format {
+            profile: spherecal::ouster::Profile::Single,
+            header: spherecal::ouster::HeaderKind::Standard,
+            columns: 16,
+            pixels: 64,
+        };
+        let mut h = Heard::new(7502);
+        h.ouster_format = Some((f, 1024));
+        for k in 0..1000u32 {
+            let mut b = vec![0u8; f.packet_len()];
+            let mut p = spherecal::ouster::LidarPacket::emit(&mut b[..], f, 0, 1, 2).unwrap();
+            for c in 0..16 {
+                // 10,240 columns a second: a packet every 1.5625 ms.
+                p.set_column(c, 0, ((k * 16 + c as u32) % 1024) as u16);
+            }
+            let d = Datagram {
+                time: HostTime(i64::from(k) * 1_562_500),
+                src_addr: sensor,
+                src_port: 7502,
+                dst_port: 7502,
+                payload: &b,
+                offset: 0,
+            };
+            h.see(&d, ports);
+        }
+        let d = Datagram {
+            payload: &[0u8; 1206][..],
+            ..d_at(sensor)
+        };
+        h.see(&d, ports);
+        let (text, warn) = h.describe("data", Some(sensor), 3.0, true);
+        assert_eq!((h.ouster_packets, h.datagrams), (1000, 1001));
+        assert!(
+            text.contains("Ouster lidar packets of its metadata's format, 600 rpm"),
+            "{text}"
+        );
+        assert!(warn.is_empty(), "{warn:?}");
+        let mut h = Heard::new(7502);
+        h.ouster_format = Some((f, 1024));
+        h.see(&d, ports);
+        let (_, warn) = h.describe("data", Some(sensor), 3.0, true);
+        assert!(
+            warn[0].contains("nor an Ouster lidar packet of 12544 bytes"),
+            "{warn:?}"
+        );
         // A silent port.
         let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
         assert!(

@@ -7,7 +7,7 @@ use super::{
     parse_addr, stamp_now, RunOptions, SerialChunk, UdpLogItem, DATA_LOG_RING, DATA_RING,
     POSITION_RING, POSMV_LOG_RING, READ_TIMEOUT, SERIAL_LOG_RING,
 };
-use crate::pipeline::{targets, Accept, InsItem, LidarItem, INS_RING};
+use crate::pipeline::{targets, Accept, InsItem, LidarItem, SensorFile, INS_RING};
 use heapless::spsc::Queue;
 use spherecal::align::window::Target;
 use spherecal::calib::Settings;
@@ -35,11 +35,14 @@ pub(super) struct RigIo {
     pub(super) raw_log: RawLog,
     /// Bytes that waited in the serial port from before the run (discarded at open).
     pub(super) stale_serial_bytes: u64,
+    /// The board's sensor file (a Hesai's or an Ouster's).
+    pub(super) sensor: Option<SensorFile>,
 }
 
 impl RigIo {
     pub(super) fn open(opts: &RunOptions) -> Result<Self, crate::Error> {
         let b = &opts.board;
+        let sensor_file = sensor_file(b)?;
         let bind = parse_addr(&b.lidar.bind_addr, "lidar.bind_addr")?;
         // Only the sensor's datagrams are aligned (all are logged); 0.0.0.0 accepts any sender.
         let sensor = Some(parse_addr(&b.lidar.sensor_addr, "lidar.sensor_addr")?)
@@ -117,7 +120,7 @@ impl RigIo {
             accept: Accept {
                 ports,
                 sensor,
-                hesai: hesai_corrections(b)?.is_some(),
+                hesai: matches!(sensor_file, Some(SensorFile::Hesai(_))),
             },
             bind,
             data_sock,
@@ -128,6 +131,7 @@ impl RigIo {
             stamp,
             raw_log,
             stale_serial_bytes: u64::from(stale),
+            sensor: sensor_file,
         })
     }
 }
@@ -150,7 +154,8 @@ pub(super) struct Plan {
 }
 
 impl Plan {
-    pub(super) fn new(opts: &RunOptions) -> Self {
+    /// The plan for `opts` (`sensor`: the board's sensor file).
+    pub(super) fn new(opts: &RunOptions, sensor: Option<&SensorFile>) -> Self {
         let b = &opts.board;
         let (frame, targets, ids, margin) = match &opts.site {
             Some(site) => {
@@ -191,7 +196,10 @@ impl Plan {
         let settings = match &opts.site {
             Some(site) => crate::session::settings_under(
                 site,
-                b.laser_period_ns(hesai_corrections(b).ok().flatten().as_ref()),
+                sensor.map_or_else(
+                    || b.lidar_model().map(|m| i64::from(m.laser_period_ns())),
+                    SensorFile::laser_period_ns,
+                ),
                 true,
                 margin,
                 nav.model,
@@ -236,23 +244,22 @@ impl Rings {
     }
 }
 
-/// The Hesai's angle corrections a board names (`[lidar] metadata`); `None` for a Velodyne.
-/// An Ouster's metadata is refused: `spherecal run` does not listen to one.
-pub fn hesai_corrections(
-    b: &crate::config::board::Board,
-) -> Result<Option<spherecal::hesai::Corrections>, crate::Error> {
+/// The sensor file a board names (`[lidar] metadata`: a Hesai's angle corrections or an
+/// Ouster's metadata); `None` for a Velodyne. An Ouster's lidar port must be the board's data
+/// port.
+pub fn sensor_file(b: &crate::config::board::Board) -> Result<Option<SensorFile>, crate::Error> {
     let Some(p) = b.lidar.metadata.as_deref() else {
         return Ok(None);
     };
-    let path = std::path::Path::new(p);
-    let text = std::fs::read(path).map_err(|e| format!("board: lidar.metadata {p}: {e}"))?;
-    if text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{') {
-        return Err(format!(
-            "board: lidar.metadata {p}: an Ouster's metadata: `spherecal run` listens to a Velodyne or a Hesai; an Ouster's capture is calibrated from its files (`calibrate --pcap CAPTURE --metadata {p}`)"
-        )
-        .into());
+    let f = SensorFile::load(std::path::Path::new(p))
+        .map_err(|e| crate::Error::bad_input(format!("board: lidar.metadata: {e}")))?;
+    if let SensorFile::Ouster(m) = &f {
+        if m.lidar_port != b.lidar.data_port {
+            return Err(crate::Error::bad_input(format!(
+                "board: lidar.data_port = {} but the Ouster's metadata ({p}) sends its lidar packets to UDP {}: set data_port = {}",
+                b.lidar.data_port, m.lidar_port, m.lidar_port
+            )));
+        }
     }
-    crate::hesai::corrections::load(path)
-        .map(Some)
-        .map_err(|e| format!("board: lidar.metadata: {e}").into())
+    Ok(Some(f))
 }

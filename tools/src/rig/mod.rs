@@ -17,7 +17,8 @@
 use crate::config::board::Board;
 use crate::config::site::Site;
 use crate::pipeline::{
-    AlignStorage, BatchMsg, InsItem, InsWait, LidarItem, LidarPacket, RingAligner, BATCH,
+    AlignStorage, BatchMsg, InsItem, InsWait, LidarItem, LidarPacket, RingAligner, SensorFile,
+    BATCH,
 };
 use crate::report::Report;
 use crate::state::InsState;
@@ -41,11 +42,12 @@ use shared::{pps_name, AlignerGuard, Shared};
 
 use heapless::spsc::Consumer;
 use logger::{logger, syncer};
-use readers::{posmv_reader, serial_reader, udp_reader, LidarPort};
+use readers::{posmv_reader, serial_reader, udp_reader, LidarPort, PortPlan};
 use solver::solver;
 use spherecal::align::window::Observation;
 use spherecal_hal::console::Console;
 use spherecal_hal::packet::{Datagram, HostTime};
+use spherecal_hal::pcap::FRAGMENT_BYTES;
 use spherecal_hal::serial::RxStamp;
 use spherecal_hal::velodyne::SkipStats;
 use status::{show, snapshot, status_loop};
@@ -62,15 +64,17 @@ pub const DATA_RING: usize = 1024;
 /// Position ring (and its log ring): position packets come ~1 a second from a VLP-16, but some
 /// captures hold bursts of them.
 pub const POSITION_RING: usize = 256;
-/// Log ring for data datagrams (6 MB: 5.4 s of a VLP-16, for a disk that stalls).
-pub const DATA_LOG_RING: usize = 4096;
+/// Log ring for data datagrams and their fragments (24 MB: 21 s of a VLP-16, 2.7 s of an
+/// OS1-64, 1.4 s of a 128-beam Ouster, for a disk that stalls).
+pub const DATA_LOG_RING: usize = 16_384;
 /// Log ring for a POS MV's datagrams (1.5 MB: 5 s at 200 Hz).
 pub const POSMV_LOG_RING: usize = 1024;
 /// Serial log ring (reads of up to [`SERIAL_CHUNK`] bytes; 2 MB, ~10 s of reads at 200 Hz).
 pub const SERIAL_LOG_RING: usize = 2048;
 /// Largest serial read.
 pub const SERIAL_CHUNK: usize = 1024;
-/// Largest datagram logged whole (an Ethernet MTU's UDP payload); longer ones are cut.
+/// Largest datagram logged whole (an Ethernet MTU's UDP payload); longer ones (an Ouster's
+/// lidar packets) are logged as the IPv4 fragments a 1500-byte link carries them in.
 pub const MAX_DATAGRAM: usize = 1472;
 /// Observations kept per sphere for the solver (older ones stay; newer ones are counted).
 pub const MAX_OBS_PER_SPHERE: usize = 200_000;
@@ -114,29 +118,47 @@ pub struct RunOptions {
     pub exclude: Vec<(f64, f64)>,
 }
 
-/// A datagram on its way to the log.
+/// A datagram on its way to the log, whole or one of its IPv4 fragments.
 #[derive(Clone)]
 struct UdpLogItem {
     time: HostTime,
     src: (Ipv4Addr, u16),
     dst_port: u16,
+    /// A fragment's identification, byte offset in the IP payload and "more fragments".
+    fragment: Option<(u16, usize, bool)>,
     len: u16,
-    bytes: [u8; MAX_DATAGRAM],
+    bytes: [u8; FRAGMENT_BYTES],
 }
 
 impl UdpLogItem {
-    /// `d`, its payload cut at [`MAX_DATAGRAM`] bytes.
-    fn new(d: &Datagram<'_>) -> Self {
-        let n = d.payload.len().min(MAX_DATAGRAM);
-        let mut item = Self {
-            time: d.time,
-            src: (d.src_addr, d.src_port),
-            dst_port: d.dst_port,
-            len: n as u16,
-            bytes: [0; MAX_DATAGRAM],
-        };
-        item.bytes[..n].copy_from_slice(&d.payload[..n]);
-        item
+    /// `d` as log items: whole up to [`MAX_DATAGRAM`] bytes, else its IPv4 fragments
+    /// (identification `id`); none for a datagram longer than UDP allows.
+    fn pieces<'d>(d: &'d Datagram<'_>, id: u16) -> impl Iterator<Item = Self> + 'd {
+        let whole = d.payload.len() <= MAX_DATAGRAM;
+        spherecal_hal::pcap::udp_fragments(d.src_port, d.dst_port, d.payload)
+            .into_iter()
+            .flatten()
+            .map(move |p| {
+                let mut item = Self {
+                    time: d.time,
+                    src: (d.src_addr, d.src_port),
+                    dst_port: d.dst_port,
+                    fragment: (!whole).then_some((id, p.offset, p.more)),
+                    len: 0,
+                    bytes: [0; FRAGMENT_BYTES],
+                };
+                let head = match (whole, p.udp_header) {
+                    (false, Some(h)) => {
+                        item.bytes[..8].copy_from_slice(&h);
+                        8
+                    }
+                    _ => 0,
+                };
+                let n = head + p.payload.len();
+                item.bytes[head..n].copy_from_slice(p.payload);
+                item.len = n as u16;
+                item
+            })
     }
 }
 
@@ -299,10 +321,20 @@ fn run_rig(
                 .map_err(|e| format!("console: {e}"))?;
         }
     }
-    let plan = Plan::new(opts);
+    let plan = Plan::new(opts, io.sensor.as_ref());
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some()) + usize::from(io.posmv.is_some());
-    let sh = Shared::new(stop, readers, plan.ids.len(), probes, io.accept.ports);
+    let ouster = match &io.sensor {
+        Some(SensorFile::Ouster(m)) => Some((m.format, m.columns_per_frame as u32)),
+        _ => None,
+    };
+    let sh = Shared::new(
+        stop,
+        readers,
+        plan.ids.len(),
+        probes,
+        (io.accept.ports, ouster),
+    );
     sh.readers
         .ins_watch
         .stale_bytes
@@ -378,24 +410,33 @@ fn run_threads(
         serial,
         posmv,
         mut raw_log,
+        sensor,
         ..
     } = io;
+    let ouster = match &sensor {
+        Some(SensorFile::Ouster(m)) => Some((&**m, opts.board.leap_seconds)),
+        _ => None,
+    };
     // Each thread's handle: what it writes and reads of the shared state.
     let (rh, lh, ah) = (sh.reader(), sh.logger(), sh.aligner());
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
-            udp_reader(data_sock, data_p, dlog_p, accept, LidarPort::Data, rh, true)
+            let plan = PortPlan {
+                accept,
+                port: LidarPort::Data,
+                ouster,
+                ends_stream: true,
+            };
+            udp_reader(data_sock, data_p, dlog_p, plan, rh)
         });
         let pos = spawn(sc, "udp-position", move || {
-            udp_reader(
-                pos_sock,
-                pos_p,
-                plog_p,
+            let plan = PortPlan {
                 accept,
-                LidarPort::Position,
-                rh,
-                false,
-            )
+                port: LidarPort::Position,
+                ouster: None,
+                ends_stream: false,
+            };
+            udp_reader(pos_sock, pos_p, plog_p, plan, rh)
         });
         let ins = match (serial, posmv) {
             (Some((dev, src)), _) => Some(spawn(sc, "serial", move || {
@@ -469,9 +510,13 @@ fn run_threads(
             &spherecal_hal::clock::SystemClock,
         );
         al.core.set_model(opts.board.lidar_model());
-        if let Ok(Some(c)) = inputs::hesai_corrections(&opts.board) {
-            al = al.with_hesai(c);
-            al.clock.hesai = true;
+        match &sensor {
+            Some(SensorFile::Hesai(c)) => {
+                al = al.with_hesai((**c).clone());
+                al.clock.hesai = true;
+            }
+            Some(SensorFile::Ouster(m)) => al.clock.ouster = Some(crate::pipeline::ouster_clock(m)),
+            None => {}
         }
         let out = align::Batches {
             tx,

@@ -2,9 +2,10 @@
 
 use super::shared::{ReaderGuard, ReaderHandle};
 use super::{SerialChunk, UdpLogItem, MAX_INS_GAP_NS, SERIAL_CHUNK};
+use crate::ouster::Metadata;
 use crate::pipeline::{
-    end_lidar, enqueue, ins_reader, lidar_reader, Accept, InsEnd, InsItem, InsOutcome, InsRing,
-    LidarItem, LidarRing, Overflow, Vn200Feed,
+    end_lidar, enqueue, ins_reader, lidar_reader, ouster_reader, Accept, InsEnd, InsItem,
+    InsOutcome, InsRing, LidarItem, LidarRing, Overflow, Vn200Feed,
 };
 use crate::state::InsState;
 use heapless::spsc::Producer;
@@ -36,32 +37,41 @@ impl LidarPort {
     }
 }
 
-/// One socket until the stop, through the same [`lidar_reader`] as a capture file: every
-/// datagram to the log ring (a [`Tap`] on the socket), the sensor's VLP-16 packets to the
-/// aligner's ring. Returns the skips and how many datagrams had kernel receive times.
-#[allow(clippy::too_many_arguments)]
+/// What a LiDAR socket's reader does with what it receives.
+#[derive(Clone, Copy)]
+pub(super) struct PortPlan<'m> {
+    /// The sensor's ports and address.
+    pub(super) accept: Accept,
+    /// Which of the two sockets.
+    pub(super) port: LidarPort,
+    /// An Ouster's data socket: its metadata and the site's leap seconds (its lidar packets
+    /// are decoded here, as from a file: [`ouster_reader`]).
+    pub(super) ouster: Option<(&'m Metadata, i64)>,
+    /// Its end ends the survey (the data socket).
+    pub(super) ends_stream: bool,
+}
+
+/// One socket until the stop, through the same reader as a capture file ([`lidar_reader`], or
+/// [`ouster_reader`] for an Ouster): every datagram to the log ring (a [`Tap`] on the socket;
+/// one longer than an Ethernet frame holds as its IPv4 fragments), the sensor's packets to
+/// the aligner's ring. Returns the skips and how many datagrams had kernel receive times.
 pub(super) fn udp_reader(
     sock: UdpSource,
     mut ring: Producer<'_, LidarItem>,
     mut log: Producer<'_, UdpLogItem>,
-    accept: Accept,
-    port_of: LidarPort,
+    plan: PortPlan<'_>,
     sh: ReaderHandle<'_>,
-    ends_stream: bool,
 ) -> (SkipStats, u64) {
     let _alive = ReaderGuard(sh.readers);
     let port = sock.port();
+    let (accept, port_of) = (plan.accept, plan.port);
+    let mut ip_id = 0u16;
     let log_datagram = |d: &Datagram<'_>| {
         sh.readers.received[port_of.index()].fetch_add(1, Ordering::Relaxed);
         if let Ok(mut h) = sh.readers.heard[port_of.index()].lock() {
             h.see(d, accept.ports);
         }
-        enqueue(
-            &mut log,
-            UdpLogItem::new(d),
-            Overflow::Drop,
-            &sh.ring_drops.datagram_log,
-        );
+        log_pieces(&mut log, d, &mut ip_id, sh);
     };
     let mut src = Tap::new(sock, log_datagram);
     let mut out = LidarRing {
@@ -70,7 +80,14 @@ pub(super) fn udp_reader(
         full: sh.ring_drops.lidar(port_of),
         queued: &sh.readers.enqueued[port_of.index()],
     };
-    let (skips, r) = lidar_reader(&mut src, &mut out, accept, sh.stop);
+    let (skips, r) = match plan.ouster {
+        Some((meta, leap)) => {
+            let how = (false, accept.sensor);
+            ouster_reader(&mut src, &mut out, meta, leap, how, sh.stop)
+        }
+        None => lidar_reader(&mut src, &mut out, accept, sh.stop),
+    };
+    let ends_stream = plan.ends_stream;
     if let Err(e) = r {
         sh.said.error(format!("UDP port {port}: {e}"));
         if ends_stream {
@@ -84,6 +101,19 @@ pub(super) fn udp_reader(
         end_lidar(&mut ring, &sh.aligner.gone);
     }
     (skips, src.get_ref().kernel_stamped)
+}
+
+/// `d` onto the log ring, whole or as its fragments (identification `id`, then the next).
+fn log_pieces(
+    log: &mut Producer<'_, UdpLogItem>,
+    d: &Datagram<'_>,
+    id: &mut u16,
+    sh: ReaderHandle<'_>,
+) {
+    for item in UdpLogItem::pieces(d, *id) {
+        enqueue(log, item, Overflow::Drop, &sh.ring_drops.datagram_log);
+    }
+    *id = id.wrapping_add(1);
 }
 
 /// Say once per frame layout if the VN-200 does not send the outputs the board
@@ -252,6 +282,7 @@ pub(super) fn posmv_reader(
     use spherecal_hal::{PacketSource, Record};
     let _alive = ReaderGuard(sh.readers);
     let port = sock.port();
+    let mut ip_id = 0u16;
     let mut feed = crate::pipeline::posmv::PosmvFeed::new(
         *frame,
         group,
@@ -273,12 +304,7 @@ pub(super) fn posmv_reader(
                     sh.readers
                         .ins_bytes
                         .fetch_add(d.payload.len() as u64, Ordering::Relaxed);
-                    enqueue(
-                        &mut log,
-                        UdpLogItem::new(&d),
-                        Overflow::Drop,
-                        &sh.ring_drops.datagram_log,
-                    );
+                    log_pieces(&mut log, &d, &mut ip_id, sh);
                     let before = feed.poses_used();
                     feed.feed(d.payload, Some(d.time), &mut out);
                     if feed.poses_used() > before {

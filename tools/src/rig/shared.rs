@@ -231,14 +231,17 @@ impl<'a> Shared<'a> {
     }
 
     /// Nothing counted yet; `readers` threads to wait for, `spheres` windows, the two sockets'
-    /// kernel drop counts read through `drop_probes`.
+    /// kernel drop counts read through `drop_probes`; an Ouster's packet format and columns
+    /// per frame for what the data port hears.
     pub(super) fn new(
         stop: &'a AtomicBool,
         readers: usize,
         spheres: usize,
         drop_probes: [DropProbe; 2],
-        ports: Ports,
+        (ports, ouster): (Ports, Option<(spherecal::ouster::Format, u32)>),
     ) -> Self {
+        let mut heard = [ports.data, ports.position].map(hearing::Heard::new);
+        heard[0].ouster_format = ouster;
         Self {
             stop,
             readers: ReadersOut {
@@ -249,7 +252,7 @@ impl<'a> Shared<'a> {
                 drop_probes,
                 ins_bytes: AtomicU64::new(0),
                 ins_mode: AtomicU8::new(NONE_U8),
-                heard: [ports.data, ports.position].map(|p| Mutex::new(hearing::Heard::new(p))),
+                heard: heard.map(Mutex::new),
                 ins_watch: ins_watch::InsWatch::default(),
             },
             aligner: AlignerOut {

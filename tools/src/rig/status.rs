@@ -318,6 +318,14 @@ impl Hearing {
             if !due {
                 continue;
             }
+            // An Ouster sends nothing to the position port (its IMU packets, if it is 7503).
+            let ouster = k == 1
+                && sh.readers.heard[0]
+                    .lock()
+                    .is_ok_and(|d| d.ouster_format.is_some());
+            if ouster && h.datagrams == 0 {
+                continue;
+            }
             self.silent[k] = Some(h.datagrams == 0);
             let secs = (t - self.first.unwrap_or(0).min(t)) as f64;
             let data_heard = sh.readers.received[0].load(Ordering::Relaxed) > 0;

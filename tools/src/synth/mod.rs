@@ -309,21 +309,21 @@ pub const OUSTER_METADATA: &str = "metadata.json";
 
 /// The simulated Ouster's metadata JSON (firmware 2.4+/3.x's nested layout, as `ouster-cli`
 /// saves it): its beam tables, beam origin and lidar-to-sensor transform, the data format
-/// (RNG19_RFL8_SIG16_NIR16, 16 columns of 64 pixels), the lidar mode from the rotation rate
+/// (RNG19_RFL8_SIG16_NIR16, 16 columns of the model's pixels), the lidar mode from the rotation rate
 /// and the clock (TIME_FROM_PTP_1588; with `[lidar] pps` not locked
 /// TIME_FROM_INTERNAL_OSC, counting from power-on); `None` for the others.
 fn ouster_metadata(s: &Scenario) -> Option<String> {
     use spherecal::sim::lidar::scanner::{OUSTER_COLUMNS, OUSTER_SERIAL};
-    use spherecal::sim::lidar::{OS1_BEAM_ORIGIN_M, OS1_LIDAR_Z_M};
     let sc = s.scanner()?;
-    let spherecal::sim::Scanner::Ouster(_) = sc else {
+    let spherecal::sim::Scanner::Ouster(model) = sc else {
         return None;
     };
+    let spec = model.spec();
     let w = sc.columns_per_frame(s.lidar.rpm);
     let hz = (s.lidar.rpm / 60.0).round() as u32;
     let n = sc.lasers();
     let beams: Vec<_> = (0..n).map(|k| sc.beam(k)).collect();
-    let origin_mm = OS1_BEAM_ORIGIN_M * 1e3;
+    let origin_mm = spec.beam_origin_m * 1e3;
     let v = serde_json::json!({
         "beam_intrinsics": {
             "beam_altitude_angles": beams.iter().map(|b| b.elevation_deg).collect::<Vec<_>>(),
@@ -353,13 +353,13 @@ fn ouster_metadata(s: &Scenario) -> Option<String> {
             "column_window": [0, w - 1],
             "columns_per_frame": w,
             "columns_per_packet": OUSTER_COLUMNS,
-            "pixel_shift_by_row": (0..n).map(|i| [12, 4, -4, -12][i % 4] * w as i64 / 1024).collect::<Vec<_>>(),
+            "pixel_shift_by_row": beams.iter().map(|b| (b.azimuth_offset_deg * f64::from(w) / 360.0).round() as i64).collect::<Vec<_>>(),
             "pixels_per_column": n,
             "udp_profile_imu": "LEGACY",
             "udp_profile_lidar": "RNG19_RFL8_SIG16_NIR16",
         },
         "lidar_intrinsics": {
-            "lidar_to_sensor_transform": [-1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, OS1_LIDAR_Z_M * 1e3, 0.0, 0.0, 0.0, 1.0],
+            "lidar_to_sensor_transform": [-1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0, spec.lidar_z_m * 1e3, 0.0, 0.0, 0.0, 1.0],
         },
         "sensor_info": {
             "build_rev": "v2.4.0",

@@ -112,7 +112,7 @@ impl Scenario {
         check(
             self.scanner().is_some(),
             "lidar.model",
-            "expected vlp16, puck-hires, hdl32e, vlp32c, xt16, xt32 or os1-64",
+            "expected vlp16, puck-hires, hdl32e, vlp32c, xt16, xt32, os0-128, os1-64, os1-128 or os2-128",
         )?;
         // An Ouster runs 512, 1024 or 2048 columns a frame at 10,240 columns a second, one
         // return a column in the profile simulated.
