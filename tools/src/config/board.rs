@@ -488,7 +488,7 @@ mod tests {
 
     #[test]
     fn the_boards_parse() {
-        for n in ["rig-vn200", "rig-xt32", "vessel-posmv", "sim"] {
+        for n in ["rig-vn200", "rig-xt32", "rig-os1-64", "vessel-posmv", "sim"] {
             let b = Board::from_toml(&board(n)).unwrap_or_else(|e| panic!("{n}: {e}"));
             assert_eq!(b.name, n);
         }

@@ -12,6 +12,20 @@ use std::time::Duration;
 pub fn check(opts: &RunOptions) -> Vec<Result<String, String>> {
     let b = &opts.board;
     let mut out = vec![Ok(format!("board {}: valid", b.name))];
+    // The sensor's own file (a Hesai's corrections, an Ouster's metadata), read as `run` will.
+    if let Some(p) = &b.lidar.metadata {
+        out.push(match super::inputs::sensor_file(b) {
+            Ok(Some(crate::pipeline::SensorFile::Ouster(m))) => Ok(format!(
+                "lidar.metadata {p}: an Ouster {} (serial {}), {} beams, {}, lidar packets to UDP {}",
+                m.product, m.serial, m.format.pixels, m.profile_name, m.lidar_port
+            )),
+            Ok(Some(crate::pipeline::SensorFile::Hesai(_))) => {
+                Ok(format!("lidar.metadata {p}: a Hesai's angle corrections"))
+            }
+            Ok(None) => Ok(String::new()),
+            Err(e) => Err(e.to_string()),
+        });
+    }
     let bind: Ipv4Addr = b.lidar.bind_addr.parse().unwrap_or(Ipv4Addr::UNSPECIFIED);
     let posmv = (b.ins.kind == "posmv").then_some(("POS MV", b.ins.udp_port));
     for (what, port) in [

@@ -263,3 +263,60 @@ pub fn sensor_file(b: &crate::config::board::Board) -> Result<Option<SensorFile>
     }
     Ok(Some(f))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::board::Board;
+
+    fn board_with(metadata: &str, data_port: u16) -> Board {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../boards/rig-os1-64.toml"
+        ))
+        .unwrap()
+        .replace("\"os1-64.json\"", &format!("{metadata:?}"))
+        .replace("data_port = 7502", &format!("data_port = {data_port}"));
+        Board::from_toml(&text).unwrap()
+    }
+
+    /// An Ouster's board: its metadata read (the sensor file), the lidar port checked against
+    /// the board's data port; a missing file and a broken one named.
+    #[test]
+    fn an_ousters_board_names_its_metadata_and_port() {
+        let meta = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../tests/data/ouster/OS-0-32-U1_v2.2.0_1024x10.json"
+        );
+        let Ok(Some(SensorFile::Ouster(m))) = sensor_file(&board_with(meta, 7502)) else {
+            panic!("not read as an Ouster's metadata");
+        };
+        assert_eq!((m.lidar_port, m.format.pixels), (7502, 32));
+        let e = sensor_file(&board_with(meta, 2368))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("lidar.data_port = 2368") && e.contains("set data_port = 7502"),
+            "{e}"
+        );
+        let e = sensor_file(&board_with("/nonexistent/os1.json", 7502))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("board: lidar.metadata: /nonexistent/os1.json"),
+            "{e}"
+        );
+        let dir = std::env::temp_dir().join(format!("spherecal-inputs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let broken = dir.join("broken.json");
+        std::fs::write(&broken, "{\"beam_intrinsics\": 3}").unwrap();
+        let e = sensor_file(&board_with(broken.to_str().unwrap(), 7502))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.starts_with("board: lidar.metadata: "), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
