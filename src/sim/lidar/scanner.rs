@@ -402,6 +402,17 @@ impl Scanner {
         }
     }
 
+    /// The datasheet's range accuracy, taken as one sigma [m]: VLP-16, VLP-32C and Puck
+    /// Hi-Res +-3 cm typical, HDL-32E < 2 cm (1 sigma at 25 m), Hesai XT +-1 cm typical, Ouster
+    /// OS +-3 cm (the OS1 datasheet's 1-sigma repeatability at an SNR of 100).
+    pub fn range_sigma_m(self) -> f64 {
+        match self {
+            Scanner::Velodyne(Model::Hdl32e) => 0.02,
+            Scanner::Hesai(_) => 0.01,
+            Scanner::Velodyne(_) | Scanner::Ouster(_) => 0.03,
+        }
+    }
+
     /// A data packet's UDP port and length.
     pub fn data_port_len(self) -> (u16, usize) {
         match self {

@@ -45,14 +45,18 @@ pub struct PlanNoise {
     /// ... at this rate [Hz].
     pub ins_rate_hz: f64,
     /// The scenario states no noise at all: these are the sensors' specified values
-    /// ([`Self::SPECIFIED`]).
+    /// ([`Self::specified`]).
     pub assumed: bool,
 }
 
 impl PlanNoise {
-    /// A VLP-16's range accuracy (datasheet: +-3 cm typical) and a VN-200-class INS (0.03 deg,
-    /// 2 cm), the noise a plan assumes when its scenario states none.
-    pub const SPECIFIED: [f64; 3] = [0.03, 0.03, 0.02];
+    /// The noise a plan assumes when its scenario states none: the scanner's range accuracy
+    /// (its datasheet's, [`spherecal::sim::Scanner::range_sigma_m`]; a VLP-16's +-3 cm) and a
+    /// VN-200-class INS (0.03 deg, 2 cm).
+    pub fn specified(scanner: Option<spherecal::sim::Scanner>) -> [f64; 3] {
+        let range = scanner.map_or(0.03, spherecal::sim::Scanner::range_sigma_m);
+        [range, 0.03, 0.02]
+    }
 
     /// The scenario's noise, or the specified values when it states none (a noise-free
     /// simulation predicts nothing).
@@ -60,7 +64,7 @@ impl PlanNoise {
         let none =
             s.lidar.range_sigma_m == 0.0 && s.ins.att_sigma_deg == 0.0 && s.ins.pos_sigma_m == 0.0;
         let [range, att, pos] = if none {
-            Self::SPECIFIED
+            Self::specified(s.scanner())
         } else {
             [
                 s.lidar.range_sigma_m,
@@ -95,7 +99,7 @@ impl PlanNoise {
     }
 }
 
-/// The scenario with [`PlanNoise::SPECIFIED`] where it states no noise: what a plan assumes,
+/// The scenario with [`PlanNoise::specified`] where it states no noise: what a plan assumes,
 /// and what the Monte Carlo that checks it simulates.
 pub fn with_planning_noise(s: &Scenario) -> Scenario {
     let mut s = s.clone();

@@ -127,10 +127,17 @@ pub fn observe(
             let handles: Vec<_> = (0..threads as u64)
                 .map(|k| {
                     let (a, b) = (first + k * step, (first + (k + 1) * step).min(end));
-                    sc.spawn(move || observe_packets(world, cfg, a, b, n_spheres))
+                    // (A simulator is ~0.6 MB: more than a default thread's stack holds
+                    // unoptimised.)
+                    std::thread::Builder::new()
+                        .stack_size(16 << 20)
+                        .spawn_scoped(sc, move || observe_packets(world, cfg, a, b, n_spheres))
                 })
                 .collect();
-            let parts: Option<Vec<_>> = handles.into_iter().map(|h| h.join().ok()).collect();
+            let parts: Option<Vec<_>> = handles
+                .into_iter()
+                .map(|h| h.ok().and_then(|h| h.join().ok()))
+                .collect();
             parts
                 .map(|p| p.concat())
                 .ok_or_else(|| crate::Error::internal("a planner's tracing thread panicked"))

@@ -76,11 +76,11 @@ fn spheres(site: &Site) -> Vec<SphereSpec> {
 
 /// The scenario of `site` without passes: its spheres, its a-priori mounting (also taken as
 /// the truth: a plan predicts sigmas, not errors), the sensors' noise (`[noise]`, else the
-/// specified: [`super::PlanNoise::SPECIFIED`]) and the navigation model.
+/// specified: [`super::PlanNoise::specified`] for its scanner) and the navigation model.
 fn base(site: &Site, o: &Options) -> Result<Scenario, crate::Error> {
     let a = &site.apriori;
     let noise = site.noise.as_ref();
-    let [range, att, pos] = super::PlanNoise::SPECIFIED;
+    let [range, att, pos] = super::PlanNoise::specified(Some(o.model));
     let (vessel, drone) = (
         "roll = [1.5, 6.0]\npitch = [0.8, 4.5]\nyaw = [0.5, 9.0]\nheave = [0.05, 5.0]\nturn_s = 30.0",
         "roll = [0.8, 3.0]\npitch = [0.6, 4.0]\nyaw = [0.5, 6.0]\nheave = [0.1, 5.0]\nturn_s = 8.0",
