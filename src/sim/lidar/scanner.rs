@@ -77,6 +77,18 @@ pub struct OusterSpec {
     pub lidar_z_m: f64,
 }
 
+/// The Ouster models' figures, in [`Ouster`]'s order: `prod_line`, key, pixels, the top
+/// altitude [deg], the azimuth stagger [deg] (its first two; the others their negatives), the
+/// beam origin and the lidar-to-sensor z [m] ([`Ouster::spec`]).
+#[rustfmt::skip]
+#[allow(clippy::type_complexity)]
+const OUSTER_SPECS: [(&str, &str, usize, f64, [f64; 2], f64, f64); 4] = [
+    ("OS-0-128", "os0-128", 128, 45.0, [10.7, 3.6], 0.027_67, 0.036_18),
+    ("OS-1-64", "os1-64", 64, 16.6, [3.1, 1.0], 0.015_806, 0.036_18),
+    ("OS-1-128", "os1-128", 128, 22.5, [4.2, 1.4], 0.016_721, 0.038_195),
+    ("OS-2-128", "os2-128", 128, 11.25, [2.1, 0.7], 0.013_762, 0.036_18),
+];
+
 impl Ouster {
     /// The simulated packet format: RNG19_RFL8_SIG16_NIR16, 16 columns of the model's pixels.
     pub fn format(self) -> ouster::Format {
@@ -101,43 +113,15 @@ impl Ouster {
     /// 27.67 mm, OS1 Gen 1 15.806 mm, OS1 rev 7 16.721 mm, OS2 13.762 mm), the azimuth stagger
     /// scaled with the field as the vendored captures' tables are.
     pub const fn spec(self) -> OusterSpec {
-        match self {
-            Ouster::Os0_128 => OusterSpec {
-                name: "OS-0-128",
-                key: "os0-128",
-                pixels: 128,
-                top_deg: 45.0,
-                azimuths_deg: [10.7, 3.6, -3.6, -10.7],
-                beam_origin_m: 0.027_67,
-                lidar_z_m: 0.036_18,
-            },
-            Ouster::Os1_64 => OusterSpec {
-                name: "OS-1-64",
-                key: "os1-64",
-                pixels: 64,
-                top_deg: 16.6,
-                azimuths_deg: [3.1, 1.0, -1.0, -3.1],
-                beam_origin_m: 0.015_806,
-                lidar_z_m: 0.036_18,
-            },
-            Ouster::Os1_128 => OusterSpec {
-                name: "OS-1-128",
-                key: "os1-128",
-                pixels: 128,
-                top_deg: 22.5,
-                azimuths_deg: [4.2, 1.4, -1.4, -4.2],
-                beam_origin_m: 0.016_721,
-                lidar_z_m: 0.038_195,
-            },
-            Ouster::Os2_128 => OusterSpec {
-                name: "OS-2-128",
-                key: "os2-128",
-                pixels: 128,
-                top_deg: 11.25,
-                azimuths_deg: [2.1, 0.7, -0.7, -2.1],
-                beam_origin_m: 0.013_762,
-                lidar_z_m: 0.036_18,
-            },
+        let (name, key, pixels, top_deg, a, beam_origin_m, lidar_z_m) = OUSTER_SPECS[self as usize];
+        OusterSpec {
+            name,
+            key,
+            pixels,
+            top_deg,
+            azimuths_deg: [a[0], a[1], -a[1], -a[0]],
+            beam_origin_m,
+            lidar_z_m,
         }
     }
 }

@@ -925,11 +925,82 @@ fn hdl32e_and_posmv_vessel_through_the_rig() {
     );
 }
 
-/// A vessel with a Hesai PandarXT32 (table1's quay, the VN-200 20 ms late): its data packets
-/// and GPS packets replayed at eight times real time into `spherecal run` whose board names the
-/// unit's angle correction file (`[lidar] metadata`). The rig decodes them, trusts the clock by
-/// the GPS packets' PPS lock, calibrates to the truth with the time offset, logs every
-/// datagram, and its final pass over the logs agrees.
+/// `s` (its VN-200 20 ms late) from a Hesai or an Ouster whose sensor file `meta` (written by
+/// `synth` beside the capture, then `prepare`d) the board names (`[lidar] metadata`), its
+/// capture's two ports `from` sent to `dp`, `pp` at eight times real time into `spherecal run`:
+/// the live answer converged as `model` with the clock trusted, within 1e-3 of the truth with
+/// the time offset found, and the final pass over the logs converged. Returns what was
+/// replayed, the datagrams sent and the console's text.
+fn a_sensor_through_the_rig(
+    group: &str,
+    s: &spherecal_tools::config::scenario::Scenario,
+    (dp, pp): (u16, u16),
+    (meta, from, model): (&str, [u16; 2], &str),
+    prepare: impl FnOnce(&Path),
+) -> (Replayed, u64, String) {
+    let Setup {
+        dir,
+        mut master,
+        slave,
+        ..
+    } = setup(group, s, dp, pp);
+    prepare(&dir.join(meta));
+    let edit = format!("[lidar]\nmetadata = \"{}\"\n", dir.join(meta).display());
+    let rig = start_rig_reporting(
+        &dir,
+        dp,
+        pp,
+        Some(&slave.name().unwrap()),
+        &[("[lidar]\n", &edit)],
+    );
+    let (report, logs) = (dir.join("run-report.json"), dir.join("logs"));
+    let to = Target {
+        host: Ipv4Addr::LOCALHOST,
+        ports: [(from[0], dp), (from[1], pp), (5602, 5602)],
+    };
+    let (sent, _) = replay_both(
+        dir.join("lidar.pcap"),
+        to,
+        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
+        Speed::Factor(8.0),
+    )
+    .unwrap();
+    let (lines, err) = interrupt_after_replay(rig);
+    drop(slave);
+    let all = format!("{}\n{err}", lines.join("\n"));
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(rep["converged"], true, "{rep}\n{all}");
+    assert_eq!(rep["inputs"]["lidar_model"], model);
+    assert_eq!(rep["inputs"]["clock_trusted"], true, "{rep}");
+    common::assert_within(
+        &common::report_deg_m(&rep),
+        &s.mount.truth.deg_m().0,
+        1e-3,
+        &s.name,
+    );
+    let dt = rep["time_offset_s"].as_f64().unwrap();
+    assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
+    assert!(
+        lines
+            .last()
+            .unwrap()
+            .starts_with("final (the rig's logs through the file engine): converged"),
+        "{all}"
+    );
+    let replayed = Replayed {
+        dir,
+        lines,
+        logs,
+        report,
+    };
+    (replayed, sent.sent, all)
+}
+
+/// A vessel with a Hesai PandarXT32 (table1's quay): its data packets (UDP 2368) and GPS
+/// packets (10110) through the rig, whose board names the unit's angle correction file. The
+/// rig decodes them, trusts the clock by the GPS packets' PPS lock ([`a_sensor_through_the_rig`])
+/// and logs every datagram, the GPS packets too.
 #[test]
 fn a_hesai_xt32_through_the_rig() {
     let mut s = table1();
@@ -937,72 +1008,22 @@ fn a_hesai_xt32_through_the_rig() {
     s.ins.time_offset_s = 0.02;
     s.name = "table1-xt32".into();
     let (dp, pp) = (23_798, 23_799);
-    let Setup {
-        dir,
-        mut master,
-        slave,
-        ..
-    } = setup("rig-hesai", &s, dp, pp);
-    let meta = format!(
-        "[lidar]\nmetadata = \"{}\"\n",
-        dir.join("corrections.csv").display()
-    );
-    let rig = start_rig_reporting(
-        &dir,
-        dp,
-        pp,
-        Some(&slave.name().unwrap()),
-        &[("[lidar]\n", &meta)],
-    );
-    let (report, logs) = (dir.join("run-report.json"), dir.join("logs"));
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(2368, dp), (10110, pp), (5602, 5602)],
-    };
-    let (sent, _) = replay_both(
-        dir.join("lidar.pcap"),
-        to,
-        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
-        Speed::Factor(8.0),
-    )
-    .unwrap();
-    let (lines, err) = interrupt_after_replay(rig);
-    drop(slave);
-    let all = format!("{}\n{err}", lines.join("\n"));
-    let rep: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(rep["converged"], true, "{rep}\n{all}");
-    assert_eq!(rep["inputs"]["lidar_model"], "PandarXT32");
-    assert_eq!(rep["inputs"]["clock_trusted"], true, "{rep}");
-    common::assert_within(
-        &common::report_deg_m(&rep),
-        &s.mount.truth.deg_m().0,
-        1e-3,
-        &s.name,
-    );
-    let dt = rep["time_offset_s"].as_f64().unwrap();
-    assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
-    assert!(
-        lines
-            .last()
-            .unwrap()
-            .starts_with("final (the rig's logs through the file engine): converged"),
-        "{all}"
-    );
-    let (logged, _) = datagrams(&files(&logs, "lidar"));
-    assert_eq!(logged.len() as u64, sent.sent, "every datagram logged");
+    let sensor = ("corrections.csv", [2368, 10110], "PandarXT32");
+    let (r, sent, _) = a_sensor_through_the_rig("rig-hesai", &s, (dp, pp), sensor, |_| {});
+    let (logged, _) = datagrams(&files(&r.logs, "lidar"));
+    assert_eq!(logged.len() as u64, sent, "every datagram logged");
     assert!(
         logged.iter().any(|d| d.0 == pp),
         "the GPS packets in the log"
     );
 }
 
-/// An Ouster OS1-64 on table1 (PTP-synchronised: TAI column timestamps) replayed at eight
-/// times real time into `spherecal run` whose board names the sensor's metadata JSON (`[lidar]
-/// metadata`, the lidar port the board's data port). The rig decodes the 12.6-kB lidar packets
-/// in its reader, trusts the clock by the metadata's timestamp mode, calibrates to the truth
-/// with the time offset, logs every datagram as the IPv4 fragments a 1500-byte link carries,
-/// and its final pass over those logs agrees.
+/// An Ouster OS1-64 on table1 (PTP-synchronised: TAI column timestamps) through the rig, whose
+/// board names the sensor's metadata JSON (the sensor set to send its lidar packets to the
+/// rig's data port, as its metadata then says). The rig decodes the 12.5-kB lidar packets in
+/// its reader, trusts the clock by the metadata's timestamp mode ([`a_sensor_through_the_rig`]),
+/// says what the data port hears (and no warning for the silent position port), and logs
+/// every datagram as the IPv4 fragments a 1500-byte link carries, which read back whole.
 #[test]
 fn an_ouster_os1_64_through_the_rig() {
     let mut s = table1();
@@ -1010,71 +1031,24 @@ fn an_ouster_os1_64_through_the_rig() {
     s.ins.time_offset_s = 0.02;
     s.name = "table1-os1-64".into();
     let (dp, pp) = (23_796, 23_797);
-    let Setup {
-        dir,
-        mut master,
-        slave,
-        ..
-    } = setup("rig-ouster", &s, dp, pp);
-    // The sensor set to send its lidar packets to the rig's port, as its metadata then says.
-    let meta = dir.join("metadata.json");
-    let mut m: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&meta).unwrap()).unwrap();
-    m["config_params"]["udp_port_lidar"] = dp.into();
-    std::fs::write(&meta, serde_json::to_string_pretty(&m).unwrap()).unwrap();
-    let board_meta = format!("[lidar]\nmetadata = \"{}\"\n", meta.display());
-    let rig = start_rig_reporting(
-        &dir,
-        dp,
-        pp,
-        Some(&slave.name().unwrap()),
-        &[("[lidar]\n", &board_meta)],
-    );
-    let (report, logs) = (dir.join("run-report.json"), dir.join("logs"));
-    let to = Target {
-        host: Ipv4Addr::LOCALHOST,
-        ports: [(7502, dp), (7503, pp), (5602, 5602)],
+    let to_dp = |meta: &Path| {
+        let mut m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(meta).unwrap()).unwrap();
+        m["config_params"]["udp_port_lidar"] = dp.into();
+        std::fs::write(meta, serde_json::to_string_pretty(&m).unwrap()).unwrap();
     };
-    let (sent, _) = replay_both(
-        dir.join("lidar.pcap"),
-        to,
-        Some((&dir.join("ins.vnlog").into(), &mut master, 921_600)),
-        Speed::Factor(8.0),
-    )
-    .unwrap();
-    let (lines, err) = interrupt_after_replay(rig);
-    drop(slave);
-    let all = format!("{}\n{err}", lines.join("\n"));
-    let rep: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    assert_eq!(rep["converged"], true, "{rep}\n{all}");
-    assert_eq!(rep["inputs"]["lidar_model"], "OS-1-64");
-    assert_eq!(rep["inputs"]["clock_trusted"], true, "{rep}");
-    common::assert_within(
-        &common::report_deg_m(&rep),
-        &s.mount.truth.deg_m().0,
-        1e-3,
-        &s.name,
-    );
-    let dt = rep["time_offset_s"].as_f64().unwrap();
-    assert!((dt - 0.02).abs() < 1e-3, "time offset {dt}");
-    assert!(
-        lines
-            .last()
-            .unwrap()
-            .starts_with("final (the rig's logs through the file engine): converged"),
-        "{all}"
-    );
-    // What the data port heard, said in words; no warning for the silent position port.
+    let sensor = ("metadata.json", [7502, 7503], "OS-1-64");
+    let (r, sent, all) = a_sensor_through_the_rig("rig-ouster", &s, (dp, pp), sensor, to_dp);
+    // At eight times real time the sensor seems to turn at 4,800 rpm.
     assert!(
         all.contains("Ouster lidar packets of its metadata's format, 4800 rpm"),
         "{all}"
     );
     assert!(!all.contains("WARNING"), "{all}");
     // Every datagram logged whole once reassembled, each as nine fragments on the wire.
-    let pcaps = files(&logs, "lidar");
+    let pcaps = files(&r.logs, "lidar");
     let (logged, skipped) = datagrams(&pcaps);
-    assert_eq!((logged.len() as u64, skipped), (sent.sent, 0));
+    assert_eq!((logged.len() as u64, skipped), (sent, 0));
     assert!(logged.iter().all(|(p, d)| *p == dp && d.len() == 12_544));
     let frames: u64 = pcaps
         .iter()
@@ -1089,7 +1063,7 @@ fn an_ouster_os1_64_through_the_rig() {
             n
         })
         .sum();
-    assert_eq!(frames, 9 * sent.sent, "fragments of 1480 bytes");
+    assert_eq!(frames, 9 * sent, "fragments of 1480 bytes");
 }
 
 /// Overload: the capture replayed ten times as fast as loopback takes it. Whatever is lost is
