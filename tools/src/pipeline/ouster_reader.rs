@@ -11,7 +11,7 @@
 //! each chunk's [`ColumnsTimed`]).
 
 use super::readers::LidarRing;
-use super::{enqueue, ColumnsTimed, LidarItem};
+use super::{enqueue, ColumnsTimed, LidarItem, Overflow};
 use crate::ouster::{Metadata, TimestampMode};
 use crate::state::OusterClock;
 use spherecal::ouster::LidarPacket;
@@ -21,7 +21,7 @@ use spherecal_hal::packet::{HostTime, SkipReason};
 use spherecal_hal::rosbag::clouds::Chunk;
 use spherecal_hal::velodyne::SkipStats;
 use spherecal_hal::{PacketSource, Record};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// 2010-01-01T00:00:00Z [ns since 1970]: a synchronised clock's time is after it.
 const PLAUSIBLE_NS: u64 = 1_262_304_000_000_000_000;
@@ -67,7 +67,9 @@ impl Decoder<'_> {
     }
 
     /// The packet's returns in chunks onto the ring; `Err` when it is no packet of the
-    /// metadata's format (or its CRC disagrees once they were seen to agree).
+    /// metadata's format (or its CRC disagrees once they were seen to agree). The ring's
+    /// counts are the packet's, as for a packet that is one item: enqueued when every chunk
+    /// was, else one drop (a full ring's waits are counted as they come).
     fn packet(
         &mut self,
         bytes: &[u8],
@@ -92,13 +94,17 @@ impl Decoder<'_> {
         }
         let g = &self.meta.intrinsics;
         let mut chunk: Option<(GpsTime, Chunk)> = None;
+        let mut lost = false;
         let flush = |c: Option<(GpsTime, Chunk)>,
                      columns: &mut ColumnsTimed,
+                     lost: &mut bool,
                      out: &mut LidarRing<'_, '_>| {
             if let Some((t0, c)) = c.filter(|(_, c)| !c.points().is_empty()) {
                 let item = LidarItem::timed(t0, &c, Some(host), core::mem::take(columns));
-                if enqueue(out.ring, item, out.policy, out.full) {
-                    out.queued.fetch_add(1, Ordering::Relaxed);
+                let waits = AtomicU64::new(0);
+                *lost |= !enqueue(out.ring, item, out.policy, &waits);
+                if out.policy == Overflow::Wait {
+                    out.full.fetch_add(waits.into_inner(), Ordering::Relaxed);
                 }
             }
         };
@@ -135,7 +141,7 @@ impl Decoder<'_> {
                 // A chunk holds returns of one second at most (offsets in u32 ns).
                 if !(0..1_000_000_000).contains(&offset) || !c.push(point) {
                     let full = chunk.replace((t, Chunk::new(HostTime(0))));
-                    flush(full, columns, out);
+                    flush(full, columns, &mut lost, out);
                     if let Some((_, c)) = chunk.as_mut() {
                         c.push(Point {
                             offset_ns: 0,
@@ -145,7 +151,9 @@ impl Decoder<'_> {
                 }
             });
         }
-        flush(chunk, &mut self.columns, out);
+        flush(chunk, &mut self.columns, &mut lost, out);
+        let count = if lost { out.full } else { out.queued };
+        count.fetch_add(1, Ordering::Relaxed);
         Ok(())
     }
 }

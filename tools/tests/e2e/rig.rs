@@ -1045,6 +1045,13 @@ fn an_ouster_os1_64_through_the_rig() {
         "{all}"
     );
     assert!(!all.contains("WARNING"), "{all}");
+    // Each packet counted as one item (its returns go in several chunks): received =
+    // enqueued + ring drops + skipped, as for a VLP-16.
+    let sum = summary(&r.logs);
+    assert_eq!(
+        (u(&sum["received"][0]), u(&sum["enqueued"][0])),
+        (sent, sent)
+    );
     // Every datagram logged whole once reassembled, each as nine fragments on the wire.
     let pcaps = files(&r.logs, "lidar");
     let (logged, skipped) = datagrams(&pcaps);
