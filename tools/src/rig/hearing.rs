@@ -52,6 +52,10 @@ pub struct Heard {
     /// Lidar packets of that format heard.
     #[serde(skip)]
     pub ouster_packets: u64,
+    /// This port is an Ouster's IMU port (its metadata's `udp_port_imu`): every datagram is
+    /// taken as its IMU packet.
+    #[serde(skip)]
+    pub ouster_imu: bool,
     #[serde(skip)]
     spin: Spin,
     #[serde(skip)]
@@ -101,6 +105,7 @@ impl Heard {
                 self.packets += 1;
                 self.position(&packet);
             }
+            Err(_) if self.ouster_imu => self.packets += 1,
             Err(_) => match self.ouster_format {
                 Some(f) => self.see_ouster(d, f),
                 None => self.see_hesai(d),
@@ -222,6 +227,9 @@ impl Heard {
         if self.ouster_packets > 0 {
             o.push_str(", Ouster lidar packets of its metadata's format");
         }
+        if self.ouster_imu && self.packets > 0 {
+            o.push_str(", Ouster IMU packets");
+        }
         if let Some(r) = self.rpm {
             let _ = std::fmt::Write::write_fmt(&mut o, format_args!(", {r:.0} rpm"));
         }
@@ -231,7 +239,9 @@ impl Heard {
         match self.nmea_valid {
             Some(true) => o.push_str(", NMEA valid"),
             Some(false) => o.push_str(", NMEA void (no GNSS fix at the LiDAR)"),
-            None if what == "position" && self.packets > 0 => o.push_str(", no NMEA sentence"),
+            None if what == "position" && self.packets > 0 && !self.ouster_imu => {
+                o.push_str(", no NMEA sentence")
+            }
             None => {}
         }
         if self.packets == 0 {
@@ -466,6 +476,19 @@ mod tests {
             warn[0].contains("nor an Ouster lidar packet of 12544 bytes"),
             "{warn:?}"
         );
+        // Its IMU port as the board's position port: its 48-byte packets heard as such.
+        let mut h = Heard::new(7503);
+        h.ouster_imu = true;
+        h.see(
+            &Datagram {
+                payload: &[0u8; 48][..],
+                ..d_at(sensor)
+            },
+            ports,
+        );
+        let (text, warn) = h.describe("position", Some(sensor), 3.0, true);
+        assert!(text.ends_with("Ouster IMU packets"), "{text}");
+        assert!(warn.is_empty(), "{warn:?}");
         // A silent port.
         let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
         assert!(

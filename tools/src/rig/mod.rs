@@ -325,7 +325,7 @@ fn run_rig(
     let probes = [io.data_sock.drop_probe(), io.pos_sock.drop_probe()];
     let readers = 2 + usize::from(io.serial.is_some()) + usize::from(io.posmv.is_some());
     let ouster = match &io.sensor {
-        Some(SensorFile::Ouster(m)) => Some((m.format, m.columns_per_frame as u32)),
+        Some(SensorFile::Ouster(m)) => Some((m.format, m.columns_per_frame as u32, m.imu_port)),
         _ => None,
     };
     let sh = Shared::new(
@@ -430,10 +430,11 @@ fn run_threads(
             udp_reader(data_sock, data_p, dlog_p, plan, rh)
         });
         let pos = spawn(sc, "udp-position", move || {
+            // (An Ouster's IMU packets, if they come here, are counted as its other port's.)
             let plan = PortPlan {
                 accept,
                 port: LidarPort::Position,
-                ouster: None,
+                ouster,
                 ends_stream: false,
             };
             udp_reader(pos_sock, pos_p, plog_p, plan, rh)

@@ -231,17 +231,18 @@ impl<'a> Shared<'a> {
     }
 
     /// Nothing counted yet; `readers` threads to wait for, `spheres` windows, the two sockets'
-    /// kernel drop counts read through `drop_probes`; an Ouster's packet format and columns
-    /// per frame for what the data port hears.
+    /// kernel drop counts read through `drop_probes`; an Ouster's packet format, columns per
+    /// frame and IMU port for what the ports hear.
     pub(super) fn new(
         stop: &'a AtomicBool,
         readers: usize,
         spheres: usize,
         drop_probes: [DropProbe; 2],
-        (ports, ouster): (Ports, Option<(spherecal::ouster::Format, u32)>),
+        (ports, ouster): (Ports, Option<(spherecal::ouster::Format, u32, u16)>),
     ) -> Self {
         let mut heard = [ports.data, ports.position].map(hearing::Heard::new);
-        heard[0].ouster_format = ouster;
+        heard[0].ouster_format = ouster.map(|(f, w, _)| (f, w));
+        heard[1].ouster_imu = ouster.is_some_and(|(_, _, imu)| imu == ports.position);
         Self {
             stop,
             readers: ReadersOut {
