@@ -419,25 +419,20 @@ fn run_threads(
     };
     // Each thread's handle: what it writes and reads of the shared state.
     let (rh, lh, ah) = (sh.reader(), sh.logger(), sh.aligner());
+    // Each socket's reader (an Ouster's IMU packets, if they come to the position port, are
+    // counted as its other port's); the data socket's end ends the survey.
+    let port_plan = |port| PortPlan {
+        accept,
+        port,
+        ouster,
+        ends_stream: port == LidarPort::Data,
+    };
     std::thread::scope(|sc| {
         let data = spawn(sc, "udp-data", move || {
-            let plan = PortPlan {
-                accept,
-                port: LidarPort::Data,
-                ouster,
-                ends_stream: true,
-            };
-            udp_reader(data_sock, data_p, dlog_p, plan, rh)
+            udp_reader(data_sock, data_p, dlog_p, port_plan(LidarPort::Data), rh)
         });
         let pos = spawn(sc, "udp-position", move || {
-            // (An Ouster's IMU packets, if they come here, are counted as its other port's.)
-            let plan = PortPlan {
-                accept,
-                port: LidarPort::Position,
-                ouster,
-                ends_stream: false,
-            };
-            udp_reader(pos_sock, pos_p, plog_p, plan, rh)
+            udp_reader(pos_sock, pos_p, plog_p, port_plan(LidarPort::Position), rh)
         });
         let ins = match (serial, posmv) {
             (Some((dev, src)), _) => Some(spawn(sc, "serial", move || {
