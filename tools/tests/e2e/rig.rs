@@ -1046,16 +1046,31 @@ fn an_ouster_os1_64_through_the_rig() {
     );
     assert!(!all.contains("WARNING"), "{all}");
     // Each packet counted as one item (its returns go in several chunks): received =
-    // enqueued + ring drops + skipped, as for a VLP-16.
+    // enqueued + ring drops + skipped, as for a VLP-16. At eight times real time beside a busy
+    // core the aligner and the logger may let some go, counted (CI once: 853 of 40,000 packets
+    // from the aligner's ring; with a busy loop beside: 1,107 and 3,497 of 360,000 fragments
+    // from the log's); a real sensor comes at an eighth of the rate.
     let sum = summary(&r.logs);
-    assert_eq!(
-        (u(&sum["received"][0]), u(&sum["enqueued"][0])),
-        (sent, sent)
-    );
-    // Every datagram logged whole once reassembled, each as nine fragments on the wire.
+    let skipped: u64 = sum["skipped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| u(&s[1]))
+        .sum();
+    let (enqueued, dropped) = (u(&sum["enqueued"][0]), u(&sum["ring_drops"][0]));
+    assert_eq!(u(&sum["received"][0]), sent);
+    assert_eq!(enqueued + dropped + skipped, sent, "{sum}");
+    // Every datagram logged whole once reassembled, each as nine fragments on the wire: a
+    // datagram is lost from the log only with a fragment the log ring let go (counted).
+    let log_drops = u(&sum["ring_drops"][3]);
+    assert!(dropped + log_drops < sent / 10, "{sum}");
     let pcaps = files(&r.logs, "lidar");
-    let (logged, skipped) = datagrams(&pcaps);
-    assert_eq!((logged.len() as u64, skipped), (sent, 0));
+    let (logged, _) = datagrams(&pcaps);
+    let logged_n = logged.len() as u64;
+    assert!(
+        logged_n <= sent && logged_n + log_drops >= sent,
+        "{logged_n} of {sent}: {sum}"
+    );
     assert!(logged.iter().all(|(p, d)| *p == dp && d.len() == 12_544));
     let frames: u64 = pcaps
         .iter()
@@ -1070,7 +1085,7 @@ fn an_ouster_os1_64_through_the_rig() {
             n
         })
         .sum();
-    assert_eq!(frames, 9 * sent, "fragments of 1480 bytes");
+    assert_eq!(frames + log_drops, 9 * sent, "fragments of 1480 bytes");
 }
 
 /// Overload: the capture replayed ten times as fast as loopback takes it. Whatever is lost is
