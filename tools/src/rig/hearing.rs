@@ -1,10 +1,9 @@
 //! What each LiDAR port hears, before any filtering: who sends, and what the packets say of the
 //! sensor (product, return mode, rotation rate from the azimuth advance; PPS and RMC from the
 //! position packets; a Hesai's data and GPS packets likewise; an Ouster's lidar packets in the
-//! format its metadata gives). The rig says it in words a few
-//! seconds after the start, and warns when a
-//! port is silent or another sender is talking: a factory VLP-16 broadcasts to
-//! 255.255.255.255, which a socket bound to one unicast address never receives.
+//! format its metadata gives, and its IMU packets). The rig says it in words a few seconds after
+//! the start, and warns when a port is silent or another sender is talking: a factory VLP-16
+//! broadcasts to 255.255.255.255, which a socket bound to one unicast address never receives.
 
 use super::pps_name;
 use serde::Serialize;
@@ -338,37 +337,31 @@ mod tests {
         b
     }
 
-    /// By hand: at 600 rpm (3600 deg/s) a packet every 1.327 ms advances 4.777 deg; 478
-    /// hundredths a packet is 600.4 rpm.
-    /// An empty datagram from `sensor` to UDP 7502.
-    fn d_at(sensor: Ipv4Addr) -> Datagram<'static> {
+    /// `payload` from the test sensor's `port` to the same port, received at `t_ns`.
+    fn datagram(port: u16, t_ns: i64, payload: &[u8]) -> Datagram<'_> {
         Datagram {
-            time: HostTime(0),
-            src_addr: sensor,
-            src_port: 7502,
-            dst_port: 7502,
-            payload: &[],
+            time: HostTime(t_ns),
+            src_addr: SENSOR,
+            src_port: port,
+            dst_port: port,
+            payload,
             offset: 0,
         }
     }
 
+    const SENSOR: Ipv4Addr = Ipv4Addr::new(192, 168, 1, 201);
+
+    /// By hand: at 600 rpm (3600 deg/s) a packet every 1.327 ms advances 4.777 deg; 478
+    /// hundredths a packet is 600.4 rpm.
     #[test]
     fn rate_sender_and_product() {
         let mut h = Heard::new(2368);
         let ports = Ports::default();
-        let sensor: Ipv4Addr = "192.168.1.201".parse().unwrap();
+        let sensor = SENSOR;
         let mut az = 35_000u16;
         for k in 0..1000i64 {
             let payload = data(az, 0x22);
-            let d = Datagram {
-                time: HostTime(k * 1_327_000),
-                src_addr: sensor,
-                src_port: 2368,
-                dst_port: 2368,
-                payload: &payload,
-                offset: 0,
-            };
-            h.see(&d, ports);
+            h.see(&datagram(2368, k * 1_327_000, &payload), ports);
             az = (az + 478) % 36_000;
         }
         let rpm = h.rpm.unwrap();
@@ -384,7 +377,18 @@ mod tests {
             warn[0].contains("nothing from the board's sensor_addr 192.168.1.55"),
             "{warn:?}"
         );
-        // A Hesai's data and GPS packets: counted, named, the rate and the PPS lock read.
+        // A silent port.
+        let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
+        assert!(
+            warn[0].contains("position port 8308: silent for 3 s"),
+            "{warn:?}"
+        );
+    }
+
+    /// A Hesai's data and GPS packets: counted, named, the rate and the PPS lock read.
+    #[test]
+    fn a_hesais_packets() {
+        let (ports, sensor) = (Ports::default(), SENSOR);
         let mut h = Heard::new(2368);
         for k in 0..2000u32 {
             let mut b = vec![0u8; spherecal::hesai::Model::Xt32.emitted_len()];
@@ -397,15 +401,7 @@ mod tests {
             .unwrap();
             // 1.44 deg (8 firings of 0.18 deg) every 400 us: 600 rpm.
             p.set_azimuth(0, (k * 144 % 36_000) as u16);
-            let d = Datagram {
-                time: HostTime(i64::from(k) * 400_000),
-                src_addr: sensor,
-                src_port: 2368,
-                dst_port: 2368,
-                payload: &b,
-                offset: 0,
-            };
-            h.see(&d, ports);
+            h.see(&datagram(2368, i64::from(k) * 400_000, &b), ports);
         }
         let (text, warn) = h.describe("data", Some(sensor), 3.0, true);
         assert!(
@@ -417,20 +413,17 @@ mod tests {
         let utc = spherecal::time::UtcDateTime::from_unix_ns(1_718_189_966_000_000_000);
         spherecal::hesai::GpsPacket::emit(&mut g[..], &utc, b"", b'V', false).unwrap();
         let mut h = Heard::new(10110);
-        let d = Datagram {
-            time: HostTime(0),
-            src_addr: sensor,
-            src_port: 10110,
-            dst_port: 10110,
-            payload: &g,
-            offset: 0,
-        };
-        h.see(&d, ports);
+        h.see(&datagram(10110, 0, &g), ports);
         let (_, warn) = h.describe("position", Some(sensor), 3.0, true);
         assert!(warn.iter().any(|w| w.contains("PPS absent")), "{warn:?}");
-        // An Ouster's lidar packets in its metadata's format (16 columns of 64 pixels, 1024
-        // columns a frame): counted, named, the rate from the measurement ids; another length
-        // is no packet of it.
+    }
+
+    /// An Ouster's lidar packets in its metadata's format (16 columns of 64 pixels, 1024
+    /// columns a frame): counted, named, the rate from the measurement ids; another length is
+    /// no packet of it; its IMU port as the board's position port heard as such.
+    #[test]
+    fn an_ousters_packets() {
+        let (ports, sensor) = (Ports::default(), SENSOR);
         let f = spherecal::ouster::Format {
             profile: spherecal::ouster::Profile::Single,
             header: spherecal::ouster::HeaderKind::Standard,
@@ -446,20 +439,9 @@ mod tests {
                 // 10,240 columns a second: a packet every 1.5625 ms.
                 p.set_column(c, 0, ((k * 16 + c as u32) % 1024) as u16);
             }
-            let d = Datagram {
-                time: HostTime(i64::from(k) * 1_562_500),
-                src_addr: sensor,
-                src_port: 7502,
-                dst_port: 7502,
-                payload: &b,
-                offset: 0,
-            };
-            h.see(&d, ports);
+            h.see(&datagram(7502, i64::from(k) * 1_562_500, &b), ports);
         }
-        let d = Datagram {
-            payload: &[0u8; 1206][..],
-            ..d_at(sensor)
-        };
+        let d = datagram(7502, 0, &[0u8; 1206]);
         h.see(&d, ports);
         let (text, warn) = h.describe("data", Some(sensor), 3.0, true);
         assert_eq!((h.ouster_packets, h.datagrams), (1000, 1001));
@@ -479,21 +461,9 @@ mod tests {
         // Its IMU port as the board's position port: its 48-byte packets heard as such.
         let mut h = Heard::new(7503);
         h.ouster_imu = true;
-        h.see(
-            &Datagram {
-                payload: &[0u8; 48][..],
-                ..d_at(sensor)
-            },
-            ports,
-        );
+        h.see(&datagram(7503, 0, &[0u8; 48]), ports);
         let (text, warn) = h.describe("position", Some(sensor), 3.0, true);
         assert!(text.ends_with("Ouster IMU packets"), "{text}");
         assert!(warn.is_empty(), "{warn:?}");
-        // A silent port.
-        let (_, warn) = Heard::new(8308).describe("position", None, 3.0, false);
-        assert!(
-            warn[0].contains("position port 8308: silent for 3 s"),
-            "{warn:?}"
-        );
     }
 }
