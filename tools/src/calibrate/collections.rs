@@ -178,7 +178,14 @@ impl<'a> Collections<'a> {
         let search =
             search.map(|h| search_half_width(start, h, first.0.align.lidar_span, first.0.ins.span));
         if let Some(half) = search.filter(|h| *h > 0.0 && clock.estimate) {
-            searched = search_time_offset(start, half, &first.2, &mut |a| self.attempt(a))?;
+            if let Some(s) = self.session.as_mut() {
+                s.searching(true);
+            }
+            let found = search_time_offset(start, half, &first.2, &mut |a| self.attempt(a));
+            if let Some(s) = self.session.as_mut() {
+                s.searching(false);
+            }
+            searched = found?;
             if let Some(best) = best_candidate(&searched) {
                 let found = best.found_s.unwrap_or(best.start_s);
                 if (found - (start + first.2.dt)).abs() > 5e-4 {
