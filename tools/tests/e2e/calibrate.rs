@@ -488,7 +488,8 @@ count = 12
 }
 
 /// table1's quay scanned by each other model (its lasers, firing timing, range unit, azimuth
-/// offsets and product byte, all from the simulator): `calibrate` detects the model, finds the
+/// offsets and product byte, all from the simulator), on its two slow passes (north and south,
+/// 35.5 s of the 55; the VLP-16's tests take all four): `calibrate` detects the model, finds the
 /// truth to 1e-3 deg / 1e-3 m as with the VLP-16, its report names the model, and the returns
 /// it keeps are the spheres' (precision >= 99.5 %, recall >= 90 %).
 #[test]
@@ -496,6 +497,7 @@ fn table1_quay_with_every_model() {
     use spherecal::velodyne::Model;
     for model in [Model::PuckHiRes, Model::Hdl32e, Model::Vlp32c] {
         let mut s = Scenario::load("table1").unwrap();
+        s.trajectory.pass.truncate(2);
         s.lidar.model = model.key().into();
         let dir = tmp(&format!("table1-{}", model.key()));
         spherecal_tools::synth::synth(&s, &dir).unwrap();
