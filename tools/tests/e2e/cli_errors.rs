@@ -146,7 +146,9 @@ fn errors_name_the_file_and_the_reason() {
 fn impossible_inputs_are_refused() {
     let a = common::tmp("errors", "a");
     let b = common::tmp("errors", "b");
-    let bare = Scenario::load("table1-bare").unwrap();
+    // Two passes (the refusals need valid files, not a whole survey).
+    let mut bare = Scenario::load("table1-bare").unwrap();
+    bare.trajectory.pass.truncate(2);
     spherecal_tools::synth::synth(&bare, &a).unwrap();
     let mut other = bare.clone();
     other.mount.truth.lever_arm_m[0] += 0.2;
@@ -233,18 +235,15 @@ fn impossible_inputs_are_refused() {
             true,
         );
     }
-    // A search of +-100 s over the survey's first two passes (36 s of data; each start of the
-    // search is a whole collection and solve): kept to the overlap, and it runs.
-    let c = common::tmp("errors", "c");
-    let mut short = bare.clone();
-    short.trajectory.pass.truncate(2);
-    spherecal_tools::synth::synth(&short, &c).unwrap();
-    let r = c.join("search.json");
+    // A search of +-100 s over the two passes (36 s of data; each start of the search is a
+    // whole collection and solve): kept to the overlap, and it runs.
+    let short = &bare;
+    let r = a.join("search.json");
     let mut args = calibrate(
-        &c.join("lidar.pcap"),
+        &pcap,
         "--ins",
-        &c.join("ins.bin"),
-        &c.join("site.toml"),
+        &ins,
+        &site,
         &["--search-time-offset", "100"],
     );
     args.extend(["--report".into(), r.clone().into()]);
@@ -276,7 +275,6 @@ fn impossible_inputs_are_refused() {
     );
     assert!(so.contains("time offset searched from"), "{so}");
     assert!(rep["time_offset_s"].as_f64().unwrap().abs() < 1e-3);
-    std::fs::remove_dir_all(c).unwrap();
     std::fs::remove_dir_all(a).unwrap();
     std::fs::remove_dir_all(b).unwrap();
 }
