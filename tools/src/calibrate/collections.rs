@@ -97,6 +97,16 @@ impl<'a> Collections<'a> {
 
     /// Collect the windows at the time offset `applied` [s] and solve them.
     pub(super) fn attempt(&mut self, applied: f64) -> Result<Calibrated, crate::Error> {
+        self.attempt_for(applied, false)
+    }
+
+    /// As [`Self::attempt`] for one start of the time-offset search ([`Session::solve_start`]).
+    fn attempt_start(&mut self, applied: f64) -> Result<Calibrated, crate::Error> {
+        self.attempt_for(applied, true)
+    }
+
+    /// [`Self::attempt`], its solve a search start's when `start`.
+    fn attempt_for(&mut self, applied: f64, start: bool) -> Result<Calibrated, crate::Error> {
         let inp = &mut *self.inp;
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let settings = self.session.as_ref().map_or(&self.base, Session::settings);
@@ -147,8 +157,12 @@ impl<'a> Collections<'a> {
             self.clock.allow_unlocked,
         );
         // The report's offset includes the one the windows were made at.
-        let (sol, rep) =
-            session.solve(self.b0, clocks, &mut crate::progress::Rounds(&self.spinner));
+        let watch = &mut crate::progress::Rounds(&self.spinner);
+        let (sol, rep) = if start {
+            session.solve_start(self.b0, clocks, watch)
+        } else {
+            session.solve(self.b0, clocks, watch)
+        };
         let obs = session.take_store();
         Ok((stats, obs, sol, rep))
     }
@@ -178,14 +192,7 @@ impl<'a> Collections<'a> {
         let search =
             search.map(|h| search_half_width(start, h, first.0.align.lidar_span, first.0.ins.span));
         if let Some(half) = search.filter(|h| *h > 0.0 && clock.estimate) {
-            if let Some(s) = self.session.as_mut() {
-                s.searching(true);
-            }
-            let found = search_time_offset(start, half, &first.2, &mut |a| self.attempt(a));
-            if let Some(s) = self.session.as_mut() {
-                s.searching(false);
-            }
-            searched = found?;
+            searched = search_time_offset(start, half, &first.2, &mut |a| self.attempt_start(a))?;
             if let Some(best) = best_candidate(&searched) {
                 let found = best.found_s.unwrap_or(best.start_s);
                 if (found - (start + first.2.dt)).abs() > 5e-4 {

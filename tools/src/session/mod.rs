@@ -158,8 +158,6 @@ pub struct Session {
     excluded: Vec<((i64, i64), usize, String)>,
     /// The last solve was refused naming a radius the returns do not show.
     radius_named: bool,
-    /// Solving a time-offset search's starts ([`Session::searching`]).
-    searching: bool,
 }
 
 impl Session {
@@ -183,16 +181,7 @@ impl Session {
             nav_source: nav_source.into(),
             excluded: Vec::new(),
             radius_named: false,
-            searching: false,
         }
-    }
-
-    /// While `on`, each solve is one start of a time-offset search
-    /// ([`crate::calibrate::search`]): only where it converged, what it kept and its RMS are
-    /// read, so a refusal is left as it is (no radius named, no stretch set aside: those are
-    /// for the collection the search picks, at up to 13 more solves for each start refused).
-    pub fn searching(&mut self, on: bool) {
-        self.searching = on;
     }
 
     /// The last solve was refused naming a sphere's radius (a site's slip: collecting again at
@@ -298,6 +287,30 @@ impl Session {
         clocks: ClockFacts,
         watch: &mut impl Observe,
     ) -> (Solution, Report) {
+        self.solve_for(b0, clocks, true, watch)
+    }
+
+    /// As [`Session::solve`] for one start of a time-offset search
+    /// ([`crate::calibrate::search`]): only where it converged, what it kept and its RMS are
+    /// read, so a refusal is left as it is (no radius named, no stretch set aside: those are
+    /// for the collection the search picks, at up to 13 more solves for each start refused).
+    pub fn solve_start(
+        &mut self,
+        b0: &Params,
+        clocks: ClockFacts,
+        watch: &mut impl Observe,
+    ) -> (Solution, Report) {
+        self.solve_for(b0, clocks, false, watch)
+    }
+
+    /// The solve; a refusal looked into (a radius, then a stretch set aside) when `mend`.
+    fn solve_for(
+        &mut self,
+        b0: &Params,
+        clocks: ClockFacts,
+        mend: bool,
+        watch: &mut impl Observe,
+    ) -> (Solution, Report) {
         // A LiDAR clock without PPS runs on its own crystal: its drift is estimated with the
         // offset (one rule for `calibrate` and the rig).
         let mut s = self.settings;
@@ -316,7 +329,7 @@ impl Session {
         // claim passed the passes' consistency, which a wrong radius fails: seen from two
         // sides, a sphere's centre moves by twice the error), and no stretch set aside helps.
         self.radius_named = false;
-        if !rep.converged && !self.searching {
+        if !rep.converged && mend {
             let mount = spherecal::georef::Mount::from_params(b0);
             let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
             let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);

@@ -237,7 +237,6 @@ fn impossible_inputs_are_refused() {
     }
     // A search of +-100 s over the two passes (36 s of data; each start of the search is a
     // whole collection and solve): kept to the overlap, and it runs.
-    let short = &bare;
     let r = a.join("search.json");
     let mut args = calibrate(
         &pcap,
@@ -264,10 +263,10 @@ fn impossible_inputs_are_refused() {
     );
     // The LiDAR's span within the INS's (which starts and ends ~1 s beyond it): offsets of
     // +-(half the span + ~1 s) keep half the LiDAR data inside.
-    let half = 0.5 * short.duration_s();
+    let half = 0.5 * bare.duration_s();
     eprintln!(
         "searched {lo} .. {hi} s over {} s of data",
-        short.duration_s()
+        bare.duration_s()
     );
     assert!(
         (lo + half).abs() < 2.0 && (hi - half).abs() < 2.0 && (lo + hi).abs() < 0.6,

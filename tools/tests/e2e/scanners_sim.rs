@@ -257,10 +257,9 @@ fn table1_and_the_drone_with_an_os1_64_and_an_os2_128_calibrate_to_the_truth() {
 /// On table1's two fast passes, an XT32 whose GPS packets say the PPS is not locked and whose
 /// clock runs 0.3 s ahead, and an OS1-64 counting from its power-on (TIME_FROM_INTERNAL_OSC:
 /// its times placed by the capture's receive time, 1.4 ms after the firing in `synth`):
-/// refused (exit 1) naming the
-/// clock; the OS1-64 with `--allow-unlocked-clock`: the offset found within 0.1 ms and the
-/// mounting within 1e-3 (the search and the claim are the Velodyne's, `clocks.rs`; the XT32's
-/// claim once took 15 s more here and showed the same).
+/// refused (exit 1) naming the clock; the OS1-64 with `--allow-unlocked-clock`: the offset
+/// found within 0.1 ms and the mounting within 1e-3 (the search and the claim are the
+/// Velodyne's, `clocks.rs`; the XT32's claim once took 15 s more here and showed the same).
 #[test]
 fn unsynchronised_clocks_are_refused_unless_allowed() {
     let delay = spherecal_tools::synth::NETWORK_DELAY_NS as f64 * 1e-9;
