@@ -9,6 +9,15 @@ use spherecal::georef::NAMES;
 /// aside in turn and none left the rest clean (`crate::stretches`).
 pub const NO_STRETCH: &str = "; no stretch of the survey set aside explained it: find it in the passes below and set it aside with --exclude GPS_T0..GPS_T1";
 
+/// A refusal's first words under a LiDAR clock whose offset from the INS nothing tells
+/// (`Session::look_into`), the clock's state in `clock` (else the words point to its line).
+pub fn unknown_offset(clock: Option<&str>) -> String {
+    format!(
+        "the LiDAR clock is not PPS-locked and gives no RMC time ({}), and the time offset between the LiDAR's and the INS's clocks was neither searched nor given: an offset of a second smears each sphere metres along the track, so nothing the returns show can be trusted; search it (calibrate's default for such a clock, unless --search-time-offset 0) or give it (--time-offset)",
+        clock.unwrap_or("see the LiDAR clock line")
+    )
+}
+
 /// A refusal in words; `dt_estimated`: the time offset was estimated with the mounting (else
 /// held), so that a refusal does not blame an offset that was not left out.
 pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String], dt_estimated: bool) -> String {

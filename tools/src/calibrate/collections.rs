@@ -8,7 +8,7 @@ use crate::config::nav_errors::CorrelatedSpec;
 use crate::config::nav_source::InsKind;
 use crate::pipeline::accuracy::{Accuracy, AccuracyReport};
 use crate::pipeline::{Closest, Inputs, InsInput, RunStats};
-use crate::reasons::{empty_windows, refusal_text_clock};
+use crate::reasons::{empty_windows, refusal_text_clock, unknown_offset};
 use crate::report::{Report, SearchCandidate};
 use crate::session::{settings_for, settings_under, Session};
 use spherecal::align::window::{Observation, Target};
@@ -133,8 +133,14 @@ impl<'a> Collections<'a> {
                 let settings =
                     settings_under(site, inp.laser_period_ns(), est, inp.margin, c.model);
                 let (t, ids) = (self.targets.to_vec(), self.ids.to_vec());
-                self.session
-                    .insert(Session::new(t, ids, settings, &c.source))
+                let session = self
+                    .session
+                    .insert(Session::new(t, ids, settings, &c.source));
+                // An offset the user gave is known, whatever the clocks say.
+                if self.clock.start.is_some() {
+                    session.know_offset();
+                }
+                session
             }
         };
         // The accuracy file's sigmas weigh each return, unless a navigation model holds them.
@@ -195,7 +201,11 @@ impl<'a> Collections<'a> {
             searched = search_time_offset(start, half, &first.2, &mut |a| self.attempt_start(a))?;
             if let Some(best) = best_candidate(&searched) {
                 let found = best.found_s.unwrap_or(best.start_s);
-                if (found - (start + first.2.dt)).abs() > 5e-4 {
+                // Found by the data: a refusal at it is no longer the clock's to explain.
+                if let Some(s) = self.session.as_mut() {
+                    s.know_offset();
+                }
+                if (found - (start + first.2.dt)).abs() > 5e-4 || !first.3.converged {
                     start = found;
                     first = self.attempt(start)?;
                 }
@@ -282,6 +292,14 @@ impl<'a> Collections<'a> {
                         .unwrap_or_default()
                 ));
             }
+        }
+        // The session's words for an offset nothing tells, with the clock's state.
+        if let Some(r) = rep.reason.as_mut() {
+            let (general, words) = (
+                unknown_offset(None),
+                unknown_offset(Some(&stats.clock.describe())),
+            );
+            *r = r.replacen(&general, &words, 1);
         }
         // The clocks' refusals are the core's (`Settings::clocks`); their words name the LiDAR
         // clock's state.

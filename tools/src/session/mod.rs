@@ -7,11 +7,12 @@ pub mod radius;
 pub mod scratch;
 
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
+use crate::reasons::unknown_offset;
 use crate::report::Report;
 use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
-use spherecal::calib::solve::{ClockFacts, Observe};
+use spherecal::calib::solve::{ClockFacts, Observe, Refusal};
 use spherecal::calib::{Settings, Solution};
 use spherecal::georef::Params;
 
@@ -158,6 +159,8 @@ pub struct Session {
     excluded: Vec<((i64, i64), usize, String)>,
     /// The last solve was refused naming a radius the returns do not show.
     radius_named: bool,
+    /// The time offset is known apart from the clocks' words ([`Session::know_offset`]).
+    offset_known: bool,
 }
 
 impl Session {
@@ -181,7 +184,15 @@ impl Session {
             nav_source: nav_source.into(),
             excluded: Vec::new(),
             radius_named: false,
+            offset_known: false,
         }
+    }
+
+    /// The time offset the store is aligned at is known apart from what the clocks say: given
+    /// by the user, or found by a search of the data. Until then a LiDAR clock that is neither
+    /// PPS-locked nor gives RMC time leaves the offset unknown, and a refusal names that first.
+    pub fn know_offset(&mut self) {
+        self.offset_known = true;
     }
 
     /// The last solve was refused naming a sphere's radius (a site's slip: collecting again at
@@ -325,27 +336,9 @@ impl Session {
             &mut self.scratch,
             watch,
         );
-        // A refusal: the radii first. A wrong one is the cause of whatever else went wrong (a
-        // claim passed the passes' consistency, which a wrong radius fails: seen from two
-        // sides, a sphere's centre moves by twice the error), and no stretch set aside helps.
         self.radius_named = false;
         if !rep.converged && mend {
-            let mount = spherecal::georef::Mount::from_params(b0);
-            let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
-            let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);
-            let wrong = radius::disagreement(&radii, &self.targets, &self.ids);
-            if wrong.is_none() {
-                if let Some(found) = self.set_aside(b0, &s, &sol) {
-                    (sol, rep) = (found.0, found.1);
-                    let sp = found.2;
-                    let span = ((sp.from_gps_s * 1e9) as i64, (sp.to_gps_s * 1e9) as i64);
-                    self.excluded.push((span, sp.returns, sp.why));
-                }
-            }
-            if !rep.converged {
-                self.radius_named = wrong.is_some();
-                radius::name_first(&mut rep, &radii, wrong);
-            }
+            (sol, rep) = self.look_into(b0, &s, sol, rep);
         }
         rep.set_aside = self
             .excluded
@@ -360,6 +353,50 @@ impl Session {
         rep.time_offset_s += self.offset_ns as f64 * 1e-9;
         if let Some(n) = rep.navigation.as_mut() {
             n.source = self.nav_source.clone();
+        }
+        (sol, rep)
+    }
+
+    /// A refusal looked into. Under a LiDAR clock whose offset nothing tells (no PPS, no RMC
+    /// time, neither searched nor given) the offset is named first: a second's error smears each
+    /// sphere metres along the track, which reads as a larger radius or a bad stretch, so
+    /// neither is probed. Else the radii first: a wrong one is the cause of whatever else went
+    /// wrong (a claim passed the passes' consistency, which a wrong radius fails: seen from two
+    /// sides, a sphere's centre moves by twice the error), and no stretch set aside helps; then
+    /// a stretch set aside.
+    fn look_into(
+        &mut self,
+        b0: &Params,
+        s: &Settings,
+        mut sol: Solution,
+        mut rep: Report,
+    ) -> (Solution, Report) {
+        let untold = s
+            .clocks
+            .lidar_untrusted
+            .is_some_and(|u| u.rmc_offset_s.is_none());
+        if untold && !self.offset_known {
+            if !matches!(sol.refusal, Some(Refusal::LidarClockUntrusted { .. })) {
+                let why = rep.reason.take().map(|r| format!("; so: {r}"));
+                rep.reason = Some(unknown_offset(None) + &why.unwrap_or_default());
+            }
+            return (sol, rep);
+        }
+        let mount = spherecal::georef::Mount::from_params(b0);
+        let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
+        let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);
+        let wrong = radius::disagreement(&radii, &self.targets, &self.ids);
+        if wrong.is_none() {
+            if let Some(found) = self.set_aside(b0, s, &sol) {
+                (sol, rep) = (found.0, found.1);
+                let sp = found.2;
+                let span = ((sp.from_gps_s * 1e9) as i64, (sp.to_gps_s * 1e9) as i64);
+                self.excluded.push((span, sp.returns, sp.why));
+            }
+        }
+        if !rep.converged {
+            self.radius_named = wrong.is_some();
+            radius::name_first(&mut rep, &radii, wrong);
         }
         (sol, rep)
     }
