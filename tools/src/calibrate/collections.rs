@@ -40,6 +40,8 @@ pub(super) struct Collections<'a> {
     pub(super) spinner: indicatif::ProgressBar,
     /// Called after each collection, before its solve.
     collected: &'a mut dyn FnMut(),
+    /// The collections made.
+    collections: u32,
 }
 
 impl<'a> Collections<'a> {
@@ -92,6 +94,7 @@ impl<'a> Collections<'a> {
             spinner: crate::progress::spinner("solving"),
             inp,
             collected,
+            collections: 0,
         })
     }
 
@@ -111,6 +114,7 @@ impl<'a> Collections<'a> {
         inp.time_offset_ns = (applied * 1e9).round() as i64;
         let settings = self.session.as_ref().map_or(&self.base, Session::settings);
         let (stats, mut obs) = collect_bounded(inp, self.targets, self.b0, settings, STORE_CAP)?;
+        self.collections += 1;
         (self.collected)();
         let session = match &mut self.session {
             Some(s) => s,
@@ -174,26 +178,32 @@ impl<'a> Collections<'a> {
     }
 
     /// The first collection: at the start offset (for a LiDAR clock that is not trusted, again
-    /// from where its RMCs put it), then the coarse search
-    /// around it when asked or the clock is untrusted. The start, the collection, the search.
+    /// from where its RMCs put it), then the coarse search around it when asked or the clock is
+    /// untrusted. A solve the search follows is its centre's, solved as a start (its refusal
+    /// left as it is); the collection the search picks is solved as any other, and so is the
+    /// centre's again when the search found nothing and it was refused. The start, the
+    /// collection, the search.
     pub(super) fn first(
         &mut self,
     ) -> Result<(f64, Calibrated, Vec<SearchCandidate>), crate::Error> {
         let clock = self.clock;
         let mut start = clock.start.unwrap_or(0.0);
-        let mut first = self.attempt(start)?;
+        let asked = clock.estimate && clock.search.is_some_and(|h| h > 0.0);
+        let mut first = self.attempt_for(start, asked)?;
+        let mut as_start = asked;
         let trusted = first.0.clock.trusted();
+        let search = clock
+            .search
+            .or((!trusted && clock.estimate).then_some(DEFAULT_SEARCH_S));
         // An untrusted LiDAR clock: start where its RMCs put it (INS time = LiDAR time - its
         // error).
         if clock.start.is_none() && !trusted {
             if let Some(e) = first.0.clock.rmc_offset_s().filter(|e| e.abs() > 0.5) {
                 start = -e;
-                first = self.attempt(start)?;
+                as_start = clock.estimate && search.is_some_and(|h| h > 0.0);
+                first = self.attempt_for(start, as_start)?;
             }
         }
-        let search = clock
-            .search
-            .or((!trusted && clock.estimate).then_some(DEFAULT_SEARCH_S));
         let mut searched = Vec::new();
         let search =
             search.map(|h| search_half_width(start, h, first.0.align.lidar_span, first.0.ins.span));
@@ -208,8 +218,12 @@ impl<'a> Collections<'a> {
                 if (found - (start + first.2.dt)).abs() > 5e-4 || !first.3.converged {
                     start = found;
                     first = self.attempt(start)?;
+                    as_start = false;
                 }
             }
+        }
+        if as_start && !first.3.converged {
+            first = self.attempt(start)?;
         }
         Ok((start, first, searched))
     }
@@ -248,6 +262,16 @@ impl<'a> Collections<'a> {
             first.1 = Vec::new();
             first = self.attempt(applied)?;
             collections += 1;
+        }
+    }
+
+    /// What the calibration ran so far.
+    pub(super) fn effort(&self) -> crate::report::Effort {
+        let (solves, radius_probes) = self.session.as_ref().map_or((0, 0), Session::effort);
+        crate::report::Effort {
+            collections: self.collections,
+            solves,
+            radius_probes,
         }
     }
 

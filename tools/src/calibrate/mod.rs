@@ -148,6 +148,7 @@ pub fn calibrate(
     }
     c.spinner.finish_and_clear();
     rep.time_offset_search = searched;
+    rep.effort = Some(c.effort());
     rep.start.insert("time_offset".to_string(), start);
     rep.batch_overflow = stats.align.batch_overflow;
     let mut inputs = InputsReport::of(c.inp, &stats);

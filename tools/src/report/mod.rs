@@ -303,6 +303,9 @@ pub struct Report {
     /// The coarse search of the time offset, when one ran: each start tried.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub time_offset_search: Vec<SearchCandidate>,
+    /// What the calibration ran to get here (`calibrate`'s collections and solves).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effort: Option<Effort>,
     /// The navigation model the least squares estimated under, when one was declared.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub navigation: Option<NavigationReport>,
@@ -489,6 +492,19 @@ impl Report {
     pub fn deg_m(&self) -> [f64; 6] {
         deg_m(&self.boresight_deg, &self.lever_arm_m)
     }
+}
+
+/// What one calibration ran: a time-offset search's starts and the offsets found each cost a
+/// collection and a solve; a refusal looked into costs radius probes and, for a stretch set
+/// aside, a solve per candidate.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
+pub struct Effort {
+    /// The windows collected (the pipeline over the files).
+    pub collections: u32,
+    /// Least-squares solves (the detect-and-solve rounds and the last fit).
+    pub solves: u32,
+    /// Refusals whose spheres' radii were probed ([`crate::session::radius`]).
+    pub radius_probes: u32,
 }
 
 /// One start of the time offset search.

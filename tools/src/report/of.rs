@@ -98,6 +98,7 @@ impl Report {
                 .collect(),
             solve_ms,
             time_offset_search: Vec::new(),
+            effort: None,
             start: NAMES
                 .iter()
                 .zip(b0.deg_m().0)

@@ -276,7 +276,7 @@ fn centres(o: &mut String, r: &Report) {
     }
 }
 
-/// The time offset's search and the trajectory's accuracy file.
+/// The time offset's search, what the calibration ran and the trajectory's accuracy file.
 fn search_and_accuracy(o: &mut String, r: &Report) {
     if let (Some(a), Some(b)) = (r.time_offset_search.first(), r.time_offset_search.last()) {
         let found = r
@@ -290,6 +290,21 @@ fn search_and_accuracy(o: &mut String, r: &Report) {
             a.start_s,
             b.start_s,
             r.time_offset_search.len()
+        );
+    }
+    if let Some(e) = r
+        .effort
+        .filter(|e| e.collections > 1 || e.solves > e.collections)
+    {
+        let _ = writeln!(
+            o,
+            "ran {} collections of the windows, {} solves{}",
+            e.collections,
+            e.solves,
+            match e.radius_probes {
+                0 => String::new(),
+                n => format!(", {n} radius probes"),
+            }
         );
     }
     if let Some(a) = r.inputs.as_ref().and_then(|i| i.accuracy.as_ref()) {

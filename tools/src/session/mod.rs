@@ -161,6 +161,9 @@ pub struct Session {
     radius_named: bool,
     /// The time offset is known apart from the clocks' words ([`Session::know_offset`]).
     offset_known: bool,
+    /// Solves run and radius probes made ([`Session::effort`]).
+    solves: u32,
+    radius_probes: u32,
 }
 
 impl Session {
@@ -185,7 +188,14 @@ impl Session {
             excluded: Vec::new(),
             radius_named: false,
             offset_known: false,
+            solves: 0,
+            radius_probes: 0,
         }
+    }
+
+    /// The solves run and the radius probes made so far: `(solves, probes)`.
+    pub fn effort(&self) -> (u32, u32) {
+        (self.solves, self.radius_probes)
     }
 
     /// The time offset the store is aligned at is known apart from what the clocks say: given
@@ -327,6 +337,7 @@ impl Session {
         let mut s = self.settings;
         s.estimate_drift = s.estimate_dt && clocks.lidar_untrusted.is_some();
         s.clocks = clocks;
+        self.solves += 1;
         let (mut sol, mut rep) = solve_report_in(
             &self.targets,
             &self.ids,
@@ -360,7 +371,7 @@ impl Session {
     /// A refusal looked into. Under a LiDAR clock whose offset nothing tells (no PPS, no RMC
     /// time, neither searched nor given) the offset is named first: a second's error smears each
     /// sphere metres along the track, which reads as a larger radius or a bad stretch, so
-    /// neither is probed. Else the radii first: a wrong one is the cause of whatever else went
+    /// neither is probed; nor where its RMC time puts the offset elsewhere than applied. Else the radii first: a wrong one is the cause of whatever else went
     /// wrong (a claim passed the passes' consistency, which a wrong radius fails: seen from two
     /// sides, a sphere's centre moves by twice the error), and no stretch set aside helps; then
     /// a stretch set aside.
@@ -371,18 +382,23 @@ impl Session {
         mut sol: Solution,
         mut rep: Report,
     ) -> (Solution, Report) {
-        let untold = s
-            .clocks
-            .lidar_untrusted
-            .is_some_and(|u| u.rmc_offset_s.is_none());
-        if untold && !self.offset_known {
-            if !matches!(sol.refusal, Some(Refusal::LidarClockUntrusted { .. })) {
+        let u = s.clocks.lidar_untrusted;
+        let untold = u.is_some_and(|u| u.rmc_offset_s.is_none());
+        // The stamps' RMC time puts the offset more than half a second from the one applied
+        // (`calibrate` collects again where it puts it).
+        let belied = u.is_some_and(|u| {
+            u.rmc_offset_s
+                .is_some_and(|e| (u.applied_s + e).abs() > 0.5)
+        });
+        if (untold || belied) && !self.offset_known {
+            if untold && !matches!(sol.refusal, Some(Refusal::LidarClockUntrusted { .. })) {
                 let why = rep.reason.take().map(|r| format!("; so: {r}"));
                 rep.reason = Some(unknown_offset(None) + &why.unwrap_or_default());
             }
             return (sol, rep);
         }
         let mount = spherecal::georef::Mount::from_params(b0);
+        self.radius_probes += 1;
         let (store, targets, ex) = (&self.store, &self.targets, &s.extract);
         let radii = radius::apparent(store, targets, &mount, ex, &mut self.scratch);
         let wrong = radius::disagreement(&radii, &self.targets, &self.ids);
@@ -425,6 +441,7 @@ impl Session {
                 continue;
             }
             let cut = split(&mut self.store, span);
+            self.solves += 1;
             let (sol2, rep2) = solve_report_in(
                 &self.targets,
                 &self.ids,

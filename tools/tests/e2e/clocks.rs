@@ -158,7 +158,9 @@ fn noisy_ins_late_is_within_three_sigma() {
 /// fast passes (3.6 and 4.5 m/s: an offset of 1 s smears each sphere 4 m along the track).
 /// Without the flag: exit 1 naming the PPS state (and with void RMCs and no search, the unknown
 /// offset, not the smeared spheres' radius); with `--allow-unlocked-clock` the offset is
-/// recovered within 1 ms and the mount within 1e-3.
+/// recovered within 1 ms and the mount within 1e-3, and where it is searched (void RMCs, and 1.0 s
+/// ahead with valid ones asked to) each start costs one collection and one solve: a start's
+/// refusal probes no radius and sets no stretch aside.
 #[test]
 fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
     let cases = [(0.3, true), (1.0, true), (1.0, false)];
@@ -175,7 +177,14 @@ fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
                     // The refusal is the clock's state, whatever the offset: the search
                     // (17 solves) is left to the run that claims.
                     let refused = calibrate(&d, &d.join("ins.bin"), &["--search-time-offset", "0"]);
-                    let allowed = calibrate(&d, &d.join("ins.bin"), &["--allow-unlocked-clock"]);
+                    // 1.0 s ahead with valid RMCs: searched +-1 s around where they put it
+                    // too (void RMCs are searched +-2 s by default).
+                    let search: &[&str] = match (off, rmc) {
+                        (1.0, true) => &["--search-time-offset", "1"],
+                        _ => &[],
+                    };
+                    let args = [&["--allow-unlocked-clock"], search].concat();
+                    let allowed = calibrate(&d, &d.join("ins.bin"), &args);
                     (off, rmc, d, s, refused, allowed)
                 })
             })
@@ -221,8 +230,18 @@ fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
             s.true_time_offset_s()
         );
         assert_mount(&r2, &s, 1e-3, &what);
-        if !rmc {
+        if !rmc || off == 1.0 {
             assert!(!r2.time_offset_search.is_empty(), "{what}: no search");
+            // Each start one collection and one solve, its refusal left as it is (no radius
+            // probed, no stretch set aside: those are for the offset the search picks).
+            let e = r2.effort.unwrap();
+            assert!(
+                e.collections as usize >= r2.time_offset_search.len()
+                    && e.solves == e.collections
+                    && e.radius_probes == 0
+                    && r2.set_aside.is_empty(),
+                "{what}: {e:?}"
+            );
         }
         std::fs::remove_dir_all(d).unwrap();
     }
