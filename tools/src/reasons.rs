@@ -18,6 +18,17 @@ pub fn unknown_offset(clock: Option<&str>) -> String {
     )
 }
 
+/// A refusal's first words where the LiDAR's RMC time (its stamps `rmc_offset_s` ahead, to
+/// within the half second its whole second hides) puts the time offset elsewhere than the one
+/// applied (`applied_s`) [s].
+pub fn belied_offset(applied_s: f64, rmc_offset_s: f64) -> String {
+    format!(
+        "the LiDAR clock is not PPS-locked, and its RMC time puts the time offset between {:+.2} and {:+.2} s (its whole second), not at the {applied_s:+.3} s applied: an offset wrong by a second smears each sphere metres along the track, so nothing the returns show can be trusted; leave the start to the RMC (no --time-offset) or search it (--search-time-offset)",
+        -rmc_offset_s - 0.5,
+        -rmc_offset_s + 0.5
+    )
+}
+
 /// A refusal in words; `dt_estimated`: the time offset was estimated with the mounting (else
 /// held), so that a refusal does not blame an offset that was not left out.
 pub fn refusal_text(r: &Refusal, ids: &[String], weak: &[String], dt_estimated: bool) -> String {

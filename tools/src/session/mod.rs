@@ -7,7 +7,7 @@ pub mod radius;
 pub mod scratch;
 
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
-use crate::reasons::unknown_offset;
+use crate::reasons::{belied_offset, unknown_offset};
 use crate::report::Report;
 use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
@@ -371,7 +371,8 @@ impl Session {
     /// A refusal looked into. Under a LiDAR clock whose offset nothing tells (no PPS, no RMC
     /// time, neither searched nor given) the offset is named first: a second's error smears each
     /// sphere metres along the track, which reads as a larger radius or a bad stretch, so
-    /// neither is probed; nor where its RMC time puts the offset elsewhere than applied. Else the radii first: a wrong one is the cause of whatever else went
+    /// neither is probed; nor where its RMC time puts the offset elsewhere than applied (by
+    /// more than half a second), which is then named. Else the radii first: a wrong one is the cause of whatever else went
     /// wrong (a claim passed the passes' consistency, which a wrong radius fails: seen from two
     /// sides, a sphere's centre moves by twice the error), and no stretch set aside helps; then
     /// a stretch set aside.
@@ -383,17 +384,22 @@ impl Session {
         mut rep: Report,
     ) -> (Solution, Report) {
         let u = s.clocks.lidar_untrusted;
-        let untold = u.is_some_and(|u| u.rmc_offset_s.is_none());
-        // The stamps' RMC time puts the offset more than half a second from the one applied
-        // (`calibrate` collects again where it puts it).
-        let belied = u.is_some_and(|u| {
-            u.rmc_offset_s
-                .is_some_and(|e| (u.applied_s + e).abs() > 0.5)
+        let untold = u.is_some_and(|u| u.rmc_offset_s.is_none()) && !self.offset_known;
+        // The stamps' RMC time puts the offset within half a second (its whole second) of
+        // `-e`, and the one applied is beyond (`calibrate` collects again where the RMC puts it,
+        // unless one was given).
+        let belied = u.and_then(|u| {
+            let e = u.rmc_offset_s?;
+            ((u.applied_s + e).abs() > 0.55).then_some((u.applied_s, e))
         });
-        if (untold || belied) && !self.offset_known {
-            if untold && !matches!(sol.refusal, Some(Refusal::LidarClockUntrusted { .. })) {
+        if untold || belied.is_some() {
+            if !matches!(sol.refusal, Some(Refusal::LidarClockUntrusted { .. })) {
+                let head = match belied {
+                    Some((applied, e)) => belied_offset(applied, e),
+                    None => unknown_offset(None),
+                };
                 let why = rep.reason.take().map(|r| format!("; so: {r}"));
-                rep.reason = Some(unknown_offset(None) + &why.unwrap_or_default());
+                rep.reason = Some(head + &why.unwrap_or_default());
             }
             return (sol, rep);
         }

@@ -160,7 +160,8 @@ fn noisy_ins_late_is_within_three_sigma() {
 /// offset, not the smeared spheres' radius); with `--allow-unlocked-clock` the offset is
 /// recovered within 1 ms and the mount within 1e-3, and where it is searched (void RMCs, and 1.0 s
 /// ahead with valid ones asked to) each start costs one collection and one solve: a start's
-/// refusal probes no radius and sets no stretch aside.
+/// refusal probes no radius and sets no stretch aside. Held at an offset its RMCs belie (0 s),
+/// the refusal names where they put it.
 #[test]
 fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
     let cases = [(0.3, true), (1.0, true), (1.0, false)];
@@ -185,15 +186,34 @@ fn a_clock_without_pps_is_refused_unless_allowed_and_then_recovered() {
                     };
                     let args = [&["--allow-unlocked-clock"], search].concat();
                     let allowed = calibrate(&d, &d.join("ins.bin"), &args);
-                    (off, rmc, d, s, refused, allowed)
+                    // ... and held at an offset the RMCs belie (0 s, not -1.1 s).
+                    let belied = (!search.is_empty()).then(|| {
+                        calibrate(
+                            &d,
+                            &d.join("ins.bin"),
+                            &["--time-offset", "0", "--hold-time-offset"],
+                        )
+                    });
+                    (off, rmc, d, s, refused, allowed, belied)
                 })
             })
             .map(|h| h.join().unwrap())
     })
     .into_iter()
     .collect();
-    for (off, rmc, d, s, (out, r), (out2, r2)) in results {
+    for (off, rmc, d, s, (out, r), (out2, r2), belied) in results {
         let what = format!("clock {off} s ahead, RMC valid {rmc}");
+        if let Some((out3, r3)) = belied {
+            // The offset the RMCs give is named, not the smeared spheres' radius.
+            assert_eq!(out3.status.code(), Some(1), "{what}: {}", text(&out3));
+            let why = r3.unwrap().reason.unwrap();
+            assert!(
+                why.contains("its RMC time puts the time offset between -")
+                    && why.contains("not at the +0.000 s applied")
+                    && !why.contains("radius"),
+                "{what}: {why}"
+            );
+        }
         assert_eq!(out.status.code(), Some(1), "{what}: {}", text(&out));
         let r = r.unwrap();
         let reason = r.reason.clone().unwrap();
