@@ -188,9 +188,10 @@ impl<'a> Collections<'a> {
     ) -> Result<(f64, Calibrated, Vec<SearchCandidate>), crate::Error> {
         let clock = self.clock;
         let mut start = clock.start.unwrap_or(0.0);
-        let asked = clock.estimate && clock.search.is_some_and(|h| h > 0.0);
-        let mut first = self.attempt_for(start, asked)?;
-        let mut as_start = asked;
+        // Whether a search of half-width `h` [s] runs: its centre's solve is then a start's.
+        let searches = |h: Option<f64>| clock.estimate && h.is_some_and(|h| h > 0.0);
+        let mut as_start = searches(clock.search);
+        let mut first = self.attempt_for(start, as_start)?;
         let trusted = first.0.clock.trusted();
         let search = clock
             .search
@@ -200,14 +201,14 @@ impl<'a> Collections<'a> {
         if clock.start.is_none() && !trusted {
             if let Some(e) = first.0.clock.rmc_offset_s().filter(|e| e.abs() > 0.5) {
                 start = -e;
-                as_start = clock.estimate && search.is_some_and(|h| h > 0.0);
+                as_start = searches(search);
                 first = self.attempt_for(start, as_start)?;
             }
         }
         let mut searched = Vec::new();
         let search =
             search.map(|h| search_half_width(start, h, first.0.align.lidar_span, first.0.ins.span));
-        if let Some(half) = search.filter(|h| *h > 0.0 && clock.estimate) {
+        if let Some(half) = search.filter(|&h| searches(Some(h))) {
             searched = search_time_offset(start, half, &first.2, &mut |a| self.attempt_start(a))?;
             if let Some(best) = best_candidate(&searched) {
                 let found = best.found_s.unwrap_or(best.start_s);
