@@ -114,6 +114,7 @@ pub fn solve_stored(d: &mut Digest, meter: &mut impl Meter) -> Option<([f64; 6],
         drift: 0.0,
         t_ref: obs[0].time,
         weights: None,
+        footprint: None,
     };
     let settings = NmSettings {
         max_iter: SIMPLEX_ITERATIONS,

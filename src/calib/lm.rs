@@ -509,6 +509,7 @@ mod tests {
             drift: 0.0,
             t_ref: GpsTime(0),
             weights,
+            footprint: None,
         };
         refine(&pb, start, 100, 20_000_000, Clock::default())
     }

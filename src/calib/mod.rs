@@ -13,6 +13,7 @@
 
 pub mod consensus;
 pub mod extract;
+pub mod footprint;
 pub(crate) mod histogram;
 pub mod lm;
 pub mod nav;

@@ -4,6 +4,7 @@
 //! `x_k - c_j = u_k + R_k a + R_k R_li q_k` with `u_k = P_k - c_j`. `R_li` is built once per
 //! evaluation (six trig calls); each observation then costs two 3x3 products and a square root.
 
+use super::footprint::Footprint;
 use crate::align::window::{Observation, Target};
 use crate::frames::rotation;
 use crate::georef::P;
@@ -120,6 +121,9 @@ pub struct Problem<'a> {
     /// Weighted least squares with this noise model (each residual by the inverse of its
     /// variance), or `None`: every residual alike.
     pub weights: Option<Noise>,
+    /// The beam's footprint: each residual less its expected bloom ([`Footprint::bloom`]), or
+    /// `None`: an ideal ray.
+    pub footprint: Option<Footprint>,
 }
 
 impl Problem<'_> {
@@ -127,6 +131,11 @@ impl Problem<'_> {
     #[inline]
     pub fn since_ref(&self, o: &Observation) -> f64 {
         (o.time.0 - self.t_ref.0) as f64 * 1e-9
+    }
+
+    /// The rows' common part at mounting `b`, with this problem's footprint.
+    pub fn linearised(&self, b: &[f64; P]) -> Linearised {
+        Linearised::at(b).with_footprint(self.footprint)
     }
 
     /// The time offset model.
@@ -256,7 +265,7 @@ impl Problem<'_> {
         b: &[f64; P],
         mut f: impl FnMut(usize, &Observation, f64, &[f64; P7], f64),
     ) {
-        let lin = Linearised::at(b);
+        let lin = self.linearised(b);
         for (j, s) in self.spheres.iter().enumerate() {
             for o in s.obs {
                 if let Some(r) = lin.row(o, &s.target, self.dt_at(o)) {
@@ -297,6 +306,8 @@ pub struct Linearised {
     r_li: Matrix3<f64>,
     d: [Matrix3<f64>; 3],
     a: Vector3<f64>,
+    /// The beam's footprint, whose bloom each residual is corrected by (`None`: a ray).
+    footprint: Option<Footprint>,
 }
 
 /// One residual and its gradient ([`Problem::jacobian_with`]).
@@ -308,8 +319,14 @@ pub struct Row {
     pub row: [f64; P7],
     /// The grazing factor `1 - (u.n)^2`.
     pub grazing: f64,
-    /// The surface normal at the return (site frame).
+    /// The residual's direction (site frame): the surface normal at the return, plus the
+    /// footprint's bloom gradient `k` when the residual is corrected by it
+    /// ([`Footprint::bloom`]): a centre or the position moved by `d` moves the residual by
+    /// `-normal . d`.
     pub normal: Vector3<f64>,
+    /// The bloom's change as an attitude correction `eps` turns the beam with it: the
+    /// rotation rows are `normal x arm - turn` ([`crate::calib::nav`]'s pieces).
+    pub turn: [f64; 3],
     /// The return relative to the INS in the site frame before the time offset,
     /// `R_ig (a + R_li q)`.
     pub arm: Vector3<f64>,
@@ -323,7 +340,13 @@ impl Linearised {
             r_li,
             d,
             a: Vector3::new(b[3], b[4], b[5]),
+            footprint: None,
         }
+    }
+
+    /// The same, each residual corrected by the bloom of `footprint` (`None`: a ray).
+    pub fn with_footprint(self, footprint: Option<Footprint>) -> Self {
+        Self { footprint, ..self }
     }
 
     /// The residual of `o` against `target` with the time offset `dt`, and its gradient
@@ -358,20 +381,39 @@ impl Linearised {
             return None;
         }
         let n = dx / norm;
+        let (mut residual, mut dir) = (norm - target.radius, n);
+        let (mut bore, mut turn) = ([0.0; 3], [0.0; 3]);
+        let (rho, hz) = (y.norm(), libm::hypot(q.x, q.y));
+        if let Some(fp) = self.footprint.filter(|_| rho > 0.0 && hz > 0.0) {
+            // The beam and the scan's direction (horizontal in the LiDAR frame).
+            let sl = Vector3::new(-q.y / hz, q.x / hz, 0.0);
+            let (u, s) = (rot * y / rho, rot * (self.r_li * sl));
+            let bloom = fp.bloom(&dx, &u, &s, rho, target.radius);
+            residual -= bloom.e;
+            dir += bloom.k;
+            // The boresight and the attitude turn the footprint with the beam.
+            for (t, d) in bore.iter_mut().zip(&self.d) {
+                *t = bloom.turned(&(rot * (d * q) / rho), &(rot * (d * sl)));
+            }
+            for (k, t) in turn.iter_mut().enumerate() {
+                let axis = Vector3::ith(k, 1.0);
+                *t = bloom.turned(&-axis.cross(&u), &-axis.cross(&s));
+            }
+        }
         let m = if dt == 0.0 {
             rot
         } else {
             rot + skew(&om) * rot * dt
         };
-        let g = m.transpose() * n;
+        let g = m.transpose() * dir;
         let row = [
-            g.dot(&(self.d[0] * q)),
-            g.dot(&(self.d[1] * q)),
-            g.dot(&(self.d[2] * q)),
+            g.dot(&(self.d[0] * q)) - bore[0],
+            g.dot(&(self.d[1] * q)) - bore[1],
+            g.dot(&(self.d[2] * q)) - bore[2],
             g.x,
             g.y,
             g.z,
-            n.dot(&moved),
+            dir.dot(&moved),
         ];
         // The beam R_ig y against the normal: (R y).n = y.(R^T n).
         let yn = y.norm();
@@ -381,10 +423,11 @@ impl Linearised {
             1.0
         };
         Some(Row {
-            residual: norm - target.radius,
+            residual,
             row,
             grazing: 1.0 - cos * cos,
-            normal: n,
+            normal: dir,
+            turn,
             arm: w,
         })
     }
@@ -441,6 +484,7 @@ mod tests {
             drift: 0.0,
             t_ref: GpsTime(0),
             weights: None,
+            footprint: None,
         };
         let b = [3.13, -0.78, 0.02, 1.5, -1.24, -1.36];
         let mut rows = std::vec::Vec::new();
@@ -482,6 +526,7 @@ mod tests {
             drift: 0.0,
             t_ref: GpsTime(0),
             weights: None,
+            footprint: None,
         };
         let dt = 0.05;
         let mut rows7 = std::vec::Vec::new();

@@ -6,6 +6,7 @@
 
 use super::consensus::{Bounds, Candidate};
 use super::extract::{self, ExtractSettings, ReturnClass};
+use super::footprint::Footprint;
 use super::objective::{Noise, Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
 use crate::align::window::{Observation, Target, MAX_TARGETS};
@@ -39,13 +40,37 @@ pub const MAX_PASSES: usize = 128;
 /// Counts of windowed returns by [`ReturnClass`] (indexed by its number).
 pub type Tally = [u32; 8];
 
+/// How a problem's residuals are formed: weighted or not, corrected by the footprint's bloom or
+/// not ([`Problem::weights`], [`Problem::footprint`]).
+#[derive(Debug, Clone, Copy)]
+struct Residuals {
+    weights: Option<Noise>,
+    footprint: Option<Footprint>,
+}
+
+impl Residuals {
+    /// Unweighted distances from the spheres (the simplex, the shells' medians).
+    const PLAIN: Residuals = Residuals {
+        weights: None,
+        footprint: None,
+    };
+
+    /// The least squares' residuals: weighted by `weights`, the settings' footprint out.
+    fn fitted(weights: Option<Noise>, s: &Settings) -> Self {
+        Self {
+            weights,
+            footprint: s.footprint,
+        }
+    }
+}
+
 fn with_problem<R>(
     targets: &[Target],
     obs: &[&mut [Observation]],
     used: &[usize],
     stride: usize,
     time: TimeOffset,
-    weights: Option<Noise>,
+    model: Residuals,
     f: impl FnOnce(&Problem<'_>) -> R,
 ) -> R {
     let mut spheres: heapless::Vec<SphereObs<'_>, MAX_TARGETS> = heapless::Vec::new();
@@ -61,7 +86,8 @@ fn with_problem<R>(
         dt: time.dt,
         drift: time.drift,
         t_ref: time.t_ref,
-        weights,
+        weights: model.weights,
+        footprint: model.footprint,
     })
 }
 

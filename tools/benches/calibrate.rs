@@ -80,7 +80,7 @@ fn bench(c: &mut Criterion) {
     let real = dir.join("real");
     spherecal_tools::synth::synth(&Scenario::load("table1-real").unwrap(), &real).unwrap();
     let site = spherecal_tools::config::site::Site::load(&real.join("site.toml")).unwrap();
-    let settings = spherecal_tools::session::settings_for(&site, None, true, 3.0);
+    let settings = spherecal_tools::session::settings_for(&site, Default::default(), true, 3.0);
     assert!(settings.nav.is_some());
     let inp = Inputs::apriori(
         real.join("lidar.pcap").into(),

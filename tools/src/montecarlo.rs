@@ -49,7 +49,9 @@ pub fn montecarlo(
     // As `calibrate` would (the mounting held to the clock: the simulated one has PPS).
     let settings = crate::session::settings_for(
         &site,
-        scenario.scanner().map(|s| i64::from(s.laser_period_ns())),
+        scenario
+            .scanner()
+            .map_or_else(Default::default, crate::config::lidar::Lidar::of_scanner),
         false,
         site.apriori.window_margin_m,
     );

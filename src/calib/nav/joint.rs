@@ -7,7 +7,7 @@ use crate::align::window::MAX_TARGETS;
 use crate::calib::lm::VecQ;
 use crate::calib::lm::{row_q, Clock, Mat6, Vec6, DRIFT, Q};
 use crate::calib::nav::P;
-use crate::calib::objective::{Linearised, Problem};
+use crate::calib::objective::Problem;
 use nalgebra::{Cholesky, Vector3};
 
 /// The state of the joint least squares: the global parameters and every piece's error.
@@ -143,7 +143,7 @@ impl Joint<'_, '_> {
     /// time order, with its piece: `f(piece, row)`.
     pub(super) fn each_row(&self, pieces: &mut [Piece], mut f: impl FnMut(&mut Piece, &Row)) {
         let pb = self.problem();
-        let lin = Linearised::at(&self.b());
+        let lin = pb.linearised(&self.b());
         let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
         for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
             let centre = self.centre(j);
@@ -159,9 +159,17 @@ impl Joint<'_, '_> {
                     sphere: j,
                     time: o.time,
                     jq: row_q(&r.row, r.grazing, self.clock, pb.since_ref(o)),
-                    // The sphere's centre: -n.
+                    // The sphere's centre: -n (n: the residual's direction, the bloom's
+                    // gradient in it).
                     jc: [-n.x, -n.y, -n.z],
-                    je: Vec6::new(-n.x, -n.y, -n.z, nw.x, nw.y, nw.z),
+                    je: Vec6::new(
+                        -n.x,
+                        -n.y,
+                        -n.z,
+                        nw.x - r.turn[0],
+                        nw.y - r.turn[1],
+                        nw.z - r.turn[2],
+                    ),
                     res: r.residual - nu0 - nu1 * r.grazing,
                     w: self.weight(&pb, o, pieces[i].len_s()),
                 };

@@ -204,6 +204,7 @@ mod honesty {
             drift: 0.0,
             t_ref: crate::time::GpsTime(0),
             weights: Some(noise),
+            footprint: None,
         }
     }
 

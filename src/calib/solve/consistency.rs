@@ -125,7 +125,7 @@ pub(super) fn pass_clocks(
     passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
 ) -> Option<Refusal> {
     let Answer { b, time, .. } = *at;
-    let lin = super::super::objective::Linearised::at(b);
+    let lin = super::super::objective::Linearised::at(b).with_footprint(s.footprint);
     let first = passes.iter().map(|p| p.start.0).min().unwrap_or(0);
     let mut worst: Option<(f64, Refusal)> = None;
     for (k, p) in passes.iter_mut().enumerate() {

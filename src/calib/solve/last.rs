@@ -5,7 +5,7 @@ use super::checks::weights;
 use super::outcome::{PassReport, Solution};
 use super::passes::pass_of;
 use super::rounds::{Data, Rounds};
-use super::{partition, with_problem};
+use super::{partition, with_problem, Residuals};
 use crate::align::window::{Observation, MAX_TARGETS};
 use crate::calib::extract::{self, Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
@@ -140,9 +140,15 @@ impl Rounds {
                 None => (refine(pb, b, iter, s.cluster_ns, clock), None),
             };
         let lm = (found >= 2).then(|| {
-            with_problem(targets, obs, used, 1, self.time, w, |pb| {
-                fit(pb, &self.b, s.lm_iter, s.clock(), nav)
-            })
+            with_problem(
+                targets,
+                obs,
+                used,
+                1,
+                self.time,
+                Residuals::fitted(w, s),
+                |pb| fit(pb, &self.b, s.lm_iter, s.clock(), nav),
+            )
         });
         let lm = lm.map(|(l, f)| {
             sol.nav = f;
@@ -163,12 +169,20 @@ impl Rounds {
                 dt: true,
                 drift: s.estimate_drift,
             };
-            let (free, at_held) = with_problem(targets, obs, used, 1, self.time, w, |pb| {
-                (
-                    fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
-                    fit(pb, &l.b, 0, free_clock, nav).0,
-                )
-            });
+            let (free, at_held) = with_problem(
+                targets,
+                obs,
+                used,
+                1,
+                self.time,
+                Residuals::fitted(w, s),
+                |pb| {
+                    (
+                        fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
+                        fit(pb, &l.b, 0, free_clock, nav).0,
+                    )
+                },
+            );
             let sigma = at_held.sigma_dt;
             if free.dt.is_finite() && sigma.is_finite() && sigma > 0.0 {
                 sol.dt_free = Some((free.dt, sigma));
@@ -179,7 +193,9 @@ impl Rounds {
         sol.drift = self.time.drift;
         sol.t_ref = self.time.t_ref;
         sol.lm = lm;
-        sol.l1 = with_problem(targets, obs, used, 1, self.time, None, |pb| pb.l1(&self.b));
+        sol.l1 = with_problem(targets, obs, used, 1, self.time, Residuals::PLAIN, |pb| {
+            pb.l1(&self.b)
+        });
     }
 
     /// Under the navigation model, a step between consecutive pieces beyond
@@ -392,7 +408,7 @@ impl Rounds {
     /// at the current answer (at most [`MOVED`] of them), raw (no navigation correction: the
     /// shell is widened by the navigation's errors).
     fn off_sphere(&self, d: &Data<'_, '_, '_>, pick: impl Fn(usize, &Observation) -> bool) -> f64 {
-        let lin = Linearised::at(&self.b);
+        let lin = Linearised::at(&self.b).with_footprint(d.s.footprint);
         let mut r: heapless::Vec<f64, MOVED> = heapless::Vec::new();
         for (j, v) in d.obs.iter().enumerate().take(d.targets.len()) {
             for o in v.iter().filter(|o| pick(j, o)) {

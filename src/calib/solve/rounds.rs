@@ -6,7 +6,9 @@
 use super::checks::weights;
 use super::outcome::{PassReport, Refusal, Round, Solution, Termination};
 use super::settings::Settings;
-use super::{fingerprint, gather, reach, split_ranges, time_order, with_problem, Workspace};
+use super::{
+    fingerprint, gather, reach, split_ranges, time_order, with_problem, Residuals, Workspace,
+};
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
 use crate::calib::extract::{self, apparent_offsets, Directions, ReturnClass};
@@ -460,14 +462,22 @@ impl Rounds {
         if self.prior.is_none() {
             let most = lens[..n].iter().copied().max().unwrap_or(1);
             let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-            let mut nm = with_problem(targets, part, lens, stride, self.time, None, |pb| {
-                minimize::<P, 7>(
-                    |x| pb.l1(&DegM(*x).params().0),
-                    &Params(self.b).deg_m().0,
-                    &s.step,
-                    &s.nm,
-                )
-            });
+            let mut nm = with_problem(
+                targets,
+                part,
+                lens,
+                stride,
+                self.time,
+                Residuals::PLAIN,
+                |pb| {
+                    minimize::<P, 7>(
+                        |x| pb.l1(&DegM(*x).params().0),
+                        &Params(self.b).deg_m().0,
+                        &s.step,
+                        &s.nm,
+                    )
+                },
+            );
             if let Some(before) = self.nm {
                 nm.evaluations += before.evaluations;
                 nm.iterations += before.iterations;
@@ -479,9 +489,15 @@ impl Rounds {
                 p.sort_unstable_by_key(time_order);
             }
             let w = weights(part, &lens[..n], s);
-            let lm = with_problem(targets, part, lens, 1, self.time, w, |pb| {
-                refine(pb, &self.b, s.lm_iter, s.cluster_ns, s.clock())
-            });
+            let lm = with_problem(
+                targets,
+                part,
+                lens,
+                1,
+                self.time,
+                Residuals::fitted(w, s),
+                |pb| refine(pb, &self.b, s.lm_iter, s.cluster_ns, s.clock()),
+            );
             self.b = lm.b;
             if lm.dt.is_finite() && lm.drift.is_finite() {
                 self.time.dt = lm.dt;
@@ -499,7 +515,7 @@ impl Rounds {
         lens: &[usize; MAX_TARGETS],
         s: &Settings,
     ) -> f64 {
-        let med = with_problem(targets, part, lens, 1, self.time, None, |pb| {
+        let med = with_problem(targets, part, lens, 1, self.time, Residuals::PLAIN, |pb| {
             let mut h = Histogram::new();
             pb.residuals(&self.b, |_, e| h.add(e.abs()));
             h.median()

@@ -3,6 +3,7 @@
 use crate::align::window::MAX_TARGETS;
 use crate::calib::consensus::ConsensusSettings;
 use crate::calib::extract::ExtractSettings;
+use crate::calib::footprint::Footprint;
 use crate::calib::lm::Clock;
 use crate::calib::nav::NavModel;
 use crate::calib::nelder_mead::NmSettings;
@@ -88,6 +89,9 @@ pub struct Settings {
     /// their survey's sigma, and the passes are tested against both; `None`: white per sample
     /// (the paper's model).
     pub nav: Option<NavModel>,
+    /// The LiDAR beam's footprint: the least squares take each return's expected bloom out of
+    /// its residual, with its gradient ([`crate::calib::footprint`]); `None`: an ideal ray.
+    pub footprint: Option<Footprint>,
     /// Each sphere's surveyed centre's 1 sigma [m] under the navigation model (0: held).
     pub centre_sigma: [f64; MAX_TARGETS],
     /// A prior on the mounting (a measured lever arm; a parameter held at its a-priori value):
@@ -190,6 +194,7 @@ impl Default for Settings {
             margin: 3.0,
             clocks: ClockFacts::default(),
             nav: None,
+            footprint: None,
             centre_sigma: [0.0; MAX_TARGETS],
             mount_prior: crate::calib::nav::MountPrior {
                 centre: [0.0; P],

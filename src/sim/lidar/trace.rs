@@ -258,16 +258,20 @@ impl LidarSim<'_, '_> {
                 if grown.intersect(&o, &d).is_none() {
                     continue;
                 }
-                let deep = obj
-                    .shape
-                    .offset(-rho)
-                    .is_some_and(|sh| sh.intersect(&o, &d).is_some());
+                // On the grid, a sphere's curvature moves the footprint's mean range anywhere
+                // on it (the lit cap's energy-weighted height): never deep.
+                let sphere = matches!(obj.shape, super::super::Shape::Sphere { .. });
+                let deep = !(sphere && self.cfg.footprint_grid)
+                    && obj
+                        .shape
+                        .offset(-rho)
+                        .is_some_and(|sh| sh.intersect(&o, &d).is_some());
                 edge |= !deep;
             }
             let _ = near.push(i);
         }
-        let stencil: &[(f64, f64, f64)] = if self.spread <= 0.0 || !edge {
-            &[(0.0, 0.0, 1.0)]
+        let subs_n = if self.spread <= 0.0 || !edge {
+            1
         } else {
             // The footprint's axes: along the scan (horizontal in the LiDAR frame), across it.
             let along = Vector3::new(c, -s, 0.0);
@@ -278,10 +282,15 @@ impl LidarSim<'_, '_> {
             };
             body = in_l.rotated(&mount.r_li, &mount.lever);
             site = body.rotated(&pf.r_ig, &pf.position);
-            &STENCIL
+            self.stencil.len()
         };
-        let mut subs: heapless::Vec<SubHit, 5> = heapless::Vec::new();
-        for &(ka, kc, w) in stencil {
+        let mut subs: heapless::Vec<SubHit, MAX_SUBS> = heapless::Vec::new();
+        for k in 0..subs_n {
+            let (ka, kc, w) = if subs_n == 1 {
+                (0.0, 0.0, 1.0)
+            } else {
+                self.stencil[k]
+            };
             let ds = site.sub(ka, kc);
             let mut best: Option<(f64, u16)> = None;
             for &i in &near {

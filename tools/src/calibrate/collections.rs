@@ -58,7 +58,7 @@ impl<'a> Collections<'a> {
         if let Some((m, _)) = crate::pipeline::resolve_model(inp)? {
             inp.model = Some(m);
         }
-        let settings = settings_for(&inp.site, inp.laser_period_ns(), clock.estimate, inp.margin);
+        let settings = settings_for(&inp.site, inp.lidar(), clock.estimate, inp.margin);
         let accuracy = match (&inp.accuracy, &inp.ins) {
             (Some(p), InsInput::Sbet(_, week)) => Some(Accuracy::load(
                 p,
@@ -134,8 +134,7 @@ impl<'a> Collections<'a> {
                     self.kind,
                 )?;
                 let (site, est) = (&inp.site, self.clock.estimate);
-                let settings =
-                    settings_under(site, inp.laser_period_ns(), est, inp.margin, c.model);
+                let settings = settings_under(site, inp.lidar(), est, inp.margin, c.model);
                 let (t, ids) = (self.targets.to_vec(), self.ids.to_vec());
                 let session = self
                     .session

@@ -14,6 +14,7 @@ pub mod datum;
 pub mod epsg_tables;
 pub mod geoid;
 pub mod goal;
+pub mod lidar;
 pub mod nav_errors;
 pub mod nav_source;
 pub mod scenario;

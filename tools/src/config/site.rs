@@ -185,6 +185,10 @@ pub struct Site {
     /// The sensors' noise (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<SiteNoise>,
+    /// The LiDAR's beam where its model's manual does not give it, or to say an ideal ray (a
+    /// simulated one) (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lidar: Option<super::lidar::SiteLidar>,
     /// What the INS delivers (optional): with `[ins.correlated]` the calibration estimates
     /// the navigation errors with the mounting.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -425,6 +429,13 @@ impl Site {
                     &format!("expected a finite sigma 0 < s < {hi}"),
                 )?;
             }
+        }
+        if let Some(l) = &self.lidar {
+            need(
+                l.valid(),
+                "lidar.beam_divergence_mrad".into(),
+                "expected two full angles 0 <= mrad < 20, both zero (an ideal ray) or both positive",
+            )?;
         }
         Ok(())
     }

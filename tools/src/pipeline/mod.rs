@@ -141,6 +141,17 @@ impl Inputs {
         }
     }
 
+    /// What the solver takes from the LiDAR: its laser period, and its beam when the model's
+    /// manual gives one (the Velodynes').
+    pub fn lidar(&self) -> crate::config::lidar::Lidar {
+        match self.model {
+            Some(m) if self.ouster.is_none() && self.hesai.is_none() => {
+                crate::config::lidar::Lidar::velodyne(m)
+            }
+            _ => crate::config::lidar::Lidar::other(self.laser_period_ns()),
+        }
+    }
+
     /// The trajectory's files.
     pub fn ins_files(&self) -> &Files {
         match &self.ins {
@@ -210,6 +221,11 @@ impl SensorFile {
             SensorFile::Hesai(c) => c.laser_period_ns(),
             SensorFile::Ouster(m) => Some(m.column_period_ns()),
         }
+    }
+
+    /// What the solver takes from the LiDAR ([`Inputs::lidar`]).
+    pub fn lidar(&self) -> crate::config::lidar::Lidar {
+        crate::config::lidar::Lidar::other(self.laser_period_ns())
     }
 }
 

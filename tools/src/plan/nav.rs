@@ -230,6 +230,8 @@ impl NavPlan {
             drift: 0.0,
             t_ref,
             weights: Some(self.noise),
+            // The planner's returns are ideal rays (`observe`): no bloom to take out.
+            footprint: None,
         };
         let mut pieces = vec![Piece::EMPTY; PIECES];
         let m = cut_for(&pb, &self.model, &mut pieces);

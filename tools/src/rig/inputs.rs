@@ -197,8 +197,11 @@ impl Plan {
             Some(site) => crate::session::settings_under(
                 site,
                 sensor.map_or_else(
-                    || b.lidar_model().map(|m| i64::from(m.laser_period_ns())),
-                    SensorFile::laser_period_ns,
+                    || {
+                        b.lidar_model()
+                            .map_or_else(Default::default, crate::config::lidar::Lidar::velodyne)
+                    },
+                    SensorFile::lidar,
                 ),
                 true,
                 margin,

@@ -7,6 +7,7 @@ pub mod radius;
 mod refusal;
 pub mod scratch;
 
+use crate::config::lidar::Lidar;
 use crate::config::site::{Site, SiteNoise, DEFAULT_CENTRE_SIGMA_M};
 use crate::report::Report;
 use scratch::Scratch;
@@ -70,15 +71,10 @@ pub const OFFSET_REACH_S: f64 = 2.0;
 
 /// The solver's settings for a survey under the site's own navigation model (its `[ins]`, if
 /// it declares one): [`settings_under`].
-pub fn settings_for(
-    site: &Site,
-    firing_ns: Option<i64>,
-    estimate_dt: bool,
-    margin: f64,
-) -> Settings {
+pub fn settings_for(site: &Site, lidar: Lidar, estimate_dt: bool, margin: f64) -> Settings {
     settings_under(
         site,
-        firing_ns,
+        lidar,
         estimate_dt,
         margin,
         site.nav_model().ok().flatten(),
@@ -87,8 +83,8 @@ pub fn settings_for(
 
 /// The solver's settings for a survey under the navigation model `nav` (`None`: white INS
 /// errors): the site's noise model (`[noise]`, else the sensors' specified values), the window
-/// margin (the bounds the mounting must stay in), the LiDAR's laser period `firing_ns` (the
-/// extraction's scan lines; [`crate::pipeline::Inputs::laser_period_ns`]), and whether the time offset is estimated.
+/// margin (the bounds the mounting must stay in), the LiDAR's laser period and beam
+/// ([`crate::pipeline::Inputs::lidar`]), and whether the time offset is estimated.
 ///
 /// The white noise: the site's `[noise]` if it has one; else, under a model, the INS's errors
 /// are in the model and the white noise left is the LiDAR's; without one, the sensors'
@@ -98,7 +94,7 @@ pub fn settings_for(
 /// as parameters ([`NavModel::WHITE`]).
 pub fn settings_under(
     site: &Site,
-    firing_ns: Option<i64>,
+    lidar: Lidar,
     estimate_dt: bool,
     margin: f64,
     nav: Option<NavModel>,
@@ -106,9 +102,10 @@ pub fn settings_under(
     let mut s = Settings {
         estimate_dt,
         margin,
+        footprint: lidar.under(site.lidar.as_ref()).footprint,
         ..Default::default()
     };
-    if let Some(f) = firing_ns {
+    if let Some(f) = lidar.firing_ns {
         s.extract.firing_ns = f;
     }
     let declared = |j: usize| site.sphere.get(j).and_then(|sp| sp.sigma_m);

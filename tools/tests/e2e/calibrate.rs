@@ -689,7 +689,8 @@ fn a_long_collection_lets_go_of_what_cannot_be_a_sphere() {
     let inp = inputs(&dir);
     let (t, ids) = site_targets(&inp);
     let b0 = inp.mount.params();
-    let settings = spherecal_tools::session::settings_for(&inp.site, None, false, inp.margin);
+    let settings =
+        spherecal_tools::session::settings_for(&inp.site, inp.lidar(), false, inp.margin);
     let (_, mut all) = collect(&inp).unwrap();
     let (stats, mut kept) = collect_bounded(&inp, &t, &b0, &settings, 20_000).unwrap();
     let n_all: usize = all.iter().map(Vec::len).sum();

@@ -186,6 +186,7 @@ fn trial_of(
     edits: &[&dyn Fn(&mut spherecal::calib::Settings)],
 ) -> Vec<Vec<Solved>> {
     use spherecal_tools::calibrate::{collect, site_targets};
+    use spherecal_tools::config::lidar::Lidar;
     use spherecal_tools::config::scenario::Scenario;
     use spherecal_tools::session::settings_for;
     use spherecal_tools::session::solve_report_in;
@@ -212,7 +213,7 @@ fn trial_of(
                 .map(|edit| {
                     let mut settings = settings_for(
                         &inp.site,
-                        s.scanner().map(|s| i64::from(s.laser_period_ns())),
+                        s.scanner().map_or_else(Default::default, Lidar::of_scanner),
                         true,
                         inp.margin,
                     );

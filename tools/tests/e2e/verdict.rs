@@ -226,9 +226,7 @@ fn under_the_navigation_model_the_rig_predicts_and_advises_with_it() {
     let b0 = inp.site.apriori_deg_m().params();
     let settings = spherecal_tools::session::settings_for(
         &inp.site,
-        Some(i64::from(
-            spherecal::velodyne::Model::Vlp16.laser_period_ns(),
-        )),
+        spherecal_tools::config::lidar::Lidar::velodyne(spherecal::velodyne::Model::Vlp16),
         true,
         inp.margin,
     );

@@ -194,6 +194,11 @@ pub struct LidarSpec {
     /// Range noise grows at grazing incidence (needs a beam divergence).
     #[serde(default)]
     pub incidence_noise: bool,
+    /// The footprint rendered as the beam's Gaussian on a grid of sub-rays (needs a beam
+    /// divergence); the site written then states the beam (`[lidar]`), so that the
+    /// calibration models its bloom. Default: five sub-rays at edges, the site silent.
+    #[serde(default)]
+    pub footprint_grid: bool,
     /// Range walk: the bias of a zero-intensity return [m] (default 0).
     #[serde(default)]
     pub range_walk_m: f64,
@@ -671,6 +676,7 @@ impl Scenario {
             divergence: self.lidar.beam_divergence_mrad.map(|x| x * 1e-3),
             merge_distance: self.lidar.merge_distance_m,
             incidence_noise: self.lidar.incidence_noise,
+            footprint_grid: self.lidar.footprint_grid,
             range_walk: self.lidar.range_walk_m,
             intensity_gain: self.lidar.intensity_gain,
             intensity_scatter: self.lidar.intensity_scatter,

@@ -104,6 +104,7 @@ fn site_of(o: &ImportOptions, spheres: Vec<SiteSphere>, unit: Option<HeightUnit>
         sphere: spheres,
         apriori: o.apriori.clone(),
         noise: None,
+        lidar: None,
         ins: None,
         calibration: None,
     }
