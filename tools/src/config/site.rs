@@ -502,6 +502,26 @@ mod tests {
         }
     }
 
+    /// The LiDAR's beam: a Velodyne's divergence is read; an ideal ray (zeros) is none; a
+    /// non-finite, negative, one-sided or implausibly wide beam is refused by its key.
+    #[test]
+    fn the_lidar_beam_is_read_and_bad_ones_refused() {
+        let with = |v: &str| -> Site {
+            toml::from_str(&format!("{GOOD}[lidar]\nbeam_divergence_mrad = {v}\n")).unwrap()
+        };
+        let s = with("[3.0, 1.5]");
+        assert_eq!(s.check(), Ok(()));
+        let fp = s.lidar.unwrap().footprint().unwrap();
+        assert!((fp.sigma[0] - 0.75e-3).abs() < 1e-12 && (fp.sigma[1] - 0.375e-3).abs() < 1e-12);
+        let s = with("[0.0, 0.0]");
+        assert_eq!(s.check(), Ok(()));
+        assert_eq!(s.lidar.unwrap().footprint(), None);
+        for bad in ["[nan, 1.5]", "[3.0, inf]", "[-3.0, 1.5]", "[3.0, 0.0]", "[30.0, 1.5]"] {
+            let e = with(bad).check().unwrap_err().to_string();
+            assert!(e.starts_with("lidar.beam_divergence_mrad: "), "{bad}: {e}");
+        }
+    }
+
     /// Every sphere needs its own, non-empty id.
     #[test]
     fn duplicate_and_empty_ids_are_refused() {
