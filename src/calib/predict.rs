@@ -47,6 +47,9 @@ pub struct NoiseModel {
     pub attitude: f64,
     /// INS sample period [ns] (samples at whole multiples of it in GPS time).
     pub ins_period_ns: i64,
+    /// The beam's footprint whose bloom the estimator takes out (its rows `n + k`,
+    /// [`crate::calib::footprint`]); `None`: an ideal ray.
+    pub footprint: Option<crate::calib::footprint::Footprint>,
 }
 
 impl NoiseModel {
@@ -110,7 +113,7 @@ impl Info {
         b: &[f64; P],
         noise: &NoiseModel,
     ) {
-        let lin = Linearised::at(b);
+        let lin = Linearised::at(b).with_footprint(noise.footprint);
         let period = noise.ins_period_ns.max(1);
         let p2 = noise.position * noise.position;
         let a2 = noise.attitude * noise.attitude;
@@ -346,6 +349,7 @@ mod tests {
             position: 0.0,
             attitude: 0.0,
             ins_period_ns: 5_000_000,
+            footprint: None,
         };
         let t = Target {
             center: Vector3::new(10.0, 0.0, 0.0),

@@ -4,7 +4,7 @@
 
 use crate::calibrate::ClockOptions;
 use crate::{calibrate, config, georef, html, output, pipeline, plot, report};
-use spherecal::georef::DegM;
+use spherecal::georef::{DegM, NAMES};
 use std::path::PathBuf;
 
 /// What `spherecal calibrate` reads.
@@ -252,13 +252,20 @@ pub fn run_calibrate(
         let second = calibrate::calibrate(&mut again, &targets, &ids, &b0, clock, &mut || {})?;
         let weak = crate::undetermined::undetermined(&candidates, &second.3.sigma.deg_m());
         if second.3.converged && !weak.is_empty() {
-            let why = rep.reason.clone().unwrap_or_default();
+            let why = rep.reason.clone().unwrap_or_else(|| {
+                let s = sol.lm.map(|l| l.sigma).unwrap_or_default();
+                weak.iter()
+                    .map(|&i| match i {
+                        0..3 => format!("{} +- {:.2} deg", NAMES[i], s[i].to_degrees()),
+                        _ => format!("{} +- {:.0} mm", NAMES[i], s[i] * 1e3),
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+                    + " with the data alone"
+            });
             held = crate::undetermined::words(&weak, &inp.site, &why);
             (stats, obs, sol, rep) = second;
-            rep.held = weak
-                .iter()
-                .map(|&i| spherecal::georef::NAMES[i].into())
-                .collect();
+            rep.held = weak.iter().map(|&i| NAMES[i].into()).collect();
             inp = again;
         }
     }

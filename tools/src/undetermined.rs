@@ -16,17 +16,29 @@ pub const HOLD_DEG: f64 = 5.0;
 /// An undetermined lever-arm component's prior when the site measured none [m].
 pub const HOLD_M: f64 = 0.5;
 
-/// The parameters among the six a refusal for conditioning or convergence may leave
-/// undetermined: those the site holds by no prior of its own (empty: nothing to try).
+/// The parameters among the six the data may leave undetermined: after a refusal for
+/// conditioning or convergence, those the site holds by no prior of its own; after a claim,
+/// those of them whose sigma is already over half the hold's (the data alone pin them no
+/// better than the hold would: a lever arm's height at +- 0.6 m is not a calibration). Empty:
+/// nothing to try.
 pub fn candidates(sol: &Solution, site: &Site) -> Vec<usize> {
-    if !matches!(
-        sol.refusal,
-        Some(Refusal::IllConditioned { .. } | Refusal::NotConverged { .. })
-    ) {
-        return Vec::new();
-    }
     let prior = site.apriori.prior();
-    (0..P).filter(|&i| prior.info[i] <= 0.0).collect()
+    let free = (0..P).filter(|&i| prior.info[i] <= 0.0);
+    match (&sol.refusal, &sol.lm) {
+        (Some(Refusal::IllConditioned { .. } | Refusal::NotConverged { .. }), _) => free.collect(),
+        (None, Some(l)) => {
+            let deg_m: [f64; P] = core::array::from_fn(|i| {
+                if i < 3 {
+                    l.sigma[i].to_degrees()
+                } else {
+                    l.sigma[i]
+                }
+            });
+            let wide = undetermined(&free.collect::<Vec<_>>(), &deg_m);
+            wide
+        }
+        _ => Vec::new(),
+    }
 }
 
 /// Of the `candidates` held by the hold's prior, those the data left undetermined: the

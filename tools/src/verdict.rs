@@ -114,6 +114,7 @@ pub fn data_info(
         position: settings.position_noise,
         attitude: settings.attitude_noise,
         ins_period_ns: (1e9 / ins_rate_hz.max(1.0)).round() as i64,
+        footprint: settings.footprint,
     };
     let mut kept: Vec<(usize, &Observation)> = Vec::new();
     let mut returns = Vec::new();

@@ -38,14 +38,12 @@ pub struct Lidar {
 }
 
 impl Lidar {
-    /// A Velodyne: its laser period. Its beam (the manuals' 3.0 x 1.5 mrad,
-    /// [`Footprint::VELODYNE`]) is modelled when the site's `[lidar]` states it: not yet by
-    /// default (NOTES "Issue 46", session 39: the simulator's worlds and their seeded tests
-    /// move to the Gaussian footprint first).
+    /// A Velodyne: its laser period and the manuals' 3.0 x 1.5 mrad beam
+    /// ([`Footprint::VELODYNE`]).
     pub fn velodyne(m: spherecal::velodyne::Model) -> Self {
         Self {
             firing_ns: Some(i64::from(m.laser_period_ns())),
-            footprint: None,
+            footprint: Some(Footprint::VELODYNE),
         }
     }
 

@@ -516,7 +516,13 @@ mod tests {
         let s = with("[0.0, 0.0]");
         assert_eq!(s.check(), Ok(()));
         assert_eq!(s.lidar.unwrap().footprint(), None);
-        for bad in ["[nan, 1.5]", "[3.0, inf]", "[-3.0, 1.5]", "[3.0, 0.0]", "[30.0, 1.5]"] {
+        for bad in [
+            "[nan, 1.5]",
+            "[3.0, inf]",
+            "[-3.0, 1.5]",
+            "[3.0, 0.0]",
+            "[30.0, 1.5]",
+        ] {
             let e = with(bad).check().unwrap_err().to_string();
             assert!(e.starts_with("lidar.beam_divergence_mrad: "), "{bad}: {e}");
         }

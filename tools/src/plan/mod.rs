@@ -95,6 +95,10 @@ impl PlanNoise {
             position: self.position_m,
             attitude: self.attitude_deg.to_radians(),
             ins_period_ns: (1e9 / self.ins_rate_hz.max(1.0)).round() as i64,
+            // The plan's returns are ideal rays (`observe`): no bloom in them to model. (Its
+            // gradient on ideal rays predicted the time offset's sigma 1.3-1.4x too large on
+            // table1-noisy and pontoon-noisy, session 39.)
+            footprint: None,
         }
     }
 }

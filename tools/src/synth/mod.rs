@@ -610,14 +610,16 @@ fn site_of(s: &Scenario) -> Site {
             attitude_deg: s.ins.att_sigma_deg,
             position_m: s.ins.pos_sigma_m,
         }),
-        // The simulated beam, when it is rendered as the beam's Gaussian (what the
-        // calibration's model of the bloom is).
-        lidar: s
-            .lidar
-            .footprint_grid
-            .then_some(crate::config::lidar::SiteLidar {
-                beam_divergence_mrad: s.lidar.beam_divergence_mrad,
-            }),
+        // The beam whose bloom the calibration is to model: the simulated one where it is
+        // rendered as the beam's Gaussian, else none (zeros: an ideal ray, or the five
+        // sub-rays' staircase, which the model does not follow).
+        lidar: Some(crate::config::lidar::SiteLidar {
+            beam_divergence_mrad: if s.lidar.footprint_grid {
+                s.lidar.beam_divergence_mrad
+            } else {
+                [0.0, 0.0]
+            },
+        }),
         // ... and one whose errors are white says so (else the calibration would take a model
         // from the INS's kind).
         ins: Some(SiteIns {

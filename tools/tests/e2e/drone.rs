@@ -178,7 +178,10 @@ fn ideal_lidar(s: &mut spherecal_tools::config::scenario::Scenario) {
     l.range_walk_m = 0.0;
 }
 
-/// [`trial`] of drone-noisy edited by `scene` (named `name` in the trials' folders).
+/// [`trial`] of drone-noisy edited by `scene` (named `name` in the trials' folders), in the
+/// simulator's world the faults were found in: the footprint as five sub-rays at edges (the
+/// Gaussian grid of session 39 moves every seed's returns, so the seeds here would no longer
+/// hold their faults), the site then stating no beam to model.
 fn trial_of(
     name: &str,
     scene: &dyn Fn(&mut spherecal_tools::config::scenario::Scenario),
@@ -191,6 +194,7 @@ fn trial_of(
     use spherecal_tools::session::settings_for;
     use spherecal_tools::session::solve_report_in;
     let mut s = spherecal_tools::plan::with_planning_noise(&Scenario::load("drone-noisy").unwrap());
+    s.lidar.footprint_grid = false;
     scene(&mut s);
     let (cache, _, _) = common::trial_cache(&s);
     seeds

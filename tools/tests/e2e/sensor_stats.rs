@@ -165,13 +165,16 @@ impl Stats {
             hi / lo < 1.3,
             format!("scatter not flat with range: {:?}", self.scatter),
         );
-        // Thin tails: 0.4-0.6 % beyond 3 sigma, nothing beyond 5 cm in 4,009 returns.
+        // Thin tails: 0.4-0.6 % beyond 3 sigma, nothing beyond 5 cm in 4,009 returns: a rate
+        // that none in 4,009 rules out at 99.9 % (Poisson, 6.9 expected) is too many. (The
+        // footprint's Gaussian grid, session 39: 3 of 2,452, the limb's bloom along grazing
+        // beams; five sub-rays had none.)
         say(
             (0.001..0.012).contains(&self.beyond3),
             format!("{:.2} % beyond 3 sigma", self.beyond3 * 100.0),
         );
         say(
-            self.beyond5cm < 1e-3,
+            self.beyond5cm < 6.9 / 4009.0,
             format!("{:.2} % beyond 5 cm", self.beyond5cm * 100.0),
         );
         // 37 % saturating at 100, jumps of 20 and more between neighbours.

@@ -169,14 +169,16 @@ fn compound_and_unknown_codes_say_what_to_give() {
 /// by a spreadsheet in a decimal-comma locale (a byte-order mark, `;`, decimal commas, CRLF,
 /// `Point;Easting;Northing;Elevation`), projected by pyproj; `site import` (its heights said
 /// ellipsoidal) gives back the survey's centres; `calibrate` on the synthesised VN-200 stream
-/// (noise-free: it states no accuracy) without a navigation model takes the VN-200's
+/// (noise-free but for the VLP-16's beam: it states no accuracy) without a navigation model takes the VN-200's
 /// metre-level default, which cannot determine the vertical lever arm: held at its a-priori
 /// value and named, the rest calibrated, exit 3; with `--ins white` declared (the noise-free scenario)
 /// claims within its targets: exit 0, `targets.met`, and the report files its provenance
 /// (the site's CRS, the CSV-made site's SHA-256) and the mounting as a ROS transform.
 #[test]
 fn a_spreadsheet_survey_imported_then_calibrated() {
-    let s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    let mut s = spherecal_tools::config::scenario::Scenario::load("table1").unwrap();
+    // A real VLP-16's beam (the imported site says nothing of it: the model's is taken).
+    s.lidar.beam_divergence_mrad = [3.0, 1.5];
     let dir = common::tmp("site-import", "first-calibration");
     spherecal_tools::synth::synth(&s, &dir).unwrap();
     let synth_site = Site::load(&dir.join("site.toml")).unwrap();

@@ -194,10 +194,10 @@ pub struct LidarSpec {
     /// Range noise grows at grazing incidence (needs a beam divergence).
     #[serde(default)]
     pub incidence_noise: bool,
-    /// The footprint rendered as the beam's Gaussian on a grid of sub-rays (needs a beam
-    /// divergence); the site written then states the beam (`[lidar]`), so that the
-    /// calibration models its bloom. Default: five sub-rays at edges, the site silent.
-    #[serde(default)]
+    /// The footprint rendered as the beam's Gaussian on a grid of sub-rays (default); `false`:
+    /// five sub-rays at edges (the simulator before session 39, a staircase the calibration's
+    /// model of the bloom does not follow).
+    #[serde(default = "default_grid")]
     pub footprint_grid: bool,
     /// Range walk: the bias of a zero-intensity return [m] (default 0).
     #[serde(default)]
@@ -267,6 +267,10 @@ fn default_keep() -> f64 {
 
 fn default_merge() -> f64 {
     1.0
+}
+
+fn default_grid() -> bool {
+    true
 }
 
 /// INS settings.
