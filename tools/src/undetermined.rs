@@ -34,8 +34,7 @@ pub fn candidates(sol: &Solution, site: &Site) -> Vec<usize> {
                     l.sigma[i]
                 }
             });
-            let wide = undetermined(&free.collect::<Vec<_>>(), &deg_m);
-            wide
+            undetermined(&free.collect::<Vec<_>>(), &deg_m)
         }
         _ => Vec::new(),
     }

@@ -501,13 +501,26 @@ fn less_piece(h: &mut MatG, p: &Piece, na: usize) {
 /// Whether the Gauss-Newton step from the state moves the mounting (and the clock) by under
 /// half its sigma: its spread grows by at most 12 % in quadrature.
 fn half_sigma_step(at: &mut Joint<'_, '_>, sums: &Sums, pieces: &mut [Piece]) -> bool {
+    step_within(at, sums, pieces, 0.5)
+}
+
+/// Whether the Gauss-Newton step left moves the mounting (and the clock) by under `k` of its
+/// sigma.
+fn step_within(at: &mut Joint<'_, '_>, sums: &Sums, pieces: &mut [Piece], k: f64) -> bool {
     match (at.step(sums, pieces, 0.0), at.reduced(sums, pieces)) {
         (Some(dz), Some(h)) => h
             .try_inverse()
-            .is_some_and(|c| (0..=P).all(|k| dz[k].abs() <= 0.5 * libm::sqrt(c[(k, k)].max(0.0)))),
+            .is_some_and(|c| (0..=P).all(|i| dz[i].abs() <= k * libm::sqrt(c[(i, i)].max(0.0)))),
         _ => false,
     }
 }
+
+/// A step still lowering the cost by under this share of it is checked against
+/// [`SETTLED_SIGMAS`] ...
+const SLOW_GAIN: f64 = 1e-6;
+/// ... and ends the iterations when the Gauss-Newton step left is within this many sigmas
+/// of every global (a thousandth of its variance): the rest is polish no answer shows.
+const SETTLED_SIGMAS: f64 = 0.03;
 
 /// Levenberg-Marquardt steps on the joint state (as [`super::lm`]'s): the last sums, the
 /// iterations and whether a negligible step or decrease ended them. A rejected step puts the
@@ -536,11 +549,13 @@ pub(super) fn iterate(
         at.apply(&dz, pieces);
         let trial = at.evaluate(pieces);
         if trial.cost <= sums.cost && trial.cost.is_finite() {
-            let small = dz.iter().all(|d| d.abs() < 1e-11)
-                || (sums.cost - trial.cost) <= 1e-12 * sums.cost.max(1e-30);
+            let gain = sums.cost - trial.cost;
+            let small = dz.iter().all(|d| d.abs() < 1e-11) || gain <= 1e-12 * sums.cost.max(1e-30);
             sums = trial;
             lambda = (lambda / 10.0).max(1e-12);
-            if small {
+            if small
+                || (gain <= SLOW_GAIN * sums.cost && step_within(at, &sums, pieces, SETTLED_SIGMAS))
+            {
                 converged = true;
                 break;
             }
