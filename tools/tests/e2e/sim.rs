@@ -12,6 +12,16 @@ use spherecal::time::{gps_to_unix_ns, GpsTime};
 use spherecal::velodyne::{decode, DataPacket, PointBuf};
 use spherecal_tools::config::scenario::Scenario;
 
+/// Scenario `name` with no range or INS noise (its footprint kept).
+fn without_noise(name: &str) -> Scenario {
+    let mut s = Scenario::load(name).unwrap();
+    s.lidar.range_sigma_m = 0.0;
+    s.lidar.incidence_noise = false;
+    s.ins.att_sigma_deg = 0.0;
+    s.ins.pos_sigma_m = 0.0;
+    s
+}
+
 fn truth_pose(w: &World<'_>, t: GpsTime) -> PlatformPose {
     let st = w.trajectory.state(w.t_of(t));
     PlatformPose {
@@ -131,11 +141,7 @@ fn traced_points_lie_on_what_they_hit() {
 /// none of this happens (the test above). Range walk lengthens dark returns more than bright.
 #[test]
 fn the_beam_footprint_blooms_and_mixes() {
-    let mut s = Scenario::load("table1-noisy").unwrap();
-    s.lidar.range_sigma_m = 0.0;
-    s.lidar.incidence_noise = false;
-    s.ins.att_sigma_deg = 0.0;
-    s.ins.pos_sigma_m = 0.0;
+    let s = without_noise("table1-noisy");
     let scene = s.scene();
     let passes = s.passes();
     let w = s.world(&[], &passes, &scene.objects);
@@ -724,14 +730,10 @@ fn recorded_trajectory_from_csv_and_sbet() {
 #[test]
 fn the_simulated_footprint_blooms_as_the_solver_models_it() {
     use spherecal::calib::footprint::{Footprint, Limb};
-    let mut s = Scenario::load("table1-real").unwrap();
+    let mut s = without_noise("table1-real");
     s.lidar.footprint_grid = true;
-    s.lidar.range_sigma_m = 0.0;
-    s.lidar.incidence_noise = false;
     s.lidar.range_walk_m = 0.0;
     s.lidar.edge_dropout = 0.0;
-    s.ins.att_sigma_deg = 0.0;
-    s.ins.pos_sigma_m = 0.0;
     let scene = s.scene();
     let passes = s.passes();
     let w = s.world(&[], &passes, &scene.objects);
