@@ -332,6 +332,23 @@ pub struct Row {
     pub arm: Vector3<f64>,
 }
 
+impl Row {
+    /// The residual's change by a navigation piece's error (position N, E, D; rotation
+    /// `eps` about N, E, D: the arm loses `eps x arm`, the beam turns with it):
+    /// `[-normal, normal x arm - turn]`.
+    pub fn pose_row(&self) -> [f64; 6] {
+        let (n, nw) = (self.normal, self.normal.cross(&self.arm));
+        [
+            -n.x,
+            -n.y,
+            -n.z,
+            nw.x - self.turn[0],
+            nw.y - self.turn[1],
+            nw.z - self.turn[2],
+        ]
+    }
+}
+
 impl Linearised {
     /// At mounting `b`.
     pub fn at(b: &[f64; P]) -> Self {

@@ -155,17 +155,26 @@ impl Info {
             let var = noise.range_variance(f64::from(o.range), libm::sqrt(cos2)) * cos2;
             self.m += jv * jv.transpose() * var;
             // INS errors: the normal against the return's move by the INS position and by
-            // its roll, pitch, heading ([`attitude_moves`]).
+            // its roll, pitch, heading ([`attitude_moves`]); a rotation about `a` turns the
+            // footprint's bloom by `-a . turn` ([`super::objective::Row::turn`]: per `eps = -a`, as
+            // [`super::objective::Row::pose_row`]).
             let gi = {
                 let (n, mv) = (r.normal, attitude_moves(&o.rot(), &r.arm));
-                SVector::<f64, 6>::from_column_slice(&[
+                let mut g = SVector::<f64, 6>::from_column_slice(&[
                     n.x,
                     n.y,
                     n.z,
                     n.dot(&mv[0]),
                     n.dot(&mv[1]),
                     n.dot(&mv[2]),
-                ])
+                ]);
+                if r.turn != [0.0; 3] {
+                    let t = Vector3::from(r.turn);
+                    for (k, a) in attitude_axes(&o.rot()).iter().enumerate() {
+                        g[3 + k] += a.dot(&t);
+                    }
+                }
+                g
             };
             let t = o.time.0;
             let i = t.div_euclid(period);
@@ -209,18 +218,24 @@ impl Info {
 /// direction.
 pub fn attitude_moves(r: &Matrix3<f64>, w: &Vector3<f64>) -> [Vector3<f64>; 3] {
     let x = r.transpose() * w;
+    let axes = attitude_axes(r);
+    [
+        r * Vector3::x().cross(&x),
+        axes[1].cross(w),
+        axes[2].cross(w),
+    ]
+}
+
+/// The axes (site frame) roll, pitch and heading of `R` turn about ([`attitude_moves`]).
+pub fn attitude_axes(r: &Matrix3<f64>) -> [Vector3<f64>; 3] {
     let (c, s) = (r[(0, 0)], r[(1, 0)]);
     let h = libm::hypot(c, s);
-    let axis = if h > 0.0 {
+    let pitch = if h > 0.0 {
         Vector3::new(-s / h, c / h, 0.0)
     } else {
         Vector3::y()
     };
-    [
-        r * Vector3::x().cross(&x),
-        axis.cross(w),
-        Vector3::z().cross(w),
-    ]
+    [r.column(0).into_owned(), pitch, Vector3::z()]
 }
 
 /// The predicted accuracy.

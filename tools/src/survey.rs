@@ -252,17 +252,10 @@ pub fn run_calibrate(
         let second = calibrate::calibrate(&mut again, &targets, &ids, &b0, clock, &mut || {})?;
         let weak = crate::undetermined::undetermined(&candidates, &second.3.sigma.deg_m());
         if second.3.converged && !weak.is_empty() {
-            let why = rep.reason.clone().unwrap_or_else(|| {
-                let s = sol.lm.map(|l| l.sigma).unwrap_or_default();
-                weak.iter()
-                    .map(|&i| match i {
-                        0..3 => format!("{} +- {:.2} deg", NAMES[i], s[i].to_degrees()),
-                        _ => format!("{} +- {:.0} mm", NAMES[i], s[i] * 1e3),
-                    })
-                    .collect::<Vec<_>>()
-                    .join(", ")
-                    + " with the data alone"
-            });
+            let why = rep
+                .reason
+                .clone()
+                .unwrap_or_else(|| crate::undetermined::alone(&sol, &weak));
             held = crate::undetermined::words(&weak, &inp.site, &why);
             (stats, obs, sol, rep) = second;
             rep.held = weak.iter().map(|&i| NAMES[i].into()).collect();

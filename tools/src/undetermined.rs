@@ -54,6 +54,19 @@ pub fn undetermined(candidates: &[usize], sigma: &[f64; P]) -> Vec<usize> {
         .collect()
 }
 
+/// Why the claimed `sol` left `idx` undetermined: their sigmas with the data alone.
+pub fn alone(sol: &Solution, idx: &[usize]) -> String {
+    let s = sol.lm.map(|l| l.sigma).unwrap_or_default();
+    idx.iter()
+        .map(|&i| match i {
+            0..3 => format!("{} +- {:.2} deg", NAMES[i], s[i].to_degrees()),
+            _ => format!("{} +- {:.0} mm", NAMES[i], s[i] * 1e3),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+        + " with the data alone"
+}
+
 /// `site` with the parameters `idx` held at their a-priori values: their prior the site's
 /// sigma, else the hold's; the others as the site had them (none: no prior).
 pub fn holding(site: &Site, idx: &[usize]) -> Site {

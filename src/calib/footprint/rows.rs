@@ -117,18 +117,9 @@ fn limb_rows_match_finite_differences() {
             };
             lin.row_corrected(&o, &t, 0.0, &c).unwrap()
         };
-        let nw = r0.normal.cross(&r0.arm);
-        let je = [
-            -r0.normal.x,
-            -r0.normal.y,
-            -r0.normal.z,
-            nw.x - r0.turn[0],
-            nw.y - r0.turn[1],
-            nw.z - r0.turn[2],
-            -r0.normal.x,
-            -r0.normal.y,
-            -r0.normal.z,
-        ];
+        let p = r0.pose_row();
+        // The centre moves the residual as the position does.
+        let je = [p[0], p[1], p[2], p[3], p[4], p[5], p[0], p[1], p[2]];
         for k in 0..9 {
             let h = 1e-7;
             let (mut ep, mut em) = ([0.0; 9], [0.0; 9]);

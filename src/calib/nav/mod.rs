@@ -21,12 +21,14 @@ use nalgebra::{SMatrix, SVector};
 mod joint;
 mod pieces;
 mod robust;
+mod steps;
 #[cfg(test)]
 mod tests;
 
-use joint::{iterate, Joint};
+use joint::Joint;
 use pieces::piece_of;
 pub use pieces::{cut, cut_for, Piece};
+use steps::iterate;
 
 /// The navigation errors' model: per axis a first-order Gauss-Markov process.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -44,7 +44,7 @@ pub struct Piece {
     pub(super) before: BeforeTrial,
 }
 
-/// A piece's sums `(d, b, g)` and error before a trial step of [`super::joint::iterate`]:
+/// A piece's sums `(d, b, g)` and error before a trial step of [`super::steps::iterate`]:
 /// a rejected step puts them back instead of evaluating again.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct BeforeTrial {

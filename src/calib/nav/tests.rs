@@ -46,8 +46,7 @@ mod rows {
                 lin.row_corrected(&o, &t, 0.0, &c).unwrap()
             };
             let r0 = at([0.0; 6]);
-            let nw = r0.normal.cross(&r0.arm);
-            let je = [-r0.normal.x, -r0.normal.y, -r0.normal.z, nw.x, nw.y, nw.z];
+            let je = r0.pose_row();
             for k in 0..6 {
                 let h = 1e-6;
                 let (mut ep, mut em) = ([0.0; 6], [0.0; 6]);

@@ -139,16 +139,11 @@ impl Rounds {
                 }
                 None => (refine(pb, b, iter, s.cluster_ns, clock), None),
             };
+        let fitted = Residuals::fitted(w, s);
         let lm = (found >= 2).then(|| {
-            with_problem(
-                targets,
-                obs,
-                used,
-                1,
-                self.time,
-                Residuals::fitted(w, s),
-                |pb| fit(pb, &self.b, s.lm_iter, s.clock(), nav),
-            )
+            with_problem(targets, obs, used, 1, self.time, fitted, |pb| {
+                fit(pb, &self.b, s.lm_iter, s.clock(), nav)
+            })
         });
         let lm = lm.map(|(l, f)| {
             sol.nav = f;
@@ -169,20 +164,12 @@ impl Rounds {
                 dt: true,
                 drift: s.estimate_drift,
             };
-            let (free, at_held) = with_problem(
-                targets,
-                obs,
-                used,
-                1,
-                self.time,
-                Residuals::fitted(w, s),
-                |pb| {
-                    (
-                        fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
-                        fit(pb, &l.b, 0, free_clock, nav).0,
-                    )
-                },
-            );
+            let (free, at_held) = with_problem(targets, obs, used, 1, self.time, fitted, |pb| {
+                (
+                    fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
+                    fit(pb, &l.b, 0, free_clock, nav).0,
+                )
+            });
             let sigma = at_held.sigma_dt;
             if free.dt.is_finite() && sigma.is_finite() && sigma > 0.0 {
                 sol.dt_free = Some((free.dt, sigma));

@@ -462,22 +462,15 @@ impl Rounds {
         if self.prior.is_none() {
             let most = lens[..n].iter().copied().max().unwrap_or(1);
             let stride = most.div_ceil(s.nm_points.max(1)).max(1);
-            let mut nm = with_problem(
-                targets,
-                part,
-                lens,
-                stride,
-                self.time,
-                Residuals::PLAIN,
-                |pb| {
-                    minimize::<P, 7>(
-                        |x| pb.l1(&DegM(*x).params().0),
-                        &Params(self.b).deg_m().0,
-                        &s.step,
-                        &s.nm,
-                    )
-                },
-            );
+            let plain = Residuals::PLAIN;
+            let mut nm = with_problem(targets, part, lens, stride, self.time, plain, |pb| {
+                minimize::<P, 7>(
+                    |x| pb.l1(&DegM(*x).params().0),
+                    &Params(self.b).deg_m().0,
+                    &s.step,
+                    &s.nm,
+                )
+            });
             if let Some(before) = self.nm {
                 nm.evaluations += before.evaluations;
                 nm.iterations += before.iterations;
@@ -488,16 +481,10 @@ impl Rounds {
             for p in part.iter_mut().take(n) {
                 p.sort_unstable_by_key(time_order);
             }
-            let w = weights(part, &lens[..n], s);
-            let lm = with_problem(
-                targets,
-                part,
-                lens,
-                1,
-                self.time,
-                Residuals::fitted(w, s),
-                |pb| refine(pb, &self.b, s.lm_iter, s.cluster_ns, s.clock()),
-            );
+            let fitted = Residuals::fitted(weights(part, &lens[..n], s), s);
+            let lm = with_problem(targets, part, lens, 1, self.time, fitted, |pb| {
+                refine(pb, &self.b, s.lm_iter, s.cluster_ns, s.clock())
+            });
             self.b = lm.b;
             if lm.dt.is_finite() && lm.drift.is_finite() {
                 self.time.dt = lm.dt;

@@ -42,10 +42,12 @@ use crate::velodyne::{Beam as Laser, PpsStatus, ReturnMode};
 use core::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, Vector3};
 use scanner::{Stamp, Writer, MAX_BLOCKS, SIM_LASERS as MAX_LASERS};
+use stencil::{stencil, MAX_SUBS};
 
 mod body;
 mod receiver;
 pub mod scanner;
+mod stencil;
 mod trace;
 
 pub use scanner::{Ouster, OusterSpec, Scanner};
@@ -312,50 +314,6 @@ struct Echo {
     cos: f64,
 }
 
-/// Five sub-rays of the footprint: offsets in units of the 1-sigma beam half-angle (along,
-/// across) and weights.
-const FIVE: [(f64, f64, f64); 5] = [
-    (0.0, 0.0, 0.4),
-    (1.8257, 0.0, 0.15),
-    (-1.8257, 0.0, 0.15),
-    (0.0, 1.8257, 0.15),
-    (0.0, -1.8257, 0.15),
-];
-
-/// Spacing of the footprint's sub-rays [1-sigma beam half-angles].
-const STEP: f64 = 0.5;
-/// The footprint's sub-rays reach this many steps from the centre.
-const REACH: i32 = 5;
-/// Sub-rays of the footprint: the grid points within `REACH` steps.
-pub(super) const MAX_SUBS: usize = 81;
-
-/// Sub-rays of the footprint where it straddles an edge: [`FIVE`], or on the grid the points
-/// of a square grid `STEP` apart within `REACH` steps of the centre, as (along, across) offsets in units of the 1-sigma
-/// beam half-angle, each weighted by the Gaussian there (the weights sum to 1). An edge cuts
-/// the footprint anywhere, so the rule must resolve where it falls: the lit share moves in steps
-/// of at most a few per cent and the echo's range follows the cut continuously.
-fn stencil(grid: bool) -> heapless::Vec<(f64, f64, f64), MAX_SUBS> {
-    let mut v = heapless::Vec::new();
-    if !grid {
-        let _ = v.extend_from_slice(&FIVE);
-        return v;
-    }
-    let mut total = 0.0;
-    for i in -REACH..=REACH {
-        for j in -REACH..=REACH {
-            if i * i + j * j <= REACH * REACH {
-                let (ka, kc) = (f64::from(i) * STEP, f64::from(j) * STEP);
-                let w = libm::exp(-(ka * ka + kc * kc) / 2.0);
-                total += w;
-                let _ = v.push((ka, kc, w));
-            }
-        }
-    }
-    for x in v.iter_mut() {
-        x.2 /= total;
-    }
-    v
-}
 /// Received power `E (R_REF / R)^2` below which an echo is lost: a 10 % reflective surface
 /// filling the beam head-on at 100 m is at the threshold.
 const R_REF: f64 = 100.0;
@@ -456,6 +414,7 @@ impl<'w, 'a> LidarSim<'w, 'a> {
         let beams: [Laser; MAX_LASERS] = core::array::from_fn(|k| cfg.scanner.beam(k));
         let packets = (world.trajectory.duration() * 1e9 / period_ns as f64) as u64;
         let start_unix = gps_to_unix_ns(world.start, world.leap_seconds);
+        let stencil = stencil(cfg.footprint_grid);
         Self {
             world,
             cfg,
@@ -467,13 +426,13 @@ impl<'w, 'a> LidarSim<'w, 'a> {
             omega: cfg.rpm / 60.0 * TAU,
             windows: heapless::Vec::new(),
             live: heapless::Vec::new(),
-            spread: stencil(cfg.footprint_grid)
+            spread: stencil
                 .iter()
                 .map(|&(ka, kc, _)| {
                     libm::hypot(ka * cfg.divergence[0] / 4.0, kc * cfg.divergence[1] / 4.0)
                 })
                 .fold(0.0, f64::max),
-            stencil: stencil(cfg.footprint_grid),
+            stencil,
             glint_cos: world.water.map_or(2.0, |w| libm::cos(w.specular)),
             body: heapless::Vec::new(),
             origins: core::array::from_fn(|k| {

@@ -195,8 +195,8 @@ pub struct LidarSpec {
     #[serde(default)]
     pub incidence_noise: bool,
     /// The footprint rendered as the beam's Gaussian on a grid of sub-rays (default); `false`:
-    /// five sub-rays at edges (the simulator before session 39, a staircase the calibration's
-    /// model of the bloom does not follow).
+    /// five sub-rays at edges (a staircase the calibration's model of the bloom does not
+    /// follow; the seeded fault tests' world).
     #[serde(default = "default_grid")]
     pub footprint_grid: bool,
     /// Range walk: the bias of a zero-intensity return [m] (default 0).
