@@ -6,9 +6,10 @@
 //!
 //! The beam (all optional; off, a firing is one ideal ray as in the paper's simulator):
 //! - **Footprint.** The VLP-16's beam diverges 3.0 mrad along the scan and 1.5 mrad across it
-//!   (full angles; the Velodyne manuals' "beam divergence" tables). A firing is traced as five
-//!   sub-rays of a Gaussian footprint (centre weight 0.4; four at +-1.83 sigma on the two axes,
-//!   0.15 each: the stencil has the Gaussian's second moments). What they hit forms echoes.
+//!   (full angles; the Velodyne manuals' "beam divergence" tables). A firing whose footprint
+//!   touches a sphere is traced as 81 sub-rays of the Gaussian on a grid; at other edges as
+//!   five (centre weight 0.4; four at +-1.83 sigma on the two axes, 0.15 each: the Gaussian's
+//!   second moments). What they hit forms echoes.
 //! - **Echoes and mixed pixels.** Surfaces less than `merge_distance` apart along the beam
 //!   return one merged pulse whose range is the energy-weighted mean (a *mixed pixel*: Hebert
 //!   & Krotkov 1992, "3D measurements from imaging laser radars"); farther apart they are
@@ -42,7 +43,7 @@ use crate::velodyne::{Beam as Laser, PpsStatus, ReturnMode};
 use core::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, Vector3};
 use scanner::{Stamp, Writer, MAX_BLOCKS, SIM_LASERS as MAX_LASERS};
-use stencil::{stencil, MAX_SUBS};
+use stencil::{stencil, FIVE, MAX_SUBS};
 
 mod body;
 mod receiver;
@@ -103,9 +104,11 @@ pub struct LidarConfig {
     pub merge_distance: f64,
     /// Range noise grows at grazing incidence (the footprint's range spread).
     pub incidence_noise: bool,
-    /// The footprint rendered as the beam's Gaussian on a grid of 81 sub-rays wherever it
-    /// touches a sphere or straddles an edge ([`stencil`]); `false`: five sub-rays at edges
-    /// only (about `1.8 sigma R` of bloom once the axis misses, a staircase).
+    /// The footprint rendered as the beam's Gaussian on a grid of 81 sub-rays on every firing
+    /// whose footprint touches a sphere (the returns the calibration models, and what mixes
+    /// into them: a stand, the grass), five sub-rays at other edges ([`stencil`]); `false`:
+    /// five sub-rays at every edge (about `1.8 sigma R` of bloom once the axis misses, a
+    /// staircase).
     pub footprint_grid: bool,
     /// Range walk: the bias of a zero-intensity return relative to a full one [m].
     pub range_walk: f64,

@@ -2,7 +2,7 @@
 
 /// Five sub-rays of the footprint: offsets in units of the 1-sigma beam half-angle (along,
 /// across) and weights.
-const FIVE: [(f64, f64, f64); 5] = [
+pub(super) const FIVE: [(f64, f64, f64); 5] = [
     (0.0, 0.0, 0.4),
     (1.8257, 0.0, 0.15),
     (-1.8257, 0.0, 0.15),

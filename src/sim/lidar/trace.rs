@@ -245,7 +245,7 @@ impl LidarSim<'_, '_> {
         };
         // The objects the footprint can touch, and whether any edge is inside it.
         let mut near: heapless::Vec<u16, MAX_OBJECTS> = heapless::Vec::new();
-        let mut edge = false;
+        let (mut edge, mut sphere_near) = (false, false);
         for &k in cand {
             let Window { obj: i, rho, .. } = self.live[usize::from(k)];
             let obj = &self.world.objects[usize::from(i)];
@@ -261,6 +261,7 @@ impl LidarSim<'_, '_> {
                 // On the grid, a sphere's curvature moves the footprint's mean range anywhere
                 // on it (the lit cap's energy-weighted height): never deep.
                 let sphere = matches!(obj.shape, super::super::Shape::Sphere { .. });
+                sphere_near |= sphere;
                 let deep = !(sphere && self.cfg.footprint_grid)
                     && obj
                         .shape
@@ -270,8 +271,11 @@ impl LidarSim<'_, '_> {
             }
             let _ = near.push(i);
         }
-        let subs_n = if self.spread <= 0.0 || !edge {
-            1
+        // The grid where the footprint touches a sphere (its returns and what mixes into
+        // them: the calibration models their bloom), five sub-rays at other edges.
+        let stencil: &[(f64, f64, f64)] = if sphere_near { &self.stencil } else { &FIVE };
+        let rays: &[(f64, f64, f64)] = if self.spread <= 0.0 || !edge {
+            &[(0.0, 0.0, 1.0)]
         } else {
             // The footprint's axes: along the scan (horizontal in the LiDAR frame), across it.
             let along = Vector3::new(c, -s, 0.0);
@@ -282,15 +286,10 @@ impl LidarSim<'_, '_> {
             };
             body = in_l.rotated(&mount.r_li, &mount.lever);
             site = body.rotated(&pf.r_ig, &pf.position);
-            self.stencil.len()
+            stencil
         };
         let mut subs: heapless::Vec<SubHit, MAX_SUBS> = heapless::Vec::new();
-        for k in 0..subs_n {
-            let (ka, kc, w) = if subs_n == 1 {
-                (0.0, 0.0, 1.0)
-            } else {
-                self.stencil[k]
-            };
+        for &(ka, kc, w) in rays {
             let ds = site.sub(ka, kc);
             let mut best: Option<(f64, u16)> = None;
             for &i in &near {

@@ -669,7 +669,7 @@ fn ins_clock_steps_are_found_reported_and_refused() {
 
 /// A POS MV stream's groups say nothing of what was lost between them, so a step of its clock
 /// is caught by the calibration itself: the passes' own time offsets disagree. +50 ms 31 s in:
-/// refused, naming the clocks and the pass; the pass after the step is off by about the step.
+/// refused, naming the clocks and the pass; every pass after the step sees the INS late.
 #[test]
 fn a_clock_step_the_stream_cannot_show_is_caught_by_the_passes() {
     let (d, _) = synth("table1-noisy", "posmv-step", |s| {
@@ -692,8 +692,13 @@ fn a_clock_step_the_stream_cannot_show_is_caught_by_the_passes() {
     let r: Report =
         serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
     let reason = r.reason.unwrap();
+    // Named by the passes' own time offsets, or by the pass the step moves along the track
+    // (when no single pass's offset is off by 5 sigma), naming the clock as its cause.
     assert!(
-        reason.starts_with("the clocks are not steady: in pass "),
+        reason.starts_with("the clocks are not steady: in pass ")
+            || (reason.starts_with("inconsistent: in pass ")
+                && reason.contains("along the track")
+                && reason.contains("a clock that steps")),
         "{reason}"
     );
     // Every pass wholly after the step sees the INS 50 ms late against the rest.

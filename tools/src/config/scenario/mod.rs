@@ -194,9 +194,10 @@ pub struct LidarSpec {
     /// Range noise grows at grazing incidence (needs a beam divergence).
     #[serde(default)]
     pub incidence_noise: bool,
-    /// The footprint rendered as the beam's Gaussian on a grid of sub-rays (default); `false`:
-    /// five sub-rays at edges (a staircase the calibration's model of the bloom does not
-    /// follow; the seeded fault tests' world).
+    /// The footprint rendered as the beam's Gaussian on a grid of sub-rays where it touches a
+    /// sphere, five sub-rays at other edges (default); `false`: five sub-rays at every edge (a
+    /// staircase the calibration's model of the bloom does not follow; the seeded fault
+    /// tests' world).
     #[serde(default = "default_grid")]
     pub footprint_grid: bool,
     /// Range walk: the bias of a zero-intensity return [m] (default 0).
