@@ -41,20 +41,48 @@ const GH4: [(f64, f64); 4] = [
 /// inside the limb): `E[h^2] = r^2 - |m|^2 - s0^2 - s1^2` exactly, `E[h]` by 4 x 4
 /// Gauss-Hermite points (the cap's height is smooth there: the rule is exact to degree 7).
 pub fn inside(m: [f64; 2], s: [f64; 2], r: f64) -> f64 {
+    inside_with_gradient(m, s, r).0
+}
+
+/// [`inside`] and its gradient by `m`, in the same pass: `e = sqrt(|m|^2 + h^2) - r` with
+/// `h = E[h^2] / E[h]`, so `de = (m + h dh) / (e + r)`, `dh = (dE[h^2] - h dE[h]) / E[h]`,
+/// `dE[h^2] = -2 m` and `dE[h]` the rule's sum of `-(x, y) / sqrt(r^2 - x^2 - y^2)`.
+pub fn inside_with_gradient(m: [f64; 2], s: [f64; 2], r: f64) -> (f64, [f64; 2]) {
     let d2 = m[0] * m[0] + m[1] * m[1];
-    let mut eh = 0.0;
+    let (mut eh, mut deh) = (0.0, [0.0; 2]);
     for (a, wa) in GH4 {
         for (c, wc) in GH4 {
             let (x, y) = (m[0] + a * s[0], m[1] + c * s[1]);
-            eh += wa * wc * libm::sqrt((r * r - x * x - y * y).max(0.0));
+            let z2 = r * r - x * x - y * y;
+            if z2 > 0.0 {
+                let z = libm::sqrt(z2);
+                let w = wa * wc;
+                eh += w * z;
+                deh[0] -= w * x / z;
+                deh[1] -= w * y / z;
+            }
         }
     }
     let eh2 = r * r - d2 - s[0] * s[0] - s[1] * s[1];
     if eh <= 0.0 {
-        return libm::sqrt(d2) - r;
+        let d = libm::sqrt(d2);
+        let g = if d > 0.0 {
+            [m[0] / d, m[1] / d]
+        } else {
+            [0.0; 2]
+        };
+        return (d - r, g);
     }
     let h = eh2 / eh;
-    libm::sqrt(d2 + h * h) - r
+    let len = libm::sqrt(d2 + h * h);
+    let mut g = [0.0; 2];
+    if len > 0.0 {
+        for k in 0..2 {
+            let dh = (-2.0 * m[k] - h * deh[k]) / eh;
+            g[k] = (m[k] + h * dh) / len;
+        }
+    }
+    (len - r, g)
 }
 
 impl Table {
@@ -87,6 +115,9 @@ impl Table {
             return None;
         }
         let Limb { d, w, su, q } = Limb::of(m, s, r);
+        if q < Q_LO {
+            return Some(inside_with_gradient(m, s, r));
+        }
         if q < Q_LO + 1.0 {
             // The cap's rule, blended into the table over its first width.
             let at = |m: [f64; 2]| self.blended(m, s, r, t);
@@ -240,6 +271,20 @@ mod tests {
                     (a - b).abs() < 1e-5,
                     "{range} m, r {r}, m {m:?}: {a} vs {b}"
                 );
+                // The gradient against central differences of the rule.
+                let g = inside_with_gradient(m, s, r).1;
+                let h = 1e-3 * s[1];
+                for k in 0..2 {
+                    let (mut p, mut q) = (m, m);
+                    p[k] += h;
+                    q[k] -= h;
+                    let fd = (inside(p, s, r) - inside(q, s, r)) / (2.0 * h);
+                    assert!(
+                        (g[k] - fd).abs() < 1e-6 * (1.0 + fd.abs()),
+                        "{range} m, r {r}, m {m:?}, axis {k}: {} vs {fd}",
+                        g[k]
+                    );
+                }
             }
         }
     }

@@ -13,7 +13,7 @@ use crate::report::Report;
 use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
-use spherecal::calib::solve::{ClockFacts, Observe};
+use spherecal::calib::solve::{ClockFacts, Observe, Refusal};
 use spherecal::calib::{Settings, Solution};
 use spherecal::georef::Params;
 
@@ -334,6 +334,12 @@ impl Session {
         let mut s = self.settings;
         s.estimate_drift = s.estimate_dt && clocks.lidar_untrusted.is_some();
         s.clocks = clocks;
+        // A held offset is tested against a free solve first (the store is left as the held
+        // solve leaves it): the held solve's own extraction keeps what agrees with the held
+        // value, and the free fit on those returns alone may not see what the rest show.
+        let free = (mend && !s.estimate_dt)
+            .then(|| self.free_offset(b0, &s))
+            .flatten();
         self.solves += 1;
         let (mut sol, mut rep) = solve_report_in(
             &self.targets,
@@ -344,6 +350,19 @@ impl Session {
             &mut self.scratch,
             watch,
         );
+        if let Some((found, sigma)) = free.filter(|&(f, sg)| {
+            let d = (f - sol.dt).abs();
+            sol.refusal.is_none() && d > s.held_dt_floor && d > s.held_dt_sigmas * sg
+        }) {
+            sol.refusal = Some(Refusal::TimeOffsetContradicted {
+                held: sol.dt,
+                found,
+                sigma,
+            });
+            sol.dt_free = Some((found, sigma));
+            let ms = rep.solve_ms;
+            rep = Report::of(&sol, &self.ids, b0, &s, self.scratch.nav_pieces(), ms);
+        }
         self.radius_named = false;
         if !rep.converged && mend {
             (sol, rep) = self.look_into(b0, &s, sol, rep);
@@ -363,6 +382,22 @@ impl Session {
             n.source = self.nav_source.clone();
         }
         (sol, rep)
+    }
+
+    /// The time offset a free solve of the store finds and its sigma [s] (None: it did not
+    /// converge, or was refused).
+    fn free_offset(&mut self, b0: &Params, held: &Settings) -> Option<(f64, f64)> {
+        let mut s = *held;
+        s.estimate_dt = true;
+        s.estimate_drift = s.clocks.lidar_untrusted.is_some();
+        self.solves += 1;
+        let mut slices: Vec<&mut [Observation]> =
+            self.store.iter_mut().map(|v| v.as_mut_slice()).collect();
+        let ws = &mut self.scratch.workspace();
+        let sol =
+            spherecal::calib::solve::solve_watched(&self.targets, &mut slices, b0, &s, ws, &mut ());
+        let lm = sol.lm.filter(|l| l.converged && sol.refusal.is_none())?;
+        (lm.sigma_dt > 0.0 && sol.dt.is_finite()).then_some((sol.dt, lm.sigma_dt))
     }
 
     /// The offset the windows should be aligned at next [ns], when the solve moved it enough to
