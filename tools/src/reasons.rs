@@ -123,6 +123,12 @@ pub fn refusal_text_clock(
                 NAMES.get(*parameter).copied().unwrap_or("?")
             )
         }
+        Refusal::ClockStep { into, step, sigma, after, passes, .. } => format!(
+            "the clocks are not steady: the passes from {into:.1} s into the data on ({after} of {passes}) put the time offset {:+.1} ms (sigma {:.1} ms, {:.0} sigma) off those before: an INS time step (a POS MV's stream cannot show one) or a LiDAR clock drifting; look for the step in the INS line above (time going back or jumping), or give the LiDAR PPS",
+            step * 1e3,
+            sigma * 1e3,
+            step.abs() / sigma.max(1e-12)
+        ),
         Refusal::ClockInconsistent { sphere, pass, into, shift, sigma, .. } => format!(
             "the clocks are not steady: in pass {} over sphere {} ({:.1}-{:.1} s into the data) the returns put the time offset {:+.1} ms (sigma {:.1} ms, {:.0} sigma) off the rest of the survey's: an INS time step or a LiDAR clock drifting; look for the step in the INS line above (time going back or jumping), or give the LiDAR PPS",
             pass + 1,

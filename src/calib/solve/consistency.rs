@@ -200,7 +200,64 @@ pub(super) fn pass_clocks(
             ));
         }
     }
-    worst.map(|(_, r)| r)
+    worst
+        .map(|(_, r)| r)
+        .or_else(|| clock_step(passes, first, s))
+}
+
+/// A step of the time offset between passes ([`Refusal::ClockStep`]): at each pass's start,
+/// the inverse-variance means of the passes' own offsets wholly after it and wholly before it
+/// (a pass spanning it is in neither); the split furthest off, when by more than
+/// `held_dt_sigmas` sigmas and `held_dt_floor` seconds. A step shifts every pass after it
+/// alike, so together they show what each alone may not.
+fn clock_step(passes: &[PassReport], first: i64, s: &Settings) -> Option<Refusal> {
+    let judged =
+        |p: &&PassReport| p.dt_sigma > 0.0 && p.dt_sigma.is_finite() && p.dt_shift.is_finite();
+    let mut best: Option<(f64, Refusal)> = None;
+    for at in passes.iter().filter(judged).map(|p| p.start) {
+        // (weight, weighted sum, passes) of one side.
+        let side = |after: bool| {
+            let (mut w, mut wx, mut n) = (0.0f64, 0.0f64, 0u16);
+            for p in passes.iter().filter(judged) {
+                let on = if after {
+                    p.start.0 >= at.0
+                } else {
+                    p.end.0 < at.0
+                };
+                if on {
+                    let wi = 1.0 / (f64::from(p.dt_sigma) * f64::from(p.dt_sigma));
+                    w += wi;
+                    wx += wi * f64::from(p.dt_shift);
+                    n += 1;
+                }
+            }
+            (w, wx, n)
+        };
+        let ((wb, xb, nb), (wa, xa, na)) = (side(false), side(true));
+        if nb == 0 || na == 0 {
+            continue;
+        }
+        let step = xa / wa - xb / wb;
+        let sigma = libm::sqrt(1.0 / wa + 1.0 / wb);
+        let z = step.abs() / sigma;
+        if z > s.held_dt_sigmas
+            && step.abs() > s.held_dt_floor
+            && best.as_ref().is_none_or(|(b, _)| z > *b)
+        {
+            best = Some((
+                z,
+                Refusal::ClockStep {
+                    at,
+                    into: (at.0 - first) as f64 * 1e-9,
+                    step,
+                    sigma,
+                    after: na,
+                    passes: na + nb,
+                },
+            ));
+        }
+    }
+    best.map(|(_, r)| r)
 }
 
 /// The mean INS position of a pass's returns.
@@ -248,4 +305,80 @@ fn nav_shift_variance<'a>(m: &NavModel, obs: impl Iterator<Item = &'a Observatio
     let sg = m.sigmas();
     let along = sg[0] * sg[0] + range * range * (sg[3] * sg[3] + sg[5] * sg[5]);
     along / (speed * speed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time::GpsTime;
+
+    /// Passes 10 s apart, each 6 s long, with their own offsets and sigmas [ms].
+    fn passes(own: &[(f32, f32)]) -> heapless::Vec<PassReport, MAX_PASSES> {
+        own.iter()
+            .enumerate()
+            .map(|(k, &(shift, sigma))| PassReport {
+                start: GpsTime(k as i64 * 10_000_000_000),
+                end: GpsTime(k as i64 * 10_000_000_000 + 6_000_000_000),
+                sphere: (k % 2) as u8,
+                slices: 0,
+                detected: 0,
+                mean_inliers: 0.0,
+                verdicts: [0; 8],
+                centre_offset: [0.0; 3],
+                along_track: 0.0,
+                chi2: 0.0,
+                dt_shift: shift * 1e-3,
+                dt_sigma: sigma * 1e-3,
+                course: [0.0; 2],
+            })
+            .collect()
+    }
+
+    /// The POS MV step of `clocks::a_clock_step_the_stream_cannot_show_*` (+50 ms, the passes'
+    /// own offsets as measured there, none beyond 5 sigma alone): found at the first pass
+    /// after it. The same offsets in no order of time, or half as far apart, are not a step.
+    #[test]
+    fn a_step_the_passes_show_together_is_found() {
+        let s = Settings::default();
+        let measured = [
+            (-3.7, 2.68),
+            (-2.6, 1.56),
+            (-18.1, 7.07),
+            (-21.5, 6.79),
+            (19.7, 4.19),
+            (34.3, 9.74),
+            (30.9, 9.43),
+            (18.3, 6.94),
+        ];
+        let Some(Refusal::ClockStep {
+            at,
+            step,
+            sigma,
+            after,
+            passes: n,
+            ..
+        }) = clock_step(&passes(&measured), 0, &s)
+        else {
+            panic!("no step found");
+        };
+        assert_eq!((at.0, after, n), (40_000_000_000, 4, 8));
+        assert!(
+            (step - 0.0263).abs() < 1e-3 && (sigma - 0.0034).abs() < 3e-4,
+            "{step} {sigma}"
+        );
+        let mixed = [
+            measured[4],
+            measured[0],
+            measured[5],
+            measured[1],
+            measured[6],
+            measured[2],
+            measured[7],
+            measured[3],
+        ];
+        assert_eq!(clock_step(&passes(&mixed), 0, &s), None);
+        let half: heapless::Vec<(f32, f32), 8> =
+            measured.iter().map(|&(x, sg)| (x / 2.0, sg)).collect();
+        assert_eq!(clock_step(&passes(&half), 0, &s), None);
+    }
 }

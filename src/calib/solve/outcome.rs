@@ -100,6 +100,23 @@ pub enum Refusal {
         /// Its sigma [s].
         sigma: f64,
     },
+    /// The time offset steps between passes: the passes from one on put it elsewhere than
+    /// those before, together beyond their uncertainty though none alone is (an INS clock
+    /// step the stream cannot show, a POS MV's).
+    ClockStep {
+        /// The first return of the first pass after the step.
+        at: GpsTime,
+        /// It in seconds after the first windowed return.
+        into: f64,
+        /// The passes' offset after minus before (weighted means) [s].
+        step: f64,
+        /// Its sigma [s].
+        sigma: f64,
+        /// The passes after the step, of those judged.
+        after: u16,
+        /// The passes judged.
+        passes: u16,
+    },
     /// The INS clock stepped within the LiDAR data (found in the stream): the poses after it
     /// are off those before, whatever the returns say.
     InsClockStep(InsStep),

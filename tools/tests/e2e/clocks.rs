@@ -692,13 +692,11 @@ fn a_clock_step_the_stream_cannot_show_is_caught_by_the_passes() {
     let r: Report =
         serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
     let reason = r.reason.unwrap();
-    // Named by the passes' own time offsets, or by the pass the step moves along the track
-    // (when no single pass's offset is off by 5 sigma), naming the clock as its cause.
+    // Named by one pass's own time offset, or by the passes after the step together (none
+    // alone 5 sigma off: measured +34 / +31 / +18 ms after it, -4 / -3 / -18 / -21 before).
     assert!(
         reason.starts_with("the clocks are not steady: in pass ")
-            || (reason.starts_with("inconsistent: in pass ")
-                && reason.contains("along the track")
-                && reason.contains("a clock that steps")),
+            || reason.starts_with("the clocks are not steady: the passes from "),
         "{reason}"
     );
     // Every pass wholly after the step sees the INS 50 ms late against the rest.
