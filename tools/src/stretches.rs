@@ -265,19 +265,12 @@ mod tests {
         let mut verdicts = [0; 8];
         verdicts[1] = kept;
         PassReport {
-            sphere,
-            start: GpsTime((a * 1e9) as i64),
             end: GpsTime((b * 1e9) as i64),
             slices: 10,
             detected: 10,
             mean_inliers: 10.0,
             verdicts,
-            centre_offset: [0.0; 3],
-            along_track: 0.0,
-            chi2: 0.0,
-            dt_shift: 0.0,
-            dt_sigma: 0.0,
-            course: [0.0; 2],
+            ..PassReport::starting(sphere, GpsTime((a * 1e9) as i64))
         }
     }
 

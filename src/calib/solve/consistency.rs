@@ -317,19 +317,10 @@ mod tests {
         own.iter()
             .enumerate()
             .map(|(k, &(shift, sigma))| PassReport {
-                start: GpsTime(k as i64 * 10_000_000_000),
                 end: GpsTime(k as i64 * 10_000_000_000 + 6_000_000_000),
-                sphere: (k % 2) as u8,
-                slices: 0,
-                detected: 0,
-                mean_inliers: 0.0,
-                verdicts: [0; 8],
-                centre_offset: [0.0; 3],
-                along_track: 0.0,
-                chi2: 0.0,
                 dt_shift: shift * 1e-3,
                 dt_sigma: sigma * 1e-3,
-                course: [0.0; 2],
+                ..PassReport::starting((k % 2) as u8, GpsTime(k as i64 * 10_000_000_000))
             })
             .collect()
     }

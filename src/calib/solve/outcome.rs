@@ -298,6 +298,27 @@ pub struct PassReport {
     pub course: [f32; 2],
 }
 
+impl PassReport {
+    /// A pass over sphere `sphere` starting (and so far ending) at `t`, nothing judged yet.
+    pub fn starting(sphere: u8, t: GpsTime) -> Self {
+        Self {
+            sphere,
+            start: t,
+            end: t,
+            slices: 0,
+            detected: 0,
+            mean_inliers: 0.0,
+            verdicts: [0; 8],
+            centre_offset: [0.0; 3],
+            along_track: 0.0,
+            chi2: 0.0,
+            dt_shift: 0.0,
+            dt_sigma: 0.0,
+            course: [0.0; 2],
+        }
+    }
+}
+
 /// One detect-and-solve round.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Round {

@@ -48,21 +48,7 @@ pub(super) fn find_passes(
             first_course = c;
         }
         if (gap || turned) && !out.is_full() {
-            let _ = out.push(PassReport {
-                sphere: j as u8,
-                start: o.time,
-                end: o.time,
-                slices: 0,
-                detected: 0,
-                mean_inliers: 0.0,
-                verdicts: [0; 8],
-                centre_offset: [0.0; 3],
-                along_track: 0.0,
-                chi2: 0.0,
-                dt_shift: 0.0,
-                dt_sigma: 0.0,
-                course: [0.0; 2],
-            });
+            let _ = out.push(PassReport::starting(j as u8, o.time));
         } else if let Some(p) = out.last_mut() {
             p.end = o.time;
         }
