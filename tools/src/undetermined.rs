@@ -9,7 +9,7 @@
 
 use crate::config::site::Site;
 use spherecal::calib::{Refusal, Solution};
-use spherecal::georef::{NAMES, P};
+use spherecal::georef::{Params, NAMES, P};
 
 /// An undetermined angle's prior when the site measured none [deg].
 pub const HOLD_DEG: f64 = 5.0;
@@ -26,16 +26,7 @@ pub fn candidates(sol: &Solution, site: &Site) -> Vec<usize> {
     let free = (0..P).filter(|&i| prior.info[i] <= 0.0);
     match (&sol.refusal, &sol.lm) {
         (Some(Refusal::IllConditioned { .. } | Refusal::NotConverged { .. }), _) => free.collect(),
-        (None, Some(l)) => {
-            let deg_m: [f64; P] = core::array::from_fn(|i| {
-                if i < 3 {
-                    l.sigma[i].to_degrees()
-                } else {
-                    l.sigma[i]
-                }
-            });
-            undetermined(&free.collect::<Vec<_>>(), &deg_m)
-        }
+        (None, Some(l)) => undetermined(&free.collect::<Vec<_>>(), &Params(l.sigma).deg_m().0),
         _ => Vec::new(),
     }
 }

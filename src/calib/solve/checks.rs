@@ -85,18 +85,13 @@ pub(super) fn checks(
     };
     let worst = consistency(&at, s, &mut sol.passes);
     let clock = pass_clocks(&at, s, &mut sol.passes);
-    let contradicted = sol.dt_free.filter(|&(f, sg)| {
-        let d = (f - dt).abs();
-        d > s.held_dt_floor && d > s.held_dt_sigmas * sg
-    });
+    let contradicted = sol
+        .dt_free
+        .and_then(|(found, sigma)| s.held_contradicted(dt, found, sigma));
     // A held offset the data contradict comes first: it is the cause, and the mounting fitted
     // around it may fail to converge or fit badly only because of it.
-    if let Some((found, sigma)) = contradicted {
-        Some(Refusal::TimeOffsetContradicted {
-            held: dt,
-            found,
-            sigma,
-        })
+    if contradicted.is_some() {
+        contradicted
     } else if !lm.converged {
         Some(Refusal::NotConverged {
             iterations: lm.iterations,

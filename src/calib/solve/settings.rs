@@ -1,5 +1,6 @@
 //! What the solve is told: its limits, its noise model and its stopping rules.
 
+use super::outcome::Refusal;
 use crate::align::window::MAX_TARGETS;
 use crate::calib::consensus::ConsensusSettings;
 use crate::calib::extract::ExtractSettings;
@@ -145,6 +146,15 @@ pub struct InsStep {
 }
 
 impl Settings {
+    /// The refusal of a time offset held at `held` [s] when the data, free to estimate it,
+    /// put it at `found` with its `sigma` [s]: beyond [`Self::held_dt_sigmas`] and
+    /// [`Self::held_dt_floor`].
+    pub fn held_contradicted(&self, held: f64, found: f64, sigma: f64) -> Option<Refusal> {
+        let d = (found - held).abs();
+        (d > self.held_dt_floor && d > self.held_dt_sigmas * sigma)
+            .then_some(Refusal::TimeOffsetContradicted { held, found, sigma })
+    }
+
     /// The clock parameters estimated with the six.
     pub fn clock(&self) -> Clock {
         Clock {

@@ -17,9 +17,9 @@ const REACH: i32 = 5;
 /// Sub-rays of the footprint: the grid points within `REACH` steps.
 pub(crate) const MAX_SUBS: usize = 81;
 
-/// Sub-rays of the footprint where it straddles an edge: [`FIVE`], or on the grid the points
-/// of a square grid `STEP` apart within `REACH` steps of the centre, as (along, across) offsets in units of the 1-sigma
-/// beam half-angle, each weighted by the Gaussian there (the weights sum to 1). An edge cuts
+/// Sub-rays of the footprint where it touches a sphere and straddles an edge ([`FIVE`] at other
+/// edges): [`FIVE`], or on the grid the points of a square grid `STEP` apart within `REACH`
+/// steps of the centre, as (along, across) offsets in units of the 1-sigma beam half-angle, each weighted by the Gaussian there (the weights sum to 1). An edge cuts
 /// the footprint anywhere, so the rule must resolve where it falls: the lit share moves in steps
 /// of at most a few per cent and the echo's range follows the cut continuously.
 pub(super) fn stencil(grid: bool) -> heapless::Vec<(f64, f64, f64), MAX_SUBS> {

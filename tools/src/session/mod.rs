@@ -13,7 +13,7 @@ use crate::report::Report;
 use scratch::Scratch;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::nav::NavModel;
-use spherecal::calib::solve::{ClockFacts, Observe, Refusal};
+use spherecal::calib::solve::{ClockFacts, Observe};
 use spherecal::calib::{Settings, Solution};
 use spherecal::georef::Params;
 
@@ -350,18 +350,13 @@ impl Session {
             &mut self.scratch,
             watch,
         );
-        if let Some((found, sigma)) = free.filter(|&(f, sg)| {
-            let d = (f - sol.dt).abs();
-            sol.refusal.is_none() && d > s.held_dt_floor && d > s.held_dt_sigmas * sg
-        }) {
-            sol.refusal = Some(Refusal::TimeOffsetContradicted {
-                held: sol.dt,
-                found,
-                sigma,
-            });
-            sol.dt_free = Some((found, sigma));
-            let ms = rep.solve_ms;
-            rep = Report::of(&sol, &self.ids, b0, &s, self.scratch.nav_pieces(), ms);
+        if let Some((found, sigma)) = free.filter(|_| sol.refusal.is_none()) {
+            sol.refusal = s.held_contradicted(sol.dt, found, sigma);
+            if sol.refusal.is_some() {
+                sol.dt_free = Some((found, sigma));
+                let ms = rep.solve_ms;
+                rep = Report::of(&sol, &self.ids, b0, &s, self.scratch.nav_pieces(), ms);
+            }
         }
         self.radius_named = false;
         if !rep.converged && mend {
