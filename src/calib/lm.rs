@@ -545,6 +545,7 @@ mod tests {
             range: 0.03,
             attitude: 0.0005,
             position: 0.02,
+            spread: 0.0,
         };
         // Hand value of one variance: 3 cm, 0.5 mrad x 10 m, 1 m (its own), quantisation.
         let probe = Observation {

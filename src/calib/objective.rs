@@ -31,6 +31,11 @@ pub struct Noise {
     pub attitude: f64,
     /// INS position noise [m].
     pub position: f64,
+    /// The beam's 1-sigma half-angle along the scan whose footprint spreads the range over
+    /// an inclined surface [rad] (0: none): at incidence `theta` the range noise grows by
+    /// `R spread tan(theta)`, whose radial part adds `(R spread sin(theta))^2` to a
+    /// residual's variance ([`Self::spread_variance`]; [`crate::calib::predict`]).
+    pub spread: f64,
 }
 
 impl Noise {
@@ -50,6 +55,28 @@ impl Noise {
     #[inline]
     fn at(&self, r: f64, pos: f64, att: f64) -> f64 {
         self.range * self.range + (r * att) * (r * att) + pos * pos + 0.002 * 0.002 / 12.0
+    }
+
+    /// The variance of `o`'s residual, its grazing factor `1 - (u.n)^2` given: the range
+    /// noise and quantisation by their radial part `cos(theta)^2` (a range error `e` moves
+    /// the residual by `e cos(theta)`), the INS's whole (it moves the point across the beam
+    /// too) [m^2]. Without the footprint's spread ([`Self::spread_variance`]).
+    #[inline]
+    pub fn radial_variance(&self, o: &Observation, grazing: f64) -> f64 {
+        let [pos, att] = o.ins_sigma;
+        let own = |s: f32, model: f64| if s > 0.0 { f64::from(s) } else { model };
+        let (pos, att) = (own(pos, self.position), own(att, self.attitude));
+        let r = f64::from(o.range);
+        let cos2 = 1.0 - grazing.clamp(0.0, 1.0);
+        (self.range * self.range + 0.002 * 0.002 / 12.0) * cos2 + (r * att) * (r * att) + pos * pos
+    }
+
+    /// What the footprint's spread at incidence adds to `o`'s residual variance, its
+    /// grazing factor `1 - (u.n)^2` = `sin(theta)^2` given [m^2].
+    #[inline]
+    pub fn spread_variance(&self, o: &Observation, grazing: f64) -> f64 {
+        let s = f64::from(o.range) * self.spread;
+        s * s * grazing.clamp(0.0, 1.0)
     }
 
     /// How much noisier `o` is than the model alone says: the square root of its variance over
@@ -310,6 +337,17 @@ pub struct Linearised {
     footprint: Option<Footprint>,
 }
 
+/// A return's geometry ([`Linearised::pose`]): the corrected attitude, the beam in the
+/// INS frame `R_li q`, the arm `R (a + R_li q)`, how the platform moves it, the point less
+/// the centre.
+struct Pose {
+    rot: Matrix3<f64>,
+    y: Vector3<f64>,
+    w: Vector3<f64>,
+    moved: Vector3<f64>,
+    dx: Vector3<f64>,
+}
+
 /// One residual and its gradient ([`Problem::jacobian_with`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Row {
@@ -373,6 +411,45 @@ impl Linearised {
         self.row_corrected(o, target, dt, &NavCorrection::NONE)
     }
 
+    /// The grazing factor `1 - (u.n)^2` of `o`'s beam on `target`, as [`Self::row_corrected`]
+    /// gives it (`None` at the centre itself): where a residual's weight is taken.
+    pub fn grazing(
+        &self,
+        o: &Observation,
+        target: &Target,
+        dt: f64,
+        c: &NavCorrection,
+    ) -> Option<f64> {
+        let Pose { rot, y, dx, .. } = self.pose(o, target, dt, c);
+        let (norm, yn) = (dx.norm(), y.norm());
+        if norm == 0.0 || yn == 0.0 {
+            return None;
+        }
+        let cos = y.dot(&(rot.transpose() * dx)) / (yn * norm);
+        Some(1.0 - cos * cos)
+    }
+
+    /// The return's geometry at this mounting, the pose corrected by `c`.
+    #[inline]
+    fn pose(&self, o: &Observation, target: &Target, dt: f64, c: &NavCorrection) -> Pose {
+        let reported = o.rot();
+        // R_true = (I - [eps]x) R_reported: the arm loses eps x arm (the mounting's gradient
+        // with the same rotation, so that the Jacobian is the residual's).
+        let rot = reported - skew(&c.rotation) * reported;
+        let y = self.r_li * o.q();
+        let w = rot * (self.a + y);
+        let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
+        let moved = v + om.cross(&w);
+        let dx = (o.position - c.position - (target.center + c.centre)) + w + moved * dt;
+        Pose {
+            rot,
+            y,
+            w,
+            moved,
+            dx,
+        }
+    }
+
     /// As [`Self::row`] with the pose corrected by `c` (its navigation error taken out: the
     /// position less `c.position`, the attitude turned back by `c.rotation`) and the centre
     /// moved by `c.centre`.
@@ -384,15 +461,15 @@ impl Linearised {
         dt: f64,
         c: &NavCorrection,
     ) -> Option<Row> {
-        let (q, reported) = (o.q(), o.rot());
-        // R_true = (I - [eps]x) R_reported: the arm loses eps x arm (the mounting's gradient
-        // with the same rotation, so that the Jacobian is the residual's).
-        let rot = reported - skew(&c.rotation) * reported;
-        let y = self.r_li * q;
-        let w = rot * (self.a + y);
-        let (v, om): (Vector3<f64>, Vector3<f64>) = (o.velocity.cast(), o.omega.cast());
-        let moved = v + om.cross(&w);
-        let dx = (o.position - c.position - (target.center + c.centre)) + w + moved * dt;
+        let q = o.q();
+        let Pose {
+            rot,
+            y,
+            w,
+            moved,
+            dx,
+        } = self.pose(o, target, dt, c);
+        let om: Vector3<f64> = o.omega.cast();
         let norm = dx.norm();
         if norm == 0.0 {
             return None;

@@ -429,7 +429,7 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
     } else {
         let _ = writeln!(
         o,
-        "<h2>Navigation errors</h2><p class=\"note\">Estimated with the mounting under {} (position {} / {} cm, attitude {} / {} deg, correlation {} s) in {} pieces; the white noise found {}x the declared. Reported minus true: subtract from the INS.</p>",
+        "<h2>Navigation errors</h2><p class=\"note\">Estimated with the mounting under {} (position {} / {} cm, attitude {} / {} deg, correlation {} s) in {} pieces; the white noise found {}x the declared{}. Reported minus true: subtract from the INS.</p>",
         escape(&n.source),
         num(n.position_sigma_m[0] * 1e2, 1),
         num(n.position_sigma_m[1] * 1e2, 1),
@@ -437,7 +437,15 @@ fn navigation(o: &mut String, r: &Report, leap: i64) {
         num(n.attitude_sigma_deg[1], 3),
         num(n.correlation_s, 0),
         n.pieces,
-        num(n.white_noise_factor.sqrt(), 2)
+        num(n.white_noise_factor.sqrt(), 2),
+        if n.footprint_spread > 0.0 {
+            format!(
+                "; the range grows at grazing incidence (the returns weighed by the beam footprint's spread x{})",
+                num(n.footprint_spread, 1)
+            )
+        } else {
+            String::new()
+        }
     );
     }
     o.push_str("<table><tr><th class=\"l\">sphere</th><th>survey sigma [mm]</th><th>centre moved N, E, D [mm]</th><th>1-sigma N, E, D [mm]</th></tr>\n");

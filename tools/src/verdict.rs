@@ -130,7 +130,9 @@ pub fn data_info(
 }
 
 /// The returns kept so far under the solver's navigation model (`None`: it has none), for the
-/// planner's predictions on them ([`crate::plan::nav`]).
+/// planner's predictions on them ([`crate::plan::nav`]), weighed as the solve found: the
+/// footprint's spread at grazing incidence at the share its residuals showed (none without a
+/// solve under the model).
 pub fn nav_plan(
     targets: &[spherecal::align::window::Target],
     obs: &[Vec<Observation>],
@@ -139,13 +141,11 @@ pub fn nav_plan(
 ) -> Option<crate::plan::nav::NavPlan> {
     let model = settings.nav?;
     let used: Vec<usize> = sol.spheres.iter().map(|s| s.used).collect();
+    let mut noise = settings.noise();
+    // The share multiplies the spread's variance.
+    noise.spread *= sol.nav.map_or(0.0, |f| f.spread_share).sqrt();
     Some(crate::plan::nav::NavPlan::of_returns(
-        model,
-        settings.noise(),
-        targets,
-        obs,
-        &used,
-        sol.b.0,
+        model, noise, targets, obs, &used, sol.b.0,
     ))
 }
 

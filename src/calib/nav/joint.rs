@@ -7,7 +7,7 @@ use crate::align::window::MAX_TARGETS;
 use crate::calib::lm::VecQ;
 use crate::calib::lm::{row_q, Clock, Mat6, Vec6, DRIFT, Q};
 use crate::calib::nav::P;
-use crate::calib::objective::Problem;
+use crate::calib::objective::{Linearised, Noise, Problem};
 use nalgebra::{Cholesky, Vector3};
 
 /// The state of the joint least squares: the global parameters and every piece's error.
@@ -23,8 +23,14 @@ pub(super) struct Joint<'a, 'p> {
     pub(super) model: NavModel,
     /// The white noise's variance factor the weights are divided by.
     pub(super) factor: f64,
+    /// The share of the footprint's spread at incidence ([`Noise::spread_variance`]) the
+    /// weights take (1: as the beam's divergence says; 0: none, as a solve starts;
+    /// [`super::spread_share`]).
+    pub(super) spread: f64,
     /// The prior on the mounting.
     pub(super) mount: MountPrior,
+    /// The globals the weights are taken at ([`Self::hold`]).
+    pub(super) held: [f64; G],
 }
 
 /// Sums of one evaluation.
@@ -46,6 +52,8 @@ pub(super) struct Row {
     pub(super) je: Vec6,
     pub(super) res: f64,
     pub(super) w: f64,
+    /// Its variance's parts ([`Joint::variance`]) [m^2].
+    pub(super) var: [f64; 4],
 }
 
 impl Row {
@@ -77,6 +85,7 @@ impl<'a, 'p> Joint<'a, 'p> {
         });
         for p in pieces.iter_mut() {
             p.error = [0.0; 6];
+            p.held = [0.0; 6];
         }
         for i in 0..pieces.len() {
             (pieces[i].own, pieces[i].link) = chain_of(model, pieces, i);
@@ -88,7 +97,9 @@ impl<'a, 'p> Joint<'a, 'p> {
             centre_info,
             model: *model,
             factor: 1.0,
+            spread: 0.0,
             mount: MountPrior::default(),
+            held: z,
         }
     }
 }
@@ -96,6 +107,15 @@ impl<'a, 'p> Joint<'a, 'p> {
 impl Joint<'_, '_> {
     pub(super) fn b(&self) -> [f64; P] {
         core::array::from_fn(|i| self.z[i])
+    }
+
+    /// Take the weights at the state from now on (iteratively reweighted least squares: they
+    /// stay put while the steps look for the minimum).
+    pub(super) fn hold(&mut self, pieces: &mut [Piece]) {
+        self.held = self.z;
+        for p in pieces.iter_mut() {
+            p.held = p.error;
+        }
     }
 
     /// Sphere `j`'s centre correction.
@@ -112,24 +132,39 @@ impl Joint<'_, '_> {
         }
     }
 
-    /// The absolute weight of a residual in a piece of `len_s`: 1 / (its white variance x the
-    /// factor + the process's wander within the piece, `len / 3 tau` of the navigation
-    /// error's variance along a beam: the position's and the rotations' at the return's
-    /// range, each over a direction averaged over the sphere's cap, so that the weights do
-    /// not move with the parameters).
-    pub(super) fn weight(
+    /// A residual's variance parts ([`Row::var`]) in a piece of `len_s`, its grazing factor
+    /// `grazing`: its white variance
+    /// (the declared, [`Noise::variance`]); the footprint's spread at its incidence (before
+    /// the share); the process's wander within the piece, `len / 3 tau` of the navigation
+    /// error's variance along a beam (the position's and the rotations' at the return's
+    /// range, each over a direction averaged over the sphere's cap); the white variance's
+    /// radial part ([`Noise::radial_variance`], what [`super::spread_share`] tests against).
+    /// Its weight is `1 / (white x the factor + share x spread + wander)`, the spread where
+    /// the beam met the sphere at the state the weights are taken at ([`Self::hold`]). The
+    /// weights take the white variance whole, not its radial part: near the silhouette
+    /// what the footprint's bloom model leaves is no smaller (weighed by the radial part,
+    /// table1-real's pitch was biased by -0.34 sigma over 100 seeds).
+    pub(super) fn variance(
         &self,
         pb: &Problem<'_>,
         o: &crate::align::window::Observation,
         len_s: f64,
-    ) -> f64 {
+        grazing: f64,
+    ) -> [f64; 4] {
         let v = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);
+        let radial = pb
+            .weights
+            .map_or(1e-4, |n| n.radial_variance(o, grazing))
+            .max(1e-12);
+        let b = pb
+            .weights
+            .map_or(0.0, |n: Noise| n.spread_variance(o, grazing));
         let sg = self.model.sigmas();
         let r = f64::from(o.range);
         let pos = (sg[0] * sg[0] + sg[1] * sg[1] + sg[2] * sg[2]) / 3.0;
         let rot = r * r * 2.0 / 3.0 * (sg[3] * sg[3] + sg[4] * sg[4] + sg[5] * sg[5]) / 3.0;
         let wander = (pos + rot) * len_s / (3.0 * self.model.correlation_s);
-        1.0 / (v * self.factor + wander)
+        [v, b, wander, radial]
     }
 
     /// The chain prior's diagonal information per axis of piece `i` (`own`) and the link to
@@ -145,8 +180,13 @@ impl Joint<'_, '_> {
         let pb = self.problem();
         let lin = pb.linearised(&self.b());
         let (nu0, nu1) = (self.z[P + 1], self.z[P + 2]);
+        // Where each beam meets its sphere at the state the weights are taken at.
+        let held_b: [f64; P] = core::array::from_fn(|i| self.held[i]);
+        let held = Linearised::at(&held_b);
         for (j, sp) in pb.spheres.iter().enumerate().take(MAX_TARGETS) {
             let centre = self.centre(j);
+            let cj = Q + 3 * j;
+            let held_centre = Vector3::new(self.held[cj], self.held[cj + 1], self.held[cj + 2]);
             for o in sp.obs {
                 let i = piece_of(pieces, o.time);
                 let c = pieces[i].correction(centre);
@@ -154,6 +194,21 @@ impl Joint<'_, '_> {
                     continue;
                 };
                 let n = r.normal;
+                let var = self.variance(&pb, o, pieces[i].len_s(), r.grazing);
+                // The weight's spread where the beam met the sphere at the held state.
+                let spread = if self.spread > 0.0 && var[1] > 0.0 {
+                    let g = held
+                        .grazing(
+                            o,
+                            &sp.target,
+                            pb.dt_at(o),
+                            &pieces[i].held_correction(held_centre),
+                        )
+                        .unwrap_or(r.grazing);
+                    self.spread * pb.weights.map_or(0.0, |n| n.spread_variance(o, g))
+                } else {
+                    0.0
+                };
                 let row = Row {
                     sphere: j,
                     time: o.time,
@@ -163,7 +218,8 @@ impl Joint<'_, '_> {
                     jc: [-n.x, -n.y, -n.z],
                     je: Vec6::from(r.pose_row()),
                     res: r.residual - nu0 - nu1 * r.grazing,
-                    w: self.weight(&pb, o, pieces[i].len_s()),
+                    w: 1.0 / (var[0] * self.factor + spread + var[2]),
+                    var,
                 };
                 f(&mut pieces[i], &row);
             }

@@ -24,6 +24,8 @@ pub struct Piece {
     /// Its 1 sigma (posterior) once [`refine`] returns; during the iterations the step
     /// [`Joint::step`] last computed for it.
     pub sigma: [f64; 6],
+    /// The error the weights are taken at ([`super::joint::Joint::hold`]).
+    pub(super) held: [f64; 6],
     /// [`escape_steps`]' copies of `error`: the minimum found, the best other start's.
     pub(super) kept: [f64; 6],
     pub(super) best: [f64; 6],
@@ -62,6 +64,7 @@ impl Piece {
         n: 0,
         error: [0.0; 6],
         sigma: [0.0; 6],
+        held: [0.0; 6],
         kept: [0.0; 6],
         best: [0.0; 6],
         d: Mat6::from_array_storage(nalgebra::ArrayStorage([[0.0; 6]; 6])),
@@ -92,7 +95,15 @@ impl Piece {
 
     /// Its error taken out of a return on a sphere whose centre moved by `centre`.
     pub(super) fn correction(&self, centre: Vector3<f64>) -> NavCorrection {
-        let e = self.error;
+        Self::correction_at(&self.error, centre)
+    }
+
+    /// As [`Self::correction`] at the error the weights are taken at.
+    pub(super) fn held_correction(&self, centre: Vector3<f64>) -> NavCorrection {
+        Self::correction_at(&self.held, centre)
+    }
+
+    fn correction_at(e: &[f64; 6], centre: Vector3<f64>) -> NavCorrection {
         NavCorrection {
             position: Vector3::new(e[0], e[1], e[2]),
             rotation: Vector3::new(e[3], e[4], e[5]),

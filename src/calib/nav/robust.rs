@@ -17,7 +17,7 @@
 //! White 1985's HC2, per cluster). The priors (the chain's process, the centres' survey) keep
 //! the model's share. Each variance is at least the classic one, as the white model's.
 
-use super::joint::Joint;
+use super::joint::{Joint, Row};
 use super::{MatG, Piece, VecG};
 use crate::calib::lm::Q;
 
@@ -37,26 +37,7 @@ pub(super) fn covariance(
     let mut u = VecG::zeros();
     let mut key: Option<(usize, i64)> = None;
     let mut clusters = 0usize;
-    at.each_row(pieces, |p, r| {
-        // The effective row: j~ = j_g - Y_B^T j_e.
-        let mut jt = VecG::zeros();
-        for a in 0..Q {
-            jt[a] = r.jq[a];
-        }
-        let cj = Q + 3 * r.sphere;
-        for k in 0..3 {
-            jt[cj + k] = r.jc[k];
-        }
-        for q in 0..na {
-            let mut acc = 0.0;
-            for k in 0..6 {
-                acc += p.y[(k, q)] * r.je[k];
-            }
-            jt[q] -= acc;
-        }
-        // The leverage `w (j~^T H^-1 j~ + j_e^T S_p j_e)`: a residual is short of its error by
-        // `1 - h` in variance (a piece of few returns follows them).
-        let hat = r.w * ((jt.transpose() * h_inv * jt)[0] + (r.je.transpose() * p.s * r.je)[0]);
+    with_leverage(at, pieces, h_inv, |r, jt, hat| {
         let scale = 1.0 / libm::sqrt((1.0 - hat).max(0.05));
         let k = r.cluster(cluster_ns);
         if key != Some(k) {
@@ -102,6 +83,38 @@ pub(super) fn covariance(
         }
     }
     out
+}
+
+/// Each row with its effective row `j~ = j_g - Y_B^T j_e` and its leverage
+/// `h = w (j~^T H^-1 j~ + j_e^T S_p j_e)`: a residual is short of its error by `1 - h` in
+/// variance (a piece of few returns follows them). `h_inv` and the pieces' blocks as for
+/// [`covariance`].
+pub(super) fn with_leverage(
+    at: &Joint<'_, '_>,
+    pieces: &mut [Piece],
+    h_inv: &MatG,
+    mut f: impl FnMut(&Row, &VecG, f64),
+) {
+    let na = at.active();
+    at.each_row(pieces, |p, r| {
+        let mut jt = VecG::zeros();
+        for a in 0..Q {
+            jt[a] = r.jq[a];
+        }
+        let cj = Q + 3 * r.sphere;
+        for k in 0..3 {
+            jt[cj + k] = r.jc[k];
+        }
+        for q in 0..na {
+            let mut acc = 0.0;
+            for k in 0..6 {
+                acc += p.y[(k, q)] * r.je[k];
+            }
+            jt[q] -= acc;
+        }
+        let hat = r.w * ((jt.transpose() * h_inv * jt)[0] + (r.je.transpose() * p.s * r.je)[0]);
+        f(r, &jt, hat);
+    });
 }
 
 /// `m += u u^T` over the first `na` rows and columns.

@@ -85,7 +85,10 @@ mod honesty {
 
     /// A survey of four passes (north and south at 9, 12, 21 and 30 m) sampled every 5 ms;
     /// at each sample, returns on the spheres within +-0.38 x range along the track, exact
-    /// for the true pose and reported with the navigation error (the error's truth kept).
+    /// for the true pose and reported with the navigation error (the error's truth kept);
+    /// `along`: the range noise along the beam, growing at incidence `theta` by
+    /// `R spread tan(theta)` (a footprint's spread; `Some(0)`: not growing), else (`None`)
+    /// across the surface.
     /// The returns on each sphere, and the navigation error's truth at each sample (time [ns],
     /// N, E, D, rotation about N, E, D).
     type Truth = Vec<(i64, [f64; 6])>;
@@ -95,6 +98,7 @@ mod honesty {
         c: &Correlated,
         range_sigma: f64,
         hetero: bool,
+        along: Option<f64>,
     ) -> (Vec<Vec<Observation>>, Truth) {
         let mount = crate::georef::Mount::from_params(&crate::georef::Params(TRUTH));
         let mut gm = GaussMarkov::new(c, 0.005, seed);
@@ -146,7 +150,16 @@ mod honesty {
                     } else {
                         range_sigma
                     };
-                    let x = tg.center + nrm * (tg.radius + rng.gauss(sd));
+                    let on = tg.center + nrm * tg.radius;
+                    let x = if let Some(spread) = along {
+                        let u = (on - sensor).normalize();
+                        let cos = u.dot(&nrm).abs().max(0.1);
+                        let tan = libm::sqrt(1.0 - cos * cos) / cos;
+                        let s = (on - sensor).norm() * spread * tan;
+                        on + u * rng.gauss(libm::sqrt(sd * sd + s * s))
+                    } else {
+                        tg.center + nrm * (tg.radius + rng.gauss(sd))
+                    };
                     let q =
                         mount.r_li.transpose() * (r_true.transpose() * (x - p_true) - mount.lever);
                     out[j].push(Observation {
@@ -207,6 +220,21 @@ mod honesty {
         }
     }
 
+    /// The model's solve from the truth, the spheres free within 2 cm, the clock held.
+    fn solve(pb: &Problem<'_>, model: &NavModel, pieces: &mut [Piece]) -> (LmResult, NavFit) {
+        refine(
+            pb,
+            &TRUTH,
+            model,
+            &[0.02, 0.02],
+            &MountPrior::default(),
+            pieces,
+            100,
+            20_000_000,
+            Clock::default(),
+        )
+    }
+
     /// Over `runs` surveys with errors of correlation time `tau`: each parameter's RMS
     /// z-score and the fraction within 3 sigma under the navigation model, and the RMS
     /// z-score of the white-noise solve (`lm::refine`, cluster-robust) on the same returns.
@@ -222,30 +250,21 @@ mod honesty {
             range: 0.009,
             attitude: 0.0,
             position: 0.0,
+            spread: 0.0,
         };
         let (mut z2, mut within, mut white) = ([0.0; P], [0.0; P], [0.0; P]);
         let (mut pz2, mut pn) = ([0.0; 6], 0.0);
         let (mut err2, mut pred, mut classic) = ([0.0; P], [0.0; P], [0.0; P]);
         let mut pieces = std::vec![Piece::EMPTY; 256];
         for seed in 0..runs {
-            let (obs, truth) = survey(seed + 1, &c, 0.009, hetero);
+            let (obs, truth) = survey(seed + 1, &c, 0.009, hetero, None);
             let s = spheres(&obs);
             let pb = problem(&s, noise);
             let m = cut_for(&pb, &model, &mut pieces);
             let clock = Clock::default();
             let p = predict(&pb, &TRUTH, &model, &[0.02, 0.02], &mut pieces[..m], clock)
                 .expect("a prediction");
-            let (l, _) = refine(
-                &pb,
-                &TRUTH,
-                &model,
-                &[0.02, 0.02],
-                &MountPrior::default(),
-                &mut pieces[..m],
-                100,
-                20_000_000,
-                clock,
-            );
+            let (l, _) = solve(&pb, &model, &mut pieces[..m]);
             assert!(l.converged, "seed {seed}: {l:?}");
             for p in &pieces[..m] {
                 let inside: Vec<&[f64; 6]> = truth
@@ -336,6 +355,50 @@ mod honesty {
         );
     }
 
+    /// A LiDAR whose range grows at grazing incidence (a 0.75 mrad footprint's spread, the
+    /// Velodynes'): the residuals show the spread and the weights take it, and the sigmas are
+    /// honest, both bounds; the same survey with the range noise not growing does not show it
+    /// (the weights leave it out).
+    #[test]
+    fn the_footprint_spread_is_taken_where_the_residuals_show_it() {
+        let (c, model) = errors(30.0);
+        let noise = Noise {
+            range: 0.009,
+            attitude: 0.0,
+            position: 0.0,
+            spread: 0.75e-3,
+        };
+        let runs = 40;
+        let mut pieces = std::vec![Piece::EMPTY; 256];
+        let (mut z2, mut within) = ([0.0; P], [0.0; P]);
+        for seed in 0..runs {
+            for spread in [0.75e-3, 0.0] {
+                let (obs, _) = survey(seed + 1, &c, 0.009, false, Some(spread));
+                let s = spheres(&obs);
+                let pb = problem(&s, noise);
+                let m = cut_for(&pb, &model, &mut pieces);
+                let (l, fit) = solve(&pb, &model, &mut pieces[..m]);
+                assert!(l.converged, "seed {seed}: {l:?}");
+                if spread == 0.0 {
+                    assert_eq!(fit.spread_share, 0.0, "seed {seed}: shown without it");
+                    continue;
+                }
+                assert!(fit.spread_share >= 1.0, "seed {seed}: {}", fit.spread_share);
+                for i in 0..P {
+                    let z = (l.b[i] - TRUTH[i]) / l.sigma[i];
+                    z2[i] += z * z / runs as f64;
+                    within[i] += f64::from(u8::from(z.abs() <= 3.0)) / runs as f64;
+                }
+            }
+        }
+        let rms = z2.map(libm::sqrt);
+        std::eprintln!("RMS z {rms:.2?}, within 3 sigma {within:.2?}");
+        for i in 0..P {
+            assert!((0.7..1.4).contains(&rms[i]), "{rms:?}");
+            assert!(within[i] >= 0.95, "{within:?}");
+        }
+    }
+
     /// Capped before its steps turn negligible (a crawl along the pieces' weakly damped
     /// directions), the solve is a minimum when the Gauss-Newton step left moves the mounting
     /// by under half its sigma, else not: each capped answer called converged lies within half
@@ -344,12 +407,13 @@ mod honesty {
     #[test]
     fn a_capped_solve_is_converged_only_within_half_a_sigma() {
         let (c, model) = errors(30.0);
-        let (obs, _) = survey(3, &c, 0.009, false);
+        let (obs, _) = survey(3, &c, 0.009, false, None);
         let s = spheres(&obs);
         let noise = Noise {
             range: 0.009,
             attitude: 0.0,
             position: 0.0,
+            spread: 0.0,
         };
         let pb = problem(&s, noise);
         let mut pieces = std::vec![Piece::EMPTY; 256];

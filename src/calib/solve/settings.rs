@@ -169,6 +169,7 @@ impl Settings {
             range: self.range_noise,
             attitude: self.attitude_noise,
             position: self.position_noise,
+            spread: self.footprint.map_or(0.0, |f| f.sigma[0]),
         }
     }
 }

@@ -12,7 +12,7 @@ use crate::config::site::DEFAULT_CENTRE_SIGMA_M;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::lm::Clock;
 use spherecal::calib::nav::{cut_for, predict, NavModel, Piece};
-use spherecal::calib::objective::{Linearised, Noise, Problem, SphereObs};
+use spherecal::calib::objective::{Noise, Problem, SphereObs};
 use spherecal::georef::P;
 
 /// How far apart in time candidate passes are driven after the survey [s] (beyond a few
@@ -69,11 +69,13 @@ impl NavPlan {
                 correlation_s: c.correlation_s,
             },
             noise: Noise {
-                range: white_range(noise, unit, targets, &per, &b)
-                    .max(noise.range_m)
-                    .max(0.005),
+                // The solver weighs by the declared white noise (times the factor its
+                // residuals give) and, where they show it, the footprint's spread at
+                // incidence (`spherecal::calib::nav::refine`): the plan weighs as it will.
+                range: noise.range_m.max(0.005),
                 attitude: noise.attitude_deg.to_radians(),
                 position: noise.position_m,
+                spread: noise.model(unit).beam_sigma,
             },
             centre_sigma: vec![DEFAULT_CENTRE_SIGMA_M; targets.len()],
             targets: targets.to_vec(),
@@ -260,41 +262,4 @@ impl NavPlan {
         let span = k.and_then(|k| segs.get(k)).map(|(_, a, b)| (*a, *b));
         self.sigma(|t, jj| Some(jj) != j && !span.is_some_and(|(a, b)| t >= a && t < b))
     }
-}
-
-/// The range noise the solver will weigh with: it weighs every return alike by the declared
-/// white noise and scales the weights by the variance factor its residuals give
-/// ([`spherecal::calib::nav::refine`]), so the plan weighs with what that factor makes of
-/// them — the mean over the plan's returns of the residual's range variance: the range noise
-/// and the footprint's spread at incidence
-/// ([`spherecal::calib::predict::NoiseModel::range_variance`]) times `cos(incidence)^2` (only
-/// the radial part moves the residual). The caller keeps at least the declared noise: below it
-/// (short ranges, where `cos^2` shrinks the mean) the residuals' scatter understates what the
-/// answer spreads by (neighbours on a sphere's cap share their errors: `table1-real`'s solver
-/// finds the white noise x0.79 the declared, its Monte Carlo spreads as the declared says).
-/// From 40 m the footprint's spread dominates (`drone-noisy`: x1.56 found; the plan's sigmas
-/// from it within 0-26 % of the Monte Carlo, 15-54 % under before).
-fn white_range(
-    noise: &PlanNoise,
-    unit: f64,
-    targets: &[Target],
-    per: &[Vec<(f64, Observation)>],
-    b: &[f64; P],
-) -> f64 {
-    let model = noise.model(unit);
-    let lin = Linearised::at(b);
-    let (mut sum, mut n) = (0.0, 0usize);
-    for (t, v) in targets.iter().zip(per) {
-        for (_, o) in v {
-            if let Some(r) = lin.row(o, t, 0.0) {
-                let cos2 = (1.0 - r.grazing).clamp(0.0, 1.0);
-                sum += model.range_variance(f64::from(o.range), cos2.sqrt()) * cos2;
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
-        return noise.range_m;
-    }
-    (sum / n as f64).sqrt()
 }

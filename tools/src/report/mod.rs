@@ -413,6 +413,11 @@ pub struct NavigationReport {
     pub pieces: usize,
     /// The white noise's variance found against the declared one.
     pub white_noise_factor: f64,
+    /// The share of the footprint's range spread at grazing incidence the weights took (1:
+    /// as the beam's divergence says; 0: the residuals did not show it, or no divergence is
+    /// known).
+    #[serde(default)]
+    pub footprint_spread: f64,
     /// Each sphere's centre correction from its surveyed one with its 1 sigma.
     pub centres: Vec<CentreCorrection>,
     /// The navigation corrections found: each piece of the time line's error (reported minus

@@ -33,6 +33,7 @@ impl NavigationReport {
             correlation_s: m.correlation_s,
             pieces: fit.map_or(0, |f| f.pieces),
             white_noise_factor: fit.map_or(f64::NAN, |f| f.variance_factor),
+            footprint_spread: fit.map_or(0.0, |f| f.spread_share),
             centres: ids
                 .iter()
                 .enumerate()

@@ -203,6 +203,13 @@ fn navigation(o: &mut String, r: &Report) {
             n.pieces,
             white_noise_words(n.white_noise_factor)
         );
+        if n.footprint_spread > 0.0 {
+            let _ = writeln!(
+                o,
+                "  the range grows at grazing incidence: the returns weighed by the beam footprint's spread x{:.1}",
+                n.footprint_spread
+            );
+        }
         // The corrections over each stretch of the survey (pieces less than 2 s apart; seconds
         // from the first), as means with the pieces' mean sigma (report.json has every piece).
         let t0 = n.corrections.first().map_or(0.0, |c| c.start_gps_s);
