@@ -157,9 +157,9 @@ impl MountPrior {
 /// with [`cut_for`]). At most `max_iter` iterations per pass; between passes (at most four)
 /// the weights are taken again at the pass's solution (iteratively reweighted): where each
 /// beam meets its sphere, whether the footprint's spread at incidence shows
-/// ([`spread_share`]), and the white noise's variance factor, with the design effect of returns within `cluster_ns` of each other on one sphere. The
-/// covariance is the inverse of the
-/// mounting's information with every other parameter marginalised, widened where the
+/// ([`spread_share`]), and the white noise's variance factor, with the design effect of
+/// returns within `cluster_ns` of each other on one sphere. The covariance is the inverse of
+/// the mounting's information with every other parameter marginalised, widened where the
 /// residuals show more than the weights say (cluster-robust, [`robust`]); `sigma_classic`
 /// is the information's alone. `mount`: the prior on the mounting (none:
 /// [`MountPrior::default`]); under white errors the design effect is left to the robust
