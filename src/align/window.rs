@@ -62,7 +62,7 @@ pub struct Observation {
     pub laser: u8,
     /// The trajectory's own 1-sigma at this return, from its accuracy file (POSPac smrmsg):
     /// position [m] and attitude [rad]; 0 where none is given (the solver's noise model then
-    /// uses its settings). See [`crate::calib::objective::Noise`].
+    /// uses its settings). See [`crate::calib::noise::Noise`].
     pub ins_sigma: [f32; 2],
     /// The calibration's working state (the return with the current mounting, and its verdict);
     /// callers leave it at its default.

@@ -430,7 +430,8 @@ pub fn refine(
 mod tests {
     use super::*;
     use crate::align::window::{Observation, Target};
-    use crate::calib::objective::{Noise, SphereObs};
+    use crate::calib::noise::Noise;
+    use crate::calib::objective::SphereObs;
     use crate::frames::rotation;
     use crate::time::GpsTime;
     use nalgebra::Vector3;

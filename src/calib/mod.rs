@@ -18,6 +18,7 @@ pub(crate) mod histogram;
 pub mod lm;
 pub mod nav;
 pub mod nelder_mead;
+pub mod noise;
 pub mod objective;
 pub mod predict;
 pub mod solve;

@@ -7,7 +7,8 @@
 use super::consensus::{Bounds, Candidate};
 use super::extract::{self, ExtractSettings, ReturnClass};
 use super::footprint::Footprint;
-use super::objective::{Noise, Problem, SphereObs, TimeOffset};
+use super::noise::Noise;
+use super::objective::{Problem, SphereObs, TimeOffset};
 use super::sphere_fit::fit_center;
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::georef::{Mount, Params, P};

@@ -141,9 +141,9 @@ pub fn nav_plan(
 ) -> Option<crate::plan::nav::NavPlan> {
     let model = settings.nav?;
     let used: Vec<usize> = sol.spheres.iter().map(|s| s.used).collect();
-    let mut noise = settings.noise();
-    // The share multiplies the spread's variance.
-    noise.spread *= sol.nav.map_or(0.0, |f| f.spread_share).sqrt();
+    let noise = settings
+        .noise()
+        .with_spread_share(sol.nav.map_or(0.0, |f| f.spread_share));
     Some(crate::plan::nav::NavPlan::of_returns(
         model, noise, targets, obs, &used, sol.b.0,
     ))

@@ -5,7 +5,7 @@ use super::score::{plane_vs_sphere, refine, seen_through, support, Sorted};
 use super::vote::{Grid, Peaks};
 use super::{dot, norm, sub, Detection, Directions, ExtractSettings, ReturnClass, V3};
 use crate::align::window::Observation;
-use crate::calib::objective::Noise;
+use crate::calib::noise::Noise;
 
 /// Detect the sphere of radius `r` in one slice (observations georeferenced by
 /// [`georeference`]). `prior`: the centre must lie within this distance of the surveyed one

@@ -9,7 +9,7 @@ use super::scan::{slices, SliceCursor};
 use super::{tag, Detection, Directions, ExtractSettings, ReturnClass};
 use crate::align::window::{Observation, Target};
 use crate::calib::histogram::Histogram;
-use crate::calib::objective::Noise;
+use crate::calib::noise::Noise;
 use crate::calib::sphere_fit::fit_center;
 use crate::time::GpsTime;
 use nalgebra::Vector3;

@@ -7,7 +7,8 @@ use crate::align::window::MAX_TARGETS;
 use crate::calib::lm::VecQ;
 use crate::calib::lm::{row_q, Clock, Mat6, Vec6, DRIFT, Q};
 use crate::calib::nav::P;
-use crate::calib::objective::{Linearised, Noise, Problem};
+use crate::calib::noise::Noise;
+use crate::calib::objective::{Linearised, Problem};
 use nalgebra::{Cholesky, Vector3};
 
 /// The state of the joint least squares: the global parameters and every piece's error.
@@ -25,7 +26,7 @@ pub(super) struct Joint<'a, 'p> {
     pub(super) factor: f64,
     /// The share of the footprint's spread at incidence ([`Noise::spread_variance`]) the
     /// weights take (1: as the beam's divergence says; 0: none, as a solve starts;
-    /// [`super::spread_share`]).
+    /// `weights::spread_share`).
     pub(super) spread: f64,
     /// The prior on the mounting.
     pub(super) mount: MountPrior,
@@ -52,8 +53,21 @@ pub(super) struct Row {
     pub(super) je: Vec6,
     pub(super) res: f64,
     pub(super) w: f64,
-    /// Its variance's parts ([`Joint::variance`]) [m^2].
-    pub(super) var: [f64; 4],
+    /// Its variance's parts ([`Joint::parts`]).
+    pub(super) var: Parts,
+}
+
+/// A residual's variance parts [m^2] ([`Joint::parts`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Parts {
+    /// The declared white noise ([`Noise::variance`]).
+    pub(super) white: f64,
+    /// Its radial part ([`Noise::radial_variance`]).
+    pub(super) radial: f64,
+    /// The footprint's spread at the incidence, before the share.
+    pub(super) spread: f64,
+    /// The navigation process's wander within the piece.
+    pub(super) wander: f64,
 }
 
 impl Row {
@@ -132,31 +146,28 @@ impl Joint<'_, '_> {
         }
     }
 
-    /// A residual's variance parts ([`Row::var`]) in a piece of `len_s`, its grazing factor
-    /// `grazing`: its white variance
-    /// (the declared, [`Noise::variance`]); the footprint's spread at its incidence (before
-    /// the share); the process's wander within the piece, `len / 3 tau` of the navigation
-    /// error's variance along a beam (the position's and the rotations' at the return's
-    /// range, each over a direction averaged over the sphere's cap); the white variance's
-    /// radial part ([`Noise::radial_variance`], what [`super::spread_share`] tests against).
-    /// Its weight is `1 / (white x the factor + share x spread + wander)`, the spread where
+    /// A residual's variance parts in a piece of `len_s`, its grazing factor `grazing`: the
+    /// white noise, its radial part (what `weights::spread_share` tests against), the
+    /// footprint's spread, and the process's wander within the piece, `len / 3 tau` of the
+    /// navigation error's variance along a beam (the position's and the rotations' at the
+    /// return's range, each over a direction averaged over the sphere's cap). Its weight is `1 / (white x the factor + share x spread + wander)`, the spread where
     /// the beam met the sphere at the state the weights are taken at ([`Self::hold`]). The
     /// weights take the white variance whole, not its radial part: near the silhouette
     /// what the footprint's bloom model leaves is no smaller (weighed by the radial part,
     /// table1-real's pitch was biased by -0.34 sigma over 100 seeds).
-    pub(super) fn variance(
+    pub(super) fn parts(
         &self,
         pb: &Problem<'_>,
         o: &crate::align::window::Observation,
         len_s: f64,
         grazing: f64,
-    ) -> [f64; 4] {
-        let v = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);
+    ) -> Parts {
+        let white = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);
         let radial = pb
             .weights
             .map_or(1e-4, |n| n.radial_variance(o, grazing))
             .max(1e-12);
-        let b = pb
+        let spread = pb
             .weights
             .map_or(0.0, |n: Noise| n.spread_variance(o, grazing));
         let sg = self.model.sigmas();
@@ -164,7 +175,12 @@ impl Joint<'_, '_> {
         let pos = (sg[0] * sg[0] + sg[1] * sg[1] + sg[2] * sg[2]) / 3.0;
         let rot = r * r * 2.0 / 3.0 * (sg[3] * sg[3] + sg[4] * sg[4] + sg[5] * sg[5]) / 3.0;
         let wander = (pos + rot) * len_s / (3.0 * self.model.correlation_s);
-        [v, b, wander, radial]
+        Parts {
+            white,
+            radial,
+            spread,
+            wander,
+        }
     }
 
     /// The chain prior's diagonal information per axis of piece `i` (`own`) and the link to
@@ -194,9 +210,9 @@ impl Joint<'_, '_> {
                     continue;
                 };
                 let n = r.normal;
-                let var = self.variance(&pb, o, pieces[i].len_s(), r.grazing);
+                let var = self.parts(&pb, o, pieces[i].len_s(), r.grazing);
                 // The weight's spread where the beam met the sphere at the held state.
-                let spread = if self.spread > 0.0 && var[1] > 0.0 {
+                let spread = if self.spread > 0.0 && var.spread > 0.0 {
                     let g = held
                         .grazing(
                             o,
@@ -218,7 +234,7 @@ impl Joint<'_, '_> {
                     jc: [-n.x, -n.y, -n.z],
                     je: Vec6::from(r.pose_row()),
                     res: r.residual - nu0 - nu1 * r.grazing,
-                    w: 1.0 / (var[0] * self.factor + spread + var[2]),
+                    w: 1.0 / (var.white * self.factor + spread + var.wander),
                     var,
                 };
                 f(&mut pieces[i], &row);

@@ -66,7 +66,8 @@ mod rows {
 mod honesty {
     use super::*;
     use crate::align::window::{Observation, Target};
-    use crate::calib::objective::{Noise, SphereObs};
+    use crate::calib::noise::Noise;
+    use crate::calib::objective::SphereObs;
     use crate::frames::rotation;
     use crate::sim::nav_error::{Correlated, GaussMarkov};
     use std::vec::Vec;

@@ -7,7 +7,7 @@ use super::consistency::{consistency, pass_clocks, Answer};
 use super::outcome::{Lost, Refusal, Solution};
 use super::settings::Settings;
 use crate::align::window::{Observation, Target, MAX_TARGETS};
-use crate::calib::objective::Noise;
+use crate::calib::noise::Noise;
 use crate::georef::P;
 
 /// The residual RMS the noise model predicts over the kept returns ([`Noise::variance`]: range

@@ -179,10 +179,7 @@ pub(super) fn pass_clocks(
         p.dt_shift = shift as f32;
         p.dt_sigma = sigma as f32;
         let z = shift.abs() / sigma;
-        if z > s.held_dt_sigmas
-            && shift.abs() > s.held_dt_floor
-            && worst.as_ref().is_none_or(|(w, _)| z > *w)
-        {
+        if s.offsets_apart(shift, sigma) && worst.as_ref().is_none_or(|(w, _)| z > *w) {
             worst = Some((
                 z,
                 Refusal::ClockInconsistent {
@@ -240,10 +237,7 @@ fn clock_step(passes: &[PassReport], first: i64, s: &Settings) -> Option<Refusal
         let step = xa / wa - xb / wb;
         let sigma = libm::sqrt(1.0 / wa + 1.0 / wb);
         let z = step.abs() / sigma;
-        if z > s.held_dt_sigmas
-            && step.abs() > s.held_dt_floor
-            && best.as_ref().is_none_or(|(b, _)| z > *b)
-        {
+        if s.offsets_apart(step, sigma) && best.as_ref().is_none_or(|(b, _)| z > *b) {
             best = Some((
                 z,
                 Refusal::ClockStep {

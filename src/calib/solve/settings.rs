@@ -8,7 +8,7 @@ use crate::calib::footprint::Footprint;
 use crate::calib::lm::Clock;
 use crate::calib::nav::NavModel;
 use crate::calib::nelder_mead::NmSettings;
-use crate::calib::objective::Noise;
+use crate::calib::noise::Noise;
 use crate::georef::P;
 
 /// Solver settings.
@@ -150,9 +150,17 @@ impl Settings {
     /// put it at `found` with its `sigma` [s]: beyond [`Self::held_dt_sigmas`] and
     /// [`Self::held_dt_floor`].
     pub fn held_contradicted(&self, held: f64, found: f64, sigma: f64) -> Option<Refusal> {
-        let d = (found - held).abs();
-        (d > self.held_dt_floor && d > self.held_dt_sigmas * sigma)
+        self.offsets_apart(found - held, sigma)
             .then_some(Refusal::TimeOffsetContradicted { held, found, sigma })
+    }
+
+    /// Whether two time offsets `d` [s] apart, the difference's 1 sigma `sigma`, are
+    /// different clocks: beyond [`Self::held_dt_sigmas`] sigmas and [`Self::held_dt_floor`]
+    /// (a held offset against the data's, a pass against the rest, the passes either side of
+    /// a step).
+    pub fn offsets_apart(&self, d: f64, sigma: f64) -> bool {
+        let d = d.abs();
+        d > self.held_dt_floor && d > self.held_dt_sigmas * sigma
     }
 
     /// The clock parameters estimated with the six.

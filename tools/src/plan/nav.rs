@@ -12,7 +12,8 @@ use crate::config::site::DEFAULT_CENTRE_SIGMA_M;
 use spherecal::align::window::{Observation, Target};
 use spherecal::calib::lm::Clock;
 use spherecal::calib::nav::{cut_for, predict, NavModel, Piece};
-use spherecal::calib::objective::{Noise, Problem, SphereObs};
+use spherecal::calib::noise::Noise;
+use spherecal::calib::objective::{Problem, SphereObs};
 use spherecal::georef::P;
 
 /// How far apart in time candidate passes are driven after the survey [s] (beyond a few

@@ -302,7 +302,7 @@ fn pontoon_noisy_prediction_agrees_with_monte_carlo() {
 /// refused, RMS z roll 1.32, pitch 1.04, heading 1.06, x 1.32, y 1.15, z 1.20, time offset
 /// 1.18 (seed 1088 at roll +4.8, x -4.5 sigma): the grazing returns weighed as those square
 /// on. With the footprint's spread at incidence in the weights where the residuals show it
-/// (`calib::nav::spread_share`, session 41) none refused, RMS z roll 1.06, pitch 0.87,
+/// (`calib::nav::weights::spread_share`, session 41) none refused, RMS z roll 1.06, pitch 0.87,
 /// heading 0.99, x 1.21, y 0.98, z 1.20, time offset 0.98; MC sd / plan 0.79-1.19; x 96 of
 /// 100 within 3 sigma (1088 at -3.7). Ignored until x holds too (NOTES.md "Issue 46").
 #[test]
