@@ -306,6 +306,9 @@ fn solve_data(
     // 1. Rounds: detect and keep, solve, tighten, until the kept sets stop changing.
     let t_ref = middle_time(obs);
     let mut r = Rounds::init(b0, windowed, s.extract.tau0, bounds, t_ref);
+    // `prepare` georeferenced every return at `b0` with no time offset, as the first round
+    // would.
+    r.placed = true;
     let mut d = Data {
         targets,
         obs,

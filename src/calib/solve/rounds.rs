@@ -70,6 +70,9 @@ pub(super) struct Rounds {
     pub(super) ended: Option<Termination>,
     /// Each sphere's returns kept in the latest round.
     pub(super) kept: [usize; MAX_TARGETS],
+    /// The returns are georeferenced at `b` and `time` already (as [`super::prepare`] leaves
+    /// them at the start): the first extraction does not do it again.
+    pub(super) placed: bool,
     /// What each round did (both starts', in order, once a second start is merged in).
     pub(super) log: heapless::Vec<Round, 32>,
 }
@@ -102,6 +105,7 @@ impl Rounds {
             last_kept: None,
             ended: None,
             kept: [0; MAX_TARGETS],
+            placed: false,
             log: heapless::Vec::new(),
         }
     }
@@ -244,7 +248,9 @@ impl Rounds {
         let n = targets.len();
         let round_tau = self.tau;
         let kept = if self.prior.is_none() {
-            self.first_extract(d, passes)?
+            let kept = self.first_extract(d, passes);
+            self.placed = false;
+            kept?
         } else {
             self.round_extract(d)?
         };
@@ -291,7 +297,9 @@ impl Rounds {
         let mut found = extract::Candidates::new();
         for j in 0..n {
             let v = &mut obs[j][..self.active[j]];
-            extract::georeference(v, &targets[j], &mount, &self.time);
+            if !self.placed {
+                extract::georeference(v, &targets[j], &mount, &self.time);
+            }
             extract::tag(v, ReturnClass::Undetected);
             let (mut slices, mut detected) = (0, 0);
             let mut cursor = extract::SliceCursor::default();
