@@ -78,7 +78,7 @@ fn the_drone_survey_calibrates_from_above_within_1e_3() {
 /// command line under the site's navigation model, converged with every error within 3 of its
 /// reported sigmas, and those sigmas at the INS's own level (the plan's within a factor 2:
 /// 0.03-0.06 deg, 2-6 cm), not the white model's millimetres. The 100-seed check is
-/// `plan::drone_noisy_prediction_agrees_with_monte_carlo` (open).
+/// `plan::drone_noisy_prediction_agrees_with_monte_carlo` (passes; ignored for its 55 s).
 #[test]
 fn the_noisy_drone_survey_calibrates_within_its_sigmas() {
     let d = common::tmp("drone", "noisy");
