@@ -18,6 +18,7 @@ use nalgebra::Vector3;
 
 mod checks;
 mod consistency;
+mod first;
 mod last;
 mod outcome;
 mod passes;

@@ -10,7 +10,7 @@ use super::{
     fingerprint, gather, reach, split_ranges, time_order, with_problem, Residuals, Workspace,
 };
 use crate::align::window::{Observation, Target, MAX_TARGETS};
-use crate::calib::consensus::{consensus, Bounds, Candidate, Consensus, Search};
+use crate::calib::consensus::{Bounds, Consensus};
 use crate::calib::extract::{self, apparent_offsets, Directions, ReturnClass};
 use crate::calib::histogram::Histogram;
 use crate::calib::lm::refine;
@@ -278,138 +278,6 @@ impl Rounds {
         Some((total, print, next_prior, entry))
     }
 
-    /// The first round: every sphere-like candidate of every slice ([`extract::detect_all`]), the
-    /// consensus over them ([`consensus`]) for the mounting and the candidates that are the spheres,
-    /// and the returns within `tau` of those kept. The consensus mounting becomes the rounds'
-    /// parameters; an ambiguous sphere ends the rounds. `None` when fewer than two spheres are
-    /// agreed on.
-    fn first_extract(
-        &mut self,
-        d: &mut Data<'_, '_, '_>,
-        passes: &[PassReport],
-    ) -> Option<[usize; MAX_TARGETS]> {
-        let (targets, s) = (d.targets, d.s);
-        let (obs, ws) = (&mut *d.obs, &mut *d.ws);
-        let n = targets.len();
-        let dirs = Directions::default();
-        let mount = Mount::from_params(&Params(self.b));
-        let mut nc = 0;
-        let mut found = extract::Candidates::new();
-        for j in 0..n {
-            let v = &mut obs[j][..self.active[j]];
-            if !self.placed {
-                extract::georeference(v, &targets[j], &mount, &self.time);
-            }
-            extract::tag(v, ReturnClass::Undetected);
-            let (mut slices, mut detected) = (0, 0);
-            let mut cursor = extract::SliceCursor::default();
-            while let Some(sl) = cursor.next(v) {
-                slices += 1;
-                let slice = &v[sl.clone()];
-                extract::detect_all(
-                    slice,
-                    ws.keys,
-                    targets[j].radius,
-                    self.tau,
-                    None,
-                    ws.grid,
-                    &dirs,
-                    &s.extract,
-                    extract::MAX_CANDIDATES,
-                    &mut found,
-                );
-                detected += u32::from(!found.is_empty());
-                // The pose of the slice's middle return carries its candidates.
-                let rep = &slice[slice.len() / 2];
-                let group = passes
-                    .iter()
-                    .rposition(|p| usize::from(p.sphere) == j && p.start <= rep.time)
-                    .unwrap_or(0);
-                for d in &found {
-                    let Some(c) = Candidate::new(d.center, rep, &targets[j], &mount, &self.time)
-                    else {
-                        continue;
-                    };
-                    if let Some(slot) = ws.cands.get_mut(nc) {
-                        *slot = Candidate {
-                            sphere: j as u8,
-                            group: group as u16,
-                            slice: rep.work.slice,
-                            inliers: d.inliers,
-                            ..c
-                        };
-                        nc += 1;
-                    }
-                }
-            }
-            self.counts[j] = (slices, detected);
-        }
-        let mut search = Search {
-            cands: &mut ws.cands[..nc],
-            targets,
-            time: self.time,
-            bounds: self.bounds,
-            settings: s.consensus,
-        };
-        let Some(c) = consensus(&mut search, &self.b, ws.idx) else {
-            // Not three candidates apart, or no mounting within the bounds explains any.
-            self.consensus = Some(Consensus {
-                b: self.b,
-                score: 0.0,
-                support: [0; MAX_TARGETS],
-                slices: core::array::from_fn(|j| self.counts[j].1),
-                rms: f64::NAN,
-                hypotheses: 0,
-                ambiguous: None,
-            });
-            return None;
-        };
-        self.consensus = Some(c);
-        if let Some(a) = c.ambiguous {
-            self.ended = Some(Termination::Stopped(Refusal::Ambiguous(a)));
-            return None;
-        }
-        // Keep the returns of the chosen candidates (slices and candidates are in one order).
-        let mut kept = [0usize; MAX_TARGETS];
-        let cands = &ws.cands[..nc];
-        let mut k = 0;
-        for j in 0..n {
-            let v = &mut obs[j][..self.active[j]];
-            let mut cursor = extract::SliceCursor::default();
-            while let Some(sl) = cursor.next(v) {
-                let id = v[sl.start + sl.len() / 2].work.slice;
-                while k < nc
-                    && (usize::from(cands[k].sphere) < j
-                        || (usize::from(cands[k].sphere) == j && cands[k].slice < id))
-                {
-                    k += 1;
-                }
-                let mut chosen = None;
-                while k < nc && usize::from(cands[k].sphere) == j && cands[k].slice == id {
-                    if cands[k].chosen {
-                        chosen = Some(cands[k].detected);
-                    }
-                    k += 1;
-                }
-                if let Some(at) = chosen {
-                    kept[j] +=
-                        extract::keep(&mut v[sl], at, targets[j].radius, self.tau, &s.noise());
-                }
-            }
-        }
-        self.b = c.b;
-        if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
-            return None;
-        }
-        for (j, v) in obs.iter_mut().enumerate() {
-            if kept[j] < s.min_points {
-                kept[j] = 0;
-                extract::tag(&mut v[..self.active[j]], ReturnClass::Undetected);
-            }
-        }
-        Some(kept)
-    }
-
     /// Each sphere's returns extracted with the current parameters, shell and prior; spheres with
     /// fewer than `min_points` take no part (kept 0, tagged undetected). `None` when fewer than
     /// two are found.
@@ -539,7 +407,7 @@ impl Rounds {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::consensus::Bounds;
+    use crate::calib::consensus::{Bounds, Candidate};
     use nalgebra::Vector3;
 
     /// Counts what it is told.
