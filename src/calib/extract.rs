@@ -22,7 +22,7 @@ pub use attach::{reject_attachments, reject_touching_plane, set_aside_ground};
 pub use detect::{detect, detect_all, keep, Candidates, MAX_CANDIDATES};
 pub use ground::reject_ground_on_sweeps;
 pub use radius::detections_at_radii;
-pub use scan::{assign_slices, runs, slices, SliceCursor};
+pub use scan::{assign_slices, prepare, runs, slices, time_order, SliceCursor};
 pub(crate) use sphere::apparent_offsets;
 pub use sphere::{compact, extract_sphere, Extraction};
 
@@ -189,14 +189,20 @@ pub(super) fn norm(a: V3) -> f32 {
 /// surveyed centre and the beam's direction, into `work`.
 pub fn georeference(obs: &mut [Observation], t: &Target, mount: &Mount, time: &TimeOffset) {
     for o in obs.iter_mut() {
-        let rot = o.rot();
-        let y = mount.r_li * o.q();
-        let x = o.georef_dt(mount, time.at(o)) - t.center;
-        let u = rot * y;
-        let n = u.norm().max(1e-9);
-        o.work.x = [x.x as f32, x.y as f32, x.z as f32];
-        o.work.u = [(u.x / n) as f32, (u.y / n) as f32, (u.z / n) as f32];
+        place(o, t, mount, time);
     }
+}
+
+/// [`georeference`] for one return.
+#[inline]
+fn place(o: &mut Observation, t: &Target, mount: &Mount, time: &TimeOffset) {
+    let rot = o.rot();
+    let y = mount.r_li * o.q();
+    let x = o.georef_dt(mount, time.at(o)) - t.center;
+    let u = rot * y;
+    let n = u.norm().max(1e-9);
+    o.work.x = [x.x as f32, x.y as f32, x.z as f32];
+    o.work.u = [(u.x / n) as f32, (u.y / n) as f32, (u.z / n) as f32];
 }
 
 /// Tag every observation of a slice.
@@ -368,6 +374,51 @@ mod tests {
         assert_eq!(it.next(), Some(3..5));
         assert_eq!(it.next(), Some(5..7));
         assert_eq!(it.next(), None);
+    }
+
+    /// The one walk of [`prepare`] leaves the returns as the steps it stands for do one after
+    /// the other (sort, georeference, segments, slices, tag), returns out of order included,
+    /// and finds the nearest range.
+    #[test]
+    fn prepare_is_the_steps_in_one_walk() {
+        let mut rng = Rng::new(3);
+        let st = ExtractSettings::default();
+        let t = Target {
+            center: Vector3::new(1.0, 2.0, 3.0),
+            radius: 0.2,
+        };
+        let mount = Mount::from_params(&crate::georef::Params([0.01, -0.02, 0.03, 0.1, 0.2, -0.3]));
+        let mut v = heapless::Vec::<Observation, 2048>::new();
+        for i in 0..2000i64 {
+            let x = Vector3::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), 0.5);
+            let mut o = at(x, Vector3::new(-10.0, 0.0, -2.0));
+            // Firings of 16 lasers, a few with a second return, a gap of a second.
+            o.laser = (i % 16) as u8;
+            o.channel = o.laser;
+            o.block = u8::from(i % 7 == 0);
+            o.time =
+                GpsTime(1_000_000_000 + (i / 16) * 55_296 + i64::from(i >= 1000) * 1_000_000_000);
+            o.range = rng.range(5.0, 6.0) as f32;
+            o.position = Vector3::new(rng.range(-0.1, 0.1), 0.0, 0.0);
+            let _ = v.push(o);
+        }
+        for sorted in [true, false] {
+            let mut a = v.clone();
+            if !sorted {
+                a.reverse();
+            }
+            let mut b = a.clone();
+            let near = prepare(&mut a, &t, &mount, &st, 300);
+            b.sort_unstable_by_key(time_order);
+            georeference(&mut b, &t, &mount, &TimeOffset::default());
+            runs(&mut b, st.firing_ns, st.jump);
+            let slices = assign_slices(&mut b, st.slice_ns, 300);
+            tag(&mut b, ReturnClass::Unclassified);
+            assert!(slices > 6, "{slices}");
+            assert_eq!(a, b);
+            let nearest = b.iter().map(|o| o.range).fold(f32::INFINITY, f32::min);
+            assert_eq!(near, nearest);
+        }
     }
 
     /// A 0.25 m sphere resting on the ground seen from 40 m up and 10 m aside (centre at the

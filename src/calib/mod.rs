@@ -21,6 +21,7 @@ pub mod nelder_mead;
 pub mod noise;
 pub mod objective;
 pub mod predict;
+pub mod room;
 pub mod solve;
 pub mod sphere_fit;
 

@@ -5,10 +5,11 @@
 //! The method and its limits: docs/extraction.md, section 2.
 
 use super::consensus::{Bounds, Candidate};
-use super::extract::{self, ExtractSettings, ReturnClass};
+use super::extract::{self, time_order, ExtractSettings, ReturnClass};
 use super::footprint::Footprint;
 use super::noise::Noise;
 use super::objective::{Problem, SphereObs, TimeOffset};
+use super::room::Room;
 use super::sphere_fit::fit_center;
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::georef::{Mount, Params, P};
@@ -157,9 +158,9 @@ pub struct Workspace<'a> {
     /// The detection's vote grid, all zero (64^3 = 262,144 cells suit windows of a few metres;
     /// fewer cells make coarser votes).
     pub grid: &'a mut [u16],
-    /// Room for the kept returns of a round (all spheres); a round that keeps more solves on an
-    /// evenly spread subset (the last solve always uses every kept return).
-    pub kept: &'a mut [Observation],
+    /// Room for the kept returns of a round (all spheres; 50,000 are ample); a round that keeps
+    /// more solves on an evenly spread subset (the last solve always uses every kept return).
+    pub kept: &'a mut dyn Room<Observation>,
     /// A slice's index by x; its length caps a slice's returns (32,768 is ample: 0.4 s of a
     /// window rarely holds 10,000).
     pub keys: &'a mut [(f32, u32)],
@@ -167,20 +168,21 @@ pub struct Workspace<'a> {
     pub cands: &'a mut [Candidate],
     /// Candidate indices, as long as `cands`.
     pub idx: &'a mut [usize],
-    /// The navigation model's pieces of the time line (128 suit a survey of a few minutes at
-    /// a correlation time of seconds; with fewer the pieces are made longer).
-    pub nav: &'a mut [crate::calib::nav::Piece],
+    /// Room for the navigation model's pieces of the time line (128 suit a survey of a few
+    /// minutes at a correlation time of seconds; with fewer the pieces are made longer).
+    pub nav: &'a mut dyn Room<crate::calib::nav::Piece>,
 }
 
-/// Copy the kept returns of every sphere into `buf` (at most its length, evenly spread when
-/// they do not fit); returns each sphere's range in `buf`.
-fn gather(
+/// Copy the kept returns of every sphere into `room` (at most what it has, evenly spread when
+/// they do not fit); returns the room used and each sphere's range in it.
+fn gather<'b>(
     obs: &[&mut [Observation]],
     active: &[usize],
     kept: &[usize],
-    buf: &mut [Observation],
-) -> [Range<usize>; MAX_TARGETS] {
+    room: &'b mut dyn Room<Observation>,
+) -> (&'b mut [Observation], [Range<usize>; MAX_TARGETS]) {
     let total: usize = kept.iter().sum();
+    let buf = room.room(total);
     let stride = total.div_ceil(buf.len().max(1)).max(1);
     let mut out: [Range<usize>; MAX_TARGETS] = core::array::from_fn(|_| 0..0);
     let mut w = 0;
@@ -197,13 +199,7 @@ fn gather(
         }
         out[j] = start..w;
     }
-    out
-}
-
-/// The returns' order in time (a firing's returns by channel, then block): a slice's returns
-/// together, and the least squares' clusters.
-fn time_order(o: &Observation) -> (GpsTime, u8, u8) {
-    (o.time, o.channel, o.block)
+    (buf, out)
 }
 
 /// The rule for the returns still taking part in the rounds at prior radius `prior` and shell
@@ -212,29 +208,27 @@ fn reach(prior: f64, tau: f64) -> f64 {
     (4.0 * prior).max(0.5) + tau
 }
 
-/// Each sphere's windowed returns in time order (once: the scan-line segments, whose lengths
-/// do not depend on the mounting, and the slices), georeferenced with the start `b0`,
-/// unclassified; and the passes over each sphere.
+/// Each sphere's windowed returns made ready once ([`extract::prepare`]: in time order, the
+/// scan-line segments, whose lengths do not depend on the mounting, and the slices),
+/// georeferenced with the start `b0`, unclassified; the passes over each sphere, and the
+/// nearest return's range [m].
 fn prepare(
     targets: &[Target],
     obs: &mut [&mut [Observation]],
     b0: &Params,
     st: &ExtractSettings,
     slices: usize,
-) -> heapless::Vec<PassReport, MAX_PASSES> {
+) -> (heapless::Vec<PassReport, MAX_PASSES>, f64) {
     let mount0 = Mount::from_params(b0);
+    let mut near = f32::INFINITY;
     for (v, t) in obs.iter_mut().zip(targets) {
-        v.sort_unstable_by_key(time_order);
-        extract::georeference(v, t, &mount0, &TimeOffset::default());
-        extract::runs(v, st.firing_ns, st.jump);
-        extract::assign_slices(v, st.slice_ns, slices);
-        extract::tag(v, ReturnClass::Unclassified);
+        near = near.min(extract::prepare(v, t, &mount0, st, slices));
     }
     let mut passes = heapless::Vec::new();
     for (j, v) in obs.iter().enumerate() {
         find_passes(v, j, st.pass_gap_ns, st.pass_min_ns, &mut passes);
     }
-    passes
+    (passes, f64::from(near))
 }
 
 /// `buf` cut at the ends of consecutive `ranges` (the first starting at 0): one slice each.
@@ -296,8 +290,8 @@ fn solve_data(
     for j in 0..n {
         windowed[j] = obs[j].len();
     }
-    let mut passes = prepare(targets, obs, b0, &s.extract, ws.keys.len());
-    let bounds = bounds(obs, b0, s.margin);
+    let (mut passes, near) = prepare(targets, obs, b0, &s.extract, ws.keys.len());
+    let bounds = bounds(near, b0, s.margin);
     if n < 2 {
         let mut sol = Solution::start(b0, s.extract.tau0);
         sol.bounds = bounds;
@@ -385,18 +379,13 @@ fn solve_data(
 
 /// The box the mounting must stay in: each lever-arm component within `margin` of the start
 /// (a larger error would leave the spheres outside windows made with that margin), each angle
-/// within the angle that moves the nearest windowed return (at least 1 m away) by twice the
-/// margin, between 5 and 45 deg.
-fn bounds(obs: &[&mut [Observation]], b0: &Params, margin: f64) -> Bounds {
+/// within the angle that moves the nearest windowed return (`near` [m], at least 1 m away) by
+/// twice the margin, between 5 and 45 deg.
+fn bounds(near: f64, b0: &Params, margin: f64) -> Bounds {
     if !(margin.is_finite() && margin > 0.0) {
         return Bounds::none(b0);
     }
-    let near = obs
-        .iter()
-        .flat_map(|v| v.iter())
-        .map(|o| f64::from(o.range))
-        .fold(f64::INFINITY, f64::min)
-        .max(1.0);
+    let near = near.max(1.0);
     let angle = if near.is_finite() {
         libm::atan(2.0 * margin / near)
     } else {
@@ -410,12 +399,14 @@ fn bounds(obs: &[&mut [Observation]], b0: &Params, margin: f64) -> Bounds {
 }
 
 /// The middle of the windowed returns' times (the time offset's reference: its drift then
-/// barely correlates with it).
+/// barely correlates with it); each sphere's returns in time order.
 fn middle_time(obs: &[&mut [Observation]]) -> GpsTime {
     let (mut lo, mut hi) = (i64::MAX, i64::MIN);
-    for o in obs.iter().flat_map(|v| v.iter()) {
-        lo = lo.min(o.time.0);
-        hi = hi.max(o.time.0);
+    for v in obs {
+        if let (Some(a), Some(b)) = (v.first(), v.last()) {
+            lo = lo.min(a.time.0);
+            hi = hi.max(b.time.0);
+        }
     }
     if lo > hi {
         GpsTime(0)

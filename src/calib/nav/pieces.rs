@@ -6,6 +6,7 @@ use crate::align::window::MAX_TARGETS;
 use crate::calib::lm::{Mat6, Vec6};
 use crate::calib::objective::NavCorrection;
 use crate::calib::objective::Problem;
+use crate::calib::room::Room;
 use crate::time::GpsTime;
 use nalgebra::Vector3;
 
@@ -115,6 +116,29 @@ impl Piece {
 /// Cut the returns' time line into pieces of at most `len_s` (a gap over 1 s ends one too)
 /// into `out`; the number made, or `None` when more would be needed than `out` holds.
 pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
+    each_piece(pb, len_s, |m, start, end, n| {
+        *out.get_mut(m)? = Piece {
+            start,
+            end,
+            n,
+            ..Piece::EMPTY
+        };
+        Some(())
+    })
+}
+
+/// How many pieces [`cut`] makes at `len_s`.
+pub fn count(pb: &Problem<'_>, len_s: f64) -> usize {
+    each_piece(pb, len_s, |_, _, _, _| Some(())).unwrap_or(0)
+}
+
+/// [`cut`]'s walk: each piece (its index, first and last return's time, returns) to `put`,
+/// which ends the walk with `None`; the number of pieces.
+fn each_piece(
+    pb: &Problem<'_>,
+    len_s: f64,
+    mut put: impl FnMut(usize, GpsTime, GpsTime, usize) -> Option<()>,
+) -> Option<usize> {
     let len_ns = (len_s * 1e9) as i64;
     let gap_ns = 1_000_000_000i64.min(len_ns);
     // A k-way merge of the spheres' returns (each in time order).
@@ -135,12 +159,7 @@ pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
         cur = match cur {
             Some((s, e, n)) if t - s <= len_ns && t - e <= gap_ns => Some((s, t, n + 1)),
             Some((s, e, n)) => {
-                *out.get_mut(m)? = Piece {
-                    start: GpsTime(s),
-                    end: GpsTime(e),
-                    n,
-                    ..Piece::EMPTY
-                };
+                put(m, GpsTime(s), GpsTime(e), n)?;
                 m += 1;
                 Some((t, t, 1))
             }
@@ -148,12 +167,7 @@ pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
         };
     }
     if let Some((s, e, n)) = cur {
-        *out.get_mut(m)? = Piece {
-            start: GpsTime(s),
-            end: GpsTime(e),
-            n,
-            ..Piece::EMPTY
-        };
+        put(m, GpsTime(s), GpsTime(e), n)?;
         m += 1;
     }
     Some(m)
@@ -169,6 +183,12 @@ pub fn cut_for(pb: &Problem<'_>, model: &NavModel, out: &mut [Piece]) -> usize {
         len *= 2.0;
     }
     0
+}
+
+/// [`cut_for`] into room lent for as many pieces as `model`'s length makes ([`count`]): all of
+/// them when the room has them, else as the room's length allows.
+pub fn cut_in(pb: &Problem<'_>, model: &NavModel, room: &mut dyn Room<Piece>) -> usize {
+    cut_for(pb, model, room.room(count(pb, model.piece_s())))
 }
 
 /// The piece of a return at `t` (the pieces cover every return, in order).

@@ -9,8 +9,9 @@ use super::{partition, with_problem, Residuals};
 use crate::align::window::{Observation, MAX_TARGETS};
 use crate::calib::extract::{self, Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
-use crate::calib::nav::{cut_for, refine as refine_nav, Piece};
+use crate::calib::nav::{cut_in, refine as refine_nav, Piece};
 use crate::calib::objective::{Linearised, Problem};
+use crate::calib::room::Room;
 use crate::georef::{Mount, Params, P};
 use crate::time::GpsTime;
 
@@ -118,27 +119,28 @@ impl Rounds {
             Some(_) => Some(s.noise()),
             None => weights(obs, used, s),
         };
-        let fit =
-            |pb: &Problem<'_>, b: &[f64; P], iter: usize, clock: Clock, nav: &mut [Piece]| match &s
-                .nav
-            {
-                Some(model) => {
-                    let m = cut_for(pb, model, nav);
-                    let (l, f) = refine_nav(
-                        pb,
-                        b,
-                        model,
-                        &s.centre_sigma,
-                        &s.mount_prior,
-                        &mut nav[..m],
-                        iter,
-                        s.cluster_ns,
-                        clock,
-                    );
-                    (l, Some(f))
-                }
-                None => (refine(pb, b, iter, s.cluster_ns, clock), None),
-            };
+        let fit = |pb: &Problem<'_>,
+                   b: &[f64; P],
+                   iter: usize,
+                   clock: Clock,
+                   nav: &mut dyn Room<Piece>| match &s.nav {
+            Some(model) => {
+                let m = cut_in(pb, model, nav);
+                let (l, f) = refine_nav(
+                    pb,
+                    b,
+                    model,
+                    &s.centre_sigma,
+                    &s.mount_prior,
+                    nav.room(m),
+                    iter,
+                    s.cluster_ns,
+                    clock,
+                );
+                (l, Some(f))
+            }
+            None => (refine(pb, b, iter, s.cluster_ns, clock), None),
+        };
         let fitted = Residuals::fitted(w, s);
         let lm = (found >= 2).then(|| {
             with_problem(targets, obs, used, 1, self.time, fitted, |pb| {
@@ -202,7 +204,7 @@ impl Rounds {
             let Some(f) = sol.nav.filter(|f| f.worst_step.0 > d.s.max_nav_step_sigmas) else {
                 return;
             };
-            let cut = &d.ws.nav[..f.pieces.min(d.ws.nav.len())];
+            let cut = &*d.ws.nav.room(f.pieces);
             let Some(i) = cut.iter().position(|p| p.start == f.worst_step.1) else {
                 return;
             };

@@ -254,8 +254,7 @@ impl Rounds {
         } else {
             self.round_extract(d)?
         };
-        let ranges = gather(d.obs, &self.active[..n], &kept[..n], d.ws.kept);
-        let buf = &mut *d.ws.kept;
+        let (buf, ranges) = gather(d.obs, &self.active[..n], &kept[..n], d.ws.kept);
         let mut print = 0xcbf2_9ce4_8422_2325u64;
         for rg in ranges.iter().take(n) {
             print = fingerprint(print, &buf[rg.clone()]);

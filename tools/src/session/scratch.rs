@@ -3,6 +3,7 @@
 
 use spherecal::align::window::Observation;
 use spherecal::calib::consensus::Candidate;
+use spherecal::calib::room::Room;
 use spherecal::calib::solve::Workspace;
 
 /// Cells of the detection's vote grid (64^3: 512 KB).
@@ -19,11 +20,41 @@ pub const CANDIDATE_CAPACITY: usize = 16_384;
 #[derive(Debug, Clone)]
 pub struct Scratch {
     grid: Vec<u16>,
-    kept: Vec<Observation>,
+    kept: Growing<Observation>,
     keys: Vec<(f32, u32)>,
     cands: Vec<Candidate>,
     idx: Vec<usize>,
-    nav: Vec<spherecal::calib::nav::Piece>,
+    nav: Growing<spherecal::calib::nav::Piece>,
+}
+
+/// Room that grows on use up to a capacity (written as it grows: a table1 solve uses 2 MB of
+/// the 19 MB the kept returns and the navigation pieces could need, and writing all of it
+/// took 4-13 ms, as long as the solve's first detection).
+#[derive(Debug, Clone)]
+struct Growing<T> {
+    items: Vec<T>,
+    capacity: usize,
+    fill: T,
+}
+
+impl<T: Clone> Growing<T> {
+    fn new(capacity: usize, fill: T) -> Self {
+        Self {
+            items: Vec::new(),
+            capacity,
+            fill,
+        }
+    }
+}
+
+impl<T: Clone + std::fmt::Debug> Room<T> for Growing<T> {
+    fn room(&mut self, n: usize) -> &mut [T] {
+        let k = n.min(self.capacity);
+        if self.items.len() < k {
+            self.items.resize(k, self.fill.clone());
+        }
+        &mut self.items[..k]
+    }
 }
 
 /// Pieces of the navigation model's time line (each ~10 kB; 0.25-0.5 s each: 1,024 hold
@@ -38,8 +69,8 @@ impl Default for Scratch {
 }
 
 impl Scratch {
-    /// For solves under `s`: the navigation model's pieces (10 MB, written as they are
-    /// allocated) only when `s` has one.
+    /// For solves under `s`: room for the navigation model's pieces (up to 10 MB, written as
+    /// a solve uses them) only when `s` has one.
     pub fn for_settings(s: &spherecal::calib::Settings) -> Self {
         Self::with_pieces(if s.nav.is_some() { NAV_PIECES } else { 0 })
     }
@@ -47,11 +78,11 @@ impl Scratch {
     fn with_pieces(pieces: usize) -> Self {
         Self {
             grid: vec![0; GRID_CELLS],
-            kept: vec![Observation::default(); KEPT_CAPACITY],
+            kept: Growing::new(KEPT_CAPACITY, Observation::default()),
             keys: vec![(0.0, 0); SLICE_CAPACITY],
             cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
             idx: vec![0; CANDIDATE_CAPACITY],
-            nav: vec![spherecal::calib::nav::Piece::EMPTY; pieces],
+            nav: Growing::new(pieces, spherecal::calib::nav::Piece::EMPTY),
         }
     }
 
@@ -69,6 +100,29 @@ impl Scratch {
 
     /// The navigation model's pieces the last solve left (its `Solution::nav` says how many).
     pub fn nav_pieces(&self) -> &[spherecal::calib::nav::Piece] {
-        &self.nav
+        &self.nav.items
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn room_grows_on_use_to_its_capacity_and_keeps_what_it_grew() {
+        let mut g = Growing::new(5, 0u8);
+        assert!(g.items.is_empty(), "nothing written before a use");
+        g.room(2).fill(7);
+        assert_eq!(g.items, [7, 7]);
+        assert_eq!(g.room(1), &[7]);
+        assert_eq!(g.room(9).len(), 5);
+        assert_eq!(g.items, [7, 7, 0, 0, 0]);
+    }
+
+    #[test]
+    fn a_white_solve_writes_no_navigation_pieces() {
+        let mut s = Scratch::for_settings(&spherecal::calib::Settings::default());
+        assert!(s.workspace().nav.room(10).is_empty());
+        assert!(s.nav_pieces().is_empty());
     }
 }
