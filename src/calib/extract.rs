@@ -24,7 +24,7 @@ pub use ground::reject_ground_on_sweeps;
 pub use radius::detections_at_radii;
 pub use scan::{assign_slices, prepare, runs, slices, time_order, SliceCursor};
 pub(crate) use sphere::apparent_offsets;
-pub use sphere::{compact, extract_sphere, Extraction};
+pub use sphere::{compact, extract_sphere, place_and_compact, Extraction};
 
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

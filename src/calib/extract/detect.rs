@@ -10,8 +10,9 @@ use crate::calib::noise::Noise;
 /// Detect the sphere of radius `r` in one slice (observations georeferenced by
 /// [`georeference`]). `prior`: the centre must lie within this distance of the surveyed one
 /// (`None`: anywhere, with the shape test). `grid` is scratch for the votes (all zero on entry
-/// and on return; 64^3 cells are plenty); `keys` is scratch for the slice's index by x (at
-/// least as long as the slice; a longer slice is searched in its first `keys.len()` returns).
+/// and on return; 64^3 cells are plenty); `keys` is scratch for the votes' cells, then the
+/// slice's index by x (at least as long as the slice; a longer slice is searched in its first
+/// `keys.len()` returns).
 #[allow(clippy::too_many_arguments)]
 pub fn detect(
     obs: &[Observation],
@@ -75,10 +76,11 @@ pub fn detect_all(
     let Some(g) = region(obs, &voter, r, prior, need, grid.len()) else {
         return;
     };
+    // A slice longer than the index is searched in its first `keys.len()` returns.
+    let obs = &obs[..obs.len().min(keys.len())];
+    let peaks = vote::<K>(obs, &voter, &g, grid, dirs, r, keys);
     // Indexed by x, the returns near a candidate are a contiguous run of the index.
     let sorted = Sorted::new(obs, keys);
-    let obs = sorted.obs;
-    let peaks = vote::<K>(obs, &voter, &g, grid, dirs, r);
     // Refine and score the strongest peaks; keep the best acceptable one.
     let mut order: [usize; K] = core::array::from_fn(|i| i);
     order.sort_unstable_by(|&a, &b| peaks.count[b].cmp(&peaks.count[a]));
@@ -202,8 +204,9 @@ fn region(
 }
 
 /// Vote every voter's possible centres (a radius behind it along each direction facing its
-/// beam); then, per vote, read the cell (its first reader sees its full count: the peaks) and
-/// take the vote back (the grid is left all zero).
+/// beam); then, per vote in the same order, read the cell (its first reader sees its full
+/// count: the peaks) and take the vote back (the grid is left all zero). The votes' cells are
+/// noted in `noted` (scratch) as they are cast, and read back from there when they all fit.
 fn vote<const K: usize>(
     obs: &[Observation],
     voter: &impl Fn(&Observation) -> bool,
@@ -211,29 +214,54 @@ fn vote<const K: usize>(
     grid: &mut [u16],
     dirs: &Directions,
     r: f32,
+    noted: &mut [(f32, u32)],
 ) -> Peaks<K> {
     let mut peaks = Peaks::<K>::new(g.dims);
     let mut min = 0u16;
-    for pass in 0..2 {
-        for o in obs.iter().filter(|o| voter(o)) {
-            let (x, u) = (o.work.x, o.work.u);
-            for d in &dirs.0 {
-                if dot(*d, u) <= 0.0 {
-                    continue;
-                }
-                let c = [x[0] + r * d[0], x[1] + r * d[1], x[2] + r * d[2]];
-                let Some(k) = g.index(c) else { continue };
-                let cell = &mut grid[k as usize];
-                if pass == 0 {
-                    *cell = cell.wrapping_add(1);
-                } else {
-                    peaks.offer(k, *cell, &mut min);
-                    *cell = cell.wrapping_sub(1);
-                }
+    let mut cast = 0usize;
+    each_vote(obs, voter, g, dirs, r, |k| {
+        let cell = &mut grid[k as usize];
+        *cell = cell.wrapping_add(1);
+        if let Some(n) = noted.get_mut(cast) {
+            n.1 = k;
+        }
+        cast += 1;
+    });
+    let mut take_back = |k: u32| {
+        let cell = &mut grid[k as usize];
+        peaks.offer(k, *cell, &mut min);
+        *cell = cell.wrapping_sub(1);
+    };
+    if cast <= noted.len() {
+        noted[..cast].iter().for_each(|n| take_back(n.1));
+    } else {
+        each_vote(obs, voter, g, dirs, r, take_back);
+    }
+    peaks
+}
+
+/// Each vote's cell, voter by voter, direction by direction.
+#[inline]
+fn each_vote(
+    obs: &[Observation],
+    voter: &impl Fn(&Observation) -> bool,
+    g: &Grid,
+    dirs: &Directions,
+    r: f32,
+    mut cast: impl FnMut(u32),
+) {
+    for o in obs.iter().filter(|o| voter(o)) {
+        let (x, u) = (o.work.x, o.work.u);
+        for d in &dirs.0 {
+            if dot(*d, u) <= 0.0 {
+                continue;
+            }
+            let c = [x[0] + r * d[0], x[1] + r * d[1], x[2] + r * d[2]];
+            if let Some(k) = g.index(c) {
+                cast(k);
             }
         }
     }
-    peaks
 }
 
 /// Tag the observations of a slice against a sphere of radius `r` centred at `c` (relative):

@@ -6,11 +6,13 @@
 use super::attach::set_aside_ground;
 use super::detect::{detect, keep};
 use super::scan::{slices, SliceCursor};
-use super::{tag, Detection, Directions, ExtractSettings, ReturnClass};
+use super::{georeference, place, tag, Detection, Directions, ExtractSettings, ReturnClass};
 use crate::align::window::{Observation, Target};
 use crate::calib::histogram::Histogram;
 use crate::calib::noise::Noise;
+use crate::calib::objective::TimeOffset;
 use crate::calib::sphere_fit::fit_center;
+use crate::georef::Mount;
 use crate::time::GpsTime;
 use nalgebra::Vector3;
 
@@ -85,9 +87,39 @@ pub fn extract_sphere(
 /// georeference) behind the others, tagged `OutsideShell`; the near ones keep their order.
 /// Returns how many are near.
 pub fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
+    compact_placed(v, r, reach, |_| {})
+}
+
+/// Georeference one sphere's returns (as [`super::georeference`]) and, given `reach`,
+/// [`compact`] them, in one walk; the returns taking part (all of them without `reach`).
+pub fn place_and_compact(
+    v: &mut [Observation],
+    t: &Target,
+    mount: &Mount,
+    time: &TimeOffset,
+    reach: Option<f64>,
+) -> usize {
+    match reach {
+        Some(reach) => compact_placed(v, t.radius, reach, |o| place(o, t, mount, time)),
+        None => {
+            georeference(v, t, mount, time);
+            v.len()
+        }
+    }
+}
+
+/// [`compact`], each return given to `place` first.
+#[inline]
+fn compact_placed(
+    v: &mut [Observation],
+    r: f64,
+    reach: f64,
+    place: impl Fn(&mut Observation),
+) -> usize {
     let (r, reach) = (r as f32, reach as f32);
     let mut w = 0;
     for i in 0..v.len() {
+        place(&mut v[i]);
         let x = v[i].work.x;
         let d = libm::sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
         if (d - r).abs() <= reach {

@@ -29,11 +29,15 @@ impl<const K: usize> Peaks<K> {
     }
 
     /// Cell `k` now holds `v` votes.
-    #[inline]
+    #[inline(always)]
     pub(super) fn offer(&mut self, k: u32, v: u16, min: &mut u16) {
-        if v <= *min {
-            return;
+        if v > *min {
+            self.enter(k, v, min);
         }
+    }
+
+    /// [`Self::offer`] of a count above the least kept.
+    fn enter(&mut self, k: u32, v: u16, min: &mut u16) {
         // A slot near this cell (within 2 cells) is the same blob: keep the higher one.
         let p = self.xyz(k);
         let slot = (0..K).find(|&i| {

@@ -31,11 +31,12 @@ impl Rounds {
             if !self.placed {
                 extract::georeference(v, &targets[j], &mount, &self.time);
             }
-            extract::tag(v, ReturnClass::Undetected);
             let (mut slices, mut detected) = (0, 0);
             let mut cursor = extract::SliceCursor::default();
             while let Some(sl) = cursor.next(v) {
                 slices += 1;
+                // Tagged slice by slice, while it is at hand.
+                extract::tag(&mut v[sl.clone()], ReturnClass::Undetected);
                 let slice = &v[sl.clone()];
                 extract::detect_all(
                     slice,

@@ -100,11 +100,8 @@ pub(super) fn second_start(
     let mount = Mount::from_params(&Params(r.b));
     for (j, (&w, t)) in windowed.iter().zip(d.targets).enumerate() {
         let v = &mut d.obs[j][..w];
-        extract::georeference(v, t, &mount, &r.time);
-        r.active[j] = match r.prior {
-            Some(p) => extract::compact(v, t.radius, reach(p, r.tau)),
-            None => w,
-        };
+        let far = r.prior.map(|p| reach(p, r.tau));
+        r.active[j] = extract::place_and_compact(v, t, &mount, &r.time, far);
     }
     (both, unsettled)
 }

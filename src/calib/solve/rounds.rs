@@ -289,12 +289,10 @@ impl Rounds {
         let mut kept = [0usize; MAX_TARGETS];
         for j in 0..n {
             let v = &mut obs[j][..self.active[j]];
-            extract::georeference(v, &targets[j], &mount, &self.time);
-            if let Some(p) = self.prior {
-                // Returns far from the sphere (a few prior radii beyond its surface, at least
-                // half a metre) cannot become its returns any more: they leave the rounds.
-                self.active[j] = extract::compact(v, targets[j].radius, reach(p, self.tau));
-            }
+            // Returns far from the sphere (a few prior radii beyond its surface, at least half
+            // a metre) cannot become its returns any more: they leave the rounds.
+            let far = self.prior.map(|p| reach(p, self.tau));
+            self.active[j] = extract::place_and_compact(v, &targets[j], &mount, &self.time, far);
             let v = &mut obs[j][..self.active[j]];
             let how = extract::Extraction {
                 tau: self.tau,
