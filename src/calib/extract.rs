@@ -408,7 +408,13 @@ mod tests {
                 a.reverse();
             }
             let mut b = a.clone();
-            let near = prepare(&mut a, &t, &mount, &st, 300);
+            let mut seen = 0;
+            let near = prepare(&mut a, &t, &mount, &st, 300, |_| seen += 1);
+            assert_eq!(
+                seen,
+                a.len(),
+                "each return given once, after the walk that sorted them"
+            );
             b.sort_unstable_by_key(time_order);
             georeference(&mut b, &t, &mount, &TimeOffset::default());
             runs(&mut b, st.firing_ns, st.jump);

@@ -32,7 +32,7 @@ pub use outcome::{
     Lost, PassReport, Refusal, Round, SecondStart, SetAside, Solution, SphereReport, Termination,
     Unfinished, TERMINATIONS,
 };
-use passes::find_passes;
+use passes::PassFinder;
 pub use rounds::Observe;
 use rounds::{run_rounds, Data, Rounds};
 pub use settings::{ClockFacts, InsStep, Settings, UntrustedLidar};
@@ -221,12 +221,13 @@ fn prepare(
 ) -> (heapless::Vec<PassReport, MAX_PASSES>, f64) {
     let mount0 = Mount::from_params(b0);
     let mut near = f32::INFINITY;
-    for (v, t) in obs.iter_mut().zip(targets) {
-        near = near.min(extract::prepare(v, t, &mount0, st, slices));
-    }
     let mut passes = heapless::Vec::new();
-    for (j, v) in obs.iter().enumerate() {
-        find_passes(v, j, st.pass_gap_ns, st.pass_min_ns, &mut passes);
+    for (j, (v, t)) in obs.iter_mut().zip(targets).enumerate() {
+        let mut finder = PassFinder::new(j, st.pass_gap_ns, st.pass_min_ns, &mut passes);
+        near = near.min(extract::prepare(v, t, &mount0, st, slices, |o| {
+            finder.see(o)
+        }));
+        finder.finish();
     }
     (passes, f64::from(near))
 }

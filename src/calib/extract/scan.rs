@@ -18,7 +18,7 @@ pub fn runs(obs: &mut [Observation], firing_ns: i64, jump: f64) {
     for i in 0..obs.len() {
         seg.measure(obs, i);
     }
-    seg.hand_out(obs);
+    seg.hand_out(obs, |_| {});
 }
 
 /// The walk [`runs`] makes, a return at a time: [`Segments::measure`] in time order keeps each
@@ -63,8 +63,8 @@ impl Segments {
     }
 
     /// After every return was measured: the open segments closed, and every return given its
-    /// segment's length by the same walk.
-    pub(super) fn hand_out(mut self, obs: &mut [Observation]) {
+    /// segment's length by the same walk (and then to `each`).
+    pub(super) fn hand_out(mut self, obs: &mut [Observation], mut each: impl FnMut(&Observation)) {
         for (s, last) in self.state.iter().flatten() {
             obs[*s].work.run = norm(sub(obs[*last].work.x, obs[*s].work.x));
         }
@@ -79,6 +79,7 @@ impl Segments {
                 }
                 _ => self.state[l] = Some((i, i)),
             }
+            each(&obs[i]);
         }
     }
 }
@@ -150,21 +151,22 @@ impl Slicer {
 /// 172 bytes: each walk over them costs what memory moves, so the steps share it): put in
 /// time order ([`time_order`]), georeferenced with `mount` ([`super::georeference`]), their
 /// scan-line segments measured ([`runs`]), their slices numbered ([`assign_slices`]) and
-/// tagged `Unclassified`. Returns the nearest return's range [m] (infinite without returns).
+/// tagged `Unclassified`; each then given to `each`, in time order. Returns the nearest
+/// return's range [m] (infinite without returns).
 pub fn prepare(
     obs: &mut [Observation],
     t: &Target,
     mount: &Mount,
     st: &ExtractSettings,
     max_len: usize,
+    mut each: impl FnMut(&Observation),
 ) -> f32 {
-    let (near, sorted) = walk(obs, t, mount, st, max_len);
-    if sorted {
+    if let Some(near) = walk(obs, t, mount, st, max_len, &mut each) {
         return near;
     }
     // Out of order (rare: the collection appends in arrival order): sorted, and walked again.
     obs.sort_unstable_by_key(time_order);
-    walk(obs, t, mount, st, max_len).0
+    walk(obs, t, mount, st, max_len, &mut each).unwrap_or(f32::INFINITY)
 }
 
 /// The returns' order in time (a firing's returns by channel, then block): a slice's returns
@@ -173,14 +175,16 @@ pub fn time_order(o: &Observation) -> (GpsTime, u8, u8) {
     (o.time, o.channel, o.block)
 }
 
-/// [`prepare`]'s walk: the nearest range, and whether the returns were in time order.
+/// [`prepare`]'s walk: the nearest range; `None` (the segments not handed out, nothing given
+/// to `each`) when the returns are not in time order.
 fn walk(
     obs: &mut [Observation],
     t: &Target,
     mount: &Mount,
     st: &ExtractSettings,
     max_len: usize,
-) -> (f32, bool) {
+    each: &mut impl FnMut(&Observation),
+) -> Option<f32> {
     let mut seg = Segments::new(st.firing_ns, st.jump);
     let mut slicer = Slicer::new(st.slice_ns, max_len);
     let (mut near, mut sorted) = (f32::INFINITY, true);
@@ -196,8 +200,11 @@ fn walk(
         near = near.min(o.range);
         seg.measure(obs, i);
     }
-    seg.hand_out(obs);
-    (near, sorted)
+    if !sorted {
+        return None;
+    }
+    seg.hand_out(obs, each);
+    Some(near)
 }
 
 /// The slices of observations grouped by `work.slice` (any order within a slice): the index

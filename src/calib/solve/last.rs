@@ -3,7 +3,7 @@
 
 use super::checks::weights;
 use super::outcome::{PassReport, Solution};
-use super::passes::pass_of;
+use super::passes::{pass_of, PassCursor};
 use super::rounds::{Data, Rounds};
 use super::{partition, with_problem, Residuals};
 use crate::align::window::{Observation, MAX_TARGETS};
@@ -75,10 +75,11 @@ impl Rounds {
                 extract::tag(obs[j], ReturnClass::NotFound);
                 used[j] = 0;
             }
+            let mut at = PassCursor::default();
             for o in obs[j].iter() {
                 let k = usize::from(o.work.verdict).min(7);
                 tallies[j][k] += 1;
-                if let Some(p) = pass_of(mine, o.time) {
+                if let Some(p) = at.pass_of(mine, o.time) {
                     p.verdicts[k] += 1;
                     if k == ReturnClass::Kept as usize {
                         p.course[0] += o.velocity.x;

@@ -264,7 +264,7 @@ pub enum Lost {
     Stopped,
 }
 
-/// One pass over one sphere: its window's returns on one course ([`find_passes`]).
+/// One pass over one sphere: its window's returns on one course ([`PassFinder`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PassReport {
     /// Sphere index.
