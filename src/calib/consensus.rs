@@ -35,6 +35,10 @@ pub struct Candidate {
     pub group: u16,
     /// Slice number (within its sphere's observations).
     pub slice: u32,
+    /// Its slice's returns: `at..at + len` of its sphere's (as the first round left them).
+    pub at: u32,
+    /// See `at`.
+    pub len: u32,
     /// Its detection's centre relative to the surveyed one, with the start mounting [m].
     pub detected: [f32; 3],
     /// Its detection's inliers.

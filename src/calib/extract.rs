@@ -23,6 +23,7 @@ pub use detect::{detect, detect_all, keep, Candidates, MAX_CANDIDATES};
 pub use ground::reject_ground_on_sweeps;
 pub use radius::detections_at_radii;
 pub use scan::{assign_slices, prepare, runs, slices, time_order, SliceCursor};
+pub use score::Key;
 pub(crate) use sphere::apparent_offsets;
 pub use sphere::{compact, extract_sphere, place_and_compact, Extraction};
 
@@ -291,7 +292,7 @@ mod tests {
             let _ = obs.push(at(p, sensor));
         }
         let mut grid = [0u16; 32 * 32 * 32];
-        let mut keys = [(0f32, 0u32); 8192];
+        let mut keys = [Key::default(); 8192];
         let dirs = Directions::default();
         let st = ExtractSettings::default();
         let det =
@@ -346,7 +347,7 @@ mod tests {
             let _ = obs.push(at(p, sensor));
         }
         let mut grid = [0u16; 32 * 32 * 32];
-        let mut keys = [(0f32, 0u32); 8192];
+        let mut keys = [Key::default(); 8192];
         let det = detect(
             &obs,
             &mut keys,

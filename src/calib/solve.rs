@@ -163,11 +163,12 @@ pub struct Workspace<'a> {
     pub kept: &'a mut dyn Room<Observation>,
     /// A slice's index by x; its length caps a slice's returns (32,768 is ample: 0.4 s of a
     /// window rarely holds 10,000).
-    pub keys: &'a mut [(f32, u32)],
-    /// The first round's candidates (up to four per slice of each window; more are dropped).
-    pub cands: &'a mut [Candidate],
-    /// Candidate indices, as long as `cands`.
-    pub idx: &'a mut [usize],
+    pub keys: &'a mut [extract::Key],
+    /// Room for the first round's candidates (up to four per slice of each window; more are
+    /// dropped).
+    pub cands: &'a mut dyn Room<Candidate>,
+    /// Room for candidate indices, as much as for `cands`.
+    pub idx: &'a mut dyn Room<usize>,
     /// Room for the navigation model's pieces of the time line (128 suit a survey of a few
     /// minutes at a correlation time of seconds; with fewer the pieces are made longer).
     pub nav: &'a mut dyn Room<crate::calib::nav::Piece>,

@@ -1,7 +1,7 @@
 //! One slice's detection: votes, peaks, refinement, scoring and acceptance ([`detect`],
 //! [`detect_all`] for the first round's candidates), and the returns kept around it ([`keep`]).
 
-use super::score::{plane_vs_sphere, refine, seen_through, support, Sorted};
+use super::score::{plane_vs_sphere, refine, seen_through, support, Key, Sorted};
 use super::vote::{Grid, Peaks};
 use super::{dot, norm, sub, Detection, Directions, ExtractSettings, ReturnClass, V3};
 use crate::align::window::Observation;
@@ -16,7 +16,7 @@ use crate::calib::noise::Noise;
 #[allow(clippy::too_many_arguments)]
 pub fn detect(
     obs: &[Observation],
-    keys: &mut [(f32, u32)],
+    keys: &mut [Key],
     r: f64,
     tau: f64,
     prior: Option<f64>,
@@ -42,7 +42,7 @@ pub type Candidates = heapless::Vec<Detection, MAX_CANDIDATES>;
 #[allow(clippy::too_many_arguments)]
 pub fn detect_all(
     obs: &[Observation],
-    keys: &mut [(f32, u32)],
+    keys: &mut [Key],
     r: f64,
     tau: f64,
     prior: Option<f64>,
@@ -214,7 +214,7 @@ fn vote<const K: usize>(
     grid: &mut [u16],
     dirs: &Directions,
     r: f32,
-    noted: &mut [(f32, u32)],
+    noted: &mut [Key],
 ) -> Peaks<K> {
     let mut peaks = Peaks::<K>::new(g.dims);
     let mut min = 0u16;
@@ -223,7 +223,7 @@ fn vote<const K: usize>(
         let cell = &mut grid[k as usize];
         *cell = cell.wrapping_add(1);
         if let Some(n) = noted.get_mut(cast) {
-            n.1 = k;
+            n.i = k;
         }
         cast += 1;
     });
@@ -233,7 +233,7 @@ fn vote<const K: usize>(
         *cell = cell.wrapping_sub(1);
     };
     if cast <= noted.len() {
-        noted[..cast].iter().for_each(|n| take_back(n.1));
+        noted[..cast].iter().for_each(|n| take_back(n.i));
     } else {
         each_vote(obs, voter, g, dirs, r, take_back);
     }

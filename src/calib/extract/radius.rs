@@ -5,6 +5,7 @@
 
 use super::detect::detect;
 use super::scan::{assign_slices, runs, slices};
+use super::score::Key;
 use super::{georeference, Directions, ExtractSettings};
 use crate::align::window::{Observation, Target};
 use crate::calib::objective::TimeOffset;
@@ -22,7 +23,7 @@ pub fn detections_at_radii(
     t: &Target,
     mount: &Mount,
     st: &ExtractSettings,
-    keys: &mut [(f32, u32)],
+    keys: &mut [Key],
     grid: &mut [u16],
     radii: &[f64],
     max_slices: usize,

@@ -18,29 +18,42 @@ pub struct Support {
     pub collar: u32,
 }
 
-/// A slice of observations with its index sorted by x (`keys`: x and the observation's
-/// index): the returns near a point are a contiguous run of the index.
+/// A return in a slice's index: where it is (its `work.x`, held here so that a query reads
+/// the index, not the 160-byte returns it passes over) and its index in the slice.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Key {
+    /// The return's `work.x` [m].
+    pub x: [f32; 3],
+    /// Its index in the slice.
+    pub i: u32,
+}
+
+/// A slice of observations with its index sorted by x (`keys`): the returns near a point are
+/// a contiguous run of the index.
 #[derive(Debug, Clone, Copy)]
 pub struct Sorted<'a> {
     /// The observations (any order).
     pub obs: &'a [Observation],
-    /// (x, index), by x.
-    pub keys: &'a [(f32, u32)],
+    /// Their keys, by x.
+    pub keys: &'a [Key],
 }
 
 impl<'a> Sorted<'a> {
     /// Index `obs` by x into `keys` (at least as long as `obs`; the rest is scratch): by x in
     /// its total order, equal x by index.
-    pub fn new(obs: &'a [Observation], keys: &'a mut [(f32, u32)]) -> Self {
+    pub fn new(obs: &'a [Observation], keys: &'a mut [Key]) -> Self {
         let n = obs.len().min(keys.len());
         for (i, (k, o)) in keys.iter_mut().zip(obs).enumerate() {
-            *k = (o.work.x[0], i as u32);
+            *k = Key {
+                x: o.work.x,
+                i: i as u32,
+            };
         }
         if 2 * n <= keys.len() {
             let (a, b) = keys.split_at_mut(n);
             radix_sort(a, &mut b[..n]);
         } else {
-            keys[..n].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            keys[..n].sort_unstable_by(|a, b| a.x[0].total_cmp(&b.x[0]).then(a.i.cmp(&b.i)));
         }
         Self {
             obs: &obs[..n],
@@ -48,14 +61,29 @@ impl<'a> Sorted<'a> {
         }
     }
 
+    /// The keys whose x lies within `reach` of `cx`.
+    fn slab(&self, cx: f32, reach: f32) -> &'a [Key] {
+        let a = self.keys.partition_point(|k| k.x[0] < cx - reach);
+        let b = self.keys.partition_point(|k| k.x[0] <= cx + reach);
+        &self.keys[a..b.max(a)]
+    }
+
     /// The returns whose x lies within `reach` of `cx`.
     pub fn near(&self, cx: f32, reach: f32) -> impl Iterator<Item = &'a Observation> + Clone {
-        let a = self.keys.partition_point(|k| k.0 < cx - reach);
-        let b = self.keys.partition_point(|k| k.0 <= cx + reach);
         let obs = self.obs;
-        self.keys[a..b.max(a)]
+        self.slab(cx, reach).iter().map(move |k| &obs[k.i as usize])
+    }
+
+    /// The returns within `reach` of `c` (`|x - c|^2 <= reach^2`, as the callers test it).
+    pub fn within(&self, c: V3, reach: f32) -> impl Iterator<Item = &'a Observation> + Clone {
+        let obs = self.obs;
+        self.slab(c[0], reach)
             .iter()
-            .map(move |k| &obs[k.1 as usize])
+            .filter(move |k| {
+                let d = sub(k.x, c);
+                dot(d, d) <= reach * reach
+            })
+            .map(move |k| &obs[k.i as usize])
     }
 }
 
@@ -73,14 +101,14 @@ fn ordered(x: f32) -> u32 {
 /// Sort `keys` (indices in increasing order) by x, stably: a least-significant-byte-first
 /// radix sort through `tmp` (as long as `keys`), a byte all keys share skipped. The order is
 /// [`Sorted::new`]'s comparison sort's, in linear time (a slice's index: 3.4 -> ~1 ms a solve).
-fn radix_sort(keys: &mut [(f32, u32)], tmp: &mut [(f32, u32)]) {
+fn radix_sort(keys: &mut [Key], tmp: &mut [Key]) {
     let n = keys.len();
     let (mut src, mut dst) = (keys, tmp);
     let mut in_tmp = false;
     for shift in [0u32, 8, 16, 24] {
         let mut count = [0usize; 256];
         for k in src.iter() {
-            count[((ordered(k.0) >> shift) & 0xff) as usize] += 1;
+            count[((ordered(k.x[0]) >> shift) & 0xff) as usize] += 1;
         }
         if count.contains(&n) {
             continue;
@@ -90,7 +118,7 @@ fn radix_sort(keys: &mut [(f32, u32)], tmp: &mut [(f32, u32)]) {
             (*c, at) = (at, at + *c);
         }
         for k in src.iter() {
-            let b = ((ordered(k.0) >> shift) & 0xff) as usize;
+            let b = ((ordered(k.x[0]) >> shift) & 0xff) as usize;
             dst[count[b]] = *k;
             count[b] += 1;
         }
@@ -110,7 +138,7 @@ pub fn support(obs: &Sorted<'_>, c: V3, r: f32, tau: f32) -> Support {
     let mut s = Support::default();
     let collar = r + tau + (2.0 * tau).max(0.05);
     let inner = r - tau.max(0.02);
-    for o in obs.near(c[0], collar) {
+    for o in obs.within(c, collar) {
         let d = sub(o.work.x, c);
         let e2 = dot(d, d);
         if e2 > collar * collar {
@@ -163,7 +191,7 @@ pub fn refine(obs: &Sorted<'_>, mut c: V3, r: f32, band: f32) -> V3 {
         let mut jtr = Vector3::<f32>::zeros();
         let mut n = 0;
         let reach = r + band;
-        for o in obs.near(c[0], reach) {
+        for o in obs.within(c, reach) {
             let d = sub(o.work.x, c);
             let e2 = dot(d, d);
             if e2 > reach * reach {
@@ -243,7 +271,7 @@ pub(super) fn eigenvalues(m: Matrix3<f32>) -> Option<[f32; 3]> {
 
 #[cfg(test)]
 mod tests {
-    use super::radix_sort;
+    use super::{radix_sort, Key};
     use crate::sim::rng::Rng;
 
     /// The radix sort puts keys in the comparison sort's order (x's total order, then index):
@@ -252,7 +280,7 @@ mod tests {
     fn the_radix_sort_is_the_total_order_by_x_then_index() {
         let mut rng = Rng::new(5);
         for n in [0usize, 1, 2, 7, 300, 3000] {
-            let mut keys: heapless::Vec<(f32, u32), 3000> = heapless::Vec::new();
+            let mut keys: heapless::Vec<Key, 3000> = heapless::Vec::new();
             for i in 0..n {
                 let x = match i % 9 {
                     0 => 0.0,
@@ -262,15 +290,18 @@ mod tests {
                     4 => 1.25,
                     _ => rng.range(-40.0, 40.0) as f32,
                 };
-                let _ = keys.push((x, i as u32));
+                let _ = keys.push(Key {
+                    x: [x, 0.5, -0.5],
+                    i: i as u32,
+                });
             }
             let mut want = keys.clone();
-            want.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            let mut tmp = [(0f32, 0u32); 3000];
+            want.sort_unstable_by(|a, b| a.x[0].total_cmp(&b.x[0]).then(a.i.cmp(&b.i)));
+            let mut tmp = [Key::default(); 3000];
             radix_sort(&mut keys, &mut tmp[..n]);
-            let bits = |v: &[(f32, u32)]| {
+            let bits = |v: &[Key]| {
                 v.iter()
-                    .map(|k| (k.0.to_bits(), k.1))
+                    .map(|k| (k.x[0].to_bits(), k.i))
                     .collect::<heapless::Vec<_, 3000>>()
             };
             assert_eq!(bits(&keys), bits(&want), "n = {n}");

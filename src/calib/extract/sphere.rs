@@ -6,6 +6,7 @@
 use super::attach::set_aside_ground;
 use super::detect::{detect, keep};
 use super::scan::{slices, SliceCursor};
+use super::score::Key;
 use super::{georeference, place, tag, Detection, Directions, ExtractSettings, ReturnClass};
 use crate::align::window::{Observation, Target};
 use crate::calib::histogram::Histogram;
@@ -42,7 +43,7 @@ pub fn extract_sphere(
     t: &Target,
     how: &Extraction<'_>,
     grid: &mut [u16],
-    keys: &mut [(f32, u32)],
+    keys: &mut [Key],
     mut on_slice: impl FnMut(GpsTime, Option<&Detection>),
 ) -> (usize, u32, u32) {
     let Extraction {

@@ -62,11 +62,13 @@ impl Rounds {
                     else {
                         continue;
                     };
-                    if let Some(slot) = ws.cands.get_mut(nc) {
+                    if let Some(slot) = ws.cands.room(nc + 1).get_mut(nc) {
                         *slot = Candidate {
                             sphere: j as u8,
                             group: group as u16,
                             slice: rep.work.slice,
+                            at: sl.start as u32,
+                            len: sl.len() as u32,
                             inliers: d.inliers,
                             ..c
                         };
@@ -77,13 +79,13 @@ impl Rounds {
             self.counts[j] = (slices, detected);
         }
         let mut search = Search {
-            cands: &mut ws.cands[..nc],
+            cands: ws.cands.room(nc),
             targets,
             time: self.time,
             bounds: self.bounds,
             settings: s.consensus,
         };
-        let Some(c) = consensus(&mut search, &self.b, ws.idx) else {
+        let Some(c) = consensus(&mut search, &self.b, ws.idx.room(nc)) else {
             // Not three candidates apart, or no mounting within the bounds explains any.
             self.consensus = Some(Consensus {
                 b: self.b,
@@ -116,33 +118,31 @@ impl Rounds {
     }
 
     /// Each sphere's returns within `tau` of its chosen candidates (the first `nc` of the
-    /// scratch; slices and candidates are in one order): the count kept.
+    /// scratch, in the order of their spheres and slices; of a slice's, the last chosen): the
+    /// count kept.
     fn keep_chosen(&self, d: &mut Data<'_, '_, '_>, nc: usize) -> [usize; MAX_TARGETS] {
         let (targets, noise) = (d.targets, d.s.noise());
-        let cands = &d.ws.cands[..nc];
+        let cands = &*d.ws.cands.room(nc);
         let mut kept = [0usize; MAX_TARGETS];
         let mut k = 0;
-        for (j, t) in targets.iter().enumerate() {
-            let v = &mut d.obs[j][..self.active[j]];
-            let mut cursor = extract::SliceCursor::default();
-            while let Some(sl) = cursor.next(v) {
-                let id = v[sl.start + sl.len() / 2].work.slice;
-                while k < nc
-                    && (usize::from(cands[k].sphere) < j
-                        || (usize::from(cands[k].sphere) == j && cands[k].slice < id))
-                {
-                    k += 1;
+        while let Some(first) = cands.get(k) {
+            let mut chosen = None;
+            while let Some(c) = cands
+                .get(k)
+                .filter(|c| c.sphere == first.sphere && c.slice == first.slice)
+            {
+                if c.chosen {
+                    chosen = Some(c.detected);
                 }
-                let mut chosen = None;
-                while k < nc && usize::from(cands[k].sphere) == j && cands[k].slice == id {
-                    if cands[k].chosen {
-                        chosen = Some(cands[k].detected);
-                    }
-                    k += 1;
-                }
-                if let Some(at) = chosen {
-                    kept[j] += extract::keep(&mut v[sl], at, t.radius, self.tau, &noise);
-                }
+                k += 1;
+            }
+            let j = usize::from(first.sphere);
+            let slice = (first.at as usize)..(first.at + first.len) as usize;
+            let (Some(at), Some(t)) = (chosen, targets.get(j)) else {
+                continue;
+            };
+            if let Some(v) = d.obs.get_mut(j).and_then(|v| v.get_mut(slice)) {
+                kept[j] += extract::keep(v, at, t.radius, self.tau, &noise);
             }
         }
         kept

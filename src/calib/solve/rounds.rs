@@ -453,8 +453,11 @@ mod tests {
         let targets = [t, t];
         let (mut a, mut b): ([Observation; 0], [Observation; 0]) = ([], []);
         let mut obs: [&mut [Observation]; 2] = [&mut a, &mut b];
-        let (mut grid, mut kept, mut keys) =
-            ([0u16; 8], [Observation::default(); 4], [(0f32, 0u32); 4]);
+        let (mut grid, mut kept, mut keys) = (
+            [0u16; 8],
+            [Observation::default(); 4],
+            [extract::Key::default(); 4],
+        );
         let (mut cands, mut idx) = ([Candidate::default(); 4], [0usize; 4]);
         let mut nav = [crate::calib::nav::Piece::EMPTY; 1];
         let mut ws = Workspace {

@@ -21,9 +21,9 @@ pub const CANDIDATE_CAPACITY: usize = 16_384;
 pub struct Scratch {
     grid: Vec<u16>,
     kept: Growing<Observation>,
-    keys: Vec<(f32, u32)>,
-    cands: Vec<Candidate>,
-    idx: Vec<usize>,
+    keys: Vec<spherecal::calib::extract::Key>,
+    cands: Growing<Candidate>,
+    idx: Growing<usize>,
     nav: Growing<spherecal::calib::nav::Piece>,
 }
 
@@ -79,9 +79,9 @@ impl Scratch {
         Self {
             grid: vec![0; GRID_CELLS],
             kept: Growing::new(KEPT_CAPACITY, Observation::default()),
-            keys: vec![(0.0, 0); SLICE_CAPACITY],
-            cands: vec![Candidate::default(); CANDIDATE_CAPACITY],
-            idx: vec![0; CANDIDATE_CAPACITY],
+            keys: vec![Default::default(); SLICE_CAPACITY],
+            cands: Growing::new(CANDIDATE_CAPACITY, Candidate::default()),
+            idx: Growing::new(CANDIDATE_CAPACITY, 0),
             nav: Growing::new(pieces, spherecal::calib::nav::Piece::EMPTY),
         }
     }
