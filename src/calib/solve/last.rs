@@ -70,7 +70,9 @@ impl Rounds {
                 let band = 3.5 * s.noise().range + 0.01;
                 extract::reject_ground_on_sweeps(v, targets[j].radius, tau, band);
             }
-            used[j] = partition(obs[j]);
+            // Only the returns still taking part can be kept: the rest were set behind them
+            // as `OutsideShell` (`extract::place_and_compact`).
+            used[j] = partition(&mut obs[j][..self.active[j]]);
             if used[j] < s.min_points {
                 extract::tag(obs[j], ReturnClass::NotFound);
                 used[j] = 0;
