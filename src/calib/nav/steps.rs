@@ -27,7 +27,7 @@ fn step_within(at: &mut Joint<'_, '_>, sums: &Sums, pieces: &mut [Piece], k: f64
 const SLOW_GAIN: f64 = 1e-6;
 /// ... and ends the iterations when the Gauss-Newton step left is within this many sigmas
 /// of every global (a thousandth of its variance): the rest is polish no answer shows.
-pub(super) const SETTLED_SIGMAS: f64 = 0.03;
+const SETTLED_SIGMAS: f64 = 0.03;
 
 /// Levenberg-Marquardt steps on the joint state (as [`super::lm`]'s): the last sums, the
 /// iterations and whether a negligible step or decrease ended them. A rejected step puts the
@@ -36,22 +36,6 @@ pub(super) fn iterate(
     at: &mut Joint<'_, '_>,
     pieces: &mut [Piece],
     max_iter: usize,
-) -> (Sums, usize, bool) {
-    iterate_to(at, pieces, max_iter, SETTLED_SIGMAS)
-}
-
-/// A pass whose solution only places the next pass's weights settles when the Gauss-Newton
-/// step left is within this many sigmas, without the polish (table1-real: its final fit
-/// 35 -> 27 ms, the answer moved by under 0.002 sigma).
-pub(super) const WEIGHTS_SIGMAS: f64 = 0.3;
-
-/// [`iterate`], settled when the Gauss-Newton step left is within `settled` sigmas (above
-/// [`SETTLED_SIGMAS`]: at once, and no Gauss-Newton polish).
-pub(super) fn iterate_to(
-    at: &mut Joint<'_, '_>,
-    pieces: &mut [Piece],
-    max_iter: usize,
-    settled: f64,
 ) -> (Sums, usize, bool) {
     let mut sums = at.evaluate(pieces);
     let mut lambda = 1e-3;
@@ -77,8 +61,7 @@ pub(super) fn iterate_to(
             sums = trial;
             lambda = (lambda / 10.0).max(1e-12);
             if small
-                || ((gain <= SLOW_GAIN * sums.cost || settled > SETTLED_SIGMAS)
-                    && step_within(at, &sums, pieces, settled))
+                || (gain <= SLOW_GAIN * sums.cost && step_within(at, &sums, pieces, SETTLED_SIGMAS))
             {
                 converged = true;
                 break;
@@ -118,7 +101,7 @@ pub(super) fn iterate_to(
     }
     // Gauss-Newton to the end: the pieces' and centres' directions are nearly linear and
     // weakly damped by their priors alone, where Marquardt's steps crawl.
-    if converged && settled <= SETTLED_SIGMAS {
+    if converged {
         for _ in 0..20 {
             let Some(dz) = at.step(&sums, pieces, 0.0) else {
                 break;

@@ -3,7 +3,7 @@
 //! ([`spread_share`]), and the white noise's variance factor ([`white_noise_factor`]).
 
 use super::joint::{Joint, Sums};
-use super::steps::{iterate, iterate_to, SETTLED_SIGMAS, WEIGHTS_SIGMAS};
+use super::steps::iterate;
 use super::{robust, Piece, Q};
 
 /// Up to four passes of Levenberg-Marquardt at most `max_iter` iterations each, the weights
@@ -18,15 +18,7 @@ pub(super) fn passes(
     let (mut iterations, mut converged) = (0, false);
     let mut sums = at.evaluate(pieces);
     for pass in 0..4 {
-        // The first two passes' solutions place the weights (and test the footprint's share):
-        // settled to a few tenths of a sigma; the last to the full.
-        let for_weights = pass < 2;
-        let settled = if for_weights {
-            WEIGHTS_SIGMAS
-        } else {
-            SETTLED_SIGMAS
-        };
-        (sums, iterations, converged) = iterate_to(at, pieces, max_iter, settled);
+        (sums, iterations, converged) = iterate(at, pieces, max_iter);
         // Iteratively reweighted: within a pass the weights stay put; after it they are
         // taken at its solution (where each beam meets its sphere), with the footprint's
         // share (tested after the first two passes) and the white noise's factor its
@@ -44,11 +36,6 @@ pub(super) fn passes(
         let clusters = if at.model.is_white() { 0 } else { cluster_ns };
         let s2 = white_noise_factor(at, pieces, &sums, clusters);
         if !(s2.is_finite() && s2 > 0.0) || ((s2 - 1.0).abs() < 0.05 && !moved) {
-            if for_weights && converged {
-                // The weights settle here: the solution to the full, and the weights at it.
-                (sums, iterations, converged) = iterate(at, pieces, max_iter);
-                at.hold(pieces);
-            }
             if at.spread > 0.0 {
                 // The sums at the weights (held anew) the covariance takes.
                 sums = at.evaluate(pieces);
