@@ -237,9 +237,9 @@ fn azimuth_gaps<T: AsRef<[u8]>>(
     while b < BLOCKS {
         let next = b + stride;
         let gap = if next < BLOCKS {
-            let g = (36_000 + u32::from(azimuth_cdeg(p, next)) - u32::from(azimuth_cdeg(p, b)))
-                % 36_000;
-            last = g as u16;
+            // Both in 0..36000: the step round the circle without a division.
+            let g = 36_000 + u32::from(azimuth_cdeg(p, next)) - u32::from(azimuth_cdeg(p, b));
+            last = if g >= 36_000 { g - 36_000 } else { g } as u16;
             if last <= max_gap {
                 plausible[n_ok] = last;
                 n_ok += 1;
@@ -253,16 +253,20 @@ fn azimuth_gaps<T: AsRef<[u8]>>(
         }
         b = next;
     }
-    let fallback = if n_ok == 0 {
-        0
-    } else {
-        let v = &mut plausible[..n_ok];
-        v.sort_unstable();
-        v[n_ok / 2]
-    };
-    for g in gaps.iter_mut() {
-        if *g > max_gap {
-            *g = fallback;
+    // An implausible gap (a dropped block, the scan's seam) takes the plausible ones' median,
+    // found only then (a sort per packet otherwise: most packets have none).
+    if gaps.iter().any(|&g| g > max_gap) {
+        let fallback = if n_ok == 0 {
+            0
+        } else {
+            let v = &mut plausible[..n_ok];
+            v.sort_unstable();
+            v[n_ok / 2]
+        };
+        for g in gaps.iter_mut() {
+            if *g > max_gap {
+                *g = fallback;
+            }
         }
     }
     gaps
@@ -419,6 +423,40 @@ mod tests {
             );
             d += 0.001;
         }
+    }
+
+    /// Each block's step to the next, the last block the one before's; across 0 deg round
+    /// the circle; a step no rotation makes (a stray azimuth) the median of the plausible ones.
+    #[test]
+    fn azimuth_gaps_wrap_and_a_stray_takes_the_median() {
+        let mut buf = [0u8; DATA_PACKET_LEN];
+        let mut p = DataPacket::new_unchecked(&mut buf[..]);
+        // 0.4 deg a block (VLP-16 at 600 rpm: 1.33 us per 0.01 deg), crossing 360 deg at
+        // block 3 (36000 reads as 0), block 8 out of line.
+        let az = [
+            35_880, 35_920, 35_960, 36_000, 40, 80, 120, 160, 9_000, 240, 280, 320,
+        ];
+        for (b, a) in az.into_iter().enumerate() {
+            p.set_flag(b);
+            p.set_azimuth_raw(b, a);
+        }
+        p.set_return_mode(ReturnMode::Strongest);
+        let p = DataPacket::new_checked(&buf[..]).unwrap();
+        let gaps = azimuth_gaps(&p, ReturnMode::Strongest, Model::Vlp16.block_ns());
+        assert_eq!(gaps, [40; BLOCKS], "{gaps:?}");
+        // In line, no median is taken: the steps as they are.
+        let mut buf = [0u8; DATA_PACKET_LEN];
+        let mut q = DataPacket::new_unchecked(&mut buf[..]);
+        for b in 0..BLOCKS {
+            q.set_flag(b);
+            q.set_azimuth_raw(b, ((35_990 + 39 * b as u32) % 36_000) as u16);
+        }
+        q.set_return_mode(ReturnMode::Strongest);
+        let q = DataPacket::new_checked(&buf[..]).unwrap();
+        assert_eq!(
+            azimuth_gaps(&q, ReturnMode::Strongest, Model::Vlp16.block_ns()),
+            [39; BLOCKS]
+        );
     }
 
     #[test]
