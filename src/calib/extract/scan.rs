@@ -148,7 +148,7 @@ impl Slicer {
 }
 
 /// One sphere's windowed returns made ready for the rounds in one walk (they are 10^5 of
-/// 172 bytes: each walk over them costs what memory moves, so the steps share it): put in
+/// 160 bytes: each walk over them costs what memory moves, so the steps share it): put in
 /// time order ([`time_order`]), georeferenced with `mount` ([`super::georeference`]), their
 /// scan-line segments measured ([`runs`]), their slices numbered ([`assign_slices`]) and
 /// tagged `Unclassified`; each then given to `each`, in time order. Returns the nearest

@@ -100,7 +100,7 @@ fn ordered(x: f32) -> u32 {
 
 /// Sort `keys` (indices in increasing order) by x, stably: a least-significant-byte-first
 /// radix sort through `tmp` (as long as `keys`), a byte all keys share skipped. The order is
-/// [`Sorted::new`]'s comparison sort's, in linear time (a slice's index: 3.4 -> ~1 ms a solve).
+/// [`Sorted::new`]'s comparison sort's, in linear time (table1's slices indexed: 3.4 -> 2.0 ms).
 fn radix_sort(keys: &mut [Key], tmp: &mut [Key]) {
     let n = keys.len();
     let (mut src, mut dst) = (keys, tmp);

@@ -27,9 +27,10 @@ pub struct Scratch {
     nav: Growing<spherecal::calib::nav::Piece>,
 }
 
-/// Room that grows on use up to a capacity (written as it grows: a table1 solve uses 2 MB of
-/// the 19 MB the kept returns and the navigation pieces could need, and writing all of it
-/// took 4-13 ms, as long as the solve's first detection).
+/// Room that grows on use up to a capacity, written as it grows: a survey of a few minutes
+/// uses a few MB of the 22 MB the kept returns, the candidates and the navigation pieces could
+/// need, and writing all of it up front took 4-13 ms of every `calibrate` (table1,
+/// table1-real).
 #[derive(Debug, Clone)]
 struct Growing<T> {
     items: Vec<T>,
