@@ -25,7 +25,7 @@ pub use radius::detections_at_radii;
 pub use scan::{assign_slices, prepare, runs, slices, time_order, SliceCursor};
 pub use score::Key;
 pub(crate) use sphere::apparent_offsets;
-pub use sphere::{compact, extract_sphere, place_and_compact, Extraction};
+pub use sphere::{extract_sphere, place_and_compact, Extraction};
 
 /// Why a windowed return is, or is not, used (stored in `Observation::work.verdict`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -375,6 +375,40 @@ mod tests {
         assert_eq!(it.next(), Some(3..5));
         assert_eq!(it.next(), Some(5..7));
         assert_eq!(it.next(), None);
+    }
+
+    /// Scan-line segments by hand: one laser's consecutive firings whose ranges step under the
+    /// jump share their first-to-last length; a range jump, a missed firing or a gap starts a
+    /// new one; a second return of a firing is a segment of its own; another laser's returns
+    /// between them change nothing.
+    #[test]
+    fn segments_by_hand() {
+        let f = 55_296i64;
+        // (laser, firing, range, x along the line)
+        let rows = [
+            (0u8, 0i64, 5.0f32, 0.0f64),
+            (1, 0, 7.0, 9.0),
+            (0, 1, 5.1, 0.1),
+            (0, 1, 8.0, 4.0), // the second return of firing 1
+            (0, 2, 5.2, 0.3),
+            (0, 3, 9.0, 2.0), // a range jump of 3.8 m
+            (0, 5, 9.1, 2.5), // two firings on: a gap
+            (0, 6, 9.2, 2.9),
+            (1, 6, 7.1, 9.4),
+        ];
+        let mut v = heapless::Vec::<Observation, 16>::new();
+        for (laser, k, range, x) in rows {
+            let mut o = at(Vector3::new(x, 0.0, 0.0), Vector3::new(0.0, -5.0, 0.0));
+            (o.laser, o.time, o.range) = (laser, GpsTime(k * f), range);
+            let _ = v.push(o);
+        }
+        runs(&mut v, f, 0.3);
+        let run: heapless::Vec<f32, 16> = v.iter().map(|o| o.work.run).collect();
+        // Laser 1 fires at 0 and 6 only: two segments of one return each.
+        let want = [0.3f32, 0.0, 0.3, 0.0, 0.3, 0.0, 0.4, 0.4, 0.0];
+        for (k, (g, w)) in run.iter().zip(want).enumerate() {
+            assert!((g - w).abs() < 1e-6, "return {k}: {run:?}");
+        }
     }
 
     /// The one walk of [`prepare`] leaves the returns as the steps it stands for do one after

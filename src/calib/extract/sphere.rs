@@ -1,6 +1,6 @@
 //! One sphere's extraction over its windowed returns: every slice's detection and the returns
 //! it keeps ([`extract_sphere`]), and the returns that can no longer be the sphere's set
-//! behind the others ([`compact`]), and how far the slices' apparent spheres lie from the
+//! behind the others ([`place_and_compact`]), and how far the slices' apparent spheres lie from the
 //! surveyed one ([`apparent_offsets`]). docs/extraction.md, section 2.
 
 use super::attach::set_aside_ground;
@@ -84,15 +84,9 @@ pub fn extract_sphere(
     (kept, slices, detected)
 }
 
-/// Move the returns of a sphere farther than `reach` from its surface (with the current
-/// georeference) behind the others, tagged `OutsideShell`; the near ones keep their order.
-/// Returns how many are near.
-pub fn compact(v: &mut [Observation], r: f64, reach: f64) -> usize {
-    compact_placed(v, r, reach, |_| {})
-}
-
-/// Georeference one sphere's returns (as [`super::georeference`]) and, given `reach`,
-/// [`compact`] them, in one walk; the returns taking part (all of them without `reach`).
+/// Georeference one sphere's returns (as [`super::georeference`]) and, given `reach`, move
+/// those farther than `reach` from its surface behind the others, tagged `OutsideShell` (the
+/// near ones keep their order), in one walk. Returns how many take part (all without `reach`).
 pub fn place_and_compact(
     v: &mut [Observation],
     t: &Target,
@@ -100,27 +94,14 @@ pub fn place_and_compact(
     time: &TimeOffset,
     reach: Option<f64>,
 ) -> usize {
-    match reach {
-        Some(reach) => compact_placed(v, t.radius, reach, |o| place(o, t, mount, time)),
-        None => {
-            georeference(v, t, mount, time);
-            v.len()
-        }
-    }
-}
-
-/// [`compact`], each return given to `place` first.
-#[inline]
-fn compact_placed(
-    v: &mut [Observation],
-    r: f64,
-    reach: f64,
-    place: impl Fn(&mut Observation),
-) -> usize {
-    let (r, reach) = (r as f32, reach as f32);
+    let Some(reach) = reach else {
+        georeference(v, t, mount, time);
+        return v.len();
+    };
+    let (r, reach) = (t.radius as f32, reach as f32);
     let mut w = 0;
     for i in 0..v.len() {
-        place(&mut v[i]);
+        place(&mut v[i], t, mount, time);
         let x = v[i].work.x;
         let d = libm::sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
         if (d - r).abs() <= reach {

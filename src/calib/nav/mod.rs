@@ -28,7 +28,7 @@ mod weights;
 
 use joint::Joint;
 use pieces::piece_of;
-pub use pieces::{count, cut, cut_for, cut_in, Piece};
+pub use pieces::{cut, cut_for, cut_in, Piece};
 use steps::iterate;
 
 /// The navigation errors' model: per axis a first-order Gauss-Markov process.

@@ -128,7 +128,7 @@ pub fn cut(pb: &Problem<'_>, len_s: f64, out: &mut [Piece]) -> Option<usize> {
 }
 
 /// How many pieces [`cut`] makes at `len_s`.
-pub fn count(pb: &Problem<'_>, len_s: f64) -> usize {
+fn count(pb: &Problem<'_>, len_s: f64) -> usize {
     each_piece(pb, len_s, |_, _, _, _| Some(())).unwrap_or(0)
 }
 

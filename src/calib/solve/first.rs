@@ -20,6 +20,53 @@ impl Rounds {
         passes: &[PassReport],
     ) -> Option<[usize; MAX_TARGETS]> {
         let (targets, s) = (d.targets, d.s);
+        let n = targets.len();
+        let nc = self.candidates(d, passes);
+        let ws = &mut *d.ws;
+        let mut search = Search {
+            cands: ws.cands.room(nc),
+            targets,
+            time: self.time,
+            bounds: self.bounds,
+            settings: s.consensus,
+        };
+        let Some(c) = consensus(&mut search, &self.b, ws.idx.room(nc)) else {
+            // Not three candidates apart, or no mounting within the bounds explains any.
+            self.consensus = Some(Consensus {
+                b: self.b,
+                score: 0.0,
+                support: [0; MAX_TARGETS],
+                slices: core::array::from_fn(|j| self.counts[j].1),
+                rms: f64::NAN,
+                hypotheses: 0,
+                ambiguous: None,
+            });
+            return None;
+        };
+        self.consensus = Some(c);
+        if let Some(a) = c.ambiguous {
+            self.ended = Some(Termination::Stopped(Refusal::Ambiguous(a)));
+            return None;
+        }
+        let mut kept = self.keep_chosen(d, nc);
+        self.b = c.b;
+        if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
+            return None;
+        }
+        for (j, v) in d.obs.iter_mut().enumerate() {
+            if kept[j] < s.min_points {
+                kept[j] = 0;
+                extract::tag(&mut v[..self.active[j]], ReturnClass::Undetected);
+            }
+        }
+        Some(kept)
+    }
+
+    /// Every sphere-like candidate of every slice ([`extract::detect_all`]) into the scratch, in
+    /// the order of their spheres and slices, each with its slice's pass and range; each
+    /// sphere's slices and those with a candidate counted. Returns how many.
+    fn candidates(&mut self, d: &mut Data<'_, '_, '_>, passes: &[PassReport]) -> usize {
+        let (targets, s) = (d.targets, d.s);
         let (obs, ws) = (&mut *d.obs, &mut *d.ws);
         let n = targets.len();
         let dirs = Directions::default();
@@ -78,43 +125,7 @@ impl Rounds {
             }
             self.counts[j] = (slices, detected);
         }
-        let mut search = Search {
-            cands: ws.cands.room(nc),
-            targets,
-            time: self.time,
-            bounds: self.bounds,
-            settings: s.consensus,
-        };
-        let Some(c) = consensus(&mut search, &self.b, ws.idx.room(nc)) else {
-            // Not three candidates apart, or no mounting within the bounds explains any.
-            self.consensus = Some(Consensus {
-                b: self.b,
-                score: 0.0,
-                support: [0; MAX_TARGETS],
-                slices: core::array::from_fn(|j| self.counts[j].1),
-                rms: f64::NAN,
-                hypotheses: 0,
-                ambiguous: None,
-            });
-            return None;
-        };
-        self.consensus = Some(c);
-        if let Some(a) = c.ambiguous {
-            self.ended = Some(Termination::Stopped(Refusal::Ambiguous(a)));
-            return None;
-        }
-        let mut kept = self.keep_chosen(d, nc);
-        self.b = c.b;
-        if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
-            return None;
-        }
-        for (j, v) in d.obs.iter_mut().enumerate() {
-            if kept[j] < s.min_points {
-                kept[j] = 0;
-                extract::tag(&mut v[..self.active[j]], ReturnClass::Undetected);
-            }
-        }
-        Some(kept)
+        nc
     }
 
     /// Each sphere's returns within `tau` of its chosen candidates (the first `nc` of the

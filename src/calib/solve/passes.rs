@@ -8,8 +8,12 @@ use crate::time::GpsTime;
 
 /// The pass holding time `t` (the last one starting at or before it).
 pub(super) fn pass_of(ps: &mut [PassReport], t: GpsTime) -> Option<&mut PassReport> {
-    let i = ps.partition_point(|p| p.start <= t);
-    ps.get_mut(i.checked_sub(1)?)
+    ps.get_mut(index_of(ps, t)?)
+}
+
+/// The index of [`pass_of`]'s pass.
+fn index_of(ps: &[PassReport], t: GpsTime) -> Option<usize> {
+    ps.partition_point(|p| p.start <= t).checked_sub(1)
 }
 
 /// [`pass_of`] for times that mostly follow each other: the pass found last is tried first
@@ -31,7 +35,7 @@ impl PassCursor {
         });
         let i = match hit {
             Some(i) => i,
-            None => ps.partition_point(|p| p.start <= t).checked_sub(1)?,
+            None => index_of(ps, t)?,
         };
         self.last = Some(i);
         ps.get_mut(i)
