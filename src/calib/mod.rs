@@ -14,6 +14,7 @@
 pub mod consensus;
 pub mod extract;
 pub mod footprint;
+pub mod fork;
 pub(crate) mod histogram;
 pub mod lm;
 pub mod nav;

@@ -7,6 +7,7 @@
 use super::consensus::{Bounds, Candidate};
 use super::extract::{self, time_order, ExtractSettings, ReturnClass};
 use super::footprint::Footprint;
+use super::fork::Fork;
 use super::noise::Noise;
 use super::objective::{Problem, SphereObs, TimeOffset};
 use super::room::Room;
@@ -166,12 +167,98 @@ pub struct Workspace<'a> {
     pub keys: &'a mut [extract::Key],
     /// Room for the first round's candidates (up to four per slice of each window; more are
     /// dropped).
-    pub cands: &'a mut dyn Room<Candidate>,
+    pub cands: &'a mut (dyn Room<Candidate> + Send),
     /// Room for candidate indices, as much as for `cands`.
     pub idx: &'a mut dyn Room<usize>,
     /// Room for the navigation model's pieces of the time line (128 suit a survey of a few
     /// minutes at a correlation time of seconds; with fewer the pieces are made longer).
     pub nav: &'a mut dyn Room<crate::calib::nav::Piece>,
+    /// A second worker for the per-sphere work (`None`: the spheres one after the other on
+    /// this scratch): the spheres are split in two groups of about equal returns, the second
+    /// worked on with the helper's scratch beside the first. The answer is the same.
+    pub helper: Option<Helper<'a>>,
+}
+
+/// The second worker's scratch (as [`Workspace`]'s fields of the same names) and how it runs.
+#[derive(Debug)]
+pub struct Helper<'a> {
+    /// Runs the second group beside the first.
+    pub fork: &'a dyn Fork,
+    /// Its vote grid, all zero.
+    pub grid: &'a mut [u16],
+    /// Its slice index, as long as [`Workspace::keys`] (whose length caps a slice).
+    pub keys: &'a mut [extract::Key],
+    /// Room for its candidates (the first round's of the second group, before they join the
+    /// first's).
+    pub cands: &'a mut (dyn Room<Candidate> + Send),
+}
+
+/// One worker's detection scratch.
+pub(super) struct Lane<'l> {
+    pub(super) grid: &'l mut [u16],
+    pub(super) keys: &'l mut [extract::Key],
+    pub(super) cands: &'l mut (dyn Room<Candidate> + Send),
+}
+
+impl Workspace<'_> {
+    /// The caller's lane, and the helper's with its fork when one was lent.
+    fn lanes(&mut self) -> (Lane<'_>, Option<(&dyn Fork, Lane<'_>)>) {
+        let mine = Lane {
+            grid: &mut *self.grid,
+            keys: &mut *self.keys,
+            cands: &mut *self.cands,
+        };
+        let other = self.helper.as_mut().map(|h| {
+            let lane = Lane {
+                grid: &mut *h.grid,
+                keys: &mut *h.keys,
+                cands: &mut *h.cands,
+            };
+            (h.fork, lane)
+        });
+        (mine, other)
+    }
+}
+
+/// Where spheres with `lens` returns split in two groups of about equal returns: the second
+/// group's first sphere (`lens.len()` when there is only one group).
+fn halves(lens: &[usize]) -> usize {
+    let total: usize = lens.iter().sum();
+    let (mut before, mut best) = (0usize, (usize::MAX, lens.len()));
+    for (k, n) in lens.iter().enumerate().take(lens.len().saturating_sub(1)) {
+        before += n;
+        let gap = before.abs_diff(total - before);
+        if gap < best.0 {
+            best = (gap, k + 1);
+        }
+    }
+    best.1
+}
+
+/// Where [`side_by_side`]'s two groups of the spheres with `lens` returns split: in halves
+/// with a helper, else all in the first.
+fn groups(ws: &Workspace<'_>, lens: &[usize]) -> usize {
+    match ws.helper {
+        Some(_) => halves(lens),
+        None => lens.len(),
+    }
+}
+
+/// `a` on the caller's lane and `b` on the helper's beside it, when one was lent; else `a`,
+/// then `b`, on the caller's lane.
+fn side_by_side(
+    ws: &mut Workspace<'_>,
+    mut a: impl FnMut(&mut Lane<'_>),
+    mut b: impl FnMut(&mut Lane<'_>) + Send,
+) {
+    let (mut mine, other) = ws.lanes();
+    match other {
+        Some((fork, mut lane)) => fork.join(&mut || a(&mut mine), &mut || b(&mut lane)),
+        None => {
+            a(&mut mine);
+            b(&mut mine);
+        }
+    }
 }
 
 /// Copy the kept returns of every sphere into `room` (at most what it has, evenly spread when
@@ -212,25 +299,76 @@ fn reach(prior: f64, tau: f64) -> f64 {
 /// Each sphere's windowed returns made ready once ([`extract::prepare`]: in time order, the
 /// scan-line segments, whose lengths do not depend on the mounting, and the slices),
 /// georeferenced with the start `b0`, unclassified; the passes over each sphere, and the
-/// nearest return's range [m].
+/// nearest return's range [m]. Two groups of spheres side by side with a helper.
 fn prepare(
     targets: &[Target],
     obs: &mut [&mut [Observation]],
     b0: &Params,
     st: &ExtractSettings,
-    slices: usize,
+    ws: &Workspace<'_>,
 ) -> (heapless::Vec<PassReport, MAX_PASSES>, f64) {
     let mount0 = Mount::from_params(b0);
-    let mut near = f32::INFINITY;
+    let slices = ws.keys.len();
+    // The spheres from `first` on: their passes appended to `out`, the nearest range.
+    let group = |first: usize,
+                 obs: &mut [&mut [Observation]],
+                 out: &mut heapless::Vec<PassReport, MAX_PASSES>| {
+        let mut near = f32::INFINITY;
+        for (j, (v, t)) in obs
+            .iter_mut()
+            .zip(targets.get(first..).unwrap_or(&[]))
+            .enumerate()
+        {
+            let mut finder = PassFinder::new(first + j, st.pass_gap_ns, st.pass_min_ns, out);
+            near = near.min(extract::prepare(v, t, &mount0, st, slices, |o| {
+                finder.see(o)
+            }));
+            finder.finish();
+        }
+        near
+    };
     let mut passes = heapless::Vec::new();
-    for (j, (v, t)) in obs.iter_mut().zip(targets).enumerate() {
-        let mut finder = PassFinder::new(j, st.pass_gap_ns, st.pass_min_ns, &mut passes);
-        near = near.min(extract::prepare(v, t, &mount0, st, slices, |o| {
-            finder.see(o)
-        }));
-        finder.finish();
-    }
+    let near = match ws.helper.as_ref() {
+        None => group(0, obs, &mut passes),
+        Some(h) => prepare_beside(h.fork, obs, st, &mut passes, &group),
+    };
     (passes, f64::from(near))
+}
+
+/// [`prepare`]'s work on the spheres from a first one: their passes appended, the nearest range.
+type PrepareGroup<'g> = dyn Fn(usize, &mut [&mut [Observation]], &mut Passes) -> f32 + Sync + 'g;
+
+/// The passes over every sphere.
+type Passes = heapless::Vec<PassReport, MAX_PASSES>;
+
+/// [`prepare`]'s `group` over two groups of spheres side by side, the second's passes after
+/// the first's (found again after them when both do not fit: as one worker finds them).
+#[inline(never)]
+fn prepare_beside(
+    fork: &dyn Fork,
+    obs: &mut [&mut [Observation]],
+    st: &ExtractSettings,
+    passes: &mut heapless::Vec<PassReport, MAX_PASSES>,
+    group: &PrepareGroup<'_>,
+) -> f32 {
+    let lens: heapless::Vec<usize, MAX_TARGETS> = obs.iter().map(|v| v.len()).collect();
+    let k = halves(&lens);
+    let (oa, ob) = obs.split_at_mut(k);
+    let mut theirs = heapless::Vec::<PassReport, MAX_PASSES>::new();
+    let (mut na, mut nb) = (f32::INFINITY, f32::INFINITY);
+    fork.join(&mut || na = group(0, oa, passes), &mut || {
+        nb = group(k, ob, &mut theirs)
+    });
+    if passes.len() + theirs.len() <= MAX_PASSES {
+        passes.extend(theirs);
+    } else {
+        for (j, v) in ob.iter().enumerate() {
+            let mut finder = PassFinder::new(k + j, st.pass_gap_ns, st.pass_min_ns, passes);
+            v.iter().for_each(|o| finder.see(o));
+            finder.finish();
+        }
+    }
+    na.min(nb)
 }
 
 /// `buf` cut at the ends of consecutive `ranges` (the first starting at 0): one slice each.
@@ -292,7 +430,7 @@ fn solve_data(
     for j in 0..n {
         windowed[j] = obs[j].len();
     }
-    let (mut passes, near) = prepare(targets, obs, b0, &s.extract, ws.keys.len());
+    let (mut passes, near) = prepare(targets, obs, b0, &s.extract, ws);
     let bounds = bounds(near, b0, s.margin);
     if n < 2 {
         let mut sol = Solution::start(b0, s.extract.tau0);
@@ -473,4 +611,109 @@ fn sphere_reports(
         });
     }
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
+}
+
+/// A tiny scratch for the tests: room for four of everything, and a helper's.
+#[cfg(test)]
+pub(super) struct TinyScratch {
+    grid: [u16; 8],
+    kept: [Observation; 4],
+    keys: [extract::Key; 4],
+    cands: [Candidate; 4],
+    idx: [usize; 4],
+    nav: [crate::calib::nav::Piece; 1],
+    helper: ([u16; 8], [extract::Key; 4], [Candidate; 4]),
+}
+
+#[cfg(test)]
+impl TinyScratch {
+    pub(super) fn new() -> Self {
+        Self {
+            grid: [0; 8],
+            kept: [Observation::default(); 4],
+            keys: [extract::Key::default(); 4],
+            cands: [Candidate::default(); 4],
+            idx: [0; 4],
+            nav: [crate::calib::nav::Piece::EMPTY; 1],
+            helper: (
+                [0; 8],
+                [extract::Key::default(); 4],
+                [Candidate::default(); 4],
+            ),
+        }
+    }
+
+    /// Its workspace, with a helper running in turn when `helped`.
+    pub(super) fn workspace(&mut self, helped: bool) -> Workspace<'_> {
+        let (grid, keys, cands) = &mut self.helper;
+        Workspace {
+            grid: &mut self.grid,
+            kept: &mut self.kept,
+            keys: &mut self.keys,
+            cands: &mut self.cands,
+            idx: &mut self.idx,
+            nav: &mut self.nav,
+            helper: helped.then_some(Helper {
+                fork: &super::fork::InTurn,
+                grid,
+                keys,
+                cands,
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn halves_split_the_returns_evenly() {
+        assert_eq!(halves(&[10, 10]), 1);
+        assert_eq!(halves(&[1, 100]), 1);
+        assert_eq!(halves(&[100, 1, 1]), 1);
+        assert_eq!(halves(&[1, 1, 100]), 2);
+        assert_eq!(halves(&[3, 3, 3, 3]), 2);
+        assert_eq!(halves(&[5]), 1);
+        assert_eq!(halves(&[]), 0);
+    }
+
+    /// Returns 30 s apart (each a pass of its own: the gap is over 20 s), from `t0` [s].
+    fn sightings(t0: i64) -> [Observation; 100] {
+        core::array::from_fn(|i| Observation {
+            time: GpsTime((t0 + 30 * i as i64) * 1_000_000_000),
+            range: 10.0,
+            velocity: nalgebra::Vector3::new(1.0, 0.0, 0.0),
+            ..Observation::default()
+        })
+    }
+
+    /// The passes a helper's two groups find are one worker's, those of the second group found
+    /// again when both do not fit (200 passes against 128).
+    #[test]
+    fn the_passes_of_two_groups_are_one_workers() {
+        let t = Target {
+            center: Vector3::zeros(),
+            radius: 0.2,
+        };
+        let st = ExtractSettings::default();
+        let b0 = Params([0.0; P]);
+        for n in [10usize, 100] {
+            let run = |helped: bool| {
+                let (mut a, mut b) = (sightings(0), sightings(1));
+                let mut obs: [&mut [Observation]; 2] = [&mut a[..n], &mut b[..n]];
+                let mut scratch = TinyScratch::new();
+                let ws = scratch.workspace(helped);
+                prepare(&[t, t], &mut obs, &b0, &st, &ws)
+            };
+            let (one, two) = (run(false), run(true));
+            assert_eq!(one, two, "{n} passes a sphere");
+            let passes = &one.0;
+            assert_eq!(passes.len(), (2 * n).min(MAX_PASSES));
+            assert_eq!((passes[n - 1].sphere, passes[n].sphere), (0, 1));
+            // Beyond the room the last pass takes the rest.
+            let last = GpsTime((1 + 30 * (n as i64 - 1)) * 1_000_000_000);
+            assert_eq!(passes.last().map(|p| p.end), Some(last));
+        }
+    }
 }

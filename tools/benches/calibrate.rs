@@ -11,13 +11,15 @@
 //! - `calibrate_from_files_table1_real`, `solve_table1_real`: the same on `table1-real` under
 //!   its site's navigation model (issue 28: within 2x of table1's).
 
-use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkGroup, Criterion};
+use spherecal::align::window::Observation;
 use spherecal::calib::{solve, Settings};
 use spherecal_tools::calibrate::{collect, site_targets};
 use spherecal_tools::config::scenario::Scenario;
 use spherecal_tools::pipeline::{run, BatchMsg, Inputs, InsInput};
 use spherecal_tools::session::scratch::Scratch;
-use spherecal_tools::session::solve_report;
+use spherecal_tools::session::solve_report_in;
 
 fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("spherecal-bench-cal-{}", std::process::id()));
@@ -52,30 +54,17 @@ fn bench(c: &mut Criterion) {
     g.bench_function("calibrate_from_files", |b| {
         b.iter(|| {
             let (_, mut obs) = collect(&inp).unwrap();
-            let (_, rep) = solve_report(&targets, &ids, &mut obs, &b0, &Settings::default());
+            let s = Settings::default();
+            let mut two = Scratch::for_settings(&s).with_helper();
+            let (_, rep) = solve_report_in(&targets, &ids, &mut obs, &b0, &s, &mut two, &mut ());
             assert!(rep.converged);
             rep.boresight_deg.pitch
         })
     });
-    let mut scratch = Scratch::default();
-    g.bench_function("solve", |b| {
-        b.iter_batched(
-            || obs.clone(),
-            |mut o| {
-                let mut s: Vec<&mut [spherecal::align::window::Observation]> =
-                    o.iter_mut().map(|v| v.as_mut_slice()).collect();
-                solve(
-                    &targets,
-                    &mut s,
-                    &b0,
-                    &Settings::default(),
-                    &mut scratch.workspace(),
-                )
-                .b
-            },
-            BatchSize::LargeInput,
-        )
-    });
+    let (mut one, mut two) = (Scratch::default(), Scratch::default().with_helper());
+    let s = Settings::default();
+    bench_solve(&mut g, "solve", &obs, &targets, &b0, &s, &mut one);
+    bench_solve(&mut g, "solve_two_cores", &obs, &targets, &b0, &s, &mut two);
     // table1-real: the site declares the navigation model; the settings come from it.
     let real = dir.join("real");
     spherecal_tools::synth::synth(&Scenario::load("table1-real").unwrap(), &real).unwrap();
@@ -92,24 +81,57 @@ fn bench(c: &mut Criterion) {
     g.bench_function("calibrate_from_files_table1_real", |b| {
         b.iter(|| {
             let (_, mut obs) = collect(&inp).unwrap();
-            let (_, rep) = solve_report(&targets, &ids, &mut obs, &b0, &settings);
+            let mut two = Scratch::for_settings(&settings).with_helper();
+            let (_, rep) =
+                solve_report_in(&targets, &ids, &mut obs, &b0, &settings, &mut two, &mut ());
             assert!(rep.converged);
             rep.boresight_deg.pitch
         })
     });
-    g.bench_function("solve_table1_real", |b| {
+    bench_solve(
+        &mut g,
+        "solve_table1_real",
+        &obs,
+        &targets,
+        &b0,
+        &settings,
+        &mut one,
+    );
+    let (t, b) = (&targets, &b0);
+    bench_solve(
+        &mut g,
+        "solve_table1_real_two_cores",
+        &obs,
+        t,
+        b,
+        &settings,
+        &mut two,
+    );
+    g.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The solve alone on copies of `obs`, in `scratch` (one core, or two with its helper).
+fn bench_solve(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    name: &str,
+    obs: &[Vec<Observation>],
+    targets: &[spherecal::align::window::Target],
+    b0: &spherecal::georef::Params,
+    settings: &Settings,
+    scratch: &mut Scratch,
+) {
+    g.bench_function(name, |b| {
         b.iter_batched(
-            || obs.clone(),
+            || obs.to_vec(),
             |mut o| {
-                let mut s: Vec<&mut [spherecal::align::window::Observation]> =
+                let mut s: Vec<&mut [Observation]> =
                     o.iter_mut().map(|v| v.as_mut_slice()).collect();
-                solve(&targets, &mut s, &b0, &settings, &mut scratch.workspace()).b
+                solve(targets, &mut s, b0, settings, &mut scratch.workspace()).b
             },
             BatchSize::LargeInput,
         )
     });
-    g.finish();
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 criterion_group!(benches, bench);

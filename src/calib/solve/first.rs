@@ -3,9 +3,12 @@
 
 use super::outcome::{PassReport, Refusal, Termination};
 use super::rounds::{Data, Rounds};
-use crate::align::window::MAX_TARGETS;
+use super::settings::Settings;
+use super::{groups, side_by_side, Lane};
+use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{consensus, Candidate, Consensus, Search};
 use crate::calib::extract::{self, Directions, ReturnClass};
+use crate::calib::objective::TimeOffset;
 use crate::georef::{Mount, Params};
 
 impl Rounds {
@@ -64,68 +67,43 @@ impl Rounds {
 
     /// Every sphere-like candidate of every slice ([`extract::detect_all`]) into the scratch, in
     /// the order of their spheres and slices, each with its slice's pass and range; each
-    /// sphere's slices and those with a candidate counted. Returns how many.
+    /// sphere's slices and those with a candidate counted. Returns how many. Two groups of
+    /// spheres side by side with a helper, the second's candidates then after the first's.
     fn candidates(&mut self, d: &mut Data<'_, '_, '_>, passes: &[PassReport]) -> usize {
-        let (targets, s) = (d.targets, d.s);
-        let (obs, ws) = (&mut *d.obs, &mut *d.ws);
-        let n = targets.len();
-        let dirs = Directions::default();
-        let mount = Mount::from_params(&Params(self.b));
-        let mut nc = 0;
-        let mut found = extract::Candidates::new();
-        for j in 0..n {
-            let v = &mut obs[j][..self.active[j]];
-            if !self.placed {
-                extract::georeference(v, &targets[j], &mount, &self.time);
-            }
-            let (mut slices, mut detected) = (0, 0);
-            let mut cursor = extract::SliceCursor::default();
-            while let Some(sl) = cursor.next(v) {
-                slices += 1;
-                // Tagged slice by slice, while it is at hand.
-                extract::tag(&mut v[sl.clone()], ReturnClass::Undetected);
-                let slice = &v[sl.clone()];
-                extract::detect_all(
-                    slice,
-                    ws.keys,
-                    targets[j].radius,
-                    self.tau,
-                    None,
-                    ws.grid,
-                    &dirs,
-                    &s.extract,
-                    extract::MAX_CANDIDATES,
-                    &mut found,
-                );
-                detected += u32::from(!found.is_empty());
-                // The pose of the slice's middle return carries its candidates.
-                let rep = &slice[slice.len() / 2];
-                let group = passes
-                    .iter()
-                    .rposition(|p| usize::from(p.sphere) == j && p.start <= rep.time)
-                    .unwrap_or(0);
-                for d in &found {
-                    let Some(c) = Candidate::new(d.center, rep, &targets[j], &mount, &self.time)
-                    else {
-                        continue;
-                    };
-                    if let Some(slot) = ws.cands.room(nc + 1).get_mut(nc) {
-                        *slot = Candidate {
-                            sphere: j as u8,
-                            group: group as u16,
-                            slice: rep.work.slice,
-                            at: sl.start as u32,
-                            len: sl.len() as u32,
-                            inliers: d.inliers,
-                            ..c
-                        };
-                        nc += 1;
-                    }
+        let n = d.targets.len();
+        let g = Gather {
+            targets: d.targets,
+            s: d.s,
+            dirs: Directions::default(),
+            mount: Mount::from_params(&Params(self.b)),
+            time: self.time,
+            tau: self.tau,
+            placed: self.placed,
+            passes,
+        };
+        let k = groups(d.ws, &self.active[..n]);
+        let (oa, ob) = d.obs.split_at_mut(k);
+        let (aa, ab) = self.active[..n].split_at(k);
+        let (ca, cb) = self.counts[..n].split_at_mut(k);
+        let (mut na, mut nb) = (0, 0);
+        side_by_side(
+            d.ws,
+            |lane| na = g.spheres(0, oa, aa, ca, lane),
+            |lane| nb = g.spheres(k, ob, ab, cb, lane),
+        );
+        let ws = &mut *d.ws;
+        match ws.helper.as_mut() {
+            Some(h) if nb > 0 => {
+                let theirs = h.cands.room(nb);
+                let all = ws.cands.room(na + theirs.len());
+                let fit = all.len().saturating_sub(na);
+                if let (Some(to), Some(from)) = (all.get_mut(na..), theirs.get(..fit)) {
+                    to.copy_from_slice(from);
                 }
+                na.max(all.len())
             }
-            self.counts[j] = (slices, detected);
+            _ => na,
         }
-        nc
     }
 
     /// Each sphere's returns within `tau` of its chosen candidates (the first `nc` of the
@@ -157,5 +135,94 @@ impl Rounds {
             }
         }
         kept
+    }
+}
+
+/// What the first round gathers its candidates with.
+struct Gather<'g> {
+    targets: &'g [Target],
+    s: &'g Settings,
+    dirs: Directions,
+    mount: Mount,
+    time: TimeOffset,
+    tau: f64,
+    /// The returns are georeferenced at `mount` already.
+    placed: bool,
+    passes: &'g [PassReport],
+}
+
+impl Gather<'_> {
+    /// The candidates of spheres `first..` (`obs`, with `active` returns taking part) into
+    /// `lane`'s room; each one's slices and those with a candidate into `counts`. Returns how
+    /// many.
+    fn spheres(
+        &self,
+        first: usize,
+        obs: &mut [&mut [Observation]],
+        active: &[usize],
+        counts: &mut [(u32, u32)],
+        lane: &mut Lane<'_>,
+    ) -> usize {
+        let mut nc = 0;
+        let mut found = extract::Candidates::new();
+        for (i, v) in obs.iter_mut().enumerate() {
+            let j = first + i;
+            let (Some(t), Some(&n)) = (self.targets.get(j), active.get(i)) else {
+                continue;
+            };
+            let v = &mut v[..n];
+            if !self.placed {
+                extract::georeference(v, t, &self.mount, &self.time);
+            }
+            let (mut slices, mut detected) = (0, 0);
+            let mut cursor = extract::SliceCursor::default();
+            while let Some(sl) = cursor.next(v) {
+                slices += 1;
+                // Tagged slice by slice, while it is at hand.
+                extract::tag(&mut v[sl.clone()], ReturnClass::Undetected);
+                let slice = &v[sl.clone()];
+                extract::detect_all(
+                    slice,
+                    lane.keys,
+                    t.radius,
+                    self.tau,
+                    None,
+                    lane.grid,
+                    &self.dirs,
+                    &self.s.extract,
+                    extract::MAX_CANDIDATES,
+                    &mut found,
+                );
+                detected += u32::from(!found.is_empty());
+                // The pose of the slice's middle return carries its candidates.
+                let rep = &slice[slice.len() / 2];
+                let group = self
+                    .passes
+                    .iter()
+                    .rposition(|p| usize::from(p.sphere) == j && p.start <= rep.time)
+                    .unwrap_or(0);
+                for d in &found {
+                    let Some(c) = Candidate::new(d.center, rep, t, &self.mount, &self.time) else {
+                        continue;
+                    };
+                    if let Some(slot) = lane.cands.room(nc + 1).get_mut(nc) {
+                        *slot = Candidate {
+                            sphere: j as u8,
+                            group: group as u16,
+                            slice: rep.work.slice,
+                            at: sl.start as u32,
+                            len: sl.len() as u32,
+                            inliers: d.inliers,
+                            ..c
+                        };
+                        nc += 1;
+                    }
+                }
+            }
+            if let Some(c) = counts.get_mut(i) {
+                *c = (slices, detected);
+            }
+        }
+        nc
     }
 }

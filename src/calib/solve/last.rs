@@ -5,12 +5,13 @@ use super::checks::weights;
 use super::outcome::{PassReport, Solution};
 use super::passes::{pass_of, PassCursor};
 use super::rounds::{Data, Rounds};
-use super::{partition, with_problem, Residuals};
-use crate::align::window::{Observation, MAX_TARGETS};
+use super::settings::Settings;
+use super::{groups, partition, side_by_side, with_problem, Lane, Residuals};
+use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::extract::{self, Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
 use crate::calib::nav::{cut_in, refine as refine_nav, Piece};
-use crate::calib::objective::{Linearised, Problem};
+use crate::calib::objective::{Linearised, Problem, TimeOffset};
 use crate::calib::room::Room;
 use crate::georef::{Mount, Params, P};
 use crate::time::GpsTime;
@@ -26,81 +27,42 @@ impl Rounds {
         passes: &mut [PassReport],
     ) -> ([usize; MAX_TARGETS], [[u32; 8]; MAX_TARGETS]) {
         let (targets, s) = (d.targets, d.s);
-        let (obs, ws) = (&mut *d.obs, &mut *d.ws);
+        let n = targets.len();
         let dirs = Directions::default();
+        let noise = s.noise();
         let tau = self.tau;
-        let mount = Mount::from_params(&Params(self.b));
-        let mut used = [0usize; MAX_TARGETS];
-        let mut tallies = [[0u32; 8]; MAX_TARGETS];
-        for j in 0..targets.len() {
-            let v = &mut obs[j][..self.active[j]];
-            extract::georeference(v, &targets[j], &mount, &self.time);
-            let mine = {
-                let a = passes.partition_point(|p| usize::from(p.sphere) < j);
-                let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
-                &mut passes[a..b]
-            };
-            let how = extract::Extraction {
+        let last = LastExtraction {
+            targets,
+            s,
+            mount: Mount::from_params(&Params(self.b)),
+            time: self.time,
+            how: extract::Extraction {
                 tau,
                 prior: Some(self.prior.unwrap_or(3.0 * tau).max(3.0 * tau)),
                 surveyed: true,
                 dirs: &dirs,
                 settings: &s.extract,
-                noise: &s.noise(),
-            };
-            let (_, sl, det) =
-                extract::extract_sphere(v, &targets[j], &how, ws.grid, ws.keys, |t0, d| {
-                    if let Some(p) = pass_of(mine, t0) {
-                        p.slices += 1;
-                        if let Some(d) = d {
-                            p.detected += 1;
-                            p.mean_inliers += d.inliers as f32;
-                        }
-                    }
-                });
-            self.counts[j] = (sl, det);
-            // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
-            let kept = v
-                .iter()
-                .filter(|o| o.work.verdict == ReturnClass::Kept as u8)
-                .count() as u32;
-            extract::reject_attachments(v, targets[j].radius, tau, &dirs, (kept / 33).max(8));
-            extract::reject_touching_plane(v, targets[j].radius, tau, (kept / 10).max(12));
-            if s.extract.ground_sweeps {
-                let band = 3.5 * s.noise().range + 0.01;
-                extract::reject_ground_on_sweeps(v, targets[j].radius, tau, band);
-            }
-            // Only the returns still taking part can be kept: the rest were set behind them
-            // as `OutsideShell` (`extract::place_and_compact`).
-            used[j] = partition(&mut obs[j][..self.active[j]]);
-            if used[j] < s.min_points {
-                extract::tag(obs[j], ReturnClass::NotFound);
-                used[j] = 0;
-            }
-            let mut at = PassCursor::default();
-            for o in obs[j].iter() {
-                let k = usize::from(o.work.verdict).min(7);
-                tallies[j][k] += 1;
-                if let Some(p) = at.pass_of(mine, o.time) {
-                    p.verdicts[k] += 1;
-                    if k == ReturnClass::Kept as usize {
-                        p.course[0] += o.velocity.x;
-                        p.course[1] += o.velocity.y;
-                    }
-                }
-            }
-            for p in mine.iter_mut() {
-                if p.detected > 0 {
-                    p.mean_inliers /= p.detected as f32;
-                }
-                let [n, e] = p.course;
-                let speed = libm::sqrtf(n * n + e * e);
-                p.course = if speed > 0.0 {
-                    [n / speed, e / speed]
-                } else {
-                    [0.0; 2]
-                };
-            }
+                noise: &noise,
+            },
+        };
+        let mut out = [Extracted::default(); MAX_TARGETS];
+        let k = groups(d.ws, &self.active[..n]);
+        let (oa, ob) = d.obs.split_at_mut(k);
+        let (aa, ab) = self.active[..n].split_at(k);
+        let (xa, xb) = out[..n].split_at_mut(k);
+        let cut = passes.partition_point(|p| usize::from(p.sphere) < k);
+        let (pa, pb) = passes.split_at_mut(cut);
+        side_by_side(
+            d.ws,
+            |lane| last.spheres(0, oa, aa, xa, pa, lane),
+            |lane| last.spheres(k, ob, ab, xb, pb, lane),
+        );
+        let mut used = [0usize; MAX_TARGETS];
+        let mut tallies = [[0u32; 8]; MAX_TARGETS];
+        for (j, x) in out.iter().enumerate().take(n) {
+            self.counts[j] = x.counts;
+            used[j] = x.used;
+            tallies[j] = x.tally;
         }
         (used, tallies)
     }
@@ -434,3 +396,110 @@ const GAP_S: f64 = 2.0;
 /// Room for the keys of the returns one set-aside moves (all of them: they are restored by it).
 const MOVED: usize = 24;
 const _: () = assert!(MISFIT_RETURNS <= MOVED && INFLUENTIAL_RETURNS <= MOVED);
+
+/// One sphere's last extraction: its slices and detections, its kept returns, its verdicts.
+#[derive(Debug, Clone, Copy, Default)]
+struct Extracted {
+    counts: (u32, u32),
+    used: usize,
+    tally: [u32; 8],
+}
+
+/// How the last extraction extracts each sphere's returns ([`Rounds::last_extraction`]).
+struct LastExtraction<'x> {
+    targets: &'x [Target],
+    s: &'x Settings,
+    mount: Mount,
+    time: TimeOffset,
+    how: extract::Extraction<'x>,
+}
+
+impl LastExtraction<'_> {
+    /// Spheres `first..` (`obs`, with `active` returns taking part), their passes among
+    /// `passes`: each one's outcome into `out`, the kept returns first in `obs`.
+    fn spheres(
+        &self,
+        first: usize,
+        obs: &mut [&mut [Observation]],
+        active: &[usize],
+        out: &mut [Extracted],
+        passes: &mut [PassReport],
+        lane: &mut Lane<'_>,
+    ) {
+        let (s, tau, dirs) = (self.s, self.how.tau, self.how.dirs);
+        for (i, ((all, &active), x)) in obs.iter_mut().zip(active).zip(out).enumerate() {
+            let j = first + i;
+            let Some(t) = self.targets.get(j) else {
+                continue;
+            };
+            let v = &mut all[..active];
+            extract::georeference(v, t, &self.mount, &self.time);
+            let mine = {
+                let a = passes.partition_point(|p| usize::from(p.sphere) < j);
+                let b = passes.partition_point(|p| usize::from(p.sphere) <= j);
+                &mut passes[a..b]
+            };
+            let (_, sl, det) =
+                extract::extract_sphere(v, t, &self.how, lane.grid, lane.keys, |t0, d| {
+                    if let Some(p) = pass_of(mine, t0) {
+                        p.slices += 1;
+                        if let Some(d) = d {
+                            p.detected += 1;
+                            p.mean_inliers += d.inliers as f32;
+                        }
+                    }
+                });
+            x.counts = (sl, det);
+            // What meets the sphere (its stand, a deck) is recognised around the surveyed centre.
+            let kept = v
+                .iter()
+                .filter(|o| o.work.verdict == ReturnClass::Kept as u8)
+                .count() as u32;
+            extract::reject_attachments(v, t.radius, tau, dirs, (kept / 33).max(8));
+            extract::reject_touching_plane(v, t.radius, tau, (kept / 10).max(12));
+            if s.extract.ground_sweeps {
+                let band = 3.5 * s.noise().range + 0.01;
+                extract::reject_ground_on_sweeps(v, t.radius, tau, band);
+            }
+            // Only the returns still taking part can be kept: the rest were set behind them
+            // as `OutsideShell` (`extract::place_and_compact`).
+            x.used = partition(v);
+            if x.used < s.min_points {
+                extract::tag(all, ReturnClass::NotFound);
+                x.used = 0;
+            }
+            x.tally = tally(all, mine);
+        }
+    }
+}
+
+/// A sphere's returns (`all`) counted by verdict, into its passes (`mine`) too, with each pass's
+/// course over its kept returns and its detections' mean inliers.
+fn tally(all: &[Observation], mine: &mut [PassReport]) -> [u32; 8] {
+    let mut tally = [0u32; 8];
+    let mut at = PassCursor::default();
+    for o in all {
+        let k = usize::from(o.work.verdict).min(7);
+        tally[k] += 1;
+        if let Some(p) = at.pass_of(mine, o.time) {
+            p.verdicts[k] += 1;
+            if k == ReturnClass::Kept as usize {
+                p.course[0] += o.velocity.x;
+                p.course[1] += o.velocity.y;
+            }
+        }
+    }
+    for p in mine.iter_mut() {
+        if p.detected > 0 {
+            p.mean_inliers /= p.detected as f32;
+        }
+        let [n, e] = p.course;
+        let speed = libm::sqrtf(n * n + e * e);
+        p.course = if speed > 0.0 {
+            [n / speed, e / speed]
+        } else {
+            [0.0; 2]
+        };
+    }
+    tally
+}

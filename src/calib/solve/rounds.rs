@@ -7,7 +7,8 @@ use super::checks::weights;
 use super::outcome::{PassReport, Refusal, Round, Solution, Termination};
 use super::settings::Settings;
 use super::{
-    fingerprint, gather, reach, split_ranges, time_order, with_problem, Residuals, Workspace,
+    fingerprint, gather, groups, reach, side_by_side, split_ranges, time_order, with_problem, Lane,
+    Residuals, Workspace,
 };
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::consensus::{Bounds, Consensus};
@@ -282,31 +283,37 @@ impl Rounds {
     /// two are found.
     fn round_extract(&mut self, d: &mut Data<'_, '_, '_>) -> Option<[usize; MAX_TARGETS]> {
         let (targets, s) = (d.targets, d.s);
-        let (obs, ws) = (&mut *d.obs, &mut *d.ws);
         let n = targets.len();
         let dirs = Directions::default();
-        let mount = Mount::from_params(&Params(self.b));
-        let mut kept = [0usize; MAX_TARGETS];
-        for j in 0..n {
-            let v = &mut obs[j][..self.active[j]];
+        let noise = s.noise();
+        let r = RoundExtraction {
+            targets,
+            mount: Mount::from_params(&Params(self.b)),
+            time: self.time,
             // Returns far from the sphere (a few prior radii beyond its surface, at least half
             // a metre) cannot become its returns any more: they leave the rounds.
-            let far = self.prior.map(|p| reach(p, self.tau));
-            self.active[j] = extract::place_and_compact(v, &targets[j], &mount, &self.time, far);
-            let v = &mut obs[j][..self.active[j]];
-            let how = extract::Extraction {
+            far: self.prior.map(|p| reach(p, self.tau)),
+            how: extract::Extraction {
                 tau: self.tau,
                 prior: self.prior,
                 surveyed: false,
                 dirs: &dirs,
                 settings: &s.extract,
-                noise: &s.noise(),
-            };
-            let (k, sl, det) =
-                extract::extract_sphere(v, &targets[j], &how, ws.grid, ws.keys, |_, _| {});
-            self.counts[j] = (sl, det);
-            kept[j] = k;
-        }
+                noise: &noise,
+            },
+        };
+        let mut kept = [0usize; MAX_TARGETS];
+        let k = groups(d.ws, &self.active[..n]);
+        let (oa, ob) = d.obs.split_at_mut(k);
+        let (aa, ab) = self.active[..n].split_at_mut(k);
+        let (ca, cb) = self.counts[..n].split_at_mut(k);
+        let (ka, kb) = kept[..n].split_at_mut(k);
+        side_by_side(
+            d.ws,
+            |lane| r.spheres(0, oa, aa, ca, ka, lane),
+            |lane| r.spheres(k, ob, ab, cb, kb, lane),
+        );
+        let obs = &mut *d.obs;
         if (0..n).filter(|&j| kept[j] >= s.min_points).count() < 2 {
             return None;
         }
@@ -401,10 +408,49 @@ impl Rounds {
     }
 }
 
+/// How a round extracts each sphere's returns ([`Rounds::round_extract`]).
+struct RoundExtraction<'r> {
+    targets: &'r [Target],
+    mount: Mount,
+    time: TimeOffset,
+    /// How far from its surface a return still takes part [m].
+    far: Option<f64>,
+    how: extract::Extraction<'r>,
+}
+
+impl RoundExtraction<'_> {
+    /// Spheres `first..` (`obs`, with `active` returns taking part, updated): each one placed,
+    /// compacted and extracted, its kept count into `kept` and its slices and detections into
+    /// `counts`.
+    fn spheres(
+        &self,
+        first: usize,
+        obs: &mut [&mut [Observation]],
+        active: &mut [usize],
+        counts: &mut [(u32, u32)],
+        kept: &mut [usize],
+        lane: &mut Lane<'_>,
+    ) {
+        let rows = obs.iter_mut().zip(active).zip(counts).zip(kept);
+        for (i, (((v, active), count), kept)) in rows.enumerate() {
+            let Some(t) = self.targets.get(first + i) else {
+                continue;
+            };
+            let v = &mut v[..*active];
+            *active = extract::place_and_compact(v, t, &self.mount, &self.time, self.far);
+            let v = &mut v[..*active];
+            let (k, sl, det) =
+                extract::extract_sphere(v, t, &self.how, lane.grid, lane.keys, |_, _| {});
+            *count = (sl, det);
+            *kept = k;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::consensus::{Bounds, Candidate};
+    use crate::calib::consensus::Bounds;
     use nalgebra::Vector3;
 
     /// Counts what it is told.
@@ -453,21 +499,8 @@ mod tests {
         let targets = [t, t];
         let (mut a, mut b): ([Observation; 0], [Observation; 0]) = ([], []);
         let mut obs: [&mut [Observation]; 2] = [&mut a, &mut b];
-        let (mut grid, mut kept, mut keys) = (
-            [0u16; 8],
-            [Observation::default(); 4],
-            [extract::Key::default(); 4],
-        );
-        let (mut cands, mut idx) = ([Candidate::default(); 4], [0usize; 4]);
-        let mut nav = [crate::calib::nav::Piece::EMPTY; 1];
-        let mut ws = Workspace {
-            grid: &mut grid,
-            kept: &mut kept,
-            keys: &mut keys,
-            cands: &mut cands,
-            idx: &mut idx,
-            nav: &mut nav,
-        };
+        let mut scratch = super::super::TinyScratch::new();
+        let mut ws = scratch.workspace(false);
         let s = Settings::default();
         let mut d = Data {
             targets: &targets,

@@ -138,7 +138,7 @@ impl<'a> Collections<'a> {
                 let (t, ids) = (self.targets.to_vec(), self.ids.to_vec());
                 let session = self
                     .session
-                    .insert(Session::new(t, ids, settings, &c.source));
+                    .insert(Session::new(t, ids, settings, &c.source).on_two_cores());
                 // An offset the user gave is known, whatever the clocks say.
                 if self.clock.start.is_some() {
                     session.know_offset();

@@ -48,7 +48,7 @@ impl InputFile {
             vec![path.to_path_buf()]
         };
         files.sort();
-        let mut buf = vec![0u8; 1 << 20];
+        let mut buf = vec![0u8; 1 << 16];
         for f in files {
             let mut r = std::fs::File::open(&f).map_err(|e| format!("{}: {e}", f.display()))?;
             loop {
@@ -96,6 +96,9 @@ impl Hashing {
         if self.running.is_none() {
             let files = std::mem::take(&mut self.files);
             self.running = Some(std::thread::spawn(move || {
+                // The solve's own work goes first; the hashing takes what the cores leave.
+                #[cfg(target_os = "linux")]
+                let _ = rustix::process::setpriority_process(Some(rustix::thread::gettid()), 19);
                 files
                     .iter()
                     .map(|(role, path)| InputFile::of(role, path))

@@ -190,6 +190,13 @@ impl Session {
         }
     }
 
+    /// Its solves' per-sphere work on two cores ([`Scratch::with_helper`]): for the file
+    /// command, whose solve has the machine to itself (the rig's live threads keep theirs).
+    pub fn on_two_cores(mut self) -> Self {
+        self.scratch = self.scratch.with_helper();
+        self
+    }
+
     /// The solves run and the radius probes made so far: `(solves, probes)`.
     pub fn effort(&self) -> (u32, u32) {
         (self.solves, self.radius_probes)

@@ -3,8 +3,9 @@
 
 use spherecal::align::window::Observation;
 use spherecal::calib::consensus::Candidate;
+use spherecal::calib::fork::Fork;
 use spherecal::calib::room::Room;
-use spherecal::calib::solve::Workspace;
+use spherecal::calib::solve::{Helper, Workspace};
 
 /// Cells of the detection's vote grid (64^3: 512 KB).
 pub const GRID_CELLS: usize = 64 * 64 * 64;
@@ -25,6 +26,29 @@ pub struct Scratch {
     cands: Growing<Candidate>,
     idx: Growing<usize>,
     nav: Growing<spherecal::calib::nav::Piece>,
+    /// The second worker's detection scratch ([`Scratch::with_helper`]).
+    helper: Option<Lane>,
+}
+
+/// A second worker's detection scratch: its vote grid, slice index and candidate room.
+#[derive(Debug, Clone)]
+struct Lane {
+    grid: Vec<u16>,
+    keys: Vec<spherecal::calib::extract::Key>,
+    cands: Growing<Candidate>,
+}
+
+/// Runs the second piece of work on a thread of its own, the first on the caller's.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Threads;
+
+impl Fork for Threads {
+    fn join(&self, a: &mut dyn FnMut(), b: &mut (dyn FnMut() + Send)) {
+        std::thread::scope(|s| {
+            s.spawn(b);
+            a();
+        });
+    }
 }
 
 /// Room that grows on use up to a capacity, written as it grows: a survey of a few minutes
@@ -84,7 +108,19 @@ impl Scratch {
             cands: Growing::new(CANDIDATE_CAPACITY, Candidate::default()),
             idx: Growing::new(CANDIDATE_CAPACITY, 0),
             nav: Growing::new(pieces, spherecal::calib::nav::Piece::EMPTY),
+            helper: None,
         }
+    }
+
+    /// With a second worker on its own thread for the per-sphere work (the solve's answer is
+    /// the same, in less time on two cores): 1 MB more.
+    pub fn with_helper(mut self) -> Self {
+        self.helper = Some(Lane {
+            grid: vec![0; GRID_CELLS],
+            keys: vec![Default::default(); SLICE_CAPACITY],
+            cands: Growing::new(CANDIDATE_CAPACITY, Candidate::default()),
+        });
+        self
     }
 
     /// The workspace the core's solve borrows.
@@ -96,6 +132,12 @@ impl Scratch {
             cands: &mut self.cands,
             idx: &mut self.idx,
             nav: &mut self.nav,
+            helper: self.helper.as_mut().map(|h| Helper {
+                fork: &Threads,
+                grid: &mut h.grid,
+                keys: &mut h.keys,
+                cands: &mut h.cands,
+            }),
         }
     }
 
