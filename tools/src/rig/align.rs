@@ -39,6 +39,9 @@ impl Batches<'_, '_> {
     }
 }
 
+/// The longest a windowed return waits in the aligner's batches before the solver gets it.
+const BATCH_AGE: Duration = Duration::from_secs(1);
+
 /// The aligner on the live rings until the data reader's End: position packets and poses as
 /// they come, each data packet aligned (waiting for the INS as [`InsWait::Latency`] allows),
 /// a new time offset from the solver applied between batches, the counters published.
@@ -55,7 +58,15 @@ pub(super) fn align_until_end(
     let mut windows_moved = 0;
     let mut published = Instant::now();
     let mut unpublished = false;
+    let mut handed = Instant::now();
     loop {
+        // What the batches hold goes on at least once a second: in windows tightened around
+        // the calibration a far pass fills a batch slowly (table1's second pass over S1: ~300
+        // returns in 5 s, half a batch is 512), and the live solves and verdict must see it.
+        if handed.elapsed() >= BATCH_AGE {
+            al.finish(&mut emit);
+            handed = Instant::now();
+        }
         while let Some(p) = pos_c.dequeue() {
             if let LidarPacket::Position(p) = p.packet() {
                 al.position(&p);
