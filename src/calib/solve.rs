@@ -1,10 +1,11 @@
 //! The whole solve: the spheres' returns found among the clutter ([`super::extract`]), the
 //! detect-and-solve rounds (argmin-shaped, with an [`Observe`] hook), the
 //! last extraction and least squares, the checks that refuse what the data cannot support
-//! ([`Refusal`]). Parts: `settings`, `outcome` (the results), `passes`, `rounds`, `checks`.
+//! ([`Refusal`]). Parts: `settings`, `outcome` (the results), `passes`, `rounds`, `checks`, `workspace` (the
+//! lent scratch and its second worker).
 //! The method and its limits: docs/extraction.md, section 2.
 
-use super::consensus::{Bounds, Candidate};
+use super::consensus::Bounds;
 use super::extract::{self, time_order, ExtractSettings, ReturnClass};
 use super::footprint::Footprint;
 use super::fork::Fork;
@@ -27,6 +28,7 @@ mod passes;
 mod restart;
 mod rounds;
 mod settings;
+mod workspace;
 
 use checks::{checks, clock_checks, lost_reasons};
 pub use outcome::{
@@ -37,6 +39,10 @@ use passes::PassFinder;
 pub use rounds::Observe;
 use rounds::{run_rounds, Data, Rounds};
 pub use settings::{ClockFacts, InsStep, Settings, UntrustedLidar};
+#[cfg(test)]
+use workspace::TinyScratch;
+use workspace::{groups, halves, side_by_side, Lane};
+pub use workspace::{Helper, Workspace};
 
 /// Most passes (sightings of a sphere) reported per solve; later ones are added to the last.
 pub const MAX_PASSES: usize = 128;
@@ -151,114 +157,6 @@ fn fingerprint(h: u64, v: &[Observation]) -> u64 {
         h = (h ^ o.time.0 as u64 ^ (u64::from(o.channel) << 56)).wrapping_mul(0x100_0000_01b3);
     }
     (h ^ v.len() as u64).wrapping_mul(0x100_0000_01b3)
-}
-
-/// The solver's scratch, from the caller (no heap in the core).
-#[derive(Debug)]
-pub struct Workspace<'a> {
-    /// The detection's vote grid, all zero (64^3 = 262,144 cells suit windows of a few metres;
-    /// fewer cells make coarser votes).
-    pub grid: &'a mut [u16],
-    /// Room for the kept returns of a round (all spheres; 50,000 are ample); a round that keeps
-    /// more solves on an evenly spread subset (the last solve always uses every kept return).
-    pub kept: &'a mut dyn Room<Observation>,
-    /// A slice's index by x; its length caps a slice's returns (32,768 is ample: 0.4 s of a
-    /// window rarely holds 10,000).
-    pub keys: &'a mut [extract::Key],
-    /// Room for the first round's candidates (up to four per slice of each window; more are
-    /// dropped).
-    pub cands: &'a mut (dyn Room<Candidate> + Send),
-    /// Room for candidate indices, as much as for `cands`.
-    pub idx: &'a mut dyn Room<usize>,
-    /// Room for the navigation model's pieces of the time line (128 suit a survey of a few
-    /// minutes at a correlation time of seconds; with fewer the pieces are made longer).
-    pub nav: &'a mut dyn Room<crate::calib::nav::Piece>,
-    /// A second worker for the per-sphere work (`None`: the spheres one after the other on
-    /// this scratch): the spheres are split in two groups of about equal returns, the second
-    /// worked on with the helper's scratch beside the first. The answer is the same.
-    pub helper: Option<Helper<'a>>,
-}
-
-/// The second worker's scratch (as [`Workspace`]'s fields of the same names) and how it runs.
-#[derive(Debug)]
-pub struct Helper<'a> {
-    /// Runs the second group beside the first.
-    pub fork: &'a dyn Fork,
-    /// Its vote grid, all zero.
-    pub grid: &'a mut [u16],
-    /// Its slice index, as long as [`Workspace::keys`] (whose length caps a slice).
-    pub keys: &'a mut [extract::Key],
-    /// Room for its candidates (the first round's of the second group, before they join the
-    /// first's).
-    pub cands: &'a mut (dyn Room<Candidate> + Send),
-}
-
-/// One worker's detection scratch.
-pub(super) struct Lane<'l> {
-    pub(super) grid: &'l mut [u16],
-    pub(super) keys: &'l mut [extract::Key],
-    pub(super) cands: &'l mut (dyn Room<Candidate> + Send),
-}
-
-impl Workspace<'_> {
-    /// The caller's lane, and the helper's with its fork when one was lent.
-    fn lanes(&mut self) -> (Lane<'_>, Option<(&dyn Fork, Lane<'_>)>) {
-        let mine = Lane {
-            grid: &mut *self.grid,
-            keys: &mut *self.keys,
-            cands: &mut *self.cands,
-        };
-        let other = self.helper.as_mut().map(|h| {
-            let lane = Lane {
-                grid: &mut *h.grid,
-                keys: &mut *h.keys,
-                cands: &mut *h.cands,
-            };
-            (h.fork, lane)
-        });
-        (mine, other)
-    }
-}
-
-/// Where spheres with `lens` returns split in two groups of about equal returns: the second
-/// group's first sphere (`lens.len()` when there is only one group).
-fn halves(lens: &[usize]) -> usize {
-    let total: usize = lens.iter().sum();
-    let (mut before, mut best) = (0usize, (usize::MAX, lens.len()));
-    for (k, n) in lens.iter().enumerate().take(lens.len().saturating_sub(1)) {
-        before += n;
-        let gap = before.abs_diff(total - before);
-        if gap < best.0 {
-            best = (gap, k + 1);
-        }
-    }
-    best.1
-}
-
-/// Where [`side_by_side`]'s two groups of the spheres with `lens` returns split: in halves
-/// with a helper, else all in the first.
-fn groups(ws: &Workspace<'_>, lens: &[usize]) -> usize {
-    match ws.helper {
-        Some(_) => halves(lens),
-        None => lens.len(),
-    }
-}
-
-/// `a` on the caller's lane and `b` on the helper's beside it, when one was lent; else `a`,
-/// then `b`, on the caller's lane.
-fn side_by_side(
-    ws: &mut Workspace<'_>,
-    mut a: impl FnMut(&mut Lane<'_>),
-    mut b: impl FnMut(&mut Lane<'_>) + Send,
-) {
-    let (mut mine, other) = ws.lanes();
-    match other {
-        Some((fork, mut lane)) => fork.join(&mut || a(&mut mine), &mut || b(&mut lane)),
-        None => {
-            a(&mut mine);
-            b(&mut mine);
-        }
-    }
 }
 
 /// Copy the kept returns of every sphere into `room` (at most what it has, evenly spread when
@@ -611,56 +509,6 @@ fn sphere_reports(
         });
     }
     sol.center_rms = (nc > 0).then(|| libm::sqrt(c2 / nc as f64));
-}
-
-/// A tiny scratch for the tests: room for four of everything, and a helper's.
-#[cfg(test)]
-pub(super) struct TinyScratch {
-    grid: [u16; 8],
-    kept: [Observation; 4],
-    keys: [extract::Key; 4],
-    cands: [Candidate; 4],
-    idx: [usize; 4],
-    nav: [crate::calib::nav::Piece; 1],
-    helper: ([u16; 8], [extract::Key; 4], [Candidate; 4]),
-}
-
-#[cfg(test)]
-impl TinyScratch {
-    pub(super) fn new() -> Self {
-        Self {
-            grid: [0; 8],
-            kept: [Observation::default(); 4],
-            keys: [extract::Key::default(); 4],
-            cands: [Candidate::default(); 4],
-            idx: [0; 4],
-            nav: [crate::calib::nav::Piece::EMPTY; 1],
-            helper: (
-                [0; 8],
-                [extract::Key::default(); 4],
-                [Candidate::default(); 4],
-            ),
-        }
-    }
-
-    /// Its workspace, with a helper running in turn when `helped`.
-    pub(super) fn workspace(&mut self, helped: bool) -> Workspace<'_> {
-        let (grid, keys, cands) = &mut self.helper;
-        Workspace {
-            grid: &mut self.grid,
-            kept: &mut self.kept,
-            keys: &mut self.keys,
-            cands: &mut self.cands,
-            idx: &mut self.idx,
-            nav: &mut self.nav,
-            helper: helped.then_some(Helper {
-                fork: &super::fork::InTurn,
-                grid,
-                keys,
-                cands,
-            }),
-        }
-    }
 }
 
 #[cfg(test)]

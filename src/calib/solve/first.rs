@@ -100,7 +100,7 @@ impl Rounds {
                 if let (Some(to), Some(from)) = (all.get_mut(na..), theirs.get(..fit)) {
                     to.copy_from_slice(from);
                 }
-                na.max(all.len())
+                all.len()
             }
             _ => na,
         }
