@@ -161,6 +161,12 @@ impl<'a, const H: usize, const B: usize> Aligner<'a, H, B> {
         self.history.span()
     }
 
+    /// The index the next data packet's returns will carry ([`Observation::packet`]): the data
+    /// packets seen so far, timed or not.
+    pub fn next_packet(&self) -> u32 {
+        self.data_seen
+    }
+
     /// Returns windowed for sphere `i` so far, including those not yet handed on.
     pub fn windowed_now(&self, i: usize) -> u64 {
         self.windowed.get(i).copied().unwrap_or(0)

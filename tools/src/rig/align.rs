@@ -3,6 +3,7 @@
 //! to the solver, the counters published for the status line.
 
 use super::shared::AlignerHandle;
+use super::summary::FirstMove;
 use crate::pipeline::{BatchMsg, InsItem, LidarItem, LidarPacket, RingAligner, BATCH};
 use heapless::spsc::Consumer;
 use spherecal::align::window::Observation;
@@ -36,6 +37,18 @@ impl Batches<'_, '_> {
                 .batch_drops
                 .fetch_add(e.into_inner().obs.len() as u64, Ordering::Relaxed);
         }
+    }
+}
+
+/// Where the windows first moved: the data packets aligned and the returns windowed so far.
+fn first_move(al: &RingAligner<'_>, sh: AlignerHandle<'_>) {
+    if let Ok(mut m) = sh.aligner.first_move.lock() {
+        *m = Some(FirstMove {
+            packet: al.core.next_packet(),
+            windowed: (0..sh.aligner.windowed.len())
+                .map(|i| al.core.windowed_now(i))
+                .collect(),
+        });
     }
 }
 
@@ -93,6 +106,9 @@ pub(super) fn align_until_end(
             }
             if let Some((b, margin)) = s.windows.filter(|_| s.windows_moved != windows_moved) {
                 al.finish(&mut emit);
+                if windows_moved == 0 {
+                    first_move(al, sh);
+                }
                 al.core.set_windows(b.mount(), margin);
                 windows_moved = s.windows_moved;
             }

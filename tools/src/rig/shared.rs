@@ -96,6 +96,8 @@ pub(super) struct AlignerOut {
     pub(super) aligned: AtomicU64,
     /// Returns windowed per sphere.
     pub(super) windowed: Vec<AtomicU64>,
+    /// When the windows first moved around a calibration (set once).
+    pub(super) first_move: Mutex<Option<super::summary::FirstMove>>,
     /// Returns that got no pose so far.
     pub(super) without_pose: AtomicU64,
     /// Returns dropped because the solver's batch channel was full.
@@ -262,6 +264,7 @@ impl<'a> Shared<'a> {
                 lag_ns: AtomicI64::new(i64::MIN),
                 aligned: AtomicU64::new(0),
                 windowed: (0..spheres).map(|_| AtomicU64::new(0)).collect(),
+                first_move: Mutex::new(None),
                 without_pose: AtomicU64::new(0),
                 batch_drops: AtomicU64::new(0),
                 clock: Mutex::new((crate::state::ClockState::default(), None)),

@@ -23,6 +23,9 @@ pub struct RunSummary {
     pub windows_moved: u64,
     /// ...
     pub live_margin_m: Option<f64>,
+    /// ... and where they first moved (None: never).
+    #[serde(default)]
+    pub first_move: Option<FirstMove>,
     /// Datagrams the kernel dropped (socket buffer full): data, position.
     pub kernel_drops: [u64; 2],
     /// Datagrams with a kernel receive time.
@@ -88,6 +91,17 @@ pub struct RunSummary {
     pub serial_reopened: u64,
 }
 
+/// Where the aligner's windows first moved around a calibration: the returns windowed from
+/// then on are `windowed` less these, those of data packets `packet` on.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct FirstMove {
+    /// The first data packet windowed in the new windows (0-based, arrival order: as
+    /// `Observation::packet`).
+    pub packet: u32,
+    /// Returns windowed per sphere before the move.
+    pub windowed: Vec<u64>,
+}
+
 /// What the threads hand back when a run ends.
 pub(super) struct Ended {
     /// Per socket (data, position): skips, and datagrams with kernel receive times.
@@ -122,6 +136,7 @@ impl RunSummary {
             received: ld(&sh.readers.received),
             windows_moved: steer.windows_moved,
             live_margin_m: steer.windows.map(|x| x.1),
+            first_move: sh.aligner.first_move.lock().ok().and_then(|m| m.clone()),
             heard: sh
                 .readers
                 .heard
@@ -221,6 +236,19 @@ pub fn render(s: &RunSummary) -> String {
         s.windowed,
         s.solves
     );
+    if let (Some(m), Some(margin)) = (&s.first_move, s.live_margin_m) {
+        let since: Vec<u64> = s
+            .windowed
+            .iter()
+            .zip(&m.windowed)
+            .map(|(a, b)| a.saturating_sub(*b))
+            .collect();
+        let _ = writeln!(
+            o,
+            "windows: around the calibration from data packet {} (moved {} times, last margin {:.2} m); windowed since {:?}",
+            m.packet, s.windows_moved, margin, since
+        );
+    }
     let _ = writeln!(
         o,
         "clock: {}{}",
