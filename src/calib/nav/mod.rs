@@ -27,6 +27,7 @@ mod tests;
 mod weights;
 
 use joint::Joint;
+pub use joint::{Row, Split};
 use pieces::piece_of;
 pub use pieces::{cut, cut_for, cut_in, Piece};
 use steps::iterate;
@@ -164,15 +165,16 @@ impl MountPrior {
 /// residuals show more than the weights say (cluster-robust, [`robust`]); `sigma_classic`
 /// is the information's alone. `mount`: the prior on the mounting (none:
 /// [`MountPrior::default`]); under white errors the design effect is left to the robust
-/// covariance.
+/// covariance. `split`: a second worker for each evaluation's rows (the answer is the same).
 #[allow(clippy::too_many_arguments)]
-pub fn refine(
-    pb: &Problem<'_>,
+pub fn refine<'a>(
+    pb: &'a Problem<'_>,
     b0: &[f64; P],
     model: &NavModel,
     centre_sigma: &[f64],
     mount: &MountPrior,
     pieces: &mut [Piece],
+    split: Option<Split<'a>>,
     max_iter: usize,
     cluster_ns: i64,
     clock: Clock,
@@ -183,6 +185,7 @@ pub fn refine(
     };
     let mut at = Joint::start(pb, b0, model, centre_sigma, pieces, clock);
     at.mount = *mount;
+    at.split = split;
     let (mut sums, mut iterations, converged) =
         weights::passes(&mut at, pieces, max_iter, cluster_ns);
     if converged {

@@ -112,9 +112,24 @@ pub(super) fn with_leverage(
             }
             jt[q] -= acc;
         }
-        let hat = r.w * ((jt.transpose() * h_inv * jt)[0] + (r.je.transpose() * p.s * r.je)[0]);
+        let hat = r.w * (quadratic(&jt, h_inv, na) + (r.je.transpose() * p.s * r.je)[0]);
         f(r, &jt, hat);
     });
+}
+
+/// `j^T H j` for a `j` zero past its first `na` entries: `(j^T H) j` over those alone, each
+/// sum in the order nalgebra's product takes it: the same to the bit, with 13x fewer products
+/// for two spheres (16 of the 58 globals).
+fn quadratic(j: &VecG, h: &MatG, na: usize) -> f64 {
+    let mut quad = 0.0;
+    for c in 0..na {
+        let mut v = 0.0;
+        for k in 0..na {
+            v += j[k] * h[(k, c)];
+        }
+        quad += v * j[c];
+    }
+    quad
 }
 
 /// `m += u u^T` over the first `na` rows and columns.
@@ -122,6 +137,28 @@ fn add_outer(m: &mut MatG, u: &VecG, na: usize) {
     for a in 0..na {
         for b in 0..na {
             m[(a, b)] += u[a] * u[b];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{quadratic, MatG, VecG};
+
+    /// The quadratic form over the globals in use is nalgebra's product over all of them, to
+    /// the bit.
+    #[test]
+    fn the_quadratic_form_is_the_full_products_to_the_bit() {
+        let mut rng = crate::sim::Rng::new(11);
+        for na in [1, 10, 16, 31, 58] {
+            for _ in 0..20 {
+                let h = MatG::from_fn(|_, _| {
+                    rng.range(-3.0, 3.0) * 10f64.powi((rng.range(-6.0, 6.0)) as i32)
+                });
+                let j = VecG::from_fn(|i, _| if i < na { rng.range(-2.0, 2.0) } else { 0.0 });
+                let full = (j.transpose() * h * j)[0];
+                assert_eq!(quadratic(&j, &h, na).to_bits(), full.to_bits(), "{na}");
+            }
         }
     }
 }

@@ -230,6 +230,7 @@ mod honesty {
             &[0.02, 0.02],
             &MountPrior::default(),
             pieces,
+            None,
             100,
             20_000_000,
             Clock::default(),
@@ -304,6 +305,63 @@ mod honesty {
             core::array::from_fn(|i| libm::sqrt(err2[i] / pred[i])),
             classic.map(libm::sqrt),
         )
+    }
+
+    /// With a second worker for the rows (`Split`), the solve is one worker's to the last bit:
+    /// rooms of 2, 7 and 301 rows (turns of uneven halves, a last turn part full) and one
+    /// with room for every row; a room of one row makes them all on this thread.
+    #[test]
+    fn a_second_worker_for_the_rows_gives_the_same_solve() {
+        let (c, model) = errors(15.0);
+        let noise = Noise {
+            range: 0.009,
+            attitude: 0.0,
+            position: 0.0,
+            spread: 0.001,
+        };
+        let (obs, _) = survey(5, &c, 0.009, false, Some(0.001));
+        let s = spheres(&obs);
+        let pb = problem(&s, noise);
+        let mut pieces = std::vec![Piece::EMPTY; 256];
+        let m = cut_for(&pb, &model, &mut pieces);
+        let all: usize = obs.iter().map(Vec::len).sum();
+        /// A test's room: the slice it holds.
+        #[derive(Debug)]
+        struct Slots<'r>(&'r mut [Row]);
+        impl crate::calib::room::Room<Row> for Slots<'_> {
+            fn room(&mut self, n: usize) -> &mut [Row] {
+                self.0.room(n)
+            }
+        }
+        let mut solve = |room: Option<&mut Slots<'_>>| {
+            let split = room.map(|rows| Split {
+                fork: &crate::calib::fork::InTurn,
+                rows,
+            });
+            let (l, f) = refine(
+                &pb,
+                &TRUTH,
+                &model,
+                &[0.02, 0.02],
+                &MountPrior::default(),
+                &mut pieces[..m],
+                split,
+                100,
+                20_000_000,
+                Clock::default(),
+            );
+            let errors: Vec<[f64; 6]> = pieces[..m].iter().map(|p| p.error).collect();
+            std::format!("{l:?} {f:?} {errors:?}")
+        };
+        let one = solve(None);
+        assert!(one.contains("converged: true"), "{one}");
+        for n in [1, 2, 7, 301, 2 * all] {
+            let mut rows = std::vec![Row::EMPTY; n];
+            assert!(
+                solve(Some(&mut Slots(&mut rows))) == one,
+                "a room of {n} rows"
+            );
+        }
     }
 
     /// The model's sigmas are honest, both bounds, on returns exact but for the range noise
@@ -429,6 +487,7 @@ mod honesty {
                 &[0.02, 0.02],
                 &MountPrior::default(),
                 &mut pieces[..m],
+                None,
                 cap,
                 20_000_000,
                 Clock::default(),

@@ -6,7 +6,7 @@ use super::outcome::{PassReport, Solution};
 use super::passes::{pass_of, PassCursor};
 use super::rounds::{Data, Rounds};
 use super::settings::Settings;
-use super::{groups, partition, side_by_side, with_problem, Lane, Residuals};
+use super::{groups, partition, side_by_side, with_problem, Helper, Lane, Residuals};
 use crate::align::window::{Observation, Target, MAX_TARGETS};
 use crate::calib::extract::{self, Directions, ReturnClass};
 use crate::calib::lm::{refine, Clock};
@@ -78,6 +78,7 @@ impl Rounds {
     ) {
         let (targets, s, obs) = (d.targets, d.s, &*d.obs);
         let nav = &mut *d.ws.nav;
+        let helper = &mut d.ws.helper;
         // Under the navigation model the weights are the white noise's, absolute (the priors
         // are in metres and radians).
         let w = match s.nav {
@@ -88,7 +89,8 @@ impl Rounds {
                    b: &[f64; P],
                    iter: usize,
                    clock: Clock,
-                   nav: &mut dyn Room<Piece>| match &s.nav {
+                   nav: &mut dyn Room<Piece>,
+                   helper: &mut Option<Helper<'_>>| match &s.nav {
             Some(model) => {
                 let m = cut_in(pb, model, nav);
                 let (l, f) = refine_nav(
@@ -98,6 +100,7 @@ impl Rounds {
                     &s.centre_sigma,
                     &s.mount_prior,
                     nav.room(m),
+                    helper.as_mut().map(Helper::split),
                     iter,
                     s.cluster_ns,
                     clock,
@@ -109,7 +112,7 @@ impl Rounds {
         let fitted = Residuals::fitted(w, s);
         let lm = (found >= 2).then(|| {
             with_problem(targets, obs, used, 1, self.time, fitted, |pb| {
-                fit(pb, &self.b, s.lm_iter, s.clock(), nav)
+                fit(pb, &self.b, s.lm_iter, s.clock(), nav, helper)
             })
         });
         let lm = lm.map(|(l, f)| {
@@ -133,8 +136,8 @@ impl Rounds {
             };
             let (free, at_held) = with_problem(targets, obs, used, 1, self.time, fitted, |pb| {
                 (
-                    fit(pb, &l.b, s.lm_iter, free_clock, nav).0,
-                    fit(pb, &l.b, 0, free_clock, nav).0,
+                    fit(pb, &l.b, s.lm_iter, free_clock, nav, helper).0,
+                    fit(pb, &l.b, 0, free_clock, nav, helper).0,
                 )
             });
             let sigma = at_held.sigma_dt;

@@ -46,6 +46,20 @@ pub struct Helper<'a> {
     /// Room for its candidates (the first round's of the second group, before they join the
     /// first's).
     pub cands: &'a mut (dyn Room<Candidate> + Send),
+    /// Room for the navigation model's rows, both workers' (each evaluation of the final fit
+    /// makes them in two halves side by side, [`crate::calib::nav::Split`]): room for every
+    /// row makes them in one turn (none: the caller's thread makes them all).
+    pub rows: &'a mut (dyn Room<crate::calib::nav::Row> + Send + Sync),
+}
+
+impl Helper<'_> {
+    /// Its worker and rows for the navigation model's final fit.
+    pub(super) fn split(&mut self) -> crate::calib::nav::Split<'_> {
+        crate::calib::nav::Split {
+            fork: self.fork,
+            rows: &mut *self.rows,
+        }
+    }
 }
 
 /// One worker's detection scratch.
@@ -125,7 +139,12 @@ pub(in crate::calib::solve) struct TinyScratch {
     cands: [Candidate; 4],
     idx: [usize; 4],
     nav: [crate::calib::nav::Piece; 1],
-    helper: ([u16; 8], [extract::Key; 4], [Candidate; 4]),
+    helper: (
+        [u16; 8],
+        [extract::Key; 4],
+        [Candidate; 4],
+        [crate::calib::nav::Row; 2],
+    ),
 }
 
 #[cfg(test)]
@@ -142,13 +161,14 @@ impl TinyScratch {
                 [0; 8],
                 [extract::Key::default(); 4],
                 [Candidate::default(); 4],
+                [crate::calib::nav::Row::EMPTY; 2],
             ),
         }
     }
 
     /// Its workspace, with a helper running in turn when `helped`.
     pub(in crate::calib::solve) fn workspace(&mut self, helped: bool) -> Workspace<'_> {
-        let (grid, keys, cands) = &mut self.helper;
+        let (grid, keys, cands, rows) = &mut self.helper;
         Workspace {
             grid: &mut self.grid,
             kept: &mut self.kept,
@@ -161,6 +181,7 @@ impl TinyScratch {
                 grid,
                 keys,
                 cands,
+                rows,
             }),
         }
     }

@@ -4,6 +4,7 @@
 use spherecal::align::window::Observation;
 use spherecal::calib::consensus::Candidate;
 use spherecal::calib::fork::Fork;
+use spherecal::calib::nav::Row;
 use spherecal::calib::room::Room;
 use spherecal::calib::solve::{Helper, Workspace};
 
@@ -30,13 +31,19 @@ pub struct Scratch {
     helper: Option<Lane>,
 }
 
-/// A second worker's detection scratch: its vote grid, slice index and candidate room.
+/// A second worker's scratch: its vote grid, slice index and candidate room, and the
+/// navigation model's rows.
 #[derive(Debug, Clone)]
 struct Lane {
     grid: Vec<u16>,
     keys: Vec<spherecal::calib::extract::Key>,
     cands: Growing<Candidate>,
+    rows: Growing<Row>,
 }
+
+/// The navigation model's rows made in one turn of the final fit's two workers (~250 B each:
+/// up to 4 MB, written as a solve uses it; table1-real's 2,421 rows take one turn).
+pub const NAV_ROWS: usize = 16_384;
 
 /// Runs the second piece of work on a thread of its own, the first on the caller's.
 #[derive(Debug, Clone, Copy, Default)]
@@ -112,13 +119,15 @@ impl Scratch {
         }
     }
 
-    /// With a second worker on its own thread for the per-sphere work (the solve's answer is
-    /// the same, in less time on two cores): 1 MB more.
+    /// With a second worker on its own thread for the per-sphere work and the navigation
+    /// model's rows (the solve's answer is the same, in less time on two cores): 1 MB more, and
+    /// up to 4 MB for the rows under a navigation model.
     pub fn with_helper(mut self) -> Self {
         self.helper = Some(Lane {
             grid: vec![0; GRID_CELLS],
             keys: vec![Default::default(); SLICE_CAPACITY],
             cands: Growing::new(CANDIDATE_CAPACITY, Candidate::default()),
+            rows: Growing::new(NAV_ROWS, Row::EMPTY),
         });
         self
     }
@@ -137,6 +146,7 @@ impl Scratch {
                 grid: &mut h.grid,
                 keys: &mut h.keys,
                 cands: &mut h.cands,
+                rows: &mut h.rows,
             }),
         }
     }

@@ -551,7 +551,7 @@ fn table1_quay_with_every_model() {
 fn pontoon_site() {
     let s = Scenario::load("pontoon").unwrap();
     let (dir, rep, _, obs) = synth_and_solve(&s, "pontoon");
-    same_on_two_cores(&inputs(&dir));
+    common::same_on_two_cores(&inputs(&dir), &Settings::default());
     let got = rep.deg_m();
     assert!(rep.converged, "{:?}", rep.reason);
     common::assert_within(&got, &truth(&s), 1e-3, "pontoon");
@@ -567,42 +567,6 @@ fn pontoon_site() {
         spherecal_tools::montecarlo::montecarlo(&s, Some(&dir), 100, 5.0, 0.5, 5, false).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(mc.fraction_within, 1.0, "worst errors {:?}", mc.worst_error);
-}
-
-/// The solve with a helper on a second core (`Scratch::with_helper`, as `calibrate` runs it)
-/// is the solve on one: the same solution to the last bit, the same verdict for every return
-/// (the pontoon's three spheres split in groups of one and two).
-fn same_on_two_cores(inp: &Inputs) {
-    let (_, obs) = collect(inp).unwrap();
-    let (t, ids) = site_targets(inp);
-    let solve = |mut scratch: Scratch| {
-        let mut obs = obs.clone();
-        let (sol, _) = spherecal_tools::session::solve_report_in(
-            &t,
-            &ids,
-            &mut obs,
-            &inp.mount.params(),
-            &Settings::default(),
-            &mut scratch,
-            &mut (),
-        );
-        let verdicts: Vec<Vec<(i64, u8, u8)>> = obs
-            .iter()
-            .map(|v| {
-                v.iter()
-                    .map(|o| (o.time.0, o.channel, o.work.verdict))
-                    .collect()
-            })
-            .collect();
-        (format!("{sol:?}"), verdicts)
-    };
-    let (one, two) = (
-        solve(Scratch::default()),
-        solve(Scratch::default().with_helper()),
-    );
-    assert!(one.0.contains("converged: true"), "{}", one.0);
-    assert!(one.0 == two.0, "one core:\n{}\ntwo:\n{}", one.0, two.0);
-    assert!(one.1 == two.1, "the verdicts differ");
 }
 
 // The noisy sites' reported sigmas are checked over 200 noise seeds each in tools/tests/e2e/plan.rs

@@ -260,3 +260,45 @@ pub fn text(o: &std::process::Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     )
 }
+
+/// The solve with a helper on a second core (`Scratch::with_helper`, as `calibrate` runs it)
+/// is the solve on one: the same solution to the last bit, the same verdict for every return
+/// (the pontoon's three spheres split in groups of one and two; under a navigation model,
+/// each evaluation's rows made in two halves side by side).
+pub fn same_on_two_cores(
+    inp: &spherecal_tools::pipeline::Inputs,
+    settings: &spherecal::calib::Settings,
+) {
+    let (_, obs) = spherecal_tools::calibrate::collect(inp).unwrap();
+    let (t, ids) = spherecal_tools::calibrate::site_targets(inp);
+    let solve = |mut scratch: spherecal_tools::session::scratch::Scratch| {
+        let mut obs = obs.clone();
+        let (sol, _) = spherecal_tools::session::solve_report_in(
+            &t,
+            &ids,
+            &mut obs,
+            &inp.mount.params(),
+            settings,
+            &mut scratch,
+            &mut (),
+        );
+        let verdicts: Vec<Vec<(i64, u8, u8)>> = obs
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .map(|o| (o.time.0, o.channel, o.work.verdict))
+                    .collect()
+            })
+            .collect();
+        (format!("{sol:?}"), verdicts)
+    };
+    let (one, two) = (
+        solve(spherecal_tools::session::scratch::Scratch::for_settings(
+            settings,
+        )),
+        solve(spherecal_tools::session::scratch::Scratch::for_settings(settings).with_helper()),
+    );
+    assert!(one.0.contains("converged: true"), "{}", one.0);
+    assert!(one.0 == two.0, "one core:\n{}\ntwo:\n{}", one.0, two.0);
+    assert!(one.1 == two.1, "the verdicts differ");
+}
