@@ -21,15 +21,16 @@ use nalgebra::{SMatrix, SVector};
 mod joint;
 mod pieces;
 mod robust;
+mod rows;
 mod steps;
 #[cfg(test)]
 mod tests;
 mod weights;
 
 use joint::Joint;
-pub use joint::{Row, Split};
 use pieces::piece_of;
 pub use pieces::{cut, cut_for, cut_in, Piece};
+pub use rows::{Row, Split};
 use steps::iterate;
 
 /// The navigation errors' model: per axis a first-order Gauss-Markov process.

@@ -17,7 +17,8 @@
 //! White 1985's HC2, per cluster). The priors (the chain's process, the centres' survey) keep
 //! the model's share. Each variance is at least the classic one, as the white model's.
 
-use super::joint::{Joint, Row};
+use super::joint::Joint;
+use super::rows::Row;
 use super::{MatG, Piece, VecG};
 use crate::calib::lm::Q;
 

@@ -37,7 +37,8 @@ pub struct Workspace<'a> {
 /// The second worker's scratch (as [`Workspace`]'s fields of the same names) and how it runs.
 #[derive(Debug)]
 pub struct Helper<'a> {
-    /// Runs the second group beside the first.
+    /// Runs the second group (and the second half of the navigation fit's rows) beside the
+    /// first.
     pub fork: &'a dyn Fork,
     /// Its vote grid, all zero.
     pub grid: &'a mut [u16],

@@ -40,7 +40,8 @@ impl Batches<'_, '_> {
     }
 }
 
-/// Where the windows first moved: the data packets aligned and the returns windowed so far.
+/// Where the windows first moved: the next data packet's index and the returns windowed so
+/// far (published once, for the run summary).
 fn first_move(al: &RingAligner<'_>, sh: AlignerHandle<'_>) {
     if let Ok(mut m) = sh.aligner.first_move.lock() {
         *m = Some(FirstMove {

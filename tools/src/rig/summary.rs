@@ -24,7 +24,6 @@ pub struct RunSummary {
     /// ...
     pub live_margin_m: Option<f64>,
     /// ... and where they first moved (None: never).
-    #[serde(default)]
     pub first_move: Option<FirstMove>,
     /// Datagrams the kernel dropped (socket buffer full): data, position.
     pub kernel_drops: [u64; 2],
