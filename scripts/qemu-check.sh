@@ -36,9 +36,9 @@ fi
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-# The host's digest from the debug build (the tests' build already holds the core): IEEE
-# arithmetic gives the same bits in either profile.
-cargo build -q -p spherecal-firmware
+# The host's digest from the tests' profile (their build already holds the core's
+# dependencies): IEEE arithmetic gives the same bits in any profile.
+cargo build -q -p spherecal-firmware --profile test
 target/debug/spherecal-firmware >"$work/host"
 figures() { grep -e '^flash ' -e '^ram ' -e '^stack ' -e '^instructions ' "$1"; }
 value() { grep "^$1 " "$2" | awk '{print $(NF)=="bytes" ? $(NF-1) : $NF}'; }

@@ -59,23 +59,17 @@ trap 'rm -rf "$work" "$synth_cache"' EXIT
 if [ "${CI:-}" = "true" ]; then
   export CARGO_INCREMENTAL=0
 fi
-# The side jobs' builds go to the RAM disk when it has room: they then write nothing to the disk
-# the rig tests log to with fsync.
-# Their own target folder either way: cargo's lock on a shared one would hold the tests' runs.
+# The bare-metal and fuzz builds go to the RAM disk when it has room, in a target folder of
+# their own either way (cargo's lock on the tests' folder would hold the tests' runs).
 SIDE_TARGET=$PWD/target/side
 free_kb=$(df -Pk /dev/shm 2>/dev/null | awk 'NR == 2 { print $4 }')
 if [ -n "$free_kb" ] && [ "$free_kb" -gt 6000000 ]; then
   SIDE_TARGET=/dev/shm/spherecal-side-target
 fi
 
-# Fuzzing: build every target, run each for FUZZ_SECONDS (5) from the committed corpus, one
-# at a time.
+# Fuzzing: build every target, then run each for FUZZ_SECONDS (5) from the committed corpus, as
+# many side by side as there are CPUs.
 fuzz_stage() {
-  if ! cargo fuzz --version >/dev/null 2>&1; then
-    # A debug build: cargo-fuzz only runs cargo, and unoptimised it builds in half the time
-    # on a fresh machine's side core.
-    cargo install cargo-fuzz --locked --debug >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
-  fi
   if ! cargo fuzz --version >/dev/null 2>&1; then
     echo "warning: skipped: cargo-fuzz is not installed"
     return 0
@@ -88,12 +82,22 @@ fuzz_stage() {
   # 16 codegen units: the build takes ~130 s of CPU instead of ~390 (one unit), for 10 s runs.
   dir+=(--codegen-units 16)
   (cd fuzz && cargo fuzz build -O -s none "${dir[@]}") || return 1
-  local t failed=0
-  for t in $(cd fuzz && cargo fuzz list); do
-    mkdir -p "$work/$t"
-    # New inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
-    if (cd fuzz && cargo fuzz run -O -s none "${dir[@]}" "$t" "$work/$t" "seeds/$t" -- \
-        -max_total_time="${FUZZ_SECONDS:-5}" -print_final_stats=1 >"$work/$t.log" 2>&1); then
+  local targets t failed=0 n=0 jobs release
+  targets=$(cd fuzz && cargo fuzz list)
+  jobs=$(nproc)
+  # Each target's binary as `cargo fuzz run` starts it (its artifacts in fuzz/artifacts/$t/);
+  # new inputs go to the scratch corpus; fuzz/seeds/$t (committed) is read only.
+  release=$SIDE_TARGET/fuzz/$(rustc -vV | sed -n 's/^host: //p')/release
+  for t in $targets; do
+    mkdir -p "$work/$t" "fuzz/artifacts/$t"
+    ("$release/$t" -artifact_prefix="$PWD/fuzz/artifacts/$t/" -max_total_time="${FUZZ_SECONDS:-5}" \
+      -print_final_stats=1 "$work/$t" "fuzz/seeds/$t" >"$work/$t.log" 2>&1; echo $? >"$work/$t.rc") &
+    n=$((n + 1))
+    if [ $((n % jobs)) -eq 0 ]; then wait; fi
+  done
+  wait
+  for t in $targets; do
+    if [ "$(cat "$work/$t.rc")" = 0 ]; then
       printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
     else
       grep -A8 "panicked at" "$work/$t.log" | cut -c1-400 || true
@@ -105,18 +109,38 @@ fuzz_stage() {
   return "$failed"
 }
 
-# clippy and the bare-metal builds.
-checks() {
+# clippy, in the tests' profile: run in their target folder after their build, it takes their
+# build scripts (SQLite's and zstd's C) and proc macros as built (measured: 175 s of CPU instead
+# of 308 in a folder of its own).
+lints() {
   say "clippy (all targets, warnings are errors)"
-  cargo clippy --workspace --all-targets -- -D warnings || return 1
+  cargo clippy --workspace --all-targets --profile test -- -D warnings
+}
+
+# The core for the bare-metal target, with and without the simulator (in the side target
+# folder: its own lock).
+bare_metal() {
   say "core builds as no_std for the bare-metal target"
+  local dir=(--target-dir "$SIDE_TARGET")
   if rustup target list --installed 2>/dev/null | grep -qx "$THUMB"; then
-    cargo build -p spherecal --no-default-features --target "$THUMB" || return 1
-    cargo build -p spherecal --no-default-features --features sim --target "$THUMB" || return 1
+    cargo build "${dir[@]}" -p spherecal --no-default-features --target "$THUMB" || return 1
+    cargo build "${dir[@]}" -p spherecal --no-default-features --features sim --target "$THUMB" || return 1
   else
     echo "warning: $THUMB is not installed: the no_std core is built for this machine instead"
-    cargo build -p spherecal --no-default-features || return 1
+    cargo build "${dir[@]}" -p spherecal --no-default-features || return 1
   fi
+}
+
+# cargo-fuzz when missing (a debug build: it only runs cargo, and unoptimised it builds in half
+# the time).
+fuzz_tool() {
+  if ! cargo fuzz --version >/dev/null 2>&1; then
+    cargo install cargo-fuzz --locked --debug >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
+  fi
+}
+
+checks() {
+  lints && bare_metal
 }
 
 # A process and its descendants, each pid on a line.
@@ -141,21 +165,42 @@ widen() {
   done
 }
 
-# One core's work beside the rig tests: the checks and the fuzzing, one job at a time, on the
-# last CPU only (taskset) so that a core stays free for the rig (the idle cycles of the rig's
-# core are not worth it: on it, even in the idle class, the side job slowed the real-time
-# replay measurably: 597 rpm heard for 600), at nice 19 and, where chrt can, in the idle
-# scheduling class (it then takes only what the build leaves: the build ~20 s sooner).
+# Where chrt can: the idle scheduling class (a job in it takes only the cycles the others leave).
+idle_class() {
+  if command -v chrt >/dev/null 2>&1 && chrt -i 0 true 2>/dev/null; then
+    echo chrt -i 0
+  fi
+}
+
+# One core's work beside the build and the rig tests, one job at a time, on the last CPU only
+# (taskset) so that a core stays free for the rig (the idle cycles of the rig's core are not
+# worth it: on it, even in the idle class, the side job slowed the real-time replay measurably:
+# 597 rpm heard for 600), at nice 19 and in the idle class (it takes only what the build
+# leaves): during the build, the bare-metal builds and cargo-fuzz (when missing); once the rig
+# tests run (the file rig-started: their nextest is past its cargo step, whose lock on the
+# target folder clippy then takes), clippy.
 side_jobs() {
   local pin=()
   if command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
     pin=(taskset -c "$(($(nproc) - 1))")
   fi
-  if command -v chrt >/dev/null 2>&1 && chrt -i 0 true 2>/dev/null; then
-    pin+=(chrt -i 0)
-  fi
-  export CARGO_BUILD_JOBS=1 CARGO_TARGET_DIR="$SIDE_TARGET"
-  "${pin[@]}" nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say checks fuzz_stage); $(declare -p work THUMB SIDE_TARGET); checks && fuzz_stage && say 'side job finished'"
+  export CARGO_BUILD_JOBS=1
+  "${pin[@]}" $(idle_class) nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say lints bare_metal fuzz_tool); $(declare -p work THUMB SIDE_TARGET)
+    bare_metal; built=\$?
+    fuzz_tool
+    touch \"\$work/fuzz-ready\"
+    [ \$built -eq 0 ] || exit 1
+    while [ -d \"\$work\" ] && [ ! -e \"\$work/rig-started\" ]; do sleep 1; done
+    lints && say 'side job finished'"
+}
+
+# The fuzzing, from when the rig tests end, on every CPU in the idle class: it takes what the
+# rest of the tests leave (their single-threaded moments), then both CPUs when they end (it was
+# the last to finish, on one CPU: 406 s after the tests).
+fuzz_job() {
+  export CARGO_TARGET_DIR="$SIDE_TARGET"
+  while [ -d "$work" ] && [ ! -e "$work/fuzz-ready" ]; do sleep 1; done
+  $(idle_class) nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say fuzz_stage); $(declare -p work SIDE_TARGET); fuzz_stage && say 'fuzzing finished'"
 }
 
 say "format"
@@ -163,8 +208,9 @@ cargo fmt --all -- --check
 
 # The rig tests replay surveys in real time; measured here, they stall (INS silences through
 # the pseudo-terminal) when both cores are busy, so they run first, one at a time, with a core
-# to themselves: beside them, on the last CPU only, the side job (clippy, the bare-metal builds,
-# the fuzzing), then the rest of the tests; those widen to every CPU when the rig tests end.
+# to themselves: beside them, on the last CPU only, the side job (clippy, the bare-metal builds),
+# then the rest of the tests; those widen to every CPU when the rig tests end, the fuzzing and
+# the Cortex-M check beside them in the idle class.
 RIG='(binary(e2e) & test(/^rig::/)) | test(rig_steady_state)'
 if [ "$RUNNER" = "cargo test --workspace" ]; then
   checks
@@ -173,19 +219,27 @@ if [ "$RUNNER" = "cargo test --workspace" ]; then
   say "tests (cargo test: nextest is not installed)"
   [ -z "$ouster_pid" ] || wait "$ouster_pid" || true
   $RUNNER
+  fuzz_tool
   fuzz_stage
 else
-  # The side job starts now, at nice 19 on one core: it takes what the builds leave (their
-  # single-threaded tails and links) instead of waiting for them (it was the last to finish).
+  # The side job starts now, in the idle class on one core: the bare-metal builds and
+  # cargo-fuzz take what the build leaves (its single-threaded tails and links).
   side_jobs >"$work/side.out" 2>&1 &
   side_pid=$!
   say "tests: build (the side job started beside it)"
   cargo nextest run --workspace --no-run
   say "doc tests (nextest does not run them)"
   cargo test --workspace --doc -q
-  say "tests: the rig tests (real time), beside clippy, the bare-metal builds and the fuzzing on one core"
-  $RUNNER -E "$RIG" &
+  say "tests: the rig tests (real time), beside clippy on one core"
+  $RUNNER -E "$RIG" >"$work/rig.out" 2>&1 &
   rig_pid=$!
+  # Their output as it comes; clippy starts once their nextest has listed the tests (its cargo
+  # step is over).
+  tail -n +1 -f --pid="$rig_pid" "$work/rig.out" &
+  until grep -q "Starting" "$work/rig.out" 2>/dev/null || ! kill -0 "$rig_pid" 2>/dev/null; do
+    sleep 0.5
+  done
+  touch "$work/rig-started"
   # The last CPU is the side job's until it ends (measured: minutes before the rig tests end):
   # then the rest of the tests start there (their output follows the rig tests').
   while kill -0 "$rig_pid" 2>/dev/null && kill -0 "$side_pid" 2>/dev/null; do
@@ -201,8 +255,11 @@ else
   rest_pid=$!
   rig_rc=0
   wait "$rig_pid" || rig_rc=$?
-  say "tests: the rig tests ended; the rest widen to every CPU, the Cortex-M check beside them"
+  sleep 1
+  say "tests: the rig tests ended; the rest widen to every CPU, the fuzzing and the Cortex-M check beside them"
   widen "$rest_pid"
+  fuzz_job >"$work/fuzz.out" 2>&1 &
+  fuzz_pid=$!
   # The core on emulated Cortex-M chips (issue 49), at nice 19: it takes what the rest of the
   # tests leave (their last, single-threaded minutes).
   [ -z "$qemu_pid" ] || wait "$qemu_pid" || true
@@ -215,8 +272,12 @@ else
   cat "$work/rest.out"
   side_rc=0
   wait "$side_pid" || side_rc=$?
-  say "clippy, the bare-metal builds and the fuzzing (run beside the tests)"
+  say "clippy and the bare-metal builds (run beside the build and the rig tests)"
   cat "$work/side.out"
+  fuzz_rc=0
+  wait "$fuzz_pid" || fuzz_rc=$?
+  say "the fuzzing (run beside the rest)"
+  cat "$work/fuzz.out"
   qemu_rc=0
   wait "$qemu_check_pid" || qemu_rc=$?
   say "the core on an emulated Cortex-M (scripts/qemu-check.sh, run beside the rest)"
@@ -224,8 +285,10 @@ else
   [ "$qemu_rc" -eq 0 ] || echo "error: the Cortex-M check failed (above)" >&2
   [ "$rig_rc" -eq 0 ] || echo "error: the rig tests failed (above)" >&2
   [ "$rest_rc" -eq 0 ] || echo "error: tests failed (above)" >&2
-  [ "$side_rc" -eq 0 ] || echo "error: clippy, a bare-metal build or a fuzz target failed (above)" >&2
-  [ "$rig_rc" -eq 0 ] && [ "$rest_rc" -eq 0 ] && [ "$side_rc" -eq 0 ] && [ "$qemu_rc" -eq 0 ] || exit 1
+  [ "$side_rc" -eq 0 ] || echo "error: clippy or a bare-metal build failed (above)" >&2
+  [ "$fuzz_rc" -eq 0 ] || echo "error: a fuzz target failed (above)" >&2
+  [ "$rig_rc" -eq 0 ] && [ "$rest_rc" -eq 0 ] && [ "$side_rc" -eq 0 ] && [ "$fuzz_rc" -eq 0 ] \
+    && [ "$qemu_rc" -eq 0 ] || exit 1
 fi
 # Without nextest (no side job): the core on emulated Cortex-M7 and Cortex-M4 chips, its
 # digests equal to the host's and the M7's budgets (issue 49).
