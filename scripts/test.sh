@@ -79,10 +79,10 @@ fuzz_stage() {
   local dir=(--target-dir "$SIDE_TARGET/fuzz")
   # No sanitizer: the code under test is safe Rust (forbid(unsafe_code)); libFuzzer's
   # coverage guidance and the panics are what find bugs here, 10-30x faster without ASan.
-  # 16 codegen units: the build takes ~130 s of CPU instead of ~390 (one unit), for 10 s runs.
+  # 16 codegen units: the build takes a third of one unit's CPU (~300 s here), for 5 s runs.
   dir+=(--codegen-units 16)
   (cd fuzz && cargo fuzz build -O -s none "${dir[@]}") || return 1
-  local targets t failed=0 n=0 jobs release
+  local targets t failed=0 jobs release pids=()
   targets=$(cd fuzz && cargo fuzz list)
   jobs=$(nproc)
   # Each target's binary as `cargo fuzz run` starts it (its artifacts in fuzz/artifacts/$t/);
@@ -92,10 +92,13 @@ fuzz_stage() {
     mkdir -p "$work/$t" "fuzz/artifacts/$t"
     ("$release/$t" -artifact_prefix="$PWD/fuzz/artifacts/$t/" -max_total_time="${FUZZ_SECONDS:-5}" \
       -print_final_stats=1 "$work/$t" "fuzz/seeds/$t" >"$work/$t.log" 2>&1; echo $? >"$work/$t.rc") &
-    n=$((n + 1))
-    if [ $((n % jobs)) -eq 0 ]; then wait; fi
+    pids+=($!)
+    if [ "${#pids[@]}" -eq "$jobs" ]; then
+      wait "${pids[@]}"
+      pids=()
+    fi
   done
-  wait
+  [ "${#pids[@]}" -eq 0 ] || wait "${pids[@]}"
   for t in $targets; do
     if [ "$(cat "$work/$t.rc")" = 0 ]; then
       printf '%-16s %s\n' "$t" "$(grep -h 'stat::number_of_executed_units' "$work/$t.log" | awk '{print $2}') executions"
@@ -198,7 +201,6 @@ side_jobs() {
 # rest of the tests leave (their single-threaded moments), then both CPUs when they end (it was
 # the last to finish, on one CPU: 406 s after the tests).
 fuzz_job() {
-  export CARGO_TARGET_DIR="$SIDE_TARGET"
   while [ -d "$work" ] && [ ! -e "$work/fuzz-ready" ]; do sleep 1; done
   $(idle_class) nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say fuzz_stage); $(declare -p work SIDE_TARGET); fuzz_stage && say 'fuzzing finished'"
 }
@@ -255,7 +257,7 @@ else
   rest_pid=$!
   rig_rc=0
   wait "$rig_pid" || rig_rc=$?
-  sleep 1
+  sleep 1 # (the tail of their output)
   say "tests: the rig tests ended; the rest widen to every CPU, the fuzzing and the Cortex-M check beside them"
   widen "$rest_pid"
   fuzz_job >"$work/fuzz.out" 2>&1 &

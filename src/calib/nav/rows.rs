@@ -95,11 +95,12 @@ impl Joint<'_, '_> {
     /// white noise, its radial part (what `weights::spread_share` tests against), the
     /// footprint's spread, and the process's wander within the piece, `len / 3 tau` of the
     /// navigation error's variance along a beam (the position's and the rotations' at the
-    /// return's range, each over a direction averaged over the sphere's cap). Its weight is `1 / (white x the factor + share x spread + wander)`, the spread where
-    /// the beam met the sphere at the state the weights are taken at ([`Self::hold`]). The
-    /// weights take the white variance whole, not its radial part: near the silhouette
-    /// what the footprint's bloom model leaves is no smaller (weighed by the radial part,
-    /// table1-real's pitch was biased by -0.34 sigma over 100 seeds).
+    /// return's range, each over a direction averaged over the sphere's cap). Its weight is
+    /// `1 / (white x the factor + share x spread + wander)`, the spread where the beam met the
+    /// sphere at the state the weights are taken at ([`Self::hold`]). The weights take the
+    /// white variance whole, not its radial part: near the silhouette what the footprint's
+    /// bloom model leaves is no smaller (weighed by the radial part, table1-real's pitch was
+    /// biased by -0.34 sigma over 100 seeds).
     fn parts(&self, pb: &Problem<'_>, o: &Observation, len_s: f64, grazing: f64) -> Parts {
         let white = pb.weights.map_or(1e-4, |n| n.variance(o)).max(1e-12);
         let radial = pb

@@ -269,9 +269,10 @@ pub fn same_on_two_cores(
     inp: &spherecal_tools::pipeline::Inputs,
     settings: &spherecal::calib::Settings,
 ) {
+    use spherecal_tools::session::scratch::Scratch;
     let (_, obs) = spherecal_tools::calibrate::collect(inp).unwrap();
     let (t, ids) = spherecal_tools::calibrate::site_targets(inp);
-    let solve = |mut scratch: spherecal_tools::session::scratch::Scratch| {
+    let solve = |mut scratch: Scratch| {
         let mut obs = obs.clone();
         let (sol, _) = spherecal_tools::session::solve_report_in(
             &t,
@@ -293,10 +294,8 @@ pub fn same_on_two_cores(
         (format!("{sol:?}"), verdicts)
     };
     let (one, two) = (
-        solve(spherecal_tools::session::scratch::Scratch::for_settings(
-            settings,
-        )),
-        solve(spherecal_tools::session::scratch::Scratch::for_settings(settings).with_helper()),
+        solve(Scratch::for_settings(settings)),
+        solve(Scratch::for_settings(settings).with_helper()),
     );
     assert!(one.0.contains("converged: true"), "{}", one.0);
     assert!(one.0 == two.0, "one core:\n{}\ntwo:\n{}", one.0, two.0);
