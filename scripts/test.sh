@@ -112,12 +112,12 @@ fuzz_stage() {
   return "$failed"
 }
 
-# clippy, in the tests' profile: run in their target folder after their build, it takes their
-# build scripts (SQLite's and zstd's C) and proc macros as built (measured: 175 s of CPU instead
-# of 308 in a folder of its own).
+# clippy, in the side target folder. (In the tests' folder and profile it took their build
+# scripts and proc macros as built, 175 s of CPU instead of 308, but its ~190 MB of writes to
+# the disk beside the rig tests once overflowed a rig's log ring: 14,477 packets unlogged.)
 lints() {
   say "clippy (all targets, warnings are errors)"
-  cargo clippy --workspace --all-targets --profile test -- -D warnings
+  cargo clippy --target-dir "$SIDE_TARGET" --workspace --all-targets -- -D warnings
 }
 
 # The core for the bare-metal target, with and without the simulator (in the side target
@@ -138,7 +138,8 @@ bare_metal() {
 # the time).
 fuzz_tool() {
   if ! cargo fuzz --version >/dev/null 2>&1; then
-    cargo install cargo-fuzz --locked --debug >/dev/null 2>&1 || echo "warning: could not install cargo-fuzz"
+    cargo install cargo-fuzz --locked --debug --target-dir "$SIDE_TARGET/install" >/dev/null 2>&1 \
+      || echo "warning: could not install cargo-fuzz"
   fi
 }
 
@@ -179,9 +180,8 @@ idle_class() {
 # (taskset) so that a core stays free for the rig (the idle cycles of the rig's core are not
 # worth it: on it, even in the idle class, the side job slowed the real-time replay measurably:
 # 597 rpm heard for 600), at nice 19 and in the idle class (it takes only what the build
-# leaves): during the build, the bare-metal builds and cargo-fuzz (when missing); once the rig
-# tests run (the file rig-started: their nextest is past its cargo step, whose lock on the
-# target folder clippy then takes), clippy.
+# leaves): the bare-metal builds, cargo-fuzz (when missing), clippy; all in their own target
+# folder on the RAM disk, so that nothing is written to the disk the rig tests log to.
 side_jobs() {
   local pin=()
   if command -v taskset >/dev/null 2>&1 && [ "$(nproc)" -ge 2 ]; then
@@ -193,7 +193,6 @@ side_jobs() {
     fuzz_tool
     touch \"\$work/fuzz-ready\"
     [ \$built -eq 0 ] || exit 1
-    while [ -d \"\$work\" ] && [ ! -e \"\$work/rig-started\" ]; do sleep 1; done
     lints && say 'side job finished'"
 }
 
@@ -233,15 +232,8 @@ else
   say "doc tests (nextest does not run them)"
   cargo test --workspace --doc -q
   say "tests: the rig tests (real time), beside clippy on one core"
-  $RUNNER -E "$RIG" >"$work/rig.out" 2>&1 &
+  $RUNNER -E "$RIG" &
   rig_pid=$!
-  # Their output as it comes; clippy starts once their nextest has listed the tests (its cargo
-  # step is over).
-  tail -n +1 -f --pid="$rig_pid" "$work/rig.out" &
-  until grep -q "Starting" "$work/rig.out" 2>/dev/null || ! kill -0 "$rig_pid" 2>/dev/null; do
-    sleep 0.5
-  done
-  touch "$work/rig-started"
   # The last CPU is the side job's until it ends (measured: minutes before the rig tests end):
   # then the rest of the tests start there (their output follows the rig tests').
   while kill -0 "$rig_pid" 2>/dev/null && kill -0 "$side_pid" 2>/dev/null; do
@@ -257,7 +249,6 @@ else
   rest_pid=$!
   rig_rc=0
   wait "$rig_pid" || rig_rc=$?
-  sleep 1 # (the tail of their output)
   say "tests: the rig tests ended; the rest widen to every CPU, the fuzzing and the Cortex-M check beside them"
   widen "$rest_pid"
   fuzz_job >"$work/fuzz.out" 2>&1 &
