@@ -204,6 +204,19 @@ fn datagrams(pcaps: &[PathBuf]) -> (Vec<(u16, Vec<u8>)>, u64) {
     (v, skipped)
 }
 
+/// The rate a `heard:` line gives is within 1 % of `rpm`: it is timed by the host's clock from
+/// the first packet to the last, so a replay's pacing under load moves it a little (CI once:
+/// 4,802 for 4,800).
+fn near_rpm(heard: &str, rpm: f64) {
+    let n = heard
+        .split(" rpm")
+        .next()
+        .and_then(|h| h.rsplit(' ').next())
+        .and_then(|n| n.parse::<f64>().ok());
+    let n = n.unwrap_or_else(|| panic!("no rate in {heard}"));
+    assert!((n - rpm).abs() <= rpm * 0.01, "{n} rpm, not {rpm}: {heard}");
+}
+
 fn summary(log_dir: &Path) -> serde_json::Value {
     let f = files(log_dir, "-run.json");
     assert_eq!(f.len(), 1, "{f:?}");
@@ -709,11 +722,11 @@ fn table1_through_the_rig() {
         heard[0].contains(&format!("data port {dp}"))
             && heard[0].contains("from 127.0.0.1")
             && heard[0].contains("VLP-16")
-            && heard[0].contains("strongest return")
-            && heard[0].contains("600 rpm"),
+            && heard[0].contains("strongest return"),
         "{}",
         heard[0]
     );
+    near_rpm(heard[0], 600.0);
     let last = position.last().unwrap();
     assert!(
         last.contains("PPS locked") && last.contains("NMEA valid"),
@@ -1063,10 +1076,13 @@ fn an_ouster_os1_64_through_the_rig() {
     let sensor = ("metadata.json", [7502, 7503], "OS-1-64");
     let (r, sent, all) = a_sensor_through_the_rig("rig-ouster", &s, (dp, pp), sensor, to_dp);
     // At eight times real time the sensor seems to turn at 4,800 rpm.
+    let heard = all.lines().find(|l| l.starts_with("heard: data port"));
+    let heard = heard.unwrap_or_else(|| panic!("{all}"));
     assert!(
-        all.contains("Ouster lidar packets of its metadata's format, 4800 rpm"),
-        "{all}"
+        heard.contains("Ouster lidar packets of its metadata's format, "),
+        "{heard}"
     );
+    near_rpm(heard, 4800.0);
     assert!(!all.contains("WARNING"), "{all}");
     // Each packet counted as one item (its returns go in several chunks): received =
     // enqueued + ring drops + skipped, as for a VLP-16. At eight times real time beside a busy
