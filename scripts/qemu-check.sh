@@ -37,7 +37,8 @@ fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # The host's digest from the tests' profile (their build already holds the core's
-# dependencies): IEEE arithmetic gives the same bits in any profile.
+# dependencies; cargo writes that profile's binaries to target/debug): IEEE arithmetic gives
+# the same bits in any profile.
 cargo build -q -p spherecal-firmware --profile test
 target/debug/spherecal-firmware >"$work/host"
 figures() { grep -e '^flash ' -e '^ram ' -e '^stack ' -e '^instructions ' "$1"; }

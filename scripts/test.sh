@@ -200,7 +200,10 @@ side_jobs() {
 # rest of the tests leave (their single-threaded moments), then both CPUs when they end (it was
 # the last to finish, on one CPU: 406 s after the tests).
 fuzz_job() {
-  while [ -d "$work" ] && [ ! -e "$work/fuzz-ready" ]; do sleep 1; done
+  # Until the side job says the fuzz build may start, or ends without saying it.
+  while [ -d "$work" ] && [ ! -e "$work/fuzz-ready" ] && kill -0 "$side_pid" 2>/dev/null; do
+    sleep 1
+  done
   $(idle_class) nice -n 19 bash -c "SECONDS=$SECONDS; $(declare -f say fuzz_stage); $(declare -p work SIDE_TARGET); fuzz_stage && say 'fuzzing finished'"
 }
 
