@@ -4,7 +4,8 @@
 //!
 //! The receive time is the kernel's (SO_TIMESTAMPNS, socket(7): the time the datagram reached
 //! the socket, read from the `recvmsg` control message) where the OS gives it, else the host's
-//! wall clock right after the read returns. The kernel's own drop count for the socket (its
+//! wall clock right after the read returns. A socket is bound only once the kernel stamps
+//! datagrams on arrival ([`await_arrival_stamps`]). The kernel's own drop count for the socket (its
 //! receive buffer was full) is read from /proc/net/udp.
 
 use crate::packet::{Datagram, HostTime, PacketSource, Record};
@@ -42,10 +43,11 @@ impl UdpSource {
         // The kernel may cap the size (net.core.rmem_max): a smaller buffer is not fatal.
         let _ = s.set_recv_buffer_size(RECV_BUFFER);
         s.set_read_timeout(Some(timeout.max(Duration::from_millis(1))))?;
+        // Stamping is asked for, and known to be on, before the socket can queue a datagram.
+        let kernel_stamps = enable_kernel_stamps(&s) && await_arrival_stamps();
         s.bind(&SocketAddr::V4(SocketAddrV4::new(addr, port)).into())?;
         let socket: UdpSocket = s.into();
         let port = socket.local_addr()?.port();
-        let kernel_stamps = enable_kernel_stamps(&socket);
         Ok(Self {
             socket,
             port,
@@ -57,7 +59,7 @@ impl UdpSource {
         })
     }
 
-    /// Does the kernel stamp this socket's datagrams?
+    /// Does the kernel stamp this socket's datagrams on their arrival?
     pub fn kernel_stamps(&self) -> bool {
         self.kernel_stamps
     }
@@ -162,12 +164,56 @@ impl DropProbe {
 }
 
 #[cfg(target_os = "linux")]
-fn enable_kernel_stamps(s: &UdpSocket) -> bool {
+fn enable_kernel_stamps(s: &impl std::os::fd::AsFd) -> bool {
     nix::sys::socket::setsockopt(s, nix::sys::socket::sockopt::ReceiveTimestampns, &true).is_ok()
 }
 
 #[cfg(not(target_os = "linux"))]
-fn enable_kernel_stamps(_: &UdpSocket) -> bool {
+fn enable_kernel_stamps<S>(_: &S) -> bool {
+    false
+}
+
+/// Longest wait for the kernel to stamp datagrams on arrival.
+const STAMP_WAIT: Duration = Duration::from_millis(500);
+
+/// Waits until Linux stamps datagrams when they arrive; false if it did not within
+/// [`STAMP_WAIT`] (or loopback is down).
+///
+/// The first socket to ask for receive stamps turns them on for the whole system by a deferred
+/// work item (net/core/dev.c, `net_enable_timestamp`); a datagram that arrives before it has
+/// run is stamped when it is read instead (net/core/sock.c, `__sock_recv_timestamp`), so a
+/// burst read late would carry times later than the datagrams after it. A probe datagram on
+/// loopback, read a little after it was sent, tells which: it carries its sending time once
+/// stamping is on. The socket that asked keeps it on while it is open.
+#[cfg(target_os = "linux")]
+fn await_arrival_stamps() -> bool {
+    let probe = || -> io::Result<bool> {
+        let rx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0))?;
+        rx.set_read_timeout(Some(Duration::from_millis(100)))?;
+        if !enable_kernel_stamps(&rx) {
+            return Ok(false);
+        }
+        let tx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0))?;
+        let to = rx.local_addr()?;
+        let start = std::time::Instant::now();
+        let (mut buf, mut cmsg) = ([0u8; 8], CmsgBuf([0; 64]));
+        while start.elapsed() < STAMP_WAIT {
+            tx.send_to(b"probe", to)?;
+            std::thread::sleep(Duration::from_millis(2));
+            let read = crate::clock::wall().0;
+            if let (_, _, Some(stamp)) = recv_stamped(&rx, &mut buf, &mut cmsg.0)? {
+                if stamp < read {
+                    return Ok(true);
+                }
+            }
+        }
+        Ok(false)
+    };
+    probe().unwrap_or(false)
+}
+
+#[cfg(not(target_os = "linux"))]
+fn await_arrival_stamps() -> bool {
     false
 }
 
@@ -299,5 +345,30 @@ mod tests {
         let probe = rx.drop_probe();
         drop(rx);
         assert_eq!(probe.read(), None, "a closed socket has no row");
+    }
+
+    /// A datagram that waits in the socket is stamped when it arrived, not when it is read,
+    /// from the first one on. Without [`await_arrival_stamps`] this fails whenever the
+    /// kernel's deferred switch has not run before the first datagram; force that with
+    /// `chrt -f 50 taskset -c 0` on the test binary (the switch's worker then waits for the
+    /// test to sleep).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_first_datagram_carries_its_arrival_time() {
+        let mut rx = UdpSource::bind(Ipv4Addr::LOCALHOST, 0, Duration::from_millis(500)).unwrap();
+        let tx = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).unwrap();
+        tx.send_to(b"first", (Ipv4Addr::LOCALHOST, rx.port()))
+            .unwrap();
+        let sent = crate::clock::wall().0;
+        std::thread::sleep(Duration::from_millis(20));
+        let read = crate::clock::wall().0;
+        assert!(rx.kernel_stamps());
+        let d = rx.recv().unwrap().expect("a datagram");
+        assert!(
+            d.time.0 <= sent,
+            "stamped {:.3} ms after it was sent; the read was {:.3} ms after",
+            (d.time.0 - sent) as f64 / 1e6,
+            (read - sent) as f64 / 1e6
+        );
     }
 }

@@ -30,7 +30,11 @@ fn loopback_datagrams_arrive_whole_and_in_order() {
         assert_eq!(d.dst_port, port);
         assert_eq!(d.src_addr, Ipv4Addr::LOCALHOST);
         if let Some(t) = last {
-            assert!(d.time >= t, "receive times never go back");
+            assert!(
+                d.time >= t,
+                "receive times never go back: datagram {i} is {} ns before the one before it",
+                t.0 - d.time.0
+            );
         }
         last = Some(d.time);
     }
