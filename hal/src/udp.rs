@@ -5,8 +5,9 @@
 //! The receive time is the kernel's (SO_TIMESTAMPNS, socket(7): the time the datagram reached
 //! the socket, read from the `recvmsg` control message) where the OS gives it, else the host's
 //! wall clock right after the read returns. A socket is bound only once the kernel stamps
-//! datagrams on arrival ([`await_arrival_stamps`]). The kernel's own drop count for the socket (its
-//! receive buffer was full) is read from /proc/net/udp.
+//! datagrams on arrival (Linux turns the stamps on some time after the first socket asks).
+//! The kernel's own drop count for the socket (its receive buffer was full) is read from
+//! /proc/net/udp.
 
 use crate::packet::{Datagram, HostTime, PacketSource, Record};
 use socket2::{Domain, Protocol, Socket, Type};
